@@ -1,0 +1,19 @@
+"""Command-line interface: ``deltafmi build|info|run|validate|plot``.
+
+The commands live next to what they drive (``export.commands``, ``cosim.commands``); this module
+only assembles the click group.
+"""
+import click
+
+from deltafmi.cosim.commands import plot, run, validate
+from deltafmi.export.commands import build, info
+
+
+@click.group()
+@click.version_option(package_name="deltafmi")
+def main() -> None:
+    """deltafmi: Python components as FMI 2.0 FMUs, and a master for closed-loop co-simulation."""
+
+
+for command in (build, info, run, validate, plot):
+    main.add_command(command)

@@ -1,0 +1,100 @@
+"""The :class:`Component` base class that models and controllers derive from."""
+from __future__ import annotations
+
+from typing import Any, ClassVar, Optional, Sequence
+
+import numpy as np
+
+from .layout import Layout, build_layout
+from .variables import Experiment
+
+LOG_LEVELS = {"info": 0, "warning": 1, "error": 3}
+
+
+class Component:
+    """A physical model or controller that becomes one FMI 2.0 FMU (Model Exchange + Co-Simulation).
+
+    Declare variables as class attributes (:class:`Parameter`, :class:`Input`, :class:`Output`,
+    :class:`State`) and override the hooks below. The first line of the class docstring becomes
+    the FMU description.
+    """
+
+    model_name: ClassVar[Optional[str]] = None
+    default_experiment: ClassVar[Experiment] = Experiment()
+    n_event_indicators: ClassVar[int] = 0
+    #: options of the internal CVODE used by Co-Simulation ``doStep``: rtol, atol, max_step, method
+    cs_options: ClassVar[dict] = {}
+    author: ClassVar[str] = ""
+    version: ClassVar[str] = "1.0"
+
+    _layout: ClassVar[Layout]
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls._layout = build_layout(cls)
+
+    def __init__(self, resources_dir: str = "") -> None:
+        self._attach(resources_dir, [])
+
+    def _attach(self, resources_dir: str, log_sink: list, buffers: Optional[tuple] = None) -> None:
+        """Set start values (into ``buffers`` when given, so their addresses stay), then setup()."""
+        layout = self._layout
+        if buffers is None:
+            buffers = (np.empty_like(layout.real_start), np.empty_like(layout.int_start), [])
+        self._real, self._int, self._str = buffers
+        self._real[:] = layout.real_start
+        self._int[:] = layout.int_start
+        self._str[:] = layout.str_start
+        self._log_sink = log_sink
+        self.resources_dir = resources_dir
+        self.setup()
+
+    # --- hooks ------------------------------------------------------------------------------
+    def setup(self) -> None:
+        """Create internal (non-FMI) state. Called at construction and at ``fmi2Reset``."""
+
+    def initialize(self, t: float) -> None:
+        """Compute calculated start values from parameters (runs during initialization mode)."""
+
+    def derivatives(self, t: float) -> Sequence[float]:
+        """State derivatives, flat, in State declaration order."""
+        return ()
+
+    def outputs(self, t: float) -> None:
+        """Assign the outputs for the current time, states and inputs."""
+
+    def event_indicators(self, t: float) -> Sequence[float]:
+        """``n_event_indicators`` values; an event happens where one changes sign."""
+        return ()
+
+    def update(self, t: float) -> Optional[bool]:
+        """Discrete update at an event; return True if another event iteration is needed."""
+        return None
+
+    def next_time_event(self, t: float) -> Optional[float]:
+        """The next time event strictly after ``t``, or None."""
+        return None
+
+    def do_step(self, t: float, h: float) -> None:
+        """Advance from ``t`` to ``t + h``. Override only for purely discrete components."""
+        raise NotImplementedError
+
+    # --- services ---------------------------------------------------------------------------
+    def log(self, message: str, level: str = "info") -> None:
+        """Send a message to the importer's FMI logger (``info``, ``warning`` or ``error``)."""
+        self._log_sink.append((LOG_LEVELS.get(level, 0), f"log{level.capitalize()}", str(message)))
+
+    @classmethod
+    def fmi_model_name(cls) -> str:
+        """The FMI model name and model identifier."""
+        return cls.model_name or cls.__name__
+
+    @classmethod
+    def overrides_do_step(cls) -> bool:
+        """True when the component steps itself in Co-Simulation."""
+        return cls.do_step is not Component.do_step
+
+    @property
+    def states(self) -> np.ndarray:
+        """View of all continuous states (flat)."""
+        return self._real[: self._layout.nx]

@@ -1,0 +1,159 @@
+"""A thin, reusable CVODE integrator over the SUNDIALS libraries that fmpy ships.
+
+fmpy's own ``CVodeSolver`` is tied to FMU callbacks and integrates past the output point; this one
+works on numpy callbacks, stops exactly at a stop time (``CVodeSetStopTime``) so zero-order-hold
+inputs are never sampled beyond a communication point, reports roots, and keeps its step-size
+history between calls until :meth:`Cvode.reinit` is called after a state jump.
+"""
+from __future__ import annotations
+
+import ctypes
+from ctypes import byref, c_double, c_int, c_void_p
+from typing import Callable, Optional
+
+import numpy as np
+from fmpy.sundials import cvode as _cv
+from fmpy.sundials.libraries import sundials_cvode
+from fmpy.sundials.nvector_serial import N_VNew_Serial, NV_DATA_S
+from fmpy.sundials.sundials_context import SUNContext_Create
+from fmpy.sundials.sundials_nvector import N_Vector
+from fmpy.sundials.sundials_types import SUN_COMM_NULL, SUNContext
+from fmpy.sundials.sunlinsol_dense import SUNLinSol_Dense
+from fmpy.sundials.sunmatrix_dense import SUNDenseMatrix
+from fmpy.sundials.cvode_ls import CVodeSetLinearSolver
+
+
+
+def _bind(name: str, argtypes: list) -> ctypes._CFuncPtr:
+    # a private function object (indexing does not share fmpy's cached one and its argtypes)
+    function = sundials_cvode[name]
+    function.argtypes, function.restype = argtypes, c_int
+    return function
+
+
+_set_stop_time = _bind("CVodeSetStopTime", [c_void_p, c_double])
+# callbacks take raw addresses: cheaper than fmpy's POINTER(struct) arguments, and hashable
+_RhsFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_void_p)
+_cvode_init = _bind("CVodeInit", [c_void_p, _RhsFn, c_double, c_void_p])
+_cvode_root_init = _bind("CVodeRootInit", [c_void_p, c_int, _RhsFn])
+
+Rhs = Callable[[float, np.ndarray, np.ndarray], None]
+Roots = Callable[[float, np.ndarray, np.ndarray], None]
+
+
+class CvodeError(RuntimeError):
+    """CVODE failed (error test or convergence failures, too much work, ...)."""
+
+
+class Cvode:
+    """CVODE (BDF with dense Newton by default, or Adams) on ``x' = rhs(t, x)`` with root finding.
+
+    ``rhs(t, x, xdot)`` and ``roots(t, x, g)`` fill their last argument in place; ``x`` is the
+    solver's own memory viewed as a numpy array, valid during the call only.
+    """
+
+    def __init__(self, rhs: Rhs, x0: np.ndarray, t0: float, *, roots: Optional[Roots] = None,
+                 n_roots: int = 0, rtol: float = 1e-6, atol: float | np.ndarray = 1e-8,
+                 max_step: float = 0.0, method: str = "bdf", max_num_steps: int = 100000) -> None:
+        self.n = n = len(x0)
+        self.n_roots = n_roots if roots is not None else 0
+        self._rhs, self._roots = rhs, roots
+        self._ctx = SUNContext()
+        _check(SUNContext_Create(SUN_COMM_NULL, byref(self._ctx)), "SUNContext_Create")
+        self._y = N_VNew_Serial(n, self._ctx)
+        self.x = np.ctypeslib.as_array(NV_DATA_S(self._y), (n,))
+        self.x[:] = x0
+        self._atol = N_VNew_Serial(n, self._ctx)
+        np.ctypeslib.as_array(NV_DATA_S(self._atol), (n,))[:] = atol
+        lmm = _cv.CV_ADAMS if method == "adams" else _cv.CV_BDF
+        self._mem = _cv.CVodeCreate(lmm, self._ctx)
+        # keep the ctypes callbacks referenced: CVODE only holds raw pointers
+        self._f = _RhsFn(self._f_callback)
+        self._g = _RhsFn(self._g_callback)
+        _check(_cvode_init(self._mem, self._f, t0, self._y), "CVodeInit")
+        _check(_cv.CVodeSVtolerances(self._mem, rtol, self._atol), "CVodeSVtolerances")
+        if self.n_roots:
+            _check(_cvode_root_init(self._mem, self.n_roots, self._g), "CVodeRootInit")
+            _check(_cv.CVodeSetNoInactiveRootWarn(self._mem), "CVodeSetNoInactiveRootWarn")
+        self._A = SUNDenseMatrix(n, n, self._ctx)
+        self._LS = SUNLinSol_Dense(self._y, self._A, self._ctx)
+        _check(CVodeSetLinearSolver(self._mem, self._LS, self._A), "CVodeSetLinearSolver")
+        if max_step > 0:
+            _check(_cv.CVodeSetMaxStep(self._mem, max_step), "CVodeSetMaxStep")
+        _check(_cv.CVodeSetMaxNumSteps(self._mem, max_num_steps), "CVodeSetMaxNumSteps")
+        self._root_info = np.zeros(max(self.n_roots, 1), dtype=np.int32)
+        self._views: dict[int, np.ndarray] = {}
+        self.t = t0
+
+    def _view(self, vector: int) -> np.ndarray:
+        # CVODE passes a handful of internal vectors over and over: build each view only once
+        view = self._views.get(vector)
+        if view is None:
+            data = NV_DATA_S(ctypes.cast(vector, N_Vector))
+            view = self._views[vector] = np.ctypeslib.as_array(data, (self.n,))
+        return view
+
+    def _roots_view(self, address: int) -> np.ndarray:
+        view = self._views.get(address)
+        if view is None:
+            pointer = ctypes.cast(address, ctypes.POINTER(c_double))
+            view = self._views[address] = np.ctypeslib.as_array(pointer, (self.n_roots,))
+        return view
+
+    def _f_callback(self, t: float, y: int, ydot: int, _user: int) -> int:
+        try:
+            self._rhs(t, self._view(y), self._view(ydot))
+            return 0
+        except Exception as exc:  # noqa: BLE001 - CVODE can only take an error code
+            self.callback_error = exc
+            return -1
+
+    def _g_callback(self, t: float, y: int, gout: int, _user: int) -> int:
+        try:
+            self._roots(t, self._view(y), self._roots_view(gout))
+            return 0
+        except Exception as exc:  # noqa: BLE001
+            self.callback_error = exc
+            return -1
+
+    def advance(self, t_stop: float) -> bool:
+        """Integrate to ``t_stop`` exactly, or to the first root before it.
+
+        Returns True when a root stopped the integration; :attr:`t` and :attr:`x` hold the
+        reached time and state, :attr:`roots` which indicators crossed (+1/-1 direction).
+        """
+        self.callback_error = None
+        _set_stop_time(self._mem, t_stop)
+        tret = c_double(0.0)
+        flag = _cv.CVode(self._mem, t_stop, self._y, byref(tret), _cv.CV_NORMAL)
+        if flag < 0:
+            if self.callback_error is not None:
+                raise self.callback_error
+            raise CvodeError(f"CVODE failed with flag {flag} at t = {tret.value:.9g}")
+        self.t = tret.value
+        if flag == _cv.CV_ROOT_RETURN:
+            _check(_cv.CVodeGetRootInfo(self._mem, self._root_info.ctypes.data_as(ctypes.POINTER(c_int))),
+                   "CVodeGetRootInfo")
+            return True
+        return False
+
+    @property
+    def roots(self) -> np.ndarray:
+        """Crossing directions of the last root return (0 where no root)."""
+        return self._root_info[: self.n_roots]
+
+    def reinit(self, t: float, x: np.ndarray) -> None:
+        """Restart at ``(t, x)``, discarding the step history (after a discontinuity)."""
+        self.x[:] = x
+        _check(_cv.CVodeReInit(self._mem, t, self._y), "CVodeReInit")
+        self.t = t
+
+    def __del__(self) -> None:
+        mem = getattr(self, "_mem", None)
+        if mem:
+            _cv.CVodeFree(byref(c_void_p(mem)))
+
+
+def _check(flag: int, what: str) -> None:
+    if flag < 0:
+        raise CvodeError(f"{what} failed with flag {flag}")

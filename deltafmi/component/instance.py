@@ -1,0 +1,244 @@
+"""One FMU instance on the Python side: what the native bridge calls for each fmi2 function.
+
+The native loader owns the FMI state machine and reads/writes the value buffers directly; it
+calls into this class only for work that needs the model: evaluation, initialization, event
+updates, Co-Simulation steps and FMU state. Methods return an FMI status code (0 OK, 1 warning,
+2 discard, 3 error) or raise (the bridge turns exceptions into ``fmi2Error`` plus a traceback).
+"""
+from __future__ import annotations
+
+import copy
+import math
+import pickle
+from contextlib import nullcontext
+from typing import Any, Callable, ContextManager, Optional
+
+import numpy as np
+
+from .base import Component
+from .cvode import Cvode
+
+OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
+MODEL_EXCHANGE, CO_SIMULATION = 0, 1
+_MAX_EVENT_ITERATIONS = 100
+_RUNTIME_ATTRIBUTES = frozenset({"_real", "_int", "_str", "_log_sink", "resources_dir"})
+
+
+class FmuInstance:
+    """The model side of one ``fmi2Component``."""
+
+    def __init__(self, component_class: type[Component], instance_name: str = "instance",
+                 fmu_type: int = CO_SIMULATION, resources_dir: str = "",
+                 module_context: Callable[[], ContextManager] = nullcontext) -> None:
+        self.component_class = component_class
+        self.instance_name = instance_name
+        self.fmu_type = fmu_type
+        self.resources_dir = resources_dir
+        self._module_context = module_context
+        layout = component_class._layout
+        self.nx, self.nz = layout.nx, component_class.n_event_indicators
+        self.pending_logs: list = []
+        self.event_indicators = np.zeros(max(self.nz, 1))
+        self._new_component()
+        self.time = 0.0
+        self.stop_time = math.inf
+        self.tolerance: Optional[float] = None
+        self.in_initialization = False
+        self.terminate_requested = False
+        self._solver: Optional[Cvode] = None
+        self._next_time_event: Optional[float] = None
+
+    def _new_component(self, buffers: Optional[tuple] = None) -> None:
+        comp = self.component = self.component_class.__new__(self.component_class)
+        comp._attach(self.resources_dir, self.pending_logs, buffers)
+
+    # --- what the native layer needs to know ------------------------------------------------
+    def native_layout(self) -> tuple:
+        """Addresses and sizes of the buffers the native layer reads and writes directly."""
+        comp, layout = self.component, self.component_class._layout
+        return (comp._real.ctypes.data, layout.n_real, comp._int.ctypes.data, layout.n_int,
+                layout.flags.ctypes.data, layout.n_str, layout.nx, layout.x_offset,
+                layout.dx_offset, self.event_indicators.ctypes.data, self.nz,
+                layout.nominals.ctypes.data)
+
+    # --- initialization ---------------------------------------------------------------------
+    def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:
+        """``fmi2SetupExperiment`` values (stop/tolerance NaN when undefined), then init mode."""
+        self.time = start
+        self.stop_time = stop if not math.isnan(stop) else math.inf
+        self.tolerance = tolerance if not math.isnan(tolerance) else None
+        self.in_initialization = True
+        return OK
+
+    def exit_initialization(self) -> int:
+        """Leave initialization mode with consistent outputs; prepare the Co-Simulation solver."""
+        self.evaluate(self.time)
+        self.in_initialization = False
+        if self.fmu_type == CO_SIMULATION:
+            self._initial_event_iteration()
+        return OK
+
+    # --- evaluation -------------------------------------------------------------------------
+    def evaluate(self, t: float) -> int:
+        """Compute derivatives, outputs and event indicators at ``t`` into the buffers."""
+        comp = self.component
+        if self.in_initialization:
+            comp.initialize(t)
+        if self.nx:
+            comp._real[self.nx:2 * self.nx] = comp.derivatives(t)
+        comp.outputs(t)
+        if self.nz:
+            self.event_indicators[:] = comp.event_indicators(t)
+        return OK
+
+    def event_update(self, t: float) -> tuple:
+        """``fmi2NewDiscreteStates``: one discrete update at ``t``.
+
+        Returns (newDiscreteStatesNeeded, terminateSimulation, nominalsChanged,
+        valuesOfContinuousStatesChanged, nextEventTimeDefined, nextEventTime).
+        """
+        comp = self.component
+        states_before = comp._real[: self.nx].copy()
+        self.evaluate(t)
+        again = bool(comp.update(t))
+        changed = not np.array_equal(states_before, comp._real[: self.nx])
+        self.evaluate(t)
+        nte = comp.next_time_event(t)
+        self._next_time_event = nte
+        return (again, self.terminate_requested, False, changed, nte is not None,
+                float(nte) if nte is not None else 0.0)
+
+    # --- co-simulation ----------------------------------------------------------------------
+    def do_step(self, t: float, h: float) -> int:
+        """``fmi2DoStep`` from ``t`` to ``t + h``: integrate with CVODE, handle events inside."""
+        comp = self.component
+        if abs(t - self.time) > 1e-9 * max(1.0, abs(t)):
+            self.log(ERROR, "logStatusError",
+                     f"fmi2DoStep: currentCommunicationPoint {t!r} differs from the FMU time {self.time!r}")
+            return ERROR
+        t_end = t + h
+        if self.component_class.overrides_do_step():
+            comp.do_step(t, h)
+            self.time = t_end
+            self.evaluate(t_end)
+            return OK
+        while self.time < t_end and not self.terminate_requested:
+            nte = self._next_time_event
+            t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
+            if self.nx:
+                root = self._integrate_to(t_stop)
+            else:
+                root, self.time = False, t_stop
+            time_event = nte is not None and self.time >= nte - 1e-12 * max(1.0, abs(nte))
+            if root or time_event:
+                self._event_iteration()
+        if not self.terminate_requested:
+            self.time = t_end  # remove round-off so the next doStep matches exactly
+        self.evaluate(self.time)
+        return DISCARD if self.terminate_requested else OK
+
+    def _integrate_to(self, t_stop: float) -> bool:
+        if self._solver is None:
+            self._solver = self._make_solver()
+        solver, comp = self._solver, self.component
+        root = solver.advance(t_stop)
+        comp._real[: self.nx] = solver.x
+        self.time = solver.t if root else t_stop
+        return root
+
+    def _make_solver(self) -> Cvode:
+        options = dict(self.component_class.cs_options)
+        rtol = options.pop("rtol", self.tolerance or 1e-6)
+        atol = options.pop("atol", rtol * 1e-2)
+        comp, nx = self.component, self.nx
+
+        def rhs(t: float, x: np.ndarray, xdot: np.ndarray) -> None:
+            comp._real[:nx] = x
+            xdot[:] = comp.derivatives(t)
+
+        def roots(t: float, x: np.ndarray, g: np.ndarray) -> None:
+            comp._real[:nx] = x
+            g[:] = comp.event_indicators(t)
+
+        return Cvode(rhs, comp._real[:nx].copy(), self.time, roots=roots if self.nz else None,
+                     n_roots=self.nz, rtol=rtol, atol=atol, **options)
+
+    def _initial_event_iteration(self) -> None:
+        self._event_iteration()
+
+    def _event_iteration(self) -> None:
+        for _ in range(_MAX_EVENT_ITERATIONS):
+            again, terminate, _, changed, _, _ = self.event_update(self.time)
+            if changed and self._solver is not None:
+                self._solver.reinit(self.time, self.component._real[: self.nx])
+            if terminate or not again:
+                return
+        raise RuntimeError(f"event iteration at t = {self.time} did not converge in "
+                           f"{_MAX_EVENT_ITERATIONS} iterations")
+
+    # --- strings ----------------------------------------------------------------------------
+    def get_string(self, index: int) -> str:
+        """Value of the ``index``-th string scalar."""
+        return self.component._str[index]
+
+    def set_string(self, index: int, value: str) -> int:
+        """Set the ``index``-th string scalar."""
+        self.component._str[index] = value
+        return OK
+
+    # --- FMU state --------------------------------------------------------------------------
+    def get_state(self) -> dict:
+        """A snapshot of everything: buffers, internal component attributes, time, mode."""
+        comp = self.component
+        internal = {k: v for k, v in vars(comp).items() if k not in _RUNTIME_ATTRIBUTES}
+        return {
+            "real": comp._real.copy(), "int": comp._int.copy(), "str": list(comp._str),
+            "internal": copy.deepcopy(internal), "time": self.time,
+            "next_time_event": self._next_time_event, "in_initialization": self.in_initialization,
+            "terminate_requested": self.terminate_requested,
+        }
+
+    def set_state(self, state: dict) -> int:
+        """Restore a snapshot from :meth:`get_state`; the CS solver restarts from it."""
+        comp = self.component
+        comp._real[:] = state["real"]
+        comp._int[:] = state["int"]
+        comp._str[:] = state["str"]
+        for key in [k for k in vars(comp) if k not in _RUNTIME_ATTRIBUTES]:
+            delattr(comp, key)
+        vars(comp).update(copy.deepcopy(state["internal"]))
+        self.time = state["time"]
+        self._next_time_event = state["next_time_event"]
+        self.in_initialization = state["in_initialization"]
+        self.terminate_requested = state["terminate_requested"]
+        if self._solver is not None:
+            self._solver.reinit(self.time, comp._real[: self.nx])
+        return OK
+
+    def serialize_state(self, state: dict) -> bytes:
+        """Bytes for ``fmi2SerializeFMUstate``."""
+        with self._module_context():
+            return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def deserialize_state(self, data: bytes) -> dict:
+        """Inverse of :meth:`serialize_state`."""
+        with self._module_context():
+            return pickle.loads(data)
+
+    # --- life cycle -------------------------------------------------------------------------
+    def terminate(self) -> int:
+        """``fmi2Terminate``."""
+        return OK
+
+    def reset(self) -> int:
+        """``fmi2Reset``: back to the freshly instantiated state (same buffer addresses)."""
+        old = self.component
+        self._new_component((old._real, old._int, old._str))
+        self.time, self.stop_time, self.tolerance = 0.0, math.inf, None
+        self.in_initialization = self.terminate_requested = False
+        self._solver, self._next_time_event = None, None
+        return OK
+
+    def log(self, status: int, category: str, message: str) -> None:
+        """Queue a message for the importer's logger."""
+        self.pending_logs.append((status, category, message))

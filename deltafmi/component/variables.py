@@ -1,0 +1,174 @@
+"""Variable declarations of a component: ``Parameter``, ``Input``, ``Output``, ``State``.
+
+A declaration is a class attribute of a :class:`~deltafmi.component.Component`. It is also a data
+descriptor: on an instance it reads and writes the component's FMI value buffers, so a model works
+with ``self.q`` while the native FMI layer reads the very same memory without calling Python.
+Array declarations become Modelica-style scalar FMI variables ``q[1]``, ``q[2]``, ...
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Optional, Sequence
+
+import numpy as np
+
+_TYPES = {float: "Real", int: "Integer", bool: "Boolean", str: "String"}
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """The FMU's default experiment (``<DefaultExperiment>``)."""
+
+    start: float = 0.0
+    stop: float = 1.0
+    step: float = 1e-3
+    tolerance: float = 1e-6
+
+
+class Variable:
+    """Base declaration: one scalar or a 1-D array of scalars of one FMI type."""
+
+    causality = "local"
+
+    def __init__(
+        self,
+        start: Any = None,
+        *,
+        shape: Optional[int] = None,
+        type: Optional[type] = None,
+        unit: str = "",
+        description: str = "",
+        min: Optional[float] = None,
+        max: Optional[float] = None,
+        nominal: Optional[float] = None,
+        variability: Optional[str] = None,
+        initial: Optional[str] = None,
+    ) -> None:
+        if start is not None and not isinstance(start, (str, bool, int, float)):
+            start_list = list(np.asarray(start).ravel().tolist())
+            if shape is not None and shape != len(start_list):
+                raise ValueError(f"start has {len(start_list)} values but shape is {shape}")
+            shape = len(start_list)
+        elif start is not None and shape is not None:
+            start_list = [start] * shape
+        else:
+            start_list = None if start is None else [start]
+        if type is None:
+            sample = start_list[0] if start_list else 0.0
+            type = bool if isinstance(sample, bool) else str if isinstance(sample, str) else float
+        if type not in _TYPES:
+            raise TypeError(f"unsupported variable type {type!r}; use float, int, bool or str")
+        self.type = type
+        self.shape = shape
+        size = 1 if shape is None else shape
+        default = {float: 0.0, int: 0, bool: False, str: ""}[type]
+        self.start = [type(v) for v in start_list] if start_list else [default] * size
+        self.unit = unit
+        self.description = description
+        self.min = min
+        self.max = max
+        self.nominal = nominal
+        self.variability = variability or self._default_variability()
+        self.initial = initial
+        self.name = ""
+        self.offset = 0  # index of the first scalar in the component's buffer of this type
+
+    # --- naming -----------------------------------------------------------------------------
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    @property
+    def size(self) -> int:
+        """Number of scalar FMI variables this declaration stands for."""
+        return 1 if self.shape is None else self.shape
+
+    def scalar_names(self) -> list[str]:
+        """FMI names of the scalars: ``x`` or ``x[1]``, ``x[2]``, ..."""
+        if self.shape is None:
+            return [self.name]
+        return [f"{self.name}[{i + 1}]" for i in range(self.shape)]
+
+    @property
+    def fmi_type(self) -> str:
+        """``Real``, ``Integer``, ``Boolean`` or ``String``."""
+        return _TYPES[self.type]
+
+    @property
+    def buffer(self) -> str:
+        """Which value buffer holds the scalars: ``real``, ``int`` or ``str``."""
+        return {float: "real", int: "int", bool: "int", str: "str"}[self.type]
+
+    def _default_variability(self) -> str:
+        return "continuous" if self.type is float else "discrete"
+
+    # --- descriptor -------------------------------------------------------------------------
+    def __get__(self, obj: Any, owner: type) -> Any:
+        if obj is None:
+            return self
+        if self.type is str:
+            return obj._str[self.offset] if self.shape is None else obj._str[self.offset:self.offset + self.shape]
+        buf = obj._real if self.type is float else obj._int
+        if self.shape is None:
+            value = buf.item(self.offset)
+            return bool(value) if self.type is bool else value
+        return buf[self.offset:self.offset + self.shape]
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        if self.type is str:
+            if self.shape is None:
+                obj._str[self.offset] = str(value)
+            else:
+                obj._str[self.offset:self.offset + self.shape] = [str(v) for v in value]
+            return
+        buf = obj._real if self.type is float else obj._int
+        if self.shape is None:
+            buf[self.offset] = value
+        else:
+            buf[self.offset:self.offset + self.shape] = value
+
+
+class Parameter(Variable):
+    """A parameter: fixed during a run unless ``tunable=True`` (then changeable at events)."""
+
+    causality = "parameter"
+
+    def __init__(self, start: Any = None, *, tunable: bool = False, **kwargs: Any) -> None:
+        kwargs.setdefault("variability", "tunable" if tunable else "fixed")
+        super().__init__(start, **kwargs)
+
+
+class Input(Variable):
+    """An input, set by the importer; continuous for reals, discrete otherwise."""
+
+    causality = "input"
+
+
+class Output(Variable):
+    """An output, computed by the component in ``outputs()``, ``derivatives()`` or ``update()``."""
+
+    causality = "output"
+
+
+class State(Variable):
+    """A continuous state. The FMU also gets a derivative variable ``der(name)`` per scalar.
+
+    ``initial="exact"`` (default) makes the start value settable before initialization;
+    ``initial="calculated"`` means ``initialize()`` computes it (e.g. from a parameter).
+    ``derivative_unit`` defaults to ``unit + "/s"``.
+    """
+
+    causality = "local"
+
+    def __init__(self, start: Any = None, *, derivative_unit: Optional[str] = None, **kwargs: Any) -> None:
+        kwargs.setdefault("initial", "exact")
+        super().__init__(start, **kwargs)
+        if self.type is not float:
+            raise TypeError("continuous states must be real")
+        self.derivative_unit = derivative_unit
+
+
+def flatten(values: Sequence[Any]) -> np.ndarray:
+    """Concatenate scalars and arrays into one float vector (used for derivative returns)."""
+    if isinstance(values, np.ndarray):
+        return values.ravel()
+    return np.concatenate([np.atleast_1d(np.asarray(v, dtype=float)).ravel() for v in values]) if len(values) else np.zeros(0)

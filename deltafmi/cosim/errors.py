@@ -1,0 +1,53 @@
+"""Diagnostics and exceptions of the co-simulation master.
+
+A :class:`Diagnostic` is one finding about a scenario, located at ``file:line``. Errors abort with
+:class:`ScenarioError` (exit code 2: bad input); failures while simulating raise
+:class:`SimulationError` (exit code 1).
+"""
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+from typing import Iterable, Optional
+
+import click
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """One problem found in a scenario: ``severity`` is ``"error"`` or ``"warning"``."""
+
+    file: str
+    line: Optional[int]
+    message: str
+    severity: str = "error"
+
+    def __str__(self) -> str:
+        where = f"{self.file}:{self.line}" if self.line is not None else self.file
+        return f"{where}: {self.severity}: {self.message}"
+
+
+class ScenarioError(click.ClickException):
+    """The scenario (or an FMU it names) is invalid; carries every error found. Exit code 2."""
+
+    exit_code = 2
+
+    def __init__(self, diagnostics: Iterable[Diagnostic]) -> None:
+        self.diagnostics = [d for d in diagnostics if d.severity == "error"]
+        first = str(self.diagnostics[0]) if self.diagnostics else "invalid scenario"
+        more = len(self.diagnostics) - 1
+        super().__init__(first + (f" (and {more} more error{'s' * (more > 1)})" if more > 0 else ""))
+
+
+class SimulationError(click.ClickException):
+    """A run failed after it started (an FMU returned an error, the solver failed). Exit code 1."""
+
+    exit_code = 1
+
+
+def did_you_mean(word: str, candidates: Iterable[str], n: int = 3) -> str:
+    """`` (did you mean 'x'?)`` for the closest candidates to ``word``, or ``""`` when none is close."""
+    matches = difflib.get_close_matches(word, list(candidates), n=n, cutoff=0.6)
+    if not matches:
+        return ""
+    return " (did you mean " + " or ".join(f"'{m}'" for m in matches) + "?)"

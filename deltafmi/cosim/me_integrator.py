@@ -1,0 +1,200 @@
+"""Model Exchange FMUs as master units: integrated with SUNDIALS CVODE (the library fmpy ships).
+
+Events follow FMI 2.0: state events from the event indicators (CVODE root finding), time events
+from ``nextEventTime``, step events from ``fmi2CompletedIntegratorStep``; at each one the FMU goes
+through event mode and its ``fmi2NewDiscreteStates`` iteration. CVODE keeps its step history across
+communication points and is re-initialized only when an event changes the continuous states
+(``valuesOfContinuousStatesChanged``) or their nominals. Inputs are held constant over a step, and
+CVODE stops exactly at every communication point so it never integrates past a held input.
+"""
+from __future__ import annotations
+
+from ctypes import POINTER, c_double
+from typing import Any, Callable, Dict, Optional
+
+import numpy as np
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Model
+
+from deltafmi.component.cvode import Cvode, CvodeError
+
+from .resolve import Component
+from .units import FmuFailure, Unit
+
+_MAX_EVENT_ITERATIONS = 1000
+
+
+class TerminateRequested(Exception):
+    """An FMU set ``terminateSimulation`` during an event: the run ends cleanly at ``time``."""
+
+    def __init__(self, unit: str, time: float) -> None:
+        super().__init__(f"{unit} requested termination at t = {time:.9g} s")
+        self.time = time
+
+
+class ModelExchangeUnit(Unit):
+    """An ME FMU plus its own CVODE instance, stepped like a Co-Simulation FMU."""
+
+    interface = "ME"
+    fmu_class = FMU2Model
+
+    def __init__(self, component: Component, unzip_dir: str) -> None:
+        super().__init__(component, unzip_dir)
+        md = component.info.md
+        self.nx = md.numberOfContinuousStates
+        self.nz = md.numberOfEventIndicators
+        self.needs_completed = bool(md.modelExchange.needsCompletedIntegratorStep)
+        self.no_prior_state = 1
+        #: called as ``on_event(unit, time)`` just before and just after every event (recording)
+        self.on_event: Callable[["ModelExchangeUnit", float], None] = lambda unit, time: None
+        self.next_event_time: Optional[float] = None
+        self.solver: Optional[Cvode] = None
+        self._pointers: Dict[int, Any] = {}
+        self._discrete_inputs: list = []
+        self._x = np.zeros(max(self.nx, 1))
+        self._x_pointer = self._x.ctypes.data_as(POINTER(c_double))
+
+    def instantiate(self, start: float, stop: float) -> None:
+        super().instantiate(start, stop)
+        fmu, handle = self.fmu, self.fmu.component
+        self._handle = handle
+        self._set_time, self._set_states = fmu.fmi2SetTime, fmu.fmi2SetContinuousStates
+        self._get_derivatives, self._get_indicators = fmu.fmi2GetDerivatives, fmu.fmi2GetEventIndicators
+
+    def wire_inputs(self, kind: str, *args: Any) -> None:
+        super().wire_inputs(kind, *args)
+        if kind != "Real":
+            # FMI 2.0 ME: discrete inputs may only change in event mode
+            self._discrete_inputs.append(self.inputs.pop())
+
+    # --- initialization -----------------------------------------------------------------------
+    def exit_initialization(self, time: float) -> None:
+        """Leave initialization, run the initial event iteration, start CVODE."""
+        super().exit_initialization(time)
+        self._event_iteration(time)
+        self.call(self.fmu.enterContinuousTimeMode)
+        self.solver = self._new_solver(time)
+
+    def _new_solver(self, time: float) -> Cvode:
+        options = self.component.spec.solver
+        default = self.info.md.defaultExperiment
+        rtol = options.get("rtol") or (default.tolerance if default is not None and default.tolerance else 1e-6)
+        rtol = float(rtol)
+        if self.nx:
+            self.call(self.fmu.getContinuousStates, self._x_pointer, self.nx)
+            nominals = np.ones(self.nx)
+            self.call(self.fmu.getNominalsOfContinuousStates, nominals.ctypes.data_as(POINTER(c_double)), self.nx)
+            atol = options.get("atol") or rtol * np.abs(nominals)
+        else:
+            atol = 1.0
+        return Cvode(self._rhs, self._x.copy(), time, roots=self._roots if self.nz else None, n_roots=self.nz,
+                     rtol=rtol, atol=atol, max_step=float(options.get("max_step", 0.0)),
+                     method=options.get("method", "bdf"), max_num_steps=int(options.get("max_num_steps", 100000)))
+
+    # --- CVODE callbacks ----------------------------------------------------------------------
+    def _pointer(self, view: np.ndarray) -> Any:
+        # CVODE hands over the same few vectors again and again: convert each once
+        pointer = self._pointers.get(id(view))
+        if pointer is None:
+            pointer = self._pointers[id(view)] = view.ctypes.data_as(POINTER(c_double))
+        return pointer
+
+    def _rhs(self, t: float, x: np.ndarray, xdot: np.ndarray) -> None:
+        handle = self._handle
+        self._set_time(handle, t)
+        if self.nx:
+            self._set_states(handle, self._pointer(x), self.nx)
+            self._get_derivatives(handle, self._pointer(xdot), self.nx)
+        else:
+            xdot[0] = 0.0
+
+    def _roots(self, t: float, x: np.ndarray, g: np.ndarray) -> None:
+        handle = self._handle
+        self._set_time(handle, t)
+        if self.nx:
+            self._set_states(handle, self._pointer(x), self.nx)
+        self._get_indicators(handle, self._pointer(g), self.nz)
+
+    # --- stepping -----------------------------------------------------------------------------
+    def pull(self) -> None:
+        super().pull()
+        if self._discrete_inputs:
+            changed = False
+            for inputs in self._discrete_inputs:
+                before = inputs.values.copy()
+                np.take(inputs.bus, inputs.index, out=inputs.values)
+                changed = changed or not np.array_equal(before, inputs.values)
+            if changed:
+                self._event(self.solver.t, self._discrete_inputs)
+
+    def do_step(self, time: float, step: float) -> None:
+        """Integrate from ``time`` to ``time + step``, handling every event on the way."""
+        t_end = time + step
+        eps = 1e-12 * max(1.0, abs(t_end))
+        solver = self.solver
+        try:
+            while True:
+                event_time = self.next_event_time
+                t_stop = event_time if event_time is not None and event_time < t_end - eps else t_end
+                root = solver.advance(t_stop)
+                t = solver.t
+                self._set_time(self._handle, t)
+                if self.nx:
+                    self._set_states(self._handle, self._pointer(solver.x), self.nx)
+                step_event = False
+                if self.needs_completed:
+                    step_event, terminate = self.fmu.completedIntegratorStep(self.no_prior_state)
+                    if terminate:
+                        raise TerminateRequested(self.name, t)
+                if root or step_event or (event_time is not None and t >= event_time - eps):
+                    self._event(t)
+                if t >= t_end - eps:
+                    return
+        except FMICallException as exc:
+            raise self.failure(exc) from None
+        except CvodeError as exc:
+            raise FmuFailure(f"{self.name}: {exc}") from None
+
+    def _event(self, t: float, discrete_inputs: list = ()) -> None:
+        """Event mode at ``t``: set discrete inputs, iterate, restart CVODE if the states jumped."""
+        self.on_event(self, t)
+        self.call(self.fmu.enterEventMode)
+        for inputs in discrete_inputs:
+            inputs.setter(inputs.handle, inputs.vrs, inputs.n, inputs.pointer)
+        states_changed, nominals_changed = self._event_iteration(t)
+        self.call(self.fmu.enterContinuousTimeMode)
+        if nominals_changed:
+            self.solver = self._new_solver(t)
+        elif states_changed and self.nx:
+            self.call(self.fmu.getContinuousStates, self._x_pointer, self.nx)
+            self.solver.reinit(t, self._x)
+        self.events += 1
+        self.on_event(self, t)
+
+    def _event_iteration(self, t: float) -> tuple:
+        states_changed = nominals_changed = False
+        for _ in range(_MAX_EVENT_ITERATIONS):
+            needed, terminate, nominals, values, defined, next_time = self.call(self.fmu.newDiscreteStates)
+            states_changed |= values
+            nominals_changed |= nominals
+            if terminate:
+                raise TerminateRequested(self.name, t)
+            if not needed:
+                self.next_event_time = next_time if defined else None
+                return states_changed, nominals_changed
+        raise FmuFailure(f"{self.name}: event iteration at t = {t:.9g} s did not converge "
+                         f"in {_MAX_EVENT_ITERATIONS} rounds")
+
+    # --- rollback -----------------------------------------------------------------------------
+    def save_state(self) -> Any:
+        return self.call(self.fmu.getFMUstate), self.solver.t, self.next_event_time
+
+    def restore_state(self, state: Any) -> None:
+        fmu_state, time, self.next_event_time = state
+        self.call(self.fmu.setFMUstate, fmu_state)
+        if self.nx:
+            self.call(self.fmu.getContinuousStates, self._x_pointer, self.nx)
+        self.solver.reinit(time, self._x)
+
+    def free_state(self, state: Any) -> None:
+        self.call(self.fmu.freeFMUstate, state[0])

@@ -1,0 +1,66 @@
+"""A one-line progress bar for terminals, and the end-of-run summary."""
+from __future__ import annotations
+
+import sys
+import time as _time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional, TextIO
+
+
+class Progress:
+    """Redraws ``[#####.....]  42% t = 0.84 s`` at most five times a second; silent when disabled."""
+
+    def __init__(self, start: float, stop: float, enabled: bool, stream: TextIO = sys.stdout) -> None:
+        self.start, self.span = start, max(stop - start, 1e-300)
+        self.enabled = enabled
+        self.stream = stream
+        self._next_draw = 0.0
+
+    def update(self, t: float) -> None:
+        """Show simulated time ``t`` (cheap when called often: redraws are rate limited)."""
+        if not self.enabled:
+            return
+        now = _time.monotonic()
+        if now < self._next_draw:
+            return
+        self._next_draw = now + 0.2
+        fraction = min(max((t - self.start) / self.span, 0.0), 1.0)
+        filled = int(30 * fraction)
+        self.stream.write(f"\r[{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:5.1f}% t = {t:.6g} s")
+        self.stream.flush()
+
+    def close(self) -> None:
+        """Finish the bar's line."""
+        if self.enabled:
+            self._next_draw = 0.0
+            self.update(self.start + self.span)
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+@dataclass
+class Summary:
+    """Figures of a finished run."""
+
+    steps: int
+    rejected: int
+    events: int
+    wall_time: float
+    simulated: float
+    rows: int
+    result: Path
+    terminated: Optional[str] = None
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated seconds per wall-clock second (> 1: faster than real time)."""
+        return self.simulated / self.wall_time if self.wall_time > 0 else float("inf")
+
+    def __str__(self) -> str:
+        text = (f"{self.steps} steps ({self.rejected} rejected), {self.events} events, "
+                f"{self.simulated:.6g} s simulated in {self.wall_time:.3f} s wall "
+                f"(real-time factor {self.real_time_factor:.1f}x); {self.rows} rows -> {self.result}")
+        if self.terminated:
+            text += f"; {self.terminated}"
+        return text

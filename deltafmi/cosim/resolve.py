@@ -1,0 +1,409 @@
+"""Check a :class:`Scenario` against its FMUs and resolve it into a runnable :class:`System`.
+
+Every finding is a :class:`Diagnostic` at ``file:line``: unknown components and variables (with
+suggestions), connections that do not go output -> input, type and unit mismatches, inputs driven
+twice, unconnected inputs (warning), algebraic loops (from each FMU's direct feedthrough),
+parameters that cannot be set, record patterns that match nothing.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+from .errors import Diagnostic, ScenarioError, did_you_mean
+from .graph import algebraic_loops, initialization_order, stepping_order
+from .modelinfo import ModelInfo, UnknownVariable, model_info
+from .scenario import ComponentSpec, ConnectionSpec, Scenario
+
+
+@dataclass(frozen=True)
+class Port:
+    """One scalar variable of one component."""
+
+    component: str
+    name: str
+    vr: int
+    type: str
+    unit: str = ""
+
+    @property
+    def ref(self) -> str:
+        """``component.variable``."""
+        return f"{self.component}.{self.name}"
+
+
+@dataclass(frozen=True)
+class Link:
+    """A scalar connection ``target = factor * source + offset``."""
+
+    source: Port
+    target: Port
+    factor: float = 1.0
+    offset: float = 0.0
+    line: Optional[int] = None
+
+
+@dataclass
+class Component:
+    """A scenario component with its FMU located, read and its start values checked."""
+
+    spec: ComponentSpec
+    fmu: Path
+    info: ModelInfo
+    interface: str
+    start_values: List[Tuple[Port, Any]] = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        """Instance name in the scenario."""
+        return self.spec.name
+
+
+@dataclass
+class System:
+    """Everything the master needs: components, scalar links, recorded variables, orders."""
+
+    scenario: Scenario
+    components: List[Component]
+    links: List[Link]
+    recorded: List[Port]
+    order: List[str]
+    init_links: List[Link]
+    warnings: List[Diagnostic]
+
+
+_SETTABLE_CAUSALITIES = ("parameter", "input")
+_TYPE_NAMES = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
+               "String": "String"}
+
+
+def resolve_system(scenario: Scenario, check_fmus: bool = False) -> System:
+    """Locate/build the FMUs and check everything; raises :class:`ScenarioError` on any error.
+
+    ``check_fmus`` also runs fmpy's validation of each FMU (used by ``deltafmi validate``).
+    """
+    checker = _Checker(scenario)
+    system = checker.run(check_fmus)
+    errors = [d for d in checker.found if d.severity == "error"]
+    if errors:
+        raise ScenarioError(errors)
+    return system
+
+
+class _Checker:
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.file = str(scenario.path)
+        self.found: List[Diagnostic] = []
+        self.components: Dict[str, Component] = {}
+
+    def error(self, line: Optional[int], message: str) -> None:
+        self.found.append(Diagnostic(self.file, line, message))
+
+    def warn(self, line: Optional[int], message: str) -> None:
+        self.found.append(Diagnostic(self.file, line, message, "warning"))
+
+    def run(self, check_fmus: bool) -> Optional[System]:
+        for spec in self.scenario.components:
+            component = self._component(spec, check_fmus)
+            if component is not None:
+                self.components[spec.name] = component
+        links = self._links()
+        self._unconnected(links)
+        feedthrough = {name: c.info.feedthrough for name, c in self.components.items()}
+        pairs = [(l.source.ref, l.target.ref) for l in links]
+        line_of = {(l.source.ref, l.target.ref): l.line for l in links}
+        for loop in algebraic_loops(pairs, feedthrough):
+            members = sorted({ref.split(".", 1)[0] for ref in loop})
+            lines = [line_of[(a, b)] for a, b in zip(loop, loop[1:] + loop[:1]) if (a, b) in line_of]
+            self.error(min(lines) if lines else None,
+                       f"algebraic loop between {', '.join(members)}: "
+                       f"{' -> '.join(loop + loop[:1])} (every step in it is a connection or a direct "
+                       "feedthrough; cut it with a component whose outputs do not depend directly on its inputs)")
+        recorded = self._recorded()
+        self._settings()
+        if len(self.components) != len(self.scenario.components):
+            return None
+        names = [c.name for c in self.scenario.components]
+        order = stepping_order(names, pairs, feedthrough)
+        by_pair = {(l.source.ref, l.target.ref): l for l in links}
+        init_links = [by_pair[p] for p in initialization_order(pairs, feedthrough)] \
+            if not any(d.severity == "error" for d in self.found) else list(links)
+        warnings = [d for d in self.found if d.severity == "warning"]
+        return System(self.scenario, [self.components[n] for n in names], links, recorded,
+                      order, init_links, warnings)
+
+    # --- components ---------------------------------------------------------------------------
+    def _component(self, spec: ComponentSpec, check_fmus: bool) -> Optional[Component]:
+        path = self._fmu_path(spec)
+        if path is None:
+            return None
+        try:
+            info = model_info(str(path))
+        except Exception as exc:  # noqa: BLE001 - any unreadable FMU is a user error here
+            self.error(spec.line, f"component '{spec.name}': cannot read FMU '{path}': {exc}")
+            return None
+        offered = info.interfaces()
+        interface = spec.interface or ("CS" if "CS" in offered else "ME")
+        if interface not in offered:
+            self.error(spec.line, f"component '{spec.name}': the FMU offers no "
+                                  f"{'ModelExchange' if interface == 'ME' else 'CoSimulation'} interface "
+                                  f"(it has {', '.join(offered) or 'none'})")
+            return None
+        if check_fmus:
+            from fmpy.validation import validate_fmu
+            for problem in validate_fmu(str(path)):
+                self.error(spec.line, f"component '{spec.name}': FMU validation: {problem.strip()}")
+        if interface == "CS":
+            ignored = sorted(set(spec.solver) - {"rtol"})
+            if ignored:
+                self.warn(spec.line, f"component '{spec.name}': solver options {', '.join(ignored)} "
+                                     "only apply to ME components (ignored)")
+        component = Component(spec, path, info, interface)
+        component.start_values = self._start_values(component)
+        return component
+
+    def _fmu_path(self, spec: ComponentSpec) -> Optional[Path]:
+        base = self.scenario.directory
+        if spec.fmu is not None:
+            path = Path(spec.fmu) if Path(spec.fmu).is_absolute() else base / spec.fmu
+            if not path.is_file():
+                self.error(spec.line, f"component '{spec.name}': FMU '{spec.fmu}' not found"
+                                      f"{_file_hint(path, '*.fmu')}")
+                return None
+            return path
+        source = _find_upwards(base, spec.source)
+        if source is None:
+            self.error(spec.line, f"component '{spec.name}': source '{spec.source}' not found next to "
+                                  f"the scenario or in a folder above it{_file_hint(base / spec.source, '*.py')}")
+            return None
+        try:
+            from .fmu_cache import built_fmu
+            return built_fmu(source)
+        except Exception as exc:  # noqa: BLE001 - a build failure is reported, not raised
+            self.error(spec.line, f"component '{spec.name}': building '{spec.source}' failed: {exc}")
+            return None
+
+    def _start_values(self, component: Component) -> List[Tuple[Port, Any]]:
+        values = []
+        info = component.info
+        for param in component.spec.parameters:
+            where = f"component '{component.name}': parameter '{param.name}'"
+            try:
+                names = info.expand(param.name)
+            except UnknownVariable as exc:
+                self.error(param.line, f"{where}: no such variable in the FMU"
+                                       f"{did_you_mean(param.name, exc.names)}")
+                continue
+            items = param.value if isinstance(param.value, list) else [param.value]
+            if len(items) != len(names):
+                self.error(param.line, f"{where}: has {len(names)} element(s) but {len(items)} value(s) were given")
+                continue
+            for name, value in zip(names, items):
+                var = info.variables[name]
+                if not _settable(var):
+                    self.error(param.line, f"{where}: '{name}' is {_article(var.causality)} "
+                                           f"({var.initial or 'calculated'}) and cannot be set")
+                    break
+                kind = _TYPE_NAMES.get(var.type, var.type)
+                if not _value_fits(kind, value):
+                    self.error(param.line, f"{where}: type mismatch: '{name}' is {kind} but the value "
+                                           f"{value!r} is {type(value).__name__}")
+                    break
+                values.append((_port(component, name), value))
+        return values
+
+    # --- connections --------------------------------------------------------------------------
+    def _links(self) -> List[Link]:
+        links: List[Link] = []
+        driver: Dict[str, Tuple[str, Optional[int]]] = {}
+        for conn in self.scenario.connections:
+            sources = self._endpoint(conn.source, conn.source_line, "from")
+            targets = self._endpoint(conn.target, conn.target_line, "to")
+            if sources is None or targets is None:
+                continue
+            if not self._causalities(conn, sources, targets):
+                continue
+            if len(sources) != len(targets):
+                self.error(conn.line, f"connection {conn.source} -> {conn.target}: {len(sources)} source "
+                                      f"variable(s) but {len(targets)} target variable(s)")
+                continue
+            for source, target in zip(sources, targets):
+                if not self._compatible(conn, source, target):
+                    break
+                if target.ref in driver:
+                    other, other_line = driver[target.ref]
+                    self.error(conn.target_line, f"input '{target.ref}' is driven twice: by '{other}' "
+                                                 f"(line {other_line}) and by '{source.ref}'")
+                    continue
+                driver[target.ref] = (source.ref, conn.line)
+                links.append(Link(source, target, conn.factor, conn.offset, conn.line))
+        return links
+
+    def _endpoint(self, reference: str, line: Optional[int], role: str) -> Optional[List[Port]]:
+        comp_name, var = reference.split(".", 1)
+        component = self.components.get(comp_name)
+        if component is None:
+            if comp_name not in {c.name for c in self.scenario.components}:
+                self.error(line, f"'{role}: {reference}': unknown component '{comp_name}'"
+                                 f"{did_you_mean(comp_name, [c.name for c in self.scenario.components])}")
+            return None
+        try:
+            names = component.info.expand(var)
+        except UnknownVariable as exc:
+            self.error(line, f"'{role}: {reference}': component '{comp_name}' has no variable "
+                             f"'{exc.reference}'{did_you_mean(exc.reference, exc.names)}")
+            return None
+        return [_port(component, n) for n in names]
+
+    def _causalities(self, conn: ConnectionSpec, sources: List[Port], targets: List[Port]) -> bool:
+        ok = True
+        src = self._causality(sources[0])
+        if src != "output":
+            self.error(conn.source_line, f"'from: {conn.source}' is {_article(src)}; a connection must "
+                                         "start at an output")
+            ok = False
+        dst = self._causality(targets[0])
+        if dst == "output":
+            self.error(conn.target_line, f"'to: {conn.target}' is an output (output -> output); a connection "
+                                         "must end at an input")
+            ok = False
+        elif dst != "input":
+            self.error(conn.target_line, f"'to: {conn.target}' is {_article(dst)}; a connection must end at an input")
+            ok = False
+        return ok
+
+    def _causality(self, port: Port) -> str:
+        return self.components[port.component].info.variables[port.name].causality
+
+    def _compatible(self, conn: ConnectionSpec, source: Port, target: Port) -> bool:
+        if source.type != target.type:
+            self.error(conn.line, f"type mismatch: '{source.ref}' is {source.type} but '{target.ref}' is {target.type}")
+            return False
+        if conn.has_transform and source.type != "Real":
+            self.error(conn.line, f"factor/offset need Real variables; '{source.ref}' is {source.type}")
+            return False
+        if source.unit and target.unit and source.unit != target.unit and not conn.has_transform:
+            self.error(conn.line, f"unit mismatch: '{source.ref}' is in '{source.unit}' but '{target.ref}' "
+                                  f"expects '{target.unit}' (convert with factor/offset)")
+            return False
+        return True
+
+    def _unconnected(self, links: List[Link]) -> None:
+        driven = {l.target.ref for l in links}
+        for component in self.components.values():
+            loose = [v.name for v in component.info.md.modelVariables
+                     if v.causality == "input" and f"{component.name}.{v.name}" not in driven]
+            if loose:
+                self.warn(component.spec.line, f"component '{component.name}': input(s) not connected, "
+                                               f"kept at their start values: {', '.join(loose)}")
+
+    # --- recording and settings ---------------------------------------------------------------
+    def _recorded(self) -> List[Port]:
+        patterns = self.scenario.outputs
+        recorded: Dict[str, Port] = {}
+        if not patterns:
+            for component in self.components.values():
+                for v in component.info.md.modelVariables:
+                    if v.causality == "output" and v.type != "String":
+                        recorded.setdefault(f"{component.name}.{v.name}", _port(component, v.name))
+            return list(recorded.values())
+        every = [(c, v.name) for c in self.components.values() for v in c.info.md.modelVariables]
+        for spec in patterns:
+            regex = _pattern_regex(spec.pattern)
+            hits = [(c, n) for c, n in every if regex.match(f"{c.name}.{n}")]
+            if not hits:
+                candidates = [f"{c.name}.{n}" for c, n in every]
+                self.error(spec.line, f"output pattern '{spec.pattern}' matches no variable"
+                                      f"{did_you_mean(spec.pattern, candidates)}")
+                continue
+            for component, name in hits:
+                port = _port(component, name)
+                if port.type == "String":
+                    continue
+                recorded.setdefault(port.ref, port)
+        return list(recorded.values())
+
+    def _settings(self) -> None:
+        master = self.scenario.master
+        if master.adaptive.enabled:
+            multiples = [c.name for c in self.scenario.components if c.step_multiple != 1]
+            if multiples:
+                self.warn(None, f"step_multiple of {', '.join(multiples)} is ignored with an adaptive step")
+
+
+def _port(component: Component, name: str) -> Port:
+    var = component.info.variables[name]
+    return Port(component.name, name, var.valueReference, _TYPE_NAMES.get(var.type, var.type),
+                component.info.unit(name))
+
+
+def _settable(var: Any) -> bool:
+    if var.variability == "constant":
+        return False
+    if var.causality in _SETTABLE_CAUSALITIES:
+        return True
+    if var.initial in ("exact", "approx"):
+        return True
+    return var.initial is None and var.start is not None and var.causality == "local"
+
+
+def _value_fits(kind: str, value: Any) -> bool:
+    if kind == "Real":
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if kind == "Integer":
+        return isinstance(value, int) and not isinstance(value, bool)
+    if kind == "Boolean":
+        return isinstance(value, bool)
+    return isinstance(value, str)
+
+
+def _article(causality: str) -> str:
+    return f"an {causality}" if causality[0] in "aeiou" else f"a {causality}"
+
+
+def _find_upwards(base: Path, relative: str) -> Optional[Path]:
+    """``relative`` under ``base`` or the nearest of its parents that has it."""
+    if Path(relative).is_absolute():
+        return Path(relative) if Path(relative).is_file() else None
+    for folder in [base.resolve(), *base.resolve().parents]:
+        if (folder / relative).is_file():
+            return folder / relative
+    cwd = Path.cwd() / relative
+    return cwd if cwd.is_file() else None
+
+
+def _file_hint(path: Path, glob: str) -> str:
+    """Suggest a sibling file with a close name."""
+    for folder in [path.parent.resolve(), *path.parent.resolve().parents]:
+        if folder.is_dir() and folder.name == path.parent.name:
+            return did_you_mean(path.name, [p.name for p in folder.glob(glob)])
+    return ""
+
+
+def _pattern_regex(pattern: str) -> "re.Pattern[str]":
+    """Glob of ``comp.var`` to a regex: ``*`` and ``?`` wildcards, ``[i:j]`` ranges, all else literal."""
+    out = ""
+    for token in re.split(r"(\*|\?|\[\d+:\d+\])", pattern):
+        if token == "*":
+            out += ".*"
+        elif token == "?":
+            out += "."
+        elif re.fullmatch(r"\[\d+:\d+\]", token):
+            lo, hi = map(int, token[1:-1].split(":"))
+            out += r"\[(?:" + "|".join(str(i) for i in range(lo, hi + 1)) + r")\]"
+        else:
+            out += re.escape(token)
+    return re.compile(out + r"\Z")
+
+
+def describe(system: System) -> Sequence[str]:
+    """Short human summary of a resolved system (printed by ``deltafmi validate``)."""
+    lines = [f"{len(system.components)} components, {len(system.links)} scalar connections, "
+             f"{len(system.recorded)} recorded variables",
+             f"stepping order ({system.scenario.master.algorithm}): {' -> '.join(system.order)}"]
+    for c in system.components:
+        lines.append(f"  {c.name}: {c.interface} {c.info.md.modelName} ({c.fmu})")
+    return lines

@@ -1,0 +1,267 @@
+"""Scenario files: YAML -> checked against ``scenario.schema.json`` -> :class:`Scenario` objects.
+
+This module knows nothing of FMUs; :mod:`deltafmi.cosim.resolve` checks names, types and units
+against each FMU's modelDescription.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Tuple
+
+import jsonschema
+
+from .errors import Diagnostic, ScenarioError, did_you_mean
+from .yaml_lines import LineMap, YamlSyntaxError, load_yaml
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """Time span and communication step [s]."""
+
+    start: float
+    stop: float
+    step: float
+
+
+@dataclass(frozen=True)
+class Adaptive:
+    """Adaptive communication step with rollback (needs fmi2Get/SetFMUstate in every FMU)."""
+
+    enabled: bool = False
+    tolerance: float = 1e-4
+    abs_tolerance: float = 1e-6
+    min_step: Optional[float] = None
+    max_step: Optional[float] = None
+    error_estimate: str = "double-step"
+
+
+@dataclass(frozen=True)
+class MasterSettings:
+    """How the master steps the components."""
+
+    algorithm: str = "gauss-seidel"
+    adaptive: Adaptive = field(default_factory=Adaptive)
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A start value given in the scenario; ``value`` may be a list for an array variable."""
+
+    name: str
+    value: Any
+    line: Optional[int]
+
+
+@dataclass(frozen=True)
+class ComponentSpec:
+    """One FMU instance of the scenario, as written (paths not yet resolved)."""
+
+    name: str
+    line: Optional[int]
+    fmu: Optional[str] = None
+    source: Optional[str] = None
+    interface: Optional[str] = None
+    parameters: Tuple[Parameter, ...] = ()
+    solver: Dict[str, Any] = field(default_factory=dict)
+    step_multiple: int = 1
+
+
+@dataclass(frozen=True)
+class ConnectionSpec:
+    """``to = factor * from + offset``; ``from``/``to`` are ``comp.var`` references (ranges allowed)."""
+
+    source: str
+    target: str
+    factor: float
+    offset: float
+    line: Optional[int]
+    source_line: Optional[int]
+    target_line: Optional[int]
+
+    @property
+    def has_transform(self) -> bool:
+        """True when the connection scales or shifts the value."""
+        return self.factor != 1.0 or self.offset != 0.0
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """A pattern of variables to record."""
+
+    pattern: str
+    line: Optional[int]
+
+
+@dataclass(frozen=True)
+class ResultSettings:
+    """Where and how often results are written."""
+
+    file: Path
+    format: str = "csv"
+    every: int = 1
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A parsed scenario file. ``path`` is the file as named by the user (used in diagnostics)."""
+
+    path: Path
+    experiment: Experiment
+    master: MasterSettings
+    components: Tuple[ComponentSpec, ...]
+    connections: Tuple[ConnectionSpec, ...]
+    outputs: Tuple[OutputSpec, ...]
+    result: ResultSettings
+    description: str = ""
+
+    @property
+    def directory(self) -> Path:
+        """Folder of the scenario file: relative paths in it are relative to this folder."""
+        return self.path.parent
+
+    def component(self, name: str) -> ComponentSpec:
+        """The component called ``name`` (KeyError if none)."""
+        for spec in self.components:
+            if spec.name == name:
+                return spec
+        raise KeyError(name)
+
+
+@lru_cache(maxsize=1)
+def schema() -> Dict[str, Any]:
+    """The JSON Schema of scenario files (shipped as ``deltafmi/cosim/scenario.schema.json``)."""
+    text = resources.files("deltafmi.cosim").joinpath("scenario.schema.json").read_text()
+    return json.loads(text)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read, schema-check and parse a scenario file. Raises :class:`ScenarioError` (exit code 2)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ScenarioError([Diagnostic(str(path), None, f"cannot read scenario: {exc.strerror}")])
+    return parse_scenario(text, path)
+
+
+def parse_scenario(text: str, path: Path) -> Scenario:
+    """Parse scenario ``text``; ``path`` names it in diagnostics and anchors relative paths."""
+    file = str(path)
+    try:
+        data, lines = load_yaml(text)
+    except YamlSyntaxError as exc:
+        raise ScenarioError([Diagnostic(file, exc.line, str(exc))])
+    if not isinstance(data, dict):
+        raise ScenarioError([Diagnostic(file, lines.line(()), "a scenario must be a YAML mapping")])
+    problems = schema_errors(data, lines, file)
+    problems += _semantic_errors(data, lines, file)
+    if problems:
+        raise ScenarioError(problems)
+    return _build(data, lines, path)
+
+
+def schema_errors(data: Any, lines: LineMap, file: str) -> List[Diagnostic]:
+    """Schema violations of ``data`` as located diagnostics, with suggestions for misspellings."""
+    validator = jsonschema.Draft202012Validator(schema())
+    found = []
+    for error in sorted(validator.iter_errors(data), key=lambda e: list(map(str, e.absolute_path))):
+        found.extend(_describe(error, lines, file))
+    return sorted(set(found), key=lambda d: (d.line or 0, d.message))
+
+
+def _describe(error: jsonschema.ValidationError, lines: LineMap, file: str) -> List[Diagnostic]:
+    path = tuple(error.absolute_path)
+    where = _dotted(path)
+    if error.validator == "additionalProperties" and isinstance(error.instance, dict):
+        allowed = list(error.schema.get("properties", {}))
+        extra = [k for k in error.instance if k not in allowed]
+        return [Diagnostic(file, lines.key_line(path + (k,)),
+                           f"unknown key '{k}' in {where or 'the scenario'}{did_you_mean(str(k), allowed)}")
+                for k in extra]
+    if error.validator == "enum":
+        choices = [str(c) for c in error.validator_value]
+        hint = did_you_mean(str(error.instance), choices) or f" (one of {', '.join(choices)})"
+        return [Diagnostic(file, lines.line(path), f"{where}: '{error.instance}' is not allowed{hint}")]
+    if error.validator == "required":
+        return [Diagnostic(file, lines.line(path), f"{where or 'the scenario'}: {error.message}")]
+    if error.validator == "oneOf" and len(path) == 2 and path[0] == "components":
+        return [Diagnostic(file, lines.line(path),
+                           f"component '{path[1]}' needs exactly one of 'fmu' (a file) or 'source' (a .py to build)")]
+    if error.validator == "pattern" and path and path[0] in ("connections", "outputs"):
+        return [Diagnostic(file, lines.line(path),
+                           f"{where}: '{error.instance}' is not a 'component.variable' reference")]
+    if error.validator == "propertyNames":
+        return [Diagnostic(file, lines.key_line(path + (error.instance,)),
+                           f"component name '{error.instance}' must be an identifier (letters, digits, _)")]
+    return [Diagnostic(file, lines.line(path), f"{where or 'scenario'}: {error.message}")]
+
+
+def _dotted(path: Tuple[Any, ...]) -> str:
+    text = ""
+    for part in path:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Diagnostic]:
+    """Checks the schema cannot express (relations between numbers)."""
+    found = []
+    exp = data.get("experiment")
+    if isinstance(exp, dict) and _number(exp.get("stop")) and _number(exp.get("start", 0.0)):
+        if exp["stop"] <= exp.get("start", 0.0):
+            found.append(Diagnostic(file, lines.line(("experiment", "stop")),
+                                    f"experiment.stop ({exp['stop']}) must be greater than start ({exp.get('start', 0.0)})"))
+    adaptive = (data.get("master") or {}).get("adaptive") if isinstance(data.get("master"), dict) else None
+    if isinstance(adaptive, dict) and _number(adaptive.get("min_step")) and _number(adaptive.get("max_step")):
+        if adaptive["min_step"] > adaptive["max_step"]:
+            found.append(Diagnostic(file, lines.line(("master", "adaptive", "min_step")),
+                                    "master.adaptive.min_step must not exceed max_step"))
+    return found
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
+    exp = data["experiment"]
+    experiment = Experiment(float(exp.get("start", 0.0)), float(exp["stop"]), float(exp["step"]))
+    master_data = data.get("master") or {}
+    adaptive = Adaptive(**master_data.get("adaptive", {}))
+    master = MasterSettings(master_data.get("algorithm", "gauss-seidel"), adaptive)
+    components = tuple(
+        ComponentSpec(
+            name=name,
+            line=lines.key_line(("components", name)),
+            fmu=spec.get("fmu"),
+            source=spec.get("source"),
+            interface=spec.get("interface"),
+            parameters=tuple(Parameter(k, v, lines.key_line(("components", name, "parameters", k)))
+                             for k, v in (spec.get("parameters") or {}).items()),
+            solver=dict(spec.get("solver") or {}),
+            step_multiple=int(spec.get("step_multiple", 1)),
+        )
+        for name, spec in data["components"].items())
+    connections = tuple(
+        ConnectionSpec(
+            source=c["from"], target=c["to"],
+            factor=float(c.get("factor", 1.0)), offset=float(c.get("offset", 0.0)),
+            line=lines.line(("connections", i)),
+            source_line=lines.line(("connections", i, "from")),
+            target_line=lines.line(("connections", i, "to")))
+        for i, c in enumerate(data.get("connections") or []))
+    outputs = tuple(OutputSpec(p, lines.line(("outputs", i))) for i, p in enumerate(data.get("outputs") or []))
+    result_data = data.get("result") or {}
+    if "file" in result_data:
+        result_file = Path(result_data["file"])
+        if not result_file.is_absolute():
+            result_file = path.parent / result_file
+    else:
+        result_file = Path(path.stem + ".csv")
+    result = ResultSettings(result_file, result_data.get("format", "csv"), int(result_data.get("every", 1)))
+    return Scenario(path, experiment, master, components, connections, outputs, result,
+                    data.get("description", ""))

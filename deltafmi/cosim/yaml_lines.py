@@ -1,0 +1,93 @@
+"""Load YAML and remember the line of every value, so diagnostics can say ``file:line``.
+
+:func:`load_yaml` returns plain Python data plus a :class:`LineMap` from key paths such as
+``("connections", 2, "from")`` to 1-based line numbers.
+"""
+from __future__ import annotations
+
+import re
+from typing import Any, Dict, List, Optional, Tuple
+
+import yaml
+
+Path = Tuple[Any, ...]
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that also reads ``1e-3`` as a float (YAML 1.1 insists on ``1.0e-3``)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+class LineMap:
+    """Line numbers (1-based) of the values and keys of a YAML document, by key path."""
+
+    def __init__(self) -> None:
+        self.value_lines: Dict[Path, int] = {}
+        self.key_lines: Dict[Path, int] = {}
+
+    def line(self, path: Path) -> Optional[int]:
+        """Line of the value at ``path``, or of its nearest ancestor that has one."""
+        path = tuple(path)
+        while True:
+            if path in self.value_lines:
+                return self.value_lines[path]
+            if not path:
+                return None
+            path = path[:-1]
+
+    def key_line(self, path: Path) -> Optional[int]:
+        """Line of the mapping key that ends ``path`` (falls back to :meth:`line`)."""
+        return self.key_lines.get(tuple(path)) or self.line(path)
+
+
+class YamlSyntaxError(ValueError):
+    """The text is not YAML (or repeats a key); ``line`` is 1-based."""
+
+    def __init__(self, message: str, line: Optional[int]) -> None:
+        super().__init__(message)
+        self.line = line
+
+
+def load_yaml(text: str) -> Tuple[Any, LineMap]:
+    """Parse ``text``; return its data and the :class:`LineMap`. Raises :class:`YamlSyntaxError`."""
+    try:
+        node = yaml.compose(text, Loader=_Loader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line = mark.line + 1 if mark is not None else None
+        raise YamlSyntaxError(f"YAML syntax error: {exc.problem or exc}", line) from None
+    lines = LineMap()
+    if node is None:
+        return None, lines
+    return _build(node, (), lines), lines
+
+
+def _build(node: yaml.Node, path: Path, lines: LineMap) -> Any:
+    lines.value_lines[path] = node.start_mark.line + 1
+    if isinstance(node, yaml.MappingNode):
+        out: Dict[Any, Any] = {}
+        for key_node, value_node in node.value:
+            key = _scalar(key_node)
+            if key in out:
+                raise YamlSyntaxError(f"duplicate key '{key}'", key_node.start_mark.line + 1)
+            lines.key_lines[path + (key,)] = key_node.start_mark.line + 1
+            out[key] = _build(value_node, path + (key,), lines)
+        return out
+    if isinstance(node, yaml.SequenceNode):
+        items: List[Any] = []
+        for i, item in enumerate(node.value):
+            items.append(_build(item, path + (i,), lines))
+        return items
+    return _scalar(node)
+
+
+def _scalar(node: yaml.Node) -> Any:
+    if not isinstance(node, yaml.ScalarNode):
+        raise YamlSyntaxError("mapping keys must be plain scalars", node.start_mark.line + 1)
+    return _Loader("").construct_object(node, deep=True)

@@ -1,0 +1,98 @@
+"""Compile the native loader and the Python bridge with the system C compiler, once, cached.
+
+The loader is the same for every FMU (FMI 2.0 binaries export un-prefixed fmi2 names), and the
+bridge uses the Python limited API, so both are built once per source version and compiler and
+reused for every FMU. The cache lives in ``$DELTAFMI_CACHE`` (default ``~/.cache/deltafmi``).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+NATIVE_DIR = Path(__file__).parent / "native"
+LOADER_SOURCES = ("loader.c",)
+BRIDGE_SOURCES = ("bridge.c",)
+HEADERS = ("bridge.h", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+BRIDGE_NAME = "deltafmi_bridge.so"
+
+
+class BuildError(RuntimeError):
+    """The native build failed (no compiler, compiler error, missing Python headers)."""
+
+
+@dataclass(frozen=True)
+class NativeBinaries:
+    """Paths of the compiled loader and bridge."""
+
+    loader: Path
+    bridge: Path
+
+
+def cache_dir() -> Path:
+    """Root of deltafmi's build cache."""
+    return Path(os.environ.get("DELTAFMI_CACHE", Path.home() / ".cache" / "deltafmi"))
+
+
+def native_source_files() -> list[Path]:
+    """Every C source and header that goes into the binaries (and into the FMU's sources/)."""
+    return [NATIVE_DIR / name for name in LOADER_SOURCES + BRIDGE_SOURCES + HEADERS]
+
+
+def _compiler() -> str:
+    cc = os.environ.get("CC", "cc")
+    if not shutil.which(cc):
+        raise BuildError(f"no C compiler found (looked for '{cc}'; set $CC). deltafmi compiles the FMU "
+                         "binary with the system C compiler.")
+    return cc
+
+
+def native_binaries() -> NativeBinaries:
+    """Compiled loader and bridge, from the cache or freshly built."""
+    cc = _compiler()
+    include = sysconfig.get_paths()["include"]
+    if not (Path(include) / "Python.h").exists():
+        raise BuildError(f"Python headers not found in {include}; install the Python development package")
+    digest = hashlib.sha256()
+    for path in native_source_files():
+        digest.update(path.read_bytes())
+    digest.update(f"{cc}|{include}|{sys.version_info[:2]}".encode())
+    target = cache_dir() / "native" / digest.hexdigest()[:16]
+    binaries = NativeBinaries(target / "loader.so", target / BRIDGE_NAME)
+    if binaries.loader.exists() and binaries.bridge.exists():
+        return binaries
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+        common = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}"]
+        _run(common + [str(NATIVE_DIR / "loader.c"), "-o", f"{tmp}/loader.so", "-ldl", "-lpthread", "-lm"])
+        _run(common + ["-Wno-deprecated-declarations", f"-I{include}", str(NATIVE_DIR / "bridge.c"),
+                       "-o", f"{tmp}/{BRIDGE_NAME}", "-lpthread"])
+        try:
+            os.rename(tmp, target)  # atomic: parallel builds race harmlessly
+        except OSError:
+            if not binaries.loader.exists():
+                raise
+        else:
+            os.makedirs(tmp)  # let TemporaryDirectory clean up the (now empty) name
+    return binaries
+
+
+def _run(command: list[str]) -> None:
+    result = subprocess.run(command, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise BuildError(f"compiling the FMU binary failed:\n$ {' '.join(command)}\n{result.stderr}")
+
+
+def python_runtime_config() -> str:
+    """Contents of ``resources/python.cfg``: how a C host finds and starts this Python."""
+    libdir = sysconfig.get_config_var("LIBDIR") or ""
+    soname = sysconfig.get_config_var("INSTSONAME") or sysconfig.get_config_var("LDLIBRARY") or ""
+    library = os.path.join(libdir, soname) if sysconfig.get_config_var("Py_ENABLE_SHARED") else ""
+    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    return f"library={library}\nexecutable={sys.executable}\nversion={version}\n"

@@ -1,0 +1,346 @@
+/* deltafmi Python bridge: the only native code that touches Python.
+ *
+ * Built against the Python *limited* API (abi3), without linking libpython: its Python symbols
+ * resolve against whatever interpreter is already in the process (a Python host such as fmpy) or
+ * against the libpython the loader put there with RTLD_GLOBAL (a C host). One interpreter per
+ * process, started once, never finalized; the GIL is released between calls, and every foreign
+ * thread gets one Python thread state that it keeps (creating one per call costs ~15 us). */
+#define Py_LIMITED_API 0x030A0000
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "bridge.h"
+
+#define EXPORT __attribute__((visibility("default")))
+
+static const char *const OP_NAMES[DFMI_N_OPS] = {
+    "enter_initialization", "exit_initialization", "evaluate", "do_step", "terminate", "reset"};
+
+typedef struct {
+    PyObject *instance;
+    PyObject *ops[DFMI_N_OPS];
+    PyObject *event_update, *get_string, *set_string, *get_state, *set_state, *serialize, *deserialize;
+    PyObject *pending_logs; /* list of (status, category, message) the component queued */
+    PyObject *strings;      /* list: last UTF-8 bytes returned per string index (keeps them alive) */
+    PyObject *serialized;   /* bytes of the last serialize_state */
+    DfmiLogFn log;
+    void *log_env;
+} Bridged;
+
+static pthread_mutex_t g_start_lock = PTHREAD_MUTEX_INITIALIZER;
+static PyObject *g_load; /* load() of the FMU boot module, per resources directory */
+static __thread int g_thread_attached;
+
+/* ---------------------------------------------------------------------------------------- */
+
+static void attach_thread(void) {
+    if (g_thread_attached) return;
+    if (PyGILState_GetThisThreadState() == NULL) {
+        /* a thread Python has never seen: create its thread state and keep it for good by never
+         * releasing this first Ensure; later Ensure/Release pairs then only take the GIL */
+        PyGILState_Ensure();
+        PyEval_SaveThread();
+    }
+    g_thread_attached = 1;
+}
+
+#define ENTER attach_thread(); PyGILState_STATE gil_ = PyGILState_Ensure()
+#define LEAVE PyGILState_Release(gil_)
+
+static void send_log(Bridged *b, int status, const char *category, const char *message) {
+    if (b && b->log) b->log(b->log_env, status, category, message);
+}
+
+/* Format the pending Python exception with its traceback and send it to the FMI logger. */
+static void report_exception(DfmiLogFn log, void *env, const char *context) {
+    PyObject *type, *value, *tb;
+    PyErr_Fetch(&type, &value, &tb);
+    PyErr_NormalizeException(&type, &value, &tb);
+    const char *text = NULL;
+    PyObject *joined = NULL, *lines = NULL, *traceback = PyImport_ImportModule("traceback");
+    if (traceback) {
+        lines = PyObject_CallMethod(traceback, "format_exception", "OOO", type ? type : Py_None,
+                                    value ? value : Py_None, tb ? tb : Py_None);
+        PyObject *empty = PyUnicode_FromString("");
+        if (lines && empty) joined = PyUnicode_Join(empty, lines);
+        Py_XDECREF(empty);
+        if (joined) text = PyUnicode_AsUTF8AndSize(joined, NULL);
+    }
+    char buffer[8192];
+    snprintf(buffer, sizeof buffer, "%s: Python exception\n%s", context, text ? text : "(traceback unavailable)");
+    PyErr_Clear();
+    if (log) log(env, 3, "logStatusError", buffer);
+    Py_XDECREF(joined);
+    Py_XDECREF(lines);
+    Py_XDECREF(traceback);
+    Py_XDECREF(type);
+    Py_XDECREF(value);
+    Py_XDECREF(tb);
+}
+
+static void drain_logs(Bridged *b) {
+    Py_ssize_t n = PyList_Size(b->pending_logs);
+    if (n <= 0) return;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        PyObject *item = PyList_GetItem(b->pending_logs, i); /* borrowed */
+        int status = 0;
+        const char *category = "logInfo", *message = "";
+        if (PyTuple_Check(item) && PyTuple_Size(item) == 3) {
+            status = (int)PyLong_AsLong(PyTuple_GetItem(item, 0));
+            category = PyUnicode_AsUTF8AndSize(PyTuple_GetItem(item, 1), NULL);
+            message = PyUnicode_AsUTF8AndSize(PyTuple_GetItem(item, 2), NULL);
+        }
+        if (PyErr_Occurred()) {
+            PyErr_Clear();
+            continue;
+        }
+        send_log(b, status, category ? category : "logInfo", message ? message : "");
+    }
+    PyList_SetSlice(b->pending_logs, 0, n, NULL);
+}
+
+/* A method's result as an FMI status: None -> OK, an int -> that status, NULL -> error. */
+static int finish(Bridged *b, PyObject *result, const char *context) {
+    int status = 0;
+    if (!result) {
+        report_exception(b->log, b->log_env, context);
+        status = 3;
+    } else if (PyLong_Check(result)) {
+        status = (int)PyLong_AsLong(result);
+    }
+    Py_XDECREF(result);
+    drain_logs(b);
+    return status;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+
+static int start(const char *python_executable, char *error, size_t error_size) {
+    pthread_mutex_lock(&g_start_lock);
+    int status = 0;
+    if (!Py_IsInitialized()) {
+        if (python_executable && python_executable[0]) {
+            /* the interpreter's path decides sys.prefix, hence the site-packages (numpy, scipy) */
+            static wchar_t *program; /* must outlive the interpreter */
+            program = Py_DecodeLocale(python_executable, NULL);
+            if (program) Py_SetProgramName(program);
+        }
+        Py_InitializeEx(0);
+        if (!Py_IsInitialized()) {
+            snprintf(error, error_size, "could not start the Python interpreter '%s'", python_executable);
+            status = -1;
+        } else {
+            PyRun_SimpleString("import sys\nif not getattr(sys, 'argv', None): sys.argv = ['']\n");
+            PyEval_SaveThread(); /* release the GIL; this thread keeps its thread state */
+            g_thread_attached = 1;
+        }
+    }
+    pthread_mutex_unlock(&g_start_lock);
+    return status;
+}
+
+static PyObject *boot_loader(const char *resources_dir, DfmiLogFn log, void *env) {
+    if (g_load) return g_load;
+    char path[4352];
+    snprintf(path, sizeof path, "%s/deltafmi_boot.py", resources_dir);
+    PyObject *runpy = PyImport_ImportModule("runpy");
+    PyObject *globals = runpy ? PyObject_CallMethod(runpy, "run_path", "s", path) : NULL;
+    if (globals) {
+        g_load = PyDict_GetItemString(globals, "load");
+        Py_XINCREF(g_load);
+    }
+    if (!g_load) report_exception(log, env, "fmi2Instantiate: loading resources/deltafmi_boot.py");
+    Py_XDECREF(globals);
+    Py_XDECREF(runpy);
+    return g_load;
+}
+
+static void release(Bridged *b) {
+    for (int i = 0; i < DFMI_N_OPS; i++) Py_XDECREF(b->ops[i]);
+    Py_XDECREF(b->event_update);
+    Py_XDECREF(b->get_string);
+    Py_XDECREF(b->set_string);
+    Py_XDECREF(b->get_state);
+    Py_XDECREF(b->set_state);
+    Py_XDECREF(b->serialize);
+    Py_XDECREF(b->deserialize);
+    Py_XDECREF(b->pending_logs);
+    Py_XDECREF(b->strings);
+    Py_XDECREF(b->serialized);
+    Py_XDECREF(b->instance);
+    PyMem_Free(b);
+}
+
+static void *instantiate(const char *resources_dir, const char *instance_name, const char *guid,
+                         int fmu_type, DfmiLogFn log, void *log_env, DfmiLayout *layout) {
+    ENTER;
+    Bridged *b = PyMem_Calloc(1, sizeof *b);
+    PyObject *load = boot_loader(resources_dir, log, log_env), *spec = NULL;
+    if (!b || !load) goto fail;
+    b->log = log;
+    b->log_env = log_env;
+    b->instance = PyObject_CallFunction(load, "sssi", resources_dir, instance_name, guid, fmu_type);
+    if (!b->instance) goto python_error;
+    spec = PyObject_CallMethod(b->instance, "native_layout", NULL);
+    unsigned long long real, ints, flags, indicators, nominals;
+    Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz;
+    if (!spec || !PyArg_ParseTuple(spec, "KnKnKnnnnKnK", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
+                                   &x_offset, &dx_offset, &indicators, &nz, &nominals))
+        goto python_error;
+    *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
+                           (const unsigned char *)(uintptr_t)flags, (size_t)n_str, (size_t)nx,
+                           (size_t)x_offset, (size_t)dx_offset, (double *)(uintptr_t)indicators, (size_t)nz,
+                           (const double *)(uintptr_t)nominals};
+    for (int i = 0; i < DFMI_N_OPS; i++)
+        if (!(b->ops[i] = PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;
+    if (!(b->event_update = PyObject_GetAttrString(b->instance, "event_update")) ||
+        !(b->get_string = PyObject_GetAttrString(b->instance, "get_string")) ||
+        !(b->set_string = PyObject_GetAttrString(b->instance, "set_string")) ||
+        !(b->get_state = PyObject_GetAttrString(b->instance, "get_state")) ||
+        !(b->set_state = PyObject_GetAttrString(b->instance, "set_state")) ||
+        !(b->serialize = PyObject_GetAttrString(b->instance, "serialize_state")) ||
+        !(b->deserialize = PyObject_GetAttrString(b->instance, "deserialize_state")) ||
+        !(b->pending_logs = PyObject_GetAttrString(b->instance, "pending_logs")) ||
+        !(b->strings = PyList_New(n_str)))
+        goto python_error;
+    for (Py_ssize_t i = 0; i < n_str; i++) {
+        Py_INCREF(Py_None);
+        PyList_SetItem(b->strings, i, Py_None);
+    }
+    Py_DECREF(spec);
+    drain_logs(b);
+    LEAVE;
+    return b;
+python_error:
+    report_exception(log, log_env, "fmi2Instantiate");
+fail:
+    Py_XDECREF(spec);
+    if (b) release(b);
+    LEAVE;
+    return NULL;
+}
+
+static void free_instance(void *handle) {
+    ENTER;
+    release(handle);
+    LEAVE;
+}
+
+static int call(void *handle, DfmiOp op, const double *args, int nargs) {
+    Bridged *b = handle;
+    ENTER;
+    PyObject *tuple = PyTuple_New(nargs);
+    for (int i = 0; i < nargs; i++) PyTuple_SetItem(tuple, i, PyFloat_FromDouble(args[i]));
+    int status = finish(b, PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
+    Py_DECREF(tuple);
+    LEAVE;
+    return status;
+}
+
+static int event_update(void *handle, double time, int flags[5], double *next_event_time) {
+    Bridged *b = handle;
+    ENTER;
+    PyObject *result = PyObject_CallFunction(b->event_update, "d", time);
+    int status = 0;
+    if (result && PyArg_ParseTuple(result, "pppppd", &flags[0], &flags[1], &flags[2], &flags[3], &flags[4],
+                                   next_event_time)) {
+        Py_DECREF(result);
+        drain_logs(b);
+    } else {
+        Py_XDECREF(result);
+        status = finish(b, NULL, "fmi2NewDiscreteStates");
+    }
+    LEAVE;
+    return status;
+}
+
+static int get_string(void *handle, size_t index, const char **value) {
+    Bridged *b = handle;
+    ENTER;
+    int status = 0;
+    PyObject *text = PyObject_CallFunction(b->get_string, "n", (Py_ssize_t)index);
+    PyObject *bytes = text ? PyUnicode_AsUTF8String(text) : NULL;
+    Py_XDECREF(text);
+    if (bytes) {
+        *value = PyBytes_AsString(bytes);
+        PyList_SetItem(b->strings, (Py_ssize_t)index, bytes); /* steals; keeps the bytes alive */
+    } else {
+        status = finish(b, NULL, "fmi2GetString");
+    }
+    LEAVE;
+    return status;
+}
+
+static int set_string(void *handle, size_t index, const char *value) {
+    Bridged *b = handle;
+    ENTER;
+    int status = finish(b, PyObject_CallFunction(b->set_string, "ns", (Py_ssize_t)index, value), "fmi2SetString");
+    LEAVE;
+    return status;
+}
+
+static int get_state(void *handle, void **state) {
+    Bridged *b = handle;
+    ENTER;
+    PyObject *snapshot = PyObject_CallNoArgs(b->get_state);
+    *state = snapshot;
+    int status = snapshot ? 0 : finish(b, NULL, "fmi2GetFMUstate");
+    LEAVE;
+    return status;
+}
+
+static int set_state(void *handle, void *state) {
+    Bridged *b = handle;
+    ENTER;
+    int status = finish(b, PyObject_CallFunctionObjArgs(b->set_state, (PyObject *)state, NULL), "fmi2SetFMUstate");
+    LEAVE;
+    return status;
+}
+
+static void free_state(void *state) {
+    if (!state) return;
+    ENTER;
+    Py_DECREF((PyObject *)state);
+    LEAVE;
+}
+
+static int serialize_state(void *handle, void *state, const char **bytes, size_t *size) {
+    Bridged *b = handle;
+    ENTER;
+    int status = 0;
+    PyObject *data = PyObject_CallFunctionObjArgs(b->serialize, (PyObject *)state, NULL);
+    char *buffer;
+    Py_ssize_t n;
+    if (data && PyBytes_AsStringAndSize(data, &buffer, &n) == 0) {
+        Py_XDECREF(b->serialized);
+        b->serialized = data; /* keeps *bytes valid until the next call */
+        *bytes = buffer;
+        *size = (size_t)n;
+    } else {
+        Py_XDECREF(data);
+        status = finish(b, NULL, "fmi2SerializeFMUstate");
+    }
+    LEAVE;
+    return status;
+}
+
+static int deserialize_state(void *handle, const char *bytes, size_t size, void **state) {
+    Bridged *b = handle;
+    ENTER;
+    PyObject *data = PyBytes_FromStringAndSize(bytes, (Py_ssize_t)size);
+    PyObject *snapshot = data ? PyObject_CallFunctionObjArgs(b->deserialize, data, NULL) : NULL;
+    Py_XDECREF(data);
+    *state = snapshot;
+    int status = snapshot ? 0 : finish(b, NULL, "fmi2DeSerializeFMUstate");
+    LEAVE;
+    return status;
+}
+
+static const DfmiBridge BRIDGE = {
+    DFMI_BRIDGE_VERSION, start, instantiate, free_instance, call, event_update, get_string, set_string,
+    get_state, set_state, free_state, serialize_state, deserialize_state};
+
+EXPORT const DfmiBridge *dfmi_bridge_v1(void) { return &BRIDGE; }

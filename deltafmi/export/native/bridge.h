@@ -1,0 +1,61 @@
+/* The interface between the plain-C FMI loader and the Python bridge.
+ *
+ * The loader (loader.c) exports the fmi2 functions and never touches Python. Once libpython is in
+ * the process it dlopen()s the bridge (bridge.c, built against the Python limited API) and calls
+ * dfmi_bridge_v1() to get this table. Status codes are fmi2Status values (0 OK .. 3 error). */
+#ifndef DELTAFMI_BRIDGE_H
+#define DELTAFMI_BRIDGE_H
+
+#include <stddef.h>
+
+#define DFMI_BRIDGE_VERSION 1
+
+typedef void (*DfmiLogFn)(void *env, int status, const char *category, const char *message);
+
+/* Buffers owned by the Python instance and read/written in place by the loader. */
+typedef struct {
+    double *real;                 size_t n_real;
+    int *ints;                    size_t n_int;
+    const unsigned char *flags;   /* one per real and int scalar: setter rules, boolean bit */
+    size_t n_str;
+    size_t nx, x_offset, dx_offset;
+    double *event_indicators;     size_t nz;
+    const double *nominals;
+} DfmiLayout;
+
+typedef enum {
+    DFMI_ENTER_INITIALIZATION = 0, /* args: start, stop (NaN: undefined), tolerance (NaN: undefined) */
+    DFMI_EXIT_INITIALIZATION,
+    DFMI_EVALUATE,                 /* args: time */
+    DFMI_DO_STEP,                  /* args: current communication point, step size */
+    DFMI_TERMINATE,
+    DFMI_RESET,
+    DFMI_N_OPS
+} DfmiOp;
+
+typedef struct {
+    int version;
+    /* Start (or attach to) the interpreter; python_executable names it for sys.prefix. */
+    int (*start)(const char *python_executable, char *error, size_t error_size);
+    /* Load the FMU's Python model and create one instance; NULL on failure (logged). */
+    void *(*instantiate)(const char *resources_dir, const char *instance_name, const char *guid,
+                         int fmu_type, DfmiLogFn log, void *log_env, DfmiLayout *layout);
+    void (*free_instance)(void *instance);
+    int (*call)(void *instance, DfmiOp op, const double *args, int nargs);
+    /* fmi2NewDiscreteStates: flags = newDiscreteStatesNeeded, terminateSimulation,
+     * nominalsChanged, valuesOfContinuousStatesChanged, nextEventTimeDefined. */
+    int (*event_update)(void *instance, double time, int flags[5], double *next_event_time);
+    /* Returned string stays valid until the next get_string on this instance. */
+    int (*get_string)(void *instance, size_t index, const char **value);
+    int (*set_string)(void *instance, size_t index, const char *value);
+    int (*get_state)(void *instance, void **state);       /* *state: new opaque snapshot */
+    int (*set_state)(void *instance, void *state);
+    void (*free_state)(void *state);
+    /* Serialize into a bridge-owned buffer valid until the next call on this instance. */
+    int (*serialize_state)(void *instance, void *state, const char **bytes, size_t *size);
+    int (*deserialize_state)(void *instance, const char *bytes, size_t size, void **state);
+} DfmiBridge;
+
+typedef const DfmiBridge *(*DfmiBridgeEntry)(void);
+
+#endif

@@ -1,0 +1,142 @@
+"""Pack a component source file into a ``.fmu``: model description, binaries, resources, sources."""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import json
+import keyword
+import os
+import re
+import sys
+import tempfile
+import uuid
+import zipfile
+from pathlib import Path
+from typing import Optional
+
+import deltafmi
+from ..component import Component
+from ..component.model_description import model_description_xml
+from .compiler import cache_dir, native_binaries, native_source_files, python_runtime_config
+
+PACKAGE_DIR = Path(deltafmi.__file__).parent
+#: the parts of deltafmi an FMU carries: the component runtime and the mechanics it may use
+BUNDLED_PACKAGES = ("component", "mechanics")
+_GUID_NAMESPACE = uuid.UUID("6f1c8a52-4d0e-4f5e-9a53-0d3c5e2b7a11")
+
+
+class ComponentSourceError(ValueError):
+    """The source file does not define exactly one usable Component subclass."""
+
+
+def load_component_class(source: Path) -> type[Component]:
+    """Import ``source`` and return the one Component subclass defined in it."""
+    source = Path(source)
+    if not source.is_file():
+        raise ComponentSourceError(f"{source}: no such file")
+    name = f"_deltafmi_source_{re.sub(r'[^0-9a-zA-Z_]', '_', source.stem)}_{_digest(source.read_bytes())[:8]}"
+    spec = importlib.util.spec_from_file_location(name, source)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:
+        raise ComponentSourceError(f"{source}: importing it failed: {exc!r}") from exc
+    classes = [obj for obj in vars(module).values()
+               if isinstance(obj, type) and issubclass(obj, Component) and obj.__module__ == name]
+    if len(classes) != 1:
+        found = ", ".join(c.__name__ for c in classes) or "none"
+        raise ComponentSourceError(f"{source}: expected exactly one Component subclass, found {found}")
+    cls = classes[0]
+    identifier = cls.fmi_model_name()
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", identifier) or keyword.iskeyword(identifier):
+        raise ComponentSourceError(f"{source}: model name {identifier!r} is not a valid C identifier")
+    return cls
+
+
+def runtime_files() -> list[tuple[Path, str]]:
+    """(file, archive name) of the deltafmi runtime bundled under ``resources/python``."""
+    files = [(PACKAGE_DIR / "__init__.py", "resources/python/deltafmi/__init__.py")]
+    for package in BUNDLED_PACKAGES:
+        for path in sorted((PACKAGE_DIR / package).rglob("*.py")):
+            files.append((path, f"resources/python/deltafmi/{path.relative_to(PACKAGE_DIR).as_posix()}"))
+    return files
+
+
+def content_key(source: Path) -> str:
+    """Hash of everything that determines an FMU built from ``source``."""
+    digest = hashlib.sha256(Path(source).read_bytes())
+    for path, arcname in runtime_files():
+        digest.update(arcname.encode() + path.read_bytes())
+    for path in native_source_files():
+        digest.update(path.read_bytes())
+    digest.update(python_runtime_config().encode())
+    return digest.hexdigest()
+
+
+def build_fmu(source: Path, output: Optional[Path] = None) -> Path:
+    """Build the FMU for the component in ``source``; returns the ``.fmu`` path."""
+    source = Path(source)
+    cls = load_component_class(source)
+    identifier = cls.fmi_model_name()
+    output = Path(output) if output else Path("build") / "fmus" / f"{identifier}.fmu"
+    key = content_key(source)
+    guid = "{" + str(uuid.uuid5(_GUID_NAMESPACE, key)) + "}"
+    binaries = native_binaries()
+    info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
+            "guid": guid, "deltafmi_version": deltafmi.__version__}
+    output.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile(dir=output.parent, suffix=".fmu.tmp", delete=False) as tmp:
+        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as fmu:
+            fmu.writestr("modelDescription.xml", model_description_xml(cls, guid))
+            fmu.write(binaries.loader, f"binaries/linux64/{identifier}.so")
+            fmu.write(binaries.bridge, f"binaries/linux64/{binaries.bridge.name}")
+            fmu.write(source, f"resources/model/{source.name}")
+            fmu.write(PACKAGE_DIR / "export" / "boot.py", "resources/deltafmi_boot.py")
+            fmu.writestr("resources/deltafmi.json", json.dumps(info, indent=2))
+            fmu.writestr("resources/python.cfg", python_runtime_config())
+            fmu.writestr("resources/README.txt", _readme(identifier))
+            for path, arcname in runtime_files():
+                fmu.write(path, arcname)
+            for path in native_source_files():
+                fmu.write(path, f"sources/{path.name}")
+            fmu.writestr("documentation/index.html", _documentation(cls))
+    os.replace(tmp.name, output)
+    return output
+
+
+def build_cached(source: Path) -> Path:
+    """The FMU for ``source`` from the build cache, built when the source or runtime changed."""
+    source = Path(source)
+    target = cache_dir() / "fmus" / content_key(source)[:20]
+    existing = list(target.glob("*.fmu")) if target.is_dir() else []
+    if existing:
+        return existing[0]
+    cls = load_component_class(source)
+    return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu")
+
+
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+_REQUIREMENTS = ("This FMU runs its model in CPython (3.10 or newer) with numpy, scipy and fmpy "
+                 "installed. In a Python host (fmpy, libcosimpy, ...) it uses the host's interpreter. "
+                 "In any other host (a C program, Simulink, OpenModelica, Dymola, libcosim) the binary "
+                 "loads the Python library named in resources/python.cfg, recorded when the FMU was built; "
+                 "override it with the environment variables DELTAFMI_LIBPYTHON (path of libpython3.x.so) "
+                 "and DELTAFMI_PYTHON (the interpreter whose site-packages to use).")
+
+
+def _readme(identifier: str) -> str:
+    return (f"{identifier}: an FMI 2.0 FMU (Model Exchange and Co-Simulation) built by deltafmi "
+            f"{deltafmi.__version__}.\n\n{_REQUIREMENTS}\n\nmodel/ holds the component source, python/ the "
+            "deltafmi runtime it uses, deltafmi_boot.py the code the native bridge runs to load it.\n")
+
+
+def _documentation(cls: type[Component]) -> str:
+    import html
+    doc = html.escape((cls.__doc__ or "").strip())
+    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{cls.fmi_model_name()}</title></head>"
+            f"<body><h1>{cls.fmi_model_name()}</h1><pre>{doc}</pre><h2>Requirements</h2>"
+            f"<p>{html.escape(_REQUIREMENTS)}</p></body></html>\n")

@@ -1,0 +1,23 @@
+"""Delta robot plant as a numpy library: the public face of the delta mechanics.
+
+Re-exports the parameters and frame (:mod:`.delta_params`), the kinematics in the seed talk's
+nine joint angles (:mod:`.delta_kinematics`) and the stabilised DAE dynamics
+(:mod:`.delta_dynamics`). Conventions (frame, psi, branches, RL5 defaults) follow DESIGN.md.
+Joint vectors are arm-major: q = [q11, q12, q13, q21, q22, q23, q31, q32, q33].
+"""
+
+from .delta_dynamics import (accelerations, coriolis, energy, gravity, holding_torque,
+                             mass_matrix)
+from .delta_kinematics import (arm_bias, arm_jacobian, arm_psi, constraint, constraint_bias,
+                               constraint_jacobian, forward_kinematics, inverse_kinematics,
+                               stretched_height, virtual_jacobian, wrist_position,
+                               wrist_velocity)
+from .delta_params import ARM_ROTATIONS, R2, R3, RL5, DeltaParams, rot_z
+
+__all__ = [
+    "DeltaParams", "RL5", "R2", "R3", "ARM_ROTATIONS", "rot_z",
+    "arm_psi", "arm_jacobian", "arm_bias", "stretched_height",
+    "inverse_kinematics", "forward_kinematics", "wrist_position", "wrist_velocity",
+    "constraint", "constraint_jacobian", "constraint_bias", "virtual_jacobian",
+    "mass_matrix", "coriolis", "gravity", "accelerations", "energy", "holding_torque",
+]

@@ -1,0 +1,600 @@
+"""Feedback-linearising wrist-position controller of the delta robot (seed talk, "Inner Loop
+Feedback Linearization"), written for speed in plain float arithmetic.
+
+Per sample, from the measured servo angles y and rates yd:
+
+1. forward kinematics: Newton iteration on h(x, y) = 0 (6-D) warm-started from the previous
+   sample (its x advanced one sample with its rate), or the closed-form three-sphere solution;
+2. velocities: zd = Jc yd with the control Jacobian Jc = dPsi/dx dg/dy + dPsi/dy, and xd;
+3. outer loop in wrist coordinates:
+   a = kI int(r - z) + kP (r - z) + kD (rd - zd) + rdd   (integral clamped, conditional);
+4. inner loop: u = My Jc^-1 (a - Jc' yd) + c_y(q, v) + D v + tau_g, the exact inverse dynamics
+   of the constrained robot in servo coordinates. ``coriolis=False`` drops every velocity term
+   and leaves the seed's law u = My Jc^-1 a + tau_g.
+
+Why it is cheap. The 6x6 dh/dx = [[A1, -A2, 0], [A1, 0, -A3]] (A_i = R_i dpsi/dx_i, 3x2) is
+never formed: the columns of A_i are orthogonal to the forearm direction n_i, so a solve with
+it splits into one 3x3 solve with N = [n_1 n_2 n_3]^T (the classic delta Jacobian) plus two dot
+products per arm. The seed's 9x9 system [B H^T][tau; lambda] = G splits the same way: with the
+constraint force F_i on arm i (sum F_i = 0, which is what H^T lambda means), rows 2-3 of each
+arm fix F_i up to a multiple of n_i, and N^T fixes the multiples. So Jc = N^-1 diag(n_i . b_i)
+(b_i = dpsi/dq_i1 in the world). Inverse dynamics runs arm by arm on the point-mass form of the
+forearm (a thin rod is three point masses m2/6, 2 m2/3, m2/6 at elbow, middle and wrist).
+
+Reduced inertia. The seed's My = M11 - M12 (dh/dx)^-1 dh/dy keeps the servo rows of the
+reordered M but drops the constraint force those rows carry (dh/dy != 0). The exact value,
+used here (implicitly) and returned by :func:`reduced_inertia`, is the projection
+My = T^T M T, q' = T y', T = [I; dg/dy] in (y, x) order: symmetric positive definite.
+
+Frame and parameters as in ``deltafmi.mechanics.delta_params`` (DESIGN.md); any object with the
+``DeltaParams`` attributes works, so the controller's model may differ from the plant's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple, Optional, Sequence
+
+import numpy as np
+
+__all__ = [
+    "ControlLaw", "ControlOutput", "DeltaController", "evaluate", "make_law", "describe_status",
+    "STATUS_OK", "STATUS_TORQUE_SATURATED", "STATUS_INTEGRAL_CLAMPED", "STATUS_ILL_CONDITIONED",
+    "STATUS_SINGULAR",
+    "forward_kinematics_closed", "forward_kinematics_newton", "inverse_kinematics_servo",
+    "control_jacobian", "gravity_torque", "reduced_inertia", "inverse_dynamics",
+]
+
+STATUS_OK = 0
+STATUS_TORQUE_SATURATED = 1   #: some servo torque clipped to +-torque_limit
+STATUS_INTEGRAL_CLAMPED = 2   #: the integral term is at +-integral_limit on some axis
+STATUS_ILL_CONDITIONED = 4    #: cond(Jc) > cond_limit: near a singularity
+STATUS_SINGULAR = 8           #: no forward kinematics or a singular solve: no torque computed
+
+_STATUS_TEXT = ((1, "torque saturated"), (2, "integral clamped"), (4, "Jc ill-conditioned"),
+                (8, "singular: no forward kinematics or singular Jacobian"))
+
+_CR, _SR = math.cos(2.0 * math.pi / 3.0), math.sin(2.0 * math.pi / 3.0)
+#: (cos, sin) of the arm rotations R1 = I, R2 = Rz(+2pi/3), R3 = Rz(-2pi/3)
+_ROT = ((1.0, 0.0), (_CR, _SR), (_CR, -_SR))
+
+
+def describe_status(status: int) -> str:
+    """Human-readable text of a status bit set."""
+    return "ok" if status == 0 else "; ".join(t for b, t in _STATUS_TEXT if status & b)
+
+
+class _Model(NamedTuple):
+    """Constants of the arm model, derived once from the parameters."""
+
+    a: float        # l0 - l3: the wrist spheres are centred at the elbows shifted by -l3
+    l1: float
+    l2: float
+    jrot: float     # J1 + Jm about the servo axis
+    m1r1g: float    # m1 r1 g
+    s0: float       # forearm + plate point masses: m2 + mp'  (mp' = (mp + payload) / 3)
+    s1: float       # first moment along the forearm / l2:  m2/2 + mp'
+    s2: float       # second moment / l2^2:  m2/3 + mp'
+    g: float
+    damping: float
+
+
+def _model(params) -> _Model:
+    mpp = (params.mp + params.payload) / 3.0
+    return _Model(params.l0 - params.l3, params.l1, params.l2, params.J1 + params.Jm,
+                  params.m1 * params.r1 * params.g, params.m2 + mpp, params.m2 / 2.0 + mpp,
+                  params.m2 / 3.0 + mpp, params.g, params.damping)
+
+
+@dataclass(frozen=True)
+class ControlLaw:
+    """Everything :func:`evaluate` needs: model constants, gains, limits and options.
+
+    Build it with :func:`make_law`. ``integral_max`` bounds the integral STATE per axis
+    (m s) so that ``kI * integral`` stays within ``integral_limit`` (m/s^2).
+    """
+
+    model: _Model
+    kI: float
+    kP: float
+    kD: float
+    integral_max: float
+    feedforward: bool
+    coriolis: bool
+    torque_limit: float
+    cond_limit: float
+    fk: str
+    newton_tol: float
+    newton_max_iter: int
+
+
+def make_law(params, pole: float = 7.0, kI: Optional[float] = None, kP: Optional[float] = None,
+             kD: Optional[float] = None, integral_limit: float = 1.0, feedforward: bool = True,
+             coriolis: bool = True, torque_limit: float = 300.0, cond_limit: float = 1e3,
+             fk: str = "newton", newton_tol: float = 1e-12, newton_max_iter: int = 6) -> ControlLaw:
+    """Control law from kinematic/inertial ``params`` and the outer-loop design.
+
+    Gains default to a triple pole at ``-pole`` (rad/s): kI = p^3, kP = 3 p^2, kD = 3 p.
+    ``integral_limit`` (m/s^2) bounds the integral action kI int(r - z) per axis; ``fk`` is
+    ``"newton"`` (warm-started, the seed's method) or ``"closed"`` (three-sphere intersection).
+    """
+    p = float(pole)
+    kI = p ** 3 if kI is None or kI < 0 else float(kI)
+    kP = 3.0 * p * p if kP is None or kP < 0 else float(kP)
+    kD = 3.0 * p if kD is None or kD < 0 else float(kD)
+    if fk not in ("newton", "closed"):
+        raise ValueError(f"fk must be 'newton' or 'closed', got {fk!r}")
+    if not (torque_limit > 0 and integral_limit >= 0 and cond_limit > 1):
+        raise ValueError("torque_limit must be > 0, integral_limit >= 0 and cond_limit > 1")
+    imax = integral_limit / kI if kI > 0.0 else 0.0
+    return ControlLaw(_model(params), kI, kP, kD, imax, bool(feedforward), bool(coriolis),
+                      float(torque_limit), float(cond_limit), fk, float(newton_tol),
+                      int(newton_max_iter))
+
+
+class ControlOutput(NamedTuple):
+    """Result of one controller evaluation (all plain floats / tuples)."""
+
+    u: tuple            #: servo torques (N m), saturated; zeros when status has STATUS_SINGULAR
+    integral: tuple     #: updated integral state int(r - z) dt (m s)
+    z: tuple            #: estimated wrist position (m)
+    zd: tuple           #: estimated wrist velocity (m/s)
+    x: tuple            #: unmeasured angles (q12, q13, q22, q23, q32, q33) (rad)
+    xd: tuple           #: their rates (rad/s)
+    cond: float         #: Frobenius condition number of Jc (inf when singular)
+    status: int         #: STATUS_* bits
+    iterations: int     #: Newton iterations (-1: closed form used)
+
+
+# --------------------------------------------------------------------------------------------
+# kinematics kernels (floats in, floats out)
+# --------------------------------------------------------------------------------------------
+def _inv3(m):
+    """Inverse of a 3x3 matrix given as 9 floats (row major), or None when singular."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m
+    c00 = m11 * m22 - m12 * m21
+    c01 = m12 * m20 - m10 * m22
+    c02 = m10 * m21 - m11 * m20
+    det = m00 * c00 + m01 * c01 + m02 * c02
+    if not abs(det) > 1e-12:
+        return None
+    k = 1.0 / det
+    return (c00 * k, (m02 * m21 - m01 * m22) * k, (m01 * m12 - m02 * m11) * k,
+            c01 * k, (m00 * m22 - m02 * m20) * k, (m02 * m10 - m00 * m12) * k,
+            c02 * k, (m01 * m20 - m00 * m21) * k, (m00 * m11 - m01 * m10) * k)
+
+
+def _elbows(k: _Model, y):
+    """Servo (cos, sin) per arm and the wrist-sphere centres E_i in the world (9 floats)."""
+    a, l1 = k.a, k.l1
+    servo = []
+    e = []
+    for (cr, sr), yi in zip(_ROT, y):
+        c1, s1 = math.cos(yi), math.sin(yi)
+        rho = a + l1 * c1
+        servo.append((c1, s1))
+        e += (-sr * rho, cr * rho, l1 * s1)
+    return servo, e
+
+
+def _closed_fk(l2: float, e):
+    """Lower intersection point of the three spheres |z - E_i| = l2, or None if they miss."""
+    e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z = e
+    ux, uy, uz = e2x - e1x, e2y - e1y, e2z - e1z
+    vx, vy, vz = e3x - e1x, e3y - e1y, e3z - e1z
+    d = math.sqrt(ux * ux + uy * uy + uz * uz)
+    if d < 1e-12:
+        return None
+    ux, uy, uz = ux / d, uy / d, uz / d
+    i = ux * vx + uy * vy + uz * vz
+    wx, wy, wz = vx - i * ux, vy - i * uy, vz - i * uz
+    j = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if j < 1e-12:
+        return None
+    wx, wy, wz = wx / j, wy / j, wz / j
+    px = 0.5 * d                               # equal radii
+    py = (i * i + j * j - 2.0 * i * px) / (2.0 * j)
+    h2 = l2 * l2 - px * px - py * py
+    if h2 < 0.0:
+        return None
+    nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+    pz = -math.sqrt(h2) if nz > 0.0 else math.sqrt(h2)   # the solution below the base
+    return (e1x + px * ux + py * wx + pz * nx, e1y + px * uy + py * wy + pz * ny,
+            e1z + px * uz + py * wz + pz * nz)
+
+
+def _forearms_from_z(l2: float, e, z):
+    """Per-arm (s2, c2, s3, c3) of the forearm direction reaching wrist z, or None."""
+    out = []
+    for idx, (cr, sr) in enumerate(_ROT):
+        wx = (z[0] - e[3 * idx]) / l2
+        wy = (z[1] - e[3 * idx + 1]) / l2
+        dz = (z[2] - e[3 * idx + 2]) / l2
+        dx, dy = cr * wx + sr * wy, cr * wy - sr * wx
+        s2 = -math.sqrt(dx * dx + dz * dz)      # branch q2 in (-pi, 0)
+        if s2 > -1e-9:
+            return None
+        out.append((s2, dy, dx / s2, dz / s2))
+    return out
+
+
+def _trig(x):
+    return [(math.sin(x[i]), math.cos(x[i]), math.sin(x[i + 1]), math.cos(x[i + 1]))
+            for i in (0, 2, 4)]
+
+
+def _newton_fk(l2: float, e, x, tol: float, max_iter: int):
+    """Newton on h(x, y) = 0 from the angles x (6 floats).
+
+    Returns (z, forearms, x, iterations), or None when it does not converge. The 6-D step
+    dh/dx dx = -h is solved through its structure: the linearised equations are
+    w_i + A_i dx_i = zbar (i = 1..3) for a common point zbar; dotting with n_i (orthogonal to
+    A_i) gives N zbar = (n_i . w_i), then dx_i = A_i^+ (zbar - w_i) with A_i's orthogonal columns.
+    """
+    x = list(x)
+    trig = _trig(x)
+    for it in range(max_iter + 1):
+        w = []
+        n = []
+        for idx, (cr, sr) in enumerate(_ROT):
+            s2, c2, s3, c3 = trig[idx]
+            dx, dz = s2 * s3, s2 * c3
+            nx, ny = cr * dx - sr * c2, sr * dx + cr * c2
+            n += (nx, ny, dz)
+            w += (e[3 * idx] + l2 * nx, e[3 * idx + 1] + l2 * ny, e[3 * idx + 2] + l2 * dz)
+        res = max(abs(w[0] - w[3]), abs(w[1] - w[4]), abs(w[2] - w[5]),
+                  abs(w[0] - w[6]), abs(w[1] - w[7]), abs(w[2] - w[8]))
+        if res <= tol:
+            z = ((w[0] + w[3] + w[6]) / 3.0, (w[1] + w[4] + w[7]) / 3.0,
+                 (w[2] + w[5] + w[8]) / 3.0)
+            return z, trig, x, it
+        ninv = _inv3(n)
+        if it == max_iter or ninv is None or not res < 0.5:
+            return None
+        b0 = n[0] * w[0] + n[1] * w[1] + n[2] * w[2]
+        b1 = n[3] * w[3] + n[4] * w[4] + n[5] * w[5]
+        b2 = n[6] * w[6] + n[7] * w[7] + n[8] * w[8]
+        zb = (ninv[0] * b0 + ninv[1] * b1 + ninv[2] * b2,
+              ninv[3] * b0 + ninv[4] * b1 + ninv[5] * b2,
+              ninv[6] * b0 + ninv[7] * b1 + ninv[8] * b2)
+        for idx, (cr, sr) in enumerate(_ROT):
+            s2, c2, s3, c3 = trig[idx]
+            gx, gy, gz = zb[0] - w[3 * idx], zb[1] - w[3 * idx + 1], zb[2] - w[3 * idx + 2]
+            lx, ly = cr * gx + sr * gy, cr * gy - sr * gx
+            x[2 * idx] += (c2 * s3 * lx - s2 * ly + c2 * c3 * gz) / l2
+            x[2 * idx + 1] += (c3 * lx - s3 * gz) / (l2 * s2)
+        trig = _trig(x)
+    return None
+
+
+def _angles(forearms):
+    out = []
+    for s2, c2, s3, c3 in forearms:
+        out += (math.atan2(s2, c2), math.atan2(s3, c3))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# the controller evaluation
+# --------------------------------------------------------------------------------------------
+_SINGULAR_OUT = ((0.0, 0.0, 0.0), (0.0,) * 6)
+
+
+def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequence[float],
+             rd: Sequence[float], rdd: Sequence[float],
+             integral: Sequence[float] = (0.0, 0.0, 0.0), dt: float = 0.0,
+             x_guess: Optional[Sequence[float]] = None) -> ControlOutput:
+    """One evaluation of the control law; pure (no state is kept).
+
+    ``integral`` is the integral state before this sample and ``dt`` the time it advances
+    (0: evaluate only). ``x_guess`` (6 angles) warm-starts the Newton forward kinematics;
+    without it, or if Newton fails, the closed form is used. Inputs are 3-sequences of floats.
+    """
+    k = law.model
+    l1, l2 = k.l1, k.l2
+    y = (float(y[0]), float(y[1]), float(y[2]))
+    servo, e = _elbows(k, y)
+    iterations = -1
+    fk = None
+    if law.fk == "newton" and x_guess is not None:
+        fk = _newton_fk(l2, e, x_guess, law.newton_tol, law.newton_max_iter)
+    if fk is not None:
+        z, fa, x, iterations = fk
+    else:
+        z = _closed_fk(l2, e)
+        fa = None if z is None else _forearms_from_z(l2, e, z)
+        if fa is None:
+            return ControlOutput((0.0, 0.0, 0.0), tuple(integral), (math.nan,) * 3,
+                                 (0.0, 0.0, 0.0), (math.nan,) * 6, (0.0,) * 6, math.inf,
+                                 STATUS_SINGULAR, iterations)
+        x = _angles(fa)
+
+    # N (rows: forearm directions n_i, world) and D_i = n_i . b_i = l1 (t1 . d) per arm
+    n = []
+    dd = []
+    for (cr, sr), (c1, s1), (s2, c2, s3, c3) in zip(_ROT, servo, fa):
+        dx = s2 * s3
+        n += (cr * dx - sr * c2, sr * dx + cr * c2, s2 * c3)
+        dd.append(l1 * (c1 * s2 * c3 - s1 * c2))
+    ninv = _inv3(n)
+    dmin = min(abs(dd[0]), abs(dd[1]), abs(dd[2]))
+    if ninv is None or dmin < 1e-9:
+        return ControlOutput((0.0, 0.0, 0.0), tuple(integral), tuple(z), (0.0, 0.0, 0.0),
+                             tuple(x), (0.0,) * 6, math.inf, STATUS_SINGULAR, iterations)
+    # Frobenius condition number of Jc = N^-1 diag(D); rows of N are unit vectors
+    jc2 = sum(dd[j] * dd[j] * (ninv[j] ** 2 + ninv[3 + j] ** 2 + ninv[6 + j] ** 2)
+              for j in range(3))
+    cond = math.sqrt(jc2 * (1.0 / dd[0] ** 2 + 1.0 / dd[1] ** 2 + 1.0 / dd[2] ** 2))
+    status = STATUS_ILL_CONDITIONED if cond > law.cond_limit else STATUS_OK
+
+    # velocities: N zd = (D_i yd_i); A_i xd_i = zd - b_i yd_i
+    yd0, yd1, yd2 = float(yd[0]), float(yd[1]), float(yd[2])
+    q0, q1, q2 = dd[0] * yd0, dd[1] * yd1, dd[2] * yd2
+    zd = (ninv[0] * q0 + ninv[1] * q1 + ninv[2] * q2,
+          ninv[3] * q0 + ninv[4] * q1 + ninv[5] * q2,
+          ninv[6] * q0 + ninv[7] * q1 + ninv[8] * q2)
+    xd = []
+    for (cr, sr), (c1, s1), (s2, c2, s3, c3), ydi in zip(_ROT, servo, fa, (yd0, yd1, yd2)):
+        rx = cr * zd[0] + sr * zd[1]
+        ry = cr * zd[1] - sr * zd[0] + l1 * ydi * s1
+        rz = zd[2] - l1 * ydi * c1
+        xd += ((c2 * s3 * rx - s2 * ry + c2 * c3 * rz) / l2, (c3 * rx - s3 * rz) / (l2 * s2))
+
+    # outer loop in wrist coordinates
+    e0, e1, e2 = float(r[0]) - z[0], float(r[1]) - z[1], float(r[2]) - z[2]
+    imax = law.integral_max
+    i0 = min(max(float(integral[0]) + dt * e0, -imax), imax)
+    i1 = min(max(float(integral[1]) + dt * e1, -imax), imax)
+    i2 = min(max(float(integral[2]) + dt * e2, -imax), imax)
+    if law.kI > 0.0 and max(abs(i0), abs(i1), abs(i2)) >= imax:
+        status |= STATUS_INTEGRAL_CLAMPED
+    kI, kP, kD = law.kI, law.kP, law.kD
+    ff = 1.0 if law.feedforward else 0.0
+    acc = (kI * i0 + kP * e0 + kD * (float(rd[0]) - zd[0]) + ff * float(rdd[0]),
+           kI * i1 + kP * e1 + kD * (float(rd[1]) - zd[1]) + ff * float(rdd[1]),
+           kI * i2 + kP * e2 + kD * (float(rd[2]) - zd[2]) + ff * float(rdd[2]))
+
+    vel = (yd0, yd1, yd2, xd) if law.coriolis else (0.0, 0.0, 0.0, (0.0,) * 6)
+    u = _inverse_dynamics(k, servo, fa, n, ninv, dd, vel, acc)
+    lim = law.torque_limit
+    if not (math.isfinite(u[0]) and math.isfinite(u[1]) and math.isfinite(u[2])):
+        return ControlOutput((0.0, 0.0, 0.0), (i0, i1, i2), tuple(z), zd, tuple(x), tuple(xd),
+                             cond, status | STATUS_SINGULAR, iterations)
+    if max(abs(u[0]), abs(u[1]), abs(u[2])) > lim:
+        status |= STATUS_TORQUE_SATURATED
+        u = tuple(min(max(ui, -lim), lim) for ui in u)
+    return ControlOutput(u, (i0, i1, i2), tuple(z), zd, tuple(x), tuple(xd), cond, status,
+                         iterations)
+
+
+def _inverse_dynamics(k: _Model, servo, fa, n, ninv, dd, vel, acc):
+    """Servo torques giving wrist acceleration ``acc`` at the state (servo, fa, vel).
+
+    Arm by arm (local frame): joint accelerations from the wrist acceleration, the generalised
+    force Q_i = M_i q''_i + c_i + D v_i + g_i, then u_i = Q_i1 - b_i . F_i with the constraint
+    forces F_i (sum F_i = 0) that balance rows 2-3.
+    """
+    l1, l2, g, s0, s1m, s2m, damp = k.l1, k.l2, k.g, k.s0, k.s1, k.s2, k.damping
+    v1s = vel[:3]
+    xd = vel[3]
+    ax, ay, az = acc
+    q1s = []
+    fperp = []
+    sx = sy = sz = 0.0
+    for idx, (cr, sr) in enumerate(_ROT):
+        c1, s1 = servo[idx]
+        s2, c2, s3, c3 = fa[idx]
+        v1 = v1s[idx]
+        v2, v3 = xd[2 * idx], xd[2 * idx + 1]
+        alx, aly = cr * ax + sr * ay, cr * ay - sr * ax
+        # velocity-product part of the forearm direction's second derivative
+        vv = v2 * v2 + v3 * v3
+        cross = 2.0 * v2 * v3
+        kx = -s2 * s3 * vv + cross * c2 * c3
+        ky = -c2 * v2 * v2
+        kz = -s2 * c3 * vv - cross * c2 * s3
+        cen = l1 * v1 * v1                      # elbow centripetal acceleration magnitude
+        tx = alx - l2 * kx
+        ty = aly + cen * c1 - l2 * ky
+        tz = az + cen * s1 - l2 * kz
+        # d . (l1 t1 y'' + l2 d'' terms) = d . t  ->  servo acceleration
+        acc1 = (s2 * s3 * tx + c2 * ty + s2 * c3 * tz) / dd[idx]
+        ey = -l1 * acc1 * s1 - cen * c1          # elbow acceleration (x component is 0)
+        ez = l1 * acc1 * c1 - cen * s1
+        # l2 d'' = a_local - e''; point-mass resultants (gravity folded into the elbow term)
+        fy, fz = aly - ey, az - ez
+        pmy = s0 * ey + s1m * fy
+        pmz = s0 * (ez + g) + s1m * fz
+        pnx = s2m * alx
+        pny = s1m * ey + s2m * fy
+        pnz = s1m * (ez + g) + s2m * fz
+        qa = k.jrot * acc1 + k.m1r1g * c1 + l1 * (c1 * pmz - s1 * pmy) + damp * v1
+        qb = l2 * (c2 * s3 * pnx - s2 * pny + c2 * c3 * pnz) + damp * v2
+        qc = l2 * s2 * (c3 * pnx - s3 * pnz) + damp * v3
+        # F_perp = d2 Qb / l2 + d3 Qc / (l2 s2^2)   (local), then to the world
+        hb, hc = qb / l2, qc / (l2 * s2)
+        fx = c2 * s3 * hb + c3 * hc
+        fyl = -s2 * hb
+        fzl = c2 * c3 * hb - s3 * hc
+        wx, wy = cr * fx - sr * fyl, sr * fx + cr * fyl
+        sx += wx
+        sy += wy
+        sz += fzl
+        q1s.append(qa)
+        fperp.append(l1 * (c1 * fzl - s1 * fyl))   # b_i . F_perp (local, b = l1 t1)
+    # sum_i f_i n_i = -sum_i F_perp_i  ->  f = -N^-T s
+    f0 = -(ninv[0] * sx + ninv[3] * sy + ninv[6] * sz)
+    f1 = -(ninv[1] * sx + ninv[4] * sy + ninv[7] * sz)
+    f2 = -(ninv[2] * sx + ninv[5] * sy + ninv[8] * sz)
+    return (q1s[0] - fperp[0] - f0 * dd[0], q1s[1] - fperp[1] - f1 * dd[1],
+            q1s[2] - fperp[2] - f2 * dd[2])
+
+
+# --------------------------------------------------------------------------------------------
+# analysis helpers (numpy in/out; built on the same kernels)
+# --------------------------------------------------------------------------------------------
+def _law(params, **kw) -> ControlLaw:
+    return make_law(params, fk="closed", cond_limit=1e300, torque_limit=1e300, **kw)
+
+
+def forward_kinematics_closed(params, y: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """Wrist position z and unmeasured angles x from servo angles y (three-sphere closed form).
+
+    Raises ValueError when the servo angles admit no assembly.
+    """
+    k = _model(params)
+    _, e = _elbows(k, y)
+    z = _closed_fk(k.l2, e)
+    fa = None if z is None else _forearms_from_z(k.l2, e, z)
+    if fa is None:
+        raise ValueError(f"servo angles {tuple(y)} admit no assembled configuration")
+    return np.array(z), np.array(_angles(fa))
+
+
+def forward_kinematics_newton(params, y: Sequence[float], x0: Sequence[float],
+                              tol: float = 1e-12, max_iter: int = 20
+                              ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Wrist position z, angles x and the iteration count by Newton on h(x, y) = 0 from x0."""
+    k = _model(params)
+    _, e = _elbows(k, y)
+    out = _newton_fk(k.l2, e, x0, tol, max_iter)
+    if out is None:
+        raise ValueError(f"Newton forward kinematics did not converge from x0 = {tuple(x0)}")
+    z, _, x, it = out
+    return np.array(z), np.array(x), it
+
+
+def inverse_kinematics_servo(params, z: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """Servo angles y and unmeasured angles x placing the wrist at ``z`` (elbows out).
+
+    Raises ValueError when ``z`` is out of reach of some arm.
+    """
+    k = _model(params)
+    y, x = [], []
+    for idx, (cr, sr) in enumerate(_ROT):
+        px = cr * z[0] + sr * z[1]
+        py = cr * z[1] - sr * z[0] - k.a
+        pz = float(z[2])
+        rho = math.hypot(py, pz)
+        cosang = (py * py + pz * pz + k.l1 ** 2 - k.l2 ** 2 + px * px) / (2.0 * k.l1 * rho)
+        if not abs(cosang) <= 1.0:
+            raise ValueError(f"wrist position {tuple(z)} is out of reach of arm {idx + 1}")
+        q1 = math.atan2(pz, py) + math.acos(cosang)
+        c1, s1 = math.cos(q1), math.sin(q1)
+        dx, dy, dz = px / k.l2, (py - k.l1 * c1) / k.l2, (pz - k.l1 * s1) / k.l2
+        s2 = -math.hypot(dx, dz)
+        y.append(q1)
+        x += (math.atan2(s2, dy), math.atan2(dx / s2, dz / s2))
+    return np.array(y), np.array(x)
+
+
+def inverse_dynamics(params, y: Sequence[float], yd: Sequence[float],
+                     zdd: Sequence[float]) -> np.ndarray:
+    """Servo torques that give wrist acceleration ``zdd`` at servo state (y, yd), including
+    velocity terms, damping and gravity (no external force)."""
+    law = _law(params, pole=1.0, feedforward=True, kI=0.0, kP=0.0, kD=0.0)
+    return np.array(evaluate(law, y, yd, (0.0,) * 3, (0.0,) * 3, zdd).u)
+
+
+def gravity_torque(params, y: Sequence[float]) -> np.ndarray:
+    """Servo torques holding the robot at rest at servo angles ``y`` (tau_g = T^T G)."""
+    return inverse_dynamics(params, y, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+
+def control_jacobian(params, y: Sequence[float]) -> np.ndarray:
+    """Control Jacobian Jc = dz/dy (3x3) at servo angles ``y``."""
+    k = _model(params)
+    z, x = forward_kinematics_closed(params, y)
+    servo, e = _elbows(k, y)
+    fa = _forearms_from_z(k.l2, e, z)
+    n = np.empty((3, 3))
+    dd = np.empty(3)
+    for idx, ((cr, sr), (c1, s1), (s2, c2, s3, c3)) in enumerate(zip(_ROT, servo, fa)):
+        n[idx] = (cr * s2 * s3 - sr * c2, sr * s2 * s3 + cr * c2, s2 * c3)
+        dd[idx] = k.l1 * (c1 * s2 * c3 - s1 * c2)
+    return np.linalg.solve(n, np.diag(dd))
+
+
+def reduced_inertia(params, y: Sequence[float]) -> np.ndarray:
+    """Reduced inertia My = T^T M T (3x3) in servo coordinates at servo angles ``y``."""
+    tau_g = gravity_torque(params, y)
+    jc = control_jacobian(params, y)
+    # inverse dynamics at rest is affine in zdd with slope My Jc^-1; sample its columns
+    cols = [inverse_dynamics(params, y, (0.0,) * 3, np.eye(3)[j]) - tau_g for j in range(3)]
+    return np.column_stack(cols) @ jc
+
+
+# --------------------------------------------------------------------------------------------
+# the stateful sampled controller
+# --------------------------------------------------------------------------------------------
+@dataclass
+class DeltaController:
+    """Sampled feedback-linearising controller: call :meth:`step` once per sample period.
+
+    Keeps the integral state, the last Newton solution (warm start), the last valid torque (held
+    when a sample is singular) and ``status``/``cond`` of the last sample. Gains default to a
+    triple pole at ``-pole``; negative or None kI/kP/kD mean "from pole".
+    """
+
+    params: object
+    pole: float = 7.0
+    kI: Optional[float] = None
+    kP: Optional[float] = None
+    kD: Optional[float] = None
+    integral_limit: float = 1.0
+    feedforward: bool = True
+    torque_limit: float = 300.0
+    sample_period: float = 1e-3
+    coriolis: bool = True
+    fk: str = "newton"
+    cond_limit: float = 1e3
+    law: ControlLaw = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not self.sample_period > 0.0:
+            raise ValueError(f"sample_period must be > 0, got {self.sample_period}")
+        self.law = make_law(self.params, self.pole, self.kI, self.kP, self.kD,
+                            self.integral_limit, self.feedforward, self.coriolis,
+                            self.torque_limit, self.cond_limit, self.fk)
+        self.reset()
+
+    def reset(self) -> None:
+        """Clear the integral, the warm start, the held torque and the warning latch."""
+        self.integral = (0.0, 0.0, 0.0)
+        self.u = (0.0, 0.0, 0.0)
+        self.status = STATUS_OK
+        self.cond = math.nan
+        self.last: Optional[ControlOutput] = None
+        self._x_next: Optional[list] = None
+        self._warned = 0
+
+    def step(self, y: Sequence[float], yd: Sequence[float], r: Sequence[float],
+             rd: Sequence[float], rdd: Sequence[float]) -> np.ndarray:
+        """Advance one sample: integrate r - z over the sample period and return u (3,) N m.
+
+        The integral is frozen while the torque of the previous sample was saturated
+        (conditional integration); a singular sample holds the previous torque.
+        """
+        dt = 0.0 if self.status & STATUS_TORQUE_SATURATED else self.sample_period
+        out = evaluate(self.law, y, yd, r, rd, rdd, self.integral, dt, self._x_next)
+        self.last, self.status, self.cond = out, out.status, out.cond
+        if out.status & STATUS_SINGULAR:
+            self._x_next = None
+            lim = self.law.torque_limit
+            self.u = tuple(min(max(ui, -lim), lim) for ui in self.u)
+        else:
+            self.integral, self.u = out.integral, out.u
+            ts = self.sample_period
+            self._x_next = [xi + ts * vi for xi, vi in zip(out.x, out.xd)]
+        return np.array(self.u)
+
+    def pending_warning(self) -> Optional[str]:
+        """A warning text the first time the singular / ill-conditioned bits appear since the
+        last :meth:`reset` (each bit warns once), else None."""
+        new = self.status & (STATUS_ILL_CONDITIONED | STATUS_SINGULAR) & ~self._warned
+        if not new:
+            return None
+        self._warned |= new
+        return (f"delta controller: {describe_status(new)} (cond(Jc) = {self.cond:.3g}); "
+                f"torques saturate at +-{self.law.torque_limit:g} N m")

@@ -1,0 +1,235 @@
+"""Reference trajectories for the delta robot wrist: r(t), r'(t), r''(t) in the base frame.
+
+Three generators share one interface, ``evaluate(t) -> (r, rd, rdd)`` (three length-3 arrays):
+
+- :class:`MinimumJerkPath`: point-to-point minimum-jerk moves through waypoints, with dwell;
+- :class:`CirclePath`: a horizontal circle whose angular rate ramps in along a minimum-jerk
+  profile, so position, velocity, acceleration and jerk are continuous from rest;
+- :class:`RecordedPath`: playback of a CSV ``time, x, y, z`` through a cubic (optionally
+  smoothing) spline, whose first and second derivatives give rd and rdd.
+
+Waypoints and circles are checked against the nominal workspace (a convex cylinder, so every
+straight segment between admissible waypoints is admissible) and, when a ``DeltaParams``-like
+object is given, against inverse-kinematic reachability along the sampled path.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+Vector3 = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """Nominal workspace of the RL5 delta: a vertical cylinder below the base (metres)."""
+
+    r_max: float = 0.5
+    z_min: float = -1.2
+    z_max: float = -0.75
+
+    def violation(self, point: Sequence[float]) -> str | None:
+        """Return why ``point`` lies outside the cylinder, or None when it is inside."""
+        x, y, z = (float(c) for c in point)
+        if not all(math.isfinite(c) for c in (x, y, z)):
+            return "is not finite"
+        if math.hypot(x, y) > self.r_max + 1e-12:
+            return f"has radius {math.hypot(x, y):.4g} m > r_max {self.r_max:g} m"
+        if not self.z_min - 1e-12 <= z <= self.z_max + 1e-12:
+            return f"has z {z:.4g} m outside [{self.z_min:g}, {self.z_max:g}] m"
+        return None
+
+
+def minimum_jerk(tau: float) -> tuple[float, float, float]:
+    """Normalised minimum-jerk blend s(tau) = 10 tau^3 - 15 tau^4 + 6 tau^5 and its first two
+    derivatives with respect to tau, clamped to the rest values outside [0, 1]."""
+    if tau <= 0.0:
+        return 0.0, 0.0, 0.0
+    if tau >= 1.0:
+        return 1.0, 0.0, 0.0
+    t2 = tau * tau
+    return (t2 * tau * (10.0 + tau * (-15.0 + 6.0 * tau)),
+            30.0 * t2 * (1.0 - tau) ** 2,
+            60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau))
+
+
+def _check_points(points: np.ndarray, workspace: Workspace | None, params, what: str) -> None:
+    """Raise ValueError naming the first point (by index) that is outside or unreachable."""
+    for i, p in enumerate(points):
+        reason = workspace.violation(p) if workspace is not None else None
+        if reason is None and params is not None and not _reachable(params, p):
+            reason = "is not reachable by inverse kinematics"
+        if reason is not None:
+            raise ValueError(f"{what} {i} = ({p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g}) m {reason}")
+
+
+def _reachable(params, point: np.ndarray) -> bool:
+    from deltafmi.mechanics.delta_control import inverse_kinematics_servo
+    try:
+        inverse_kinematics_servo(params, point)
+    except ValueError:
+        return False
+    return True
+
+
+class MinimumJerkPath:
+    """Rest-to-rest minimum-jerk moves through ``waypoints`` (n x 3, metres).
+
+    ``durations[k]`` (n-1 values, s) is the time of the move from waypoint k to waypoint k+1;
+    ``dwell`` (scalar or n values, s) is the time held at each waypoint before leaving it (the
+    dwell at the last waypoint only lengthens :attr:`duration`). Before ``t0`` the path rests at
+    the first waypoint, after the end at the last one. Every waypoint must lie in ``workspace``
+    (pass None to skip) and, when ``params`` is given, be reachable by inverse kinematics.
+    """
+
+    def __init__(self, waypoints: Sequence[Sequence[float]], durations: Sequence[float],
+                 dwell: float | Sequence[float] = 0.0, t0: float = 0.0,
+                 workspace: Workspace | None = Workspace(), params=None) -> None:
+        pts = np.asarray(waypoints, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 1:
+            raise ValueError(f"waypoints must be an n x 3 array with n >= 1, got shape {pts.shape}")
+        T = np.asarray(durations, dtype=float).reshape(-1)
+        if len(T) != len(pts) - 1:
+            raise ValueError(f"{len(pts)} waypoints need {len(pts) - 1} durations, got {len(T)}")
+        for k, Tk in enumerate(T):
+            if not Tk > 0.0:
+                raise ValueError(f"duration {k} (waypoint {k} -> {k + 1}) = {Tk} s must be > 0")
+        D = np.broadcast_to(np.asarray(dwell, dtype=float), (len(pts),)).copy()
+        if np.any(D < 0.0) or not np.all(np.isfinite(D)):
+            raise ValueError(f"dwell must be finite and >= 0, got {dwell}")
+        _check_points(pts, workspace, params, "waypoint")
+        self.waypoints, self.durations, self.dwell, self.t0 = pts, T, D, float(t0)
+        # move k starts after all earlier dwells and moves, plus the dwell at waypoint k
+        before = np.concatenate(([0.0], np.cumsum(D[:-1] + T)[:-1]))[:len(T)]
+        self._starts = self.t0 + before + D[:-1]
+        self.duration = float(D.sum() + T.sum())
+
+    def evaluate(self, t: float) -> Vector3:
+        """Reference position, velocity and acceleration at time ``t``."""
+        pts = self.waypoints
+        k = int(np.searchsorted(self._starts, t, side="right")) - 1
+        if k < 0:
+            return pts[0].copy(), np.zeros(3), np.zeros(3)
+        T = self.durations[k]
+        s, ds, dds = minimum_jerk((t - self._starts[k]) / T)
+        delta = pts[k + 1] - pts[k]
+        return pts[k] + s * delta, (ds / T) * delta, (dds / (T * T)) * delta
+
+
+class CirclePath:
+    """Horizontal circle ``centre + radius (cos phi, sin phi, 0)`` run counter-clockwise.
+
+    The angular rate rises from 0 to 2 pi / period over ``ramp_time`` (default one period) along
+    the minimum-jerk blend, so the path starts at rest at phase ``phase0`` and r, rd, rdd (and
+    the jerk) are continuous. Before ``t0`` the path rests at its start point.
+    """
+
+    def __init__(self, centre: Sequence[float], radius: float, period: float,
+                 ramp_time: float | None = None, phase0: float = 0.0, t0: float = 0.0,
+                 workspace: Workspace | None = Workspace(), params=None,
+                 n_check: int = 72) -> None:
+        c = np.asarray(centre, dtype=float).reshape(-1)
+        if c.shape != (3,):
+            raise ValueError(f"centre must have 3 components, got {centre!r}")
+        if not radius > 0.0 or not period > 0.0:
+            raise ValueError(f"radius ({radius} m) and period ({period} s) must be > 0")
+        self.ramp_time = float(period if ramp_time is None else ramp_time)
+        if not self.ramp_time > 0.0:
+            raise ValueError(f"ramp_time must be > 0, got {ramp_time}")
+        self.centre, self.radius, self.period = c, float(radius), float(period)
+        self.omega, self.phase0, self.t0 = 2.0 * math.pi / self.period, float(phase0), float(t0)
+        phi = self.phase0 + np.linspace(0.0, 2.0 * math.pi, n_check, endpoint=False)
+        ring = c + self.radius * np.column_stack((np.cos(phi), np.sin(phi), np.zeros_like(phi)))
+        _check_points(c[None, :], None, None, "circle centre")
+        try:
+            _check_points(ring, workspace, params, "circle point")
+        except ValueError as exc:
+            raise ValueError(f"circle (centre {tuple(c)}, radius {radius}): {exc}") from None
+
+    def phase(self, t: float) -> tuple[float, float, float]:
+        """Phase angle phi(t) and its first two time derivatives."""
+        tau, Tr, W = (t - self.t0) / self.ramp_time, self.ramp_time, self.omega
+        if tau <= 0.0:
+            return self.phase0, 0.0, 0.0
+        if tau >= 1.0:
+            # integral of the blend over [0, 1] is 1/2
+            return self.phase0 + W * (0.5 * Tr + (t - self.t0 - Tr)), W, 0.0
+        s, ds, _ = minimum_jerk(tau)
+        integral = tau ** 4 * (2.5 + tau * (-3.0 + tau))  # int_0^tau s
+        return self.phase0 + W * Tr * integral, W * s, W * ds / Tr
+
+    def evaluate(self, t: float) -> Vector3:
+        """Reference position, velocity and acceleration at time ``t``."""
+        phi, w, wd = self.phase(t)
+        c, s, R = math.cos(phi), math.sin(phi), self.radius
+        r = self.centre + np.array([R * c, R * s, 0.0])
+        rd = np.array([-R * s * w, R * c * w, 0.0])
+        rdd = np.array([-R * (s * wd + c * w * w), R * (c * wd - s * w * w), 0.0])
+        return r, rd, rdd
+
+
+class RecordedPath:
+    """Playback of recorded references (CSV columns ``time, x, y, z``; a header line is allowed).
+
+    Interpolated by :class:`scipy.interpolate.CubicSpline` ("not-a-knot"), which passes through
+    every sample and is C2, so rdd is continuous and piecewise linear. With ``smoothing`` > 0 a
+    penalised cubic smoothing spline (:func:`scipy.interpolate.make_smoothing_spline`, ``lam`` =
+    ``smoothing``) is used instead, for noisy recordings. Outside the recorded interval the path
+    holds the end sample at rest; the time origin is shifted by ``t0``.
+    """
+
+    def __init__(self, data: str | np.ndarray, smoothing: float = 0.0, t0: float = 0.0,
+                 workspace: Workspace | None = Workspace(), params=None) -> None:
+        from scipy.interpolate import CubicSpline, make_smoothing_spline
+
+        arr = _load_csv(data) if isinstance(data, str) else np.asarray(data, dtype=float)
+        if arr.ndim != 2 or arr.shape[1] != 4 or len(arr) < 4:
+            raise ValueError(f"recorded references need >= 4 rows of (time, x, y, z), "
+                             f"got shape {arr.shape}")
+        t = arr[:, 0]
+        if np.any(np.diff(t) <= 0.0):
+            k = int(np.argmax(np.diff(t) <= 0.0)) + 1
+            raise ValueError(f"recorded time must increase strictly; row {k} has t = {t[k]}")
+        _check_points(arr[:, 1:], workspace, params, "recorded sample")
+        if smoothing > 0.0:
+            self._spline = [make_smoothing_spline(t, arr[:, j], lam=smoothing) for j in (1, 2, 3)]
+        else:
+            self._spline = [CubicSpline(t, arr[:, 1:], axis=0)]
+        self._d1 = [s.derivative(1) for s in self._spline]
+        self._d2 = [s.derivative(2) for s in self._spline]
+        self.t_start, self.t_end, self.t0 = float(t[0]), float(t[-1]), float(t0)
+        self._first, self._last = arr[0, 1:].copy(), arr[-1, 1:].copy()
+
+    @property
+    def duration(self) -> float:
+        """Length of the recording in seconds."""
+        return self.t_end - self.t_start
+
+    def evaluate(self, t: float) -> Vector3:
+        """Reference position, velocity and acceleration at time ``t``."""
+        tau = t - self.t0
+        if tau <= self.t_start:
+            return self._first.copy(), np.zeros(3), np.zeros(3)
+        if tau >= self.t_end:
+            return self._last.copy(), np.zeros(3), np.zeros(3)
+        return (np.hstack([s(tau) for s in self._spline]),
+                np.hstack([s(tau) for s in self._d1]),
+                np.hstack([s(tau) for s in self._d2]))
+
+
+def _load_csv(path: str) -> np.ndarray:
+    with open(path, encoding="utf-8") as fh:
+        first = fh.readline()
+    try:
+        [float(v) for v in first.replace(";", ",").split(",")]
+        skip = 0
+    except ValueError:
+        skip = 1
+    try:
+        return np.loadtxt(path, delimiter=",", skiprows=skip, ndmin=2)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"cannot read recorded references from {path!r}: {exc}") from None
