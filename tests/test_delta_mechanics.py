@@ -363,3 +363,18 @@ def test_passes_through_stretched_arm_singularity():
     assert np.ptp(E) < 1e-6 * kinetic_scale
     rel = Q[:, 1] - Q[:, 0]
     assert rel.min() < -0.1 and rel.max() > 0.1  # elbow really folded through straight
+
+
+def test_evaluate_plant_agrees_with_the_separate_functions():
+    rng = np.random.default_rng(5)
+    p = d.DeltaParams(payload=0.5, damping=0.3)
+    q, v = perturbed_state(rng, dq=0.01)
+    u, f = rng.normal(size=3), rng.normal(size=3)
+    ev = d.evaluate_plant(p, q, v, u, f, 4.0)
+    vdot, lam = d.accelerations(p, q, v, u, f, 4.0)
+    assert np.array_equal(ev.vdot, vdot) and np.array_equal(ev.lam, lam)
+    assert np.allclose(ev.z, d.wrist_position(p, q), rtol=0, atol=1e-15)
+    assert np.allclose(ev.zd, d.wrist_velocity(p, q, v), rtol=0, atol=1e-14)
+    assert ev.residual == pytest.approx(np.linalg.norm(d.constraint(p, q)), rel=1e-12)
+    assert ev.residual > 1e-4  # off the manifold: a real comparison
+    assert ev.energy == pytest.approx(d.energy(p, q, v), rel=1e-13)

@@ -47,6 +47,9 @@ class FmuInstance:
         self.terminate_requested = False
         self._solver: Optional[Cvode] = None
         self._next_time_event: Optional[float] = None
+        self._real_inputs = np.array([s.value_reference for s in layout.scalars
+                                      if s.causality == "input" and s.fmi_type == "Real"], dtype=np.intp)
+        self._inputs_at_last_step = np.full(len(self._real_inputs), np.nan)
 
     def _new_component(self, buffers: Optional[tuple] = None) -> None:
         comp = self.component = self.component_class.__new__(self.component_class)
@@ -122,6 +125,9 @@ class FmuInstance:
             self.time = t_end
             self.evaluate(t_end)
             return OK
+        if self._solver is not None and self._inputs_changed():
+            # a zero-order-hold input jumped: the right-hand side is discontinuous at t
+            self._solver.reinit(self.time, comp._real[: self.nx])
         while self.time < t_end and not self.terminate_requested:
             nte = self._next_time_event
             t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
@@ -146,9 +152,15 @@ class FmuInstance:
         self.time = solver.t if root else t_stop
         return root
 
+    def _inputs_changed(self) -> bool:
+        current = self.component._real[self._real_inputs]
+        changed = not np.array_equal(current, self._inputs_at_last_step)
+        self._inputs_at_last_step = current
+        return changed
+
     def _make_solver(self) -> Cvode:
         options = dict(self.component_class.cs_options)
-        rtol = options.pop("rtol", self.tolerance or 1e-6)
+        rtol = options.pop("rtol", self.tolerance or self.component_class.default_experiment.tolerance)
         atol = options.pop("atol", rtol * 1e-2)
         comp, nx = self.component, self.nx
 
@@ -168,10 +180,12 @@ class FmuInstance:
 
     def _event_iteration(self) -> None:
         for _ in range(_MAX_EVENT_ITERATIONS):
-            again, terminate, _, changed, _, _ = self.event_update(self.time)
-            if changed and self._solver is not None:
-                self._solver.reinit(self.time, self.component._real[: self.nx])
+            again, terminate, _, _, _, _ = self.event_update(self.time)
             if terminate or not again:
+                if self._solver is not None:
+                    # unlike an ME importer, our own solver restarts after every event: the
+                    # right-hand side may jump even when no state does
+                    self._solver.reinit(self.time, self.component._real[: self.nx])
                 return
         raise RuntimeError(f"event iteration at t = {self.time} did not converge in "
                            f"{_MAX_EVENT_ITERATIONS} iterations")
@@ -188,8 +202,14 @@ class FmuInstance:
 
     # --- FMU state --------------------------------------------------------------------------
     def get_state(self) -> dict:
-        """A snapshot of everything: buffers, internal component attributes, time, mode."""
+        """A snapshot of everything: buffers, internal component attributes, time, mode.
+
+        The CS solver starts afresh here too, so that continuing from this point and restoring
+        this snapshot later follow exactly the same path: CVODE's history and saved Newton matrix
+        cannot be saved, and even ``CVodeReInit`` keeps the latter.
+        """
         comp = self.component
+        self._solver = None
         internal = {k: v for k, v in vars(comp).items() if k not in _RUNTIME_ATTRIBUTES}
         return {
             "real": comp._real.copy(), "int": comp._int.copy(), "str": list(comp._str),
@@ -211,8 +231,7 @@ class FmuInstance:
         self._next_time_event = state["next_time_event"]
         self.in_initialization = state["in_initialization"]
         self.terminate_requested = state["terminate_requested"]
-        if self._solver is not None:
-            self._solver.reinit(self.time, comp._real[: self.nx])
+        self._solver = None  # a fresh solver, as in get_state()
         return OK
 
     def serialize_state(self, state: dict) -> bytes:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import datetime
+import math
 import xml.etree.ElementTree as ET
 from typing import Optional
 
@@ -133,19 +134,23 @@ def _attrs(**kwargs: Optional[str]) -> dict:
 
 
 def _num(x: float) -> str:
-    return repr(float(x))
+    """xs:double spelling: INF, -INF and NaN rather than Python's inf/nan."""
+    x = float(x)
+    if math.isinf(x):
+        return "INF" if x > 0 else "-INF"
+    return "NaN" if math.isnan(x) else repr(x)
 
 
 def _value(v: object) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, float):
-        return repr(v)
+        return _num(v)
     return str(v)
 
 
 def _opt(x: Optional[float]) -> Optional[str]:
-    return None if x is None else repr(float(x))
+    return None if x is None else _num(x)
 
 
 def _opt_int(x: Optional[float]) -> Optional[str]:

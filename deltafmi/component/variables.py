@@ -26,7 +26,11 @@ class Experiment:
 
 
 class Variable:
-    """Base declaration: one scalar or a 1-D array of scalars of one FMI type."""
+    """Base declaration: one scalar or a 1-D array of scalars of one FMI type.
+
+    ``name`` sets the FMI name when the attribute name cannot be used (``lambda`` is a Python
+    keyword: ``lam = Output(shape=6, name="lambda")``).
+    """
 
     causality = "local"
 
@@ -43,6 +47,7 @@ class Variable:
         nominal: Optional[float] = None,
         variability: Optional[str] = None,
         initial: Optional[str] = None,
+        name: Optional[str] = None,
     ) -> None:
         if start is not None and not isinstance(start, (str, bool, int, float)):
             start_list = list(np.asarray(start).ravel().tolist())
@@ -70,12 +75,14 @@ class Variable:
         self.nominal = nominal
         self.variability = variability or self._default_variability()
         self.initial = initial
-        self.name = ""
+        self.name = ""  # the Python attribute name, set by __set_name__
+        self.fmi_name = name  # the FMI name when it differs (e.g. the keyword "lambda")
         self.offset = 0  # index of the first scalar in the component's buffer of this type
 
     # --- naming -----------------------------------------------------------------------------
     def __set_name__(self, owner: type, name: str) -> None:
         self.name = name
+        self.fmi_name = self.fmi_name or name
 
     @property
     def size(self) -> int:
@@ -85,8 +92,8 @@ class Variable:
     def scalar_names(self) -> list[str]:
         """FMI names of the scalars: ``x`` or ``x[1]``, ``x[2]``, ..."""
         if self.shape is None:
-            return [self.name]
-        return [f"{self.name}[{i + 1}]" for i in range(self.shape)]
+            return [self.fmi_name]
+        return [f"{self.fmi_name}[{i + 1}]" for i in range(self.shape)]
 
     @property
     def fmi_type(self) -> str:

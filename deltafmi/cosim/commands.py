@@ -1,12 +1,110 @@
-"""CLI commands of the co-simulation master (being written)."""
+"""CLI commands of the co-simulation master: ``run``, ``validate`` and ``plot``.
+
+Bad input (scenario, FMU, signal names) exits with code 2, a failed simulation with code 1; both
+print a one-line reason after any per-line diagnostics.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional, Sequence
+
 import click
+
+from .errors import ScenarioError
+
+
+class BadInput(click.ClickException):
+    """Wrong user input outside a scenario file (exit code 2)."""
+
+    exit_code = 2
+
+
+def _load(path: str, check_fmus: bool = False):
+    """Scenario -> resolved system; prints every diagnostic, raises on errors."""
+    from .resolve import resolve_system
+    from .scenario import load_scenario
+
+    try:
+        system = resolve_system(load_scenario(path), check_fmus=check_fmus)
+    except ScenarioError as exc:
+        if len(exc.diagnostics) > 1:
+            for diagnostic in exc.diagnostics:
+                click.echo(str(diagnostic), err=True)
+        raise
+    for warning in system.warnings:
+        click.echo(str(warning), err=True)
+    return system
 
 
 @click.command()
-def run() -> None:
-    """Run a scenario (not yet implemented)."""
-    raise click.ClickException("not implemented yet")
+@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False),
+              help="Result CSV (default: result.file of the scenario, else <scenario>.csv here).")
+@click.option("--stop", type=float, help="Stop time [s], overriding experiment.stop.")
+@click.option("--algorithm", type=click.Choice(["gauss-seidel", "jacobi"]),
+              help="Override master.algorithm.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: Optional[str],
+        quiet: bool) -> None:
+    """Run the co-simulation SCENARIO (a YAML file) and write its results.
+
+    \b
+    Example:
+      deltafmi run scenarios/delta_tracking.yaml -o tracking.csv --stop 2
+    """
+    from .master import Master
+
+    system = _load(scenario)
+    master = Master(system, result=Path(output) if output else None, stop=stop, algorithm=algorithm,
+                    progress=not quiet and sys.stdout.isatty(),
+                    warn=lambda message: click.echo(f"warning: {message}", err=True))
+    summary = master.run()
+    if not quiet:
+        click.echo(str(summary))
 
 
-validate = click.command(name="validate")(lambda: None)
-plot = click.command(name="plot")(lambda: None)
+@click.command()
+@click.argument("scenario", type=click.Path(dir_okay=False))
+def validate(scenario: str) -> None:
+    """Check SCENARIO and its FMUs without simulating.
+
+    Checks the YAML against the schema, every component, variable, connection (causality, type,
+    unit, inputs driven twice, unconnected inputs, algebraic loops) and runs fmpy's validation of
+    each FMU's modelDescription.
+
+    \b
+    Example:
+      deltafmi validate scenarios/delta_tracking.yaml
+    """
+    from .resolve import describe
+
+    system = _load(scenario, check_fmus=True)
+    for line in describe(system):
+        click.echo(line)
+    click.echo(f"{scenario}: OK")
+
+
+@click.command()
+@click.argument("result", type=click.Path(exists=True, dir_okay=False))
+@click.argument("signals", nargs=-1, required=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
+              help="Figure file (.png, .pdf, .svg).")
+@click.option("--separate", is_flag=True, help="One subplot per signal.")
+@click.option("--title", default="", help="Figure title (default: the result file name).")
+def plot(result: str, signals: Sequence[str], output: str, separate: bool, title: str) -> None:
+    """Plot SIGNALS of a RESULT file over time (names or patterns such as 'plant.z[*]').
+
+    \b
+    Example:
+      deltafmi plot tracking.csv 'plant.z[*]' 'trajectory.r[1:3]' -o tracking.png
+    """
+    from .plot import UnknownSignal, plot_result
+
+    try:
+        path = plot_result(result, signals, output, separate=separate, title=title)
+    except UnknownSignal as exc:
+        raise BadInput(str(exc)) from None
+    except ValueError as exc:
+        raise BadInput(f"cannot read '{result}' as a result file: {exc}") from None
+    click.echo(f"wrote {path}")

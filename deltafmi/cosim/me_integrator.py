@@ -45,8 +45,8 @@ class ModelExchangeUnit(Unit):
         self.nz = md.numberOfEventIndicators
         self.needs_completed = bool(md.modelExchange.needsCompletedIntegratorStep)
         self.no_prior_state = 1
-        #: called as ``on_event(unit, time)`` just before and just after every event (recording)
-        self.on_event: Callable[["ModelExchangeUnit", float], None] = lambda unit, time: None
+        #: called as ``on_event(unit, time, after)`` just before and just after every event (recording)
+        self.on_event: Callable[["ModelExchangeUnit", float, bool], None] = lambda unit, time, after: None
         self.next_event_time: Optional[float] = None
         self.solver: Optional[Cvode] = None
         self._pointers: Dict[int, Any] = {}
@@ -156,8 +156,15 @@ class ModelExchangeUnit(Unit):
             raise FmuFailure(f"{self.name}: {exc}") from None
 
     def _event(self, t: float, discrete_inputs: list = ()) -> None:
-        """Event mode at ``t``: set discrete inputs, iterate, restart CVODE if the states jumped."""
-        self.on_event(self, t)
+        """Event mode at ``t``: set discrete inputs, iterate, restart CVODE if the solution jumped.
+
+        CVODE restarts when ``valuesOfContinuousStatesChanged`` says the states jumped, and also
+        when the derivatives jumped (a discrete variable switched the right-hand side, as at a
+        time event): its step history then describes another function, and keeping it makes the
+        error test fail down to the minimum step at tight tolerances. Otherwise it keeps going.
+        """
+        self.on_event(self, t, False)
+        before = self._derivatives()
         self.call(self.fmu.enterEventMode)
         for inputs in discrete_inputs:
             inputs.setter(inputs.handle, inputs.vrs, inputs.n, inputs.pointer)
@@ -165,11 +172,16 @@ class ModelExchangeUnit(Unit):
         self.call(self.fmu.enterContinuousTimeMode)
         if nominals_changed:
             self.solver = self._new_solver(t)
-        elif states_changed and self.nx:
+        elif self.nx and (states_changed or not np.array_equal(before, self._derivatives())):
             self.call(self.fmu.getContinuousStates, self._x_pointer, self.nx)
             self.solver.reinit(t, self._x)
-        self.events += 1
-        self.on_event(self, t)
+        self.on_event(self, t, True)
+
+    def _derivatives(self) -> np.ndarray:
+        dx = np.zeros(max(self.nx, 1))
+        if self.nx:
+            self.call(self.fmu.getDerivatives, dx.ctypes.data_as(POINTER(c_double)), self.nx)
+        return dx
 
     def _event_iteration(self, t: float) -> tuple:
         states_changed = nominals_changed = False

@@ -180,8 +180,8 @@ class _Checker:
                                   f"the scenario or in a folder above it{_file_hint(base / spec.source, '*.py')}")
             return None
         try:
-            from .fmu_cache import built_fmu
-            return built_fmu(source)
+            from deltafmi.export import build_cached  # keyed by source + runtime hash
+            return build_cached(source)
         except Exception as exc:  # noqa: BLE001 - a build failure is reported, not raised
             self.error(spec.line, f"component '{spec.name}': building '{spec.source}' failed: {exc}")
             return None
@@ -312,7 +312,7 @@ class _Checker:
             return list(recorded.values())
         every = [(c, v.name) for c in self.components.values() for v in c.info.md.modelVariables]
         for spec in patterns:
-            regex = _pattern_regex(spec.pattern)
+            regex = pattern_regex(spec.pattern)
             hits = [(c, n) for c, n in every if regex.match(f"{c.name}.{n}")]
             if not hits:
                 candidates = [f"{c.name}.{n}" for c, n in every]
@@ -383,7 +383,7 @@ def _file_hint(path: Path, glob: str) -> str:
     return ""
 
 
-def _pattern_regex(pattern: str) -> "re.Pattern[str]":
+def pattern_regex(pattern: str) -> "re.Pattern[str]":
     """Glob of ``comp.var`` to a regex: ``*`` and ``?`` wildcards, ``[i:j]`` ranges, all else literal."""
     out = ""
     for token in re.split(r"(\*|\?|\[\d+:\d+\])", pattern):

@@ -191,12 +191,12 @@ def _describe(error: jsonschema.ValidationError, lines: LineMap, file: str) -> L
     if error.validator == "oneOf" and len(path) == 2 and path[0] == "components":
         return [Diagnostic(file, lines.line(path),
                            f"component '{path[1]}' needs exactly one of 'fmu' (a file) or 'source' (a .py to build)")]
+    if "propertyNames" in error.absolute_schema_path:
+        return [Diagnostic(file, lines.key_line(path + (error.instance,)),
+                           f"component name '{error.instance}' must be an identifier (letters, digits, _)")]
     if error.validator == "pattern" and path and path[0] in ("connections", "outputs"):
         return [Diagnostic(file, lines.line(path),
                            f"{where}: '{error.instance}' is not a 'component.variable' reference")]
-    if error.validator == "propertyNames":
-        return [Diagnostic(file, lines.key_line(path + (error.instance,)),
-                           f"component name '{error.instance}' must be an identifier (letters, digits, _)")]
     return [Diagnostic(file, lines.line(path), f"{where or 'scenario'}: {error.message}")]
 
 

@@ -95,7 +95,6 @@ class Unit:
         self.inputs: List[_Inputs] = []
         self.outputs: List[_Outputs] = []
         self.step_multiple = component.spec.step_multiple
-        self.events = 0
         self.instantiated = False
 
     # --- life cycle ---------------------------------------------------------------------------

@@ -6,8 +6,8 @@ nine joint angles (:mod:`.delta_kinematics`) and the stabilised DAE dynamics
 Joint vectors are arm-major: q = [q11, q12, q13, q21, q22, q23, q31, q32, q33].
 """
 
-from .delta_dynamics import (accelerations, coriolis, energy, gravity, holding_torque,
-                             mass_matrix)
+from .delta_dynamics import (PlantEvaluation, accelerations, coriolis, energy, evaluate_plant,
+                             gravity, holding_torque, mass_matrix)
 from .delta_kinematics import (arm_bias, arm_jacobian, arm_psi, constraint, constraint_bias,
                                constraint_jacobian, forward_kinematics, inverse_kinematics,
                                stretched_height, virtual_jacobian, wrist_position,
@@ -20,4 +20,5 @@ __all__ = [
     "inverse_kinematics", "forward_kinematics", "wrist_position", "wrist_velocity",
     "constraint", "constraint_jacobian", "constraint_bias", "virtual_jacobian",
     "mass_matrix", "coriolis", "gravity", "accelerations", "energy", "holding_torque",
+    "PlantEvaluation", "evaluate_plant",
 ]

@@ -45,14 +45,15 @@ through the stretched-arm singularity.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from .delta_kinematics import ARM_COS_SIN, constraint_jacobian
 from .delta_params import DeltaParams
 
-__all__ = ["mass_matrix", "coriolis", "gravity", "accelerations", "energy", "holding_torque"]
+__all__ = ["mass_matrix", "coriolis", "gravity", "accelerations", "energy", "holding_torque",
+           "PlantEvaluation", "evaluate_plant"]
 
 ArrayLike = Sequence[float] | np.ndarray
 
@@ -145,9 +146,10 @@ def holding_torque(p: DeltaParams, q: ArrayLike) -> tuple[np.ndarray, np.ndarray
 
 
 def _arm(consts, damping, pole, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3, u, fx, fy, fz):
-    """One arm's share of accelerations(): (b, W, x, Y) as flat float tuples.
+    """One arm's share of the DAE evaluation, as flat float tuples (b, W, x, Y, P, Pd, e).
 
-    b = A + 2p Pd + p^2 P (world), W = Ht m^-1 Ht^T (6 unique), x = m^-1 rhs, Y = m^-1 Ht^T.
+    b = A + 2p Pd + p^2 P (world), W = Ht m^-1 Ht^T (6 unique), x = m^-1 rhs, Y = m^-1 Ht^T,
+    P and Pd the arm's wrist point and velocity (world), e the arm's kinetic + potential energy.
     """
     a, b, beta, g1, g2 = consts
     s1, c1, s2, c2, s3, c3 = (math.sin(q1), math.cos(q1), math.sin(q2), math.cos(q2),
@@ -216,7 +218,10 @@ def _arm(consts, damping, pole, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3, u,
     Az = h20 * x1 + h21 * x2 + h22 * x3 + az
     tp, pp = 2.0 * pole, pole * pole
     bb = (Ax + tp * dx + pp * Px, Ay + tp * dy + pp * Py, Az + tp * dz + pp * Pz)
-    return bb, W, (x1, x2, x3), (y10, y11, y12, y20, y21, y22, y30, y31, y32)
+    e = (0.5 * (a * vv11 + beta * v2 * v2 + m33 * v3 * v3) + v1 * (m12 * v2 + m13 * v3)
+         + g1 * s1 + g2 * s2 * c3)
+    return (bb, W, (x1, x2, x3), (y10, y11, y12, y20, y21, y22, y30, y31, y32), (Px, Py, Pz),
+            (dx, dy, dz), e)
 
 
 def _sym3_inv(a11: float, a12: float, a13: float, a22: float, a23: float, a33: float):
@@ -273,6 +278,38 @@ def _schur_solve(W1, W2, W3, r1, r2) -> tuple[float, ...]:
     return la1, la2, la3, lb1, lb2, lb3
 
 
+def _evaluate(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,
+              pole: float) -> tuple:
+    """Solve the DAE at one point: (vdot list, lam tuple, per-arm (P, Pd, e) results)."""
+    consts = _constants(p)
+    ql, vl = _as_list(q), _as_list(v)
+    u1, u2, u3 = _as_list(u)
+    fx, fy, fz = _as_list(f)
+    l0l3, l1, l2, dmp = p.l0 - p.l3, p.l1, p.l2, p.damping
+    pole = float(pole)
+    (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
+    arm1 = _arm(consts, dmp, pole, cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2],
+                vl[0], vl[1], vl[2], u1, fx, fy, fz)
+    arm2 = _arm(consts, dmp, pole, cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5],
+                vl[3], vl[4], vl[5], u2, fx, fy, fz)
+    arm3 = _arm(consts, dmp, pole, cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8],
+                vl[6], vl[7], vl[8], u3, fx, fy, fz)
+    b1, W1, x1, Y1 = arm1[:4]
+    b2, W2, x2, Y2 = arm2[:4]
+    b3, W3, x3, Y3 = arm3[:4]
+    lam = _schur_solve(W1, W2, W3, (b2[0] - b1[0], b2[1] - b1[1], b2[2] - b1[2]),
+                       (b3[0] - b1[0], b3[1] - b1[1], b3[2] - b1[2]))
+    la0, la1, la2, lb0, lb1, lb2 = lam
+    vdot = []
+    for x, Y, (F0, F1, F2) in ((x1, Y1, (la0 + lb0, la1 + lb1, la2 + lb2)),
+                               (x2, Y2, (-la0, -la1, -la2)),
+                               (x3, Y3, (-lb0, -lb1, -lb2))):
+        vdot += [x[0] + Y[0] * F0 + Y[1] * F1 + Y[2] * F2,
+                 x[1] + Y[3] * F0 + Y[4] * F1 + Y[5] * F2,
+                 x[2] + Y[6] * F0 + Y[7] * F1 + Y[8] * F2]
+    return vdot, lam, (arm1[4:], arm2[4:], arm3[4:])
+
+
 def accelerations(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,
                   pole: float = 5.0) -> tuple[np.ndarray, np.ndarray]:
     """Joint accelerations and multipliers of the Baumgarte-stabilised index-1 DAE.
@@ -290,27 +327,33 @@ def accelerations(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: A
     Returns:
         (vdot (9,) rad/s^2, lam (6,) N).
     """
-    consts = _constants(p)
-    ql, vl = _as_list(q), _as_list(v)
-    u1, u2, u3 = _as_list(u)
-    fx, fy, fz = _as_list(f)
-    l0l3, l1, l2, dmp = p.l0 - p.l3, p.l1, p.l2, p.damping
-    pole = float(pole)
-    (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
-    b1, W1, x1, Y1 = _arm(consts, dmp, pole, cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2],
-                          vl[0], vl[1], vl[2], u1, fx, fy, fz)
-    b2, W2, x2, Y2 = _arm(consts, dmp, pole, cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5],
-                          vl[3], vl[4], vl[5], u2, fx, fy, fz)
-    b3, W3, x3, Y3 = _arm(consts, dmp, pole, cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8],
-                          vl[6], vl[7], vl[8], u3, fx, fy, fz)
-    lam = _schur_solve(W1, W2, W3, (b2[0] - b1[0], b2[1] - b1[1], b2[2] - b1[2]),
-                       (b3[0] - b1[0], b3[1] - b1[1], b3[2] - b1[2]))
-    la0, la1, la2, lb0, lb1, lb2 = lam
-    vdot = []
-    for x, Y, (F0, F1, F2) in ((x1, Y1, (la0 + lb0, la1 + lb1, la2 + lb2)),
-                               (x2, Y2, (-la0, -la1, -la2)),
-                               (x3, Y3, (-lb0, -lb1, -lb2))):
-        vdot += [x[0] + Y[0] * F0 + Y[1] * F1 + Y[2] * F2,
-                 x[1] + Y[3] * F0 + Y[4] * F1 + Y[5] * F2,
-                 x[2] + Y[6] * F0 + Y[7] * F1 + Y[8] * F2]
+    vdot, lam, _ = _evaluate(p, q, v, u, f, pole)
     return np.array(vdot), np.array(lam)
+
+
+class PlantEvaluation(NamedTuple):
+    """Everything a simulation step needs from one DAE evaluation (see evaluate_plant)."""
+
+    vdot: np.ndarray  #: joint accelerations (9,), rad/s^2
+    lam: np.ndarray  #: constraint multipliers (6,), N
+    z: np.ndarray  #: wrist position (3,), m (as wrist_position)
+    zd: np.ndarray  #: wrist velocity (3,), m/s (as wrist_velocity)
+    residual: float  #: Euclidean norm of the loop-closure residual h(q), m
+    energy: float  #: kinetic + potential energy, J (as energy)
+
+
+def evaluate_plant(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,
+                   pole: float = 5.0) -> PlantEvaluation:
+    """accelerations() plus the wrist, constraint residual and energy from the same pass.
+
+    For a simulation component that needs all of them at every derivative evaluation: about
+    1 us more than accelerations() alone instead of separate numpy calls for each output.
+    """
+    vdot, lam, arms = _evaluate(p, q, v, u, f, pole)
+    (P1, D1, e1), (P2, D2, e2), (P3, D3, e3) = arms
+    h = [P1[k] - P2[k] for k in range(3)] + [P1[k] - P3[k] for k in range(3)]
+    return PlantEvaluation(
+        np.array(vdot), np.array(lam),
+        np.array([(P1[k] + P2[k] + P3[k]) / 3.0 for k in range(3)]),
+        np.array([(D1[k] + D2[k] + D3[k]) / 3.0 for k in range(3)]),
+        math.sqrt(sum(t * t for t in h)), e1 + e2 + e3)

@@ -226,7 +226,7 @@ def wrist_position(p: DeltaParams, q: ArrayLike) -> np.ndarray:
 
 
 def virtual_jacobian(p: DeltaParams, q: ArrayLike) -> np.ndarray:
-    """The seed's virtual Jacobian Jv = 1/3 [dpsi/dq(q1), R2 dpsi/dq(q2), R3 dpsi/dq(q3)], (3, 9)."""
+    """The seed's virtual Jacobian (3, 9): 1/3 [dpsi/dq(q1), R2 dpsi/dq(q2), R3 dpsi/dq(q3)]."""
     return np.hstack([r @ arm_jacobian(p, qi) for r, qi in zip(ARM_ROTATIONS, _split(q))]) / 3.0
 
 

@@ -1,0 +1,292 @@
+"""The co-simulation master: instantiate, initialize and step the units of a resolved :class:`System`.
+
+* Initialization: start values and parameters, then inside initialization mode every connected
+  input is set from its source output in dependency order (outputs that depend directly on
+  inputs are read after those inputs are set), so the closed loop starts consistent.
+* Stepping: Gauss-Seidel in the system's stepping order (default) or Jacobi; a unit with
+  ``step_multiple`` m steps every m-th communication step over m steps.
+* Optional adaptive communication step with rollback (:mod:`deltafmi.cosim.adaptive`).
+* Results stream to CSV; events of ME units add rows at the event instant.
+"""
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+import time as _time
+from pathlib import Path
+from typing import Callable, Dict, List, Optional, Tuple
+
+import fmpy
+import numpy as np
+
+from .errors import SimulationError
+from .me_integrator import TerminateRequested
+from .progress import Progress, Summary
+from .resolve import Port, System
+from .results import CsvWriter, RowSampler
+from .units import TYPES, FmuFailure, Unit, unit_for
+
+
+class Master:
+    """Runs one :class:`System`; create, then call :meth:`run` once."""
+
+    def __init__(self, system: System, result: Optional[Path] = None, stop: Optional[float] = None,
+                 algorithm: Optional[str] = None, progress: bool = False,
+                 warn: Callable[[str], None] = lambda message: None) -> None:
+        scenario = system.scenario
+        self.system = system
+        self.start = scenario.experiment.start
+        self.stop = scenario.experiment.stop if stop is None else float(stop)
+        if self.stop <= self.start:
+            raise SimulationError(f"stop time {self.stop} is not after start time {self.start}")
+        self.step = scenario.experiment.step
+        self.algorithm = algorithm or scenario.master.algorithm
+        self.result_path = Path(result) if result is not None else scenario.result.file
+        self.every = scenario.result.every
+        self.progress = Progress(self.start, self.stop, progress)
+        self.warn = warn
+        self.units: List[Unit] = []
+        self.writer: Optional[CsvWriter] = None
+        self.sampler: Optional[RowSampler] = None
+        self.buses: Dict[str, np.ndarray] = {}
+        self.time = self.start
+        self.steps = 0
+        self.rejected = 0
+        self.events = 0
+        self._deferred: Optional[List[Tuple[float, np.ndarray, bool]]] = None
+        self.step_end = self.start
+
+    # --- public -------------------------------------------------------------------------------
+    def run(self) -> Summary:
+        """Simulate from start to stop; raises :class:`SimulationError` with a one-line reason.
+
+        Whatever was recorded before a failure stays in the result file.
+        """
+        wall = _time.perf_counter()
+        unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
+        terminated = None
+        try:
+            self._load(unzip_root)
+            for unit in self.units:
+                unit.instantiate(self.start, self.stop)
+                unit.apply_start_values()
+            self._wire()
+            self.writer = CsvWriter(self.result_path, [p.ref for p in self.system.recorded])
+            self._initialize()
+            self._record(self.start)
+            try:
+                if self.system.scenario.master.adaptive.enabled and self._can_roll_back():
+                    from .adaptive import run_adaptive
+                    run_adaptive(self)
+                else:
+                    self._run_fixed()
+            except TerminateRequested as exc:
+                terminated = str(exc)
+                self._record(exc.time)
+        except (FmuFailure, fmpy.fmi1.FMICallException, RuntimeError, OSError, ValueError) as exc:
+            raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
+                                  f"{self._partial_note()}") from exc
+        finally:
+            self.progress.close()
+            if self.writer is not None:
+                self.writer.close()
+            for unit in self.units:
+                unit.close()
+            shutil.rmtree(unzip_root, ignore_errors=True)
+        return Summary(self.steps, self.rejected, self.events,
+                       _time.perf_counter() - wall, self.time - self.start,
+                       self.writer.rows_written, self.result_path, terminated)
+
+    def _partial_note(self) -> str:
+        if self.writer is None:
+            return ""
+        self.writer.flush()
+        return f" (results up to the failure in {self.result_path})"
+
+    # --- set-up -------------------------------------------------------------------------------
+    def _load(self, unzip_root: str) -> None:
+        extracted: Dict[Path, str] = {}
+        for component in self.system.components:
+            if component.fmu not in extracted:
+                target = Path(unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
+                extracted[component.fmu] = fmpy.extract(str(component.fmu), unzipdir=str(target))
+            unit = unit_for(component, extracted[component.fmu])
+            if component.interface == "ME":
+                unit.on_event = self._on_event
+            self.units.append(unit)
+
+    def _wire(self) -> None:
+        """Lay out one bus per FMI type and precompute every unit's gather/set and fetch.
+
+        Runs after instantiation: the precomputed calls hold the instance handles.
+        """
+        by_name = {u.name: u for u in self.units}
+        fetched: Dict[str, Dict[str, List[int]]] = {kind: {u.name: [] for u in self.units} for kind in TYPES}
+        for port in [link.source for link in self.system.links] + list(self.system.recorded):
+            vrs = fetched[port.type][port.component]
+            if port.vr not in vrs:
+                vrs.append(port.vr)
+        slot: Dict[Tuple[str, str, int], int] = {}
+        for kind, (ctype, dtype) in TYPES.items():
+            size = sum(len(v) for v in fetched[kind].values())
+            bus = self.buses[kind] = np.zeros(max(size, 1), dtype=dtype)
+            start = 0
+            for unit in self.units:
+                vrs = fetched[kind][unit.name]
+                if vrs:
+                    unit.wire_outputs(kind, vrs, bus, start)
+                    for i, vr in enumerate(vrs):
+                        slot[(kind, unit.name, vr)] = start + i
+                    start += len(vrs)
+        for unit in self.units:
+            for kind in TYPES:
+                links = [l for l in self.system.links if l.target.component == unit.name and l.target.type == kind]
+                if links:
+                    unit.wire_inputs(kind, [l.target.vr for l in links], self.buses[kind],
+                                     [slot[(kind, l.source.component, l.source.vr)] for l in links],
+                                     [l.factor for l in links], [l.offset for l in links])
+        recorded = self.system.recorded
+        parts = []
+        for kind in TYPES:
+            cols = [i for i, p in enumerate(recorded) if p.type == kind]
+            parts.append((self.buses[kind], [slot[(kind, recorded[i].component, recorded[i].vr)] for i in cols], cols))
+        self.sampler = RowSampler(parts, len(recorded))
+        self._by_name = by_name
+
+    def _initialize(self) -> None:
+        for unit in self.units:
+            unit.enter_initialization()
+        by_name = self._by_name
+        for link in self.system.init_links:
+            value = by_name[link.source.component].get_value(link.source)
+            if link.source.type == "Real":
+                value = link.factor * value + link.offset
+            by_name[link.target.component].set_value(link.target, value)
+        for unit in self.units:
+            unit.exit_initialization(self.start)
+        for unit in self.units:
+            unit.fetch()
+
+    def _can_roll_back(self) -> bool:
+        lacking = [u.name for u in self.units if not u.can_save_state]
+        if lacking:
+            self.warn(f"adaptive step needs fmi2GetFMUstate/fmi2SetFMUstate, which {', '.join(lacking)} "
+                      f"cannot do: running with the fixed step {self.step:g} s")
+        return not lacking
+
+    # --- stepping -----------------------------------------------------------------------------
+    def ordered_units(self) -> List[Unit]:
+        """Units in stepping order (Gauss-Seidel order, or scenario order for Jacobi)."""
+        if self.algorithm == "gauss-seidel":
+            return [self._by_name[name] for name in self.system.order]
+        return list(self.units)
+
+    def step_all(self, units: List[Unit], t: float, step: float) -> None:
+        """One communication step of ``units`` from ``t`` (all the same step size)."""
+        if self.algorithm == "gauss-seidel":
+            for unit in units:
+                unit.pull()
+                unit.do_step(t, step)
+                unit.fetch()
+        else:
+            for unit in units:
+                unit.pull()
+            for unit in units:
+                unit.do_step(t, step)
+            for unit in units:
+                unit.fetch()
+
+    def _run_fixed(self) -> None:
+        start, stop, h = self.start, self.stop, self.step
+        n_steps = max(1, math.ceil((stop - start) / h - 1e-9))
+        ordered = self.ordered_units()
+        period = math.lcm(*[u.step_multiple for u in ordered])
+        # per phase of the multi-rate period: (unit, step multiple) of the units due
+        due = [[(u, u.step_multiple) for u in ordered if phase % u.step_multiple == 0] for phase in range(period)]
+        # on an exact grid every step is m * h (bit for bit what a plain loop passes to doStep)
+        last = n_steps + 1 if abs(start + n_steps * h - stop) <= 1e-9 * h else n_steps
+        gauss_seidel = self.algorithm == "gauss-seidel"
+        every, record, progress = self.every, self._record, self.progress
+        for k in range(n_steps):
+            t = start + k * h
+            self.time = t
+            self.step_end = start + (k + 1) * h if k + 1 < n_steps else stop
+            units = due[k % period]
+            if gauss_seidel:
+                for unit, m in units:
+                    unit.pull()
+                    unit.do_step(t, m * h if k + m < last else stop - t)
+                    unit.fetch()
+            else:
+                for unit, _ in units:
+                    unit.pull()
+                for unit, m in units:
+                    unit.do_step(t, m * h if k + m < last else stop - t)
+                for unit, _ in units:
+                    unit.fetch()
+            self.steps = k + 1
+            t_next = start + (k + 1) * h if k + 1 < n_steps else stop
+            self.time = t_next
+            if (k + 1) % every == 0 or k + 1 == n_steps:
+                record(t_next)
+            if k & 63 == 0:
+                progress.update(t_next)
+
+    # --- recording ----------------------------------------------------------------------------
+    def _record(self, t: float) -> None:
+        self.writer.write(t, self.sampler.sample())
+
+    def record_step(self, t: float) -> None:
+        """Record the row at the end of a step that reached ``t``, and show progress."""
+        self._record(t)
+        self.progress.update(t)
+
+    def _on_event(self, unit: Unit, t: float, after: bool) -> None:
+        if after and abs(t - self.step_end) <= 1e-12 * max(1.0, abs(t)):
+            # an event at the end of the step: the step's own row shows the values after it
+            self.events += self._deferred is None
+            if self._deferred is not None:
+                self._deferred.append((t, None, True))
+            return
+        unit.fetch()
+        if self._deferred is not None:
+            self._deferred.append((t, self.sampler.sample().copy(), after))
+            return
+        self.events += after
+        self._record(t)
+
+    def defer_events(self) -> None:
+        """Hold event rows back until :meth:`commit_events` (a trial step may be rolled back)."""
+        self._deferred = []
+
+    def commit_events(self) -> None:
+        """Write the held event rows."""
+        for t, row, after in self._deferred or ():
+            self.events += after
+            if row is not None:
+                self.writer.write(t, row)
+        self._deferred = None
+
+    def drop_events(self) -> None:
+        """Forget the held event rows (their step was rolled back); keep deferring."""
+        if self._deferred is not None:
+            self._deferred = []
+
+    # --- rollback helpers (used by the adaptive loop) -----------------------------------------
+    def save(self) -> Tuple[list, Dict[str, np.ndarray]]:
+        """Snapshot of every unit and of the buses."""
+        return [u.save_state() for u in self.units], {k: b.copy() for k, b in self.buses.items()}
+
+    def restore(self, snapshot: Tuple[list, Dict[str, np.ndarray]]) -> None:
+        """Return every unit and the buses to ``snapshot`` (which stays valid)."""
+        states, buses = snapshot
+        for unit, state in zip(self.units, states):
+            unit.restore_state(state)
+        for kind, values in buses.items():
+            self.buses[kind][:] = values
+
+    def release(self, snapshot: Tuple[list, Dict[str, np.ndarray]]) -> None:
+        """Free the FMU states of ``snapshot``."""
+        for unit, state in zip(self.units, snapshot[0]):
+            unit.free_state(state)

@@ -1,0 +1,98 @@
+"""Delta robot plant FMU: a thin component over deltafmi.mechanics.delta (RL5 defaults)."""
+import numpy as np
+
+from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
+from deltafmi.mechanics import delta
+
+_D = delta.RL5
+_PARAMS = ("l0", "l1", "l2", "l3", "m1", "r1", "J1", "Jm", "m2", "mp", "payload", "g", "damping")
+
+
+class DeltaRobot(Component):
+    """Three-arm delta robot (RL5-1450): stabilised index-1 DAE in nine joint angles.
+
+    States are the nine joint angles q = [q11, q12, q13, q21, ...] (per arm: servo angle, forearm
+    polar and azimuth angle) and their rates; the loop-closure multipliers are solved at every
+    evaluation. Inputs are the servo torques u and an external force f on the wrist (plate
+    centre), applied through the virtual Jacobian. The robot starts at rest with the wrist at z0
+    (closed-form inverse kinematics; an unreachable z0 fails initialization with a message
+    giving the reachable workspace). Frame: z up, arm 1 servo axis parallel to x at y = l0.
+    """
+
+    model_name = "DeltaRobot"
+    default_experiment = Experiment(start=0.0, stop=1.0, step=1e-3, tolerance=1e-6)
+
+    l0 = Parameter(_D.l0, unit="m", min=0.0, description="Base radius: robot axis to servo axes")
+    l1 = Parameter(_D.l1, unit="m", min=0.0, description="Upper-arm length: servo axis to elbow")
+    l2 = Parameter(_D.l2, unit="m", min=0.0, description="Forearm length: elbow to wrist joint")
+    l3 = Parameter(_D.l3, unit="m", min=0.0,
+                   description="Travelling-plate radius: plate centre to wrist joints")
+    m1 = Parameter(_D.m1, unit="kg", min=0.0, description="Upper-arm mass (elbow pins included)")
+    r1 = Parameter(_D.r1, unit="m", description="Servo axis to upper-arm centre of mass")
+    J1 = Parameter(_D.J1, unit="kg.m2", min=0.0,
+                   description="Upper-arm inertia about the servo axis (includes m1*r1^2)")
+    Jm = Parameter(_D.Jm, unit="kg.m2", min=0.0,
+                   description="Gearbox-reflected rotor inertia on the servo axis")
+    m2 = Parameter(_D.m2, unit="kg", min=0.0,
+                   description="Forearm mass (both bars), modelled as a thin uniform rod")
+    mp = Parameter(_D.mp, unit="kg", min=0.0, description="Travelling-plate mass")
+    payload = Parameter(_D.payload, unit="kg", min=0.0, description="Payload carried by the plate")
+    g = Parameter(_D.g, unit="m/s2", description="Gravitational acceleration (acts along -z)")
+    damping = Parameter(_D.damping, unit="N.m.s/rad", min=0.0,
+                        description="Viscous damping on each of the nine joints")
+    pole = Parameter(5.0, unit="1/s", min=0.0,
+                     description="Baumgarte pole p: hdd + 2 p hd + p^2 h = 0 stabilises the loops")
+    z0 = Parameter([0.0, 0.0, -1.0], unit="m",
+                   description="Initial wrist (plate centre) position; the robot starts at rest")
+
+    q = State([0.0] * 9, unit="rad", initial="calculated",
+              description="Joint angles per arm: servo q_i1, forearm polar q_i2, azimuth q_i3")
+    v = State([0.0] * 9, unit="rad/s", initial="calculated", description="Joint rates dq/dt")
+
+    u = Input([0.0] * 3, unit="N.m", description="Servo torques")
+    f = Input([0.0] * 3, unit="N", description="External force on the wrist, world frame")
+
+    y = Output(shape=3, unit="rad", description="Servo angles q_i1 (measured)")
+    yd = Output(shape=3, unit="rad/s", description="Servo rates")
+    z = Output(shape=3, unit="m", description="Wrist (plate centre) position")
+    zd = Output(shape=3, unit="m/s", description="Wrist velocity, Jv v")
+    lam = Output(
+        shape=6, unit="N", name="lambda", description="Loop-closure forces (world): [1:3] on arm 1's wrist from "
+        "closing with arm 2 (minus on arm 2), [4:6] likewise with arm 3")
+    residual = Output(unit="m", description="Loop-closure residual |h(q)| (Euclidean norm)")
+    energy = Output(unit="J", description="Kinetic plus potential energy (zero at z = 0)")
+
+    def setup(self) -> None:
+        self._plant = None  # DeltaParams, built from the parameters at initialization
+        self._key = None  # (states, inputs) of the latest evaluation, and its result
+        self._eval = None
+
+    def initialize(self, t: float) -> None:
+        self._plant = delta.DeltaParams(**{name: getattr(self, name) for name in _PARAMS})
+        self.q = delta.inverse_kinematics(self._plant, self.z0)
+        self.v = 0.0
+        self._key = None
+
+    def _evaluate(self) -> "delta.PlantEvaluation":
+        key = self.states.tobytes() + self.u.tobytes() + self.f.tobytes()
+        if key != self._key:
+            if self._plant is None:
+                self._plant = delta.DeltaParams(**{n: getattr(self, n) for n in _PARAMS})
+            self._eval = delta.evaluate_plant(self._plant, self.q, self.v, self.u, self.f,
+                                              self.pole)
+            self._key = key
+        return self._eval
+
+    def derivatives(self, t: float) -> np.ndarray:
+        return np.concatenate([self.v, self._evaluate().vdot])
+
+    def outputs(self, t: float) -> None:
+        ev = self._evaluate()
+        q, v = self.q, self.v
+        self.y = q[0::3]
+        self.yd = v[0::3]
+        self.z = ev.z
+        self.zd = ev.zd
+        self.lam = ev.lam
+        self.residual = ev.residual
+        self.energy = ev.energy

@@ -1,0 +1,52 @@
+"""Shared fixtures: FMUs built from fmu_src once per session, the compiled C host."""
+from __future__ import annotations
+
+import os
+import subprocess
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+FMU_SRC = ROOT / "fmu_src"
+NATIVE = ROOT / "deltafmi" / "export" / "native"
+
+
+@pytest.fixture(scope="session")
+def build_fmu_from_src(tmp_path_factory):
+    """``build("oscillator.py") -> Path`` of a freshly built FMU (built once per session)."""
+    from deltafmi.export import build_fmu
+
+    out = tmp_path_factory.mktemp("fmus")
+    built: dict[str, Path] = {}
+
+    def build(name: str) -> Path:
+        if name not in built:
+            built[name] = build_fmu(FMU_SRC / name, out / f"{Path(name).stem}.fmu")
+        return built[name]
+
+    return build
+
+
+@pytest.fixture(scope="session")
+def c_host(tmp_path_factory) -> Path:
+    """The plain-C FMI importer of tests/c_host, compiled for this session."""
+    exe = tmp_path_factory.mktemp("c_host") / "host"
+    subprocess.run(["cc", "-O2", "-Wall", f"-I{NATIVE}", str(ROOT / "tests" / "c_host" / "host.c"),
+                    "-o", str(exe), "-ldl", "-lm"], check=True)
+    return exe
+
+
+def unzip(fmu: Path, target: Path) -> Path:
+    """Extract an FMU and return the directory."""
+    with zipfile.ZipFile(fmu) as z:
+        z.extractall(target)
+    return target
+
+
+def clean_env(**extra: str) -> dict:
+    """An environment with no Python variables and no LD_PRELOAD: a plain C host."""
+    env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root")}
+    env.update(extra)
+    return env

@@ -1,0 +1,165 @@
+"""The example FMU through fmpy (ME and CS) and through a plain C host, against the closed form."""
+from __future__ import annotations
+
+import ctypes
+import subprocess
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy.fmi2 import FMU2Model, FMU2Slave
+from fmpy.validation import validate_fmu
+
+from conftest import clean_env, unzip
+from oscillator_analytic import solution
+
+VR = {"x": 0, "v": 1, "F": 11, "energy": 12}
+
+
+@pytest.fixture(scope="module")
+def oscillator(build_fmu_from_src):
+    return build_fmu_from_src("oscillator.py")
+
+
+@pytest.fixture(scope="module")
+def oscillator_dir(oscillator, tmp_path_factory):
+    return unzip(oscillator, tmp_path_factory.mktemp("osc"))
+
+
+def _last_row_per_time(result):
+    """fmpy records event instants twice (before/after): keep the value after the event."""
+    t = result["time"]
+    keep = np.r_[t[1:] != t[:-1], True]
+    return result[keep]
+
+
+def test_validates_with_zero_problems(oscillator):
+    assert validate_fmu(str(oscillator)) == []
+    md = fmpy.read_model_description(str(oscillator))
+    assert md.modelExchange and md.coSimulation
+    assert md.coSimulation.canGetAndSetFMUstate and not md.coSimulation.needsExecutionTool
+    assert md.numberOfContinuousStates == 2 and md.numberOfEventIndicators == 1
+    assert [u.variable.name for u in md.derivatives] == ["der(x)", "der(v)"]
+    assert {u.variable.name for u in md.initialUnknowns} >= {"der(x)", "der(v)", "energy", "impacts"}
+
+
+@pytest.mark.parametrize("fmi_type", ["ModelExchange", "CoSimulation"])
+def test_matches_closed_form(oscillator, fmi_type):
+    # rtol 1e-10: the closed form is exact, so the remaining error is the solver's and the event
+    # location's; three impacts and a force step must all be located.
+    result = fmpy.simulate_fmu(str(oscillator), fmi_type=fmi_type, relative_tolerance=1e-10,
+                               output_interval=1e-3, output=["x", "v", "impacts", "force_on"])
+    r = _last_row_per_time(result)
+    x, v, impacts = solution(r["time"])
+    assert np.max(np.abs(r["x"] - x)) < 1e-6
+    assert np.max(np.abs(r["v"] - v)) < 1e-5
+    assert r["impacts"][-1] == len(impacts) == 3
+    assert r["force_on"][-1] and not r["force_on"][r["time"] < 2.5].any()
+    if fmi_type == "ModelExchange":  # event rows sit at the impact instants
+        jumps = result["time"][1:][np.diff(result["impacts"]) > 0]
+        np.testing.assert_allclose(jumps, impacts, atol=1e-8)
+
+
+def _c_host(host, directory, mode, *args, env=None):
+    md = fmpy.read_model_description(str(directory))
+    out = subprocess.run([str(host), str(directory), "Oscillator", md.guid, mode, *map(str, args)],
+                         capture_output=True, text=True, env=clean_env(**(env or {})), timeout=120)
+    assert out.returncode == 0, out.stderr
+    return out
+
+
+def _rows(text):
+    return np.array([[float(v) for v in line.split(",")] for line in text.strip().splitlines()])
+
+
+def test_c_host_co_simulation_equals_fmpy(c_host, oscillator_dir):
+    """No Python in the host process: the binary loads libpython itself, same numbers as fmpy."""
+    rows = _rows(_c_host(c_host, oscillator_dir, "cs", 4.0, 1e-3, VR["x"], VR["v"]).stdout)
+    slave = FMU2Slave(guid=fmpy.read_model_description(str(oscillator_dir)).guid,
+                      unzipDirectory=str(oscillator_dir), modelIdentifier="Oscillator", instanceName="py")
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    expected = [[0.0, *slave.getReal([0, 1])]]
+    for k in range(1, 4001):
+        slave.doStep((k - 1) * 1e-3, 1e-3)
+        expected.append([k * 1e-3, *slave.getReal([0, 1])])
+    slave.terminate()
+    slave.freeInstance()
+    np.testing.assert_allclose(rows, np.array(expected), rtol=0, atol=1e-12)
+    x, _, _ = solution(rows[:, 0])
+    assert np.max(np.abs(rows[:, 1] - x)) < 1e-5  # default tolerance 1e-8
+
+
+def _ptr(array):
+    return array.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+
+def _python_euler(directory, stop, h):
+    """The C host's ME algorithm, step for step, through fmpy's FMU2Model."""
+    md = fmpy.read_model_description(str(directory))
+    fmu = FMU2Model(guid=md.guid, unzipDirectory=str(directory), modelIdentifier="Oscillator", instanceName="py")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    info = fmu.newDiscreteStates()
+    while info[0] and not info[1]:
+        info = fmu.newDiscreteStates()
+    fmu.enterContinuousTimeMode()
+    x, dx, z, z_prev = np.zeros(2), np.zeros(2), np.zeros(1), np.zeros(1)
+    fmu.getContinuousStates(_ptr(x), 2)
+    fmu.getEventIndicators(_ptr(z_prev), 1)
+    t, k, rows = 0.0, 1, [[0.0, *fmu.getReal([0, 1])]]
+    while k <= round(stop / h):
+        t_grid = k * h
+        time_event = info[4] and info[5] <= t_grid
+        t_next = info[5] if time_event else t_grid
+        fmu.getDerivatives(_ptr(dx), 2)
+        x += (t_next - t) * dx
+        t = t_next
+        fmu.setTime(t)
+        fmu.setContinuousStates(_ptr(x), 2)
+        fmu.getEventIndicators(_ptr(z), 1)
+        enter, _ = fmu.completedIntegratorStep()
+        if np.any((z > 0) != (z_prev > 0)) or time_event or enter:
+            fmu.enterEventMode()
+            info = fmu.newDiscreteStates()
+            while info[0] and not info[1]:
+                info = fmu.newDiscreteStates()
+            fmu.enterContinuousTimeMode()
+            if info[3]:
+                fmu.getContinuousStates(_ptr(x), 2)
+            fmu.getEventIndicators(_ptr(z), 1)
+        z_prev[:] = z
+        if t == t_grid:
+            rows.append([t, *fmu.getReal([0, 1])])
+            k += 1
+    fmu.terminate()
+    fmu.freeInstance()
+    return np.array(rows)
+
+
+def test_c_host_model_exchange_equals_python_host(c_host, oscillator_dir):
+    rows = _rows(_c_host(c_host, oscillator_dir, "me", 3.0, 1e-4, VR["x"], VR["v"],
+                         env={"HOST_NX": "2", "HOST_NZ": "1"}).stdout)
+    np.testing.assert_allclose(rows, _python_euler(oscillator_dir, 3.0, 1e-4), rtol=0, atol=1e-12)
+    # explicit Euler at h = 1e-4 over three impacts: first-order accurate, about 1e-2 m here
+    x, _, _ = solution(rows[:, 0])
+    assert np.max(np.abs(rows[:, 1] - x)) < 3e-2
+
+
+def test_c_host_errors_do_not_crash(c_host, oscillator_dir):
+    out = _c_host(c_host, oscillator_dir, "error")
+    assert "getReal_before_init=3" in out.stdout and "doStep_negative=3" in out.stdout
+    assert "alive" in out.stdout
+    assert "must not be called in state 'instantiated'" in out.stderr
+
+
+def test_c_host_missing_python_library_is_a_clear_error(c_host, oscillator_dir):
+    md = fmpy.read_model_description(str(oscillator_dir))
+    out = subprocess.run([str(c_host), str(oscillator_dir), "Oscillator", md.guid, "cs", "0.1", "0.01", "0"],
+                         capture_output=True, text=True, env=clean_env(DELTAFMI_LIBPYTHON="/nonexistent/libpython.so"))
+    assert out.returncode == 4
+    assert "cannot load Python library '/nonexistent/libpython.so'" in out.stderr
