@@ -13,7 +13,6 @@ servo samples along a circle, so the Newton warm starts are realistic.
 from __future__ import annotations
 
 import argparse
-import math
 import statistics
 import timeit
 from typing import Optional

@@ -45,9 +45,10 @@ class DeltaRobot(Component):
     z0 = Parameter([0.0, 0.0, -1.0], unit="m",
                    description="Initial wrist (plate centre) position; the robot starts at rest")
 
-    q = State([0.0] * 9, unit="rad", initial="calculated",
+    # nominals scale the solvers' absolute tolerance (atol = rtol * nominal)
+    q = State([0.0] * 9, unit="rad", initial="calculated", nominal=0.01,
               description="Joint angles per arm: servo q_i1, forearm polar q_i2, azimuth q_i3")
-    v = State([0.0] * 9, unit="rad/s", initial="calculated", description="Joint rates dq/dt")
+    v = State([0.0] * 9, unit="rad/s", initial="calculated", nominal=0.01, description="Joint rates dq/dt")
 
     u = Input([0.0] * 3, unit="N.m", description="Servo torques")
     f = Input([0.0] * 3, unit="N", description="External force on the wrist, world frame")
@@ -82,6 +83,11 @@ class DeltaRobot(Component):
                                               self.pole)
             self._key = key
         return self._eval
+
+    def project(self, t: float) -> None:
+        """CS: close the loops after every solver step (mass-weighted, least kinetic change)."""
+        self.q, self.v = delta.project_to_constraints(self._plant, self.q, self.v,
+                                                      delta.mass_matrix(self._plant, self.q))
 
     def derivatives(self, t: float) -> np.ndarray:
         return np.concatenate([self.v, self._evaluate().vdot])

@@ -22,7 +22,9 @@ class Component:
     model_name: ClassVar[Optional[str]] = None
     default_experiment: ClassVar[Experiment] = Experiment()
     n_event_indicators: ClassVar[int] = 0
-    #: options of the internal CVODE used by Co-Simulation ``doStep``: rtol, atol, max_step, method
+    #: options of the internal CVODE used by Co-Simulation ``doStep``: rtol (default: the
+    #: experiment's tolerance), rtol_factor (multiplies it), atol (default: rtol * nominals),
+    #: max_step, method ("bdf" or "adams")
     cs_options: ClassVar[dict] = {}
     author: ClassVar[str] = ""
     version: ClassVar[str] = "1.0"
@@ -75,6 +77,14 @@ class Component:
         """The next time event strictly after ``t``, or None."""
         return None
 
+    def project(self, t: float) -> None:
+        """Move the states onto an invariant manifold (e.g. closed kinematic loops), in place.
+
+        The Co-Simulation solver (CVODE's projection method) calls it after every internal
+        step; Model Exchange importers have no such hook, so there the invariant holds to the
+        integration accuracy only.
+        """
+
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` to ``t + h``. Override only for purely discrete components."""
         raise NotImplementedError
@@ -88,6 +98,11 @@ class Component:
     def fmi_model_name(cls) -> str:
         """The FMI model name and model identifier."""
         return cls.model_name or cls.__name__
+
+    @classmethod
+    def overrides_project(cls) -> bool:
+        """True when the component projects its states onto an invariant manifold."""
+        return cls.project is not Component.project
 
     @classmethod
     def overrides_do_step(cls) -> bool:

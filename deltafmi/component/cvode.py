@@ -36,9 +36,14 @@ _set_stop_time = _bind("CVodeSetStopTime", [c_void_p, c_double])
 _RhsFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_void_p)
 _cvode_init = _bind("CVodeInit", [c_void_p, _RhsFn, c_double, c_void_p])
 _cvode_root_init = _bind("CVodeRootInit", [c_void_p, c_int, _RhsFn])
+_ProjFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_double, c_void_p, c_void_p)
+_set_proj_fn = _bind("CVodeSetProjFn", [c_void_p, _ProjFn])
+_set_proj_err_est = _bind("CVodeSetProjErrEst", [c_void_p, c_int])
+_set_proj_frequency = _bind("CVodeSetProjFrequency", [c_void_p, ctypes.c_long])
 
 Rhs = Callable[[float, np.ndarray, np.ndarray], None]
 Roots = Callable[[float, np.ndarray, np.ndarray], None]
+Project = Callable[[float, np.ndarray, np.ndarray], None]
 
 
 class CvodeError(RuntimeError):
@@ -49,12 +54,16 @@ class Cvode:
     """CVODE (BDF with dense Newton by default, or Adams) on ``x' = rhs(t, x)`` with root finding.
 
     ``rhs(t, x, xdot)`` and ``roots(t, x, g)`` fill their last argument in place; ``x`` is the
-    solver's own memory viewed as a numpy array, valid during the call only.
+    solver's own memory viewed as a numpy array, valid during the call only. With
+    ``project(t, x, correction)`` CVODE projects onto an invariant manifold after every internal
+    step (its own projection method: no restart, BDF only): the callback writes the correction
+    that moves ``x`` onto the manifold.
     """
 
     def __init__(self, rhs: Rhs, x0: np.ndarray, t0: float, *, roots: Optional[Roots] = None,
                  n_roots: int = 0, rtol: float = 1e-6, atol: float | np.ndarray = 1e-8,
-                 max_step: float = 0.0, method: str = "bdf", max_num_steps: int = 100000) -> None:
+                 max_step: float = 0.0, method: str = "bdf", max_num_steps: int = 100000,
+                 project: Optional[Project] = None, project_every: int = 1) -> None:
         self.n = n = len(x0)
         self.n_roots = n_roots if roots is not None else 0
         self._rhs, self._roots = rhs, roots
@@ -81,6 +90,14 @@ class Cvode:
         if max_step > 0:
             _check(_cv.CVodeSetMaxStep(self._mem, max_step), "CVodeSetMaxStep")
         _check(_cv.CVodeSetMaxNumSteps(self._mem, max_num_steps), "CVodeSetMaxNumSteps")
+        self._project = project
+        if project is not None:
+            if method != "bdf":
+                raise ValueError("CVODE projects only with BDF")
+            self._p = _ProjFn(self._p_callback)
+            _check(_set_proj_fn(self._mem, self._p), "CVodeSetProjFn")
+            _check(_set_proj_err_est(self._mem, 0), "CVodeSetProjErrEst")
+            _check(_set_proj_frequency(self._mem, project_every), "CVodeSetProjFrequency")
         self._root_info = np.zeros(max(self.n_roots, 1), dtype=np.int32)
         self._views: dict[int, np.ndarray] = {}
         self.t = t0
@@ -111,6 +128,14 @@ class Cvode:
     def _g_callback(self, t: float, y: int, gout: int, _user: int) -> int:
         try:
             self._roots(t, self._view(y), self._roots_view(gout))
+            return 0
+        except Exception as exc:  # noqa: BLE001
+            self.callback_error = exc
+            return -1
+
+    def _p_callback(self, t: float, y: int, corr: int, _eps: float, _err: int, _user: int) -> int:
+        try:
+            self._project(t, self._view(y), self._view(corr))
             return 0
         except Exception as exc:  # noqa: BLE001
             self.callback_error = exc

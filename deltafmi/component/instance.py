@@ -161,7 +161,9 @@ class FmuInstance:
     def _make_solver(self) -> Cvode:
         options = dict(self.component_class.cs_options)
         rtol = options.pop("rtol", self.tolerance or self.component_class.default_experiment.tolerance)
-        atol = options.pop("atol", rtol * 1e-2)
+        rtol *= options.pop("rtol_factor", 1.0)
+        # as ME importers do: absolute tolerance from the states' nominal values
+        atol = options.pop("atol", rtol * self.component_class._layout.nominals)
         comp, nx = self.component, self.nx
 
         def rhs(t: float, x: np.ndarray, xdot: np.ndarray) -> None:
@@ -172,6 +174,13 @@ class FmuInstance:
             comp._real[:nx] = x
             g[:] = comp.event_indicators(t)
 
+        def project(t: float, x: np.ndarray, correction: np.ndarray) -> None:
+            comp._real[:nx] = x
+            comp.project(t)
+            correction[:] = comp._real[:nx] - x
+
+        if self.component_class.overrides_project():
+            options["project"] = project
         return Cvode(rhs, comp._real[:nx].copy(), self.time, roots=roots if self.nz else None,
                      n_roots=self.nz, rtol=rtol, atol=atol, **options)
 

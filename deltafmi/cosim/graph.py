@@ -133,18 +133,21 @@ def _topological(graph: Mapping[str, Sequence[str]]) -> List[str]:
 def stepping_order(components: Sequence[str], links: Iterable[Link], feedthrough: Feedthrough) -> List[str]:
     """Gauss-Seidel order of the components.
 
-    A component steps after the components that feed it; in a feedback loop the edge into an input
-    without direct feedthrough (a plant's actuator input) is the one cut, so the component whose
-    outputs react instantly to its inputs (a controller) sees the fresh outputs. Ties keep the
-    scenario's order.
+    A component steps after the components that feed it. In a feedback loop the cut goes through an
+    input that reaches no connected output directly (a plant's actuator input), so the component
+    whose connected outputs react instantly to their inputs (a controller) sees fresh values.
+    Ties keep the scenario's order.
     """
+    links = list(links)
     position = {c: i for i, c in enumerate(components)}
+    sources = {s for s, _ in links}
     edges: Dict[str, Dict[str, bool]] = {c: {} for c in components}
     for source, target in links:
         a, b = component_of(source), component_of(target)
         if a == b:
             continue
-        strong = any(variable_of(target) in deps for deps in feedthrough.get(b, {}).values())
+        strong = any(variable_of(target) in deps and f"{b}.{out}" in sources
+                     for out, deps in feedthrough.get(b, {}).items())
         edges[a][b] = edges[a].get(b, False) or strong
     remaining = set(components)
     order: List[str] = []

@@ -48,6 +48,8 @@ class ModelExchangeUnit(Unit):
         #: called as ``on_event(unit, time, after)`` just before and just after every event (recording)
         self.on_event: Callable[["ModelExchangeUnit", float, bool], None] = lambda unit, time, after: None
         self.next_event_time: Optional[float] = None
+        #: CVODE restarts after a failure (see :meth:`_advance`)
+        self.restarts = 0
         self.solver: Optional[Cvode] = None
         self._pointers: Dict[int, Any] = {}
         self._discrete_inputs: list = []
@@ -131,12 +133,12 @@ class ModelExchangeUnit(Unit):
         """Integrate from ``time`` to ``time + step``, handling every event on the way."""
         t_end = time + step
         eps = 1e-12 * max(1.0, abs(t_end))
-        solver = self.solver
         try:
             while True:
                 event_time = self.next_event_time
                 t_stop = event_time if event_time is not None and event_time < t_end - eps else t_end
-                root = solver.advance(t_stop)
+                root = self._advance(t_stop) if t_stop - self.solver.t > eps else False
+                solver = self.solver
                 t = solver.t
                 self._set_time(self._handle, t)
                 if self.nx:
@@ -154,6 +156,26 @@ class ModelExchangeUnit(Unit):
             raise self.failure(exc) from None
         except CvodeError as exc:
             raise FmuFailure(f"{self.name}: {exc}") from None
+
+    def _advance(self, t_stop: float) -> bool:
+        """CVODE to ``t_stop``; on a failure, restart it once from where this call began.
+
+        CVODE keeps its step history across communication points. When a held input jumps a lot
+        at a tight tolerance, that history can make the error test fail down to the minimum
+        step; a fresh start from the last returned point (order 1, new step estimate) gets
+        through, and a second failure is real.
+        """
+        solver = self.solver
+        t0, x0 = solver.t, solver.x.copy()
+        try:
+            return solver.advance(t_stop)
+        except CvodeError:
+            self._set_time(self._handle, t0)
+            if self.nx:
+                self._set_states(self._handle, self._pointer(x0), self.nx)
+            solver.reinit(t0, x0)
+            self.restarts += 1
+            return solver.advance(t_stop)
 
     def _event(self, t: float, discrete_inputs: list = ()) -> None:
         """Event mode at ``t``: set discrete inputs, iterate, restart CVODE if the solution jumped.

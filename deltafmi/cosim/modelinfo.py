@@ -60,10 +60,11 @@ class ModelInfo:
             if not missing and names:
                 return names
             raise UnknownVariable(missing[0] if missing else reference, self.suggestion_names())
-        m = _ALL.match(reference)
-        base = m["base"] if m else reference
-        if base in self.arrays:
-            return list(self.arrays[base])
+        m = _RANGE.match(reference) or _ALL.match(reference)
+        if m:  # an unknown array: suggest array names
+            raise UnknownVariable(m["base"], list(self.arrays))
+        if reference in self.arrays:
+            return list(self.arrays[reference])
         raise UnknownVariable(reference, self.suggestion_names())
 
     def suggestion_names(self) -> List[str]:

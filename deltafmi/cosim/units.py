@@ -203,7 +203,7 @@ class Unit:
             if status >= 2:
                 last = message.strip().splitlines()[-1] if message.strip() else ""
                 break
-        return FmuFailure(f"{self.name}: {exc}" + (f": {last}" if last else ""))
+        return FmuFailure(f"{self.name}: {str(exc).rstrip('.')}" + (f": {last}" if last else ""))
 
 
 class CoSimulationUnit(Unit):

@@ -61,7 +61,9 @@ def load_yaml(text: str) -> Tuple[Any, LineMap]:
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
-        raise YamlSyntaxError(f"YAML syntax error: {exc.problem or exc}", line) from None
+        hint = (" (inside {...} or [...], quote references that contain brackets: 'plant.y[1:3]')"
+                if "'['" in str(exc.problem) or "']'" in str(exc.problem) else "")
+        raise YamlSyntaxError(f"YAML syntax error: {exc.problem or exc}{hint}", line) from None
     lines = LineMap()
     if node is None:
         return None, lines

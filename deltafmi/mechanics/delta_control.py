@@ -4,7 +4,8 @@ Feedback Linearization"), written for speed in plain float arithmetic.
 Per sample, from the measured servo angles y and rates yd:
 
 1. forward kinematics: Newton iteration on h(x, y) = 0 (6-D) warm-started from the previous
-   sample (its x advanced one sample with its rate), or the closed-form three-sphere solution;
+   sample (its x extrapolated one sample ahead, so one iteration usually reaches 1e-12 m), or
+   the closed-form three-sphere solution (cold start, fallback, or on request);
 2. velocities: zd = Jc yd with the control Jacobian Jc = dPsi/dx dg/dy + dPsi/dy, and xd;
 3. outer loop in wrist coordinates:
    a = kI int(r - z) + kP (r - z) + kD (rd - zd) + rdd   (integral clamped, conditional);
@@ -121,6 +122,8 @@ def make_law(params, pole: float = 7.0, kI: Optional[float] = None, kP: Optional
     ``"newton"`` (warm-started, the seed's method) or ``"closed"`` (three-sphere intersection).
     """
     p = float(pole)
+    if not p > 0.0 and any(gain is None or gain < 0 for gain in (kI, kP, kD)):
+        raise ValueError(f"pole must be > 0 to derive the gains from it, got {pole}")
     kI = p ** 3 if kI is None or kI < 0 else float(kI)
     kP = 3.0 * p * p if kP is None or kP < 0 else float(kP)
     kD = 3.0 * p if kD is None or kD < 0 else float(kD)
@@ -219,7 +222,8 @@ def _forearms_from_z(l2: float, elb, z):
 
 
 def _directions(elb, fa):
-    """Rows of N (world forearm directions n_i, 9 floats) and D_i = n_i . b_i = l1 t1 . d."""
+    """Rows of N (world forearm directions n_i, 9 floats) and D_i = t1 . d per arm, the cosine
+    between forearm and elbow velocity (so n_i . b_i = l1 D_i)."""
     n = []
     dd = []
     for (cr, sr, c1, s1, _, _, _), (s2, c2, s3, c3) in zip(elb, fa):
@@ -250,12 +254,17 @@ def _newton_fk(l2: float, elb, x, tol: float, max_iter: int):
             n += (nx, ny, nz)
             w.append((ex + l2 * nx, ey + l2 * ny, ez + l2 * nz))
         (ax, ay, az), (bx, by, bz), (cx, cy, cz) = w
-        if max(abs(ax - bx), abs(ay - by), abs(az - bz), abs(ax - cx), abs(ay - cy),
-               abs(az - cz)) <= tol:
+        res = max(abs(ax - bx), abs(ay - by), abs(az - bz), abs(ax - cx), abs(ay - cy),
+                  abs(az - cz))
+        if res <= tol:
+            # a far-off guess can converge onto another assembly: keep only the design branch
+            # q_i2 in (-pi, 0), q_i3 in (-pi/2, pi/2)
+            if any(s2 >= 0.0 or c3 <= 0.0 for s2, _, _, c3 in fa):
+                return None
             return ((ax + bx + cx) / 3.0, (ay + by + cy) / 3.0, (az + bz + cz) / 3.0), fa, \
                 (x0, x1, x2, x3, x4, x5), it
         ninv = _inv3(n)
-        if it == max_iter or ninv is None or not abs(ax - bx) + abs(az - cz) < 0.5:
+        if it == max_iter or ninv is None or not res < 0.5:    # also catches NaN
             return None
         b0 = n[0] * ax + n[1] * ay + n[2] * az
         b1 = n[3] * bx + n[4] * by + n[5] * bz
@@ -288,6 +297,12 @@ def _f3(v):
 # --------------------------------------------------------------------------------------------
 # the controller evaluation
 # --------------------------------------------------------------------------------------------
+def _singular(integral, z=(math.nan,) * 3, x=(math.nan,) * 6, iterations=-1) -> ControlOutput:
+    """No torque can be computed: zeros, the integral untouched, status STATUS_SINGULAR."""
+    return ControlOutput((0.0, 0.0, 0.0), tuple(integral), tuple(z), (0.0, 0.0, 0.0), tuple(x),
+                         (0.0,) * 6, math.inf, STATUS_SINGULAR, iterations)
+
+
 def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequence[float],
              rd: Sequence[float], rdd: Sequence[float],
              integral: Sequence[float] = (0.0, 0.0, 0.0), dt: float = 0.0,
@@ -301,6 +316,8 @@ def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequen
     k = law.model
     l1, l2 = k.l1, k.l2
     y0, y1, y2 = _f3(y)
+    if not (math.isfinite(y0) and math.isfinite(y1) and math.isfinite(y2)):
+        return _singular(integral)
     elb = _elbows(k, (y0, y1, y2))
     iterations = -1
     fk = None
@@ -312,19 +329,16 @@ def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequen
         z = _closed_fk(l2, elb)
         fa = None if z is None else _forearms_from_z(l2, elb, z)
         if fa is None:
-            return ControlOutput((0.0, 0.0, 0.0), tuple(integral), (math.nan,) * 3,
-                                 (0.0, 0.0, 0.0), (math.nan,) * 6, (0.0,) * 6, math.inf,
-                                 STATUS_SINGULAR, iterations)
+            return _singular(integral)
         x = _angles(fa)
     n, dd = _directions(elb, fa)
     ninv = _inv3(n)
     d0, d1, d2 = dd
     dmin = min(abs(d0), abs(d1), abs(d2))
     if ninv is None or dmin < 1e-9:
-        return ControlOutput((0.0, 0.0, 0.0), tuple(integral), tuple(z), (0.0, 0.0, 0.0),
-                             x, (0.0,) * 6, math.inf, STATUS_SINGULAR, iterations)
+        return _singular(integral, z, x, iterations)
     n00, n01, n02, n10, n11, n12, n20, n21, n22 = ninv
-    # Frobenius condition number of Jc = N^-1 diag(l1 D); N's rows are unit vectors
+    # Frobenius condition number of Jc = N^-1 diag(l1 D) (l1 cancels); N's rows are unit
     jc2 = (d0 * d0 * (n00 * n00 + n10 * n10 + n20 * n20) + d1 * d1 * (n01 * n01 + n11 * n11
            + n21 * n21) + d2 * d2 * (n02 * n02 + n12 * n12 + n22 * n22))
     cond = math.sqrt(jc2 * (1.0 / (d0 * d0) + 1.0 / (d1 * d1) + 1.0 / (d2 * d2)))
@@ -356,7 +370,7 @@ def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequen
     i1 = min(max(i1 + dt * e1, -imax), imax)
     i2 = min(max(i2 + dt * e2, -imax), imax)
     kI, kP, kD = law.kI, law.kP, law.kD
-    if kI > 0.0 and max(abs(i0), abs(i1), abs(i2)) >= imax:
+    if imax > 0.0 and max(abs(i0), abs(i1), abs(i2)) >= imax:
         status |= STATUS_INTEGRAL_CLAMPED
     rd0, rd1, rd2 = _f3(rd)
     acc0 = kI * i0 + kP * e0 + kD * (rd0 - zdx)
@@ -373,8 +387,7 @@ def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequen
     u0, u1, u2 = u
     zd = (zdx, zdy, zdz)
     if not (math.isfinite(u0) and math.isfinite(u1) and math.isfinite(u2)):
-        return ControlOutput((0.0, 0.0, 0.0), (i0, i1, i2), z, zd, x, tuple(xd), cond,
-                             status | STATUS_SINGULAR, iterations)
+        return _singular(integral, z, x, iterations)
     lim = law.torque_limit
     if max(abs(u0), abs(u1), abs(u2)) > lim:
         status |= STATUS_TORQUE_SATURATED
@@ -414,7 +427,7 @@ def _inverse_dynamics(k: _Model, elb, fa, ninv, dd, v1s, xd, acc):
         pmy, pmz = s0 * ey + s1m * fy, s0 * ezg + s1m * fz
         pnx, pny, pnz = s2m * alx, s1m * ey + s2m * fy, s1m * ezg + s2m * fz
         qa.append(jrot * a1 + m1r1g * c1 + l1 * (c1 * pmz - s1 * pmy) + damp * v1)
-        # F_perp = d2 Q2 / l2 + d3 Q3 / (l2 s2^2) with Q2 = l2 d2 . Pn + c v2, Q3 = l2 d3 . Pn + c v3
+        # F_perp = d2 Q2 / l2 + d3 Q3 / (l2 s2^2), Q2 = l2 d2 . Pn + c v2, Q3 = l2 d3 . Pn + c v3
         hb = c2 * s3 * pnx - s2 * pny + c2 * c3 * pnz + damp * v2 / l2
         hc = c3 * pnx - s3 * pnz + damp * v3 / (l2 * s2)
         fx, fyl, fzl = c2 * s3 * hb + c3 * hc, -s2 * hb, c2 * c3 * hb - s3 * hc
@@ -439,17 +452,23 @@ def _law(params, **kw) -> ControlLaw:
     return make_law(params, fk="closed", cond_limit=1e300, torque_limit=1e300, **kw)
 
 
-def forward_kinematics_closed(params, y: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
-    """Wrist position z and unmeasured angles x from servo angles y (three-sphere closed form).
-
-    Raises ValueError when the servo angles admit no assembly.
-    """
+def _assemble(params, y):
+    """(model, elbows, z, forearms) at servo angles y by the closed form, or ValueError."""
     k = _model(params)
     elb = _elbows(k, _f3(y))
     z = _closed_fk(k.l2, elb)
     fa = None if z is None else _forearms_from_z(k.l2, elb, z)
     if fa is None:
         raise ValueError(f"servo angles {tuple(y)} admit no assembled configuration")
+    return k, elb, z, fa
+
+
+def forward_kinematics_closed(params, y: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """Wrist position z and unmeasured angles x from servo angles y (three-sphere closed form).
+
+    Raises ValueError when the servo angles admit no assembly.
+    """
+    _, _, z, fa = _assemble(params, y)
     return np.array(z), np.array(_angles(fa))
 
 
@@ -494,7 +513,10 @@ def inverse_dynamics(params, y: Sequence[float], yd: Sequence[float],
     """Servo torques that give wrist acceleration ``zdd`` at servo state (y, yd), including
     velocity terms, damping and gravity (no external force)."""
     law = _law(params, pole=1.0, feedforward=True, kI=0.0, kP=0.0, kD=0.0)
-    return np.array(evaluate(law, y, yd, (0.0,) * 3, (0.0,) * 3, zdd).u)
+    out = evaluate(law, y, yd, (0.0,) * 3, (0.0,) * 3, zdd)
+    if out.status & STATUS_SINGULAR:
+        raise ValueError(f"singular configuration at servo angles {tuple(y)}")
+    return np.array(out.u)
 
 
 def gravity_torque(params, y: Sequence[float]) -> np.ndarray:
@@ -504,12 +526,7 @@ def gravity_torque(params, y: Sequence[float]) -> np.ndarray:
 
 def control_jacobian(params, y: Sequence[float]) -> np.ndarray:
     """Control Jacobian Jc = dz/dy (3x3) at servo angles ``y``: N^-1 diag(n_i . b_i)."""
-    k = _model(params)
-    elb = _elbows(k, _f3(y))
-    z = _closed_fk(k.l2, elb)
-    fa = None if z is None else _forearms_from_z(k.l2, elb, z)
-    if fa is None:
-        raise ValueError(f"servo angles {tuple(y)} admit no assembled configuration")
+    k, elb, _, fa = _assemble(params, y)
     n, dd = _directions(elb, fa)
     return np.linalg.solve(np.reshape(n, (3, 3)), k.l1 * np.diag(dd))
 

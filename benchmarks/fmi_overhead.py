@@ -1,0 +1,123 @@
+"""Per-step cost of set/doStep/get through FMI: deltafmi vs pythonfmu vs direct Python, and C host.
+
+The model is a first-order lag that steps itself (no solver), so the figures are the FMI path's
+own cost. Prints medians over repeated runs, all measured in this one run on this machine.
+Usage: python benchmarks/fmi_overhead.py [--steps N] [--repeats R]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import fmpy
+from fmpy.fmi2 import FMU2Slave
+
+ROOT = Path(__file__).resolve().parents[1]
+MODELS = Path(__file__).parent / "models"
+
+
+def fmpy_step_us(fmu: Path, steps: int, repeats: int) -> float:
+    """Median microseconds per setReal/doStep/getReal through fmpy's FMU2Slave."""
+    md = fmpy.read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    u, y, t, h, samples = [vr["u"]], [vr["y"]], 0.0, 1e-3, []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for k in range(steps):
+            slave.setReal(u, [1.0])
+            slave.doStep(t, h)
+            slave.getReal(y)
+            t += h
+        samples.append((time.perf_counter() - start) / steps * 1e6)
+    slave.terminate()
+    slave.freeInstance()
+    return statistics.median(samples)
+
+
+def direct_step_us(steps: int, repeats: int) -> float:
+    """Median microseconds per set/do_step/get calling the component in Python directly."""
+    from deltafmi.export import load_component_class
+    lag = load_component_class(MODELS / "lag_deltafmi.py")()
+    samples, t = [], 0.0
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for k in range(steps):
+            lag.u = 1.0
+            lag.do_step(t, 1e-3)
+            _ = lag.y
+            t += 1e-3
+        samples.append((time.perf_counter() - start) / steps * 1e6)
+    return statistics.median(samples)
+
+
+def c_host_us(fmu: Path, steps: int, repeats: int, workdir: Path) -> dict[str, float]:
+    """Median microseconds per call from the plain-C host (no Python in the host process)."""
+    host = workdir / "host"
+    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/export/native'}", str(ROOT / "tests/c_host/host.c"),
+                    "-o", str(host), "-ldl", "-lm"], check=True)
+    md = fmpy.read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    directory = fmpy.extract(str(fmu))
+    runs: dict[str, list[float]] = {}
+    for _ in range(repeats):
+        out = subprocess.run([str(host), directory, "Lag", md.guid, "bench", str(steps), str(vr["u"]), str(vr["y"])],
+                             capture_output=True, text=True, check=True, env={"PATH": "/usr/bin:/bin"}).stdout
+        for line in out.split():
+            key, value = line.split("=")
+            if key.endswith("_us"):
+                runs.setdefault(key, []).append(float(value))
+    return {key: statistics.median(values) for key, values in runs.items()}
+
+
+def build_pythonfmu(workdir: Path) -> Path | None:
+    """The pythonfmu FMU of the same model, or None when pythonfmu is not installed."""
+    try:
+        import pythonfmu  # noqa: F401
+    except ImportError:
+        return None
+    subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(MODELS / "lag_pythonfmu.py"),
+                    "-d", str(workdir)], check=True, capture_output=True)
+    return workdir / "Lag.fmu"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=20000)
+    parser.add_argument("--repeats", type=int, default=7)
+    args = parser.parse_args()
+    from deltafmi.export import build_fmu
+    with tempfile.TemporaryDirectory() as tmp:
+        workdir = Path(tmp)
+        ours = build_fmu(MODELS / "lag_deltafmi.py", workdir / "ours" / "Lag.fmu")
+        theirs = build_pythonfmu(workdir)
+        ours_us = fmpy_step_us(ours, args.steps, args.repeats)
+        theirs_us = fmpy_step_us(theirs, args.steps, args.repeats) if theirs else None
+        direct_us = direct_step_us(args.steps, args.repeats)
+        c_us = c_host_us(ours, args.steps * 10, args.repeats, workdir)
+    print(f"FMI overhead, medians of {args.repeats} runs x {args.steps} steps (us per set/doStep/get step)")
+    print(f"  direct Python calls (floor)        {direct_us:8.3f}")
+    print(f"  deltafmi FMU through fmpy          {ours_us:8.3f}")
+    if theirs_us is None:
+        print("  pythonfmu FMU through fmpy         skipped: pythonfmu is not installed")
+    else:
+        print(f"  pythonfmu FMU through fmpy         {theirs_us:8.3f}   (deltafmi is {theirs_us / ours_us:.2f}x faster)")
+    print("C host, deltafmi FMU, no Python in the host process (us per call)")
+    print(f"  fmi2SetReal                        {c_us['set_us']:8.4f}")
+    print(f"  fmi2GetReal                        {c_us['get_us']:8.4f}")
+    print(f"  fmi2DoStep (enters Python)         {c_us['dostep_us']:8.4f}")
+    print(f"  set + doStep + get                 {c_us['step_us']:8.4f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,73 @@
+"""Bouncing ball on the FREE / COLLISION / CONTACT framework, with a coefficient of restitution."""
+import numpy as np
+
+from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
+from deltafmi.mechanics.bouncing_ball import BallModel
+from deltafmi.mechanics.collision_law import CollisionLaw
+from deltafmi.mechanics.contact import ContactSystem
+
+
+class BouncingBallRestitution(Component):
+    """Ball on a floor with a compliant collision law of given restitution and duration.
+
+    Each impact rebounds with e times the impact speed (apex heights scale by e^2); a rebound
+    slower than capture_speed is captured into CONTACT (soft stabilised constraint, lambda = weight
+    at rest). Modes: 0 FREE, 1 COLLISION, 2 CONTACT.
+    """
+
+    model_name = "BouncingBallRestitution"
+    default_experiment = Experiment(start=0.0, stop=5.0, step=1e-3, tolerance=1e-8)
+    n_event_indicators = 2
+    cs_options = dict(rtol=1e-9, atol=1e-11)
+
+    g = Parameter(9.81, unit="m/s2", description="Gravity")
+    m = Parameter(1.0, unit="kg", description="Mass of the ball", min=0.0)
+    e = Parameter(0.8, description="Coefficient of restitution", min=0.01, max=1.0)
+    duration = Parameter(1e-4, unit="s", description="Collision duration at the reference speed", min=0.0)
+    reference_speed = Parameter(4.429446918, unit="m/s",
+                                description="Impact speed at which a collision lasts 'duration' (a 1 m drop)")
+    exponent = Parameter(3.0, description="Stiffening exponent p of the law (1 linear, 1.5 Hertz, 3 cubic)", min=1.0)
+    capture_speed = Parameter(0.05, unit="m/s", description="Rebound speed below which the ball stays in CONTACT")
+    alpha0 = Parameter(100.0, description="CONTACT law h'' + alpha1 h' + alpha0 h = 0: alpha0 (1/s2)")
+    alpha1 = Parameter(20.0, description="CONTACT law: alpha1 (1/s)")
+    q = State(1.0, unit="m", description="Height of the ball above the floor")
+    v = State(0.0, unit="m/s", description="Vertical velocity")
+    F = Input(0.0, unit="N", description="Extra vertical force on the ball")
+    mode = Output(0, type=int, description="Floor contact mode: 0 FREE, 1 COLLISION, 2 CONTACT")
+    lam = Output(unit="N", description="Contact force of the floor")
+    energy = Output(unit="J", description="Kinetic + potential + elastic energy")
+
+    def setup(self) -> None:
+        self.system = None
+
+    def initialize(self, t: float) -> None:
+        law = CollisionLaw(restitution=self.e, duration=self.duration,
+                           reference_speed=self.reference_speed, exponent=self.exponent)
+        self.system = ContactSystem(BallModel(self.m, self.g), law, alpha0=self.alpha0,
+                                    alpha1=self.alpha1, capture_speed=self.capture_speed)
+        self.system.model.force = self.F
+        self.system.initialize(t, np.array(self.states))
+        self.mode = int(self.system.modes[0])
+
+    def _system(self) -> ContactSystem:
+        if self.system is None:
+            self.initialize(0.0)
+        self.system.model.force = self.F
+        return self.system
+
+    def derivatives(self, t: float):
+        return self._system().derivatives(t, np.array(self.states))
+
+    def event_indicators(self, t: float):
+        return self._system().event_indicators(t, np.array(self.states))
+
+    def update(self, t: float) -> bool:
+        self._system().update(t, np.array(self.states))
+        self.mode = int(self.system.modes[0])
+        return False
+
+    def outputs(self, t: float) -> None:
+        x = np.array(self.states)
+        system = self._system()
+        self.lam = float(system.contact_forces(x, t)[0])
+        self.energy = system.energy(x)

@@ -1,0 +1,115 @@
+"""Delta robot controller FMU: a thin sampled component over deltafmi.mechanics.delta_control."""
+from deltafmi.component import Component, Experiment, Input, Output, Parameter
+from deltafmi.mechanics import delta_control, delta_params
+
+_D = delta_params.RL5
+_PARAMS = ("l0", "l1", "l2", "l3", "m1", "r1", "J1", "Jm", "m2", "mp", "payload", "g", "damping")
+
+
+class DeltaController(Component):
+    """Feedback-linearising wrist-position controller of the delta robot, sampled (1 kHz).
+
+    At every sample instant t_k = t_start + k * sample_period it reads the servo angles y and
+    rates yd and the reference r, rd, rdd, estimates the wrist position (Newton forward
+    kinematics, warm-started) and outputs the servo torques
+    u = My Jc^-1 (kI int(r - z) + kP (r - z) + kD (rd - zd) + rdd) + velocity terms + gravity,
+    held until the next sample. Model Exchange: time events at the sample instants. Co-Simulation:
+    doStep(t, h) takes the samples due in [t, t + h) with the inputs given at t (use h equal to
+    the sample period). The kinematic and inertial parameters are the controller's own model of
+    the robot (same names as the DeltaRobot plant) and may differ from the plant's.
+    """
+
+    model_name = "DeltaController"
+    default_experiment = Experiment(start=0.0, stop=1.0, step=1e-3, tolerance=1e-6)
+
+    l0 = Parameter(_D.l0, unit="m", min=0.0,
+                   description="Model: base radius, robot axis to servo axes")
+    l1 = Parameter(_D.l1, unit="m", min=0.0, description="Model: upper-arm length")
+    l2 = Parameter(_D.l2, unit="m", min=0.0, description="Model: forearm length")
+    l3 = Parameter(_D.l3, unit="m", min=0.0, description="Model: travelling-plate radius")
+    m1 = Parameter(_D.m1, unit="kg", min=0.0, description="Model: upper-arm mass")
+    r1 = Parameter(_D.r1, unit="m", description="Model: servo axis to upper-arm centre of mass")
+    J1 = Parameter(_D.J1, unit="kg.m2", min=0.0,
+                   description="Model: upper-arm inertia about the servo axis (includes m1*r1^2)")
+    Jm = Parameter(_D.Jm, unit="kg.m2", min=0.0,
+                   description="Model: gearbox-reflected rotor inertia on the servo axis")
+    m2 = Parameter(_D.m2, unit="kg", min=0.0, description="Model: forearm mass (both bars)")
+    mp = Parameter(_D.mp, unit="kg", min=0.0, description="Model: travelling-plate mass")
+    payload = Parameter(_D.payload, unit="kg", min=0.0, description="Model: payload on the plate")
+    g = Parameter(_D.g, unit="m/s2", description="Model: gravitational acceleration")
+    damping = Parameter(_D.damping, unit="N.m.s/rad", min=0.0,
+                        description="Model: viscous damping on each joint (compensated)")
+    pole = Parameter(7.0, unit="1/s", min=0.0,
+                     description="Outer-loop triple pole p: kI = p^3, kP = 3 p^2, kD = 3 p")
+    kI = Parameter(-1.0, unit="1/s3", description="Integral gain; negative: p^3 from pole")
+    kP = Parameter(-1.0, unit="1/s2", description="Proportional gain; negative: 3 p^2 from pole")
+    kD = Parameter(-1.0, unit="1/s", description="Derivative gain; negative: 3 p from pole")
+    integral_limit = Parameter(1.0, unit="m/s2", min=0.0,
+                               description="Bound on the integral action kI*int(r - z) per axis")
+    feedforward = Parameter(True, description="Feed the reference acceleration rdd forward")
+    coriolis = Parameter(True, description="Compensate velocity terms (false: the seed's law)")
+    zoh_lead = Parameter(True, description="Half-sample torque lead compensating the hold")
+    newton_fk = Parameter(True, description="Newton forward kinematics (false: closed form)")
+    torque_limit = Parameter(300.0, unit="N.m", min=0.0, description="Servo torque saturation")
+    cond_limit = Parameter(100.0, min=1.0,
+                           description="Status bit 4 (ill-conditioned) above this cond(Jc)")
+    sample_period = Parameter(1e-3, unit="s", min=0.0, description="Controller sample period")
+
+    y = Input([0.0] * 3, unit="rad", description="Measured servo angles")
+    yd = Input([0.0] * 3, unit="rad/s", description="Measured servo rates")
+    r = Input([0.0, 0.0, -1.0], unit="m", description="Reference wrist position")
+    rd = Input([0.0] * 3, unit="m/s", description="Reference wrist velocity")
+    rdd = Input([0.0] * 3, unit="m/s2", description="Reference wrist acceleration")
+
+    u = Output(shape=3, unit="N.m", variability="discrete", description="Servo torques (held)")
+    cond_Jc = Output(variability="discrete",
+                     description="Frobenius condition number of the control Jacobian Jc")
+    status = Output(0, type=int, description="Status bits: 1 torque saturated, 2 integral "
+                    "clamped, 4 near a singularity, 8 singular (torque held)")
+    z_est = Output(shape=3, unit="m", variability="discrete",
+                   description="Wrist position estimated by forward kinematics")
+
+    def setup(self) -> None:
+        self._ctl = None
+        self._t0 = 0.0
+        self._k = 0          # index of the next sample instant
+
+    def initialize(self, t: float) -> None:
+        if not self.sample_period > 0.0:
+            raise ValueError(f"sample_period must be > 0, got {self.sample_period}")
+        model = delta_params.DeltaParams(**{n: getattr(self, n) for n in _PARAMS})
+        self._ctl = delta_control.DeltaController(
+            model, pole=self.pole, kI=self.kI, kP=self.kP, kD=self.kD,
+            integral_limit=self.integral_limit, feedforward=self.feedforward,
+            torque_limit=self.torque_limit, sample_period=self.sample_period,
+            coriolis=self.coriolis, zoh_lead=self.zoh_lead,
+            fk="newton" if self.newton_fk else "closed", cond_limit=self.cond_limit)
+        self._t0, self._k = t, 0
+
+    def _next_sample(self) -> float:
+        return self._t0 + self._k * self.sample_period
+
+    def _sample(self) -> None:
+        ctl = self._ctl
+        self.u = ctl.step(self.y, self.yd, self.r, self.rd, self.rdd)
+        self.cond_Jc, self.status = ctl.cond, ctl.status
+        if ctl.last is not None and not ctl.status & delta_control.STATUS_SINGULAR:
+            self.z_est = ctl.last.z
+        warning = ctl.pending_warning()
+        if warning:
+            self.log(warning, level="warning")
+        self._k += 1
+
+    def update(self, t: float) -> None:
+        if t >= self._next_sample() - 1e-9 * self.sample_period:
+            self._sample()
+            while self._next_sample() <= t:      # never schedule an instant already passed
+                self._k += 1
+
+    def next_time_event(self, t: float) -> float:
+        return self._next_sample()
+
+    def do_step(self, t: float, h: float) -> None:
+        end = t + h - 1e-9 * self.sample_period
+        while self._next_sample() < end:
+            self._sample()

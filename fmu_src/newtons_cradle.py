@@ -1,0 +1,93 @@
+"""Newton's cradle: up to 7 balls, as pendulums or a free chain, with compliant two-body impacts."""
+import numpy as np
+
+from deltafmi.component import Component, Experiment, Output, Parameter, State
+from deltafmi.mechanics.collision_law import CollisionLaw
+from deltafmi.mechanics.newtons_cradle import make_cradle, momentum
+
+N_MAX = 7
+
+
+class NewtonsCradle(Component):
+    """Newton's cradle of n (2..7) equal balls; each contact is a two-body compliant impact.
+
+    Pendulums (theta states, rad) or a free chain (x states, m); unused balls are frozen with
+    constant indicators. Contact modes: 0 FREE, 1 COLLISION, 2 CONTACT (never used: a cradle has
+    no resting loads). The striker, ball 1, is released from striker_angle (pendulums) or moves
+    at striker_speed.
+    """
+
+    model_name = "NewtonsCradle"
+    default_experiment = Experiment(start=0.0, stop=2.0, step=1e-3, tolerance=1e-8)
+    n_event_indicators = 2 * (N_MAX - 1)
+    cs_options = dict(rtol=1e-9, atol=1e-12)
+
+    n = Parameter(3, type=int, description="Number of balls (2..7)", min=2, max=N_MAX)
+    pendulum = Parameter(True, description="Balls hang as pendulums (else a free chain on a line)")
+    mass = Parameter(0.1, unit="kg", description="Mass of each ball", min=0.0)
+    radius = Parameter(0.0125, unit="m", description="Radius of each ball", min=0.0)
+    length = Parameter(0.3, unit="m", description="Pendulum length, pivot to ball centre", min=0.0)
+    gap = Parameter(0.0, unit="m", description="Surface gap between neighbours at rest", min=0.0)
+    striker_angle = Parameter(0.3, unit="rad", description="Release angle of ball 1 (pendulums; 0: use striker_speed)")
+    striker_speed = Parameter(1.0, unit="m/s", description="Initial speed of ball 1 towards the others")
+    e = Parameter(1.0, description="Coefficient of restitution of each contact", min=0.01, max=1.0)
+    duration = Parameter(1e-4, unit="s", description="Two-ball collision duration at reference_speed", min=0.0)
+    reference_speed = Parameter(1.0, unit="m/s", description="Impact speed at which a collision lasts 'duration'")
+    exponent = Parameter(3.0, description="Stiffening exponent p of the law (1.5 Hertz, 3 cubic)", min=1.0)
+    g = Parameter(9.81, unit="m/s2", description="Gravity (pendulums)")
+    q = State([0.0] * N_MAX, initial="calculated", derivative_unit="",
+              description="Pendulum angles (rad) or chain positions (m) of balls 1..7")
+    v = State([0.0] * N_MAX, initial="calculated", derivative_unit="",
+              description="Angular velocities (rad/s) or velocities (m/s)")
+    x = Output(shape=N_MAX, unit="m", description="Horizontal position of each ball centre")
+    vx = Output(shape=N_MAX, unit="m/s", description="Horizontal velocity of each ball")
+    mode = Output([0] * (N_MAX - 1), type=int, description="Mode of contact i (balls i, i+1)")
+    lam = Output(shape=N_MAX - 1, unit="N", description="Contact force between balls i and i+1")
+    energy = Output(unit="J", description="Kinetic + potential + elastic energy")
+    momentum = Output(unit="N.s", description="Horizontal momentum of the balls")
+
+    def setup(self) -> None:
+        self.system = None
+
+    def initialize(self, t: float) -> None:
+        if not 2 <= self.n <= N_MAX:
+            raise ValueError(f"n must be in 2..{N_MAX}, got {self.n}")
+        law = CollisionLaw(restitution=self.e, duration=self.duration,
+                           reference_speed=self.reference_speed, exponent=self.exponent)
+        self.system, x0 = make_cradle(
+            self.n, pendulum=self.pendulum, mass=self.mass, radius=self.radius, length=self.length,
+            gap=self.gap, striker_speed=self.striker_speed,
+            striker_angle=self.striker_angle if self.pendulum else 0.0, law=law, n_max=N_MAX, g=self.g)
+        self.q = x0[:N_MAX]
+        self.v = x0[N_MAX:]
+        self.system.initialize(t, x0)
+        self.mode = self.system.modes
+
+    def _system(self):
+        if self.system is None:
+            self.initialize(0.0)
+        return self.system
+
+    def derivatives(self, t: float):
+        return self._system().derivatives(t, np.array(self.states))
+
+    def event_indicators(self, t: float):
+        return self._system().event_indicators(t, np.array(self.states))
+
+    def update(self, t: float) -> bool:
+        self._system().update(t, np.array(self.states))
+        self.mode = self.system.modes
+        return False
+
+    def outputs(self, t: float) -> None:
+        state = np.array(self.states)
+        system = self._system()
+        model = system.model
+        if self.pendulum:
+            self.x = model.centres(state[:N_MAX])[:, 0]
+        else:
+            self.x = state[:N_MAX]
+        self.vx = model.ball_velocities(state)
+        self.lam = system.contact_forces(state, t)
+        self.energy = system.energy(state)
+        self.momentum = momentum(model, state, self.n)

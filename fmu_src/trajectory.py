@@ -1,0 +1,91 @@
+"""Wrist reference trajectory FMU: a thin component over deltafmi.mechanics.trajectory."""
+import os
+
+from deltafmi.component import Component, Experiment, Output, Parameter
+from deltafmi.mechanics.trajectory import CirclePath, MinimumJerkPath, RecordedPath
+
+MAX_WAYPOINTS = 8
+
+
+class Trajectory(Component):
+    """Reference r, rd, rdd for the delta robot wrist: waypoints, circle or recorded CSV.
+
+    mode 0: rest-to-rest minimum-jerk moves through the first n_waypoints of (wp_x, wp_y, wp_z);
+    wp_T[k] is the duration of the move from waypoint k to waypoint k+1, and the path rests for
+    ``dwell`` at each waypoint. mode 1: horizontal circle (circle_centre, radius, period) whose
+    angular rate ramps in along a minimum-jerk profile over ramp_time. mode 2: playback of
+    csv_file (columns time, x, y, z; relative paths are looked up in the working directory,
+    then in the FMU resources) through a cubic spline, smoothed when csv_smoothing > 0.
+    Everything starts at t_start. Waypoints and circles outside the nominal workspace
+    (r <= 0.5 m, -1.2 <= z <= -0.75 m) fail initialization with a message naming them.
+    """
+
+    model_name = "Trajectory"
+    default_experiment = Experiment(start=0.0, stop=3.0, step=1e-3, tolerance=1e-6)
+
+    mode = Parameter(0, type=int, min=0, max=2,
+                     description="0 minimum-jerk waypoints, 1 circle, 2 CSV playback")
+    t_start = Parameter(0.0, unit="s", description="Time at which the motion starts")
+    n_waypoints = Parameter(4, type=int, min=1, max=MAX_WAYPOINTS,
+                            description="Number of waypoints used (mode 0)")
+    wp_x = Parameter([0.0, 0.1, 0.1, 0.0] + [0.0] * 4, unit="m", description="Waypoint x")
+    wp_y = Parameter([0.0, 0.0, 0.1, 0.0] + [0.0] * 4, unit="m", description="Waypoint y")
+    wp_z = Parameter([-1.0, -1.0, -0.9, -1.0] + [-1.0] * 4, unit="m", description="Waypoint z")
+    wp_T = Parameter([0.5] * MAX_WAYPOINTS, unit="s", min=0.0,
+                     description="wp_T[k]: duration of the move from waypoint k to k+1")
+    dwell = Parameter(0.2, unit="s", min=0.0, description="Rest at each waypoint (mode 0)")
+    circle_centre = Parameter([0.0, 0.0, -1.0], unit="m", description="Circle centre (mode 1)")
+    radius = Parameter(0.1, unit="m", min=0.0, description="Circle radius (mode 1)")
+    period = Parameter(1.0, unit="s", min=0.0, description="Period at full speed (mode 1)")
+    ramp_time = Parameter(1.0, unit="s", min=0.0,
+                          description="Time to reach full angular rate (mode 1)")
+    csv_file = Parameter("", type=str, description="CSV of time, x, y, z (mode 2)")
+    csv_smoothing = Parameter(0.0, unit="s3", min=0.0,
+                              description="Smoothing-spline penalty; 0 interpolates (mode 2)")
+
+    r = Output(shape=3, unit="m", description="Reference wrist position")
+    rd = Output(shape=3, unit="m/s", description="Reference wrist velocity")
+    rdd = Output(shape=3, unit="m/s2", description="Reference wrist acceleration")
+
+    def setup(self) -> None:
+        self._path = None
+
+    def initialize(self, t: float) -> None:
+        try:
+            self._path = self._make_path()
+        except ValueError as exc:
+            if self.mode != 0:
+                raise
+            raise ValueError(f"{exc} (waypoints count from 0 here: waypoint k is "
+                             f"wp_x[k+1], wp_y[k+1], wp_z[k+1])") from None
+
+    def _make_path(self):
+        if self.mode == 0:
+            n = self.n_waypoints
+            if not 1 <= n <= MAX_WAYPOINTS:
+                raise ValueError(f"n_waypoints = {n} must be in 1..{MAX_WAYPOINTS}")
+            points = list(zip(self.wp_x[:n], self.wp_y[:n], self.wp_z[:n]))
+            return MinimumJerkPath(points, self.wp_T[:n - 1], dwell=self.dwell, t0=self.t_start)
+        if self.mode == 1:
+            return CirclePath(self.circle_centre, self.radius, self.period,
+                              ramp_time=self.ramp_time, t0=self.t_start)
+        if self.mode == 2:
+            return RecordedPath(self._csv_path(), smoothing=self.csv_smoothing, t0=self.t_start)
+        raise ValueError(f"mode = {self.mode} must be 0 (waypoints), 1 (circle) or 2 (CSV)")
+
+    def _csv_path(self) -> str:
+        name = self.csv_file
+        if not name:
+            raise ValueError("mode 2 needs csv_file")
+        for candidate in (name, os.path.join(self.resources_dir, name)):
+            if os.path.isfile(candidate):
+                return candidate
+        raise ValueError(f"csv_file {name!r} not found (also looked in {self.resources_dir!r})")
+
+    def outputs(self, t: float) -> None:
+        if self._path is None:
+            self._path = self._make_path()
+        self.r, self.rd, self.rdd = self._path.evaluate(t)
+
+    def do_step(self, t: float, h: float) -> None:
+        pass  # no state: the runtime evaluates the outputs at t + h
