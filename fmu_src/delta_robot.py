@@ -20,6 +20,8 @@ class DeltaRobot(Component):
     """
 
     model_name = "DeltaRobot"
+    # outputs that depend on the inputs without passing through the states
+    direct_feedthrough = {"lam": ["u", "f"]}
     default_experiment = Experiment(start=0.0, stop=1.0, step=1e-3, tolerance=1e-6)
 
     l0 = Parameter(_D.l0, unit="m", min=0.0, description="Base radius: robot axis to servo axes")

@@ -181,6 +181,21 @@ def test_integral_is_clamped_at_the_limit():
     assert law.kI * np.array(out.integral) == pytest.approx([0.5, -0.5, 0.0])
 
 
+def test_integral_frozen_while_the_torque_saturates():
+    # conditional integration: a torque limit below the holding torque saturates every sample
+    z = np.array(POINTS[0])
+    y = d.inverse_kinematics(P, z)[IY]
+    ctl = dc.DeltaController(P, torque_limit=5.0)
+    target = z + [1e-3, 0.0, 0.0]
+    u = ctl.step(y, [0.0] * 3, target, [0.0] * 3, [0.0] * 3)
+    assert ctl.status & dc.STATUS_TORQUE_SATURATED and np.allclose(np.abs(u), 5.0)
+    first = ctl.integral
+    assert first[0] == pytest.approx(TS * 1e-3)
+    for _ in range(5):
+        ctl.step(y, [0.0] * 3, target, [0.0] * 3, [0.0] * 3)
+    assert ctl.integral == first
+
+
 def test_near_singularity_no_nan_saturated_torque_status_and_one_warning():
     zs = d.stretched_height(P)
     y = d.inverse_kinematics(P, (0.0, 0.0, zs + 1e-6))[IY]      # all arms almost stretched

@@ -5,8 +5,9 @@ retried with a smaller step. Two estimates:
 
 * ``double-step``: one step of H against two of H/2 from the same snapshot; the difference of all
   fetched Real values is the (Richardson) error of the zero-order-hold coupling, O(H^2) per step.
-* ``io-gap``: after one step, how far every Real input that was held over the step lies from the
-  value its source reached at the end of it, O(H) per step; cheaper (no second pass).
+* ``io-gap``: after one step, how far every coupling signal (each Real input, as its source
+  gives it) moved over the step: the gap a held input leaves, O(H) per step; cheaper (no second
+  pass).
 
 The error is scaled as ``|e| / (abs_tolerance + tolerance * |value|)``; a step is accepted when its
 maximum is <= 1. Events found during a trial are recorded only if the trial is kept.
@@ -47,7 +48,7 @@ def run_adaptive(master: "Master") -> None:
                 error = _double_step_error(master, units, t, step, snapshot, settings)
             else:
                 master.step_all(units, t, step)
-                error = _io_gap_error(units, settings)
+                error = _io_gap_error(units, snapshot[1], settings)
             factor = _SAFETY * error ** (-1.0 / order) if error > 0 else _GROW
             if error <= 1.0 or step <= h_min * (1 + 1e-9):
                 if error > 1.0 and not warned:
@@ -81,15 +82,15 @@ def _double_step_error(master: "Master", units: List["Unit"], t: float, step: fl
     return float(np.max(np.abs(fine - coarse) / scale)) if len(fine) else 0.0
 
 
-def _io_gap_error(units: List["Unit"], settings) -> float:
+def _io_gap_error(units: List["Unit"], before: dict, settings) -> float:
     error = 0.0
     for unit in units:
         for inputs in unit.inputs:
             if inputs.values.dtype != np.float64:
                 continue
-            now = inputs.bus[inputs.index]
+            start, end = before["Real"][inputs.index], inputs.bus[inputs.index]
             if inputs.factor is not None:
-                now = now * inputs.factor + inputs.offset
-            scale = settings.abs_tolerance + settings.tolerance * np.abs(now)
-            error = max(error, float(np.max(np.abs(now - inputs.values) / scale)))
+                start, end = start * inputs.factor, end * inputs.factor
+            scale = settings.abs_tolerance + settings.tolerance * np.abs(end + inputs.offset)
+            error = max(error, float(np.max(np.abs(end - start) / scale)))
     return error

@@ -11,13 +11,7 @@ from typing import Optional, Sequence
 
 import click
 
-from .errors import ScenarioError
-
-
-class BadInput(click.ClickException):
-    """Wrong user input outside a scenario file (exit code 2)."""
-
-    exit_code = 2
+from .errors import BadInput, ScenarioError
 
 
 def _load(path: str, check_fmus: bool = False):

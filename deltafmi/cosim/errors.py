@@ -39,6 +39,12 @@ class ScenarioError(click.ClickException):
         super().__init__(first + (f" (and {more} more error{'s' * (more > 1)})" if more > 0 else ""))
 
 
+class BadInput(click.ClickException):
+    """Wrong input outside a scenario file: an option value, a signal name, a result file. Exit code 2."""
+
+    exit_code = 2
+
+
 class SimulationError(click.ClickException):
     """A run failed after it started (an FMU returned an error, the solver failed). Exit code 1."""
 

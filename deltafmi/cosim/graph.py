@@ -133,20 +133,25 @@ def _topological(graph: Mapping[str, Sequence[str]]) -> List[str]:
 def stepping_order(components: Sequence[str], links: Iterable[Link], feedthrough: Feedthrough) -> List[str]:
     """Gauss-Seidel order of the components.
 
-    A component steps after the components that feed it. In a feedback loop the cut goes through an
-    input that reaches no connected output directly (a plant's actuator input), so the component
-    whose connected outputs react instantly to their inputs (a controller) sees fresh values.
-    Ties keep the scenario's order.
+    A component steps after the components that feed it. A feedback loop (components that reach
+    each other) is cut at a connection into an input that reaches none of the loop's connections
+    directly (a plant's actuator input), so the component whose outputs in the loop react
+    instantly to their inputs (a controller) sees fresh values. Ties keep the scenario's order.
     """
     links = list(links)
     position = {c: i for i, c in enumerate(components)}
-    sources = {s for s, _ in links}
+    coupled: Dict[str, List[str]] = {c: [] for c in components}
+    for source, target in links:
+        coupled[component_of(source)].append(component_of(target))
+    loop_of = {c: i for i, members in enumerate(strongly_connected(coupled)) for c in members}
+    # outputs that feed a component of their own feedback loop
+    in_loop = {s for s, t in links if loop_of[component_of(s)] == loop_of[component_of(t)]}
     edges: Dict[str, Dict[str, bool]] = {c: {} for c in components}
     for source, target in links:
         a, b = component_of(source), component_of(target)
         if a == b:
             continue
-        strong = any(variable_of(target) in deps and f"{b}.{out}" in sources
+        strong = any(variable_of(target) in deps and f"{b}.{out}" in in_loop
                      for out, deps in feedthrough.get(b, {}).items())
         edges[a][b] = edges[a].get(b, False) or strong
     remaining = set(components)

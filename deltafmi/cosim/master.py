@@ -20,10 +20,10 @@ from typing import Callable, Dict, List, Optional, Tuple
 import fmpy
 import numpy as np
 
-from .errors import SimulationError
+from .errors import BadInput, SimulationError
 from .me_integrator import TerminateRequested
 from .progress import Progress, Summary
-from .resolve import Port, System
+from .resolve import System
 from .results import CsvWriter, RowSampler
 from .units import TYPES, FmuFailure, Unit, unit_for
 
@@ -39,7 +39,7 @@ class Master:
         self.start = scenario.experiment.start
         self.stop = scenario.experiment.stop if stop is None else float(stop)
         if self.stop <= self.start:
-            raise SimulationError(f"stop time {self.stop} is not after start time {self.start}")
+            raise BadInput(f"stop time {self.stop} is not after start time {self.start}")
         self.step = scenario.experiment.step
         self.algorithm = algorithm or scenario.master.algorithm
         self.result_path = Path(result) if result is not None else scenario.result.file
@@ -56,6 +56,8 @@ class Master:
         self.events = 0
         self._deferred: Optional[List[Tuple[float, np.ndarray, bool]]] = None
         self.step_end = self.start
+        self._unzip_root = ""
+        self._by_name: Dict[str, Unit] = {}
 
     # --- public -------------------------------------------------------------------------------
     def run(self) -> Summary:
@@ -64,17 +66,11 @@ class Master:
         Whatever was recorded before a failure stays in the result file.
         """
         wall = _time.perf_counter()
-        unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
         terminated = None
+        setup = 0.0
         try:
-            self._load(unzip_root)
-            for unit in self.units:
-                unit.instantiate(self.start, self.stop)
-                unit.apply_start_values()
-            self._wire()
-            self.writer = CsvWriter(self.result_path, [p.ref for p in self.system.recorded])
-            self._initialize()
-            self._record(self.start)
+            self.open()
+            setup = _time.perf_counter() - wall
             try:
                 if self.system.scenario.master.adaptive.enabled and self._can_roll_back():
                     from .adaptive import run_adaptive
@@ -83,20 +79,43 @@ class Master:
                     self._run_fixed()
             except TerminateRequested as exc:
                 terminated = str(exc)
+                self.time = exc.time
                 self._record(exc.time)
         except (FmuFailure, fmpy.fmi1.FMICallException, RuntimeError, OSError, ValueError) as exc:
             raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
                                   f"{self._partial_note()}") from exc
         finally:
-            self.progress.close()
-            if self.writer is not None:
-                self.writer.close()
-            for unit in self.units:
-                unit.close()
-            shutil.rmtree(unzip_root, ignore_errors=True)
+            self.close()
         return Summary(self.steps, self.rejected, self.events,
                        _time.perf_counter() - wall, self.time - self.start,
-                       self.writer.rows_written, self.result_path, terminated)
+                       self.writer.rows_written, self.result_path, terminated, setup)
+
+    def open(self) -> None:
+        """Load, instantiate, wire and initialize every unit; record the first row.
+
+        :meth:`run` calls it; call it yourself only to drive :meth:`step_all` by hand (and then
+        :meth:`close`).
+        """
+        self._unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
+        self._load(self._unzip_root)
+        for unit in self.units:
+            unit.instantiate(self.start, self.stop)
+            unit.apply_start_values()
+        self._wire()
+        self.writer = CsvWriter(self.result_path, [p.ref for p in self.system.recorded])
+        self._initialize()
+        self._record(self.start)
+
+    def close(self) -> None:
+        """Flush the results and free every unit (safe after a failure, and twice)."""
+        self.progress.close(self.time)
+        if self.writer is not None:
+            self.writer.close()
+        for unit in self.units:
+            unit.close()
+        if self._unzip_root:
+            shutil.rmtree(self._unzip_root, ignore_errors=True)
+            self._unzip_root = ""
 
     def _partial_note(self) -> str:
         if self.writer is None:
@@ -115,44 +134,48 @@ class Master:
             if component.interface == "ME":
                 unit.on_event = self._on_event
             self.units.append(unit)
+            self._by_name[unit.name] = unit
 
     def _wire(self) -> None:
-        """Lay out one bus per FMI type and precompute every unit's gather/set and fetch.
+        """Lay out one bus per FMI type and precompute every unit's fetch and gather/set.
 
         Runs after instantiation: the precomputed calls hold the instance handles.
         """
-        by_name = {u.name: u for u in self.units}
+        slot = self._wire_outputs()
+        links = self.system.links
+        for unit in self.units:
+            for kind in TYPES:
+                mine = [l for l in links if l.target.component == unit.name and l.target.type == kind]
+                if mine:
+                    unit.wire_inputs(kind, [l.target.vr for l in mine], self.buses[kind],
+                                     [slot[(kind, l.source.component, l.source.vr)] for l in mine],
+                                     [l.factor for l in mine], [l.offset for l in mine])
+        recorded = self.system.recorded
+        parts = []
+        for kind in TYPES:
+            columns = [i for i, p in enumerate(recorded) if p.type == kind]
+            parts.append((self.buses[kind], [slot[(kind, recorded[i].component, recorded[i].vr)] for i in columns],
+                          columns))
+        self.sampler = RowSampler(parts, len(recorded))
+
+    def _wire_outputs(self) -> Dict[Tuple[str, str, int], int]:
+        """Give every connected or recorded variable a bus slot; returns (type, unit, vr) -> slot."""
         fetched: Dict[str, Dict[str, List[int]]] = {kind: {u.name: [] for u in self.units} for kind in TYPES}
         for port in [link.source for link in self.system.links] + list(self.system.recorded):
             vrs = fetched[port.type][port.component]
             if port.vr not in vrs:
                 vrs.append(port.vr)
         slot: Dict[Tuple[str, str, int], int] = {}
-        for kind, (ctype, dtype) in TYPES.items():
-            size = sum(len(v) for v in fetched[kind].values())
-            bus = self.buses[kind] = np.zeros(max(size, 1), dtype=dtype)
+        for kind, (_, dtype) in TYPES.items():
+            bus = self.buses[kind] = np.zeros(max(1, sum(map(len, fetched[kind].values()))), dtype=dtype)
             start = 0
             for unit in self.units:
                 vrs = fetched[kind][unit.name]
                 if vrs:
                     unit.wire_outputs(kind, vrs, bus, start)
-                    for i, vr in enumerate(vrs):
-                        slot[(kind, unit.name, vr)] = start + i
+                    slot.update({(kind, unit.name, vr): start + i for i, vr in enumerate(vrs)})
                     start += len(vrs)
-        for unit in self.units:
-            for kind in TYPES:
-                links = [l for l in self.system.links if l.target.component == unit.name and l.target.type == kind]
-                if links:
-                    unit.wire_inputs(kind, [l.target.vr for l in links], self.buses[kind],
-                                     [slot[(kind, l.source.component, l.source.vr)] for l in links],
-                                     [l.factor for l in links], [l.offset for l in links])
-        recorded = self.system.recorded
-        parts = []
-        for kind in TYPES:
-            cols = [i for i, p in enumerate(recorded) if p.type == kind]
-            parts.append((self.buses[kind], [slot[(kind, recorded[i].component, recorded[i].vr)] for i in cols], cols))
-        self.sampler = RowSampler(parts, len(recorded))
-        self._by_name = by_name
+        return slot
 
     def _initialize(self) -> None:
         for unit in self.units:

@@ -149,7 +149,7 @@ class ModelExchangeUnit(Unit):
                     if terminate:
                         raise TerminateRequested(self.name, t)
                 if root or step_event or (event_time is not None and t >= event_time - eps):
-                    self._event(t)
+                    self._event(t, root=root)
                 if t >= t_end - eps:
                     return
         except FMICallException as exc:
@@ -177,13 +177,15 @@ class ModelExchangeUnit(Unit):
             self.restarts += 1
             return solver.advance(t_stop)
 
-    def _event(self, t: float, discrete_inputs: list = ()) -> None:
-        """Event mode at ``t``: set discrete inputs, iterate, restart CVODE if the solution jumped.
+    def _event(self, t: float, discrete_inputs: list = (), root: bool = False) -> None:
+        """Event mode at ``t``: set discrete inputs, iterate, restart CVODE where needed.
 
-        CVODE restarts when ``valuesOfContinuousStatesChanged`` says the states jumped, and also
-        when the derivatives jumped (a discrete variable switched the right-hand side, as at a
-        time event): its step history then describes another function, and keeping it makes the
-        error test fail down to the minimum step at tight tolerances. Otherwise it keeps going.
+        CVODE restarts when ``valuesOfContinuousStatesChanged`` says the states jumped, when the
+        derivatives jumped (a discrete variable switched the right-hand side: its step history
+        would describe another function and fail the error test at tight tolerances), and after
+        every state event: CVODE finds a root inside a step it has already taken, so its
+        internal solution has run past the root on the pre-event equations. Otherwise (a time
+        event with no effect on the solution) it keeps its history.
         """
         self.on_event(self, t, False)
         before = self._derivatives()
@@ -194,8 +196,9 @@ class ModelExchangeUnit(Unit):
         self.call(self.fmu.enterContinuousTimeMode)
         if nominals_changed:
             self.solver = self._new_solver(t)
-        elif self.nx and (states_changed or not np.array_equal(before, self._derivatives())):
-            self.call(self.fmu.getContinuousStates, self._x_pointer, self.nx)
+        elif root or states_changed or not np.array_equal(before, self._derivatives()):
+            if self.nx:
+                self.call(self.fmu.getContinuousStates, self._x_pointer, self.nx)
             self.solver.reinit(t, self._x)
         self.on_event(self, t, True)
 

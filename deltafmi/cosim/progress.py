@@ -30,13 +30,14 @@ class Progress:
         self.stream.write(f"\r[{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:5.1f}% t = {t:.6g} s")
         self.stream.flush()
 
-    def close(self) -> None:
-        """Finish the bar's line."""
+    def close(self, t: float) -> None:
+        """Draw the bar at ``t`` (where the run ended) and finish its line; later calls do nothing."""
         if self.enabled:
             self._next_draw = 0.0
-            self.update(self.start + self.span)
+            self.update(t)
             self.stream.write("\n")
             self.stream.flush()
+            self.enabled = False
 
 
 @dataclass
@@ -51,6 +52,8 @@ class Summary:
     rows: int
     result: Path
     terminated: Optional[str] = None
+    #: wall seconds spent before the first step (extracting, loading, initializing)
+    setup_time: float = 0.0
 
     @property
     def real_time_factor(self) -> float:

@@ -106,6 +106,7 @@ class _Checker:
         self.found.append(Diagnostic(self.file, line, message, "warning"))
 
     def run(self, check_fmus: bool) -> Optional[System]:
+        """Check everything; the resolved system, or None when an error was found."""
         for spec in self.scenario.components:
             component = self._component(spec, check_fmus)
             if component is not None:
@@ -114,7 +115,20 @@ class _Checker:
         self._unconnected(links)
         feedthrough = {name: c.info.feedthrough for name, c in self.components.items()}
         pairs = [(l.source.ref, l.target.ref) for l in links]
-        line_of = {(l.source.ref, l.target.ref): l.line for l in links}
+        self._loops(links, pairs, feedthrough)
+        recorded = self._recorded()
+        self._settings()
+        if any(d.severity == "error" for d in self.found):
+            return None
+        names = [c.name for c in self.scenario.components]
+        by_pair = dict(zip(pairs, links))
+        return System(self.scenario, [self.components[n] for n in names], links, recorded,
+                      stepping_order(names, pairs, feedthrough),
+                      [by_pair[p] for p in initialization_order(pairs, feedthrough)],
+                      [d for d in self.found if d.severity == "warning"])
+
+    def _loops(self, links: List[Link], pairs: List[Tuple[str, str]], feedthrough: Dict[str, Any]) -> None:
+        line_of = {pair: link.line for pair, link in zip(pairs, links)}
         for loop in algebraic_loops(pairs, feedthrough):
             members = sorted({ref.split(".", 1)[0] for ref in loop})
             lines = [line_of[(a, b)] for a, b in zip(loop, loop[1:] + loop[:1]) if (a, b) in line_of]
@@ -122,18 +136,6 @@ class _Checker:
                        f"algebraic loop between {', '.join(members)}: "
                        f"{' -> '.join(loop + loop[:1])} (every step in it is a connection or a direct "
                        "feedthrough; cut it with a component whose outputs do not depend directly on its inputs)")
-        recorded = self._recorded()
-        self._settings()
-        if len(self.components) != len(self.scenario.components):
-            return None
-        names = [c.name for c in self.scenario.components]
-        order = stepping_order(names, pairs, feedthrough)
-        by_pair = {(l.source.ref, l.target.ref): l for l in links}
-        init_links = [by_pair[p] for p in initialization_order(pairs, feedthrough)] \
-            if not any(d.severity == "error" for d in self.found) else list(links)
-        warnings = [d for d in self.found if d.severity == "warning"]
-        return System(self.scenario, [self.components[n] for n in names], links, recorded,
-                      order, init_links, warnings)
 
     # --- components ---------------------------------------------------------------------------
     def _component(self, spec: ComponentSpec, check_fmus: bool) -> Optional[Component]:

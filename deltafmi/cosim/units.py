@@ -11,7 +11,7 @@ from __future__ import annotations
 import ctypes
 from collections import deque
 from ctypes import POINTER, byref
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Sequence, Tuple
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -159,13 +159,19 @@ class Unit:
 
     def pull(self) -> None:
         """Set this unit's inputs from the buses."""
-        for inputs in self.inputs:
-            inputs.apply()
+        try:
+            for inputs in self.inputs:
+                inputs.apply()
+        except FMICallException as exc:
+            raise self.failure(exc) from None
 
     def fetch(self) -> None:
         """Read this unit's outputs (and recorded variables) into the buses."""
-        for outputs in self.outputs:
-            outputs.fetch()
+        try:
+            for outputs in self.outputs:
+                outputs.fetch()
+        except FMICallException as exc:
+            raise self.failure(exc) from None
 
     # --- stepping and state -------------------------------------------------------------------
     def do_step(self, time: float, step: float) -> None:
@@ -230,9 +236,14 @@ class CoSimulationUnit(Unit):
 
 
 def _callbacks(messages: deque) -> fmi2CallbackFunctions:
-    """fmi2CallbackFunctions whose logger keeps the last messages (quoted when a call fails)."""
+    """fmi2CallbackFunctions whose logger keeps the last messages (quoted when a call fails).
+
+    No fmpy ``addLoggerProxy``: it keeps ONE process-wide pointer to the last logger it wrapped,
+    so per-unit loggers would dangle once freed (a crash at the next message) and every FMU's
+    messages would go to the last unit. The message text is used as is (deltafmi FMUs pass it
+    fully formatted).
+    """
     from fmpy import calloc, free
-    from fmpy.logging import addLoggerProxy
 
     def logger(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
         text = message.decode("utf-8", "replace") if message else ""
@@ -242,7 +253,6 @@ def _callbacks(messages: deque) -> fmi2CallbackFunctions:
     callbacks.logger = fmi2CallbackLoggerTYPE(logger)
     callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    addLoggerProxy(byref(callbacks))
     return callbacks
 
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 from scipy.optimize import brentq
@@ -150,7 +150,8 @@ class BounceFigures:
     result: Optional[HybridResult] = field(default=None, repr=False)
 
 
-def free_flight_apexes(result: HybridResult, g: float, in_flight: callable) -> list[tuple[float, float]]:
+def free_flight_apexes(result: HybridResult, g: float,
+                      in_flight: Callable[[int], bool]) -> list[tuple[float, float]]:
     """Apex (time, height) of every free-flight segment that starts rising, from the exact
     parabola through the segment's first state (``in_flight(mode)`` tells free flight)."""
     apexes = []

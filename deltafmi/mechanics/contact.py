@@ -27,6 +27,10 @@ import numpy as np
 from .collision_law import CollisionLaw
 
 
+#: relative offset of the indicators (see ``ContactSystem._indicator_pair``)
+EPS = 1e-9
+
+
 class Mode(IntEnum):
     """Mode of one constraint (exposed as an Integer: 0, 1, 2)."""
 
@@ -140,7 +144,12 @@ class ContactSystem:
 
     # --- dynamics -----------------------------------------------------------------------
     def _evaluate(self, t: float, x: np.ndarray) -> _Evaluation:
-        key = (t, x.tobytes(), self.modes.tobytes())
+        # derivatives and indicators are asked at the same point; the applied forces are part of
+        # the key because inputs (an FMU's) may change at the same (t, x)
+        x = np.asarray(x, float)
+        q, v = self.split(x)
+        Q = np.asarray(self.model.applied_forces(t, q, v), float)
+        key = (t, x.tobytes(), self.modes.tobytes(), Q.tobytes())
         if key == self._cache_key:
             return self._cache
         ev = self._solve(t, x, self.modes)
@@ -206,24 +215,28 @@ class ContactSystem:
     def event_indicators(self, t: float, x: np.ndarray) -> np.ndarray:
         """``[z1_1..z1_nc, z2_1..z2_nc]``; an event where one changes domain (z > 0 / z <= 0).
 
-        FREE: z1 = max(h/L, h'/v_ref) (<= 0 once penetrating and closing), z2 = 1.
-        COLLISION: z1 = the law's end indicator (<= 0 when the force has stopped while separating),
-        z2 = delta'/v_ref (<= 0 past maximal compression: capture check).
-        CONTACT: z1 = lambda (<= 0: release), z2 = 1. Unused constraints: 1, 1.
+        FREE: z1 <= 0 once penetrating and closing. COLLISION: z1 <= 0 when the force has stopped
+        while separating (end of the fast transient), z2 <= 0 past maximal compression (capture
+        check). CONTACT: z1 = lambda (<= 0: release). Unused indicators are +1.
         """
         ev = self._evaluate(t, x)
         n_c = self.model.n_c
         z = np.ones(2 * n_c)
         for i in self._cons:
-            law, mode = self.laws[i], self.modes[i]
-            if mode == Mode.FREE:
-                z[i] = max(ev.h[i] / law.length, ev.hdot[i] / law.reference_speed)
-            elif mode == Mode.COLLISION:
-                z[i] = law.end_indicator(-ev.h[i], -ev.hdot[i])
-                z[n_c + i] = -ev.hdot[i] / law.reference_speed
-            else:
-                z[i] = ev.lam[i]
+            z[i], z[n_c + i] = self._indicator_pair(i, ev)
         return z
+
+    def _indicator_pair(self, i: int, ev: _Evaluation) -> tuple[float, float]:
+        """Dimensionless indicators of constraint i. The offset ``EPS`` puts exact rest (touching
+        bodies, h = h' = 0) strictly inside the positive domain: no indicator sits at 0, and the
+        round-off motion of touching bodies (~1e-30 m/s) cannot fire events."""
+        law, mode = self.laws[i], self.modes[i]
+        if mode == Mode.FREE:
+            return max(ev.h[i] / law.length, ev.hdot[i] / law.reference_speed + EPS), 1.0
+        if mode == Mode.COLLISION:
+            return (law.end_indicator(-ev.h[i], -ev.hdot[i]) + EPS,
+                    -ev.hdot[i] / law.reference_speed + EPS)
+        return float(ev.lam[i]), 1.0
 
     def initialize(self, t: float, x: np.ndarray) -> None:
         """Consistent modes at the start: touching or penetrating contacts enter COLLISION (a
@@ -232,7 +245,7 @@ class ContactSystem:
         ev = self._solve(t, x, self.modes)
         M = self.model.mass_matrix(self.split(x)[0])
         for i in self._cons:
-            if ev.h[i] <= 0.0:
+            if ev.h[i] <= EPS * self.laws[i].length:   # touching, up to round-off
                 self._enter_collision(i, ev, M)
         self._cache_key = None
         self.update(t, x)
@@ -286,7 +299,7 @@ class ContactSystem:
         """FREE -> COLLISION and COLLISION -> FREE: force-form laws do not couple, so all at once."""
         changed = False
         for i in self._cons:
-            if self.modes[i] == Mode.FREE and ev.h[i] <= 0.0 and ev.hdot[i] <= 0.0:
+            if self.modes[i] == Mode.FREE and self._indicator_pair(i, ev)[0] <= 0.0:
                 self._enter_collision(i, ev, M)
                 changed = True
             elif self.modes[i] == Mode.COLLISION and self._collision_ended(i, ev):
@@ -296,7 +309,7 @@ class ContactSystem:
         return changed
 
     def _collision_ended(self, i: int, ev: _Evaluation) -> bool:
-        return self.laws[i].end_indicator(-ev.h[i], -ev.hdot[i]) <= 0.0 and ev.hdot[i] > 0.0
+        return self._indicator_pair(i, ev)[0] <= 0.0 and ev.hdot[i] > 0.0
 
     def _contact_transition(self, t: float, x: np.ndarray, ev: _Evaluation) -> bool:
         """One CONTACT change (they couple through the joint solve): release the most negative
@@ -308,7 +321,7 @@ class ContactSystem:
         if self.capture_speed <= 0.0:
             return False
         for i in self._cons:
-            if self.modes[i] != Mode.COLLISION or ev.h[i] >= 0.0 and not self._collision_ended(i, ev):
+            if self.modes[i] != Mode.COLLISION or (ev.h[i] >= 0.0 and not self._collision_ended(i, ev)):
                 continue
             load = self._load_if_contact(t, x, i)
             if load > 0.0 and (self._collision_ended(i, ev)

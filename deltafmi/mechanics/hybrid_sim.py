@@ -16,7 +16,7 @@ at the restart instant, forever.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any, Callable
 
 import numpy as np
 from scipy import integrate

@@ -134,10 +134,10 @@ def make_cradle(n: int = 3, *, pendulum: bool = False, mass: float = 1.0, radius
                 capture_speed: float = 0.0) -> tuple[ContactSystem, np.ndarray]:
     """A cradle of ``n`` equal balls and its initial state.
 
-    Balls hang (or lie) with surface gaps ``gap``. The striker, ball 1, starts touching its
-    neighbour's side of the gap with velocity ``striker_speed`` towards +x, or (pendulum only,
-    ``striker_angle`` > 0) is released at rest from that angle. ``n_max`` balls are allocated;
-    the extra ones are frozen. ``capture_speed`` defaults to 0: a cradle has no resting loads.
+    Balls hang (or lie) in a row with surface gaps ``gap``. The striker, ball 1, starts in its
+    row position moving at ``striker_speed`` towards +x, or (pendulum only, ``striker_angle`` > 0)
+    is released at rest from that angle. ``n_max`` balls are allocated; the extra ones are frozen.
+    ``capture_speed`` defaults to 0: a cradle has no resting loads, so CONTACT is never entered.
     """
     n_max = n if n_max is None else n_max
     if not 2 <= n <= n_max:

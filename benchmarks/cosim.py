@@ -1,0 +1,129 @@
+"""Co-simulation master figures: real-time factor of the flagship, and the master's own overhead.
+
+1. Flagship: scenarios/delta_tracking.yaml as written (plant ME through the master's CVODE,
+   controller and trajectory CS, Gauss-Seidel, 1 kHz): real-time factor, and where the time goes.
+2. Overhead: the same system with every component as Co-Simulation and Jacobi stepping, run by
+   the master (streaming its CSV) and by the plain 20-line fmpy loop (getReal/setReal per
+   connection, rows kept in memory); and the same for a chain of cheap oscillators, where FMU
+   work is small and the master's own per-step cost shows.
+
+Prints medians over ``--repeats`` runs, all measured now on this machine.
+Usage: python benchmarks/cosim.py [--stop 1.0] [--repeats 3]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from fmpy import extract
+from fmpy.fmi2 import FMU2Slave
+
+from deltafmi.cosim.errors import ScenarioError
+from deltafmi.cosim.master import Master
+from deltafmi.cosim.resolve import System, resolve_system
+from deltafmi.cosim.scenario import load_scenario, parse_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+FLAGSHIP = ROOT / "scenarios" / "delta_tracking.yaml"
+CHAIN = """\
+experiment: {stop: 1.0, step: 1.0e-3}
+master: {algorithm: jacobi}
+components:
+  a: {source: fmu_src/oscillator.py, interface: CS}
+  b: {source: fmu_src/oscillator.py, interface: CS}
+  c: {source: fmu_src/oscillator.py, interface: CS}
+connections:
+  - {from: a.energy, to: b.F, factor: 0.05}
+  - {from: b.energy, to: c.F, factor: 0.05}
+outputs: [a.energy, b.energy, c.energy, b.F, c.F]
+"""
+
+
+def plain_loop(system: System, stop: float) -> float:
+    """Wall seconds of the textbook Jacobi loop over fmpy's FMU2Slave for ``system``."""
+    slaves, start, h = {}, system.scenario.experiment.start, system.scenario.experiment.step
+    for c in system.components:
+        md = c.info.md
+        s = slaves[c.name] = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(c.fmu)), instanceName=c.name,
+                                       modelIdentifier=md.coSimulation.modelIdentifier)
+        s.instantiate()
+        s.setupExperiment(tolerance=c.spec.solver.get("rtol"), startTime=start, stopTime=stop)  # as the master
+        for port, value in c.start_values:
+            {"Real": s.setReal, "Integer": s.setInteger, "Boolean": s.setBoolean, "String": s.setString}[port.type](
+                [port.vr], [value])
+        s.enterInitializationMode()
+    for l in system.init_links:
+        slaves[l.target.component].setReal([l.target.vr], [l.factor * slaves[l.source.component].getReal(
+            [l.source.vr])[0] + l.offset])
+    for s in slaves.values():
+        s.exitInitializationMode()
+    wall = time.perf_counter()
+    rows = []
+    for k in range(int(round((stop - start) / h))):
+        values = [l.factor * slaves[l.source.component].getReal([l.source.vr])[0] + l.offset for l in system.links]
+        for l, v in zip(system.links, values):
+            slaves[l.target.component].setReal([l.target.vr], [v])
+        for s in slaves.values():
+            s.doStep(start + k * h, h)
+        rows.append([start + (k + 1) * h] + [slaves[p.component].getReal([p.vr])[0] for p in system.recorded
+                                             if p.type == "Real"])
+    wall = time.perf_counter() - wall
+    for s in slaves.values():
+        s.terminate()
+        s.freeInstance()
+    return wall
+
+
+def master_run(system: System, stop: float, out: Path, algorithm: str | None = None):
+    """Summary of a master run."""
+    return Master(system, result=out, stop=stop, algorithm=algorithm).run()
+
+
+def all_cs(system: System) -> System:
+    """``system`` with every component stepped as Co-Simulation."""
+    components = [dataclasses.replace(c, interface="CS") for c in system.components]
+    return dataclasses.replace(system, components=components)
+
+
+def overhead(name: str, system: System, stop: float, repeats: int, out: Path) -> None:
+    steps = int(round((stop - system.scenario.experiment.start) / system.scenario.experiment.step))
+    runs = [master_run(system, stop, out, "jacobi") for _ in range(repeats)]
+    ours = statistics.median(r.wall_time - r.setup_time for r in runs)  # stepping + CSV, as the loop
+    loop = statistics.median(plain_loop(system, stop) for _ in range(repeats))
+    print(f"  {name}: master {1e6 * ours / steps:8.1f} us/step, plain fmpy loop {1e6 * loop / steps:8.1f} "
+          f"us/step -> master overhead {100 * (ours - loop) / loop:+.1f} % "
+          f"({1e6 * (ours - loop) / steps:+.1f} us/step)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--stop", type=float, default=1.0, help="simulated seconds per run")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    out = Path(tempfile.mkdtemp(prefix="deltafmi-bench-"))
+
+    print(f"1. flagship {FLAGSHIP.relative_to(ROOT)} (plant ME, Gauss-Seidel, 1 kHz), {args.stop} s:")
+    try:
+        flagship = resolve_system(load_scenario(FLAGSHIP))
+    except ScenarioError as exc:
+        print(f"  cannot run: {exc.message}")
+        flagship = None
+    if flagship is not None:
+        runs = [master_run(flagship, args.stop, out / "flagship.csv") for _ in range(args.repeats)]
+        wall = statistics.median(r.wall_time for r in runs)
+        print(f"  {runs[0].steps} steps in {wall:.3f} s: real-time factor {args.stop / wall:.2f}x "
+              f"(target >= 10x)")
+
+    print("2. master overhead against the plain 20-line fmpy Jacobi loop (target <= 20 %):")
+    if flagship is not None:
+        overhead("flagship, all CS", all_cs(flagship), args.stop, args.repeats, out / "cs.csv")
+    chain = resolve_system(parse_scenario(CHAIN, ROOT / "scenarios" / "oscillator_chain.yaml"))
+    overhead("3 oscillators, CS", chain, args.stop, args.repeats, out / "chain.csv")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,114 @@
+"""``deltafmi run``, ``validate`` and ``plot`` through click's CliRunner: help texts, exit codes,
+one-line reasons, result files."""
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from deltafmi.cli import main
+from deltafmi.cosim.progress import Progress
+from deltafmi.cosim.results import columns
+
+
+@pytest.fixture(scope="module")
+def scenario(build_fmu_from_src, tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("cli")
+    path = folder / "osc.yaml"
+    path.write_text(f"experiment: {{stop: 1.0, step: 0.01}}\n"
+                    f"components:\n  osc: {{fmu: {build_fmu_from_src('oscillator.py')}, interface: ME}}\n"
+                    "outputs: [osc.x, osc.v, osc.energy]\nresult: {file: out/osc.csv}\n")
+    return path
+
+
+@pytest.mark.parametrize("command, example", [
+    ("run", "deltafmi run scenarios/delta_tracking.yaml -o tracking.csv --stop 2"),
+    ("validate", "deltafmi validate scenarios/delta_tracking.yaml"),
+    ("plot", "deltafmi plot tracking.csv 'plant.z[*]' 'trajectory.r[1:3]' -o tracking.png"),
+])
+def test_help_shows_an_example(command, example):
+    result = CliRunner().invoke(main, [command, "--help"])
+    assert result.exit_code == 0
+    assert "Example:" in result.output and example in result.output
+
+
+def test_run_writes_result_and_summary(scenario):
+    result = CliRunner().invoke(main, ["run", str(scenario)])
+    assert result.exit_code == 0, result.output
+    assert "\r" not in result.output  # no progress bar: stdout is not a terminal
+    summary = result.stdout.strip().splitlines()[-1]
+    assert summary.startswith("100 steps (0 rejected), 2 events, 1 s simulated in ")  # 2 wall impacts
+    assert "real-time factor" in summary
+    written = scenario.parent / "out" / "osc.csv"  # result.file is relative to the scenario
+    assert columns(written)["time"][-1] == 1.0
+
+
+def test_run_output_and_stop_options(scenario, tmp_path):
+    out = tmp_path / "short.csv"
+    result = CliRunner().invoke(main, ["run", str(scenario), "-o", str(out), "--stop", "0.5", "--quiet"])
+    assert result.exit_code == 0, result.output
+    assert result.output == "" or result.output.startswith(f"{scenario}:")  # only warnings
+    assert columns(out)["time"][-1] == 0.5
+
+
+def test_run_with_bad_scenario_exits_2(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("experiment: {stop: 1.0, step: 0.1}\ncomponents:\n  a: {fmu: missing.fmu}\n")
+    result = CliRunner().invoke(main, ["run", str(bad)])
+    assert result.exit_code == 2
+    assert result.output.strip().splitlines()[-1] == \
+        f"Error: {bad}:3: error: component 'a': FMU 'missing.fmu' not found"
+
+
+def test_run_failure_exits_1_with_one_line_reason(scenario, tmp_path):
+    failing = tmp_path / "fail.yaml"
+    failing.write_text(scenario.read_text().replace(
+        "interface: ME}", "interface: ME, parameters: {F_step: 1.0e+308, t_step: 0.5}}"))
+    result = CliRunner().invoke(main, ["run", str(failing), "-o", str(tmp_path / "f.csv")])
+    assert result.exit_code == 1
+    last = result.output.strip().splitlines()[-1]
+    assert last.startswith("Error: simulation failed at t = 0.5 s: osc: CVODE failed")
+    assert last.endswith(f"(results up to the failure in {tmp_path / 'f.csv'})")
+    assert columns(tmp_path / "f.csv")["time"][-1] == pytest.approx(0.5)
+
+
+def test_validate_prints_summary(scenario):
+    result = CliRunner().invoke(main, ["validate", str(scenario)])
+    assert result.exit_code == 0, result.output
+    assert "1 components, 0 scalar connections, 3 recorded variables" in result.output
+    assert result.output.strip().endswith(f"{scenario}: OK")
+
+
+def test_plot_writes_png(scenario, tmp_path):
+    CliRunner().invoke(main, ["run", str(scenario), "-o", str(tmp_path / "r.csv"), "-q"])
+    figure = tmp_path / "fig.png"
+    result = CliRunner().invoke(main, ["plot", str(tmp_path / "r.csv"), "osc.x", "osc.*", "-o", str(figure),
+                                       "--separate"])
+    assert result.exit_code == 0, result.output
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and figure.stat().st_size > 10000
+
+
+def test_plot_unknown_signal_exits_2_with_suggestion(scenario, tmp_path):
+    CliRunner().invoke(main, ["run", str(scenario), "-o", str(tmp_path / "r.csv"), "-q"])
+    result = CliRunner().invoke(main, ["plot", str(tmp_path / "r.csv"), "osc.enrgy", "-o", str(tmp_path / "f.png")])
+    assert result.exit_code == 2
+    assert result.output.strip() == "Error: no column 'osc.enrgy' in the result (did you mean 'osc.energy'?)"
+
+
+def test_plot_rejects_a_file_that_is_no_result(tmp_path):
+    junk = tmp_path / "junk.csv"
+    junk.write_text("time,a\n0.0,zero\n")
+    result = CliRunner().invoke(main, ["plot", str(junk), "a", "-o", str(tmp_path / "f.png")])
+    assert result.exit_code == 2
+    assert result.output.startswith(f"Error: cannot read '{junk}' as a result file")
+
+
+def test_progress_bar_draws_on_a_terminal():
+    stream = io.StringIO()
+    bar = Progress(0.0, 2.0, enabled=True, stream=stream)
+    bar.update(0.5)
+    bar.close(2.0)
+    text = stream.getvalue()
+    assert text.startswith("\r[") and " 25.0% t = 0.5 s" in text and text.endswith("100.0% t = 2 s\n")
