@@ -58,6 +58,14 @@ def test_delta_without_feedforward_has_large_transient_error(tmp_path):
     assert tracking_error(c).max() > 1e-3  # millimetres, against micrometres with feedforward
 
 
+def test_delta_circle_tracks_within_micrometres(tmp_path):
+    _, c = run("delta_circle", tmp_path, stop=2.5)
+    t = c["time"]
+    radius = np.hypot(c["plant.z[1]"], c["plant.z[2]"])
+    assert np.all(np.abs(radius[t > 1.2] - 0.15) < 2e-6)  # on the circle, at full speed
+    assert tracking_error(c).max() < 2e-6
+
+
 def test_bouncing_balls(tmp_path):
     _, c = run("bouncing_ball", tmp_path, stop=1.6)
     t, q, v = c["time"], c["restitution.q"], c["restitution.v"]

@@ -83,13 +83,18 @@ class FmuInstance:
 
     # --- evaluation -------------------------------------------------------------------------
     def evaluate(self, t: float) -> int:
-        """Compute derivatives, outputs and event indicators at ``t`` into the buffers."""
+        """Compute derivatives, event indicators and outputs at ``t`` into the buffers."""
+        self.evaluate_derivatives(t)
+        self.component.outputs(t)
+        return OK
+
+    def evaluate_derivatives(self, t: float) -> int:
+        """Only what an integrator asks for: derivatives and event indicators (not outputs)."""
         comp = self.component
         if self.in_initialization:
             comp.initialize(t)
         if self.nx:
             comp._real[self.nx:2 * self.nx] = comp.derivatives(t)
-        comp.outputs(t)
         if self.nz:
             self.event_indicators[:] = comp.event_indicators(t)
         return OK

@@ -17,7 +17,8 @@
 #define EXPORT __attribute__((visibility("default")))
 
 static const char *const OP_NAMES[DFMI_N_OPS] = {
-    "enter_initialization", "exit_initialization", "evaluate", "do_step", "terminate", "reset"};
+    "enter_initialization", "exit_initialization", "evaluate", "do_step", "terminate", "reset",
+    "evaluate_derivatives"};
 
 typedef struct {
     PyObject *instance;

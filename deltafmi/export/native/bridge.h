@@ -26,10 +26,11 @@ typedef struct {
 typedef enum {
     DFMI_ENTER_INITIALIZATION = 0, /* args: start, stop (NaN: undefined), tolerance (NaN: undefined) */
     DFMI_EXIT_INITIALIZATION,
-    DFMI_EVALUATE,                 /* args: time */
+    DFMI_EVALUATE,                 /* args: time; derivatives, event indicators and outputs */
     DFMI_DO_STEP,                  /* args: current communication point, step size */
     DFMI_TERMINATE,
     DFMI_RESET,
+    DFMI_EVALUATE_DERIVATIVES,     /* args: time; derivatives and event indicators only */
     DFMI_N_OPS
 } DfmiOp;
 

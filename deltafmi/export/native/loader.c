@@ -50,7 +50,8 @@ typedef struct {
     int stop_defined, tolerance_defined;
     double last_successful_time;
     int terminated_by_model;
-    int dirty; /* inputs, states or time changed since the last evaluation */
+    int dirty;         /* inputs, states or time changed: derivatives and indicators are stale */
+    int outputs_dirty; /* outputs are stale (a solver asking for derivatives does not need them) */
     DfmiLayout L;
     void *py;
     const DfmiBridge *bridge;
@@ -298,7 +299,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         return NULL;
     }
     c->state = Instantiated;
-    c->dirty = 1;
+    c->dirty = c->outputs_dirty = 1;
     return c;
 }
 
@@ -342,7 +343,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component component) {
     if (status < fmi2Error) {
         c->state = InitializationMode;
         c->time = c->start_time;
-        c->dirty = 1;
+        c->dirty = c->outputs_dirty = 1;
     }
     return settle(c, status);
 }
@@ -354,7 +355,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component component) {
     if (status < fmi2Error) {
         c->state = c->type == fmi2ModelExchange ? EventMode : StepComplete;
         c->last_successful_time = c->time;
-        c->dirty = 0;
+        c->dirty = c->outputs_dirty = 0;
     }
     return settle(c, status);
 }
@@ -376,7 +377,7 @@ fmi2Status fmi2Reset(fmi2Component component) {
         c->time = c->start_time = 0.0;
         c->stop_defined = c->tolerance_defined = 0;
         c->terminated_by_model = 0;
-        c->dirty = 1;
+        c->dirty = c->outputs_dirty = 1;
     }
     return settle(c, status);
 }
@@ -384,11 +385,21 @@ fmi2Status fmi2Reset(fmi2Component component) {
 /* ---------------------------------------------------------------------------------------- */
 /* values                                                                                    */
 
+#define MASK_EVALUATE (InitializationMode | EventMode | ContinuousTimeMode | StepComplete)
+
+/* Everything up to date, for getters of variable values. */
 static fmi2Status ensure_evaluated(Instance *c) {
-    if (!c->dirty || !(c->state & (InitializationMode | EventMode | ContinuousTimeMode | StepComplete)))
-        return fmi2OK;
+    if (!(c->dirty || c->outputs_dirty) || !(c->state & MASK_EVALUATE)) return fmi2OK;
     int status = c->bridge->call(c->py, DFMI_EVALUATE, &c->time, 1);
-    if (status < fmi2Error) c->dirty = 0;
+    if (status < fmi2Error) c->dirty = c->outputs_dirty = 0;
+    return settle(c, status);
+}
+
+/* Derivatives and event indicators up to date: the integrator's hot path. */
+static fmi2Status ensure_derivatives(Instance *c) {
+    if (!c->dirty || !(c->state & MASK_EVALUATE)) return fmi2OK;
+    int status = c->bridge->call(c->py, DFMI_EVALUATE_DERIVATIVES, &c->time, 1);
+    if (status < fmi2Error) c->dirty = 0; /* the outputs stay stale */
     return settle(c, status);
 }
 
@@ -431,7 +442,7 @@ fmi2Status fmi2SetReal(fmi2Component component, const fmi2ValueReference vr[], s
                         vr[i], state_name(c->state));
     }
     for (size_t i = 0; i < nvr; i++) c->L.real[vr[i]] = value[i];
-    c->dirty = 1;
+    c->dirty = c->outputs_dirty = 1;
     return fmi2OK;
 }
 
@@ -465,7 +476,7 @@ static fmi2Status set_ints(Instance *c, const char *function, int boolean, const
     }
     for (size_t i = 0; i < nvr; i++)
         c->L.ints[vr[i] - c->L.n_real] = boolean ? (value[i] != 0) : value[i];
-    c->dirty = 1;
+    c->dirty = c->outputs_dirty = 1;
     return fmi2OK;
 }
 
@@ -529,7 +540,7 @@ fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueReference vr[],
         int status = c->bridge->set_string(c->py, index, value[i] ? value[i] : "");
         if (status >= fmi2Error) return settle(c, status);
     }
-    c->dirty = 1;
+    c->dirty = c->outputs_dirty = 1;
     return fmi2OK;
 }
 
@@ -576,7 +587,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate FMUstate) {
     if (status < fmi2Error) {
         c->time = saved->time;
         c->last_successful_time = saved->last_successful_time;
-        c->dirty = 1;
+        c->dirty = c->outputs_dirty = 1;
     }
     return settle(c, status);
 }
@@ -684,7 +695,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component component, fmi2EventInfo *eventIn
     eventInfo->valuesOfContinuousStatesChanged = flags[3] ? fmi2True : fmi2False;
     eventInfo->nextEventTimeDefined = flags[4] ? fmi2True : fmi2False;
     eventInfo->nextEventTime = next;
-    if (status < fmi2Error) c->dirty = 0;
+    if (status < fmi2Error) c->dirty = c->outputs_dirty = 0;
     return settle(c, status);
 }
 
@@ -710,7 +721,7 @@ fmi2Status fmi2SetTime(fmi2Component component, fmi2Real time) {
     Instance *c = component;
     CHECK("fmi2SetTime", EventMode | ContinuousTimeMode);
     c->time = time;
-    c->dirty = 1;
+    c->dirty = c->outputs_dirty = 1;
     return fmi2OK;
 }
 
@@ -719,7 +730,7 @@ fmi2Status fmi2SetContinuousStates(fmi2Component component, const fmi2Real x[], 
     CHECK("fmi2SetContinuousStates", ContinuousTimeMode);
     if (nx != c->L.nx || (nx && !x)) return fail(c, "fmi2SetContinuousStates: expected %zu states, got %zu", c->L.nx, nx);
     memcpy(c->L.real + c->L.x_offset, x, nx * sizeof(double));
-    c->dirty = 1;
+    c->dirty = c->outputs_dirty = 1;
     return fmi2OK;
 }
 
@@ -728,7 +739,7 @@ fmi2Status fmi2GetDerivatives(fmi2Component component, fmi2Real derivatives[], s
     CHECK("fmi2GetDerivatives", MASK_ME_GET);
     if (nx != c->L.nx || (nx && !derivatives))
         return fail(c, "fmi2GetDerivatives: expected %zu derivatives, got %zu", c->L.nx, nx);
-    if (ensure_evaluated(c) >= fmi2Error) return fmi2Error;
+    if (ensure_derivatives(c) >= fmi2Error) return fmi2Error;
     memcpy(derivatives, c->L.real + c->L.dx_offset, nx * sizeof(double));
     return fmi2OK;
 }
@@ -738,7 +749,7 @@ fmi2Status fmi2GetEventIndicators(fmi2Component component, fmi2Real eventIndicat
     CHECK("fmi2GetEventIndicators", MASK_ME_GET);
     if (ni != c->L.nz || (ni && !eventIndicators))
         return fail(c, "fmi2GetEventIndicators: expected %zu event indicators, got %zu", c->L.nz, ni);
-    if (ensure_evaluated(c) >= fmi2Error) return fmi2Error;
+    if (ensure_derivatives(c) >= fmi2Error) return fmi2Error;
     memcpy(eventIndicators, c->L.event_indicators, ni * sizeof(double));
     return fmi2OK;
 }
@@ -747,7 +758,7 @@ fmi2Status fmi2GetContinuousStates(fmi2Component component, fmi2Real x[], size_t
     Instance *c = component;
     CHECK("fmi2GetContinuousStates", MASK_ME_GET);
     if (nx != c->L.nx || (nx && !x)) return fail(c, "fmi2GetContinuousStates: expected %zu states, got %zu", c->L.nx, nx);
-    if (c->state == InitializationMode && ensure_evaluated(c) >= fmi2Error) return fmi2Error;
+    if (c->state == InitializationMode && ensure_derivatives(c) >= fmi2Error) return fmi2Error;
     memcpy(x, c->L.real + c->L.x_offset, nx * sizeof(double));
     return fmi2OK;
 }
@@ -791,7 +802,7 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
     if (status == fmi2OK || status == fmi2Warning) {
         c->time = currentCommunicationPoint + communicationStepSize;
         c->last_successful_time = c->time;
-        c->dirty = 0;
+        c->dirty = c->outputs_dirty = 0;
     } else if (status == fmi2Discard) {
         c->state = StepFailed;
         c->terminated_by_model = 1;
