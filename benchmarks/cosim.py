@@ -83,6 +83,43 @@ def master_run(system: System, stop: float, out: Path, algorithm: str | None = N
     return Master(system, result=out, stop=stop, algorithm=algorithm).run()
 
 
+def time_shares(system: System, stop: float, out: Path) -> str:
+    """Wall time per unit (its steps and reads) and the rest (the master itself), and RHS calls."""
+    from deltafmi.cosim.me_integrator import ModelExchangeUnit
+    from deltafmi.cosim.units import CoSimulationUnit, Unit
+
+    spent: dict = {}
+    originals = {(cls, name): cls.__dict__[name] for cls, name in
+                 [(CoSimulationUnit, "do_step"), (ModelExchangeUnit, "do_step"), (Unit, "fetch"),
+                  (ModelExchangeUnit, "_rhs")]}
+
+    def timed(function, key):
+        def wrapper(unit, *args):
+            begin = time.perf_counter()
+            try:
+                return function(unit, *args)
+            finally:
+                entry = spent.setdefault((unit.name, key), [0.0, 0])
+                entry[0] += time.perf_counter() - begin
+                entry[1] += 1
+        return wrapper
+
+    for (cls, name), function in originals.items():
+        setattr(cls, name, timed(function, name))
+    try:
+        summary = master_run(system, stop, out)
+    finally:
+        for (cls, name), function in originals.items():
+            setattr(cls, name, function)
+    loop = summary.wall_time - summary.setup_time
+    units = {n: sum(v[0] for (u, k), v in spent.items() if u == n and k != "_rhs") for n, _ in spent}
+    parts = [f"{name} {100 * t / loop:.0f} %" for name, t in units.items()]
+    rhs = [f"{u}: {v[1] / summary.steps:.1f} RHS calls/step, {1e6 * v[0] / v[1]:.0f} us each"
+           for (u, k), v in spent.items() if k == "_rhs"]
+    return (f"time shares: {', '.join(parts)}, master itself {100 * (loop - sum(units.values())) / loop:.0f} %"
+            f" (instrumented run); {'; '.join(rhs)}")
+
+
 def all_cs(system: System) -> System:
     """``system`` with every component stepped as Co-Simulation."""
     components = [dataclasses.replace(c, interface="CS") for c in system.components]
@@ -117,6 +154,7 @@ def main() -> None:
         wall = statistics.median(r.wall_time for r in runs)
         print(f"  {runs[0].steps} steps in {wall:.3f} s: real-time factor {args.stop / wall:.2f}x "
               f"(target >= 10x)")
+        print(f"  {time_shares(flagship, args.stop, out / 'shares.csv')}")
 
     print("2. master overhead against the plain 20-line fmpy Jacobi loop (target <= 20 %):")
     if flagship is not None:

@@ -1,13 +1,13 @@
 """Bouncing ball on the FREE / COLLISION / CONTACT framework, with a coefficient of restitution."""
 import numpy as np
 
-from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
+from deltafmi.component import Experiment, HybridSystemComponent, Input, Output, Parameter, State
 from deltafmi.mechanics.bouncing_ball import BallModel
 from deltafmi.mechanics.collision_law import CollisionLaw
 from deltafmi.mechanics.contact import ContactSystem
 
 
-class BouncingBallRestitution(Component):
+class BouncingBallRestitution(HybridSystemComponent):
     """Ball on a floor with a compliant collision law of given restitution and duration.
 
     Each impact rebounds with e times the impact speed (apex heights scale by e^2); a rebound
@@ -37,37 +37,20 @@ class BouncingBallRestitution(Component):
     lam = Output(unit="N", description="Contact force of the floor")
     energy = Output(unit="J", description="Kinetic + potential + elastic energy")
 
-    def setup(self) -> None:
-        self.system = None
-
-    def initialize(self, t: float) -> None:
+    def build_system(self, t: float) -> ContactSystem:
         law = CollisionLaw(restitution=self.e, duration=self.duration,
                            reference_speed=self.reference_speed, exponent=self.exponent)
-        self.system = ContactSystem(BallModel(self.m, self.g), law, alpha0=self.alpha0,
-                                    alpha1=self.alpha1, capture_speed=self.capture_speed)
-        self.system.model.force = self.F
-        self.system.initialize(t, np.array(self.states))
-        self.mode = int(self.system.modes[0])
+        return ContactSystem(BallModel(self.m, self.g), law, alpha0=self.alpha0,
+                             alpha1=self.alpha1, capture_speed=self.capture_speed)
 
-    def _system(self) -> ContactSystem:
-        if self.system is None:
-            self.initialize(0.0)
-        self.system.model.force = self.F
-        return self.system
+    def apply_inputs(self, system: ContactSystem) -> None:
+        system.model.force = self.F
 
-    def derivatives(self, t: float):
-        return self._system().derivatives(t, np.array(self.states))
-
-    def event_indicators(self, t: float):
-        return self._system().event_indicators(t, np.array(self.states))
-
-    def update(self, t: float) -> bool:
-        self._system().update(t, np.array(self.states))
-        self.mode = int(self.system.modes[0])
-        return False
+    def publish_modes(self, modes) -> None:
+        self.mode = int(modes[0])
 
     def outputs(self, t: float) -> None:
         x = np.array(self.states)
-        system = self._system()
+        system = self.current_system()
         self.lam = float(system.contact_forces(x, t)[0])
         self.energy = system.energy(x)

@@ -1,13 +1,13 @@
 """A planar box dropped on a frictionless table: bounces, rocks and rests on two corners."""
 import numpy as np
 
-from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
+from deltafmi.component import Experiment, HybridSystemComponent, Input, Output, Parameter, State
 from deltafmi.mechanics.box_on_table import BoxModel
 from deltafmi.mechanics.collision_law import CollisionLaw
 from deltafmi.mechanics.contact import ContactSystem
 
 
-class BoxOnTable(Component):
+class BoxOnTable(HybridSystemComponent):
     """Rigid box (x, y, theta) dropped at an angle on a table; its 4 corners are contacts.
 
     Corners collide with a compliant law (restitution, duration), are captured into CONTACT
@@ -46,43 +46,20 @@ class BoxOnTable(Component):
     total_force = Output(unit="N", description="Sum of the corner forces")
     energy = Output(unit="J", description="Kinetic + potential + elastic energy")
 
-    def setup(self) -> None:
-        self.system = None
-
-    def initialize(self, t: float) -> None:
+    def build_system(self, t: float) -> ContactSystem:
         model = BoxModel(self.mass, self.width, self.height, self.inertia if self.inertia > 0.0 else None,
                          tuple(self.com_offset), self.g)
         law = CollisionLaw(restitution=self.e, duration=self.duration,
                            reference_speed=self.reference_speed, exponent=self.exponent)
-        self.system = ContactSystem(model, law, alpha0=self.alpha0, alpha1=self.alpha1,
-                                    capture_speed=self.capture_speed)
-        self._apply_inputs()
-        self.system.initialize(t, np.array(self.states))
-        self.mode = self.system.modes
+        return ContactSystem(model, law, alpha0=self.alpha0, alpha1=self.alpha1,
+                             capture_speed=self.capture_speed)
 
-    def _apply_inputs(self) -> None:
-        self.system.model.force = np.array([self.push[0], self.push[1], self.torque])
-
-    def _system(self) -> ContactSystem:
-        if self.system is None:
-            self.initialize(0.0)
-        self._apply_inputs()
-        return self.system
-
-    def derivatives(self, t: float):
-        return self._system().derivatives(t, np.array(self.states))
-
-    def event_indicators(self, t: float):
-        return self._system().event_indicators(t, np.array(self.states))
-
-    def update(self, t: float) -> bool:
-        self._system().update(t, np.array(self.states))
-        self.mode = self.system.modes
-        return False
+    def apply_inputs(self, system: ContactSystem) -> None:
+        system.model.force = np.array([self.push[0], self.push[1], self.torque])
 
     def outputs(self, t: float) -> None:
         state = np.array(self.states)
-        system = self._system()
+        system = self.current_system()
         self.lam = system.contact_forces(state, t)
         self.gap = system.model.gaps(state[:3])
         self.total_force = float(np.sum(self.lam))

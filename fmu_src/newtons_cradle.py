@@ -1,14 +1,14 @@
 """Newton's cradle: up to 7 balls, as pendulums or a free chain, with compliant two-body impacts."""
 import numpy as np
 
-from deltafmi.component import Component, Experiment, Output, Parameter, State
+from deltafmi.component import Experiment, HybridSystemComponent, Output, Parameter, State
 from deltafmi.mechanics.collision_law import CollisionLaw
 from deltafmi.mechanics.newtons_cradle import make_cradle, momentum
 
 N_MAX = 7
 
 
-class NewtonsCradle(Component):
+class NewtonsCradle(HybridSystemComponent):
     """Newton's cradle of n (2..7) equal balls; each contact is a two-body compliant impact.
 
     Pendulums (theta states, rad) or a free chain (x states, m); unused balls are frozen with
@@ -46,42 +46,22 @@ class NewtonsCradle(Component):
     energy = Output(unit="J", description="Kinetic + potential + elastic energy")
     momentum = Output(unit="N.s", description="Horizontal momentum of the balls")
 
-    def setup(self) -> None:
-        self.system = None
-
-    def initialize(self, t: float) -> None:
+    def build_system(self, t: float):
         if not 2 <= self.n <= N_MAX:
             raise ValueError(f"n must be in 2..{N_MAX}, got {self.n}")
         law = CollisionLaw(restitution=self.e, duration=self.duration,
                            reference_speed=self.reference_speed, exponent=self.exponent)
-        self.system, x0 = make_cradle(
+        system, x0 = make_cradle(
             self.n, pendulum=self.pendulum, mass=self.mass, radius=self.radius, length=self.length,
             gap=self.gap, striker_speed=self.striker_speed,
             striker_angle=self.striker_angle if self.pendulum else 0.0, law=law, n_max=N_MAX, g=self.g)
         self.q = x0[:N_MAX]
         self.v = x0[N_MAX:]
-        self.system.initialize(t, x0)
-        self.mode = self.system.modes
-
-    def _system(self):
-        if self.system is None:
-            self.initialize(0.0)
-        return self.system
-
-    def derivatives(self, t: float):
-        return self._system().derivatives(t, np.array(self.states))
-
-    def event_indicators(self, t: float):
-        return self._system().event_indicators(t, np.array(self.states))
-
-    def update(self, t: float) -> bool:
-        self._system().update(t, np.array(self.states))
-        self.mode = self.system.modes
-        return False
+        return system
 
     def outputs(self, t: float) -> None:
         state = np.array(self.states)
-        system = self._system()
+        system = self.current_system()
         model = system.model
         if self.pendulum:
             self.x = model.centres(state[:N_MAX])[:, 0]

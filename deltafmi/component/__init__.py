@@ -1,6 +1,7 @@
 """The Python side of a component: declarations, the Component base class, the FMI instance
 runtime and the modelDescription.xml writer. Nothing here knows about any particular model."""
 from .base import Component
+from .hybrid import HybridSystemComponent
 from .variables import Experiment, Input, Output, Parameter, State
 
-__all__ = ["Component", "Experiment", "Input", "Output", "Parameter", "State"]
+__all__ = ["Component", "HybridSystemComponent", "Experiment", "Input", "Output", "Parameter", "State"]

@@ -11,7 +11,7 @@ import copy
 import math
 import pickle
 from contextlib import nullcontext
-from typing import Any, Callable, ContextManager, Optional
+from typing import Callable, ContextManager, Optional
 
 import numpy as np
 
@@ -78,7 +78,7 @@ class FmuInstance:
         self.evaluate(self.time)
         self.in_initialization = False
         if self.fmu_type == CO_SIMULATION:
-            self._initial_event_iteration()
+            self._event_iteration()
         return OK
 
     # --- evaluation -------------------------------------------------------------------------
@@ -188,9 +188,6 @@ class FmuInstance:
             options["project"] = project
         return Cvode(rhs, comp._real[:nx].copy(), self.time, roots=roots if self.nz else None,
                      n_roots=self.nz, rtol=rtol, atol=atol, **options)
-
-    def _initial_event_iteration(self) -> None:
-        self._event_iteration()
 
     def _event_iteration(self) -> None:
         for _ in range(_MAX_EVENT_ITERATIONS):
