@@ -1,6 +1,8 @@
 """The DeltaRobot FMU (ME through fmpy's CVODE, and CS) against the minimal-coordinate model."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import fmpy
 import numpy as np
 import pytest
@@ -70,3 +72,25 @@ def test_unreachable_start_is_a_clear_initialization_error(robot, capfd):
         _run(robot, "CoSimulation", (0.0, 0.0, -1.6), (0, 0, 0), (0, 0, 0))
     log = "".join(capfd.readouterr())
     assert "out of reach" in log and "-1.6" in log
+
+
+def test_singularity_scenario_passes_through_the_stretched_pose(tmp_path, monkeypatch):
+    """The seed's 'simulation through kinematic singularity', as the shipped scenario runs it."""
+    from click.testing import CliRunner
+
+    from deltafmi.cli import main
+    from deltafmi.cosim.results import columns
+
+    root = Path(__file__).resolve().parents[1]
+    monkeypatch.chdir(root)  # the scenario names its source relative to the project
+    out = tmp_path / "singularity.csv"
+    result = CliRunner().invoke(main, ["run", "scenarios/delta_singularity.yaml", "-o", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    r = columns(out)
+    z = r["plant.z[3]"]
+    stretched = d.stretched_height(d.RL5)
+    assert abs(z.min() - stretched) < 5e-5  # sampled every 1 ms around the turning point
+    assert r["time"][np.argmin(z)] == pytest.approx(0.464, abs=2e-3)
+    assert z[-1] > z.min() + 0.01  # it came back up: the elbows folded through
+    assert np.max(np.abs(r["plant.residual"])) < 1e-9
+    assert np.ptp(r["plant.energy"]) < 1e-6 * 40.0  # 40 J: the order of the kinetic energy reached
