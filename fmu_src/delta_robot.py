@@ -88,8 +88,7 @@ class DeltaRobot(Component):
 
     def project(self, t: float) -> None:
         """CS: close the loops after every solver step (mass-weighted, least kinetic change)."""
-        self.q, self.v = delta.project_to_constraints(self._plant, self.q, self.v,
-                                                      delta.mass_matrix(self._plant, self.q))
+        self.q, self.v = delta.project_to_constraints(self._plant, self.q, self.v)
 
     def derivatives(self, t: float) -> np.ndarray:
         return np.concatenate([self.v, self._evaluate().vdot])

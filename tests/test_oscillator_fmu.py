@@ -163,3 +163,13 @@ def test_c_host_missing_python_library_is_a_clear_error(c_host, oscillator_dir):
                          capture_output=True, text=True, env=clean_env(DELTAFMI_LIBPYTHON="/nonexistent/libpython.so"))
     assert out.returncode == 4
     assert "cannot load Python library '/nonexistent/libpython.so'" in out.stderr
+
+
+@pytest.mark.parametrize("step", [1e-4, 0.5])
+def test_time_event_on_a_communication_point(oscillator, step):
+    """The force step at 2.5 s falls on a step end (up to round-off): no CVODE 'too close'."""
+    result = fmpy.simulate_fmu(str(oscillator), fmi_type="CoSimulation", relative_tolerance=1e-10,
+                               output_interval=step, output=["x", "v", "force_on"])
+    x, v, _ = solution(result["time"])
+    assert np.max(np.abs(result["x"] - x)) < 1e-6
+    assert result["force_on"][-1]

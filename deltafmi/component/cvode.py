@@ -15,9 +15,10 @@ import numpy as np
 from fmpy.sundials import cvode as _cv
 from fmpy.sundials.libraries import sundials_cvode
 from fmpy.sundials.nvector_serial import N_VNew_Serial, NV_DATA_S
-from fmpy.sundials.sundials_context import SUNContext_Create
+from fmpy.sundials.libraries import sundials_core
+from fmpy.sundials.sundials_context import SUNContext_Create, SUNContext_PushErrHandler
 from fmpy.sundials.sundials_nvector import N_Vector
-from fmpy.sundials.sundials_types import SUN_COMM_NULL, SUNContext
+from fmpy.sundials.sundials_types import SUN_COMM_NULL, SUNContext, SUNErrHandlerFn
 from fmpy.sundials.sunlinsol_dense import SUNLinSol_Dense
 from fmpy.sundials.sunmatrix_dense import SUNDenseMatrix
 from fmpy.sundials.cvode_ls import CVodeSetLinearSolver
@@ -32,6 +33,8 @@ def _bind(name: str, argtypes: list) -> ctypes._CFuncPtr:
 
 
 _set_stop_time = _bind("CVodeSetStopTime", [c_void_p, c_double])
+_clear_err_handlers = sundials_core["SUNContext_ClearErrHandlers"]
+_clear_err_handlers.argtypes, _clear_err_handlers.restype = [c_void_p], c_int
 # callbacks take raw addresses: cheaper than fmpy's POINTER(struct) arguments, and hashable
 _RhsFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_void_p)
 _cvode_init = _bind("CVodeInit", [c_void_p, _RhsFn, c_double, c_void_p])
@@ -69,6 +72,12 @@ class Cvode:
         self._rhs, self._roots = rhs, roots
         self._ctx = SUNContext()
         _check(SUNContext_Create(SUN_COMM_NULL, byref(self._ctx)), "SUNContext_Create")
+        # keep SUNDIALS' messages for the exception instead of printing them: a caller that
+        # recovers from a failure should not leave "[ERROR]" lines on stderr
+        self.last_message = ""
+        self._err_handler = SUNErrHandlerFn(self._on_error)
+        _clear_err_handlers(self._ctx)
+        SUNContext_PushErrHandler(self._ctx, self._err_handler, None)
         self._y = N_VNew_Serial(n, self._ctx)
         self.x = np.ctypeslib.as_array(NV_DATA_S(self._y), (n,))
         self.x[:] = x0
@@ -101,6 +110,9 @@ class Cvode:
         self._root_info = np.zeros(max(self.n_roots, 1), dtype=np.int32)
         self._views: dict[int, np.ndarray] = {}
         self.t = t0
+
+    def _on_error(self, line, function, file, message, code, user_data, context) -> None:
+        self.last_message = (message or b"").decode(errors="replace")
 
     def _view(self, vector: int) -> np.ndarray:
         # CVODE passes a handful of internal vectors over and over: build each view only once
@@ -154,7 +166,7 @@ class Cvode:
         if flag < 0:
             if self.callback_error is not None:
                 raise self.callback_error
-            raise CvodeError(f"CVODE failed with flag {flag} at t = {tret.value:.9g}")
+            raise CvodeError(f"CVODE failed with flag {flag} at t = {tret.value:.9g}: {self.last_message}")
         self.t = tret.value
         if flag == _cv.CV_ROOT_RETURN:
             _check(_cv.CVodeGetRootInfo(self._mem, self._root_info.ctypes.data_as(ctypes.POINTER(c_int))),

@@ -21,6 +21,7 @@ from .cvode import Cvode
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 MODEL_EXCHANGE, CO_SIMULATION = 0, 1
 _MAX_EVENT_ITERATIONS = 100
+_TINY = 1e-12  # relative time below which intervals are round-off, not integration
 _RUNTIME_ATTRIBUTES = frozenset({"_real", "_int", "_str", "_log_sink", "resources_dir"})
 
 
@@ -136,11 +137,14 @@ class FmuInstance:
         while self.time < t_end and not self.terminate_requested:
             nte = self._next_time_event
             t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
-            if self.nx:
+            root = False
+            if t_stop - self.time <= _TINY * max(1.0, abs(t_stop)):
+                self.time = t_stop  # a round-off sliver (a time event at a step end): no motion
+            elif self.nx:
                 root = self._integrate_to(t_stop)
             else:
-                root, self.time = False, t_stop
-            time_event = nte is not None and self.time >= nte - 1e-12 * max(1.0, abs(nte))
+                self.time = t_stop
+            time_event = nte is not None and self.time >= nte - _TINY * max(1.0, abs(nte))
             if root or time_event:
                 self._event_iteration()
         if not self.terminate_requested:

@@ -2,10 +2,11 @@
 
 Events follow FMI 2.0: state events from the event indicators (CVODE root finding), time events
 from ``nextEventTime``, step events from ``fmi2CompletedIntegratorStep``; at each one the FMU goes
-through event mode and its ``fmi2NewDiscreteStates`` iteration. CVODE keeps its step history across
-communication points and is re-initialized only when an event changes the continuous states
-(``valuesOfContinuousStatesChanged``) or their nominals. Inputs are held constant over a step, and
-CVODE stops exactly at every communication point so it never integrates past a held input.
+through event mode and its ``fmi2NewDiscreteStates`` iteration. Inputs are held constant over a
+step, and CVODE stops exactly at every communication point so it never integrates past a held
+input; it keeps its step history across communication points and events, and is re-initialized
+only where that history is wrong: the states jumped (``valuesOfContinuousStatesChanged``), their
+nominals changed, the derivatives jumped at the event, or a state event (see :meth:`_event`).
 """
 from __future__ import annotations
 
@@ -133,6 +134,7 @@ class ModelExchangeUnit(Unit):
         """Integrate from ``time`` to ``time + step``, handling every event on the way."""
         t_end = time + step
         eps = 1e-12 * max(1.0, abs(t_end))
+        stuck, t_previous = 0, time  # events in a row without time advancing
         try:
             while True:
                 event_time = self.next_event_time
@@ -149,9 +151,14 @@ class ModelExchangeUnit(Unit):
                     if terminate:
                         raise TerminateRequested(self.name, t)
                 if root or step_event or (event_time is not None and t >= event_time - eps):
+                    stuck = stuck + 1 if t - t_previous <= eps else 0
+                    if stuck > _MAX_EVENT_ITERATIONS:
+                        raise FmuFailure(f"{self.name}: {stuck} events at t = {t:.9g} s without time advancing "
+                                         "(nextEventTime does not move forward)")
                     self._event(t, root=root)
                 if t >= t_end - eps:
                     return
+                t_previous = t
         except FMICallException as exc:
             raise self.failure(exc) from None
         except CvodeError as exc:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import ctypes
 from collections import deque
-from ctypes import POINTER, byref
+from ctypes import POINTER
 from typing import Any, Callable, Dict, List, Sequence, Tuple
 
 import numpy as np

@@ -7,19 +7,18 @@ Joint vectors are arm-major: q = [q11, q12, q13, q21, q22, q23, q31, q32, q33].
 """
 
 from .delta_dynamics import (PlantEvaluation, accelerations, coriolis, energy, evaluate_plant,
-                             gravity, holding_torque, mass_matrix)
-from .delta_kinematics import (project_to_constraints, arm_bias, arm_jacobian, arm_psi, constraint, constraint_bias,
+                             gravity, holding_torque, mass_matrix, project_to_constraints)
+from .delta_kinematics import (arm_bias, arm_jacobian, arm_psi, constraint, constraint_bias,
                                constraint_jacobian, forward_kinematics, inverse_kinematics,
                                stretched_height, virtual_jacobian, wrist_position,
                                wrist_velocity)
 from .delta_params import ARM_ROTATIONS, R2, R3, RL5, DeltaParams, rot_z
 
 __all__ = [
-    "project_to_constraints",
     "DeltaParams", "RL5", "R2", "R3", "ARM_ROTATIONS", "rot_z",
     "arm_psi", "arm_jacobian", "arm_bias", "stretched_height",
     "inverse_kinematics", "forward_kinematics", "wrist_position", "wrist_velocity",
     "constraint", "constraint_jacobian", "constraint_bias", "virtual_jacobian",
     "mass_matrix", "coriolis", "gravity", "accelerations", "energy", "holding_torque",
-    "PlantEvaluation", "evaluate_plant",
+    "PlantEvaluation", "evaluate_plant", "project_to_constraints",
 ]

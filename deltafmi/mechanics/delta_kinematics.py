@@ -259,26 +259,3 @@ def constraint_bias(p: DeltaParams, q: ArrayLike, v: ArrayLike) -> np.ndarray:
     (q1, q2, q3), (v1, v2, v3) = _split(q), _split(v)
     a1 = arm_bias(p, q1, v1)
     return np.concatenate([a1 - R2 @ arm_bias(p, q2, v2), a1 - R3 @ arm_bias(p, q3, v3)])
-
-
-def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, weight: np.ndarray | None = None,
-                           tol: float = 1e-13, max_iterations: int = 8) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest (q, v) on the constraint manifold h(q) = 0, H(q) v = 0, in the metric ``weight``.
-
-    Gauss-Newton with the weighted minimum-norm correction ``dq = -W^-1 H^T (H W^-1 H^T)^-1 h``,
-    and the velocity's constraint-violating part removed with the same operator. With ``weight``
-    the mass matrix, the velocity step removes the least kinetic energy. From an integrator's
-    drift (|h| ~ 1e-8) one step is exact to ~1e-16, so that is the fast path.
-    """
-    q = np.array(q, dtype=float)
-    v = np.array(v, dtype=float)
-    for _ in range(max_iterations):
-        h = constraint(p, q)
-        H = constraint_jacobian(p, q)
-        A = H.T if weight is None else np.linalg.solve(weight, H.T)  # W^-1 H^T
-        correction = A @ np.linalg.solve(H @ A, np.column_stack([h, H @ v]))
-        q -= correction[:, 0]
-        v -= correction[:, 1]
-        if np.max(np.abs(h)) < 1e-7:  # the next residual is ~|h|^2: below tol
-            break
-    return q, v
