@@ -268,14 +268,14 @@ def _schur_factor(W1, W2, W3) -> tuple[float, ...]:
     return (p11, p12, p13, p22, p23, p33, x11, x12, x13, x21, x22, x23, x31, x32, x33) + z_inv
 
 
-def _schur_solve(factors: tuple[float, ...], r1, r2) -> tuple[float, ...]:
-    """Solve [[W1 + W2, W1], [W1, W1 + W3]] [la; lb] = [r1; r2] with _schur_factor's factors."""
+def _schur_solve(factors: tuple[float, ...], r: Sequence[float]) -> tuple[float, ...]:
+    """Solve [[W1 + W2, W1], [W1, W1 + W3]] [la; lb] = r (6 floats) with _schur_factor's factors."""
     (p11, p12, p13, p22, p23, p33, x11, x12, x13, x21, x22, x23, x31, x32, x33,
      z11, z12, z13, z22, z23, z33) = factors
-    s1, s2, s3 = r1
-    t1 = r2[0] - (x11 * s1 + x21 * s2 + x31 * s3)
-    t2 = r2[1] - (x12 * s1 + x22 * s2 + x32 * s3)
-    t3 = r2[2] - (x13 * s1 + x23 * s2 + x33 * s3)
+    s1, s2, s3, u1, u2, u3 = r
+    t1 = u1 - (x11 * s1 + x21 * s2 + x31 * s3)
+    t2 = u2 - (x12 * s1 + x22 * s2 + x32 * s3)
+    t3 = u3 - (x13 * s1 + x23 * s2 + x33 * s3)
     lb1 = z11 * t1 + z12 * t2 + z13 * t3
     lb2 = z12 * t1 + z22 * t2 + z23 * t3
     lb3 = z13 * t1 + z23 * t2 + z33 * t3
@@ -305,9 +305,8 @@ def _evaluate(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: Array
     b1, W1, x1, Y1 = arm1[:4]
     b2, W2, x2, Y2 = arm2[:4]
     b3, W3, x3, Y3 = arm3[:4]
-    lam = _schur_solve(_schur_factor(W1, W2, W3),
-                       (b2[0] - b1[0], b2[1] - b1[1], b2[2] - b1[2]),
-                       (b3[0] - b1[0], b3[1] - b1[1], b3[2] - b1[2]))
+    lam = _schur_solve(_schur_factor(W1, W2, W3), (b2[0] - b1[0], b2[1] - b1[1], b2[2] - b1[2],
+                                                   b3[0] - b1[0], b3[1] - b1[1], b3[2] - b1[2]))
     la0, la1, la2, lb0, lb1, lb2 = lam
     vdot = []
     for x, Y, (F0, F1, F2) in ((x1, Y1, (la0 + lb0, la1 + lb1, la2 + lb2)),
@@ -381,23 +380,15 @@ def _arm_wrist(cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3) -> tuple[float, ...
             cr * dx - sr * dy, sr * dx + cr * dy, l1 * c1 * v1 + l2 * (c2 * c3 * v2 - s2 * s3 * v3))
 
 
-def _loop_residuals(l0l3: float, l1: float, l2: float, ql: list[float], vl: list[float]):
-    """h(q) and H(q) v, each as the pair (arm 1 - arm 2, arm 1 - arm 3) of world 3-vectors."""
-    (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
-    x1, y1, z1, u1, v1, w1 = _arm_wrist(cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2],
-                                        vl[0], vl[1], vl[2])
-    x2, y2, z2, u2, v2, w2 = _arm_wrist(cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5],
-                                        vl[3], vl[4], vl[5])
-    x3, y3, z3, u3, v3, w3 = _arm_wrist(cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8],
-                                        vl[6], vl[7], vl[8])
-    return (((x1 - x2, y1 - y2, z1 - z2), (x1 - x3, y1 - y3, z1 - z3)),
-            ((u1 - u2, v1 - v2, w1 - w2), (u1 - u3, v1 - v3, w1 - w3)))
+def _arm_linearization(a, b, beta, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3) -> tuple:
+    """One arm at (q_i, v_i), with the closed forms of _arm: (wrist, W, Y).
 
-
-def _arm_metric(a, b, beta, cr, sr, l1, l2, q1, q2, q3) -> tuple[tuple[float, ...], ...]:
-    """W = Ht m^-1 Ht^T (6 unique) and Y = m^-1 Ht^T (9, row-major) of one arm, as in _arm."""
+    wrist: world wrist point and velocity (6 floats, as _arm_wrist); W = Ht m^-1 Ht^T (6 unique);
+    Y = m^-1 Ht^T (9, row-major).
+    """
     s1, c1, s2, c2, s3, c3 = (math.sin(q1), math.cos(q1), math.sin(q2), math.cos(q2),
                               math.sin(q3), math.cos(q3))
+    px, py = l2 * s2 * s3, l0l3 + l1 * c1 + l2 * c2
     j01, j02 = l2 * c2 * s3, l2 * s2 * c3
     j10, j11 = -l1 * s1, -l2 * s2
     h00, h01, h02 = -sr * j10, cr * j01 - sr * j11, cr * j02
@@ -423,13 +414,26 @@ def _arm_metric(a, b, beta, cr, sr, l1, l2, q1, q2, q3) -> tuple[tuple[float, ..
     y12 = i11 * h20 + i12 * h21 + i13 * h22
     y22 = i12 * h20 + i22 * h21 + i23 * h22
     y32 = i13 * h20 + i23 * h21 + i33 * h22
-    return ((h00 * y10 + h01 * y20 + h02 * y30,
+    return ((cr * px - sr * py, sr * px + cr * py, l1 * s1 + l2 * s2 * c3,
+             h00 * v1 + h01 * v2 + h02 * v3, h10 * v1 + h11 * v2 + h12 * v3,
+             h20 * v1 + h21 * v2 + h22 * v3),
+            (h00 * y10 + h01 * y20 + h02 * y30,
              h00 * y11 + h01 * y21 + h02 * y31,
              h00 * y12 + h01 * y22 + h02 * y32,
              h10 * y11 + h11 * y21 + h12 * y31,
              h10 * y12 + h11 * y22 + h12 * y32,
              h20 * y12 + h21 * y22 + h22 * y32),
             (y10, y11, y12, y20, y21, y22, y30, y31, y32))
+
+
+def _loop_residuals(w1, w2, w3) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """h(q) and H(q) v (6 floats each: arm 1 - arm 2, then arm 1 - arm 3) from the three arms'
+    world wrist points and velocities (6 floats each, as _arm_wrist)."""
+    x1, y1, z1, u1, v1, w1 = w1
+    x2, y2, z2, u2, v2, w2 = w2
+    x3, y3, z3, u3, v3, w3 = w3
+    return ((x1 - x2, y1 - y2, z1 - z2, x1 - x3, y1 - y3, z1 - z3),
+            (u1 - u2, v1 - v2, w1 - w2, u1 - u3, v1 - v3, w1 - w3))
 
 
 def _subtract_response(x: list[float], Y1, Y2, Y3, lam) -> list[float]:
@@ -453,20 +457,19 @@ def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, *, tol: f
     """Nearest (q, v) on the constraint manifold h(q) = 0, H(q) v = 0 in the mass-matrix metric.
 
     Gauss-Newton steps with the M-weighted minimum-norm correction dq = -M^-1 H^T S^-1 h,
-    S = H M^-1 H^T, until max|h(q)| <= tol. Each step also removes the velocity's
+    S = H M^-1 H^T, until |h(q)| <= tol. Each step also removes the velocity's
     constraint-violating part with the same operator, dv = -M^-1 H^T S^-1 H v: the velocity
     change of least kinetic energy. H changes over a step, which leaves H v of order |dq| |v| at
     the new q; a last correction with that H v and the last step's operator brings it to order
     |dq|^2 |v|. From an integrator's drift (|h| ~ 1e-9 m) one step is exact to rounding.
 
     S = [[W1 + W2, W1], [W1, W1 + W3]] is factored once per step by the DAE's 3x3 block
-    Cholesky (module docstring), in plain floats: about 10 us per call from drift, against
-    about 40 us for dense numpy (a solver calls this after every step).
+    Cholesky (module docstring), in plain floats: a solver calls this after every step.
 
     Args:
         p: robot parameters (the mass matrix depends on them).
         q, v: joint angles (rad) and rates (rad/s), shape (9,), arm-major.
-        tol: bound on max|h(q)| (m) that ends the iteration.
+        tol: bound on the Euclidean norm of h(q) (m) that ends the iteration.
         max_iterations: at most this many steps (at least one); if tol is not reached by then,
             the last iterate is returned.
 
@@ -480,16 +483,22 @@ def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, *, tol: f
     l0l3, l1, l2 = p.l0 - p.l3, p.l1, p.l2
     (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
     ql, vl = _as_list(q), _as_list(v)
-    h, Hv = _loop_residuals(l0l3, l1, l2, ql, vl)
     for _ in range(max_iterations):
-        W1, Y1 = _arm_metric(a, b, beta, cA, sA, l1, l2, ql[0], ql[1], ql[2])
-        W2, Y2 = _arm_metric(a, b, beta, cB, sB, l1, l2, ql[3], ql[4], ql[5])
-        W3, Y3 = _arm_metric(a, b, beta, cC, sC, l1, l2, ql[6], ql[7], ql[8])
+        w1, W1, Y1 = _arm_linearization(a, b, beta, cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2],
+                                        vl[0], vl[1], vl[2])
+        w2, W2, Y2 = _arm_linearization(a, b, beta, cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5],
+                                        vl[3], vl[4], vl[5])
+        w3, W3, Y3 = _arm_linearization(a, b, beta, cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8],
+                                        vl[6], vl[7], vl[8])
+        h, Hv = _loop_residuals(w1, w2, w3)
         factors = _schur_factor(W1, W2, W3)
-        ql = _subtract_response(ql, Y1, Y2, Y3, _schur_solve(factors, *h))
-        vl = _subtract_response(vl, Y1, Y2, Y3, _schur_solve(factors, *Hv))
-        h, Hv = _loop_residuals(l0l3, l1, l2, ql, vl)
-        if max(map(abs, h[0] + h[1])) <= tol:
+        ql = _subtract_response(ql, Y1, Y2, Y3, _schur_solve(factors, h))
+        vl = _subtract_response(vl, Y1, Y2, Y3, _schur_solve(factors, Hv))
+        h, Hv = _loop_residuals(
+            _arm_wrist(cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2], vl[0], vl[1], vl[2]),
+            _arm_wrist(cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5], vl[3], vl[4], vl[5]),
+            _arm_wrist(cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8], vl[6], vl[7], vl[8]))
+        if math.hypot(*h) <= tol:
             break
-    vl = _subtract_response(vl, Y1, Y2, Y3, _schur_solve(factors, *Hv))
+    vl = _subtract_response(vl, Y1, Y2, Y3, _schur_solve(factors, Hv))
     return np.array(ql), np.array(vl)
