@@ -1,9 +1,10 @@
 """Delta robot plant (deltafmi.mechanics.delta) against physics and independent formulations.
 
-The reference paths live here, not in the library: a dense KKT solve for the DAE, body-point
-kinetic energy for the mass matrix, and a minimal-coordinate Lagrangian model in the three
-servo angles (its own forward kinematics, forearm energy from the rod end points, derivatives by
-complex step and central differences) for whole trajectories.
+The reference paths live here, not in the library: a dense KKT solve for the DAE, a dense
+projection onto the closed loops, body-point kinetic energy for the mass matrix, and a
+minimal-coordinate Lagrangian model in the three servo angles (its own forward kinematics,
+forearm energy from the rod end points, derivatives by complex step and central differences)
+for whole trajectories.
 """
 
 from __future__ import annotations
@@ -289,3 +290,35 @@ def test_evaluate_plant_agrees_with_the_separate_functions():
     assert ev.residual == pytest.approx(np.linalg.norm(d.constraint(p, q)), rel=1e-12)
     assert ev.residual > 1e-4  # off the manifold: a real comparison
     assert ev.energy == pytest.approx(d.energy(p, q, v), rel=1e-13)
+
+
+# ------------------------------------------------------------- projection onto the closed loops
+
+def dense_projection(p, q, v):
+    """Reference: Gauss-Newton dq = -M^-1 H^T (H M^-1 H^T)^-1 h with dense numpy, the velocity
+    corrected by the same operator with H v at both ends of each step."""
+    q, v = np.array(q, dtype=float), np.array(v, dtype=float)
+    for _ in range(8):  # the library's defaults: 8 steps at most, tol 1e-13 m
+        H = d.constraint_jacobian(p, q)
+        A = np.linalg.solve(d.mass_matrix(p, q), H.T)
+        S = H @ A
+        q = q - A @ np.linalg.solve(S, d.constraint(p, q))
+        v = v - A @ np.linalg.solve(S, H @ v)
+        if np.linalg.norm(d.constraint(p, q)) <= 1e-13:
+            break
+    return q, v - A @ np.linalg.solve(S, d.constraint_jacobian(p, q) @ v)
+
+
+@pytest.mark.parametrize("dq", [1e-9, 1e-5, 1e-2])
+@pytest.mark.parametrize("p, z", [(P, (0.15, -0.2, -1.0)),
+                                  (d.DeltaParams(payload=1.5), (-0.3, 0.25, -1.1))])
+def test_projection_closes_loops_with_the_mass_weighted_correction(p, z, dq):
+    rng = np.random.default_rng(6)
+    q0 = d.inverse_kinematics(p, z) + dq * rng.normal(size=9)
+    v0 = rng.normal(size=9)  # far off the tangent space
+    q, v = d.project_to_constraints(p, q0, v0)
+    assert np.max(np.abs(d.constraint(p, q))) < 1e-13
+    assert np.max(np.abs(d.constraint_jacobian(p, q) @ v)) < 1e-11
+    q_ref, v_ref = dense_projection(p, q0, v0)
+    assert np.max(np.abs(q - q_ref)) < 1e-12
+    assert np.max(np.abs(v - v_ref)) < 1e-12

@@ -40,6 +40,9 @@ would dominate (about 13 us per call against about 28 us for a list-based 6x6 Ch
 The cheaper 3x3 operational-space reduction (sum of W_i^-1) is NOT used: W_i is singular when
 arm i is stretched, while the 6x6 complement stays regular there, so the model simulates
 through the stretched-arm singularity.
+
+project_to_constraints() (the Co-Simulation solver's projection onto the closed loops) uses the
+same algebra: its mass-weighted corrections M^-1 H^T [la; lb] solve the same Schur complement.
 """
 
 from __future__ import annotations
@@ -369,7 +372,8 @@ def evaluate_plant(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: 
 
 # -------------------------------------------------------------- projection onto the closed loops
 
-def _arm_wrist(cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3) -> tuple[float, ...]:
+def _arm_wrist(cr: float, sr: float, l0l3: float, l1: float, l2: float, q1: float, q2: float,
+               q3: float, v1: float, v2: float, v3: float) -> tuple[float, ...]:
     """World wrist point R psi(q_i) and velocity R dpsi/dq(q_i) v_i of one arm (6 floats)."""
     s1, c1, s2, c2, s3, c3 = (math.sin(q1), math.cos(q1), math.sin(q2), math.cos(q2),
                               math.sin(q3), math.cos(q3))
@@ -380,7 +384,9 @@ def _arm_wrist(cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3) -> tuple[float, ...
             cr * dx - sr * dy, sr * dx + cr * dy, l1 * c1 * v1 + l2 * (c2 * c3 * v2 - s2 * s3 * v3))
 
 
-def _arm_linearization(a, b, beta, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3) -> tuple:
+def _arm_linearization(a: float, b: float, beta: float, cr: float, sr: float, l0l3: float,
+                       l1: float, l2: float, q1: float, q2: float, q3: float, v1: float,
+                       v2: float, v3: float) -> tuple[tuple[float, ...], ...]:
     """One arm at (q_i, v_i), with the closed forms of _arm: (wrist, W, Y).
 
     wrist: world wrist point and velocity (6 floats, as _arm_wrist); W = Ht m^-1 Ht^T (6 unique);
@@ -426,17 +432,19 @@ def _arm_linearization(a, b, beta, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3)
             (y10, y11, y12, y20, y21, y22, y30, y31, y32))
 
 
-def _loop_residuals(w1, w2, w3) -> tuple[tuple[float, ...], tuple[float, ...]]:
+def _loop_residuals(arm1: Sequence[float], arm2: Sequence[float],
+                    arm3: Sequence[float]) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """h(q) and H(q) v (6 floats each: arm 1 - arm 2, then arm 1 - arm 3) from the three arms'
     world wrist points and velocities (6 floats each, as _arm_wrist)."""
-    x1, y1, z1, u1, v1, w1 = w1
-    x2, y2, z2, u2, v2, w2 = w2
-    x3, y3, z3, u3, v3, w3 = w3
+    x1, y1, z1, u1, v1, w1 = arm1
+    x2, y2, z2, u2, v2, w2 = arm2
+    x3, y3, z3, u3, v3, w3 = arm3
     return ((x1 - x2, y1 - y2, z1 - z2, x1 - x3, y1 - y3, z1 - z3),
             (u1 - u2, v1 - v2, w1 - w2, u1 - u3, v1 - v3, w1 - w3))
 
 
-def _subtract_response(x: list[float], Y1, Y2, Y3, lam) -> list[float]:
+def _subtract_response(x: list[float], Y1: Sequence[float], Y2: Sequence[float],
+                       Y3: Sequence[float], lam: Sequence[float]) -> list[float]:
     """x - M^-1 H^T [la; lb] (arm-major): arm 1 moves by -Y1 (la + lb), arm 2 by Y2 la, arm 3
     by Y3 lb (the world forces F_1 = la + lb, F_2 = -la, F_3 = -lb of the module docstring)."""
     la0, la1, la2, lb0, lb1, lb2 = lam
@@ -456,15 +464,17 @@ def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, *, tol: f
                            max_iterations: int = 8) -> tuple[np.ndarray, np.ndarray]:
     """Nearest (q, v) on the constraint manifold h(q) = 0, H(q) v = 0 in the mass-matrix metric.
 
-    Gauss-Newton steps with the M-weighted minimum-norm correction dq = -M^-1 H^T S^-1 h,
-    S = H M^-1 H^T, until |h(q)| <= tol. Each step also removes the velocity's
-    constraint-violating part with the same operator, dv = -M^-1 H^T S^-1 H v: the velocity
-    change of least kinetic energy. H changes over a step, which leaves H v of order |dq| |v| at
-    the new q; a last correction with that H v and the last step's operator brings it to order
-    |dq|^2 |v|. From an integrator's drift (|h| ~ 1e-9 m) one step is exact to rounding.
+    Gauss-Newton steps dq = -M^-1 H^T S^-1 h with S = H M^-1 H^T (the correction of least
+    M-norm) until |h(q)| <= tol. Each step also takes dv = -M^-1 H^T S^-1 H v, the velocity
+    change of least kinetic energy that satisfies H v = 0 where the step starts. Over the step H
+    changes, which leaves H v of order |dq| |v| at the new q; one more dv with that H v (same
+    operator) leaves order |dq|^2 |v|. From an integrator's drift (|h| ~ 1e-9 m) one step
+    reaches rounding level.
 
-    S = [[W1 + W2, W1], [W1, W1 + W3]] is factored once per step by the DAE's 3x3 block
-    Cholesky (module docstring), in plain floats: a solver calls this after every step.
+    A solver calls this after every step (the DeltaRobot FMU's Co-Simulation CVODE), hence the
+    plain float algebra of accelerations(): M^-1 blockwise and S = [[W1 + W2, W1], [W1, W1 + W3]]
+    by the 3x3 block Cholesky, one factorization per step (about 14 us per call from drift,
+    against 40 us with dense numpy).
 
     Args:
         p: robot parameters (the mass matrix depends on them).
