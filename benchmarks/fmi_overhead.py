@@ -7,6 +7,7 @@ Usage: python benchmarks/fmi_overhead.py [--steps N] [--repeats R]
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import statistics
 import subprocess
 import sys
@@ -82,9 +83,7 @@ def c_host_us(fmu: Path, steps: int, repeats: int, workdir: Path) -> dict[str, f
 
 def build_pythonfmu(workdir: Path) -> Path | None:
     """The pythonfmu FMU of the same model, or None when pythonfmu is not installed."""
-    try:
-        import pythonfmu  # noqa: F401
-    except ImportError:
+    if importlib.util.find_spec("pythonfmu") is None:
         return None
     subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(MODELS / "lag_pythonfmu.py"),
                     "-d", str(workdir)], check=True, capture_output=True)

@@ -148,6 +148,23 @@ def holding_torque(p: DeltaParams, q: ArrayLike) -> tuple[np.ndarray, np.ndarray
     return sol[:3], sol[3:]
 
 
+def _arm_mass_inverse(a: float, b: float, beta: float, s1: float, c1: float, s2: float, c2: float,
+                      s3: float, c3: float) -> tuple[float, ...]:
+    """Off-diagonal mass entries (m12, m13, m33) and the inverse (i11, i12, i13, i22, i23, i33)
+    of one arm's mass block [[a, m12, m13], [m12, beta, 0], [m13, 0, m33]] (m23 = 0)."""
+    m12 = b * (s1 * s2 + c1 * c2 * c3)
+    m13 = -b * c1 * s2 * s3
+    m33 = beta * s2 * s2
+    i11 = beta * m33
+    i12 = -m12 * m33
+    i13 = -beta * m13
+    i22 = a * m33 - m13 * m13
+    i23 = m13 * m12
+    i33 = a * beta - m12 * m12
+    det = a * i11 + m12 * i12 + m13 * i13
+    return m12, m13, m33, i11 / det, i12 / det, i13 / det, i22 / det, i23 / det, i33 / det
+
+
 def _arm(consts, damping, pole, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3, u, fx, fy, fz):
     """One arm's share of the DAE evaluation, as flat float tuples (b, W, x, Y, P, Pd, e).
 
@@ -173,17 +190,7 @@ def _arm(consts, damping, pole, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3, u,
     h10, h11, h12 = cr * j10, sr * j01 + cr * j11, sr * j02
     h20, h21, h22 = j20, j21, j22
     # mass block and its inverse (m23 = 0)
-    m12 = b * (s1 * s2 + c1 * c2 * c3)
-    m13 = -b * c1 * s2 * s3
-    m33 = beta * s2 * s2
-    i11 = beta * m33
-    i12 = -m12 * m33
-    i13 = -beta * m13
-    i22 = a * m33 - m13 * m13
-    i23 = m13 * m12
-    i33 = a * beta - m12 * m12
-    det = a * i11 + m12 * i12 + m13 * i13
-    i11 /= det; i12 /= det; i13 /= det; i22 /= det; i23 /= det; i33 /= det
+    m12, m13, m33, i11, i12, i13, i22, i23, i33 = _arm_mass_inverse(a, b, beta, s1, c1, s2, c2, s3, c3)
     # generalized forces: B u + Jv^T f - C - D v - G  (Jv_i = Ht_i / 3)
     ft0, ft1, ft2 = fx / 3.0, fy / 3.0, fz / 3.0
     r1 = (u + h00 * ft0 + h10 * ft1 + h20 * ft2 - damping * v1 - g1 * c1
@@ -400,17 +407,7 @@ def _arm_linearization(a: float, b: float, beta: float, cr: float, sr: float, l0
     h00, h01, h02 = -sr * j10, cr * j01 - sr * j11, cr * j02
     h10, h11, h12 = cr * j10, sr * j01 + cr * j11, sr * j02
     h20, h21, h22 = l1 * c1, l2 * c2 * c3, -l2 * s2 * s3
-    m12 = b * (s1 * s2 + c1 * c2 * c3)
-    m13 = -b * c1 * s2 * s3
-    m33 = beta * s2 * s2
-    i11 = beta * m33
-    i12 = -m12 * m33
-    i13 = -beta * m13
-    i22 = a * m33 - m13 * m13
-    i23 = m13 * m12
-    i33 = a * beta - m12 * m12
-    det = a * i11 + m12 * i12 + m13 * i13
-    i11 /= det; i12 /= det; i13 /= det; i22 /= det; i23 /= det; i33 /= det
+    m12, m13, m33, i11, i12, i13, i22, i23, i33 = _arm_mass_inverse(a, b, beta, s1, c1, s2, c2, s3, c3)
     y10 = i11 * h00 + i12 * h01 + i13 * h02
     y20 = i12 * h00 + i22 * h01 + i23 * h02
     y30 = i13 * h00 + i23 * h01 + i33 * h02
