@@ -165,6 +165,29 @@ def _arm_mass_inverse(a: float, b: float, beta: float, s1: float, c1: float, s2:
     return m12, m13, m33, i11 / det, i12 / det, i13 / det, i22 / det, i23 / det, i33 / det
 
 
+def _arm_response(i11: float, i12: float, i13: float, i22: float, i23: float, i33: float,
+                  h00: float, h01: float, h02: float, h10: float, h11: float, h12: float,
+                  h20: float, h21: float, h22: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """W = Ht m^-1 Ht^T (6 unique entries) and Y = m^-1 Ht^T (9, row-major) of one arm, from the
+    inverse mass block (6 unique entries) and the world-frame wrist Jacobian Ht (row-major)."""
+    y10 = i11 * h00 + i12 * h01 + i13 * h02
+    y20 = i12 * h00 + i22 * h01 + i23 * h02
+    y30 = i13 * h00 + i23 * h01 + i33 * h02
+    y11 = i11 * h10 + i12 * h11 + i13 * h12
+    y21 = i12 * h10 + i22 * h11 + i23 * h12
+    y31 = i13 * h10 + i23 * h11 + i33 * h12
+    y12 = i11 * h20 + i12 * h21 + i13 * h22
+    y22 = i12 * h20 + i22 * h21 + i23 * h22
+    y32 = i13 * h20 + i23 * h21 + i33 * h22
+    W = (h00 * y10 + h01 * y20 + h02 * y30,
+         h00 * y11 + h01 * y21 + h02 * y31,
+         h00 * y12 + h01 * y22 + h02 * y32,
+         h10 * y11 + h11 * y21 + h12 * y31,
+         h10 * y12 + h11 * y22 + h12 * y32,
+         h20 * y12 + h21 * y22 + h22 * y32)
+    return W, (y10, y11, y12, y20, y21, y22, y30, y31, y32)
+
+
 def _arm(consts, damping, pole, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3, u, fx, fy, fz):
     """One arm's share of the DAE evaluation, as flat float tuples (b, W, x, Y, P, Pd, e).
 
@@ -202,22 +225,7 @@ def _arm(consts, damping, pole, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3, u,
     x1 = i11 * r1 + i12 * r2 + i13 * r3
     x2 = i12 * r1 + i22 * r2 + i23 * r3
     x3 = i13 * r1 + i23 * r2 + i33 * r3
-    # Y = m^-1 Ht^T, column k = m^-1 (row k of Ht)
-    y10 = i11 * h00 + i12 * h01 + i13 * h02
-    y20 = i12 * h00 + i22 * h01 + i23 * h02
-    y30 = i13 * h00 + i23 * h01 + i33 * h02
-    y11 = i11 * h10 + i12 * h11 + i13 * h12
-    y21 = i12 * h10 + i22 * h11 + i23 * h12
-    y31 = i13 * h10 + i23 * h11 + i33 * h12
-    y12 = i11 * h20 + i12 * h21 + i13 * h22
-    y22 = i12 * h20 + i22 * h21 + i23 * h22
-    y32 = i13 * h20 + i23 * h21 + i33 * h22
-    W = (h00 * y10 + h01 * y20 + h02 * y30,
-         h00 * y11 + h01 * y21 + h02 * y31,
-         h00 * y12 + h01 * y22 + h02 * y32,
-         h10 * y11 + h11 * y21 + h12 * y31,
-         h10 * y12 + h11 * y22 + h12 * y32,
-         h20 * y12 + h21 * y22 + h22 * y32)
+    W, Y = _arm_response(i11, i12, i13, i22, i23, i33, h00, h01, h02, h10, h11, h12, h20, h21, h22)
     # world wrist point, velocity, free acceleration; b = A + 2p Pd + p^2 P
     Px, Py, Pz = cr * px - sr * py, sr * px + cr * py, pz
     dx = h00 * v1 + h01 * v2 + h02 * v3
@@ -230,7 +238,7 @@ def _arm(consts, damping, pole, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3, u,
     bb = (Ax + tp * dx + pp * Px, Ay + tp * dy + pp * Py, Az + tp * dz + pp * Pz)
     e = (0.5 * (a * vv11 + beta * v2 * v2 + m33 * v3 * v3) + v1 * (m12 * v2 + m13 * v3)
          + g1 * s1 + g2 * s2 * c3)
-    return (bb, W, (x1, x2, x3), (y10, y11, y12, y20, y21, y22, y30, y31, y32), (Px, Py, Pz),
+    return (bb, W, (x1, x2, x3), Y, (Px, Py, Pz),
             (dx, dy, dz), e)
 
 
@@ -408,25 +416,10 @@ def _arm_linearization(a: float, b: float, beta: float, cr: float, sr: float, l0
     h10, h11, h12 = cr * j10, sr * j01 + cr * j11, sr * j02
     h20, h21, h22 = l1 * c1, l2 * c2 * c3, -l2 * s2 * s3
     m12, m13, m33, i11, i12, i13, i22, i23, i33 = _arm_mass_inverse(a, b, beta, s1, c1, s2, c2, s3, c3)
-    y10 = i11 * h00 + i12 * h01 + i13 * h02
-    y20 = i12 * h00 + i22 * h01 + i23 * h02
-    y30 = i13 * h00 + i23 * h01 + i33 * h02
-    y11 = i11 * h10 + i12 * h11 + i13 * h12
-    y21 = i12 * h10 + i22 * h11 + i23 * h12
-    y31 = i13 * h10 + i23 * h11 + i33 * h12
-    y12 = i11 * h20 + i12 * h21 + i13 * h22
-    y22 = i12 * h20 + i22 * h21 + i23 * h22
-    y32 = i13 * h20 + i23 * h21 + i33 * h22
+    W, Y = _arm_response(i11, i12, i13, i22, i23, i33, h00, h01, h02, h10, h11, h12, h20, h21, h22)
     return ((cr * px - sr * py, sr * px + cr * py, l1 * s1 + l2 * s2 * c3,
              h00 * v1 + h01 * v2 + h02 * v3, h10 * v1 + h11 * v2 + h12 * v3,
-             h20 * v1 + h21 * v2 + h22 * v3),
-            (h00 * y10 + h01 * y20 + h02 * y30,
-             h00 * y11 + h01 * y21 + h02 * y31,
-             h00 * y12 + h01 * y22 + h02 * y32,
-             h10 * y11 + h11 * y21 + h12 * y31,
-             h10 * y12 + h11 * y22 + h12 * y32,
-             h20 * y12 + h21 * y22 + h22 * y32),
-            (y10, y11, y12, y20, y21, y22, y30, y31, y32))
+             h20 * v1 + h21 * v2 + h22 * v3), W, Y)
 
 
 def _loop_residuals(arm1: Sequence[float], arm2: Sequence[float],
