@@ -129,29 +129,23 @@ class Cvode:
             view = self._views[address] = np.ctypeslib.as_array(pointer, (self.n_roots,))
         return view
 
-    def _f_callback(self, t: float, y: int, ydot: int, _user: int) -> int:
+    def _guarded(self, callback: Callable, *args: object) -> int:
+        # CVODE can only take an error code: keep the exception for advance() to re-raise
         try:
-            self._rhs(t, self._view(y), self._view(ydot))
+            callback(*args)
             return 0
-        except Exception as exc:  # noqa: BLE001 - CVODE can only take an error code
+        except Exception as exc:  # noqa: BLE001
             self.callback_error = exc
             return -1
+
+    def _f_callback(self, t: float, y: int, ydot: int, _user: int) -> int:
+        return self._guarded(self._rhs, t, self._view(y), self._view(ydot))
 
     def _g_callback(self, t: float, y: int, gout: int, _user: int) -> int:
-        try:
-            self._roots(t, self._view(y), self._roots_view(gout))
-            return 0
-        except Exception as exc:  # noqa: BLE001
-            self.callback_error = exc
-            return -1
+        return self._guarded(self._roots, t, self._view(y), self._roots_view(gout))
 
     def _p_callback(self, t: float, y: int, corr: int, _eps: float, _err: int, _user: int) -> int:
-        try:
-            self._project(t, self._view(y), self._view(corr))
-            return 0
-        except Exception as exc:  # noqa: BLE001
-            self.callback_error = exc
-            return -1
+        return self._guarded(self._project, t, self._view(y), self._view(corr))
 
     def advance(self, t_stop: float) -> bool:
         """Integrate to ``t_stop`` exactly, or to the first root before it.
