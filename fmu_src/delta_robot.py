@@ -67,34 +67,21 @@ class DeltaRobot(Component):
 
     def setup(self) -> None:
         self._plant = None  # DeltaParams, built from the parameters at initialization
-        self._key = None  # (states, inputs) of the latest evaluation, and its result
-        self._eval = None
 
     def initialize(self, t: float) -> None:
         self._plant = delta.DeltaParams(**{name: getattr(self, name) for name in _PARAMS})
         self.q = delta.inverse_kinematics(self._plant, self.z0)
         self.v = 0.0
-        self._key = None
-
-    def _evaluate(self) -> "delta.PlantEvaluation":
-        key = self.states.tobytes() + self.u.tobytes() + self.f.tobytes()
-        if key != self._key:
-            if self._plant is None:
-                self._plant = delta.DeltaParams(**{n: getattr(self, n) for n in _PARAMS})
-            self._eval = delta.evaluate_plant(self._plant, self.q, self.v, self.u, self.f,
-                                              self.pole)
-            self._key = key
-        return self._eval
 
     def project(self, t: float) -> None:
         """CS: close the loops after every solver step (mass-weighted, least kinetic change)."""
         self.q, self.v = delta.project_to_constraints(self._plant, self.q, self.v)
 
-    def derivatives(self, t: float) -> np.ndarray:
-        return np.concatenate([self.v, self._evaluate().vdot])
+    def derivatives(self, t: float) -> list:
+        return delta.state_derivative(self._plant, self.states, self.u, self.f, self.pole)
 
     def outputs(self, t: float) -> None:
-        ev = self._evaluate()
+        ev = delta.evaluate_plant(self._plant, self.q, self.v, self.u, self.f, self.pole)
         q, v = self.q, self.v
         self.y = q[0::3]
         self.yd = v[0::3]

@@ -19,6 +19,7 @@ from fmpy.fmi2 import FMU2Model
 
 from deltafmi.component.cvode import Cvode, CvodeError
 
+from .explicit_rk import TABLEAUS, ExplicitRungeKutta, RungeKuttaError
 from .resolve import Component
 from .units import FmuFailure, Unit
 
@@ -90,9 +91,13 @@ class ModelExchangeUnit(Unit):
             atol = options.get("atol") or rtol * np.abs(nominals)
         else:
             atol = 1.0
+        method = options.get("method", "bdf")
+        if method in TABLEAUS:
+            return ExplicitRungeKutta(self.fmu, self._x[:self.nx], time, method, float(options.get("max_step", 0.0)),
+                                      indicators=self._indicators if self.nz else None)
         return Cvode(self._rhs, self._x.copy(), time, roots=self._roots if self.nz else None, n_roots=self.nz,
                      rtol=rtol, atol=atol, max_step=float(options.get("max_step", 0.0)),
-                     method=options.get("method", "bdf"), max_num_steps=int(options.get("max_num_steps", 100000)))
+                     method=method, max_num_steps=int(options.get("max_num_steps", 100000)))
 
     # --- CVODE callbacks ----------------------------------------------------------------------
     def _pointer(self, view: np.ndarray) -> Any:
@@ -117,6 +122,11 @@ class ModelExchangeUnit(Unit):
         if self.nx:
             self._set_states(handle, self._pointer(x), self.nx)
         self._get_indicators(handle, self._pointer(g), self.nz)
+
+    def _indicators(self, t: float, x: np.ndarray) -> np.ndarray:
+        g = np.empty(self.nz)
+        self._roots(t, x, g)
+        return g
 
     # --- stepping -----------------------------------------------------------------------------
     def pull(self) -> None:
@@ -161,7 +171,7 @@ class ModelExchangeUnit(Unit):
                 t_previous = t
         except FMICallException as exc:
             raise self.failure(exc) from None
-        except CvodeError as exc:
+        except (CvodeError, RungeKuttaError) as exc:
             raise FmuFailure(f"{self.name}: {exc}") from None
 
     def _advance(self, t_stop: float) -> bool:

@@ -15,6 +15,7 @@ import sysconfig
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 NATIVE_DIR = Path(__file__).parent / "native"
 LOADER_SOURCES = ("loader.c",)
@@ -65,28 +66,45 @@ def native_binaries() -> NativeBinaries:
     digest.update(f"{cc}|{include}|{sys.version_info[:2]}".encode())
     target = cache_dir() / "native" / digest.hexdigest()[:16]
     binaries = NativeBinaries(target / "loader.so", target / BRIDGE_NAME)
-    if binaries.loader.exists() and binaries.bridge.exists():
-        return binaries
+    if not (binaries.loader.exists() and binaries.bridge.exists()):
+        common = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}"]
+        _build_into(target, lambda tmp: (
+            _run(common + [str(NATIVE_DIR / "loader.c"), "-o", f"{tmp}/loader.so", "-ldl", "-lpthread", "-lm"]),
+            _run(common + ["-Wno-deprecated-declarations", f"-I{include}", str(NATIVE_DIR / "bridge.c"),
+                           "-o", f"{tmp}/{BRIDGE_NAME}", "-lpthread"])))
+    return binaries
+
+
+def plain_c_library(source: Path) -> Path:
+    """A shared library compiled from one self-contained C file (no Python), from the cache."""
+    cc = _compiler()
+    digest = hashlib.sha256(source.read_bytes() + cc.encode()).hexdigest()[:16]
+    target = cache_dir() / "native" / f"{source.stem}-{digest}"
+    library = target / f"{source.stem}.so"
+    if not library.exists():
+        _build_into(target, lambda tmp: _run([cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
+                                              str(source), "-o", f"{tmp}/{library.name}"]))
+    return library
+
+
+def _build_into(target: Path, build: Callable[[str], object]) -> None:
+    """Run ``build(directory)`` in a fresh directory and move it to ``target`` atomically."""
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-        common = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}"]
-        _run(common + [str(NATIVE_DIR / "loader.c"), "-o", f"{tmp}/loader.so", "-ldl", "-lpthread", "-lm"])
-        _run(common + ["-Wno-deprecated-declarations", f"-I{include}", str(NATIVE_DIR / "bridge.c"),
-                       "-o", f"{tmp}/{BRIDGE_NAME}", "-lpthread"])
+        build(tmp)
         try:
             os.rename(tmp, target)  # atomic: parallel builds race harmlessly
         except OSError:
-            if not binaries.loader.exists():
+            if not target.exists():
                 raise
         else:
             os.makedirs(tmp)  # let TemporaryDirectory clean up the (now empty) name
-    return binaries
 
 
 def _run(command: list[str]) -> None:
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:
-        raise BuildError(f"compiling the FMU binary failed:\n$ {' '.join(command)}\n{result.stderr}")
+        raise BuildError(f"compiling a native library failed:\n$ {' '.join(command)}\n{result.stderr}")
 
 
 def python_runtime_config() -> str:

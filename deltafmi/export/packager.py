@@ -18,6 +18,7 @@ import deltafmi
 from ..component import Component
 from ..component.model_description import model_description_xml
 from .compiler import cache_dir, native_binaries, native_source_files, python_runtime_config
+from .kernels import compiled_kernels, mypyc_version
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: the parts of deltafmi an FMU carries: the component runtime and the mechanics it may use
@@ -71,6 +72,7 @@ def content_key(source: Path) -> str:
     for path in native_source_files():
         digest.update(path.read_bytes())
     digest.update(python_runtime_config().encode())
+    digest.update(f"mypyc {mypyc_version()}".encode())
     return digest.hexdigest()
 
 
@@ -98,6 +100,8 @@ def build_fmu(source: Path, output: Optional[Path] = None) -> Path:
             fmu.writestr("resources/README.txt", _readme(identifier))
             for path, arcname in runtime_files():
                 fmu.write(path, arcname)
+            for path, relative in compiled_kernels():
+                fmu.write(path, f"resources/python/{relative}")
             for path in native_source_files():
                 fmu.write(path, f"sources/{path.name}")
             fmu.writestr("documentation/index.html", _documentation(cls))

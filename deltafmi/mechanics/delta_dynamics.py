@@ -55,10 +55,17 @@ import numpy as np
 from .delta_kinematics import ARM_COS_SIN, constraint_jacobian
 from .delta_params import DeltaParams
 
-__all__ = ["mass_matrix", "coriolis", "gravity", "accelerations", "energy", "holding_torque",
-           "PlantEvaluation", "evaluate_plant", "project_to_constraints"]
+__all__ = ["mass_matrix", "coriolis", "gravity", "accelerations", "state_derivative", "energy",
+           "holding_torque", "PlantEvaluation", "evaluate_plant", "project_to_constraints"]
 
 ArrayLike = Sequence[float] | np.ndarray
+# Fixed-length float tuples: the kernels below are compiled with mypyc into FMUs (see
+# deltafmi/export/kernels.py), which keeps such tuples and float locals unboxed.
+F3 = tuple[float, float, float]
+F6 = tuple[float, float, float, float, float, float]
+F9 = tuple[float, float, float, float, float, float, float, float, float]
+F21 = tuple[float, float, float, float, float, float, float, float, float, float, float, float, float,
+            float, float, float, float, float, float, float, float]
 
 
 def _constants(p: DeltaParams) -> tuple[float, float, float, float, float]:
@@ -149,7 +156,7 @@ def holding_torque(p: DeltaParams, q: ArrayLike) -> tuple[np.ndarray, np.ndarray
 
 
 def _arm_mass_inverse(a: float, b: float, beta: float, s1: float, c1: float, s2: float, c2: float,
-                      s3: float, c3: float) -> tuple[float, ...]:
+                      s3: float, c3: float) -> F9:
     """Off-diagonal mass entries (m12, m13, m33) and the inverse (i11, i12, i13, i22, i23, i33)
     of one arm's mass block [[a, m12, m13], [m12, beta, 0], [m13, 0, m33]] (m23 = 0)."""
     m12 = b * (s1 * s2 + c1 * c2 * c3)
@@ -167,7 +174,7 @@ def _arm_mass_inverse(a: float, b: float, beta: float, s1: float, c1: float, s2:
 
 def _arm_response(i11: float, i12: float, i13: float, i22: float, i23: float, i33: float,
                   h00: float, h01: float, h02: float, h10: float, h11: float, h12: float,
-                  h20: float, h21: float, h22: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+                  h20: float, h21: float, h22: float) -> tuple[F6, F9]:
     """W = Ht m^-1 Ht^T (6 unique entries) and Y = m^-1 Ht^T (9, row-major) of one arm, from the
     inverse mass block (6 unique entries) and the world-frame wrist Jacobian Ht (row-major)."""
     y10 = i11 * h00 + i12 * h01 + i13 * h02
@@ -188,7 +195,10 @@ def _arm_response(i11: float, i12: float, i13: float, i22: float, i23: float, i3
     return W, (y10, y11, y12, y20, y21, y22, y30, y31, y32)
 
 
-def _arm(consts, damping, pole, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3, u, fx, fy, fz):
+def _arm(consts: tuple[float, float, float, float, float], damping: float, pole: float, cr: float,
+         sr: float, l0l3: float, l1: float, l2: float, q1: float, q2: float, q3: float, v1: float,
+         v2: float, v3: float, u: float, fx: float, fy: float,
+         fz: float) -> tuple[F3, F6, F3, F9, F3, F3, float]:
     """One arm's share of the DAE evaluation, as flat float tuples (b, W, x, Y, P, Pd, e).
 
     b = A + 2p Pd + p^2 P (world), W = Ht m^-1 Ht^T (6 unique), x = m^-1 rhs, Y = m^-1 Ht^T,
@@ -242,7 +252,7 @@ def _arm(consts, damping, pole, cr, sr, l0l3, l1, l2, q1, q2, q3, v1, v2, v3, u,
             (dx, dy, dz), e)
 
 
-def _sym3_inv(a11: float, a12: float, a13: float, a22: float, a23: float, a33: float):
+def _sym3_inv(a11: float, a12: float, a13: float, a22: float, a23: float, a33: float) -> F6:
     """Inverse of a symmetric positive definite 3x3 matrix, 6 unique entries in, 6 out."""
     c11 = a22 * a33 - a23 * a23
     c12 = a13 * a23 - a12 * a33
@@ -255,7 +265,7 @@ def _sym3_inv(a11: float, a12: float, a13: float, a22: float, a23: float, a33: f
             (a12 * a13 - a11 * a23) / det, (a11 * a22 - a12 * a12) / det)
 
 
-def _schur_factor(W1, W2, W3) -> tuple[float, ...]:
+def _schur_factor(W1: F6, W2: F6, W3: F6) -> F21:
     """Factor [[W1 + W2, W1], [W1, W1 + W3]] (6 unique entries per W) by 3x3 block elimination.
 
     This is a block Cholesky of the SPD 6x6 complement H M^-1 H^T; its leading block P and the
@@ -276,17 +286,18 @@ def _schur_factor(W1, W2, W3) -> tuple[float, ...]:
     x32 = p13 * a12 + p23 * a22 + p33 * a23
     x33 = p13 * a13 + p23 * a23 + p33 * a33
     # Z = (W1 + W3) - W1 X, symmetric
-    z_inv = _sym3_inv(
+    z11, z12, z13, z22, z23, z33 = _sym3_inv(
         a11 + W3[0] - (a11 * x11 + a12 * x21 + a13 * x31),
         a12 + W3[1] - (a11 * x12 + a12 * x22 + a13 * x32),
         a13 + W3[2] - (a11 * x13 + a12 * x23 + a13 * x33),
         a22 + W3[3] - (a12 * x12 + a22 * x22 + a23 * x32),
         a23 + W3[4] - (a12 * x13 + a22 * x23 + a23 * x33),
         a33 + W3[5] - (a13 * x13 + a23 * x23 + a33 * x33))
-    return (p11, p12, p13, p22, p23, p33, x11, x12, x13, x21, x22, x23, x31, x32, x33) + z_inv
+    return (p11, p12, p13, p22, p23, p33, x11, x12, x13, x21, x22, x23, x31, x32, x33,
+            z11, z12, z13, z22, z23, z33)
 
 
-def _schur_solve(factors: tuple[float, ...], r: Sequence[float]) -> tuple[float, ...]:
+def _schur_solve(factors: F21, r: F6) -> F6:
     """Solve [[W1 + W2, W1], [W1, W1 + W3]] [la; lb] = r (6 floats) with _schur_factor's factors."""
     (p11, p12, p13, p22, p23, p33, x11, x12, x13, x21, x22, x23, x31, x32, x33,
      z11, z12, z13, z22, z23, z33) = factors
@@ -305,7 +316,7 @@ def _schur_solve(factors: tuple[float, ...], r: Sequence[float]) -> tuple[float,
 
 
 def _evaluate(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,
-              pole: float) -> tuple:
+              pole: float) -> tuple[list[float], F6, tuple[tuple[F3, F3, float], ...]]:
     """Solve the DAE at one point: (vdot list, lam tuple, per-arm (P, Pd, e) results)."""
     consts = _constants(p)
     ql, vl = _as_list(q), _as_list(v)
@@ -326,7 +337,7 @@ def _evaluate(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: Array
     lam = _schur_solve(_schur_factor(W1, W2, W3), (b2[0] - b1[0], b2[1] - b1[1], b2[2] - b1[2],
                                                    b3[0] - b1[0], b3[1] - b1[1], b3[2] - b1[2]))
     la0, la1, la2, lb0, lb1, lb2 = lam
-    vdot = []
+    vdot: list[float] = []
     for x, Y, (F0, F1, F2) in ((x1, Y1, (la0 + lb0, la1 + lb1, la2 + lb2)),
                                (x2, Y2, (-la0, -la1, -la2)),
                                (x3, Y3, (-lb0, -lb1, -lb2))):
@@ -355,6 +366,14 @@ def accelerations(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: A
     """
     vdot, lam, _ = _evaluate(p, q, v, u, f, pole)
     return np.array(vdot), np.array(lam)
+
+
+def state_derivative(p: DeltaParams, x: ArrayLike, u: ArrayLike, f: ArrayLike, pole: float = 5.0) -> list[float]:
+    """d/dt [q; v] = [v; vdot] for the 18-vector x = [q; v] (accelerations() without the numpy
+    arrays: what an integrator calls, as a plain list)."""
+    xl = _as_list(x)
+    vdot, _, _ = _evaluate(p, xl[:9], xl[9:], u, f, pole)
+    return xl[9:] + vdot
 
 
 class PlantEvaluation(NamedTuple):
@@ -388,7 +407,7 @@ def evaluate_plant(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: 
 # -------------------------------------------------------------- projection onto the closed loops
 
 def _arm_wrist(cr: float, sr: float, l0l3: float, l1: float, l2: float, q1: float, q2: float,
-               q3: float, v1: float, v2: float, v3: float) -> tuple[float, ...]:
+               q3: float, v1: float, v2: float, v3: float) -> F6:
     """World wrist point R psi(q_i) and velocity R dpsi/dq(q_i) v_i of one arm (6 floats)."""
     s1, c1, s2, c2, s3, c3 = (math.sin(q1), math.cos(q1), math.sin(q2), math.cos(q2),
                               math.sin(q3), math.cos(q3))
@@ -401,7 +420,7 @@ def _arm_wrist(cr: float, sr: float, l0l3: float, l1: float, l2: float, q1: floa
 
 def _arm_linearization(a: float, b: float, beta: float, cr: float, sr: float, l0l3: float,
                        l1: float, l2: float, q1: float, q2: float, q3: float, v1: float,
-                       v2: float, v3: float) -> tuple[tuple[float, ...], ...]:
+                       v2: float, v3: float) -> tuple[F6, F6, F9]:
     """One arm at (q_i, v_i), with the closed forms of _arm: (wrist, W, Y).
 
     wrist: world wrist point and velocity (6 floats, as _arm_wrist); W = Ht m^-1 Ht^T (6 unique);
@@ -422,8 +441,7 @@ def _arm_linearization(a: float, b: float, beta: float, cr: float, sr: float, l0
              h20 * v1 + h21 * v2 + h22 * v3), W, Y)
 
 
-def _loop_residuals(arm1: Sequence[float], arm2: Sequence[float],
-                    arm3: Sequence[float]) -> tuple[tuple[float, ...], tuple[float, ...]]:
+def _loop_residuals(arm1: F6, arm2: F6, arm3: F6) -> tuple[F6, F6]:
     """h(q) and H(q) v (6 floats each: arm 1 - arm 2, then arm 1 - arm 3) from the three arms'
     world wrist points and velocities (6 floats each, as _arm_wrist)."""
     x1, y1, z1, u1, v1, w1 = arm1
@@ -433,8 +451,7 @@ def _loop_residuals(arm1: Sequence[float], arm2: Sequence[float],
             (u1 - u2, v1 - v2, w1 - w2, u1 - u3, v1 - v3, w1 - w3))
 
 
-def _subtract_response(x: list[float], Y1: Sequence[float], Y2: Sequence[float],
-                       Y3: Sequence[float], lam: Sequence[float]) -> list[float]:
+def _subtract_response(x: list[float], Y1: F9, Y2: F9, Y3: F9, lam: F6) -> list[float]:
     """x - M^-1 H^T [la; lb] (arm-major): arm 1 moves by -Y1 (la + lb), arm 2 by Y2 la, arm 3
     by Y3 lb (the world forces F_1 = la + lb, F_2 = -la, F_3 = -lb of the module docstring)."""
     la0, la1, la2, lb0, lb1, lb2 = lam

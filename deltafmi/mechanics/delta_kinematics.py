@@ -162,7 +162,7 @@ def inverse_kinematics(p: DeltaParams, z: ArrayLike) -> np.ndarray:
         ValueError: z is out of reach; the message names z, the arm that cannot reach it and
             the reachable workspace at that height.
     """
-    q = []
+    q: list = []
     for arm in range(3):
         sol = _arm_ik(p, *_to_arm_frame(z, arm))
         if isinstance(sol, str):
