@@ -100,6 +100,13 @@ class FmuInstance:
             self.event_indicators[:] = comp.event_indicators(t)
         return OK
 
+    def evaluate_outputs(self, t: float) -> int:
+        """Outputs only, for getters (in initialization everything: the model initializes)."""
+        if self.in_initialization:
+            return self.evaluate(t)
+        self.component.outputs(t)
+        return OK
+
     def event_update(self, t: float) -> tuple:
         """``fmi2NewDiscreteStates``: one discrete update at ``t``.
 

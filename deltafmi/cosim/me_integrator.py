@@ -21,7 +21,7 @@ from deltafmi.component.cvode import Cvode, CvodeError
 
 from .explicit_rk import TABLEAUS, ExplicitRungeKutta, RungeKuttaError
 from .resolve import Component
-from .units import FmuFailure, Unit
+from .units import FmuFailure, Unit, bare_function
 
 _MAX_EVENT_ITERATIONS = 1000
 
@@ -62,8 +62,9 @@ class ModelExchangeUnit(Unit):
         super().instantiate(start, stop)
         fmu, handle = self.fmu, self.fmu.component
         self._handle = handle
-        self._set_time, self._set_states = fmu.fmi2SetTime, fmu.fmi2SetContinuousStates
-        self._get_derivatives, self._get_indicators = fmu.fmi2GetDerivatives, fmu.fmi2GetEventIndicators
+        self._set_time, self._set_states = bare_function(fmu, "fmi2SetTime"), bare_function(fmu, "fmi2SetContinuousStates")
+        self._get_derivatives = bare_function(fmu, "fmi2GetDerivatives")
+        self._get_indicators = bare_function(fmu, "fmi2GetEventIndicators")
 
     def wire_inputs(self, kind: str, *args: Any) -> None:
         super().wire_inputs(kind, *args)

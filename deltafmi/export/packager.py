@@ -6,6 +6,7 @@ import importlib.util
 import json
 import keyword
 import os
+import py_compile
 import re
 import sys
 import tempfile
@@ -69,7 +70,7 @@ def content_key(source: Path) -> str:
     digest = hashlib.sha256(Path(source).read_bytes())
     for path, arcname in runtime_files():
         digest.update(arcname.encode() + path.read_bytes())
-    for path in native_source_files():
+    for path in native_source_files() + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]:
         digest.update(path.read_bytes())
     digest.update(python_runtime_config().encode())
     digest.update(f"mypyc {mypyc_version()}".encode())
@@ -100,8 +101,10 @@ def build_fmu(source: Path, output: Optional[Path] = None) -> Path:
             fmu.writestr("resources/README.txt", _readme(identifier))
             for path, arcname in runtime_files():
                 fmu.write(path, arcname)
+                fmu.writestr(importlib.util.cache_from_source(arcname), _bytecode(path, arcname))
             for path, relative in compiled_kernels():
-                fmu.write(path, f"resources/python/{relative}")
+                # stored, not deflated: inflating them took longer than the rest of a load
+                fmu.write(path, f"resources/python/{relative}", compress_type=zipfile.ZIP_STORED)
             for path in native_source_files():
                 fmu.write(path, f"sources/{path.name}")
             fmu.writestr("documentation/index.html", _documentation(cls))
@@ -118,6 +121,16 @@ def build_cached(source: Path) -> Path:
         return existing[0]
     cls = load_component_class(source)
     return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu")
+
+
+def _bytecode(path: Path, arcname: str) -> bytes:
+    """``path`` compiled for this Python, as an unchecked-hash .pyc (PEP 552): an FMU is
+    unpacked afresh for every run, and compiling the runtime's sources there cost more than
+    the rest of loading it. Another Python version ignores the file and compiles the source."""
+    with tempfile.TemporaryDirectory() as tmp:
+        target = py_compile.compile(str(path), cfile=f"{tmp}/module.pyc", dfile=arcname, doraise=True,
+                                    invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH)
+        return Path(target).read_bytes()
 
 
 def _digest(data: bytes) -> str:

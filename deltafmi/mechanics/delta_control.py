@@ -15,7 +15,7 @@ from .delta_control_law import (_ROT, STATUS_ILL_CONDITIONED, STATUS_INTEGRAL_CL
                                 STATUS_OK, STATUS_SINGULAR, STATUS_TORQUE_SATURATED, ControlLaw,
                                 ControlOutput, _angles, _closed_fk, _directions, _elbows, _f3,
                                 _forearms_from_z, _model, _newton_fk, describe_status, evaluate,
-                                make_law)
+                                hold, make_law, warm_start)
 
 __all__ = [
     "ControlLaw", "ControlOutput", "DeltaController", "evaluate", "make_law", "describe_status",
@@ -191,21 +191,12 @@ class DeltaController:
             self.u = tuple(min(max(ui, -lim), lim) for ui in self.u)
             return np.array(self.u)
         self.integral = out.integral
-        u = out.u
-        if self.zoh_lead and self._u_law is not None:
-            u = tuple(1.5 * a - 0.5 * b for a, b in zip(u, self._u_law))
-            if max(abs(u[0]), abs(u[1]), abs(u[2])) > lim:
-                self.status |= STATUS_TORQUE_SATURATED
-                u = tuple(min(max(ui, -lim), lim) for ui in u)
+        u, clipped = hold(out.u, self._u_law if self.zoh_lead else None, lim)
+        if clipped:
+            self.status |= STATUS_TORQUE_SATURATED
         self._u_law, self.u = out.u, u
-        # warm start for the next sample: x + Ts xd + Ts^2/2 xdd with xdd by a backward
-        # difference, so one Newton step usually reaches the tolerance
-        ts = self.sample_period
-        if self._xd is None:
-            self._x_next = [xi + ts * vi for xi, vi in zip(out.x, out.xd)]
-        else:
-            self._x_next = [xi + ts * (1.5 * vi - 0.5 * wi)
-                            for xi, vi, wi in zip(out.x, out.xd, self._xd)]
+        # warm start one sample ahead, so one Newton step usually reaches the tolerance
+        self._x_next = warm_start(out.x, out.xd, self._xd, self.sample_period)
         self._xd = out.xd
         return np.array(u)
 

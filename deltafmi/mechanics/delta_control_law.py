@@ -42,7 +42,7 @@ from typing import Any, NamedTuple, Optional, Sequence
 import numpy as np
 
 __all__ = [
-    "ControlLaw", "ControlOutput", "evaluate", "make_law", "describe_status",
+    "ControlLaw", "ControlOutput", "evaluate", "make_law", "describe_status", "hold", "warm_start",
     "STATUS_OK", "STATUS_TORQUE_SATURATED", "STATUS_INTEGRAL_CLAMPED", "STATUS_ILL_CONDITIONED",
     "STATUS_SINGULAR",
 ]
@@ -390,10 +390,9 @@ def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequen
         rdd0, rdd1, rdd2 = _f3(rdd)
         acc0, acc1, acc2 = acc0 + rdd0, acc1 + rdd1, acc2 + rdd2
     if law.coriolis:
-        u = _inverse_dynamics(k, elb, fa, ninv, dd, (yd0, yd1, yd2), xd, (acc0, acc1, acc2))
+        u = _inverse_dynamics(k, elb, fa, ninv, dd, [yd0, yd1, yd2], xd, (acc0, acc1, acc2))
     else:
-        u = _inverse_dynamics(k, elb, fa, ninv, dd, (0.0, 0.0, 0.0), (0.0,) * 6,
-                              (acc0, acc1, acc2))
+        u = _inverse_dynamics(k, elb, fa, ninv, dd, [0.0] * 3, [0.0] * 6, (acc0, acc1, acc2))
     u0, u1, u2 = u
     zd = (zdx, zdy, zdz)
     if not (math.isfinite(u0) and math.isfinite(u1) and math.isfinite(u2)):
@@ -405,8 +404,31 @@ def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequen
     return ControlOutput(u, (i0, i1, i2), z, zd, x, tuple(xd), cond, status, iterations)
 
 
+def hold(u: Sequence[float], u_previous: Optional[Sequence[float]], limit: float) -> tuple[F3, bool]:
+    """The torque to hold over a sample: the law's u with the half-sample lead
+    u + (u - u_previous) / 2 when ``u_previous`` is given (see DeltaController), clipped to
+    +-limit; and whether the lead had to be clipped."""
+    u0, u1, u2 = u
+    if u_previous is None:
+        return (u0, u1, u2), False
+    p0, p1, p2 = u_previous
+    u0, u1, u2 = 1.5 * u0 - 0.5 * p0, 1.5 * u1 - 0.5 * p1, 1.5 * u2 - 0.5 * p2
+    if max(abs(u0), abs(u1), abs(u2)) <= limit:
+        return (u0, u1, u2), False
+    return (min(max(u0, -limit), limit), min(max(u1, -limit), limit), min(max(u2, -limit), limit)), True
+
+
+def warm_start(x: Sequence[float], xd: Sequence[float], xd_previous: Optional[Sequence[float]],
+               ts: float) -> list[float]:
+    """Newton's start for the next sample: x + ts xd + ts^2/2 xdd, xdd by a backward
+    difference of the rates (first order without previous rates)."""
+    if xd_previous is None:
+        return [x[i] + ts * xd[i] for i in range(6)]
+    return [x[i] + ts * (1.5 * xd[i] - 0.5 * xd_previous[i]) for i in range(6)]
+
+
 def _inverse_dynamics(k: _Model, elb: list[Elbow], fa: list[F4], ninv: F9, dd: list[float],
-                      v1s: F3, xd: Sequence[float], acc: F3) -> F3:
+                      v1s: list[float], xd: list[float], acc: F3) -> F3:
     """Servo torques giving wrist acceleration ``acc`` (world) at the state (elb, fa, v1s, xd).
 
     Arm by arm in its own frame: the joint accelerations that produce the wrist acceleration,
@@ -418,8 +440,10 @@ def _inverse_dynamics(k: _Model, elb: list[Elbow], fa: list[F4], ninv: F9, dd: l
     qa: list[float] = []
     bf: list[float] = []
     sx = sy = sz = 0.0
-    for (cr, sr, c1, s1, _, _, _), (s2, c2, s3, c3), v1, v2, v3, di in zip(
-            elb, fa, v1s, xd[0::2], xd[1::2], dd):
+    for i in range(3):
+        cr, sr, c1, s1, _, _, _ = elb[i]
+        s2, c2, s3, c3 = fa[i]
+        v1, v2, v3, di = v1s[i], xd[2 * i], xd[2 * i + 1], dd[i]
         alx, aly = cr * ax + sr * ay, cr * ay - sr * ax
         # velocity-product part of the forearm direction's second derivative
         vv = v2 * v2 + v3 * v3

@@ -331,20 +331,16 @@ def _evaluate(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: Array
                 vl[3], vl[4], vl[5], u2, fx, fy, fz)
     arm3 = _arm(consts, dmp, pole, cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8],
                 vl[6], vl[7], vl[8], u3, fx, fy, fz)
-    b1, W1, x1, Y1 = arm1[:4]
-    b2, W2, x2, Y2 = arm2[:4]
-    b3, W3, x3, Y3 = arm3[:4]
+    b1, W1, x1, Y1 = arm1[0], arm1[1], arm1[2], arm1[3]
+    b2, W2, x2, Y2 = arm2[0], arm2[1], arm2[2], arm2[3]
+    b3, W3, x3, Y3 = arm3[0], arm3[1], arm3[2], arm3[3]
     lam = _schur_solve(_schur_factor(W1, W2, W3), (b2[0] - b1[0], b2[1] - b1[1], b2[2] - b1[2],
                                                    b3[0] - b1[0], b3[1] - b1[1], b3[2] - b1[2]))
     la0, la1, la2, lb0, lb1, lb2 = lam
-    vdot: list[float] = []
-    for x, Y, (F0, F1, F2) in ((x1, Y1, (la0 + lb0, la1 + lb1, la2 + lb2)),
-                               (x2, Y2, (-la0, -la1, -la2)),
-                               (x3, Y3, (-lb0, -lb1, -lb2))):
-        vdot += [x[0] + Y[0] * F0 + Y[1] * F1 + Y[2] * F2,
-                 x[1] + Y[3] * F0 + Y[4] * F1 + Y[5] * F2,
-                 x[2] + Y[6] * F0 + Y[7] * F1 + Y[8] * F2]
-    return vdot, lam, (arm1[4:], arm2[4:], arm3[4:])
+    # vdot = m^-1 rhs + M^-1 H^T lam, i.e. x minus the response to -lam
+    vdot = _subtract_response([x1[0], x1[1], x1[2], x2[0], x2[1], x2[2], x3[0], x3[1], x3[2]],
+                              Y1, Y2, Y3, (-la0, -la1, -la2, -lb0, -lb1, -lb2))
+    return vdot, lam, ((arm1[4], arm1[5], arm1[6]), (arm2[4], arm2[5], arm2[6]), (arm3[4], arm3[5], arm3[6]))
 
 
 def accelerations(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,

@@ -15,6 +15,7 @@ object is given, against inverse-kinematic reachability along the sampled path.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 from typing import Sequence
@@ -118,17 +119,21 @@ class MinimumJerkPath:
         before = np.concatenate(([0.0], np.cumsum(D[:-1] + T)[:-1]))[:len(T)]
         self._starts = self.t0 + before + D[:-1]
         self.duration = float(D.sum() + T.sum())
+        # float copies for evaluate(): sampled every step, where numpy's per-call cost dominates
+        self._moves = [(float(start), float(Tk), tuple(pts[k].tolist()), tuple((pts[k + 1] - pts[k]).tolist()))
+                       for k, (start, Tk) in enumerate(zip(self._starts, T))]
+        self._start_list = [move[0] for move in self._moves]
 
     def evaluate(self, t: float) -> Vector3:
         """Reference position, velocity and acceleration at time ``t``."""
-        pts = self.waypoints
-        k = int(np.searchsorted(self._starts, t, side="right")) - 1
+        k = bisect.bisect_right(self._start_list, t) - 1
         if k < 0:
-            return pts[0].copy(), np.zeros(3), np.zeros(3)
-        T = self.durations[k]
-        s, ds, dds = minimum_jerk((t - self._starts[k]) / T)
-        delta = pts[k + 1] - pts[k]
-        return pts[k] + s * delta, (ds / T) * delta, (dds / (T * T)) * delta
+            return self.waypoints[0].copy(), np.zeros(3), np.zeros(3)
+        start, T, p, d = self._moves[k]
+        s, ds, dds = minimum_jerk((t - start) / T)
+        ds, dds = ds / T, dds / (T * T)
+        return (np.array([p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2]]),
+                np.array([ds * d[0], ds * d[1], ds * d[2]]), np.array([dds * d[0], dds * d[1], dds * d[2]]))
 
 
 class CirclePath:

@@ -18,7 +18,7 @@
 
 static const char *const OP_NAMES[DFMI_N_OPS] = {
     "enter_initialization", "exit_initialization", "evaluate", "do_step", "terminate", "reset",
-    "evaluate_derivatives"};
+    "evaluate_derivatives", "evaluate_outputs"};
 
 typedef struct {
     PyObject *instance;

@@ -8,7 +8,7 @@
 
 #include <stddef.h>
 
-#define DFMI_BRIDGE_VERSION 1
+#define DFMI_BRIDGE_VERSION 2
 
 typedef void (*DfmiLogFn)(void *env, int status, const char *category, const char *message);
 
@@ -31,6 +31,7 @@ typedef enum {
     DFMI_TERMINATE,
     DFMI_RESET,
     DFMI_EVALUATE_DERIVATIVES,     /* args: time; derivatives and event indicators only */
+    DFMI_EVALUATE_OUTPUTS,         /* args: time; outputs only (everything in initialization) */
     DFMI_N_OPS
 } DfmiOp;
 

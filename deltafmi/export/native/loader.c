@@ -403,6 +403,21 @@ static fmi2Status ensure_derivatives(Instance *c) {
     return settle(c, status);
 }
 
+/* For getters: derivatives are recomputed only when asked for (or in initialization, where the
+ * model initializes itself); an integrator that reads outputs after its last stage already has
+ * the derivatives it needs, and outputs never depend on them. */
+static fmi2Status ensure_values(Instance *c, const fmi2ValueReference vr[], size_t nvr) {
+    if (!(c->state & MASK_EVALUATE)) return fmi2OK;
+    int derivatives = c->state == InitializationMode;
+    for (size_t i = 0; i < nvr && !derivatives; i++)
+        derivatives = vr[i] >= c->L.dx_offset && vr[i] < c->L.dx_offset + c->L.nx;
+    if (c->dirty && derivatives) return ensure_evaluated(c);
+    if (!c->outputs_dirty) return fmi2OK;
+    int status = c->bridge->call(c->py, DFMI_EVALUATE_OUTPUTS, &c->time, 1);
+    if (status < fmi2Error) c->outputs_dirty = 0; /* the derivatives may stay stale */
+    return settle(c, status);
+}
+
 static int setter_bit(int state) {
     switch (state) {
     case Instantiated: return SET_INSTANTIATED;
@@ -420,7 +435,7 @@ fmi2Status fmi2GetReal(fmi2Component component, const fmi2ValueReference vr[], s
     Instance *c = component;
     CHECK("fmi2GetReal", MASK_GET);
     CHECK_ARRAYS("fmi2GetReal");
-    if (nvr && ensure_evaluated(c) >= fmi2Error) return fmi2Error;
+    if (nvr && ensure_values(c, vr, nvr) >= fmi2Error) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) {
         if (vr[i] >= c->L.n_real)
             return fail(c, "fmi2GetReal: %u is not the value reference of a Real", vr[i]);
@@ -450,7 +465,7 @@ fmi2Status fmi2SetReal(fmi2Component component, const fmi2ValueReference vr[], s
 static fmi2Status get_ints(Instance *c, const char *function, int boolean, const fmi2ValueReference vr[],
                            size_t nvr, int value[]) {
     if (nvr > 0 && (!vr || !value)) return fail(c, "%s: NULL array argument", function);
-    if (nvr && ensure_evaluated(c) >= fmi2Error) return fmi2Error;
+    if (nvr && ensure_values(c, NULL, 0) >= fmi2Error) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) {
         size_t k = vr[i] - c->L.n_real;
         if (vr[i] < c->L.n_real || k >= c->L.n_int || !(c->L.flags[vr[i]] & IS_BOOLEAN) != !boolean)
