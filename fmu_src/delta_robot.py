@@ -1,6 +1,4 @@
 """Delta robot plant FMU: a thin component over deltafmi.mechanics.delta (RL5 defaults)."""
-import numpy as np
-
 from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
 from deltafmi.mechanics import delta
 

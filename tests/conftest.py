@@ -50,3 +50,13 @@ def clean_env(**extra: str) -> dict:
     env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root")}
     env.update(extra)
     return env
+
+
+def start_model_exchange(fmu) -> None:
+    """Take an fmpy ``FMU2Model`` from instantiation to continuous-time mode at t = 0."""
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    fmu.newDiscreteStates()
+    fmu.enterContinuousTimeMode()

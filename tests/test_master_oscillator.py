@@ -93,3 +93,22 @@ def test_failure_keeps_results_up_to_it(tmp_path, osc_fmu):
     assert c["time"][-1] == pytest.approx(1.0) and len(c["time"]) >= 101
     x, _, _ = solution(c["time"][:100])
     assert np.max(np.abs(c["osc.x"][:100] - x)) < 1e-5
+
+
+@pytest.mark.parametrize("method, order", [("rk4", 4), ("rk3", 3)])
+def test_explicit_runge_kutta_converges_at_its_order_through_events(tmp_path, osc_fmu, method, order):
+    """Fixed-step Runge-Kutta in the master: three wall impacts located by bisection and the
+    time event at 2.5 s; halving the step divides the error against the closed form by 2^order."""
+    errors = []
+    for h in (2e-3, 1e-3):  # both divide the 10 ms communication step
+        summary, c = simulate(tmp_path, oscillator(osc_fmu, "ME", f"{{method: {method}, max_step: {h}}}"))
+        t = c["time"]
+        x, _, impacts = solution(t)
+        pairs = np.nonzero(np.diff(t) == 0)[0]
+        located = t[pairs][c["osc.impacts"][pairs + 1] > c["osc.impacts"][pairs]]
+        assert np.max(np.abs(located - impacts)) < 50 * h ** order  # event time error ~ h^order
+        regular = np.isin(np.arange(len(t)), pairs, invert=True)
+        errors.append(np.max(np.abs(c["osc.x"][regular] - x[regular])))
+        assert summary.steps == 400 and c["osc.impacts"][-1] == 3.0
+    assert 0.7 * 2 ** order < errors[0] / errors[1] < 1.4 * 2 ** order
+    assert errors[1] < {4: 1e-7, 3: 1e-5}[order]

@@ -10,7 +10,7 @@ import pytest
 from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.validation import validate_fmu
 
-from conftest import clean_env, unzip
+from conftest import clean_env, start_model_exchange, unzip
 from oscillator_analytic import solution
 
 VR = {"x": 0, "v": 1, "F": 11, "energy": 12}
@@ -173,3 +173,19 @@ def test_time_event_on_a_communication_point(oscillator, step):
     x, v, _ = solution(result["time"])
     assert np.max(np.abs(result["x"] - x)) < 1e-6
     assert result["force_on"][-1]
+
+
+def test_getters_after_new_states_are_fresh(oscillator_dir):
+    """Outputs read without derivatives (the loader then skips them) and derivatives read later
+    both reflect the states last set."""
+    md = fmpy.read_model_description(str(oscillator_dir))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Model(guid=md.guid, unzipDirectory=str(oscillator_dir), modelIdentifier="Oscillator")
+    start_model_exchange(fmu)
+    k, m, c = 39.47841760435743, 1.0, 0.2
+    for x, v in [(0.3, -1.0), (-0.2, 2.0)]:
+        fmu.setContinuousStates(_ptr(np.array([x, v])), 2)
+        assert fmu.getReal([vr["energy"]])[0] == pytest.approx(0.5 * m * v * v + 0.5 * k * x * x, rel=1e-15)
+        assert fmu.getReal([vr["der(v)"], vr["der(x)"]]) == pytest.approx([(-k * x - c * v) / m, v], rel=1e-15)
+    fmu.terminate()
+    fmu.freeInstance()

@@ -1,4 +1,5 @@
-"""Model Exchange FMUs as master units: integrated with SUNDIALS CVODE (the library fmpy ships).
+"""Model Exchange FMUs as master units: integrated with SUNDIALS CVODE (the library fmpy ships),
+or with a fixed-step explicit Runge-Kutta method (:mod:`.explicit_rk`) on request.
 
 Events follow FMI 2.0: state events from the event indicators (CVODE root finding), time events
 from ``nextEventTime``, step events from ``fmi2CompletedIntegratorStep``; at each one the FMU goes
@@ -11,7 +12,7 @@ nominals changed, the derivatives jumped at the event, or a state event (see :me
 from __future__ import annotations
 
 from ctypes import POINTER, c_double
-from typing import Any, Callable, Dict, Optional
+from typing import Any, Callable, Dict, Optional, Union
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -52,7 +53,7 @@ class ModelExchangeUnit(Unit):
         self.next_event_time: Optional[float] = None
         #: CVODE restarts after a failure (see :meth:`_advance`)
         self.restarts = 0
-        self.solver: Optional[Cvode] = None
+        self.solver: Optional[Union[Cvode, ExplicitRungeKutta]] = None
         self._pointers: Dict[int, Any] = {}
         self._discrete_inputs: list = []
         self._x = np.zeros(max(self.nx, 1))
@@ -80,7 +81,7 @@ class ModelExchangeUnit(Unit):
         self.call(self.fmu.enterContinuousTimeMode)
         self.solver = self._new_solver(time)
 
-    def _new_solver(self, time: float) -> Cvode:
+    def _new_solver(self, time: float) -> Union[Cvode, ExplicitRungeKutta]:
         options = self.component.spec.solver
         default = self.info.md.defaultExperiment
         rtol = options.get("rtol") or (default.tolerance if default is not None and default.tolerance else 1e-6)

@@ -14,6 +14,7 @@ FMUs ship the plain Python kernels (same results, slower) and a warning says so.
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import shutil
 import subprocess
 import sys
@@ -38,10 +39,9 @@ def mypyc_version() -> Optional[str]:
     """mypy's version when mypyc can be used here, else None."""
     try:
         import mypy.version
-        import mypyc  # noqa: F401
     except ImportError:
         return None
-    return mypy.version.__version__
+    return mypy.version.__version__ if importlib.util.find_spec("mypyc") else None
 
 
 def compiled_kernels() -> list[tuple[Path, str]]:
