@@ -83,23 +83,24 @@ class ModelExchangeUnit(Unit):
 
     def _new_solver(self, time: float) -> Union[Cvode, ExplicitRungeKutta]:
         options = self.component.spec.solver
+        method, max_step = options.get("method", "bdf"), float(options.get("max_step", 0.0))
+        if self.nx:
+            self.call(self.fmu.getContinuousStates, self._x_pointer, self.nx)
+        if method in TABLEAUS:
+            return ExplicitRungeKutta(self.fmu, self._x[:self.nx], time, method, max_step,
+                                      indicators=self._indicators if self.nz else None)
         default = self.info.md.defaultExperiment
         rtol = options.get("rtol") or (default.tolerance if default is not None and default.tolerance else 1e-6)
         rtol = float(rtol)
         if self.nx:
-            self.call(self.fmu.getContinuousStates, self._x_pointer, self.nx)
             nominals = np.ones(self.nx)
             self.call(self.fmu.getNominalsOfContinuousStates, nominals.ctypes.data_as(POINTER(c_double)), self.nx)
             atol = options.get("atol") or rtol * np.abs(nominals)
         else:
             atol = 1.0
-        method = options.get("method", "bdf")
-        if method in TABLEAUS:
-            return ExplicitRungeKutta(self.fmu, self._x[:self.nx], time, method, float(options.get("max_step", 0.0)),
-                                      indicators=self._indicators if self.nz else None)
         return Cvode(self._rhs, self._x.copy(), time, roots=self._roots if self.nz else None, n_roots=self.nz,
-                     rtol=rtol, atol=atol, max_step=float(options.get("max_step", 0.0)),
-                     method=method, max_num_steps=int(options.get("max_num_steps", 100000)))
+                     rtol=rtol, atol=atol, max_step=max_step, method=method,
+                     max_num_steps=int(options.get("max_num_steps", 100000)))
 
     # --- CVODE callbacks ----------------------------------------------------------------------
     def _pointer(self, view: np.ndarray) -> Any:

@@ -68,7 +68,7 @@ def native_binaries() -> NativeBinaries:
     binaries = NativeBinaries(target / "loader.so", target / BRIDGE_NAME)
     if not (binaries.loader.exists() and binaries.bridge.exists()):
         common = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}"]
-        _build_into(target, lambda tmp: (
+        build_into(target, lambda tmp: (
             _run(common + [str(NATIVE_DIR / "loader.c"), "-o", f"{tmp}/loader.so", "-ldl", "-lpthread", "-lm"]),
             _run(common + ["-Wno-deprecated-declarations", f"-I{include}", str(NATIVE_DIR / "bridge.c"),
                            "-o", f"{tmp}/{BRIDGE_NAME}", "-lpthread"])))
@@ -82,13 +82,14 @@ def plain_c_library(source: Path) -> Path:
     target = cache_dir() / "native" / f"{source.stem}-{digest}"
     library = target / f"{source.stem}.so"
     if not library.exists():
-        _build_into(target, lambda tmp: _run([cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
+        build_into(target, lambda tmp: _run([cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
                                               str(source), "-o", f"{tmp}/{library.name}"]))
     return library
 
 
-def _build_into(target: Path, build: Callable[[str], object]) -> None:
-    """Run ``build(directory)`` in a fresh directory and move it to ``target`` atomically."""
+def build_into(target: Path, build: Callable[[str], object]) -> None:
+    """Run ``build(directory)`` in a fresh directory and move it to ``target`` atomically (a
+    concurrent build of the same target may win; its result is then used)."""
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         build(tmp)

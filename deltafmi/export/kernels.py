@@ -26,7 +26,7 @@ from typing import Optional
 
 import deltafmi
 
-from .compiler import cache_dir
+from .compiler import build_into, cache_dir
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: modules compiled into FMUs (their imports are type-checked, not compiled)
@@ -71,21 +71,17 @@ def compiled_kernels() -> list[tuple[Path, str]]:
 
 
 def _compile_into(target: Path) -> None:
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-        work = Path(tmp) / "src"
-        shutil.copytree(PACKAGE_DIR, work / "deltafmi", ignore=shutil.ignore_patterns("__pycache__", "*.so"))
-        modules = [f"deltafmi/{name}" for name in COMPILED_MODULES]
-        subprocess.run([sys.executable, "-m", "mypyc", "--follow-imports=silent", *modules], cwd=work,
-                       check=True, capture_output=True, text=True)
-        out = Path(tmp) / "out"
-        for library in work.rglob(f"*{_SUFFIX}"):
-            if "build" not in library.relative_to(work).parts:
-                destination = out / library.relative_to(work)
-                destination.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy2(library, destination)
-        try:
-            out.rename(target)  # atomic: parallel builds race harmlessly
-        except OSError:
-            if not target.is_dir():
-                raise
+    def build(out: str) -> None:
+        with tempfile.TemporaryDirectory() as tmp:
+            work = Path(tmp)
+            shutil.copytree(PACKAGE_DIR, work / "deltafmi", ignore=shutil.ignore_patterns("__pycache__", "*.so"))
+            modules = [f"deltafmi/{name}" for name in COMPILED_MODULES]
+            subprocess.run([sys.executable, "-m", "mypyc", "--follow-imports=silent", *modules], cwd=work,
+                           check=True, capture_output=True, text=True)
+            for library in work.rglob(f"*{_SUFFIX}"):
+                if "build" not in library.relative_to(work).parts:
+                    destination = Path(out) / library.relative_to(work)
+                    destination.parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copy2(library, destination)
+
+    build_into(target, build)

@@ -117,20 +117,19 @@ class MinimumJerkPath:
         self.waypoints, self.durations, self.dwell, self.t0 = pts, T, D, float(t0)
         # move k starts after all earlier dwells and moves, plus the dwell at waypoint k
         before = np.concatenate(([0.0], np.cumsum(D[:-1] + T)[:-1]))[:len(T)]
-        self._starts = self.t0 + before + D[:-1]
         self.duration = float(D.sum() + T.sum())
-        # float copies for evaluate(): sampled every step, where numpy's per-call cost dominates
-        self._moves = [(float(start), float(Tk), tuple(pts[k].tolist()), tuple((pts[k + 1] - pts[k]).tolist()))
-                       for k, (start, Tk) in enumerate(zip(self._starts, T))]
-        self._start_list = [move[0] for move in self._moves]
+        # plain floats for evaluate(): sampled every step, where numpy's per-call cost dominates
+        self._starts = (self.t0 + before + D[:-1]).tolist()
+        self._moves = [(float(T[k]), tuple(pts[k].tolist()), tuple((pts[k + 1] - pts[k]).tolist()))
+                       for k in range(len(T))]
 
     def evaluate(self, t: float) -> Vector3:
         """Reference position, velocity and acceleration at time ``t``."""
-        k = bisect.bisect_right(self._start_list, t) - 1
+        k = bisect.bisect_right(self._starts, t) - 1
         if k < 0:
             return self.waypoints[0].copy(), np.zeros(3), np.zeros(3)
-        start, T, p, d = self._moves[k]
-        s, ds, dds = minimum_jerk((t - start) / T)
+        T, p, d = self._moves[k]
+        s, ds, dds = minimum_jerk((t - self._starts[k]) / T)
         ds, dds = ds / T, dds / (T * T)
         return (np.array([p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2]]),
                 np.array([ds * d[0], ds * d[1], ds * d[2]]), np.array([dds * d[0], dds * d[1], dds * d[2]]))
