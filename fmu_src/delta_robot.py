@@ -42,6 +42,11 @@ class DeltaRobot(Component):
                         description="Viscous damping on each of the nine joints")
     pole = Parameter(5.0, unit="1/s", min=0.0,
                      description="Baumgarte pole p: hdd + 2 p hd + p^2 h = 0 stabilises the loops")
+    loop_tolerance = Parameter(
+        0.0, unit="m", min=0.0,
+        description="Model Exchange: after an integrator step with loop residual |h| above this, a step "
+        "event projects q and v onto the closed loops (the importer's solver restarts); 0: never, the "
+        "drift is then the importer's integration error (Co-Simulation projects after every step)")
     z0 = Parameter([0.0, 0.0, -1.0], unit="m",
                    description="Initial wrist (plate centre) position; the robot starts at rest")
 
@@ -72,8 +77,13 @@ class DeltaRobot(Component):
         self.v = 0.0
 
     def project(self, t: float) -> None:
-        """CS: close the loops after every solver step (mass-weighted, least kinetic change)."""
+        """Close the loops (mass-weighted, least kinetic change): CS after every solver step, ME at
+        a step event once the residual exceeds loop_tolerance."""
         self.q, self.v = delta.project_to_constraints(self._plant, self.q, self.v)
+
+    def needs_projection(self, t: float) -> bool:
+        tolerance = self.loop_tolerance
+        return tolerance > 0.0 and delta.loop_residual(self._plant, self.q) > tolerance
 
     def derivatives(self, t: float) -> list:
         return delta.state_derivative(self._plant, self.states, self.u, self.f, self.pole)

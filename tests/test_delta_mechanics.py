@@ -316,8 +316,10 @@ def test_projection_closes_loops_with_the_mass_weighted_correction(p, z, dq):
     rng = np.random.default_rng(6)
     q0 = d.inverse_kinematics(p, z) + dq * rng.normal(size=9)
     v0 = rng.normal(size=9)  # far off the tangent space
+    assert d.loop_residual(p, q0) == pytest.approx(np.linalg.norm(d.constraint(p, q0)), rel=1e-9, abs=1e-15)
     q, v = d.project_to_constraints(p, q0, v0)
     assert np.max(np.abs(d.constraint(p, q))) < 1e-13
+    assert d.loop_residual(p, q) < 1e-13
     assert np.max(np.abs(d.constraint_jacobian(p, q) @ v)) < 1e-11
     q_ref, v_ref = dense_projection(p, q0, v0)
     assert np.max(np.abs(q - q_ref)) < 1e-12

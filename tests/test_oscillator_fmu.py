@@ -37,6 +37,7 @@ def test_validates_with_zero_problems(oscillator):
     assert validate_fmu(str(oscillator)) == []
     md = fmpy.read_model_description(str(oscillator))
     assert md.modelExchange and md.coSimulation
+    assert not md.modelExchange.needsCompletedIntegratorStep  # nothing to project: no bridge call
     assert md.coSimulation.canGetAndSetFMUstate and not md.coSimulation.needsExecutionTool
     assert md.numberOfContinuousStates == 2 and md.numberOfEventIndicators == 1
     assert [u.variable.name for u in md.derivatives] == ["der(x)", "der(v)"]

@@ -81,9 +81,19 @@ class Component:
         """Move the states onto an invariant manifold (e.g. closed kinematic loops), in place.
 
         The Co-Simulation solver (CVODE's projection method) calls it after every internal
-        step; Model Exchange importers have no such hook, so there the invariant holds to the
-        integration accuracy only.
+        step. In Model Exchange the importer integrates; there it runs at a step event when
+        :meth:`needs_projection` says the states drifted.
         """
+
+    def needs_projection(self, t: float) -> bool:
+        """Model Exchange: have the states drifted so far off the manifold that they need :meth:`project`?
+
+        Asked at every ``fmi2CompletedIntegratorStep``; True requests a step event, in which
+        :meth:`project` runs and the FMU reports ``valuesOfContinuousStatesChanged`` so the
+        importer restarts its integrator from the projected states. Overriding it makes the FMU
+        declare that it needs ``fmi2CompletedIntegratorStep``.
+        """
+        return False
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` to ``t + h``. Override only for purely discrete components."""
@@ -103,6 +113,11 @@ class Component:
     def overrides_project(cls) -> bool:
         """True when the component projects its states onto an invariant manifold."""
         return cls.project is not Component.project
+
+    @classmethod
+    def watches_drift(cls) -> bool:
+        """True when the component checks its states for drift after every ME integrator step."""
+        return cls.needs_projection is not Component.needs_projection
 
     @classmethod
     def overrides_do_step(cls) -> bool:

@@ -63,7 +63,7 @@ class FmuInstance:
         return (comp._real.ctypes.data, layout.n_real, comp._int.ctypes.data, layout.n_int,
                 layout.flags.ctypes.data, layout.n_str, layout.nx, layout.x_offset,
                 layout.dx_offset, self.event_indicators.ctypes.data, self.nz,
-                layout.nominals.ctypes.data)
+                layout.nominals.ctypes.data, self.component_class.watches_drift())
 
     # --- initialization ---------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:
@@ -115,6 +115,8 @@ class FmuInstance:
         """
         comp = self.component
         states_before = comp._real[: self.nx].copy()
+        if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
+            comp.project(t)
         self.evaluate(t)
         again = bool(comp.update(t))
         changed = not np.array_equal(states_before, comp._real[: self.nx])
@@ -123,6 +125,10 @@ class FmuInstance:
         self._next_time_event = nte
         return (again, self.terminate_requested, False, changed, nte is not None,
                 float(nte) if nte is not None else 0.0)
+
+    def completed_integrator_step(self, t: float) -> bool:
+        """``fmi2CompletedIntegratorStep``: True asks for a step event (the states drifted)."""
+        return bool(self.component.needs_projection(t))
 
     # --- co-simulation ----------------------------------------------------------------------
     def do_step(self, t: float, h: float) -> int:

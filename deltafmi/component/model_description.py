@@ -40,7 +40,8 @@ def model_description_xml(cls: type[Component], guid: str) -> bytes:
         variableNamingConvention="structured", numberOfEventIndicators=str(cls.n_event_indicators)))
     common = dict(modelIdentifier=name, needsExecutionTool="false", canGetAndSetFMUstate="true",
                   canSerializeFMUstate="true", canNotUseMemoryManagementFunctions="true")
-    ET.SubElement(root, "ModelExchange", _attrs(**common, completedIntegratorStepNotNeeded="true"))
+    ET.SubElement(root, "ModelExchange", _attrs(
+        **common, completedIntegratorStepNotNeeded="false" if cls.watches_drift() else "true"))
     ET.SubElement(root, "CoSimulation", _attrs(
         **common, canHandleVariableCommunicationStepSize="true", canInterpolateInputs="false",
         maxOutputDerivativeOrder="0", canRunAsynchronuously="false"))

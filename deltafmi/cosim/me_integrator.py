@@ -11,12 +11,12 @@ nominals changed, the derivatives jumped at the event, or a state event (see :me
 """
 from __future__ import annotations
 
-from ctypes import POINTER, c_double
+from ctypes import POINTER, byref, c_double
 from typing import Any, Callable, Dict, Optional, Union
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Model
+from fmpy.fmi2 import FMU2Model, fmi2Boolean
 
 from deltafmi.component.cvode import Cvode, CvodeError
 
@@ -48,6 +48,7 @@ class ModelExchangeUnit(Unit):
         self.nz = md.numberOfEventIndicators
         self.needs_completed = bool(md.modelExchange.needsCompletedIntegratorStep)
         self.no_prior_state = 1
+        self._step_flags = (fmi2Boolean(), fmi2Boolean())  # enterEventMode, terminateSimulation
         #: called as ``on_event(unit, time, after)`` just before and just after every event (recording)
         self.on_event: Callable[["ModelExchangeUnit", float, bool], None] = lambda unit, time, after: None
         self.next_event_time: Optional[float] = None
@@ -66,6 +67,7 @@ class ModelExchangeUnit(Unit):
         self._set_time, self._set_states = bare_function(fmu, "fmi2SetTime"), bare_function(fmu, "fmi2SetContinuousStates")
         self._get_derivatives = bare_function(fmu, "fmi2GetDerivatives")
         self._get_indicators = bare_function(fmu, "fmi2GetEventIndicators")
+        self._completed_step = bare_function(fmu, "fmi2CompletedIntegratorStep")
 
     def wire_inputs(self, kind: str, *args: Any) -> None:
         super().wire_inputs(kind, *args)
@@ -160,9 +162,11 @@ class ModelExchangeUnit(Unit):
                     self._set_states(self._handle, self._pointer(solver.x), self.nx)
                 step_event = False
                 if self.needs_completed:
-                    step_event, terminate = self.fmu.completedIntegratorStep(self.no_prior_state)
-                    if terminate:
+                    enter, terminate = self._step_flags
+                    self._completed_step(self._handle, self.no_prior_state, byref(enter), byref(terminate))
+                    if terminate.value:
                         raise TerminateRequested(self.name, t)
+                    step_event = bool(enter.value)
                 if root or step_event or (event_time is not None and t >= event_time - eps):
                     stuck = stuck + 1 if t - t_previous <= eps else 0
                     if stuck > _MAX_EVENT_ITERATIONS:

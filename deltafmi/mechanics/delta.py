@@ -7,8 +7,8 @@ Joint vectors are arm-major: q = [q11, q12, q13, q21, q22, q23, q31, q32, q33].
 """
 
 from .delta_dynamics import (PlantEvaluation, accelerations, coriolis, energy, evaluate_plant,
-                             gravity, holding_torque, mass_matrix, project_to_constraints,
-                             state_derivative)
+                             gravity, holding_torque, loop_residual, mass_matrix,
+                             project_to_constraints, state_derivative)
 from .delta_kinematics import (arm_bias, arm_jacobian, arm_psi, constraint, constraint_bias,
                                constraint_jacobian, forward_kinematics, inverse_kinematics,
                                stretched_height, virtual_jacobian, wrist_position,
@@ -21,5 +21,5 @@ __all__ = [
     "inverse_kinematics", "forward_kinematics", "wrist_position", "wrist_velocity",
     "constraint", "constraint_jacobian", "constraint_bias", "virtual_jacobian",
     "mass_matrix", "coriolis", "gravity", "accelerations", "state_derivative", "energy", "holding_torque",
-    "PlantEvaluation", "evaluate_plant", "project_to_constraints",
+    "PlantEvaluation", "evaluate_plant", "loop_residual", "project_to_constraints",
 ]

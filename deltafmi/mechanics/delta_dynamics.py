@@ -41,8 +41,9 @@ The cheaper 3x3 operational-space reduction (sum of W_i^-1) is NOT used: W_i is 
 arm i is stretched, while the 6x6 complement stays regular there, so the model simulates
 through the stretched-arm singularity.
 
-project_to_constraints() (the Co-Simulation solver's projection onto the closed loops) uses the
-same algebra: its mass-weighted corrections M^-1 H^T [la; lb] solve the same Schur complement.
+project_to_constraints() (the projection onto the closed loops: the Co-Simulation solver's after
+every step, the Model Exchange FMU's at its step events) uses the same algebra: its mass-weighted
+corrections M^-1 H^T [la; lb] solve the same Schur complement.
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ from .delta_kinematics import ARM_COS_SIN, constraint_jacobian
 from .delta_params import DeltaParams
 
 __all__ = ["mass_matrix", "coriolis", "gravity", "accelerations", "state_derivative", "energy",
-           "holding_torque", "PlantEvaluation", "evaluate_plant", "project_to_constraints"]
+           "holding_torque", "PlantEvaluation", "evaluate_plant", "loop_residual", "project_to_constraints"]
 
 ArrayLike = Sequence[float] | np.ndarray
 # Fixed-length float tuples: the kernels below are compiled with mypyc into FMUs (see
@@ -461,6 +462,17 @@ def _subtract_response(x: list[float], Y1: F9, Y2: F9, Y3: F9, lam: F6) -> list[
             x[6] + (Y3[0] * lb0 + Y3[1] * lb1 + Y3[2] * lb2),
             x[7] + (Y3[3] * lb0 + Y3[4] * lb1 + Y3[5] * lb2),
             x[8] + (Y3[6] * lb0 + Y3[7] * lb1 + Y3[8] * lb2)]
+
+
+def loop_residual(p: DeltaParams, q: ArrayLike) -> float:
+    """Euclidean norm of the loop-closure residual h(q) (m): what a drift check needs, in floats."""
+    l0l3, l1, l2 = p.l0 - p.l3, p.l1, p.l2
+    (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
+    ql = _as_list(q)
+    h, _ = _loop_residuals(_arm_wrist(cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2], 0.0, 0.0, 0.0),
+                           _arm_wrist(cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5], 0.0, 0.0, 0.0),
+                           _arm_wrist(cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8], 0.0, 0.0, 0.0))
+    return math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2] + h[3] * h[3] + h[4] * h[4] + h[5] * h[5])
 
 
 def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, *, tol: float = 1e-13,

@@ -23,7 +23,8 @@ static const char *const OP_NAMES[DFMI_N_OPS] = {
 typedef struct {
     PyObject *instance;
     PyObject *ops[DFMI_N_OPS];
-    PyObject *event_update, *get_string, *set_string, *get_state, *set_state, *serialize, *deserialize;
+    PyObject *event_update, *completed_step, *get_string, *set_string, *get_state, *set_state;
+    PyObject *serialize, *deserialize;
     PyObject *pending_logs; /* list of (status, category, message) the component queued */
     PyObject *strings;      /* list: last UTF-8 bytes returned per string index (keeps them alive) */
     PyObject *serialized;   /* bytes of the last serialize_state */
@@ -162,6 +163,7 @@ static PyObject *boot_loader(const char *resources_dir, DfmiLogFn log, void *env
 static void release(Bridged *b) {
     for (int i = 0; i < DFMI_N_OPS; i++) Py_XDECREF(b->ops[i]);
     Py_XDECREF(b->event_update);
+    Py_XDECREF(b->completed_step);
     Py_XDECREF(b->get_string);
     Py_XDECREF(b->set_string);
     Py_XDECREF(b->get_state);
@@ -188,16 +190,18 @@ static void *instantiate(const char *resources_dir, const char *instance_name, c
     spec = PyObject_CallMethod(b->instance, "native_layout", NULL);
     unsigned long long real, ints, flags, indicators, nominals;
     Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz;
-    if (!spec || !PyArg_ParseTuple(spec, "KnKnKnnnnKnK", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
-                                   &x_offset, &dx_offset, &indicators, &nz, &nominals))
+    int watches_drift;
+    if (!spec || !PyArg_ParseTuple(spec, "KnKnKnnnnKnKp", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
+                                   &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift))
         goto python_error;
     *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
                            (const unsigned char *)(uintptr_t)flags, (size_t)n_str, (size_t)nx,
                            (size_t)x_offset, (size_t)dx_offset, (double *)(uintptr_t)indicators, (size_t)nz,
-                           (const double *)(uintptr_t)nominals};
+                           (const double *)(uintptr_t)nominals, watches_drift};
     for (int i = 0; i < DFMI_N_OPS; i++)
         if (!(b->ops[i] = PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;
     if (!(b->event_update = PyObject_GetAttrString(b->instance, "event_update")) ||
+        !(b->completed_step = PyObject_GetAttrString(b->instance, "completed_integrator_step")) ||
         !(b->get_string = PyObject_GetAttrString(b->instance, "get_string")) ||
         !(b->set_string = PyObject_GetAttrString(b->instance, "set_string")) ||
         !(b->get_state = PyObject_GetAttrString(b->instance, "get_state")) ||
@@ -237,6 +241,22 @@ static int call(void *handle, DfmiOp op, const double *args, int nargs) {
     for (int i = 0; i < nargs; i++) PyTuple_SetItem(tuple, i, PyFloat_FromDouble(args[i]));
     int status = finish(b, PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
     Py_DECREF(tuple);
+    LEAVE;
+    return status;
+}
+
+static int completed_step(void *handle, double time, int *enter_event_mode) {
+    Bridged *b = handle;
+    ENTER;
+    PyObject *result = PyObject_CallFunction(b->completed_step, "d", time);
+    int status = 0;
+    if (result && (*enter_event_mode = PyObject_IsTrue(result)) >= 0) {
+        Py_DECREF(result);
+        drain_logs(b);
+    } else {
+        Py_XDECREF(result);
+        status = finish(b, NULL, "fmi2CompletedIntegratorStep");
+    }
     LEAVE;
     return status;
 }
@@ -341,7 +361,7 @@ static int deserialize_state(void *handle, const char *bytes, size_t size, void 
 }
 
 static const DfmiBridge BRIDGE = {
-    DFMI_BRIDGE_VERSION, start, instantiate, free_instance, call, event_update, get_string, set_string,
-    get_state, set_state, free_state, serialize_state, deserialize_state};
+    DFMI_BRIDGE_VERSION, start, instantiate, free_instance, call, event_update, completed_step, get_string,
+    set_string, get_state, set_state, free_state, serialize_state, deserialize_state};
 
 EXPORT const DfmiBridge *dfmi_bridge_v1(void) { return &BRIDGE; }

@@ -8,7 +8,7 @@
 
 #include <stddef.h>
 
-#define DFMI_BRIDGE_VERSION 2
+#define DFMI_BRIDGE_VERSION 3
 
 typedef void (*DfmiLogFn)(void *env, int status, const char *category, const char *message);
 
@@ -21,6 +21,7 @@ typedef struct {
     size_t nx, x_offset, dx_offset;
     double *event_indicators;     size_t nz;
     const double *nominals;
+    int watches_drift;            /* fmi2CompletedIntegratorStep asks the model (else: no event) */
 } DfmiLayout;
 
 typedef enum {
@@ -47,6 +48,8 @@ typedef struct {
     /* fmi2NewDiscreteStates: flags = newDiscreteStatesNeeded, terminateSimulation,
      * nominalsChanged, valuesOfContinuousStatesChanged, nextEventTimeDefined. */
     int (*event_update)(void *instance, double time, int flags[5], double *next_event_time);
+    /* fmi2CompletedIntegratorStep (only when the layout watches steps): may request event mode. */
+    int (*completed_step)(void *instance, double time, int *enter_event_mode);
     /* Returned string stays valid until the next get_string on this instance. */
     int (*get_string)(void *instance, size_t index, const char **value);
     int (*set_string)(void *instance, size_t index, const char *value);

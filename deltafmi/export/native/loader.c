@@ -729,7 +729,11 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component component, fmi2Boolean noSe
     if (!enterEventMode || !terminateSimulation) return fail(c, "fmi2CompletedIntegratorStep: NULL argument");
     *enterEventMode = fmi2False;
     *terminateSimulation = fmi2False;
-    return fmi2OK;
+    if (!c->L.watches_drift) return fmi2OK;
+    int enter = 0;
+    int status = c->bridge->completed_step(c->py, c->time, &enter);
+    *enterEventMode = enter ? fmi2True : fmi2False;
+    return settle(c, status);
 }
 
 fmi2Status fmi2SetTime(fmi2Component component, fmi2Real time) {
