@@ -48,7 +48,7 @@ typedef struct {
     /* fmi2NewDiscreteStates: flags = newDiscreteStatesNeeded, terminateSimulation,
      * nominalsChanged, valuesOfContinuousStatesChanged, nextEventTimeDefined. */
     int (*event_update)(void *instance, double time, int flags[5], double *next_event_time);
-    /* fmi2CompletedIntegratorStep (only when the layout watches steps): may request event mode. */
+    /* fmi2CompletedIntegratorStep (only when the layout watches drift): may request event mode. */
     int (*completed_step)(void *instance, double time, int *enter_event_mode);
     /* Returned string stays valid until the next get_string on this instance. */
     int (*get_string)(void *instance, size_t index, const char **value);
