@@ -464,15 +464,18 @@ def _subtract_response(x: list[float], Y1: F9, Y2: F9, Y3: F9, lam: F6) -> list[
             x[8] + (Y3[6] * lb0 + Y3[7] * lb1 + Y3[8] * lb2)]
 
 
+def _closure(l0l3: float, l1: float, l2: float, ql: list[float], vl: list[float]) -> tuple[F6, F6]:
+    """h(q) and H(q) v (as _loop_residuals) straight from the nine joint angles and rates."""
+    (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
+    return _loop_residuals(_arm_wrist(cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2], vl[0], vl[1], vl[2]),
+                           _arm_wrist(cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5], vl[3], vl[4], vl[5]),
+                           _arm_wrist(cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8], vl[6], vl[7], vl[8]))
+
+
 def loop_residual(p: DeltaParams, q: ArrayLike) -> float:
     """Euclidean norm of the loop-closure residual h(q) (m): what a drift check needs, in floats."""
-    l0l3, l1, l2 = p.l0 - p.l3, p.l1, p.l2
-    (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
-    ql = _as_list(q)
-    h, _ = _loop_residuals(_arm_wrist(cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2], 0.0, 0.0, 0.0),
-                           _arm_wrist(cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5], 0.0, 0.0, 0.0),
-                           _arm_wrist(cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8], 0.0, 0.0, 0.0))
-    return math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2] + h[3] * h[3] + h[4] * h[4] + h[5] * h[5])
+    h, _ = _closure(p.l0 - p.l3, p.l1, p.l2, _as_list(q), [0.0] * 9)
+    return math.hypot(*h)
 
 
 def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, *, tol: float = 1e-13,
@@ -519,10 +522,7 @@ def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, *, tol: f
         factors = _schur_factor(W1, W2, W3)
         ql = _subtract_response(ql, Y1, Y2, Y3, _schur_solve(factors, h))
         vl = _subtract_response(vl, Y1, Y2, Y3, _schur_solve(factors, Hv))
-        h, Hv = _loop_residuals(
-            _arm_wrist(cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2], vl[0], vl[1], vl[2]),
-            _arm_wrist(cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5], vl[3], vl[4], vl[5]),
-            _arm_wrist(cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8], vl[6], vl[7], vl[8]))
+        h, Hv = _closure(l0l3, l1, l2, ql, vl)
         if math.hypot(*h) <= tol:
             break
     vl = _subtract_response(vl, Y1, Y2, Y3, _schur_solve(factors, Hv))

@@ -245,18 +245,25 @@ static int call(void *handle, DfmiOp op, const double *args, int nargs) {
     return status;
 }
 
+/* After a call whose result was unpacked into C values (ok): release it and pass the logs on;
+ * when the call raised or its result did not unpack, report that instead. */
+static int unpacked(Bridged *b, PyObject *result, int ok, const char *context) {
+    if (!ok) {
+        Py_XDECREF(result);
+        return finish(b, NULL, context);
+    }
+    Py_DECREF(result);
+    drain_logs(b);
+    return 0;
+}
+
 static int completed_step(void *handle, double time, int *enter_event_mode) {
     Bridged *b = handle;
     ENTER;
     PyObject *result = PyObject_CallFunction(b->completed_step, "d", time);
-    int status = 0;
-    if (result && (*enter_event_mode = PyObject_IsTrue(result)) >= 0) {
-        Py_DECREF(result);
-        drain_logs(b);
-    } else {
-        Py_XDECREF(result);
-        status = finish(b, NULL, "fmi2CompletedIntegratorStep");
-    }
+    int truth = result ? PyObject_IsTrue(result) : -1;
+    *enter_event_mode = truth > 0;
+    int status = unpacked(b, result, truth >= 0, "fmi2CompletedIntegratorStep");
     LEAVE;
     return status;
 }
@@ -265,15 +272,9 @@ static int event_update(void *handle, double time, int flags[5], double *next_ev
     Bridged *b = handle;
     ENTER;
     PyObject *result = PyObject_CallFunction(b->event_update, "d", time);
-    int status = 0;
-    if (result && PyArg_ParseTuple(result, "pppppd", &flags[0], &flags[1], &flags[2], &flags[3], &flags[4],
-                                   next_event_time)) {
-        Py_DECREF(result);
-        drain_logs(b);
-    } else {
-        Py_XDECREF(result);
-        status = finish(b, NULL, "fmi2NewDiscreteStates");
-    }
+    int ok = result && PyArg_ParseTuple(result, "pppppd", &flags[0], &flags[1], &flags[2], &flags[3],
+                                        &flags[4], next_event_time);
+    int status = unpacked(b, result, ok, "fmi2NewDiscreteStates");
     LEAVE;
     return status;
 }
