@@ -1,16 +1,16 @@
 """The example FMU through fmpy (ME and CS) and through a plain C host, against the closed form."""
 from __future__ import annotations
 
-import ctypes
 import subprocess
 
 import fmpy
 import numpy as np
 import pytest
-from fmpy.fmi2 import FMU2Model, FMU2Slave
+from fmpy.fmi2 import FMU2Model
 from fmpy.validation import validate_fmu
 
 from conftest import clean_env, start_model_exchange, unzip
+from host_loops import as_pointer, co_simulation, host_rows, me_env, model_exchange_euler, run_c_host
 from oscillator_analytic import solution
 
 VR = {"x": 0, "v": 1, "F": 11, "energy": 12}
@@ -61,98 +61,27 @@ def test_matches_closed_form(oscillator, fmi_type):
         np.testing.assert_allclose(jumps, impacts, atol=1e-8)
 
 
-def _c_host(host, directory, mode, *args, env=None):
-    md = fmpy.read_model_description(str(directory))
-    out = subprocess.run([str(host), str(directory), "Oscillator", md.guid, mode, *map(str, args)],
-                         capture_output=True, text=True, env=clean_env(**(env or {})), timeout=120)
-    assert out.returncode == 0, out.stderr
-    return out
-
-
-def _rows(text):
-    return np.array([[float(v) for v in line.split(",")] for line in text.strip().splitlines()])
-
-
 def test_c_host_co_simulation_equals_fmpy(c_host, oscillator_dir):
     """No Python in the host process: the binary loads libpython itself, same numbers as fmpy."""
-    rows = _rows(_c_host(c_host, oscillator_dir, "cs", 4.0, 1e-3, VR["x"], VR["v"]).stdout)
-    slave = FMU2Slave(guid=fmpy.read_model_description(str(oscillator_dir)).guid,
-                      unzipDirectory=str(oscillator_dir), modelIdentifier="Oscillator", instanceName="py")
-    slave.instantiate()
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
-    expected = [[0.0, *slave.getReal([0, 1])]]
-    for k in range(1, 4001):
-        slave.doStep((k - 1) * 1e-3, 1e-3)
-        expected.append([k * 1e-3, *slave.getReal([0, 1])])
-    slave.terminate()
-    slave.freeInstance()
-    np.testing.assert_allclose(rows, np.array(expected), rtol=0, atol=1e-12)
+    rows = host_rows(run_c_host(c_host, oscillator_dir, "cs", 4.0, 1e-3, VR["x"], VR["v"]).stdout)
+    expected = co_simulation(oscillator_dir, 4.0, 1e-3, [VR["x"], VR["v"]])
+    np.testing.assert_allclose(rows, expected, rtol=0, atol=1e-12)
     x, _, _ = solution(rows[:, 0])
     assert np.max(np.abs(rows[:, 1] - x)) < 1e-5  # default tolerance 1e-8
 
 
-def _ptr(array):
-    return array.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-
-
-def _python_euler(directory, stop, h):
-    """The C host's ME algorithm, step for step, through fmpy's FMU2Model."""
-    md = fmpy.read_model_description(str(directory))
-    fmu = FMU2Model(guid=md.guid, unzipDirectory=str(directory), modelIdentifier="Oscillator", instanceName="py")
-    fmu.instantiate()
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    fmu.exitInitializationMode()
-    info = fmu.newDiscreteStates()
-    while info[0] and not info[1]:
-        info = fmu.newDiscreteStates()
-    fmu.enterContinuousTimeMode()
-    x, dx, z, z_prev = np.zeros(2), np.zeros(2), np.zeros(1), np.zeros(1)
-    fmu.getContinuousStates(_ptr(x), 2)
-    fmu.getEventIndicators(_ptr(z_prev), 1)
-    t, k, rows = 0.0, 1, [[0.0, *fmu.getReal([0, 1])]]
-    while k <= round(stop / h):
-        t_grid = k * h
-        time_event = info[4] and info[5] <= t_grid
-        t_next = info[5] if time_event else t_grid
-        fmu.getDerivatives(_ptr(dx), 2)
-        x += (t_next - t) * dx
-        t = t_next
-        fmu.setTime(t)
-        fmu.setContinuousStates(_ptr(x), 2)
-        fmu.getEventIndicators(_ptr(z), 1)
-        enter, _ = fmu.completedIntegratorStep()
-        if np.any((z > 0) != (z_prev > 0)) or time_event or enter:
-            fmu.enterEventMode()
-            info = fmu.newDiscreteStates()
-            while info[0] and not info[1]:
-                info = fmu.newDiscreteStates()
-            fmu.enterContinuousTimeMode()
-            if info[3]:
-                fmu.getContinuousStates(_ptr(x), 2)
-            fmu.getEventIndicators(_ptr(z), 1)
-        z_prev[:] = z
-        if t == t_grid:
-            rows.append([t, *fmu.getReal([0, 1])])
-            k += 1
-    fmu.terminate()
-    fmu.freeInstance()
-    return np.array(rows)
-
-
 def test_c_host_model_exchange_equals_python_host(c_host, oscillator_dir):
-    rows = _rows(_c_host(c_host, oscillator_dir, "me", 3.0, 1e-4, VR["x"], VR["v"],
-                         env={"HOST_NX": "2", "HOST_NZ": "1"}).stdout)
-    np.testing.assert_allclose(rows, _python_euler(oscillator_dir, 3.0, 1e-4), rtol=0, atol=1e-12)
+    rows = host_rows(run_c_host(c_host, oscillator_dir, "me", 3.0, 1e-4, VR["x"], VR["v"],
+                                env=me_env(oscillator_dir)).stdout)
+    expected = model_exchange_euler(oscillator_dir, 3.0, 1e-4, [VR["x"], VR["v"]])
+    np.testing.assert_allclose(rows, expected, rtol=0, atol=1e-12)
     # explicit Euler at h = 1e-4 over three impacts: first-order accurate, about 1e-2 m here
     x, _, _ = solution(rows[:, 0])
     assert np.max(np.abs(rows[:, 1] - x)) < 3e-2
 
 
 def test_c_host_errors_do_not_crash(c_host, oscillator_dir):
-    out = _c_host(c_host, oscillator_dir, "error")
+    out = run_c_host(c_host, oscillator_dir, "error")
     assert "getReal_before_init=3" in out.stdout and "doStep_negative=3" in out.stdout
     assert "alive" in out.stdout
     assert "must not be called in state 'instantiated'" in out.stderr
@@ -185,7 +114,7 @@ def test_getters_after_new_states_are_fresh(oscillator_dir):
     start_model_exchange(fmu)
     k, m, c = 39.47841760435743, 1.0, 0.2
     for x, v in [(0.3, -1.0), (-0.2, 2.0)]:
-        fmu.setContinuousStates(_ptr(np.array([x, v])), 2)
+        fmu.setContinuousStates(as_pointer(np.array([x, v])), 2)
         assert fmu.getReal([vr["energy"]])[0] == pytest.approx(0.5 * m * v * v + 0.5 * k * x * x, rel=1e-15)
         assert fmu.getReal([vr["der(v)"], vr["der(x)"]]) == pytest.approx([(-k * x - c * v) / m, v], rel=1e-15)
     fmu.terminate()

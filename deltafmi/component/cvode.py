@@ -12,10 +12,10 @@ from ctypes import byref, c_double, c_int, c_void_p
 from typing import Callable, Optional
 
 import numpy as np
-from fmpy.sundials import cvode as _cv
-from fmpy.sundials.libraries import sundials_cvode
+
+from . import sundials as _sun  # first: binds fmpy's SUNDIALS to its own symbols (see there)
+from fmpy.sundials import cvode as _cv  # noqa: E402  (import order matters)
 from fmpy.sundials.nvector_serial import N_VNew_Serial, NV_DATA_S
-from fmpy.sundials.libraries import sundials_core
 from fmpy.sundials.sundials_context import SUNContext_Create, SUNContext_PushErrHandler
 from fmpy.sundials.sundials_nvector import N_Vector
 from fmpy.sundials.sundials_types import SUN_COMM_NULL, SUNContext, SUNErrHandlerFn
@@ -27,14 +27,12 @@ from fmpy.sundials.cvode_ls import CVodeSetLinearSolver
 
 def _bind(name: str, argtypes: list) -> ctypes._CFuncPtr:
     # a private function object (indexing does not share fmpy's cached one and its argtypes)
-    function = sundials_cvode[name]
+    function = _sun.cvode[name]
     function.argtypes, function.restype = argtypes, c_int
     return function
 
 
 _set_stop_time = _bind("CVodeSetStopTime", [c_void_p, c_double])
-_clear_err_handlers = sundials_core["SUNContext_ClearErrHandlers"]
-_clear_err_handlers.argtypes, _clear_err_handlers.restype = [c_void_p], c_int
 # callbacks take raw addresses: cheaper than fmpy's POINTER(struct) arguments, and hashable
 _RhsFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_void_p)
 _cvode_init = _bind("CVodeInit", [c_void_p, _RhsFn, c_double, c_void_p])
@@ -76,7 +74,7 @@ class Cvode:
         # recovers from a failure should not leave "[ERROR]" lines on stderr
         self.last_message = ""
         self._err_handler = SUNErrHandlerFn(self._on_error)
-        _clear_err_handlers(self._ctx)
+        _sun.SUNContext_ClearErrHandlers(self._ctx)
         SUNContext_PushErrHandler(self._ctx, self._err_handler, None)
         self._y = N_VNew_Serial(n, self._ctx)
         self.x = np.ctypeslib.as_array(NV_DATA_S(self._y), (n,))
@@ -179,10 +177,28 @@ class Cvode:
         _check(_cv.CVodeReInit(self._mem, t, self._y), "CVodeReInit")
         self.t = t
 
+    def free(self) -> None:
+        """Release every SUNDIALS object of this solver (also done on garbage collection).
+
+        The callbacks reference the solver, so without this it lives until the cycle collector
+        runs; owners that drop solvers often (a reset, a restored FMU state) call it at once.
+        """
+        if getattr(self, "_mem", None):
+            _cv.CVodeFree(byref(c_void_p(self._mem)))
+            self._mem = None
+        for name, destroy in (("_LS", _sun.SUNLinSolFree), ("_A", _sun.SUNMatDestroy),
+                              ("_y", _sun.N_VDestroy), ("_atol", _sun.N_VDestroy)):
+            if getattr(self, name, None):
+                destroy(getattr(self, name))
+                setattr(self, name, None)
+        if getattr(self, "_ctx", None):
+            _sun.SUNContext_Free(byref(self._ctx))
+            self._ctx = None
+        self._views = {}
+        self.x = np.zeros(0)
+
     def __del__(self) -> None:
-        mem = getattr(self, "_mem", None)
-        if mem:
-            _cv.CVodeFree(byref(c_void_p(mem)))
+        self.free()
 
 
 def _check(flag: int, what: str) -> None:

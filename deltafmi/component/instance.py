@@ -237,7 +237,7 @@ class FmuInstance:
         cannot be saved, and even ``CVodeReInit`` keeps the latter.
         """
         comp = self.component
-        self._solver = None
+        self._drop_solver()
         internal = {k: v for k, v in vars(comp).items() if k not in _RUNTIME_ATTRIBUTES}
         return {
             "real": comp._real.copy(), "int": comp._int.copy(), "str": list(comp._str),
@@ -259,7 +259,7 @@ class FmuInstance:
         self._next_time_event = state["next_time_event"]
         self.in_initialization = state["in_initialization"]
         self.terminate_requested = state["terminate_requested"]
-        self._solver = None  # a fresh solver, as in get_state()
+        self._drop_solver()  # a fresh solver, as in get_state()
         return OK
 
     def serialize_state(self, state: dict) -> bytes:
@@ -283,8 +283,18 @@ class FmuInstance:
         self._new_component((old._real, old._int, old._str))
         self.time, self.stop_time, self.tolerance = 0.0, math.inf, None
         self.in_initialization = self.terminate_requested = False
-        self._solver, self._next_time_event = None, None
+        self._drop_solver()
+        self._next_time_event = None
         return OK
+
+    def free(self) -> None:
+        """``fmi2FreeInstance``: release the solver now rather than at the next garbage collection."""
+        self._drop_solver()
+
+    def _drop_solver(self) -> None:
+        if self._solver is not None:
+            self._solver.free()
+            self._solver = None
 
     def log(self, status: int, category: str, message: str) -> None:
         """Queue a message for the importer's logger."""

@@ -14,8 +14,13 @@ import importlib.util
 import json
 import os
 import sys
+import types
 
-_LOADED: dict = {}
+# A host may unload the FMU binary and load it again (fmpy's freeInstance does). The models
+# imported so far and this file's load() (see the end) live in one process-wide registry module,
+# where the reloaded binary finds them instead of running this file and importing all anew.
+_REGISTRY = sys.modules.setdefault("_deltafmi_fmu_registry", types.ModuleType("_deltafmi_fmu_registry"))
+_LOADED: dict = _REGISTRY.__dict__.setdefault("loaded", {})
 
 
 class _Bundle:
@@ -69,3 +74,6 @@ def load(resources_dir: str, instance_name: str, guid: str, fmu_type: int):
         raise RuntimeError(f"fmi2Instantiate: GUID {guid} does not match this FMU's {info['guid']} "
                            f"({resources_dir}); the modelDescription.xml and the binary disagree")
     return instance_class(component_class, instance_name, fmu_type, resources_dir, context)
+
+
+_REGISTRY.__dict__.setdefault("boots", {})[__file__] = load

@@ -1,8 +1,10 @@
-"""Compile the native loader and the Python bridge with the system C compiler, once, cached.
+"""Compile the FMU binary (FMI loader + Python bridge) with the system C compiler, once, cached.
 
-The loader is the same for every FMU (FMI 2.0 binaries export un-prefixed fmi2 names), and the
-bridge uses the Python limited API, so both are built once per source version and compiler and
-reused for every FMU. The cache lives in ``$DELTAFMI_CACHE`` (default ``~/.cache/deltafmi``).
+The binary is the same for every FMU (FMI 2.0 binaries export un-prefixed fmi2 names) and binds
+the Python C API at run time (``native/pyapi.h``), so it needs no Python headers and is built once
+per source version and compiler, then reused for every FMU and every CPython >= 3.10. It exports
+the fmi2 functions and nothing else (hidden visibility, see ``exported_symbols``). The cache lives
+in ``$DELTAFMI_CACHE`` (default ``~/.cache/deltafmi``).
 """
 from __future__ import annotations
 
@@ -13,27 +15,16 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 NATIVE_DIR = Path(__file__).parent / "native"
-LOADER_SOURCES = ("loader.c",)
-BRIDGE_SOURCES = ("bridge.c",)
-HEADERS = ("bridge.h", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
-BRIDGE_NAME = "deltafmi_bridge.so"
+SOURCES = ("loader.c", "bridge.c")
+HEADERS = ("bridge.h", "pyapi.h", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 
 
 class BuildError(RuntimeError):
     """The native build failed (no compiler, compiler error, missing Python headers)."""
-
-
-@dataclass(frozen=True)
-class NativeBinaries:
-    """Paths of the compiled loader and bridge."""
-
-    loader: Path
-    bridge: Path
 
 
 def cache_dir() -> Path:
@@ -42,8 +33,8 @@ def cache_dir() -> Path:
 
 
 def native_source_files() -> list[Path]:
-    """Every C source and header that goes into the binaries (and into the FMU's sources/)."""
-    return [NATIVE_DIR / name for name in LOADER_SOURCES + BRIDGE_SOURCES + HEADERS]
+    """Every C source and header that goes into the binary (and into the FMU's sources/)."""
+    return [NATIVE_DIR / name for name in SOURCES + HEADERS]
 
 
 def _compiler() -> str:
@@ -54,25 +45,29 @@ def _compiler() -> str:
     return cc
 
 
-def native_binaries() -> NativeBinaries:
-    """Compiled loader and bridge, from the cache or freshly built."""
+def fmu_binary() -> Path:
+    """The compiled FMU binary, from the cache or freshly built."""
     cc = _compiler()
-    include = sysconfig.get_paths()["include"]
-    if not (Path(include) / "Python.h").exists():
-        raise BuildError(f"Python headers not found in {include}; install the Python development package")
     digest = hashlib.sha256()
     for path in native_source_files():
         digest.update(path.read_bytes())
-    digest.update(f"{cc}|{include}|{sys.version_info[:2]}".encode())
+    digest.update(cc.encode())
     target = cache_dir() / "native" / digest.hexdigest()[:16]
-    binaries = NativeBinaries(target / "loader.so", target / BRIDGE_NAME)
-    if not (binaries.loader.exists() and binaries.bridge.exists()):
-        common = [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}"]
-        build_into(target, lambda tmp: (
-            _run(common + [str(NATIVE_DIR / "loader.c"), "-o", f"{tmp}/loader.so", "-ldl", "-lpthread", "-lm"]),
-            _run(common + ["-Wno-deprecated-declarations", f"-I{include}", str(NATIVE_DIR / "bridge.c"),
-                           "-o", f"{tmp}/{BRIDGE_NAME}", "-lpthread"])))
-    return binaries
+    binary = target / "fmu.so"
+    if not binary.exists():
+        build_into(target, lambda tmp: _run(
+            [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}",
+             *[str(NATIVE_DIR / name) for name in SOURCES], "-o", f"{tmp}/{binary.name}",
+             "-ldl", "-lpthread", "-lm"]))
+    return binary
+
+
+def exported_symbols(library: Path) -> list[str]:
+    """Names of the functions and data a shared library exports (``nm -D --defined-only``)."""
+    result = subprocess.run(["nm", "-D", "--defined-only", str(library)], capture_output=True, text=True)
+    if result.returncode != 0:
+        raise BuildError(f"nm failed on {library}: {result.stderr.strip()}")
+    return sorted(line.split()[-1] for line in result.stdout.splitlines() if line.strip())
 
 
 def plain_c_library(source: Path) -> Path:

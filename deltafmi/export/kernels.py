@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import os
 import shutil
 import subprocess
 import sys
@@ -33,6 +34,8 @@ PACKAGE_DIR = Path(deltafmi.__file__).parent
 COMPILED_MODULES = ("mechanics/delta_kinematics.py", "mechanics/delta_dynamics.py",
                     "mechanics/delta_control_law.py")
 _SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+#: export only PyInit_* (mypyc's runtime helpers, CPy*, stay private to each FMU's copy)
+_CFLAGS = "-fvisibility=hidden"
 
 
 def mypyc_version() -> Optional[str]:
@@ -55,7 +58,7 @@ def compiled_kernels() -> list[tuple[Path, str]]:
                       "(same results, several times slower)", stacklevel=2)
         return []
     sources = sorted((PACKAGE_DIR / "mechanics").glob("*.py"))
-    digest = hashlib.sha256(f"{version}|{sys.version}|{COMPILED_MODULES}".encode())
+    digest = hashlib.sha256(f"{version}|{sys.version}|{COMPILED_MODULES}|{_CFLAGS}".encode())
     for path in sources:
         digest.update(path.name.encode() + path.read_bytes())
     target = cache_dir() / "kernels" / digest.hexdigest()[:16]
@@ -76,8 +79,9 @@ def _compile_into(target: Path) -> None:
             work = Path(tmp)
             shutil.copytree(PACKAGE_DIR, work / "deltafmi", ignore=shutil.ignore_patterns("__pycache__", "*.so"))
             modules = [f"deltafmi/{name}" for name in COMPILED_MODULES]
+            env = dict(os.environ, CFLAGS=f"{os.environ.get('CFLAGS', '')} {_CFLAGS}".strip())
             subprocess.run([sys.executable, "-m", "mypyc", "--follow-imports=silent", *modules], cwd=work,
-                           check=True, capture_output=True, text=True)
+                           env=env, check=True, capture_output=True, text=True)
             for library in work.rglob(f"*{_SUFFIX}"):
                 if "build" not in library.relative_to(work).parts:
                     destination = Path(out) / library.relative_to(work)

@@ -18,7 +18,7 @@ from typing import Optional
 import deltafmi
 from ..component import Component
 from ..component.model_description import model_description_xml
-from .compiler import cache_dir, native_binaries, native_source_files, python_runtime_config
+from .compiler import cache_dir, fmu_binary, native_source_files, python_runtime_config
 from .kernels import compiled_kernels, mypyc_version
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
@@ -85,15 +85,14 @@ def build_fmu(source: Path, output: Optional[Path] = None) -> Path:
     output = Path(output) if output else Path("build") / "fmus" / f"{identifier}.fmu"
     key = content_key(source)
     guid = "{" + str(uuid.uuid5(_GUID_NAMESPACE, key)) + "}"
-    binaries = native_binaries()
+    binary = fmu_binary()
     info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
             "guid": guid, "deltafmi_version": deltafmi.__version__}
     output.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.NamedTemporaryFile(dir=output.parent, suffix=".fmu.tmp", delete=False) as tmp:
         with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as fmu:
             fmu.writestr("modelDescription.xml", model_description_xml(cls, guid))
-            fmu.write(binaries.loader, f"binaries/linux64/{identifier}.so")
-            fmu.write(binaries.bridge, f"binaries/linux64/{binaries.bridge.name}")
+            fmu.write(binary, f"binaries/linux64/{identifier}.so")
             fmu.write(source, f"resources/model/{source.name}")
             fmu.write(PACKAGE_DIR / "export" / "boot.py", "resources/deltafmi_boot.py")
             fmu.writestr("resources/deltafmi.json", json.dumps(info, indent=2))

@@ -4,6 +4,8 @@
  *   host <unzipdir> <identifier> <guid> me    <stop> <step> <vr>...   explicit Euler + event handling
  *   host <unzipdir> <identifier> <guid> bench <n> <input vr> <output vr>  us per set/get/doStep call
  *   host <unzipdir> <identifier> <guid> error                         drive a failing instance
+ *
+ * Built with sundials_preload.c, it first solves an ODE with its own SUNDIALS (a hostile host).
  */
 #include <dlfcn.h>
 #include <math.h>
@@ -29,6 +31,9 @@ static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status
     fputc('\n', stderr);
 }
 
+/* defined by sundials_preload.c in the hostile build; absent (NULL) otherwise */
+void host_preload(void) __attribute__((weak));
+
 static double now(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -53,6 +58,7 @@ int main(int argc, char **argv) {
     char path[4096], uri[4200];
     snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, identifier);
     snprintf(uri, sizeof uri, "file://%s/resources", dir);
+    if (host_preload) host_preload();
     void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!lib) {
         fprintf(stderr, "dlopen: %s\n", dlerror());

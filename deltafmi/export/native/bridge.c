@@ -1,20 +1,19 @@
 /* deltafmi Python bridge: the only native code that touches Python.
  *
- * Built against the Python *limited* API (abi3), without linking libpython: its Python symbols
- * resolve against whatever interpreter is already in the process (a Python host such as fmpy) or
- * against the libpython the loader put there with RTLD_GLOBAL (a C host). One interpreter per
- * process, started once, never finalized; the GIL is released between calls, and every foreign
- * thread gets one Python thread state that it keeps (creating one per call costs ~15 us). */
-#define Py_LIMITED_API 0x030A0000
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
+ * Compiled into the FMU's binary, it reaches Python only through the API bound at run time
+ * (pyapi.h): in the interpreter already in the process (a Python host such as fmpy) or in the
+ * libpython the loader opened (a C host). One interpreter per process, started once, never
+ * finalized; the GIL is released between calls, and every foreign thread gets one Python thread
+ * state that it keeps (creating one per call costs ~15 us). */
+#define _GNU_SOURCE
+#include <dlfcn.h>
 #include <pthread.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "bridge.h"
-
-#define EXPORT __attribute__((visibility("default")))
+#include "pyapi.h"
 
 static const char *const OP_NAMES[DFMI_N_OPS] = {
     "enter_initialization", "exit_initialization", "evaluate", "do_step", "terminate", "reset",
@@ -36,21 +35,44 @@ static pthread_mutex_t g_start_lock = PTHREAD_MUTEX_INITIALIZER;
 static PyObject *g_load; /* load() of the FMU boot module, per resources directory */
 static __thread int g_thread_attached;
 
+DfmiPython py;
+
+int dfmi_bind_python(void *library, char *error, size_t error_size) {
+    DfmiPython api;
+    void *symbol;
+#define DFMI_PYTHON_BIND(type, name, parameters)                                               \
+    if (!(symbol = dlsym(library, #name))) {                                                     \
+        snprintf(error, error_size, "the Python library in this process lacks %s", #name);      \
+        return -1;                                                                              \
+    }                                                                                           \
+    memcpy(&api.name, &symbol, sizeof symbol);
+    DFMI_PYTHON_FUNCTIONS(DFMI_PYTHON_BIND)
+#undef DFMI_PYTHON_BIND
+    symbol = dlsym(library, "Py_SetProgramName");
+    memcpy(&api.Py_SetProgramName, &symbol, sizeof symbol);
+    if (!(api.none = dlsym(library, "_Py_NoneStruct"))) {
+        snprintf(error, error_size, "the Python library in this process lacks _Py_NoneStruct");
+        return -1;
+    }
+    py = api;
+    return 0;
+}
+
 /* ---------------------------------------------------------------------------------------- */
 
 static void attach_thread(void) {
     if (g_thread_attached) return;
-    if (PyGILState_GetThisThreadState() == NULL) {
+    if (py.PyGILState_GetThisThreadState() == NULL) {
         /* a thread Python has never seen: create its thread state and keep it for good by never
          * releasing this first Ensure; later Ensure/Release pairs then only take the GIL */
-        PyGILState_Ensure();
-        PyEval_SaveThread();
+        py.PyGILState_Ensure();
+        py.PyEval_SaveThread();
     }
     g_thread_attached = 1;
 }
 
-#define ENTER attach_thread(); PyGILState_STATE gil_ = PyGILState_Ensure()
-#define LEAVE PyGILState_Release(gil_)
+#define ENTER attach_thread(); PyGILState_STATE gil_ = py.PyGILState_Ensure()
+#define LEAVE py.PyGILState_Release(gil_)
 
 static void send_log(Bridged *b, int status, const char *category, const char *message) {
     if (b && b->log) b->log(b->log_env, status, category, message);
@@ -59,21 +81,21 @@ static void send_log(Bridged *b, int status, const char *category, const char *m
 /* Format the pending Python exception with its traceback and send it to the FMI logger. */
 static void report_exception(DfmiLogFn log, void *env, const char *context) {
     PyObject *type, *value, *tb;
-    PyErr_Fetch(&type, &value, &tb);
-    PyErr_NormalizeException(&type, &value, &tb);
+    py.PyErr_Fetch(&type, &value, &tb);
+    py.PyErr_NormalizeException(&type, &value, &tb);
     const char *text = NULL;
-    PyObject *joined = NULL, *lines = NULL, *traceback = PyImport_ImportModule("traceback");
+    PyObject *joined = NULL, *lines = NULL, *traceback = py.PyImport_ImportModule("traceback");
     if (traceback) {
-        lines = PyObject_CallMethod(traceback, "format_exception", "OOO", type ? type : Py_None,
+        lines = py.PyObject_CallMethod(traceback, "format_exception", "OOO", type ? type : Py_None,
                                     value ? value : Py_None, tb ? tb : Py_None);
-        PyObject *empty = PyUnicode_FromString("");
-        if (lines && empty) joined = PyUnicode_Join(empty, lines);
+        PyObject *empty = py.PyUnicode_FromString("");
+        if (lines && empty) joined = py.PyUnicode_Join(empty, lines);
         Py_XDECREF(empty);
-        if (joined) text = PyUnicode_AsUTF8AndSize(joined, NULL);
+        if (joined) text = py.PyUnicode_AsUTF8AndSize(joined, NULL);
     }
     char buffer[8192];
     snprintf(buffer, sizeof buffer, "%s: Python exception\n%s", context, text ? text : "(traceback unavailable)");
-    PyErr_Clear();
+    py.PyErr_Clear();
     if (log) log(env, 3, "logStatusError", buffer);
     Py_XDECREF(joined);
     Py_XDECREF(lines);
@@ -84,24 +106,24 @@ static void report_exception(DfmiLogFn log, void *env, const char *context) {
 }
 
 static void drain_logs(Bridged *b) {
-    Py_ssize_t n = PyList_Size(b->pending_logs);
+    Py_ssize_t n = py.PyList_Size(b->pending_logs);
     if (n <= 0) return;
     for (Py_ssize_t i = 0; i < n; i++) {
-        PyObject *item = PyList_GetItem(b->pending_logs, i); /* borrowed */
+        PyObject *item = py.PyList_GetItem(b->pending_logs, i); /* borrowed */
         int status = 0;
         const char *category = "logInfo", *message = "";
-        if (PyTuple_Check(item) && PyTuple_Size(item) == 3) {
-            status = (int)PyLong_AsLong(PyTuple_GetItem(item, 0));
-            category = PyUnicode_AsUTF8AndSize(PyTuple_GetItem(item, 1), NULL);
-            message = PyUnicode_AsUTF8AndSize(PyTuple_GetItem(item, 2), NULL);
+        if (py.PyTuple_Size(item) == 3) { /* anything else raised: cleared below */
+            status = (int)py.PyLong_AsLong(py.PyTuple_GetItem(item, 0));
+            category = py.PyUnicode_AsUTF8AndSize(py.PyTuple_GetItem(item, 1), NULL);
+            message = py.PyUnicode_AsUTF8AndSize(py.PyTuple_GetItem(item, 2), NULL);
         }
-        if (PyErr_Occurred()) {
-            PyErr_Clear();
+        if (py.PyErr_Occurred()) {
+            py.PyErr_Clear();
             continue;
         }
         send_log(b, status, category ? category : "logInfo", message ? message : "");
     }
-    PyList_SetSlice(b->pending_logs, 0, n, NULL);
+    py.PyList_SetSlice(b->pending_logs, 0, n, NULL);
 }
 
 /* A method's result as an FMI status: None -> OK, an int -> that status, NULL -> error. */
@@ -110,8 +132,10 @@ static int finish(Bridged *b, PyObject *result, const char *context) {
     if (!result) {
         report_exception(b->log, b->log_env, context);
         status = 3;
-    } else if (PyLong_Check(result)) {
-        status = (int)PyLong_AsLong(result);
+    } else {
+        long value = py.PyLong_AsLong(result); /* None (or anything not an integer): OK */
+        if (value == -1 && py.PyErr_Occurred()) py.PyErr_Clear();
+        else status = (int)value;
     }
     Py_XDECREF(result);
     drain_logs(b);
@@ -120,23 +144,23 @@ static int finish(Bridged *b, PyObject *result, const char *context) {
 
 /* ---------------------------------------------------------------------------------------- */
 
-static int start(const char *python_executable, char *error, size_t error_size) {
+int bridge_start(void *python, const char *python_executable, char *error, size_t error_size) {
     pthread_mutex_lock(&g_start_lock);
-    int status = 0;
-    if (!Py_IsInitialized()) {
+    int status = dfmi_bind_python(python, error, error_size);
+    if (status == 0 && !py.Py_IsInitialized()) {
         if (python_executable && python_executable[0]) {
             /* the interpreter's path decides sys.prefix, hence the site-packages (numpy, scipy) */
             static wchar_t *program; /* must outlive the interpreter */
-            program = Py_DecodeLocale(python_executable, NULL);
-            if (program) Py_SetProgramName(program);
+            program = py.Py_DecodeLocale(python_executable, NULL);
+            if (program && py.Py_SetProgramName) py.Py_SetProgramName(program);
         }
-        Py_InitializeEx(0);
-        if (!Py_IsInitialized()) {
+        py.Py_InitializeEx(0);
+        if (!py.Py_IsInitialized()) {
             snprintf(error, error_size, "could not start the Python interpreter '%s'", python_executable);
             status = -1;
         } else {
-            PyRun_SimpleString("import sys\nif not getattr(sys, 'argv', None): sys.argv = ['']\n");
-            PyEval_SaveThread(); /* release the GIL; this thread keeps its thread state */
+            py.PyRun_SimpleString("import sys\nif not getattr(sys, 'argv', None): sys.argv = ['']\n");
+            py.PyEval_SaveThread(); /* release the GIL; this thread keeps its thread state */
             g_thread_attached = 1;
         }
     }
@@ -144,14 +168,25 @@ static int start(const char *python_executable, char *error, size_t error_size) 
     return status;
 }
 
+/* load() of resources/deltafmi_boot.py. A host may unload this binary and load it again (fmpy's
+ * freeInstance does), which forgets g_load: the boot file keeps its load() in a process-wide
+ * registry module, so the file runs once per process, not once per load of the binary. */
 static PyObject *boot_loader(const char *resources_dir, DfmiLogFn log, void *env) {
     if (g_load) return g_load;
     char path[4352];
     snprintf(path, sizeof path, "%s/deltafmi_boot.py", resources_dir);
-    PyObject *runpy = PyImport_ImportModule("runpy");
-    PyObject *globals = runpy ? PyObject_CallMethod(runpy, "run_path", "s", path) : NULL;
+    PyObject *registry = py.PyImport_ImportModule("_deltafmi_fmu_registry");
+    PyObject *boots = registry ? py.PyObject_GetAttrString(registry, "boots") : NULL;
+    g_load = boots ? py.PyDict_GetItemString(boots, path) : NULL; /* borrowed */
+    Py_XINCREF(g_load);
+    Py_XDECREF(boots);
+    Py_XDECREF(registry);
+    py.PyErr_Clear();
+    if (g_load) return g_load;
+    PyObject *runpy = py.PyImport_ImportModule("runpy");
+    PyObject *globals = runpy ? py.PyObject_CallMethod(runpy, "run_path", "s", path) : NULL;
     if (globals) {
-        g_load = PyDict_GetItemString(globals, "load");
+        g_load = py.PyDict_GetItemString(globals, "load");
         Py_XINCREF(g_load);
     }
     if (!g_load) report_exception(log, env, "fmi2Instantiate: loading resources/deltafmi_boot.py");
@@ -174,24 +209,24 @@ static void release(Bridged *b) {
     Py_XDECREF(b->strings);
     Py_XDECREF(b->serialized);
     Py_XDECREF(b->instance);
-    PyMem_Free(b);
+    py.PyMem_Free(b);
 }
 
-static void *instantiate(const char *resources_dir, const char *instance_name, const char *guid,
-                         int fmu_type, DfmiLogFn log, void *log_env, DfmiLayout *layout) {
+void *bridge_instantiate(const char *resources_dir, const char *instance_name, const char *guid,
+                                int fmu_type, DfmiLogFn log, void *log_env, DfmiLayout *layout) {
     ENTER;
-    Bridged *b = PyMem_Calloc(1, sizeof *b);
+    Bridged *b = py.PyMem_Calloc(1, sizeof *b);
     PyObject *load = boot_loader(resources_dir, log, log_env), *spec = NULL;
     if (!b || !load) goto fail;
     b->log = log;
     b->log_env = log_env;
-    b->instance = PyObject_CallFunction(load, "sssi", resources_dir, instance_name, guid, fmu_type);
+    b->instance = py.PyObject_CallFunction(load, "sssi", resources_dir, instance_name, guid, fmu_type);
     if (!b->instance) goto python_error;
-    spec = PyObject_CallMethod(b->instance, "native_layout", NULL);
+    spec = py.PyObject_CallMethod(b->instance, "native_layout", NULL);
     unsigned long long real, ints, flags, indicators, nominals;
     Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz;
     int watches_drift;
-    if (!spec || !PyArg_ParseTuple(spec, "KnKnKnnnnKnKp", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
+    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKp", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
                                    &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift))
         goto python_error;
     *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
@@ -199,21 +234,21 @@ static void *instantiate(const char *resources_dir, const char *instance_name, c
                            (size_t)x_offset, (size_t)dx_offset, (double *)(uintptr_t)indicators, (size_t)nz,
                            (const double *)(uintptr_t)nominals, watches_drift};
     for (int i = 0; i < DFMI_N_OPS; i++)
-        if (!(b->ops[i] = PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;
-    if (!(b->event_update = PyObject_GetAttrString(b->instance, "event_update")) ||
-        !(b->completed_step = PyObject_GetAttrString(b->instance, "completed_integrator_step")) ||
-        !(b->get_string = PyObject_GetAttrString(b->instance, "get_string")) ||
-        !(b->set_string = PyObject_GetAttrString(b->instance, "set_string")) ||
-        !(b->get_state = PyObject_GetAttrString(b->instance, "get_state")) ||
-        !(b->set_state = PyObject_GetAttrString(b->instance, "set_state")) ||
-        !(b->serialize = PyObject_GetAttrString(b->instance, "serialize_state")) ||
-        !(b->deserialize = PyObject_GetAttrString(b->instance, "deserialize_state")) ||
-        !(b->pending_logs = PyObject_GetAttrString(b->instance, "pending_logs")) ||
-        !(b->strings = PyList_New(n_str)))
+        if (!(b->ops[i] = py.PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;
+    if (!(b->event_update = py.PyObject_GetAttrString(b->instance, "event_update")) ||
+        !(b->completed_step = py.PyObject_GetAttrString(b->instance, "completed_integrator_step")) ||
+        !(b->get_string = py.PyObject_GetAttrString(b->instance, "get_string")) ||
+        !(b->set_string = py.PyObject_GetAttrString(b->instance, "set_string")) ||
+        !(b->get_state = py.PyObject_GetAttrString(b->instance, "get_state")) ||
+        !(b->set_state = py.PyObject_GetAttrString(b->instance, "set_state")) ||
+        !(b->serialize = py.PyObject_GetAttrString(b->instance, "serialize_state")) ||
+        !(b->deserialize = py.PyObject_GetAttrString(b->instance, "deserialize_state")) ||
+        !(b->pending_logs = py.PyObject_GetAttrString(b->instance, "pending_logs")) ||
+        !(b->strings = py.PyList_New(n_str)))
         goto python_error;
     for (Py_ssize_t i = 0; i < n_str; i++) {
         Py_INCREF(Py_None);
-        PyList_SetItem(b->strings, i, Py_None);
+        py.PyList_SetItem(b->strings, i, Py_None);
     }
     Py_DECREF(spec);
     drain_logs(b);
@@ -228,18 +263,23 @@ fail:
     return NULL;
 }
 
-static void free_instance(void *handle) {
+void bridge_free_instance(void *handle) {
+    Bridged *b = handle;
     ENTER;
-    release(handle);
+    /* the instance releases its solver now, not at the next garbage collection */
+    PyObject *result = py.PyObject_CallMethod(b->instance, "free", NULL);
+    if (!result) py.PyErr_Clear();
+    Py_XDECREF(result);
+    release(b);
     LEAVE;
 }
 
-static int call(void *handle, DfmiOp op, const double *args, int nargs) {
+int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
     Bridged *b = handle;
     ENTER;
-    PyObject *tuple = PyTuple_New(nargs);
-    for (int i = 0; i < nargs; i++) PyTuple_SetItem(tuple, i, PyFloat_FromDouble(args[i]));
-    int status = finish(b, PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
+    PyObject *tuple = py.PyTuple_New(nargs);
+    for (int i = 0; i < nargs; i++) py.PyTuple_SetItem(tuple, i, py.PyFloat_FromDouble(args[i]));
+    int status = finish(b, py.PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
     Py_DECREF(tuple);
     LEAVE;
     return status;
@@ -257,38 +297,38 @@ static int unpacked(Bridged *b, PyObject *result, int ok, const char *context) {
     return 0;
 }
 
-static int completed_step(void *handle, double time, int *enter_event_mode) {
+int bridge_completed_step(void *handle, double time, int *enter_event_mode) {
     Bridged *b = handle;
     ENTER;
-    PyObject *result = PyObject_CallFunction(b->completed_step, "d", time);
-    int truth = result ? PyObject_IsTrue(result) : -1;
+    PyObject *result = py.PyObject_CallFunction(b->completed_step, "d", time);
+    int truth = result ? py.PyObject_IsTrue(result) : -1;
     *enter_event_mode = truth > 0;
     int status = unpacked(b, result, truth >= 0, "fmi2CompletedIntegratorStep");
     LEAVE;
     return status;
 }
 
-static int event_update(void *handle, double time, int flags[5], double *next_event_time) {
+int bridge_event_update(void *handle, double time, int flags[5], double *next_event_time) {
     Bridged *b = handle;
     ENTER;
-    PyObject *result = PyObject_CallFunction(b->event_update, "d", time);
-    int ok = result && PyArg_ParseTuple(result, "pppppd", &flags[0], &flags[1], &flags[2], &flags[3],
+    PyObject *result = py.PyObject_CallFunction(b->event_update, "d", time);
+    int ok = result && py.PyArg_ParseTuple(result, "pppppd", &flags[0], &flags[1], &flags[2], &flags[3],
                                         &flags[4], next_event_time);
     int status = unpacked(b, result, ok, "fmi2NewDiscreteStates");
     LEAVE;
     return status;
 }
 
-static int get_string(void *handle, size_t index, const char **value) {
+int bridge_get_string(void *handle, size_t index, const char **value) {
     Bridged *b = handle;
     ENTER;
     int status = 0;
-    PyObject *text = PyObject_CallFunction(b->get_string, "n", (Py_ssize_t)index);
-    PyObject *bytes = text ? PyUnicode_AsUTF8String(text) : NULL;
+    PyObject *text = py.PyObject_CallFunction(b->get_string, "n", (Py_ssize_t)index);
+    PyObject *bytes = text ? py.PyUnicode_AsUTF8String(text) : NULL;
     Py_XDECREF(text);
     if (bytes) {
-        *value = PyBytes_AsString(bytes);
-        PyList_SetItem(b->strings, (Py_ssize_t)index, bytes); /* steals; keeps the bytes alive */
+        *value = py.PyBytes_AsString(bytes);
+        py.PyList_SetItem(b->strings, (Py_ssize_t)index, bytes); /* steals; keeps the bytes alive */
     } else {
         status = finish(b, NULL, "fmi2GetString");
     }
@@ -296,47 +336,47 @@ static int get_string(void *handle, size_t index, const char **value) {
     return status;
 }
 
-static int set_string(void *handle, size_t index, const char *value) {
+int bridge_set_string(void *handle, size_t index, const char *value) {
     Bridged *b = handle;
     ENTER;
-    int status = finish(b, PyObject_CallFunction(b->set_string, "ns", (Py_ssize_t)index, value), "fmi2SetString");
+    int status = finish(b, py.PyObject_CallFunction(b->set_string, "ns", (Py_ssize_t)index, value), "fmi2SetString");
     LEAVE;
     return status;
 }
 
-static int get_state(void *handle, void **state) {
+int bridge_get_state(void *handle, void **state) {
     Bridged *b = handle;
     ENTER;
-    PyObject *snapshot = PyObject_CallNoArgs(b->get_state);
+    PyObject *snapshot = py.PyObject_CallNoArgs(b->get_state);
     *state = snapshot;
     int status = snapshot ? 0 : finish(b, NULL, "fmi2GetFMUstate");
     LEAVE;
     return status;
 }
 
-static int set_state(void *handle, void *state) {
+int bridge_set_state(void *handle, void *state) {
     Bridged *b = handle;
     ENTER;
-    int status = finish(b, PyObject_CallFunctionObjArgs(b->set_state, (PyObject *)state, NULL), "fmi2SetFMUstate");
+    int status = finish(b, py.PyObject_CallFunctionObjArgs(b->set_state, (PyObject *)state, NULL), "fmi2SetFMUstate");
     LEAVE;
     return status;
 }
 
-static void free_state(void *state) {
+void bridge_free_state(void *state) {
     if (!state) return;
     ENTER;
     Py_DECREF((PyObject *)state);
     LEAVE;
 }
 
-static int serialize_state(void *handle, void *state, const char **bytes, size_t *size) {
+int bridge_serialize_state(void *handle, void *state, const char **bytes, size_t *size) {
     Bridged *b = handle;
     ENTER;
     int status = 0;
-    PyObject *data = PyObject_CallFunctionObjArgs(b->serialize, (PyObject *)state, NULL);
+    PyObject *data = py.PyObject_CallFunctionObjArgs(b->serialize, (PyObject *)state, NULL);
     char *buffer;
     Py_ssize_t n;
-    if (data && PyBytes_AsStringAndSize(data, &buffer, &n) == 0) {
+    if (data && py.PyBytes_AsStringAndSize(data, &buffer, &n) == 0) {
         Py_XDECREF(b->serialized);
         b->serialized = data; /* keeps *bytes valid until the next call */
         *bytes = buffer;
@@ -349,20 +389,14 @@ static int serialize_state(void *handle, void *state, const char **bytes, size_t
     return status;
 }
 
-static int deserialize_state(void *handle, const char *bytes, size_t size, void **state) {
+int bridge_deserialize_state(void *handle, const char *bytes, size_t size, void **state) {
     Bridged *b = handle;
     ENTER;
-    PyObject *data = PyBytes_FromStringAndSize(bytes, (Py_ssize_t)size);
-    PyObject *snapshot = data ? PyObject_CallFunctionObjArgs(b->deserialize, data, NULL) : NULL;
+    PyObject *data = py.PyBytes_FromStringAndSize(bytes, (Py_ssize_t)size);
+    PyObject *snapshot = data ? py.PyObject_CallFunctionObjArgs(b->deserialize, data, NULL) : NULL;
     Py_XDECREF(data);
     *state = snapshot;
     int status = snapshot ? 0 : finish(b, NULL, "fmi2DeSerializeFMUstate");
     LEAVE;
     return status;
 }
-
-static const DfmiBridge BRIDGE = {
-    DFMI_BRIDGE_VERSION, start, instantiate, free_instance, call, event_update, completed_step, get_string,
-    set_string, get_state, set_state, free_state, serialize_state, deserialize_state};
-
-EXPORT const DfmiBridge *dfmi_bridge_v1(void) { return &BRIDGE; }

@@ -1,14 +1,12 @@
-/* The interface between the plain-C FMI loader and the Python bridge.
+/* The interface between the FMI loader and the Python bridge, two parts of one binary.
  *
- * The loader (loader.c) exports the fmi2 functions and never touches Python. Once libpython is in
- * the process it dlopen()s the bridge (bridge.c, built against the Python limited API) and calls
- * dfmi_bridge_v1() to get this table. Status codes are fmi2Status values (0 OK .. 3 error). */
+ * The loader (loader.c) implements the fmi2 functions and never touches Python. Once libpython is
+ * in the process it starts the bridge (bridge.c), which reaches Python only through the API table
+ * bound at run time (pyapi.h). Status codes are fmi2Status values (0 OK .. 3 error). */
 #ifndef DELTAFMI_BRIDGE_H
 #define DELTAFMI_BRIDGE_H
 
 #include <stddef.h>
-
-#define DFMI_BRIDGE_VERSION 3
 
 typedef void (*DfmiLogFn)(void *env, int status, const char *category, const char *message);
 
@@ -36,31 +34,29 @@ typedef enum {
     DFMI_N_OPS
 } DfmiOp;
 
-typedef struct {
-    int version;
-    /* Start (or attach to) the interpreter; python_executable names it for sys.prefix. */
-    int (*start)(const char *python_executable, char *error, size_t error_size);
-    /* Load the FMU's Python model and create one instance; NULL on failure (logged). */
-    void *(*instantiate)(const char *resources_dir, const char *instance_name, const char *guid,
-                         int fmu_type, DfmiLogFn log, void *log_env, DfmiLayout *layout);
-    void (*free_instance)(void *instance);
-    int (*call)(void *instance, DfmiOp op, const double *args, int nargs);
-    /* fmi2NewDiscreteStates: flags = newDiscreteStatesNeeded, terminateSimulation,
-     * nominalsChanged, valuesOfContinuousStatesChanged, nextEventTimeDefined. */
-    int (*event_update)(void *instance, double time, int flags[5], double *next_event_time);
-    /* fmi2CompletedIntegratorStep (only when the layout watches drift): may request event mode. */
-    int (*completed_step)(void *instance, double time, int *enter_event_mode);
-    /* Returned string stays valid until the next get_string on this instance. */
-    int (*get_string)(void *instance, size_t index, const char **value);
-    int (*set_string)(void *instance, size_t index, const char *value);
-    int (*get_state)(void *instance, void **state);       /* *state: new opaque snapshot */
-    int (*set_state)(void *instance, void *state);
-    void (*free_state)(void *state);
-    /* Serialize into a bridge-owned buffer valid until the next call on this instance. */
-    int (*serialize_state)(void *instance, void *state, const char **bytes, size_t *size);
-    int (*deserialize_state)(void *instance, const char *bytes, size_t size, void **state);
-} DfmiBridge;
+/* The bridge's functions (bridge.c, compiled into the same binary as the loader). */
 
-typedef const DfmiBridge *(*DfmiBridgeEntry)(void);
+/* Bind the Python API in `python` (RTLD_DEFAULT or a libpython handle) and start (or attach to)
+ * the interpreter; python_executable names it for sys.prefix. 0 on success. */
+int bridge_start(void *python, const char *python_executable, char *error, size_t error_size);
+/* Load the FMU's Python model and create one instance; NULL on failure (logged). */
+void *bridge_instantiate(const char *resources_dir, const char *instance_name, const char *guid,
+                         int fmu_type, DfmiLogFn log, void *log_env, DfmiLayout *layout);
+void bridge_free_instance(void *instance);
+int bridge_call(void *instance, DfmiOp op, const double *args, int nargs);
+/* fmi2NewDiscreteStates: flags = newDiscreteStatesNeeded, terminateSimulation,
+ * nominalsChanged, valuesOfContinuousStatesChanged, nextEventTimeDefined. */
+int bridge_event_update(void *instance, double time, int flags[5], double *next_event_time);
+/* fmi2CompletedIntegratorStep (only when the layout watches drift): may request event mode. */
+int bridge_completed_step(void *instance, double time, int *enter_event_mode);
+/* Returned string stays valid until the next get_string on this instance. */
+int bridge_get_string(void *instance, size_t index, const char **value);
+int bridge_set_string(void *instance, size_t index, const char *value);
+int bridge_get_state(void *instance, void **state);       /* *state: new opaque snapshot */
+int bridge_set_state(void *instance, void *state);
+void bridge_free_state(void *state);
+/* Serialize into a bridge-owned buffer valid until the next call on this instance. */
+int bridge_serialize_state(void *instance, void *state, const char **bytes, size_t *size);
+int bridge_deserialize_state(void *instance, const char *bytes, size_t size, void **state);
 
 #endif

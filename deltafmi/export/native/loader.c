@@ -3,9 +3,12 @@
  * It exports every fmi2 function of Model Exchange and Co-Simulation, enforces the FMI 2.0 state
  * machine, and reads/writes the model's value buffers directly (the Python instance owns them and
  * hands over their addresses), so getters and setters never enter Python. Work that needs the
- * model goes through the Python bridge (bridge.c), which is dlopen()ed only once libpython is in
- * the process: reused when the host already runs Python, otherwise loaded from the library named
- * in resources/python.cfg (written at build time) or by $DELTAFMI_LIBPYTHON. */
+ * model goes through the Python bridge (bridge.c, linked into this binary), started once libpython
+ * is in the process: the host's when it already runs Python, otherwise the library named in
+ * resources/python.cfg (written at build time) or by $DELTAFMI_LIBPYTHON.
+ *
+ * Built with hidden visibility: the binary exports the fmi2 functions and nothing else, so it can
+ * neither interpose on a host's symbols nor be interposed by them. */
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <math.h>
@@ -54,7 +57,6 @@ typedef struct {
     int outputs_dirty; /* outputs are stale (a solver asking for derivatives does not need them) */
     DfmiLayout L;
     void *py;
-    const DfmiBridge *bridge;
 } Instance;
 
 typedef struct {
@@ -67,7 +69,7 @@ typedef struct {
 #define STATE_MAGIC 0x64666d69u /* "dfmi" */
 
 static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;
-static const DfmiBridge *g_bridge;
+static int g_bridge_started;
 
 /* ---------------------------------------------------------------------------------------- */
 /* logging                                                                                   */
@@ -179,47 +181,34 @@ static void read_config(const char *resources, char *library, char *executable, 
     fclose(f);
 }
 
-static const DfmiBridge *load_bridge(const char *resources, char *error, size_t size) {
+/* Start the Python bridge once per process; 0 on success, else -1 with the reason in error. */
+static int start_bridge(const char *resources, char *error, size_t size) {
     pthread_mutex_lock(&g_lock);
-    if (g_bridge) {
+    if (g_bridge_started) {
         pthread_mutex_unlock(&g_lock);
-        return g_bridge;
+        return 0;
     }
-    char library[4096] = "", executable[4096] = "", directory[4096], path[4352];
+    char library[4096] = "", executable[4096] = "";
     read_config(resources, library, executable, sizeof library);
     if (getenv("DELTAFMI_LIBPYTHON")) snprintf(library, sizeof library, "%s", getenv("DELTAFMI_LIBPYTHON"));
     if (getenv("DELTAFMI_PYTHON")) snprintf(executable, sizeof executable, "%s", getenv("DELTAFMI_PYTHON"));
-    const DfmiBridge *bridge = NULL;
-    if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
-        /* no Python in the host: load libpython globally so the bridge and numpy resolve it */
+    void *python = RTLD_DEFAULT; /* the host's Python (RTLD_DEFAULT is NULL: see `found`) */
+    int found = dlsym(RTLD_DEFAULT, "Py_IsInitialized") != NULL;
+    if (!found) {
+        /* no Python in the host: load libpython globally, as extension modules (numpy) expect */
         if (!library[0]) {
             snprintf(error, size, "no Python in this process and no library in %s/python.cfg; "
                      "set DELTAFMI_LIBPYTHON to a libpython3.x.so", resources);
-            goto done;
-        }
-        if (!dlopen(library, RTLD_NOW | RTLD_GLOBAL)) {
+        } else if (!(python = dlopen(library, RTLD_NOW | RTLD_GLOBAL))) {
             snprintf(error, size, "cannot load Python library '%s' (set DELTAFMI_LIBPYTHON): %s",
                      library, dlerror());
-            goto done;
+        } else {
+            found = 1;
         }
     }
-    own_directory(directory, sizeof directory);
-    snprintf(path, sizeof path, "%s/deltafmi_bridge.so", directory);
-    void *handle = dlopen(path, RTLD_NOW | RTLD_LOCAL);
-    if (!handle) {
-        snprintf(error, size, "cannot load the Python bridge '%s': %s", path, dlerror());
-        goto done;
-    }
-    DfmiBridgeEntry entry = (DfmiBridgeEntry)dlsym(handle, "dfmi_bridge_v1");
-    if (!entry || entry()->version != DFMI_BRIDGE_VERSION) {
-        snprintf(error, size, "'%s' is not a deltafmi bridge of version %d", path, DFMI_BRIDGE_VERSION);
-        goto done;
-    }
-    if (entry()->start(executable, error, size) != 0) goto done;
-    bridge = g_bridge = entry();
-done:
+    if (found && bridge_start(python, executable, error, size) == 0) g_bridge_started = 1;
     pthread_mutex_unlock(&g_lock);
-    return bridge;
+    return g_bridge_started ? 0 : -1;
 }
 
 /* resources URI -> path: file:///a/b, file:/a/b, file://localhost/a/b, with %XX decoding */
@@ -285,12 +274,11 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     c->tolerance = NAN;
     char *resources = resources_path(fmuResourceLocation);
     char error[2048] = "";
-    c->bridge = resources ? load_bridge(resources, error, sizeof error) : NULL;
-    if (!c->bridge) {
+    if (!resources || start_bridge(resources, error, sizeof error) != 0) {
         emit(functions, instanceName, fmi2Error, "logStatusError", error[0] ? error : "out of memory");
     } else {
-        c->py = c->bridge->instantiate(resources, instanceName, fmuGUID ? fmuGUID : "", (int)fmuType,
-                                       bridge_log, c, &c->L);
+        c->py = bridge_instantiate(resources, instanceName, fmuGUID ? fmuGUID : "", (int)fmuType,
+                                   bridge_log, c, &c->L);
     }
     free(resources);
     if (!c->py) {
@@ -306,7 +294,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 void fmi2FreeInstance(fmi2Component component) {
     Instance *c = component;
     if (!c) return;
-    if (c->py) c->bridge->free_instance(c->py);
+    if (c->py) bridge_free_instance(c->py);
     free(c->name);
     free(c);
 }
@@ -339,7 +327,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component component) {
     CHECK("fmi2EnterInitializationMode", Instantiated);
     double args[3] = {c->start_time, c->stop_defined ? c->stop_time : NAN,
                       c->tolerance_defined ? c->tolerance : NAN};
-    int status = c->bridge->call(c->py, DFMI_ENTER_INITIALIZATION, args, 3);
+    int status = bridge_call(c->py, DFMI_ENTER_INITIALIZATION, args, 3);
     if (status < fmi2Error) {
         c->state = InitializationMode;
         c->time = c->start_time;
@@ -351,7 +339,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component component) {
 fmi2Status fmi2ExitInitializationMode(fmi2Component component) {
     Instance *c = component;
     CHECK("fmi2ExitInitializationMode", InitializationMode);
-    int status = c->bridge->call(c->py, DFMI_EXIT_INITIALIZATION, NULL, 0);
+    int status = bridge_call(c->py, DFMI_EXIT_INITIALIZATION, NULL, 0);
     if (status < fmi2Error) {
         c->state = c->type == fmi2ModelExchange ? EventMode : StepComplete;
         c->last_successful_time = c->time;
@@ -363,7 +351,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component component) {
 fmi2Status fmi2Terminate(fmi2Component component) {
     Instance *c = component;
     CHECK("fmi2Terminate", EventMode | ContinuousTimeMode | StepComplete | StepFailed);
-    int status = c->bridge->call(c->py, DFMI_TERMINATE, NULL, 0);
+    int status = bridge_call(c->py, DFMI_TERMINATE, NULL, 0);
     if (status < fmi2Error) c->state = Terminated;
     return settle(c, status);
 }
@@ -371,7 +359,7 @@ fmi2Status fmi2Terminate(fmi2Component component) {
 fmi2Status fmi2Reset(fmi2Component component) {
     Instance *c = component;
     CHECK("fmi2Reset", ANY_INSTANCE);
-    int status = c->bridge->call(c->py, DFMI_RESET, NULL, 0);
+    int status = bridge_call(c->py, DFMI_RESET, NULL, 0);
     if (status < fmi2Error) {
         c->state = Instantiated;
         c->time = c->start_time = 0.0;
@@ -390,7 +378,7 @@ fmi2Status fmi2Reset(fmi2Component component) {
 /* Everything up to date, for getters of variable values. */
 static fmi2Status ensure_evaluated(Instance *c) {
     if (!(c->dirty || c->outputs_dirty) || !(c->state & MASK_EVALUATE)) return fmi2OK;
-    int status = c->bridge->call(c->py, DFMI_EVALUATE, &c->time, 1);
+    int status = bridge_call(c->py, DFMI_EVALUATE, &c->time, 1);
     if (status < fmi2Error) c->dirty = c->outputs_dirty = 0;
     return settle(c, status);
 }
@@ -398,7 +386,7 @@ static fmi2Status ensure_evaluated(Instance *c) {
 /* Derivatives and event indicators up to date: the integrator's hot path. */
 static fmi2Status ensure_derivatives(Instance *c) {
     if (!c->dirty || !(c->state & MASK_EVALUATE)) return fmi2OK;
-    int status = c->bridge->call(c->py, DFMI_EVALUATE_DERIVATIVES, &c->time, 1);
+    int status = bridge_call(c->py, DFMI_EVALUATE_DERIVATIVES, &c->time, 1);
     if (status < fmi2Error) c->dirty = 0; /* the outputs stay stale */
     return settle(c, status);
 }
@@ -413,7 +401,7 @@ static fmi2Status ensure_values(Instance *c, const fmi2ValueReference vr[], size
         derivatives = vr[i] >= c->L.dx_offset && vr[i] < c->L.dx_offset + c->L.nx;
     if (c->dirty && derivatives) return ensure_evaluated(c);
     if (!c->outputs_dirty) return fmi2OK;
-    int status = c->bridge->call(c->py, DFMI_EVALUATE_OUTPUTS, &c->time, 1);
+    int status = bridge_call(c->py, DFMI_EVALUATE_OUTPUTS, &c->time, 1);
     if (status < fmi2Error) c->outputs_dirty = 0; /* the derivatives may stay stale */
     return settle(c, status);
 }
@@ -535,7 +523,7 @@ fmi2Status fmi2GetString(fmi2Component component, const fmi2ValueReference vr[],
         if (!string_index(c, vr[i], &index))
             return fail(c, "fmi2GetString: %u is not the value reference of a String", vr[i]);
         /* the bridge keeps each returned string alive until the next call for the same index */
-        int status = c->bridge->get_string(c->py, index, &value[i]);
+        int status = bridge_get_string(c->py, index, &value[i]);
         if (status >= fmi2Error) return settle(c, status);
     }
     return fmi2OK;
@@ -552,7 +540,7 @@ fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueReference vr[],
             return fail(c, "fmi2SetString: %u is not the value reference of a String", vr[i]);
         if (!(bit & (SET_INSTANTIATED | SET_INITIALIZATION)))
             return fail(c, "fmi2SetString: string parameters cannot be set in state '%s'", state_name(c->state));
-        int status = c->bridge->set_string(c->py, index, value[i] ? value[i] : "");
+        int status = bridge_set_string(c->py, index, value[i] ? value[i] : "");
         if (status >= fmi2Error) return settle(c, status);
     }
     c->dirty = c->outputs_dirty = 1;
@@ -570,7 +558,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *FMUstate) {
     if (!FMUstate) return fail(c, "fmi2GetFMUstate: NULL argument");
     SavedState *saved = *FMUstate;
     if (saved && saved->magic == STATE_MAGIC) { /* the importer may hand back an old state to reuse */
-        c->bridge->free_state(saved->py);
+        bridge_free_state(saved->py);
     } else {
         saved = calloc(1, sizeof *saved);
         if (!saved) return fail(c, "fmi2GetFMUstate: out of memory");
@@ -578,7 +566,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *FMUstate) {
     saved->magic = STATE_MAGIC;
     saved->time = c->time;
     saved->last_successful_time = c->last_successful_time;
-    int status = c->bridge->get_state(c->py, &saved->py);
+    int status = bridge_get_state(c->py, &saved->py);
     if (status >= fmi2Error) {
         free(saved);
         *FMUstate = NULL;
@@ -598,7 +586,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate FMUstate) {
     CHECK("fmi2SetFMUstate", MASK_FMU_STATE);
     SavedState *saved = as_saved(FMUstate);
     if (!saved) return fail(c, "fmi2SetFMUstate: not an FMU state of this FMU");
-    int status = c->bridge->set_state(c->py, saved->py);
+    int status = bridge_set_state(c->py, saved->py);
     if (status < fmi2Error) {
         c->time = saved->time;
         c->last_successful_time = saved->last_successful_time;
@@ -613,7 +601,7 @@ fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *FMUstate) {
     if (!FMUstate || !*FMUstate) return fmi2OK;
     SavedState *saved = as_saved(*FMUstate);
     if (!saved) return fail(c, "fmi2FreeFMUstate: not an FMU state of this FMU");
-    c->bridge->free_state(saved->py);
+    bridge_free_state(saved->py);
     saved->magic = 0;
     free(saved);
     *FMUstate = NULL;
@@ -630,7 +618,7 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2FMUstate FMUs
     if (!saved || !size) return fail(c, "fmi2SerializedFMUstateSize: invalid argument");
     const char *bytes;
     size_t n;
-    int status = c->bridge->serialize_state(c->py, saved->py, &bytes, &n);
+    int status = bridge_serialize_state(c->py, saved->py, &bytes, &n);
     if (status >= fmi2Error) return settle(c, status);
     *size = HEADER_SIZE + n;
     return fmi2OK;
@@ -644,7 +632,7 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUstate FMUstate,
     if (!saved || !serializedState) return fail(c, "fmi2SerializeFMUstate: invalid argument");
     const char *bytes;
     size_t n;
-    int status = c->bridge->serialize_state(c->py, saved->py, &bytes, &n);
+    int status = bridge_serialize_state(c->py, saved->py, &bytes, &n);
     if (status >= fmi2Error) return settle(c, status);
     if (size < HEADER_SIZE + n) return fail(c, "fmi2SerializeFMUstate: buffer of %zu bytes is too small", size);
     uint32_t magic = STATE_MAGIC;
@@ -668,7 +656,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fmi2Byte seria
     saved->magic = STATE_MAGIC;
     memcpy(&saved->time, serializedState + sizeof magic, sizeof(double));
     memcpy(&saved->last_successful_time, serializedState + sizeof magic + sizeof(double), sizeof(double));
-    int status = c->bridge->deserialize_state(c->py, serializedState + HEADER_SIZE, size - HEADER_SIZE, &saved->py);
+    int status = bridge_deserialize_state(c->py, serializedState + HEADER_SIZE, size - HEADER_SIZE, &saved->py);
     if (status >= fmi2Error) {
         free(saved);
         return settle(c, status);
@@ -702,7 +690,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component component, fmi2EventInfo *eventIn
     if (!eventInfo) return fail(c, "fmi2NewDiscreteStates: NULL eventInfo");
     int flags[5] = {0, 0, 0, 0, 0};
     double next = 0.0;
-    int status = c->bridge->event_update(c->py, c->time, flags, &next);
+    int status = bridge_event_update(c->py, c->time, flags, &next);
     /* the FMU owns fmi2EventInfo: every field is written, whatever happened */
     eventInfo->newDiscreteStatesNeeded = flags[0] ? fmi2True : fmi2False;
     eventInfo->terminateSimulation = flags[1] ? fmi2True : fmi2False;
@@ -731,7 +719,7 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component component, fmi2Boolean noSe
     *terminateSimulation = fmi2False;
     if (!c->L.watches_drift) return fmi2OK;
     int enter = 0;
-    int status = c->bridge->completed_step(c->py, c->time, &enter);
+    int status = bridge_completed_step(c->py, c->time, &enter);
     *enterEventMode = enter ? fmi2True : fmi2False;
     return settle(c, status);
 }
@@ -817,7 +805,7 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
     if (!(communicationStepSize > 0.0))
         return fail(c, "fmi2DoStep: communicationStepSize must be > 0, got %g", communicationStepSize);
     double args[2] = {currentCommunicationPoint, communicationStepSize};
-    int status = c->bridge->call(c->py, DFMI_DO_STEP, args, 2);
+    int status = bridge_call(c->py, DFMI_DO_STEP, args, 2);
     if (status == fmi2OK || status == fmi2Warning) {
         c->time = currentCommunicationPoint + communicationStepSize;
         c->last_successful_time = c->time;
