@@ -132,8 +132,8 @@ static int finish(Bridged *b, PyObject *result, const char *context) {
     if (!result) {
         report_exception(b->log, b->log_env, context);
         status = 3;
-    } else {
-        long value = py.PyLong_AsLong(result); /* None (or anything not an integer): OK */
+    } else if (result != Py_None) { /* None is OK; so is anything else but an integer */
+        long value = py.PyLong_AsLong(result);
         if (value == -1 && py.PyErr_Occurred()) py.PyErr_Clear();
         else status = (int)value;
     }
