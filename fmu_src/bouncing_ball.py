@@ -2,7 +2,7 @@
 import numpy as np
 
 from deltafmi.component import Component, Experiment, Output, Parameter, State
-from deltafmi.mechanics.bouncing_ball import ModelicaBouncingBall
+from deltafmi.mechanics.examples.bouncing_ball import ModelicaBouncingBall
 
 
 class BouncingBall(Component):

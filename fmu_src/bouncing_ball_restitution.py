@@ -2,9 +2,9 @@
 import numpy as np
 
 from deltafmi.component import Experiment, HybridSystemComponent, Input, Output, Parameter, State
-from deltafmi.mechanics.bouncing_ball import BallModel
-from deltafmi.mechanics.collision_law import CollisionLaw
-from deltafmi.mechanics.contact import ContactSystem
+from deltafmi.mechanics.examples.bouncing_ball import BallModel
+from deltafmi.mechanics.contact.collision_law import CollisionLaw
+from deltafmi.mechanics.contact.system import ContactSystem
 
 
 class BouncingBallRestitution(HybridSystemComponent):

@@ -1,6 +1,7 @@
-"""Delta robot controller FMU: a thin sampled component over deltafmi.mechanics.delta_control."""
+"""Delta robot controller FMU: a thin sampled component over deltafmi.mechanics.delta.control."""
 from deltafmi.component import Component, Experiment, Input, Output, Parameter
-from deltafmi.mechanics import delta_control, delta_params
+from deltafmi.mechanics.delta import control as delta_control
+from deltafmi.mechanics.delta import params as delta_params
 
 _D = delta_params.RL5
 _PARAMS = ("l0", "l1", "l2", "l3", "m1", "r1", "J1", "Jm", "m2", "mp", "payload", "g", "damping")

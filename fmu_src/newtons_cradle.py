@@ -2,8 +2,8 @@
 import numpy as np
 
 from deltafmi.component import Experiment, HybridSystemComponent, Output, Parameter, State
-from deltafmi.mechanics.collision_law import CollisionLaw
-from deltafmi.mechanics.newtons_cradle import make_cradle, momentum
+from deltafmi.mechanics.contact.collision_law import CollisionLaw
+from deltafmi.mechanics.examples.newtons_cradle import make_cradle, momentum
 
 N_MAX = 7
 

@@ -1,8 +1,8 @@
-"""Wrist reference trajectory FMU: a thin component over deltafmi.mechanics.trajectory."""
+"""Wrist reference trajectory FMU: a thin component over deltafmi.mechanics.delta.trajectory."""
 import os
 
 from deltafmi.component import Component, Experiment, Output, Parameter
-from deltafmi.mechanics.trajectory import CirclePath, MinimumJerkPath, RecordedPath
+from deltafmi.mechanics.delta.trajectory import CirclePath, MinimumJerkPath, RecordedPath
 
 MAX_WAYPOINTS = 8
 

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from deltafmi.mechanics.bouncing_ball import (bounce_figures, energy_gain_per_bounce,
+from deltafmi.mechanics.examples.bouncing_ball import (bounce_figures, energy_gain_per_bounce,
                                               free_flight_apexes, make_bouncing_ball)
-from deltafmi.mechanics.contact import Mode
-from deltafmi.mechanics.hybrid_sim import simulate
+from deltafmi.mechanics.contact.system import Mode
+from deltafmi.mechanics.contact.hybrid_sim import simulate
 
 G = 9.81
 

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from deltafmi.mechanics.box_on_table import make_box_drop
-from deltafmi.mechanics.collision_law import CollisionLaw, calibrate, elastic_duration
-from deltafmi.mechanics.contact import ContactSystem
-from deltafmi.mechanics.hybrid_sim import simulate
-from deltafmi.mechanics.newtons_cradle import ChainModel
+from deltafmi.mechanics.examples.box_on_table import make_box_drop
+from deltafmi.mechanics.contact.collision_law import CollisionLaw, calibrate, elastic_duration
+from deltafmi.mechanics.contact.system import ContactSystem
+from deltafmi.mechanics.contact.hybrid_sim import simulate
+from deltafmi.mechanics.examples.newtons_cradle import ChainModel
 
 
 @pytest.mark.parametrize("p", [1.0, 1.5, 3.0])

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from deltafmi.mechanics.bouncing_ball import bounce_figures
-from deltafmi.mechanics.hybrid_sim import simulate
-from deltafmi.mechanics.newtons_cradle import make_cradle
+from deltafmi.mechanics.examples.bouncing_ball import bounce_figures
+from deltafmi.mechanics.contact.hybrid_sim import simulate
+from deltafmi.mechanics.examples.newtons_cradle import make_cradle
 
 G = 9.81
 BOTH = ["ModelExchange", "CoSimulation"]

@@ -11,8 +11,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from deltafmi.mechanics import delta as d
-from deltafmi.mechanics import delta_control as dc
-from deltafmi.mechanics.trajectory import CirclePath, MinimumJerkPath
+from deltafmi.mechanics.delta import control as dc
+from deltafmi.mechanics.delta.trajectory import CirclePath, MinimumJerkPath
 
 P = d.RL5
 IY, IX = [0, 3, 6], [1, 2, 4, 5, 7, 8]

@@ -164,7 +164,7 @@ def test_fmu_kernels_are_compiled_and_agree_with_the_library(robot, tmp_path):
     from fmpy.fmi2 import FMU2Model
 
     names = zipfile.ZipFile(robot).namelist()
-    assert any(n.startswith("resources/python/deltafmi/mechanics/delta_dynamics.") and n.endswith(".so")
+    assert any(n.startswith("resources/python/deltafmi/mechanics/delta/dynamics.") and n.endswith(".so")
                for n in names)
     md = fmpy.read_model_description(str(robot))
     vr = {v.name: v.valueReference for v in md.modelVariables}

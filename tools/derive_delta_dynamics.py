@@ -6,7 +6,7 @@ Builds the arm's kinetic and potential energy from body positions (upper arm abo
 axis, forearm as a thin rod integrated along its length, one third of the plate as a point mass
 at the arm end), forms m(q), c(q, v) = mdot v - dT/dq and g(q) = dV/dq, the wrist map psi, its
 Jacobian and velocity-product term, prints them, proves them equal to the closed forms written in
-deltafmi/mechanics/delta_dynamics.py's docstring, and checks deltafmi.mechanics.delta numerically
+deltafmi/mechanics/delta/dynamics.py's docstring, and checks deltafmi.mechanics.delta numerically
 at random states. Exits non-zero on any mismatch.
 """
 
@@ -57,7 +57,7 @@ def derive() -> dict[str, sp.Matrix]:
 
 
 def closed_forms(S: dict) -> dict[str, sp.Matrix]:
-    """The closed forms as written in delta_dynamics' docstring, transcribed to sympy."""
+    """The closed forms as written in delta.dynamics' docstring, transcribed to sympy."""
     q1, q2, q3, v1, v2, v3 = (S[k] for k in ("q1", "q2", "q3", "v1", "v2", "v3"))
     l1, l2, m1, r1, J1, Jm, m2, mpa, g = (S[k] for k in
                                           ("l1", "l2", "m1", "r1", "J1", "Jm", "m2", "mpa", "g"))

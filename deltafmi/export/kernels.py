@@ -1,7 +1,7 @@
 """Compile deltafmi's numeric kernels with mypyc for the FMUs that bundle them.
 
 The delta robot's derivative function and the controller are hand-written float algebra (see
-``deltafmi/mechanics/delta_dynamics.py``): fast for Python, but still a few hundred interpreted
+``deltafmi/mechanics/delta/dynamics.py``): fast for Python, but still a few hundred interpreted
 float operations per call. mypyc (the compiler that ships with mypy) turns exactly such typed
 modules into C extension modules with unboxed floats and fixed-length tuples, same semantics,
 about 3-5x faster. An FMU carries the compiled modules next to their sources in
@@ -31,8 +31,8 @@ from .compiler import build_into, cache_dir
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: modules compiled into FMUs (their imports are type-checked, not compiled)
-COMPILED_MODULES = ("mechanics/delta_kinematics.py", "mechanics/delta_dynamics.py",
-                    "mechanics/delta_control_law.py")
+COMPILED_MODULES = ("mechanics/delta/kinematics.py", "mechanics/delta/dynamics.py",
+                    "mechanics/delta/control_law.py")
 _SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 #: export only PyInit_* (mypyc's runtime helpers, CPy*, stay private to each FMU's copy)
 _CFLAGS = "-fvisibility=hidden"
@@ -57,10 +57,10 @@ def compiled_kernels() -> list[tuple[Path, str]]:
         warnings.warn("mypy (mypyc) is not installed: FMUs ship plain Python kernels "
                       "(same results, several times slower)", stacklevel=2)
         return []
-    sources = sorted((PACKAGE_DIR / "mechanics").glob("*.py"))
+    sources = sorted((PACKAGE_DIR / "mechanics").rglob("*.py"))
     digest = hashlib.sha256(f"{version}|{sys.version}|{COMPILED_MODULES}|{_CFLAGS}".encode())
     for path in sources:
-        digest.update(path.name.encode() + path.read_bytes())
+        digest.update(path.relative_to(PACKAGE_DIR).as_posix().encode() + path.read_bytes())
     target = cache_dir() / "kernels" / digest.hexdigest()[:16]
     if not target.is_dir():
         try:

@@ -1,2 +1,8 @@
-"""Numerical mechanics with no FMI inside: delta robot kinematics and dynamics, control-side
-math, trajectories and multi-mode contact. Bundled into FMUs, so it imports only numpy/scipy."""
+"""Numerical mechanics with no FMI inside. Bundled into FMUs, so it imports only numpy/scipy.
+
+- :mod:`.delta`: the delta robot (parameters, kinematics, stabilised DAE dynamics, control law
+  and sampled controller, wrist trajectories);
+- :mod:`.contact`: the multi-mode FREE / COLLISION / CONTACT framework and its collision law;
+- :mod:`.examples`: the talk's contact examples built on it (bouncing ball, Newton's cradle,
+  box on a table).
+"""

@@ -53,8 +53,8 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from .delta_kinematics import ARM_COS_SIN, constraint_jacobian
-from .delta_params import DeltaParams
+from .kinematics import ARM_COS_SIN, constraint_jacobian
+from .params import DeltaParams
 
 __all__ = ["mass_matrix", "coriolis", "gravity", "accelerations", "state_derivative", "energy",
            "holding_torque", "PlantEvaluation", "evaluate_plant", "loop_residual", "project_to_constraints"]

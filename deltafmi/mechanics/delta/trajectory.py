@@ -22,7 +22,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .delta_control import inverse_kinematics_servo
+from .control import inverse_kinematics_servo
 
 Vector3 = tuple[np.ndarray, np.ndarray, np.ndarray]
 

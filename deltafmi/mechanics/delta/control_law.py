@@ -27,10 +27,10 @@ reordered M but drops the constraint force those rows carry (dh/dy != 0). The ex
 used here (implicitly) and returned by :func:`reduced_inertia`, is the projection
 My = T^T M T, q' = T y', T = [I; dg/dy] in (y, x) order: symmetric positive definite.
 
-Frame and parameters as in ``deltafmi.mechanics.delta_params`` (DESIGN.md); any object with the
+Frame and parameters as in ``deltafmi.mechanics.delta.params`` (DESIGN.md); any object with the
 ``DeltaParams`` attributes works, so the controller's model may differ from the plant's.
 
-The stateful sampled controller and numpy analysis helpers are in :mod:`.delta_control`; this
+The stateful sampled controller and numpy analysis helpers are in :mod:`.control`; this
 module is the pure law (compiled into FMUs with mypyc, hence the fixed-length float tuples).
 """
 

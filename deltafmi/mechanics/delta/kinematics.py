@@ -22,7 +22,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .delta_params import ARM_ROTATIONS, R2, R3, DeltaParams
+from .params import ARM_ROTATIONS, R2, R3, DeltaParams
 
 __all__ = [
     "arm_psi",

@@ -1,19 +1,21 @@
-"""Delta robot plant as a numpy library: the public face of the delta mechanics.
+"""The delta robot as a numpy library: plant, controller, trajectories.
 
-Re-exports the parameters and frame (:mod:`.delta_params`), the kinematics in the seed talk's
-nine joint angles (:mod:`.delta_kinematics`) and the stabilised DAE dynamics
-(:mod:`.delta_dynamics`). Conventions (frame, psi, branches, RL5 defaults) follow DESIGN.md.
+This package re-exports the plant: the parameters and frame (:mod:`.params`), the kinematics in
+the seed talk's nine joint angles (:mod:`.kinematics`) and the stabilised DAE dynamics
+(:mod:`.dynamics`). Its other modules: the feedback-linearising control law (:mod:`.control_law`)
+and the sampled controller around it (:mod:`.control`), wrist reference trajectories
+(:mod:`.trajectory`). Conventions (frame, psi, branches, RL5 defaults) follow DESIGN.md.
 Joint vectors are arm-major: q = [q11, q12, q13, q21, q22, q23, q31, q32, q33].
 """
 
-from .delta_dynamics import (PlantEvaluation, accelerations, coriolis, energy, evaluate_plant,
+from .dynamics import (PlantEvaluation, accelerations, coriolis, energy, evaluate_plant,
                              gravity, holding_torque, loop_residual, mass_matrix,
                              project_to_constraints, state_derivative)
-from .delta_kinematics import (arm_bias, arm_jacobian, arm_psi, constraint, constraint_bias,
+from .kinematics import (arm_bias, arm_jacobian, arm_psi, constraint, constraint_bias,
                                constraint_jacobian, forward_kinematics, inverse_kinematics,
                                stretched_height, virtual_jacobian, wrist_position,
                                wrist_velocity)
-from .delta_params import ARM_ROTATIONS, R2, R3, RL5, DeltaParams, rot_z
+from .params import ARM_ROTATIONS, R2, R3, RL5, DeltaParams, rot_z
 
 __all__ = [
     "DeltaParams", "RL5", "R2", "R3", "ARM_ROTATIONS", "rot_z",

@@ -10,8 +10,8 @@ from typing import Optional
 
 import numpy as np
 
-from .collision_law import CollisionLaw
-from .contact import ContactSystem, LagrangianModel
+from ..contact.collision_law import CollisionLaw
+from ..contact.system import ContactSystem, LagrangianModel
 
 
 class BoxModel(LagrangianModel):

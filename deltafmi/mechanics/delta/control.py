@@ -1,6 +1,6 @@
 """The delta robot's sampled controller (:class:`DeltaController`) and numpy analysis helpers
 (forward/inverse kinematics, control Jacobian, gravity torque, reduced inertia, inverse
-dynamics) around the control law of :mod:`.delta_control_law`, whose docstring explains it.
+dynamics) around the control law of :mod:`.control_law`, whose docstring explains it.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .delta_control_law import (_ROT, STATUS_ILL_CONDITIONED, STATUS_INTEGRAL_CLAMPED,
+from .control_law import (_ROT, STATUS_ILL_CONDITIONED, STATUS_INTEGRAL_CLAMPED,
                                 STATUS_OK, STATUS_SINGULAR, STATUS_TORQUE_SATURATED, ControlLaw,
                                 ControlOutput, _angles, _closed_fk, _directions, _elbows, _f3,
                                 _forearms_from_z, _model, _newton_fk, describe_status, evaluate,

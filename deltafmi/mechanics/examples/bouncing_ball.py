@@ -34,9 +34,9 @@ from typing import Callable, Optional
 import numpy as np
 from scipy.optimize import brentq
 
-from .collision_law import CollisionLaw
-from .contact import ContactSystem, LagrangianModel
-from .hybrid_sim import HybridResult, simulate
+from ..contact.collision_law import CollisionLaw
+from ..contact.system import ContactSystem, LagrangianModel
+from ..contact.hybrid_sim import HybridResult, simulate
 
 
 class ModelicaBouncingBall:
