@@ -9,7 +9,11 @@ Every constraint has a mode:
   ``lambda_i = m_eff_i * a(delta_i, delta_i')`` with ``m_eff_i = 1 / (H_i M^-1 H_i^T)`` frozen at
   the impact instant. Each contact is its own two-body impact: touching chains pass a wave.
 * CONTACT: the talk's soft stabilised constraint ``h'' + alpha1 h' + alpha0 h = 0``, solved jointly
-  for the multipliers of all contacts in CONTACT, while ``lambda_i > 0``.
+  for the multipliers of all contacts in CONTACT, while ``lambda_i > 0``; or, for a contact whose
+  law is a :class:`~.material.CompliantMaterial`, its spring-damper ``(k delta + c delta')_+``.
+
+The model's own dynamics may carry constraints of its own (a closed-loop robot): such a model
+supplies ``contact_dynamics`` and ``contact_mobility`` instead of ``M`` and ``Q``.
 
 Transitions happen only at events (two indicators per constraint, fixed count) and never change
 the continuous state. :class:`ContactSystem` maps 1:1 onto a Model-Exchange FMU: ``derivatives``,
@@ -25,6 +29,11 @@ from typing import Optional, Sequence, Union
 import numpy as np
 
 from .collision_law import CollisionLaw
+from .material import CompliantMaterial
+
+#: a contact's law: a collision law (rigid contact: the talk's stabilised constraint in CONTACT)
+#: or a compliant material (its spring-damper in CONTACT, a matched collision law in COLLISION)
+Law = Union[CollisionLaw, CompliantMaterial]
 
 
 #: relative offset of the indicators (see ``ContactSystem._indicator_pair``)
@@ -81,6 +90,28 @@ class LagrangianModel:
         """``v^T M v / 2``."""
         return 0.5 * float(v @ self.mass_matrix(q) @ v)
 
+    def inputs_key(self, t: float, q: np.ndarray, v: np.ndarray) -> bytes:
+        """Bytes that differ whenever the dynamics at the same ``(t, q, v)`` may differ (the
+        model's inputs), for caching. Default: the applied forces."""
+        return np.asarray(self.applied_forces(t, q, v), float).tobytes()
+
+    # Optional, both or neither: dynamics with constraints of the model's own (closed loops).
+    def contact_dynamics(self, t: float, q: np.ndarray, v: np.ndarray, H: np.ndarray,
+                         lam: np.ndarray) -> np.ndarray:
+        """``v'`` under the contact multipliers ``lam`` (force ``H^T lam``), shape (n_q,).
+
+        Override (with :meth:`contact_mobility`) when ``M v' = Q + H^T lam`` is not the whole
+        story, e.g. a robot whose closed kinematic loops add multipliers of their own. By default
+        :class:`ContactSystem` solves that equation itself (honouring its frozen coordinates).
+        """
+        raise NotImplementedError
+
+    def contact_mobility(self, t: float, q: np.ndarray, v: np.ndarray, H: np.ndarray,
+                         rows: Sequence[int]) -> np.ndarray:
+        """``d v' / d lam_i`` for the constraints ``rows``, shape (n_q, len(rows)): ``M^-1 H_i^T``
+        for a free system, the constrained response for a model with loops of its own."""
+        raise NotImplementedError
+
 
 class _Evaluation:
     """Everything the modes need at one (t, x), computed once."""
@@ -98,21 +129,30 @@ class ContactSystem:
     State vector ``x = [q, v]`` (length ``2 n_q``). Discrete state: ``modes`` and, per constraint,
     the effective mass ``m_eff`` and impact speed frozen at the last impact.
 
-    Parameters: ``law`` one :class:`CollisionLaw` or one per constraint; ``alpha0``, ``alpha1`` the
+    Parameters: ``law`` one law or one per constraint, each a :class:`CollisionLaw` (CONTACT is then
+    the stabilised constraint) or a :class:`CompliantMaterial` (CONTACT is its spring-damper, and
+    each impact gets the collision law matched to it); ``alpha0``, ``alpha1`` the stabilised
     CONTACT (slow system) law; ``capture_speed`` the rebound speed below which a loaded contact is
     captured into CONTACT instead of leaving (0 disables CONTACT); ``active_dofs`` /
     ``active_constraints`` boolean masks for frozen, unused parts.
     """
 
-    def __init__(self, model: LagrangianModel, law: Union[CollisionLaw, Sequence[CollisionLaw]],
+    def __init__(self, model: LagrangianModel, law: Union[Law, Sequence[Law]],
                  *, alpha0: float = 100.0, alpha1: float = 20.0, capture_speed: float = 0.01,
                  active_dofs: Optional[Sequence[bool]] = None,
                  active_constraints: Optional[Sequence[bool]] = None) -> None:
         self.model = model
         n_q, n_c = model.n_q, model.n_c
-        self.laws = [law] * n_c if isinstance(law, CollisionLaw) else list(law)
-        if len(self.laws) != n_c:
-            raise ValueError(f"need {n_c} collision laws, got {len(self.laws)}")
+        laws = [law] * n_c if isinstance(law, (CollisionLaw, CompliantMaterial)) else list(law)
+        if len(laws) != n_c:
+            raise ValueError(f"need {n_c} collision laws, got {len(laws)}")
+        #: per constraint: its compliant material, or None (rigid: stabilised CONTACT)
+        self.materials: list[Optional[CompliantMaterial]] = [
+            law_i if isinstance(law_i, CompliantMaterial) else None for law_i in laws]
+        #: per constraint: the collision law in force (for a material, matched to the effective
+        #: mass of the last impact; to 1 kg before the first, which only scales indicators)
+        self.laws: list[CollisionLaw] = [law_i.collision_law(1.0) if isinstance(law_i, CompliantMaterial)
+                                         else law_i for law_i in laws]
         self.alpha0, self.alpha1 = float(alpha0), float(alpha1)
         self.capture_speed = float(capture_speed)
         self.active_dofs = np.ones(n_q, bool) if active_dofs is None else np.asarray(active_dofs, bool)
@@ -120,6 +160,10 @@ class ContactSystem:
                                    else np.asarray(active_constraints, bool))
         self._dofs = np.flatnonzero(self.active_dofs)
         self._cons = np.flatnonzero(self.active_constraints)
+        self._own_dynamics = type(model).contact_dynamics is not LagrangianModel.contact_dynamics
+        if self._own_dynamics and not self.active_dofs.all():
+            raise ValueError("frozen coordinates (active_dofs) need the default dynamics: "
+                             "the model's contact_dynamics would have to honour them")
         self.modes = np.full(n_c, int(Mode.FREE), dtype=int)
         self.m_eff = np.zeros(n_c)
         self.impact_speed = np.zeros(n_c)
@@ -148,8 +192,7 @@ class ContactSystem:
         # the key because inputs (an FMU's) may change at the same (t, x)
         x = np.asarray(x, float)
         q, v = self.split(x)
-        Q = np.asarray(self.model.applied_forces(t, q, v), float)
-        key = (t, x.tobytes(), self.modes.tobytes(), Q.tobytes())
+        key = (t, x.tobytes(), self.modes.tobytes(), self.model.inputs_key(t, q, v))
         if key == self._cache_key:
             return self._cache
         ev = self._solve(t, x, self.modes)
@@ -157,48 +200,68 @@ class ContactSystem:
         return ev
 
     def _solve(self, t: float, x: np.ndarray, modes: np.ndarray,
-               exclude: Optional[int] = None) -> _Evaluation:
-        """Contact forces and accelerations for the given modes. With ``exclude = i``, contact i
-        contributes no collision force (used to ask "what would i carry in CONTACT?")."""
+               rigid: Optional[int] = None) -> _Evaluation:
+        """Contact forces and accelerations for the given modes. With ``rigid = i``, contact i (in
+        CONTACT) carries the stabilised constraint's multiplier even if it is compliant: the load
+        the rest of the system puts on it, which is what a capture decision asks about."""
         # a solver's trial stage may penetrate absurdly deep: let it overflow, the step is rejected
         with np.errstate(over="ignore", invalid="ignore"):
-            return self._solve_unguarded(t, x, modes, exclude)
+            return self._solve_unguarded(t, x, modes, rigid)
 
     def _solve_unguarded(self, t: float, x: np.ndarray, modes: np.ndarray,
-                         exclude: Optional[int]) -> _Evaluation:
-        model, dofs = self.model, self._dofs
+                         rigid: Optional[int]) -> _Evaluation:
+        model = self.model
         q, v = self.split(np.asarray(x, float))
-        n_c = model.n_c
         h = model.gaps(q)
         H = model.gap_jacobian(q)
         hdot = H @ v
-        lam = np.zeros(n_c)
-        Ma = model.mass_matrix(q)[np.ix_(dofs, dofs)]
-        Qa = model.applied_forces(t, q, v)[dofs]
-        Ha = H[:, dofs]
+        lam = np.zeros(model.n_c)
+        K = []
         for i in self._cons:
-            if modes[i] == Mode.COLLISION and i != exclude:
+            if modes[i] == Mode.COLLISION:
                 lam[i] = self.m_eff[i] * self.laws[i].acceleration(-h[i], -hdot[i])
-        Qa = Qa + Ha.T @ lam
-        K = [i for i in self._cons if modes[i] == Mode.CONTACT]
+            elif modes[i] == Mode.CONTACT:
+                material = self.materials[i]
+                if material is None or i == rigid:
+                    K.append(i)
+                else:
+                    lam[i] = material.force(-h[i], -hdot[i])
+        vdot = self._accelerations(t, q, v, H, lam)
         if K:
-            rhs = np.column_stack([Qa, Ha[K].T])
-            sol = np.linalg.solve(Ma, rhs)
-            a0, MinvHt = sol[:, 0], sol[:, 1:]
-            A = Ha[K] @ MinvHt
-            b = (-(Ha[K] @ a0) - model.gap_jacobian_dot_v(q, v)[K]
+            Y = self._mobility(t, q, v, H, K)
+            A = H[K] @ Y
+            b = (-(H[K] @ vdot) - model.gap_jacobian_dot_v(q, v)[K]
                  - self.alpha1 * hdot[K] - self.alpha0 * h[K])
             try:
                 lam_K = np.linalg.solve(A, b)
             except np.linalg.LinAlgError:
                 lam_K = np.linalg.lstsq(A, b, rcond=None)[0]
             lam[K] = lam_K
-            vdot_a = a0 + MinvHt @ lam_K
-        else:
-            vdot_a = np.linalg.solve(Ma, Qa)
-        vdot = np.zeros(model.n_q)
-        vdot[dofs] = vdot_a
+            vdot = vdot + Y @ lam_K
         return _Evaluation(h, hdot, H, lam, vdot)
+
+    def _accelerations(self, t: float, q: np.ndarray, v: np.ndarray, H: np.ndarray,
+                       lam: np.ndarray) -> np.ndarray:
+        """``v'`` under the multipliers ``lam`` (zero for frozen coordinates)."""
+        if self._own_dynamics:
+            return np.asarray(self.model.contact_dynamics(t, q, v, H, lam), float)
+        dofs = self._dofs
+        M = self.model.mass_matrix(q)[np.ix_(dofs, dofs)]
+        Q = self.model.applied_forces(t, q, v)[dofs] + H[:, dofs].T @ lam
+        vdot = np.zeros(self.model.n_q)
+        vdot[dofs] = np.linalg.solve(M, Q)
+        return vdot
+
+    def _mobility(self, t: float, q: np.ndarray, v: np.ndarray, H: np.ndarray,
+                  rows: Sequence[int]) -> np.ndarray:
+        """``d v' / d lam`` for the constraints ``rows``, shape (n_q, len(rows))."""
+        if self._own_dynamics:
+            return np.asarray(self.model.contact_mobility(t, q, v, H, rows), float).reshape(self.model.n_q, len(rows))
+        dofs = self._dofs
+        M = self.model.mass_matrix(q)[np.ix_(dofs, dofs)]
+        Y = np.zeros((self.model.n_q, len(rows)))
+        Y[dofs] = np.linalg.solve(M, H[np.ix_(rows, dofs)].T)
+        return Y
 
     def derivatives(self, t: float, x: np.ndarray) -> np.ndarray:
         """``x' = [v, v']`` (zero for frozen degrees of freedom)."""
@@ -236,6 +299,9 @@ class ContactSystem:
         if mode == Mode.COLLISION:
             return (law.end_indicator(-ev.h[i], -ev.hdot[i]) + EPS,
                     -ev.hdot[i] / law.reference_speed + EPS)
+        material = self.materials[i]
+        if material is not None:
+            return material.indicator(-ev.h[i], -ev.hdot[i]), 1.0
         return float(ev.lam[i]), 1.0
 
     def initialize(self, t: float, x: np.ndarray) -> None:
@@ -243,25 +309,27 @@ class ContactSystem:
         compliant contact carrying no force yet), then the event iteration settles the rest."""
         self.modes[:] = Mode.FREE
         ev = self._solve(t, x, self.modes)
-        M = self.model.mass_matrix(self.split(x)[0])
         for i in self._cons:
             if ev.h[i] <= EPS * self.laws[i].length:   # touching, up to round-off
-                self._enter_collision(i, ev, M)
+                self._enter_collision(i, ev, t, x)
         self._cache_key = None
         self.update(t, x)
 
-    def _enter_collision(self, i: int, ev: _Evaluation, M: np.ndarray) -> None:
-        dofs = self._dofs
-        Hi = ev.H[i, dofs]
-        self.m_eff[i] = 1.0 / float(Hi @ np.linalg.solve(M[np.ix_(dofs, dofs)], Hi))
+    def _enter_collision(self, i: int, ev: _Evaluation, t: float, x: np.ndarray) -> None:
+        q, v = self.split(np.asarray(x, float))
+        self.m_eff[i] = 1.0 / float(ev.H[i] @ self._mobility(t, q, v, ev.H, [i])[:, 0])
         self.impact_speed[i] = max(-ev.hdot[i], 0.0)
         self.modes[i] = Mode.COLLISION
+        material = self.materials[i]
+        if material is not None:
+            self.laws[i] = material.collision_law(self.m_eff[i])
 
     def _load_if_contact(self, t: float, x: np.ndarray, i: int) -> float:
-        """Multiplier contact i would carry in CONTACT, the other modes unchanged."""
+        """Multiplier contact i would carry in (rigid) CONTACT, the other modes unchanged: the
+        load pressing it, whatever its own law."""
         trial = self.modes.copy()
         trial[i] = Mode.CONTACT
-        return float(self._solve(t, x, trial, exclude=i).lam[i])
+        return float(self._solve(t, x, trial, rigid=i).lam[i])
 
     def _rebound_estimate(self, i: int, ev: _Evaluation, load: float) -> float:
         """Relative speed the contact would leave with: e * sqrt(kinetic + elastic - preload work)
@@ -282,11 +350,10 @@ class ContactSystem:
         ``lambda <= 0``. Collision transitions are applied together, CONTACT ones one at a time.
         """
         x = np.asarray(x, float)
-        M = self.model.mass_matrix(self.split(x)[0])
         changed_any = False
         for _ in range(4 * self.model.n_c + 4):
             ev = self._solve(t, x, self.modes)
-            changed = self._collision_transitions(t, x, ev, M)
+            changed = self._collision_transitions(t, x, ev)
             if not changed:
                 changed = self._contact_transition(t, x, ev)
             if not changed:
@@ -295,12 +362,12 @@ class ContactSystem:
         self._cache_key = None
         return None, changed_any
 
-    def _collision_transitions(self, t: float, x: np.ndarray, ev: _Evaluation, M: np.ndarray) -> bool:
+    def _collision_transitions(self, t: float, x: np.ndarray, ev: _Evaluation) -> bool:
         """FREE -> COLLISION and COLLISION -> FREE: force-form laws do not couple, so all at once."""
         changed = False
         for i in self._cons:
             if self.modes[i] == Mode.FREE and self._indicator_pair(i, ev)[0] <= 0.0:
-                self._enter_collision(i, ev, M)
+                self._enter_collision(i, ev, t, x)
                 changed = True
             elif self.modes[i] == Mode.COLLISION and self._collision_ended(i, ev):
                 if ev.hdot[i] >= self.capture_speed or self._load_if_contact(t, x, i) <= 0.0:
@@ -314,9 +381,10 @@ class ContactSystem:
     def _contact_transition(self, t: float, x: np.ndarray, ev: _Evaluation) -> bool:
         """One CONTACT change (they couple through the joint solve): release the most negative
         multiplier first, else capture the first loaded collision that cannot leave."""
-        released = [i for i in self._cons if self.modes[i] == Mode.CONTACT and ev.lam[i] <= 0.0]
+        pull = {i: self._indicator_pair(i, ev)[0] for i in self._cons if self.modes[i] == Mode.CONTACT}
+        released = [i for i, z in pull.items() if z <= 0.0]
         if released:
-            self.modes[min(released, key=lambda i: ev.lam[i])] = Mode.FREE
+            self.modes[min(released, key=lambda i: pull[i])] = Mode.FREE
             return True
         if self.capture_speed <= 0.0:
             return False
@@ -332,11 +400,13 @@ class ContactSystem:
 
     # --- energy -------------------------------------------------------------------------
     def energy(self, x: np.ndarray) -> float:
-        """Kinetic + potential + elastic energy stored in the colliding contacts."""
+        """Kinetic + potential + elastic energy stored in the colliding and compliant contacts."""
         q, v = self.split(np.asarray(x, float))
         e = self.model.kinetic_energy(q, v) + self.model.potential_energy(q)
         h = self.model.gaps(q)
         for i in self._cons:
             if self.modes[i] == Mode.COLLISION:
                 e += self.m_eff[i] * self.laws[i].potential(-h[i])
+            elif self.modes[i] == Mode.CONTACT and self.materials[i] is not None:
+                e += self.materials[i].potential(-h[i])
         return float(e)

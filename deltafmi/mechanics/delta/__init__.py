@@ -8,19 +8,18 @@ and the sampled controller around it (:mod:`.control`), wrist reference trajecto
 Joint vectors are arm-major: q = [q11, q12, q13, q21, q22, q23, q31, q32, q33].
 """
 
-from .dynamics import (PlantEvaluation, accelerations, coriolis, energy, evaluate_plant,
-                             gravity, holding_torque, loop_residual, mass_matrix,
-                             project_to_constraints, state_derivative)
+from .dynamics import (PlantEvaluation, accelerations, coriolis, energy, evaluate_plant, gravity,
+                       holding_torque, loop_residual, mass_matrix, project_to_constraints,
+                       state_derivative)
 from .kinematics import (arm_bias, arm_jacobian, arm_psi, constraint, constraint_bias,
-                               constraint_jacobian, forward_kinematics, inverse_kinematics,
-                               stretched_height, virtual_jacobian, wrist_position,
-                               wrist_velocity)
+                         constraint_jacobian, forward_kinematics, inverse_kinematics, joint_rates,
+                         stretched_height, virtual_jacobian, wrist_position, wrist_velocity)
 from .params import ARM_ROTATIONS, R2, R3, RL5, DeltaParams, rot_z
 
 __all__ = [
     "DeltaParams", "RL5", "R2", "R3", "ARM_ROTATIONS", "rot_z",
     "arm_psi", "arm_jacobian", "arm_bias", "stretched_height",
-    "inverse_kinematics", "forward_kinematics", "wrist_position", "wrist_velocity",
+    "inverse_kinematics", "joint_rates", "forward_kinematics", "wrist_position", "wrist_velocity",
     "constraint", "constraint_jacobian", "constraint_bias", "virtual_jacobian",
     "mass_matrix", "coriolis", "gravity", "accelerations", "state_derivative", "energy", "holding_torque",
     "PlantEvaluation", "evaluate_plant", "loop_residual", "project_to_constraints",

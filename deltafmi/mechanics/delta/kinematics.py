@@ -29,6 +29,7 @@ __all__ = [
     "arm_jacobian",
     "arm_bias",
     "inverse_kinematics",
+    "joint_rates",
     "forward_kinematics",
     "wrist_position",
     "wrist_velocity",
@@ -171,6 +172,17 @@ def inverse_kinematics(p: DeltaParams, z: ArrayLike) -> np.ndarray:
                              f"{_workspace_note(p, z)}")
         q.extend(sol)
     return np.array(q)
+
+
+def joint_rates(p: DeltaParams, q: ArrayLike, zd: ArrayLike) -> np.ndarray:
+    """The nine joint rates moving the wrist at velocity zd with the loops kept closed (H v = 0).
+
+    Arm by arm: R_i dpsi/dq(q_i) v_i = zd, a 3x3 solve each (regular away from the singular
+    poses), so every arm's wrist point moves with zd and Jv v = zd.
+    """
+    zd = np.asarray(zd, dtype=float)
+    return np.concatenate([np.linalg.solve(r @ arm_jacobian(p, qi), zd)
+                           for r, qi in zip(ARM_ROTATIONS, _split(q))])
 
 
 # ----------------------------------------------------------------------------- forward kinematics

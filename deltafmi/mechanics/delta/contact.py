@@ -1,0 +1,159 @@
+"""The delta robot touching the world: robot + task as one Lagrangian system with gap functions.
+
+The seed talk: "Robot + Task represented as Lagrangian system + constraint functions h_i(q)". The
+robot is the stabilised index-1 DAE of :mod:`.dynamics` (nine joint angles, six loop-closure
+multipliers); a tool fixed to the travelling plate (which only translates) has its tip at
+``z(q) + tool``, and a rigid plane through ``(0, 0, height)`` with unit normal ``n`` gives the gap
+
+    h(q) = n . (z(q) + tool - (0, 0, height)),      H = dh/dq = n^T Jv(q),
+
+with ``z`` the wrist (the mean of the three arms' wrist points, whose derivative is exactly
+``Jv v``). A normal force ``lambda`` therefore enters the robot as ``H^T lambda = Jv^T (n lambda)``:
+the plant's external wrist force, which the DAE solve already applies. The unilateral constraint
+``h >= 0`` runs through the FREE / COLLISION / CONTACT machine of
+:class:`deltafmi.mechanics.contact.ContactSystem`; the loop closures stay inside the model's own
+dynamics (``contact_dynamics``), and an impact's effective mass ``1 / (H Y)`` comes from the
+constrained response ``Y = d v' / d lambda`` (:meth:`DeltaToolModel.contact_mobility`): the wrist
+inertia along ``n`` with the loops closed, not ``H M^-1 H^T`` of the unconnected arms.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..contact.material import CompliantMaterial
+from ..contact.system import ContactSystem, LagrangianModel
+from .dynamics import accelerations, energy, mass_matrix
+from .kinematics import ARM_COS_SIN, arm_bias, inverse_kinematics, joint_rates
+from .params import ARM_ROTATIONS, DeltaParams
+
+__all__ = ["Plane", "DeltaToolModel", "make_robot_contact", "robot_start_state"]
+
+
+@dataclass(frozen=True)
+class Plane:
+    """A rigid plane crossing the robot axis (x = y = 0) at ``height``, with ``normal`` pointing
+    out of the body (towards the robot; normalised here). Its gap is the signed distance."""
+
+    height: float = -1.15
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def __post_init__(self) -> None:
+        n = np.asarray(self.normal, dtype=float).reshape(-1)
+        norm = float(np.linalg.norm(n)) if n.shape == (3,) else 0.0
+        if not norm > 0.0:
+            raise ValueError(f"surface normal must be a non-zero 3-vector, got {self.normal!r}")
+        object.__setattr__(self, "normal", tuple(float(c) / norm for c in n))
+
+    def gap(self, point: Sequence[float]) -> float:
+        """Signed distance of ``point`` from the plane (m), positive on the robot's side."""
+        nx, ny, nz = self.normal
+        return nx * point[0] + ny * point[1] + nz * (point[2] - self.height)
+
+
+class DeltaToolModel(LagrangianModel):
+    """The delta robot with a tool tip above a plane: one gap, the DAE as the model's dynamics.
+
+    Inputs as attributes: ``u`` servo torques (N m) and ``f`` an external wrist force (N, world).
+    """
+
+    n_q = 9
+    n_c = 1
+
+    def __init__(self, params: DeltaParams, plane: Plane, tool: Sequence[float] = (0.0, 0.0, -0.1),
+                 pole: float = 5.0) -> None:
+        self.params, self.plane, self.pole = params, plane, float(pole)
+        self.tool = tuple(float(c) for c in tool)
+        self.u = [0.0, 0.0, 0.0]
+        self.f = [0.0, 0.0, 0.0]
+        n = plane.normal
+        # h = n . mean_i P_i + offset
+        self._offset = sum(n[k] * self.tool[k] for k in range(3)) - n[2] * plane.height
+
+    # --- geometry (plain floats: evaluated at every derivative call) -----------------------
+    def _arms(self, q: Sequence[float]) -> tuple[float, list[float]]:
+        """n . mean_i P_i (m) and the row n^T Jv (9 floats)."""
+        p, (nx, ny, nz) = self.params, self.plane.normal
+        l0l3, l1, l2 = p.l0 - p.l3, p.l1, p.l2
+        ql = q.tolist() if isinstance(q, np.ndarray) else [float(t) for t in q]
+        height, row = 0.0, []
+        for arm, (cr, sr) in enumerate(ARM_COS_SIN):
+            q1, q2, q3 = ql[3 * arm:3 * arm + 3]
+            s1, c1, s2, c2, s3, c3 = (math.sin(q1), math.cos(q1), math.sin(q2), math.cos(q2),
+                                      math.sin(q3), math.cos(q3))
+            ax, ay = cr * nx + sr * ny, cr * ny - sr * nx  # R_i^T n (z unchanged)
+            height += ax * l2 * s2 * s3 + ay * (l0l3 + l1 * c1 + l2 * c2) + nz * (l1 * s1 + l2 * s2 * c3)
+            row += [(-ay * l1 * s1 + nz * l1 * c1) / 3.0,
+                    (ax * l2 * c2 * s3 - ay * l2 * s2 + nz * l2 * c2 * c3) / 3.0,
+                    (ax * l2 * s2 * c3 - nz * l2 * s2 * s3) / 3.0]
+        return height / 3.0, row
+
+    def gaps(self, q: np.ndarray) -> np.ndarray:
+        """``[h]``: the tool tip's signed distance from the plane (m)."""
+        return np.array([self._arms(q)[0] + self._offset])
+
+    def gap_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """``H = n^T Jv(q)``, shape (1, 9)."""
+        return np.array([self._arms(q)[1]])
+
+    def gap_jacobian_dot_v(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``(d/dt H) v = n . mean_i R_i (d/dt dpsi/dq) v_i``."""
+        p, n = self.params, np.asarray(self.plane.normal)
+        q, v = np.asarray(q, float), np.asarray(v, float)
+        bias = sum(r @ arm_bias(p, q[3 * i:3 * i + 3], v[3 * i:3 * i + 3])
+                   for i, r in enumerate(ARM_ROTATIONS)) / 3.0
+        return np.array([float(n @ bias)])
+
+    def wrist_force(self, lam: float) -> list[float]:
+        """External wrist force plus the contact force ``n lambda`` (N, world)."""
+        n = self.plane.normal
+        return [self.f[k] + n[k] * lam for k in range(3)]
+
+    # --- dynamics --------------------------------------------------------------------------
+    def contact_dynamics(self, t: float, q: np.ndarray, v: np.ndarray, H: np.ndarray,
+                         lam: np.ndarray) -> np.ndarray:
+        """Joint accelerations of the closed-loop DAE with the contact force on the wrist."""
+        return accelerations(self.params, q, v, self.u, self.wrist_force(float(lam[0])), self.pole)[0]
+
+    def contact_mobility(self, t: float, q: np.ndarray, v: np.ndarray, H: np.ndarray,
+                         rows: Sequence[int]) -> np.ndarray:
+        """``d v' / d lambda``: the DAE is affine in the wrist force, so the difference of two
+        solves (unit normal force and none) is exact up to round-off."""
+        base = accelerations(self.params, q, v, self.u, self.f, self.pole)[0]
+        pushed = accelerations(self.params, q, v, self.u, self.wrist_force(1.0), self.pole)[0]
+        return np.column_stack([pushed - base for _ in rows])
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """Block-diagonal mass matrix of the three arms (kinetic energy)."""
+        return mass_matrix(self.params, q)
+
+    def potential_energy(self, q: np.ndarray) -> float:
+        """Gravity potential, zero in the base plane."""
+        return energy(self.params, q, np.zeros(9))
+
+    def inputs_key(self, t: float, q: np.ndarray, v: np.ndarray) -> bytes:
+        """The inputs ``u`` and ``f``."""
+        return np.array(list(self.u) + list(self.f), float).tobytes()
+
+    def effective_mass(self, q: np.ndarray) -> float:
+        """Inertia the plane feels at the tool, ``1 / (H Y)`` (kg), with the loops closed."""
+        q = np.asarray(q, float)
+        H = self.gap_jacobian(q)
+        return 1.0 / float(H[0] @ self.contact_mobility(0.0, q, np.zeros(9), H, [0])[:, 0])
+
+
+def make_robot_contact(params: DeltaParams, plane: Plane, material: CompliantMaterial,
+                       tool: Sequence[float] = (0.0, 0.0, -0.1), pole: float = 5.0,
+                       capture_speed: float = 0.05) -> ContactSystem:
+    """The robot-on-a-plane contact system (state ``[q, v]``, 18 values, one gap)."""
+    return ContactSystem(DeltaToolModel(params, plane, tool, pole), material, capture_speed=capture_speed)
+
+
+def robot_start_state(params: DeltaParams, z0: Sequence[float],
+                      zd0: Sequence[float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+    """``[q, v]`` with the wrist at ``z0`` moving at ``zd0`` and the loops closed."""
+    q = inverse_kinematics(params, z0)
+    return np.concatenate([q, joint_rates(params, q, zd0)])

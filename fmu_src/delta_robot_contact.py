@@ -1,0 +1,133 @@
+"""Delta robot with a tool touching a plane: a thin component over deltafmi.mechanics.delta.contact."""
+import numpy as np
+
+from deltafmi.component import Experiment, HybridSystemComponent, Input, Output, Parameter, State
+from deltafmi.mechanics import delta
+from deltafmi.mechanics.contact import CompliantMaterial, ContactSystem
+from deltafmi.mechanics.delta.contact import Plane, make_robot_contact, robot_start_state
+
+_D = delta.RL5
+_PARAMS = ("l0", "l1", "l2", "l3", "m1", "r1", "J1", "Jm", "m2", "mp", "payload", "g", "damping")
+
+
+class DeltaRobotContact(HybridSystemComponent):
+    """RL5 delta robot whose tool touches a rigid plane: the robot's DAE plus a unilateral contact.
+
+    The DeltaRobot plant (nine joint angles, loop closures solved at every evaluation) with a tool
+    fixed to the travelling plate, its tip at `tool` from the plate centre, above a plane through
+    (0, 0, surface_height) with normal surface_normal. The gap h = n.(tip - plane point) >= 0 is one
+    constraint of the FREE / COLLISION / CONTACT machine: an impact is a compliant collision that
+    rebounds with `restitution` (effective mass frozen at the impact: the wrist's inertia along n
+    with the loops closed); a rebound slower than capture_speed under load is captured into CONTACT,
+    a spring-damper (contact_stiffness, contact_damping) that lets go when its force turns
+    negative. The contact force acts on the wrist along n, as the external force f does. The robot
+    starts at z0 moving at zd0 (loops closed). Modes: 0 FREE, 1 COLLISION, 2 CONTACT.
+    """
+
+    model_name = "DeltaRobotContact"
+    direct_feedthrough = {"lambda": ["u", "f"]}
+    default_experiment = Experiment(start=0.0, stop=1.0, step=1e-3, tolerance=1e-8)
+    n_event_indicators = 2
+
+    l0 = Parameter(_D.l0, unit="m", min=0.0, description="Base radius: robot axis to servo axes")
+    l1 = Parameter(_D.l1, unit="m", min=0.0, description="Upper-arm length: servo axis to elbow")
+    l2 = Parameter(_D.l2, unit="m", min=0.0, description="Forearm length: elbow to wrist joint")
+    l3 = Parameter(_D.l3, unit="m", min=0.0,
+                   description="Travelling-plate radius: plate centre to wrist joints")
+    m1 = Parameter(_D.m1, unit="kg", min=0.0, description="Upper-arm mass (elbow pins included)")
+    r1 = Parameter(_D.r1, unit="m", description="Servo axis to upper-arm centre of mass")
+    J1 = Parameter(_D.J1, unit="kg.m2", min=0.0,
+                   description="Upper-arm inertia about the servo axis (includes m1*r1^2)")
+    Jm = Parameter(_D.Jm, unit="kg.m2", min=0.0,
+                   description="Gearbox-reflected rotor inertia on the servo axis")
+    m2 = Parameter(_D.m2, unit="kg", min=0.0,
+                   description="Forearm mass (both bars), modelled as a thin uniform rod")
+    mp = Parameter(_D.mp, unit="kg", min=0.0, description="Travelling-plate mass (tool included)")
+    payload = Parameter(_D.payload, unit="kg", min=0.0, description="Payload carried by the plate")
+    g = Parameter(_D.g, unit="m/s2", description="Gravitational acceleration (acts along -z)")
+    damping = Parameter(_D.damping, unit="N.m.s/rad", min=0.0,
+                        description="Viscous damping on each of the nine joints")
+    pole = Parameter(5.0, unit="1/s", min=0.0,
+                     description="Baumgarte pole p: hdd + 2 p hd + p^2 h = 0 stabilises the loops")
+    loop_tolerance = Parameter(
+        0.0, unit="m", min=0.0,
+        description="Model Exchange: a step event projects onto the closed loops once |h| exceeds this "
+        "after an integrator step; 0: never (Co-Simulation projects after every step)")
+    z0 = Parameter([0.0, 0.0, -1.0], unit="m", description="Initial wrist (plate centre) position")
+    zd0 = Parameter([0.0, 0.0, 0.0], unit="m/s", description="Initial wrist velocity")
+    tool = Parameter([0.0, 0.0, -0.1], unit="m",
+                     description="Tool tip relative to the plate centre (the plate only translates)")
+    surface_height = Parameter(-1.15, unit="m", description="Height at which the plane crosses the robot axis")
+    surface_normal = Parameter([0.0, 0.0, 1.0], description="Plane normal, pointing towards the robot")
+    contact_stiffness = Parameter(2e5, unit="N/m", min=0.0,
+                                  description="Contact spring (tool, pads and surface in series)")
+    contact_damping = Parameter(2e3, unit="N.s/m", min=0.0, description="Contact damper in CONTACT")
+    restitution = Parameter(0.5, min=0.01, max=1.0, description="Coefficient of restitution of an impact")
+    capture_speed = Parameter(0.05, unit="m/s", min=0.0,
+                              description="Rebound speed below which a loaded impact stays in CONTACT")
+
+    q = State([0.0] * 9, unit="rad", initial="calculated", nominal=0.01,
+              description="Joint angles per arm: servo q_i1, forearm polar q_i2, azimuth q_i3")
+    v = State([0.0] * 9, unit="rad/s", initial="calculated", nominal=0.01, description="Joint rates dq/dt")
+
+    u = Input([0.0] * 3, unit="N.m", description="Servo torques")
+    f = Input([0.0] * 3, unit="N", description="External force on the wrist, world frame")
+
+    y = Output(shape=3, unit="rad", description="Servo angles q_i1 (measured)")
+    yd = Output(shape=3, unit="rad/s", description="Servo rates")
+    z = Output(shape=3, unit="m", description="Wrist (plate centre) position")
+    zd = Output(shape=3, unit="m/s", description="Wrist velocity, Jv v")
+    tip = Output(shape=3, unit="m", description="Tool tip position")
+    lam = Output(shape=6, unit="N", name="lambda",
+                 description="Loop-closure forces (world), as in DeltaRobot")
+    residual = Output(unit="m", description="Loop-closure residual |h(q)| (Euclidean norm)")
+    energy = Output(unit="J", description="Kinetic + potential + elastic contact energy")
+    mode = Output(0, type=int, description="Contact mode: 0 FREE, 1 COLLISION, 2 CONTACT")
+    normal_force = Output(shape=3, unit="N", description="Force of the plane on the tool, world frame")
+    fn = Output(unit="N", description="Normal contact force (magnitude, >= 0)")
+    gap = Output(unit="m", description="Signed distance of the tool tip from the plane")
+    penetration = Output(unit="m", description="Depth of the tool tip below the plane (0 when apart)")
+
+    def build_system(self, t: float) -> ContactSystem:
+        params = delta.DeltaParams(**{name: getattr(self, name) for name in _PARAMS})
+        plane = Plane(self.surface_height, tuple(self.surface_normal))
+        material = CompliantMaterial(self.contact_stiffness, self.contact_damping, self.restitution)
+        system = make_robot_contact(params, plane, material, tuple(self.tool), self.pole, self.capture_speed)
+        x0 = robot_start_state(params, self.z0, self.zd0)
+        start_gap = float(system.model.gaps(x0[:9])[0])
+        if start_gap < 0.0:
+            raise ValueError(f"the tool tip starts {-start_gap:.6g} m below the surface (z0 = "
+                             f"{list(self.z0)}, tool = {list(self.tool)}, surface_height = "
+                             f"{self.surface_height}): start above it")
+        self.q, self.v = x0[:9], x0[9:]
+        return system
+
+    def apply_inputs(self, system: ContactSystem) -> None:
+        system.model.u = list(self.u)
+        system.model.f = list(self.f)
+
+    def publish_modes(self, modes) -> None:
+        self.mode = int(modes[0])
+
+    def project(self, t: float) -> None:
+        """Close the loops (CS after every solver step, ME at a step event past loop_tolerance)."""
+        self.q, self.v = delta.project_to_constraints(self.current_system().model.params, self.q, self.v)
+
+    def needs_projection(self, t: float) -> bool:
+        tolerance = self.loop_tolerance
+        return tolerance > 0.0 and delta.loop_residual(self.current_system().model.params, self.q) > tolerance
+
+    def outputs(self, t: float) -> None:
+        system = self.current_system()
+        model, x = system.model, np.array(self.states)
+        q, v = x[:9], x[9:]
+        fn = float(system.contact_forces(x, t)[0])
+        ev = delta.evaluate_plant(model.params, q, v, model.u, model.wrist_force(fn), model.pole)
+        self.y, self.yd, self.z, self.zd = q[0::3], v[0::3], ev.z, ev.zd
+        self.tip = ev.z + np.array(model.tool)
+        self.lam, self.residual = ev.lam, ev.residual
+        self.energy = system.energy(x)
+        self.fn = fn
+        self.normal_force = fn * np.array(model.plane.normal)
+        self.gap = float(model.gaps(q)[0])
+        self.penetration = max(-self.gap, 0.0)
