@@ -14,7 +14,13 @@ class DeltaController(Component):
     rates yd and the reference r, rd, rdd, estimates the wrist position (Newton forward
     kinematics, warm-started) and outputs the servo torques
     u = My Jc^-1 (kI int(r - z) + kP (r - z) + kD (rd - zd) + rdd) + velocity terms + gravity,
-    held until the next sample. Model Exchange: time events at the sample instants. Co-Simulation:
+    held until the next sample. Impedance (soft-contact) mode, impedance = true: no PID; the outer
+    loop is the wrist force stiffness (r - z) + task_damping (rd - zd) + force per world axis, with
+    rdd fed forward through the robot's own inertia (u adds Jc^T of that force), so the robot is
+    a mass-spring-damper about r in free space, at an impact and while pressing, with no switching.
+    In either mode the tactile input (a pad-force difference, N) moves the reference along
+    tactile_axis at tactile_gain * tactile m/s: the tactile loop that centres the tool on a
+    feature. Model Exchange: time events at the sample instants. Co-Simulation:
     doStep(t, h) takes the samples due in [t, t + h) with the inputs given at t (use h equal to
     the sample period). The kinematic and inertial parameters are the controller's own model of
     the robot (same names as the DeltaRobot plant) and may differ from the plant's.
@@ -55,12 +61,23 @@ class DeltaController(Component):
     cond_limit = Parameter(100.0, min=1.0,
                            description="Status bit 4 (ill-conditioned) above this cond(Jc)")
     sample_period = Parameter(1e-3, unit="s", min=0.0, description="Controller sample period")
+    impedance = Parameter(False, description="Impedance (soft-contact) mode instead of the PID position loop")
+    stiffness = Parameter([5000.0, 5000.0, 1000.0], unit="N/m", min=0.0,
+                          description="Impedance mode: commanded stiffness per world axis x, y, z")
+    task_damping = Parameter([400.0, 400.0, 250.0], unit="N.s/m", min=0.0,
+                             description="Impedance mode: commanded damping per world axis x, y, z")
+    tactile_gain = Parameter(0.0, unit="m/(N.s)",
+                             description="Tactile loop: reference speed along tactile_axis per N of pad difference")
+    tactile_axis = Parameter([1.0, 0.0, 0.0], description="Tactile loop: horizontal direction of the pad axis")
 
     y = Input([0.0] * 3, unit="rad", description="Measured servo angles")
     yd = Input([0.0] * 3, unit="rad/s", description="Measured servo rates")
     r = Input([0.0, 0.0, -1.0], unit="m", description="Reference wrist position")
     rd = Input([0.0] * 3, unit="m/s", description="Reference wrist velocity")
     rdd = Input([0.0] * 3, unit="m/s2", description="Reference wrist acceleration")
+    force = Input([0.0] * 3, unit="N",
+                  description="Impedance mode: commanded contact force, exerted by the tool on the world")
+    tactile = Input(0.0, unit="N", description="Tactile sensor: pad-force difference (pad 1 - pad 2)")
 
     u = Output(shape=3, unit="N.m", variability="discrete", description="Servo torques (held)")
     cond_Jc = Output(variability="discrete",
@@ -69,6 +86,8 @@ class DeltaController(Component):
                     "clamped, 4 near a singularity, 8 singular (torque held)")
     z_est = Output(shape=3, unit="m", variability="discrete",
                    description="Wrist position estimated by forward kinematics")
+    shift = Output(unit="m", variability="discrete",
+                   description="Tactile loop: shift of the reference along tactile_axis")
 
     def setup(self) -> None:
         self._ctl = None
@@ -84,7 +103,9 @@ class DeltaController(Component):
             integral_limit=self.integral_limit, feedforward=self.feedforward,
             torque_limit=self.torque_limit, sample_period=self.sample_period,
             coriolis=self.coriolis, zoh_lead=self.zoh_lead,
-            fk="newton" if self.newton_fk else "closed", cond_limit=self.cond_limit)
+            fk="newton" if self.newton_fk else "closed", cond_limit=self.cond_limit,
+            impedance=self.impedance, stiffness=self.stiffness, task_damping=self.task_damping,
+            tactile_gain=self.tactile_gain, tactile_axis=self.tactile_axis)
         self._t0, self._k = t, 0
 
     def _next_sample(self) -> float:
@@ -92,8 +113,8 @@ class DeltaController(Component):
 
     def _sample(self) -> None:
         ctl = self._ctl
-        self.u = ctl.step(self.y, self.yd, self.r, self.rd, self.rdd)
-        self.cond_Jc, self.status = ctl.cond, ctl.status
+        self.u = ctl.step(self.y, self.yd, self.r, self.rd, self.rdd, self.force, self.tactile)
+        self.cond_Jc, self.status, self.shift = ctl.cond, ctl.status, ctl.shift
         if ctl.last is not None and not ctl.status & delta_control.STATUS_SINGULAR:
             self.z_est = ctl.last.z
         warning = ctl.pending_warning()

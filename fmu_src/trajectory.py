@@ -2,20 +2,22 @@
 import os
 
 from deltafmi.component import Component, Experiment, Output, Parameter
-from deltafmi.mechanics.delta.trajectory import CirclePath, MinimumJerkPath, RecordedPath
+from deltafmi.mechanics.delta.trajectory import CirclePath, ConstantSpeedPath, MinimumJerkPath, RecordedPath
 
 MAX_WAYPOINTS = 8
 
 
 class Trajectory(Component):
-    """Reference r, rd, rdd for the delta robot wrist: waypoints, circle or recorded CSV.
+    """Reference r, rd, rdd for the delta robot wrist: waypoints, circle, recorded CSV, set speeds.
 
     mode 0: rest-to-rest minimum-jerk moves through the first n_waypoints of (wp_x, wp_y, wp_z);
     wp_T[k] is the duration of the move from waypoint k to waypoint k+1, and the path rests for
     ``dwell`` at each waypoint. mode 1: horizontal circle (circle_centre, radius, period) whose
     angular rate ramps in along a minimum-jerk profile over ramp_time. mode 2: playback of
     csv_file (columns time, x, y, z; relative paths are looked up in the working directory,
-    then in the FMU resources) through a cubic spline, smoothed when csv_smoothing > 0.
+    then in the FMU resources) through a cubic spline, smoothed when csv_smoothing > 0. mode 3:
+    straight moves through the waypoints at set speeds, wp_v[k] along the move from waypoint k,
+    each reaching its speed (and rest) along a minimum-jerk blend of blend_time, with dwell.
     Everything starts at t_start. Waypoints and circles outside the nominal workspace
     (r <= 0.5 m, -1.2 <= z <= -0.75 m) fail initialization with a message naming them.
     """
@@ -23,8 +25,8 @@ class Trajectory(Component):
     model_name = "Trajectory"
     default_experiment = Experiment(start=0.0, stop=3.0, step=1e-3, tolerance=1e-6)
 
-    mode = Parameter(0, type=int, min=0, max=2,
-                     description="0 minimum-jerk waypoints, 1 circle, 2 CSV playback")
+    mode = Parameter(0, type=int, min=0, max=3,
+                     description="0 minimum-jerk waypoints, 1 circle, 2 CSV playback, 3 waypoints at set speeds")
     t_start = Parameter(0.0, unit="s", description="Time at which the motion starts")
     n_waypoints = Parameter(4, type=int, min=1, max=MAX_WAYPOINTS,
                             description="Number of waypoints used (mode 0)")
@@ -33,7 +35,11 @@ class Trajectory(Component):
     wp_z = Parameter([-1.0, -1.0, -0.9, -1.0] + [-1.0] * 4, unit="m", description="Waypoint z")
     wp_T = Parameter([0.5] * MAX_WAYPOINTS, unit="s", min=0.0,
                      description="wp_T[k]: duration of the move from waypoint k to k+1")
-    dwell = Parameter(0.2, unit="s", min=0.0, description="Rest at each waypoint (mode 0)")
+    wp_v = Parameter([0.1] * MAX_WAYPOINTS, unit="m/s", min=0.0,
+                     description="wp_v[k]: speed of the move from waypoint k to k+1 (mode 3)")
+    blend_time = Parameter(0.1, unit="s", min=0.0,
+                           description="Time to reach a move's speed and to stop again (mode 3)")
+    dwell = Parameter(0.2, unit="s", min=0.0, description="Rest at each waypoint (modes 0, 3)")
     circle_centre = Parameter([0.0, 0.0, -1.0], unit="m", description="Circle centre (mode 1)")
     radius = Parameter(0.1, unit="m", min=0.0, description="Circle radius (mode 1)")
     period = Parameter(1.0, unit="s", min=0.0, description="Period at full speed (mode 1)")
@@ -54,24 +60,27 @@ class Trajectory(Component):
         try:
             self._path = self._make_path()
         except ValueError as exc:
-            if self.mode != 0:
+            if self.mode not in (0, 3):
                 raise
             raise ValueError(f"{exc} (waypoints count from 0 here: waypoint k is "
                              f"wp_x[k+1], wp_y[k+1], wp_z[k+1])") from None
 
     def _make_path(self):
-        if self.mode == 0:
+        if self.mode in (0, 3):
             n = self.n_waypoints
             if not 1 <= n <= MAX_WAYPOINTS:
                 raise ValueError(f"n_waypoints = {n} must be in 1..{MAX_WAYPOINTS}")
             points = list(zip(self.wp_x[:n], self.wp_y[:n], self.wp_z[:n]))
+            if self.mode == 3:
+                return ConstantSpeedPath(points, self.wp_v[:n - 1], self.blend_time, dwell=self.dwell,
+                                         t0=self.t_start)
             return MinimumJerkPath(points, self.wp_T[:n - 1], dwell=self.dwell, t0=self.t_start)
         if self.mode == 1:
             return CirclePath(self.circle_centre, self.radius, self.period,
                               ramp_time=self.ramp_time, t0=self.t_start)
         if self.mode == 2:
             return RecordedPath(self._csv_path(), smoothing=self.csv_smoothing, t0=self.t_start)
-        raise ValueError(f"mode = {self.mode} must be 0 (waypoints), 1 (circle) or 2 (CSV)")
+        raise ValueError(f"mode = {self.mode} must be 0 (waypoints), 1 (circle), 2 (CSV) or 3 (set speeds)")
 
     def _csv_path(self) -> str:
         name = self.csv_file

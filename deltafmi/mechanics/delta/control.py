@@ -132,6 +132,13 @@ class DeltaController:
     (held when a sample is singular) and ``status``/``cond`` of the last sample. Gains default
     to a triple pole at ``-pole``; negative or None kI/kP/kD mean "from pole".
 
+    Impedance mode (``impedance=True``, see :mod:`.control_law`): per-axis ``stiffness`` (N/m)
+    and ``task_damping`` (N s/m) about the reference, plus the commanded contact force passed to
+    :meth:`step`. The tactile outer loop moves the reference along the horizontal unit vector
+    ``tactile_axis`` at ``tactile_gain * tactile`` (m/s for the sensor's pad-force difference
+    ``tactile`` in N): a slow integral loop that centres the tool on the feature the sensor
+    feels, in either mode, without switching (it is idle while nothing is touched).
+
     ``zoh_lead``: the torque is held by a zero-order hold for a whole sample, so the plant sees
     the law's value of the sample start while the law itself moves on; the mean over the sample
     is better approximated by the value half a sample later. With the lead the output is
@@ -153,6 +160,11 @@ class DeltaController:
     zoh_lead: bool = True
     fk: str = "newton"
     cond_limit: float = 100.0
+    impedance: bool = False
+    stiffness: Sequence[float] = (0.0, 0.0, 0.0)
+    task_damping: Sequence[float] = (0.0, 0.0, 0.0)
+    tactile_gain: float = 0.0
+    tactile_axis: Sequence[float] = (1.0, 0.0, 0.0)
     law: ControlLaw = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -160,7 +172,13 @@ class DeltaController:
             raise ValueError(f"sample_period must be > 0, got {self.sample_period}")
         self.law = make_law(self.params, self.pole, self.kI, self.kP, self.kD,
                             self.integral_limit, self.feedforward, self.coriolis,
-                            self.torque_limit, self.cond_limit, self.fk)
+                            self.torque_limit, self.cond_limit, self.fk, impedance=self.impedance,
+                            stiffness=self.stiffness, task_damping=self.task_damping)
+        axis = np.array([float(self.tactile_axis[0]), float(self.tactile_axis[1]), 0.0])
+        norm = float(np.linalg.norm(axis))
+        if self.tactile_gain != 0.0 and not norm > 0.0:
+            raise ValueError(f"tactile_axis must have a horizontal component, got {tuple(self.tactile_axis)}")
+        self._axis = tuple((axis / norm).tolist()) if norm > 0.0 else (1.0, 0.0, 0.0)
         self.reset()
 
     def reset(self) -> None:
@@ -174,16 +192,27 @@ class DeltaController:
         self._x_next: Optional[list] = None
         self._xd: Optional[tuple] = None
         self._warned = 0
+        #: the tactile loop's shift of the reference along the tactile axis (m)
+        self.shift = 0.0
 
     def step(self, y: Sequence[float], yd: Sequence[float], r: Sequence[float],
-             rd: Sequence[float], rdd: Sequence[float]) -> np.ndarray:
+             rd: Sequence[float], rdd: Sequence[float], force: Sequence[float] = (0.0, 0.0, 0.0),
+             tactile: float = 0.0) -> np.ndarray:
         """Advance one sample: integrate r - z over the sample period and return u (3,) N m.
 
         The integral is frozen while the torque of the previous sample was saturated
-        (conditional integration); a singular sample holds the previous torque.
+        (conditional integration); a singular sample holds the previous torque. ``force`` is the
+        commanded contact force (impedance mode) and ``tactile`` the sensor's pad-force
+        difference (N), which moves the reference (see the class docstring).
         """
+        rate = self.tactile_gain * float(tactile)
+        if self.shift != 0.0 or rate != 0.0:
+            ax, ay, _ = self._axis
+            r = (r[0] + self.shift * ax, r[1] + self.shift * ay, r[2])
+            rd = (rd[0] + rate * ax, rd[1] + rate * ay, rd[2])
+        self.shift += rate * self.sample_period
         dt = 0.0 if self.status & STATUS_TORQUE_SATURATED else self.sample_period
-        out = evaluate(self.law, y, yd, r, rd, rdd, self.integral, dt, self._x_next)
+        out = evaluate(self.law, y, yd, r, rd, rdd, self.integral, dt, self._x_next, force)
         self.last, self.status, self.cond = out, out.status, out.cond
         lim = self.law.torque_limit
         if out.status & STATUS_SINGULAR:

@@ -13,6 +13,16 @@ Per sample, from the measured servo angles y and rates yd:
    of the constrained robot in servo coordinates. ``coriolis=False`` drops every velocity term
    and leaves the seed's law u = My Jc^-1 a + tau_g.
 
+Impedance (soft-contact) mode, ``impedance=True``: the PID of step 3 is off; the outer loop is a
+wrist force F = K (r - z) + D (rd - zd) + f_cmd (stiffness K and damping D per world axis, in
+N/m and N s/m, plus a commanded force f_cmd, the force the tool is to exert on the world) with
+a = rdd fed forward, and u = My Jc^-1 (a - Jc' yd) + ... + Jc^T F. Since My Jc^-1 = Jc^T Lambda
+(Lambda the wrist inertia), the robot then obeys Lambda (zdd - rdd) = F + f_ext: a mass-spring-
+damper about the reference with the robot's own inertia (Hogan's impedance control without a
+force sensor). The same law holds in free space, at the impact and while pressing: nothing
+switches. At rest in contact the force on the world is K (r - z) + f_cmd along the normal plus
+whatever gravity the controller's model does not cancel.
+
 Why it is cheap. The 6x6 dh/dx = [[A1, -A2, 0], [A1, 0, -A3]] (A_i = R_i dpsi/dx_i, 3x2) is
 never formed: the columns of A_i are orthogonal to the forearm direction n_i, so a solve with
 it splits into one 3x3 solve with N = [n_1 n_2 n_3]^T (the classic delta Jacobian) plus two dot
@@ -115,17 +125,24 @@ class ControlLaw(NamedTuple):
     fk: str
     newton_tol: float
     newton_max_iter: int
+    impedance: bool
+    stiffness: F3
+    task_damping: F3
 
 
 def make_law(params: Any, pole: float = 7.0, kI: Optional[float] = None, kP: Optional[float] = None,
              kD: Optional[float] = None, integral_limit: float = 1.0, feedforward: bool = True,
              coriolis: bool = True, torque_limit: float = 300.0, cond_limit: float = 100.0,
-             fk: str = "newton", newton_tol: float = 1e-12, newton_max_iter: int = 6) -> ControlLaw:
+             fk: str = "newton", newton_tol: float = 1e-12, newton_max_iter: int = 6,
+             impedance: bool = False, stiffness: Sequence[float] = (0.0, 0.0, 0.0),
+             task_damping: Sequence[float] = (0.0, 0.0, 0.0)) -> ControlLaw:
     """Control law from kinematic/inertial ``params`` and the outer-loop design.
 
     Gains default to a triple pole at ``-pole`` (rad/s): kI = p^3, kP = 3 p^2, kD = 3 p.
     ``integral_limit`` (m/s^2) bounds the integral action kI int(r - z) per axis; ``fk`` is
     ``"newton"`` (warm-started, the seed's method) or ``"closed"`` (three-sphere intersection).
+    ``impedance`` selects the impedance mode (module docstring) with ``stiffness`` (N/m) and
+    ``task_damping`` (N s/m) per world axis x, y, z; the PID gains are then unused.
     """
     p = float(pole)
     if not p > 0.0 and any(gain is None or gain < 0 for gain in (kI, kP, kD)):
@@ -137,10 +154,13 @@ def make_law(params: Any, pole: float = 7.0, kI: Optional[float] = None, kP: Opt
         raise ValueError(f"fk must be 'newton' or 'closed', got {fk!r}")
     if not (torque_limit > 0 and integral_limit >= 0 and cond_limit > 1):
         raise ValueError("torque_limit must be > 0, integral_limit >= 0 and cond_limit > 1")
+    stiffness3, damping3 = _f3(stiffness), _f3(task_damping)
+    if min(stiffness3) < 0.0 or min(damping3) < 0.0:
+        raise ValueError(f"impedance stiffness {stiffness3} and damping {damping3} must be >= 0")
     imax = integral_limit / kI if kI > 0.0 else 0.0
     return ControlLaw(_model(params), kI, kP, kD, imax, bool(feedforward), bool(coriolis),
                       float(torque_limit), float(cond_limit), fk, float(newton_tol),
-                      int(newton_max_iter))
+                      int(newton_max_iter), bool(impedance), stiffness3, damping3)
 
 
 class ControlOutput(NamedTuple):
@@ -315,12 +335,14 @@ def _singular(integral, z=(math.nan,) * 3, x=(math.nan,) * 6, iterations=-1) -> 
 def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequence[float],
              rd: Sequence[float], rdd: Sequence[float],
              integral: Sequence[float] = (0.0, 0.0, 0.0), dt: float = 0.0,
-             x_guess: Optional[Sequence[float]] = None) -> ControlOutput:
+             x_guess: Optional[Sequence[float]] = None,
+             force: Sequence[float] = (0.0, 0.0, 0.0)) -> ControlOutput:
     """One evaluation of the control law; pure (no state is kept).
 
     ``integral`` is the integral state before this sample and ``dt`` the time it advances
     (0: evaluate only). ``x_guess`` (6 angles) warm-starts the Newton forward kinematics;
-    without it, or if Newton fails, the closed form is used. Vectors are 3-sequences.
+    without it, or if Newton fails, the closed form is used. ``force`` is the commanded contact
+    force of the impedance mode (N, world; ignored in position mode). Vectors are 3-sequences.
     """
     k = law.model
     l1, l2 = k.l1, k.l2
@@ -374,6 +396,9 @@ def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequen
     zx, zy, zz = z
     r0, r1, r2 = _f3(r)
     e0, e1, e2 = r0 - zx, r1 - zy, r2 - zz
+    if law.impedance:
+        return _impedance(law, elb, fa, ninv, dd, (yd0, yd1, yd2), xd, (e0, e1, e2), _f3(rd),
+                          rdd, force, integral, z, (zdx, zdy, zdz), x, cond, status, iterations)
     imax = law.integral_max
     i0, i1, i2 = integral
     i0 = min(max(i0 + dt * e0, -imax), imax)
@@ -389,19 +414,41 @@ def evaluate(law: ControlLaw, y: Sequence[float], yd: Sequence[float], r: Sequen
     if law.feedforward:
         rdd0, rdd1, rdd2 = _f3(rdd)
         acc0, acc1, acc2 = acc0 + rdd0, acc1 + rdd1, acc2 + rdd2
-    if law.coriolis:
-        u = _inverse_dynamics(k, elb, fa, ninv, dd, [yd0, yd1, yd2], xd, (acc0, acc1, acc2))
-    else:
-        u = _inverse_dynamics(k, elb, fa, ninv, dd, [0.0] * 3, [0.0] * 6, (acc0, acc1, acc2))
+    yds = [yd0, yd1, yd2] if law.coriolis else [0.0] * 3
+    xds = xd if law.coriolis else [0.0] * 6
+    u = _inverse_dynamics(k, elb, fa, ninv, dd, yds, xds, (acc0, acc1, acc2), (0.0, 0.0, 0.0))
+    return _output(law, u, (i0, i1, i2), integral, z, (zdx, zdy, zdz), x, xd, cond, status, iterations)
+
+
+def _impedance(law: ControlLaw, elb: list[Elbow], fa: list[F4], ninv: F9, dd: list[float], yd: F3,
+               xd: list[float], e: F3, rd: F3, rdd: Sequence[float], force: Sequence[float],
+               integral: Sequence[float], z: F3, zd: F3, x: tuple, cond: float, status: int,
+               iterations: int) -> ControlOutput:
+    """The impedance mode's torques: inverse dynamics for zdd = rdd plus Jc^T F with the wrist
+    force F = K (r - z) + D (rd - zd) + force (module docstring). The integral is left alone."""
+    (k0, k1, k2), (c0, c1, c2) = law.stiffness, law.task_damping
+    f0, f1, f2 = _f3(force)
+    wrench = (k0 * e[0] + c0 * (rd[0] - zd[0]) + f0, k1 * e[1] + c1 * (rd[1] - zd[1]) + f1,
+              k2 * e[2] + c2 * (rd[2] - zd[2]) + f2)
+    acc = _f3(rdd) if law.feedforward else (0.0, 0.0, 0.0)
+    yds = [yd[0], yd[1], yd[2]] if law.coriolis else [0.0] * 3
+    xds = xd if law.coriolis else [0.0] * 6
+    u = _inverse_dynamics(law.model, elb, fa, ninv, dd, yds, xds, acc, wrench)
+    i0, i1, i2 = _f3(integral)
+    return _output(law, u, (i0, i1, i2), integral, z, zd, x, xd, cond, status, iterations)
+
+
+def _output(law: ControlLaw, u: F3, integral_new: F3, integral_old: Sequence[float], z: F3, zd: F3,
+            x: tuple, xd: list[float], cond: float, status: int, iterations: int) -> ControlOutput:
+    """The evaluation's result with the torques saturated (or singular if they are not finite)."""
     u0, u1, u2 = u
-    zd = (zdx, zdy, zdz)
     if not (math.isfinite(u0) and math.isfinite(u1) and math.isfinite(u2)):
-        return _singular(integral, z, x, iterations)
+        return _singular(integral_old, z, x, iterations)
     lim = law.torque_limit
     if max(abs(u0), abs(u1), abs(u2)) > lim:
         status |= STATUS_TORQUE_SATURATED
         u = (min(max(u0, -lim), lim), min(max(u1, -lim), lim), min(max(u2, -lim), lim))
-    return ControlOutput(u, (i0, i1, i2), z, zd, x, tuple(xd), cond, status, iterations)
+    return ControlOutput(u, integral_new, z, zd, x, tuple(xd), cond, status, iterations)
 
 
 def hold(u: Sequence[float], u_previous: Optional[Sequence[float]], limit: float) -> tuple[F3, bool]:
@@ -428,12 +475,14 @@ def warm_start(x: Sequence[float], xd: Sequence[float], xd_previous: Optional[Se
 
 
 def _inverse_dynamics(k: _Model, elb: list[Elbow], fa: list[F4], ninv: F9, dd: list[float],
-                      v1s: list[float], xd: list[float], acc: F3) -> F3:
-    """Servo torques giving wrist acceleration ``acc`` (world) at the state (elb, fa, v1s, xd).
+                      v1s: list[float], xd: list[float], acc: F3, wrench: F3) -> F3:
+    """Servo torques giving wrist acceleration ``acc`` (world) at the state (elb, fa, v1s, xd),
+    plus Jc^T ``wrench``: the torques that act on the wrist like that force (N, world).
 
     Arm by arm in its own frame: the joint accelerations that produce the wrist acceleration,
     the generalised force Q_i = m_i q''_i + c_i + D v_i + g_i from the point-mass form, then
-    u_i = Q_i1 - b_i . F_i with the constraint forces F_i (sum F_i = 0) balancing rows 2-3.
+    u_i = Q_i1 - b_i . F_i with the constraint forces F_i (sum F_i = W) balancing rows 2-3,
+    W the wrench (zero for pure inverse dynamics).
     """
     _, l1, l2, jrot, m1r1g, s0, s1m, s2m, g, damp = k
     ax, ay, az = acc
@@ -470,8 +519,9 @@ def _inverse_dynamics(k: _Model, elb: list[Elbow], fa: list[F4], ninv: F9, dd: l
         sy += sr * fx + cr * fyl
         sz += fzl
         bf.append(l1 * (c1 * fzl - s1 * fyl))   # b_i . F_perp_i
-    # sum_i (F_perp_i + f_i n_i) = 0 (world)  ->  f = -N^-T s;  u_i = Q_i1 - b_i . F_i
+    # sum_i (F_perp_i + f_i n_i) = -W (world)  ->  f = -N^-T (s + W);  u_i = Q_i1 - b_i . F_i
     n00, n01, n02, n10, n11, n12, n20, n21, n22 = ninv
+    sx, sy, sz = sx + wrench[0], sy + wrench[1], sz + wrench[2]
     f0 = -(n00 * sx + n10 * sy + n20 * sz)
     f1 = -(n01 * sx + n11 * sy + n21 * sz)
     f2 = -(n02 * sx + n12 * sy + n22 * sz)

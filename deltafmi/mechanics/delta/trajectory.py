@@ -1,8 +1,10 @@
 """Reference trajectories for the delta robot wrist: r(t), r'(t), r''(t) in the base frame.
 
-Three generators share one interface, ``evaluate(t) -> (r, rd, rdd)`` (three length-3 arrays):
+Four generators share one interface, ``evaluate(t) -> (r, rd, rdd)`` (three length-3 arrays):
 
 - :class:`MinimumJerkPath`: point-to-point minimum-jerk moves through waypoints, with dwell;
+- :class:`ConstantSpeedPath`: straight moves through waypoints at set speeds (an approach or a
+  slide at a given speed), speeding up and slowing down along minimum-jerk blends;
 - :class:`CirclePath`: a horizontal circle whose angular rate ramps in along a minimum-jerk
   profile, so position, velocity, acceleration and jerk are continuous from rest;
 - :class:`RecordedPath`: playback of a CSV ``time, x, y, z`` through a cubic (optionally
@@ -70,6 +72,36 @@ def _check_points(points: np.ndarray, workspace: Workspace | None, params, what:
             raise ValueError(f"{what} {i} = ({p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g}) m {reason}")
 
 
+def _waypoints(waypoints: Sequence[Sequence[float]], n_moves: int, dwell: float | Sequence[float],
+               workspace: Workspace | None, params) -> tuple[np.ndarray, np.ndarray]:
+    """Checked waypoints (n x 3) for ``n_moves`` = n - 1 moves, and the dwell at each of them."""
+    pts = np.asarray(waypoints, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 1:
+        raise ValueError(f"waypoints must be an n x 3 array with n >= 1, got shape {pts.shape}")
+    if n_moves != len(pts) - 1:
+        raise ValueError(f"{len(pts)} waypoints need {len(pts) - 1} durations, got {n_moves}")
+    D = np.broadcast_to(np.asarray(dwell, dtype=float), (len(pts),)).copy()
+    if np.any(D < 0.0) or not np.all(np.isfinite(D)):
+        raise ValueError(f"dwell must be finite and >= 0, got {dwell}")
+    _check_points(pts, workspace, params, "waypoint")
+    if params is not None:
+        # the cylinder is convex, the reachable set need not be: sample every move too
+        for k in range(n_moves):
+            for s in np.linspace(0.0, 1.0, 12)[1:-1]:
+                p = pts[k] + s * (pts[k + 1] - pts[k])
+                if not _reachable(params, p):
+                    raise ValueError(f"move {k} (waypoint {k} -> {k + 1}) leaves the "
+                                     f"reachable workspace near ({p[0]:.4g}, {p[1]:.4g}, "
+                                     f"{p[2]:.4g}) m")
+    return pts, D
+
+
+def _move_starts(t0: float, durations: np.ndarray, dwell: np.ndarray) -> list[float]:
+    """Start time of each move: after all earlier dwells and moves, plus the dwell at its start."""
+    before = np.concatenate(([0.0], np.cumsum(dwell[:-1] + durations)[:-1]))[:len(durations)]
+    return (t0 + before + dwell[:-1]).tolist()
+
+
 def _reachable(params, point: np.ndarray) -> bool:
     try:
         inverse_kinematics_servo(params, point)
@@ -92,34 +124,15 @@ class MinimumJerkPath:
     def __init__(self, waypoints: Sequence[Sequence[float]], durations: Sequence[float],
                  dwell: float | Sequence[float] = 0.0, t0: float = 0.0,
                  workspace: Workspace | None = Workspace(), params=None) -> None:
-        pts = np.asarray(waypoints, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 1:
-            raise ValueError(f"waypoints must be an n x 3 array with n >= 1, got shape {pts.shape}")
         T = np.array(durations, dtype=float).reshape(-1)
-        if len(T) != len(pts) - 1:
-            raise ValueError(f"{len(pts)} waypoints need {len(pts) - 1} durations, got {len(T)}")
         for k, Tk in enumerate(T):
             if not Tk > 0.0:
                 raise ValueError(f"duration {k} (waypoint {k} -> {k + 1}) = {Tk} s must be > 0")
-        D = np.broadcast_to(np.asarray(dwell, dtype=float), (len(pts),)).copy()
-        if np.any(D < 0.0) or not np.all(np.isfinite(D)):
-            raise ValueError(f"dwell must be finite and >= 0, got {dwell}")
-        _check_points(pts, workspace, params, "waypoint")
-        if params is not None:
-            # the cylinder is convex, the reachable set need not be: sample every move too
-            for k in range(len(T)):
-                for s in np.linspace(0.0, 1.0, 12)[1:-1]:
-                    p = pts[k] + s * (pts[k + 1] - pts[k])
-                    if not _reachable(params, p):
-                        raise ValueError(f"move {k} (waypoint {k} -> {k + 1}) leaves the "
-                                         f"reachable workspace near ({p[0]:.4g}, {p[1]:.4g}, "
-                                         f"{p[2]:.4g}) m")
+        pts, D = _waypoints(waypoints, len(T), dwell, workspace, params)
         self.waypoints, self.durations, self.dwell, self.t0 = pts, T, D, float(t0)
-        # move k starts after all earlier dwells and moves, plus the dwell at waypoint k
-        before = np.concatenate(([0.0], np.cumsum(D[:-1] + T)[:-1]))[:len(T)]
         self.duration = float(D.sum() + T.sum())
         # plain floats for evaluate(): sampled every step, where numpy's per-call cost dominates
-        self._starts = (self.t0 + before + D[:-1]).tolist()
+        self._starts = _move_starts(self.t0, T, D)
         self._moves = [(float(T[k]), tuple(pts[k].tolist()), tuple((pts[k + 1] - pts[k]).tolist()))
                        for k in range(len(T))]
 
@@ -133,6 +146,64 @@ class MinimumJerkPath:
         ds, dds = ds / T, dds / (T * T)
         return (np.array([p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2]]),
                 np.array([ds * d[0], ds * d[1], ds * d[2]]), np.array([dds * d[0], dds * d[1], dds * d[2]]))
+
+
+class ConstantSpeedPath:
+    """Straight moves through ``waypoints`` (n x 3, m) at ``speeds[k]`` (m/s) along move k.
+
+    Each move starts from rest, reaches its speed along the minimum-jerk blend over ``blend``
+    seconds, cruises, and comes to rest at the next waypoint along the mirrored blend (position,
+    velocity and acceleration continuous; a blend covers ``speed * blend / 2``, so a move must be
+    at least ``speed * blend`` long). ``dwell``, ``t0``, ``workspace`` and ``params`` as for
+    :class:`MinimumJerkPath`.
+    """
+
+    def __init__(self, waypoints: Sequence[Sequence[float]], speeds: Sequence[float], blend: float,
+                 dwell: float | Sequence[float] = 0.0, t0: float = 0.0,
+                 workspace: Workspace | None = Workspace(), params=None) -> None:
+        V = np.array(speeds, dtype=float).reshape(-1)
+        pts, D = _waypoints(waypoints, len(V), dwell, workspace, params)
+        if not blend > 0.0:
+            raise ValueError(f"blend must be > 0, got {blend} s")
+        moves, T = [], []
+        for k, Vk in enumerate(V):
+            d = pts[k + 1] - pts[k]
+            length = float(np.linalg.norm(d))
+            if not Vk > 0.0:
+                raise ValueError(f"speed {k} (waypoint {k} -> {k + 1}) = {Vk} m/s must be > 0")
+            if length < Vk * blend:
+                raise ValueError(f"move {k} (waypoint {k} -> {k + 1}) is {length:.6g} m long, shorter "
+                                 f"than speed x blend = {Vk * blend:.6g} m: lower the speed or the blend")
+            T.append(length / Vk + blend)
+            moves.append((float(T[-1]), float(Vk), length, tuple(pts[k].tolist()), tuple((d / length).tolist())))
+        self.waypoints, self.speeds, self.blend, self.dwell, self.t0 = pts, V, float(blend), D, float(t0)
+        self.durations = np.array(T)
+        self.duration = float(D.sum() + self.durations.sum())
+        self._starts = _move_starts(self.t0, self.durations, D)
+        self._moves = moves
+
+    def _along(self, tau: float, T: float, V: float, length: float) -> tuple[float, float, float]:
+        """Distance, speed and acceleration along a move at time ``tau`` into it."""
+        Tb = self.blend
+        if tau <= Tb:
+            x = tau / Tb
+            s, ds, _ = minimum_jerk(x)
+            return V * Tb * x ** 4 * (2.5 + x * (-3.0 + x)), V * s, V * ds / Tb
+        if tau >= T - Tb:
+            x = min((T - tau) / Tb, 1.0)
+            s, ds, _ = minimum_jerk(x)
+            return length - V * Tb * x ** 4 * (2.5 + x * (-3.0 + x)), V * s, -V * ds / Tb
+        return V * (tau - 0.5 * Tb), V, 0.0
+
+    def evaluate(self, t: float) -> Vector3:
+        """Reference position, velocity and acceleration at time ``t``."""
+        k = bisect.bisect_right(self._starts, t) - 1
+        if k < 0:
+            return self.waypoints[0].copy(), np.zeros(3), np.zeros(3)
+        T, V, length, p, u = self._moves[k]
+        s, v, a = self._along(min(t - self._starts[k], T), T, V, length)
+        return (np.array([p[0] + s * u[0], p[1] + s * u[1], p[2] + s * u[2]]),
+                np.array([v * u[0], v * u[1], v * u[2]]), np.array([a * u[0], a * u[1], a * u[2]]))
 
 
 class CirclePath:

@@ -1,0 +1,93 @@
+"""A two-pad tactile sensor under the tool (the seed talk's touch sensor): where the tool is
+relative to a hole, from the difference of the two pad forces.
+
+Geometry along the sensor axis (a horizontal unit vector): pad 1 is centred at ``-spacing/2`` from
+the tool tip, pad 2 at ``+spacing/2``, each ``width`` long; the surface has a hole (a slot across
+the axis) of width ``hole_width`` centred at the feature. With the tool at offset ``xi`` from the
+hole centre, pad ``i`` rests on the solid surface over the fraction ``phi_i`` of its length.
+
+Statics. The tool is held by the travelling plate, which only translates, so both pads compress
+by the same amount ``delta_p``; a pad is a uniform elastic layer, so its force is
+``k_pad phi_i delta_p`` (``k_pad`` for a fully supported pad). The pads carry the whole normal
+load ``F``: ``F_i = F phi_i / (phi_1 + phi_2)`` and ``delta_p = F / (k_pad (phi_1 + phi_2))``.
+
+Where both pad ends overhang the hole edges (``|spacing - hole_width| < width``, the design
+case), the supported fractions are linear in the offset near the centre,
+``phi_{1,2} = phi_0 -+ xi / width`` with ``phi_0 = (spacing + width - hole_width) / (2 width)``, so
+
+    F_1 - F_2 = -F xi / (width phi_0):
+
+the difference measures the offset, and drives a loop to ``xi = 0``. Beyond that range it
+saturates at ``-+F`` (one pad fully over the hole) up to ``|xi| = (hole_width + spacing - width)/2``,
+the capture range, where both pads leave the hole.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["TactilePads", "Readout"]
+
+
+def _overlap(a0: float, a1: float, b0: float, b1: float) -> float:
+    return max(0.0, min(a1, b1) - max(a0, b0))
+
+
+@dataclass(frozen=True)
+class TactilePads:
+    """Two elastic pads on the sensor axis (lengths in m, stiffness in N/m per pad)."""
+
+    spacing: float = 0.01
+    width: float = 0.004
+    stiffness: float = 1e5
+
+    def __post_init__(self) -> None:
+        if not (self.spacing > self.width > 0.0 and self.stiffness > 0.0):
+            raise ValueError(f"tactile pads need spacing > width > 0 and stiffness > 0, got spacing "
+                             f"{self.spacing} m, width {self.width} m, stiffness {self.stiffness} N/m")
+
+    def supported(self, offset: float, hole_width: float) -> tuple[float, float]:
+        """Fractions of pads 1 and 2 over the solid surface, tool at ``offset`` from the hole centre."""
+        half, w = 0.5 * self.width, 0.5 * hole_width
+        out = []
+        for centre in (offset - 0.5 * self.spacing, offset + 0.5 * self.spacing):
+            out.append(1.0 - _overlap(centre - half, centre + half, -w, w) / self.width)
+        return out[0], out[1]
+
+    def forces(self, load: float, offset: float, hole_width: float) -> tuple[float, float, float]:
+        """Pad forces ``(F_1, F_2)`` under the normal ``load`` (N) and the pads' compression (m).
+
+        Both zero when nothing presses or when both pads hang over the hole (the tool would
+        drop in: outside this model)."""
+        phi1, phi2 = self.supported(offset, hole_width)
+        support = phi1 + phi2
+        if load <= 0.0 or support <= 0.0:
+            return 0.0, 0.0, 0.0
+        return load * phi1 / support, load * phi2 / support, load / (self.stiffness * support)
+
+    def slope(self, load: float, hole_width: float) -> float:
+        """``d(F_1 - F_2)/d offset`` at the centre, ``-load / (width phi_0)`` (N/m)."""
+        phi0 = self.supported(0.0, hole_width)[0]
+        return -load / (self.width * phi0) if phi0 > 0.0 else 0.0
+
+
+@dataclass(frozen=True)
+class Readout:
+    """A sampled channel: Gaussian noise (N rms) and quantization (N per count; 0: none).
+
+    The noise of sample ``k`` on channel ``c`` is drawn from a generator seeded with
+    ``(seed, k, c)``: the same run gives the same noise whatever the stepping, rollbacks included.
+    """
+
+    noise: float = 0.0
+    quantization: float = 0.0
+    seed: int = 0
+
+    def read(self, value: float, sample: int, channel: int) -> float:
+        """The reading of ``value`` at sample ``sample`` on ``channel``."""
+        if self.noise > 0.0:
+            value += self.noise * float(np.random.default_rng([self.seed, sample, channel]).standard_normal())
+        if self.quantization > 0.0:
+            value = self.quantization * round(value / self.quantization)
+        return value
