@@ -1,0 +1,128 @@
+/* Ticker: counts time events, one every `period` seconds from the start, samples its input at
+ * each, and ends the simulation at the `max_ticks`-th (terminateSimulation in Model Exchange;
+ * fmi2Discard with fmi2Terminated in Co-Simulation).
+ *
+ *   ticks = number of ticks so far          (Integer)
+ *   held  = u at the last tick (at the start before the first one)
+ *   phase = time since the last tick (since the start before the first one)
+ */
+#include <math.h>
+
+#include "plumbing.h"
+
+enum { vr_period = 0, vr_u = 1, vr_held = 2, vr_phase = 3, vr_max_ticks = 10, vr_ticks = 11 };
+
+struct ModelData {
+    double period, u, held, lastTick;
+    int maxTicks, ticks;
+};
+
+const char *const MODEL_GUID = "{5b0f3c1e-6a3d-4a53-9c61-2f1a1f7c0a02}";
+const size_t MODEL_DATA_SIZE = sizeof(ModelData);
+const size_t NUMBER_OF_STATES = 0;
+const size_t NUMBER_OF_EVENT_INDICATORS = 0;
+
+#define M(v) (comp->data->v)
+
+void setStartValues(ModelInstance *comp) {
+    M(period) = 0.35;
+    M(u) = 0.0;
+    M(maxTicks) = 5;
+}
+
+fmi2Status initialize(ModelInstance *comp) {
+    if (M(period) <= 0) {
+        logError(comp, "period = %g must be positive", M(period));
+        return fmi2Error;
+    }
+    M(ticks) = 0;
+    M(held) = M(u);
+    M(lastTick) = comp->startTime;
+    comp->nextEventTimeDefined = true;
+    comp->nextEventTime = comp->startTime + M(period);
+    return fmi2OK;
+}
+
+fmi2Status getReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real *value) {
+    switch (vr) {
+        case vr_period: *value = M(period); return fmi2OK;
+        case vr_u: *value = M(u); return fmi2OK;
+        case vr_held: *value = M(held); return fmi2OK;
+        case vr_phase: *value = comp->time - M(lastTick); return fmi2OK;
+        default: return fmi2Error;
+    }
+}
+
+fmi2Status setReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real value) {
+    switch (vr) {
+        case vr_period:
+            if (checkSettable(comp, "period", Fixed)) return fmi2Error;
+            M(period) = value;
+            return fmi2OK;
+        case vr_u:
+            if (checkSettable(comp, "u", ContinuousInput)) return fmi2Error;
+            M(u) = value;
+            return fmi2OK;
+        default: return fmi2Error;
+    }
+}
+
+fmi2Status getInteger(ModelInstance *comp, fmi2ValueReference vr, fmi2Integer *value) {
+    switch (vr) {
+        case vr_max_ticks: *value = M(maxTicks); return fmi2OK;
+        case vr_ticks: *value = M(ticks); return fmi2OK;
+        default: return fmi2Error;
+    }
+}
+
+fmi2Status setInteger(ModelInstance *comp, fmi2ValueReference vr, fmi2Integer value) {
+    if (vr != vr_max_ticks || checkSettable(comp, "max_ticks", Fixed)) return fmi2Error;
+    M(maxTicks) = value;
+    return fmi2OK;
+}
+
+fmi2Status getBoolean(ModelInstance *comp, fmi2ValueReference vr, fmi2Boolean *value) {
+    (void)comp, (void)vr, (void)value;
+    return fmi2Error;
+}
+
+fmi2Status setBoolean(ModelInstance *comp, fmi2ValueReference vr, fmi2Boolean value) {
+    (void)comp, (void)vr, (void)value;
+    return fmi2Error;
+}
+
+fmi2Status getString(ModelInstance *comp, fmi2ValueReference vr, fmi2String *value) {
+    (void)comp, (void)vr, (void)value;
+    return fmi2Error;
+}
+
+fmi2Status setString(ModelInstance *comp, fmi2ValueReference vr, fmi2String value) {
+    (void)comp, (void)vr, (void)value;
+    return fmi2Error;
+}
+
+void getContinuousStates(ModelInstance *comp, double x[]) { (void)comp, (void)x; }
+
+void setContinuousStates(ModelInstance *comp, const double x[]) { (void)comp, (void)x; }
+
+void getDerivatives(ModelInstance *comp, double dx[]) { (void)comp, (void)dx; }
+
+void getEventIndicators(ModelInstance *comp, double z[]) { (void)comp, (void)z; }
+
+void eventUpdate(ModelInstance *comp) {
+    if (!timeEventDue(comp)) return;
+    M(ticks) += 1;
+    M(held) = M(u);
+    M(lastTick) = comp->nextEventTime;
+    /* from the count, so that round-off does not accumulate */
+    comp->nextEventTime = comp->startTime + (M(ticks) + 1) * M(period);
+    if (M(ticks) >= M(maxTicks)) {
+        comp->terminateSimulation = true;
+        logInfo(comp, "tick %d of %d at t = %g: terminating", M(ticks), M(maxTicks), comp->time);
+    }
+}
+
+bool advance(ModelInstance *comp, double t_stop) {
+    comp->time = t_stop;
+    return false;
+}
