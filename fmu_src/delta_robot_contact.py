@@ -96,9 +96,10 @@ class DeltaRobotContact(HybridSystemComponent):
         x0 = robot_start_state(params, self.z0, self.zd0)
         start_gap = float(system.model.gaps(x0[:9])[0])
         if start_gap < 0.0:
-            raise ValueError(f"the tool tip starts {-start_gap:.6g} m below the surface (z0 = "
-                             f"{list(self.z0)}, tool = {list(self.tool)}, surface_height = "
-                             f"{self.surface_height}): start above it")
+            tip = ", ".join(f"{float(a) + float(b):.6g}" for a, b in zip(self.z0, self.tool))
+            raise ValueError(f"the tool tip starts {-start_gap:.6g} m below the surface (tip at ({tip}) m "
+                             f"from z0 + tool; the plane crosses the axis at surface_height = "
+                             f"{float(self.surface_height):.6g} m): start it above")
         self.q, self.v = x0[:9], x0[9:]
         return system
 
