@@ -21,11 +21,10 @@ import fmpy
 import numpy as np
 
 from .errors import BadInput, SimulationError
-from .me_integrator import TerminateRequested
-from .progress import Progress, Summary
+from .progress import Progress, Summary, Termination
 from .resolve import System
 from .results import CsvWriter, RowSampler
-from .units import TYPES, FmuFailure, Unit, unit_for
+from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 
 class Master:
@@ -63,24 +62,23 @@ class Master:
     def run(self) -> Summary:
         """Simulate from start to stop; raises :class:`SimulationError` with a one-line reason.
 
-        Whatever was recorded before a failure stays in the result file.
+        Whatever was recorded before a failure stays in the result file. A component that ends
+        the simulation (:class:`Terminated`) ends the run cleanly at its time.
         """
         wall = _time.perf_counter()
         terminated = None
         setup = 0.0
         try:
-            self.open()
-            setup = _time.perf_counter() - wall
             try:
+                self.open()
+                setup = _time.perf_counter() - wall
                 if self.system.scenario.master.adaptive.enabled and self._can_roll_back():
                     from .adaptive import run_adaptive
                     run_adaptive(self)
                 else:
                     self._run_fixed()
-            except TerminateRequested as exc:
-                terminated = str(exc)
-                self.time = exc.time
-                self._record(exc.time)
+            except Terminated as exc:
+                terminated = self._end_early(exc)
         except (FmuFailure, fmpy.fmi1.FMICallException, RuntimeError, OSError, ValueError) as exc:
             raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
                                   f"{self._partial_note()}") from exc
@@ -102,7 +100,8 @@ class Master:
             unit.instantiate(self.start, self.stop)
             unit.apply_start_values()
         self._wire()
-        self.writer = CsvWriter(self.result_path, [p.ref for p in self.system.recorded])
+        recorded = self.system.recorded
+        self.writer = CsvWriter(self.result_path, [p.ref for p in recorded], kinds=[p.type for p in recorded])
         self._initialize()
         self._record(self.start)
 
@@ -116,6 +115,18 @@ class Master:
         if self._unzip_root:
             shutil.rmtree(self._unzip_root, ignore_errors=True)
             self._unzip_root = ""
+
+    def _end_early(self, stop: Terminated) -> Termination:
+        """A unit ended the simulation at ``stop.time``: write the rows held back, then the last
+        row with every unit's current values (the terminating unit's at the time it reached)."""
+        self.time = stop.time
+        if self.writer is not None and self.sampler is not None:
+            if self._deferred is not None:
+                self.commit_events()
+            for unit in self.units:
+                unit.fetch()
+            self._record(stop.time)
+        return Termination(stop.unit, stop.time)
 
     def _partial_note(self) -> str:
         if self.writer is None:
@@ -166,8 +177,8 @@ class Master:
             if port.vr not in vrs:
                 vrs.append(port.vr)
         slot: Dict[Tuple[str, str, int], int] = {}
-        for kind, (_, dtype) in TYPES.items():
-            bus = self.buses[kind] = np.zeros(max(1, sum(map(len, fetched[kind].values()))), dtype=dtype)
+        for kind in TYPES:
+            bus = self.buses[kind] = new_bus(kind, max(1, sum(map(len, fetched[kind].values()))))
             start = 0
             for unit in self.units:
                 vrs = fetched[kind][unit.name]

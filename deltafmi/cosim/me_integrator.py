@@ -8,6 +8,8 @@ step, and CVODE stops exactly at every communication point so it never integrate
 input; it keeps its step history across communication points and events, and is re-initialized
 only where that history is wrong: the states jumped (``valuesOfContinuousStatesChanged``), their
 nominals changed, the derivatives jumped at the event, or a state event (see :meth:`_event`).
+An FMU that sets ``terminateSimulation`` (in fmi2CompletedIntegratorStep or in the event
+iteration) raises :class:`~.unit_base.Terminated`: the master ends the run at that time.
 """
 from __future__ import annotations
 
@@ -22,17 +24,9 @@ from deltafmi.component.cvode import Cvode, CvodeError
 
 from .explicit_rk import TABLEAUS, ExplicitRungeKutta, RungeKuttaError
 from .resolve import Component
-from .units import FmuFailure, Unit, bare_function
+from .unit_base import FmuFailure, Terminated, Unit, bare_function
 
 _MAX_EVENT_ITERATIONS = 1000
-
-
-class TerminateRequested(Exception):
-    """An FMU set ``terminateSimulation`` during an event: the run ends cleanly at ``time``."""
-
-    def __init__(self, unit: str, time: float) -> None:
-        super().__init__(f"{unit} requested termination at t = {time:.9g} s")
-        self.time = time
 
 
 class ModelExchangeUnit(Unit):
@@ -72,7 +66,7 @@ class ModelExchangeUnit(Unit):
     def wire_inputs(self, kind: str, *args: Any) -> None:
         super().wire_inputs(kind, *args)
         if kind != "Real":
-            # FMI 2.0 ME: discrete inputs may only change in event mode
+            # FMI 2.0 ME: discrete inputs (Integer, Boolean, String) may only change in event mode
             self._discrete_inputs.append(self.inputs.pop())
 
     # --- initialization -----------------------------------------------------------------------
@@ -80,6 +74,8 @@ class ModelExchangeUnit(Unit):
         """Leave initialization, run the initial event iteration, start CVODE."""
         super().exit_initialization(time)
         self._event_iteration(time)
+        for inputs in self._discrete_inputs:
+            self.call(inputs.seed)  # the values initialization left: a later change is an event
         self.call(self.fmu.enterContinuousTimeMode)
         self.solver = self._new_solver(time)
 
@@ -137,12 +133,8 @@ class ModelExchangeUnit(Unit):
     def pull(self) -> None:
         super().pull()
         if self._discrete_inputs:
-            changed = False
-            for inputs in self._discrete_inputs:
-                before = inputs.values.copy()
-                np.take(inputs.bus, inputs.index, out=inputs.values)
-                changed = changed or not np.array_equal(before, inputs.values)
-            if changed:
+            changed = [inputs.update() for inputs in self._discrete_inputs]
+            if any(changed):
                 self._event(self.solver.t, self._discrete_inputs)
 
     def do_step(self, time: float, step: float) -> None:
@@ -165,7 +157,7 @@ class ModelExchangeUnit(Unit):
                     enter, terminate = self._step_flags
                     self._completed_step(self._handle, self.no_prior_state, byref(enter), byref(terminate))
                     if terminate.value:
-                        raise TerminateRequested(self.name, t)
+                        raise Terminated(self.name, t)
                     step_event = bool(enter.value)
                 if root or step_event or (event_time is not None and t >= event_time - eps):
                     stuck = stuck + 1 if t - t_previous <= eps else 0
@@ -215,7 +207,7 @@ class ModelExchangeUnit(Unit):
         before = self._derivatives()
         self.call(self.fmu.enterEventMode)
         for inputs in discrete_inputs:
-            inputs.setter(inputs.handle, inputs.vrs, inputs.n, inputs.pointer)
+            inputs.send()
         states_changed, nominals_changed = self._event_iteration(t)
         self.call(self.fmu.enterContinuousTimeMode)
         if nominals_changed:
@@ -239,7 +231,7 @@ class ModelExchangeUnit(Unit):
             states_changed |= values
             nominals_changed |= nominals
             if terminate:
-                raise TerminateRequested(self.name, t)
+                raise Terminated(self.name, t)
             if not needed:
                 self.next_event_time = next_time if defined else None
                 return states_changed, nominals_changed

@@ -40,6 +40,18 @@ class Progress:
             self.enabled = False
 
 
+@dataclass(frozen=True)
+class Termination:
+    """A component ended the run before its stop time (FMI 2.0: terminateSimulation in Model
+    Exchange, fmi2Discard with fmi2Terminated in Co-Simulation)."""
+
+    component: str
+    time: float
+
+    def __str__(self) -> str:
+        return f"ended early: {self.component} terminated the simulation at t = {self.time:.9g} s"
+
+
 @dataclass
 class Summary:
     """Figures of a finished run."""
@@ -51,7 +63,8 @@ class Summary:
     simulated: float
     rows: int
     result: Path
-    terminated: Optional[str] = None
+    #: who ended the run early, and when (None: it ran to its stop time)
+    terminated: Optional[Termination] = None
     #: wall seconds spent before the first step (extracting, loading, initializing)
     setup_time: float = 0.0
 

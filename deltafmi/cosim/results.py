@@ -1,50 +1,79 @@
 """Result files: rows streamed to CSV while the run goes on, and read back for plots and tests.
 
 The file starts with a ``time`` column followed by one column per recorded ``comp.var``. An event
-shows as two rows with the same time stamp (values just before and just after). Rows are buffered
-in a small numpy block and written out whenever it fills up or half a second has passed, so a
-failing or killed run keeps (almost) everything up to the failure.
+shows as two rows with the same time stamp (values just before and just after). Real values are
+written with ``repr`` (they read back bit for bit), Integer, Boolean and Enumeration values as
+integers, String values quoted by the :mod:`csv` module's rules (``QUOTE_NONNUMERIC``: every
+string in double quotes, a quote inside doubled). Rows are buffered and written out whenever
+the buffer fills up or half a second has passed, so a failing or killed run keeps (almost)
+everything up to the failure.
 """
 from __future__ import annotations
 
+import csv
+import io
 import time as _time
 from pathlib import Path
-from typing import Dict, List, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 _FLUSH_SECONDS = 0.5
+_INTEGERS = ("Integer", "Boolean")
 
 
 class CsvWriter:
-    """Appends rows ``time, values...`` to a CSV file."""
+    """Appends rows ``time, values...`` to a CSV file.
 
-    def __init__(self, path: str | Path, names: Sequence[str], chunk: int = 512) -> None:
+    ``kinds`` gives each column's FMI type (``Real``, ``Integer``, ``Boolean``, ``String``;
+    default all Real). Without String columns rows go through a float block and one format
+    string; with them, each row is kept as a list and written by :func:`csv.writer`.
+    """
+
+    def __init__(self, path: str | Path, names: Sequence[str], chunk: int = 512,
+                 kinds: Optional[Sequence[str]] = None) -> None:
+        kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
+        if len(kinds) != len(names):
+            raise ValueError(f"{len(names)} column names but {len(kinds)} column types")
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file = open(self.path, "w", newline="")
-        self._file.write(",".join(["time", *names]) + "\n")
+        csv.writer(self._file, lineterminator="\n").writerow(["time", *names])
         self._file.flush()
-        self._rows = np.empty((chunk, len(names) + 1))
+        self._chunk = chunk
+        self._text = "String" in kinds
+        if self._text:
+            self._rows: list = []
+            self._csv = csv.writer(self._file, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+        else:
+            self._block = np.empty((chunk, len(names) + 1))
+            self._format = ",".join(["%r"] + ["%d" if kind in _INTEGERS else "%r" for kind in kinds])
         self._n = 0
         self._last_flush = _time.monotonic()
         self.rows_written = 0
 
     def write(self, time: float, values: np.ndarray) -> None:
         """Queue one row; it reaches the file at the next flush."""
-        row = self._rows[self._n]
-        row[0] = time
-        row[1:] = values
+        if self._text:
+            self._rows.append([time, *values])
+        else:
+            row = self._block[self._n]
+            row[0] = time
+            row[1:] = values
         self._n += 1
-        if self._n == len(self._rows) or (self._n & 63 == 0 and
-                                           _time.monotonic() - self._last_flush > _FLUSH_SECONDS):
+        if self._n == self._chunk or (self._n & 63 == 0 and
+                                      _time.monotonic() - self._last_flush > _FLUSH_SECONDS):
             self.flush()
 
     def flush(self) -> None:
         """Write the queued rows and flush the file."""
         if self._n:
-            text = "\n".join(",".join(map(repr, row)) for row in self._rows[: self._n].tolist())
-            self._file.write(text + "\n")
+            if self._text:
+                self._csv.writerows(self._rows)
+                self._rows = []
+            else:
+                fmt = self._format
+                self._file.write("\n".join(fmt % tuple(row) for row in self._block[: self._n].tolist()) + "\n")
             self.rows_written += self._n
             self._n = 0
         self._file.flush()
@@ -58,13 +87,15 @@ class CsvWriter:
 
 
 class RowSampler:
-    """Gathers the recorded variables from the master's buses into one float row."""
+    """Gathers the recorded variables from the master's buses into one row (float, or an
+    object array when a String variable is recorded)."""
 
     def __init__(self, parts: Sequence[Tuple[np.ndarray, Sequence[int], Sequence[int]]], width: int) -> None:
         """``parts``: (bus, bus indices, row columns) per FMI type."""
-        self.row = np.zeros(width)
         self._parts = [(bus, np.asarray(index, np.intp), np.asarray(columns, np.intp))
                        for bus, index, columns in parts if len(index)]
+        text = any(bus.dtype == object for bus, _, _ in self._parts)
+        self.row = np.zeros(width, dtype=object if text else float)
 
     def sample(self) -> np.ndarray:
         """The current values of every recorded variable."""
@@ -75,14 +106,32 @@ class RowSampler:
 
 
 def read_csv(path: str | Path) -> Tuple[List[str], np.ndarray]:
-    """Column names and data (rows x columns, time first) of a result file."""
-    with open(path) as file:
-        names = file.readline().strip().split(",")
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    """Column names and data (rows x columns, time first) of a result file.
+
+    The data are floats; a file with String columns comes back as an object array whose
+    String columns hold ``str`` (see :func:`columns` for typed columns).
+    """
+    with open(path, newline="") as file:
+        names = next(csv.reader(file))
+        body = file.read()
+    if '"' not in body:
+        data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
+        return names, data.reshape(-1, len(names)) if data.size == 0 else data
+    rows = list(csv.reader(io.StringIO(body), quoting=csv.QUOTE_NONNUMERIC))
+    data = np.empty((len(rows), len(names)), dtype=object)
+    for i, row in enumerate(rows):
+        data[i, :] = row
     return names, data
 
 
 def columns(path: str | Path) -> Dict[str, np.ndarray]:
-    """A result file as ``{name: column}`` (``time`` included)."""
+    """A result file as ``{name: column}`` (``time`` included): float arrays, and object
+    arrays of ``str`` for String columns."""
     names, data = read_csv(path)
-    return {name: data[:, i] for i, name in enumerate(names)}
+    result = {}
+    for i, name in enumerate(names):
+        column = data[:, i]
+        if column.dtype == object and not any(isinstance(value, str) for value in column):
+            column = column.astype(float)
+        result[name] = column
+    return result

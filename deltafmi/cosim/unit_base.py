@@ -1,0 +1,351 @@
+"""What every runtime unit of the master shares: the :class:`Unit` base, the value buses it
+exchanges with the master, and the ways a unit stops (:class:`FmuFailure`, :class:`Terminated`).
+
+Every unit exchanges values with the master through *buses* (one vector per FMI type that
+holds every fetched variable of every unit: numpy numbers for Real, Integer and Boolean, a
+numpy object array of ``str`` for String). Wiring is precomputed once, so a step costs one
+``fmi2Get<Type>`` per unit and type into its bus slice, and one gather plus one ``fmi2Set<Type>`` for
+its inputs: no dicts, no per-step allocation (String values excepted: they are Python strings).
+
+The Co-Simulation and Model Exchange units (:mod:`.units`, :mod:`.me_integrator`) both build on
+this module and neither imports the other.
+"""
+from __future__ import annotations
+
+import ctypes
+from collections import deque
+from ctypes import POINTER
+from typing import Any, Callable, Dict, List, Sequence, Tuple, Union
+
+import numpy as np
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Boolean, fmi2Integer, fmi2Real,
+                       fmi2String, fmi2ValueReference)
+
+from .resolve import Component, Port
+
+#: FMI type -> (ctypes element type, numpy dtype of its bus); Enumeration values travel as Integer
+TYPES: Dict[str, Tuple[Any, Any]] = {
+    "Real": (fmi2Real, np.float64),
+    "Integer": (fmi2Integer, np.int32),
+    "Boolean": (fmi2Boolean, np.int32),
+    "String": (fmi2String, object),
+}
+
+
+def new_bus(kind: str, size: int) -> np.ndarray:
+    """A bus of ``size`` slots for FMI type ``kind`` (zeros, or empty strings)."""
+    if kind == "String":
+        return np.full(size, "", dtype=object)
+    return np.zeros(size, dtype=TYPES[kind][1])
+
+
+class FmuFailure(RuntimeError):
+    """An FMI call failed; the message names the unit, the call and the FMU's last log message."""
+
+
+class Terminated(Exception):
+    """A unit ended the simulation at ``time``, as FMI 2.0 lets an FMU do: Model Exchange sets
+    ``terminateSimulation`` (fmi2NewDiscreteStates, fmi2CompletedIntegratorStep); Co-Simulation
+    returns fmi2Discard from fmi2DoStep with fmi2GetBooleanStatus(fmi2Terminated) true and
+    fmi2GetRealStatus(fmi2LastSuccessfulTime) the time it reached. The run ends cleanly there."""
+
+    def __init__(self, unit: str, time: float) -> None:
+        super().__init__(f"{unit} terminated the simulation at t = {time:.9g} s")
+        self.unit = unit
+        self.time = time
+
+
+def bare_function(fmu: Any, name: str) -> Callable[..., None]:
+    """fmpy's ctypes binding of the fmi2 function ``name`` without fmpy's Python wrapper around
+    it (call logging, which the master never enables, costs about 1 us a call); raises
+    ``FMICallException`` on a status above fmi2Warning as fmpy does."""
+    function = getattr(fmu.dll, name)  # argtypes and restype as fmpy declared them
+
+    def call(*args: Any) -> None:
+        status = function(*args)
+        if status > 1:
+            raise FMICallException(function=name, status=status)
+    return call
+
+
+class _Inputs:
+    """One unit's inputs of one numeric type: ``values = factor * bus[index] + offset``, set in one call."""
+
+    def __init__(self, setter: Callable, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray,
+                 index: Sequence[int], factor: Sequence[float], offset: Sequence[float], ctype: Any) -> None:
+        n = len(vrs)
+        self.vrs = (fmi2ValueReference * n)(*vrs)
+        self.n = n
+        self.values = np.zeros(n, dtype=bus.dtype)
+        self.pointer = self.values.ctypes.data_as(POINTER(ctype))
+        self.bus = bus
+        self.index = np.asarray(index, dtype=np.intp)
+        factor, offset = np.asarray(factor, float), np.asarray(offset, float)
+        transformed = bool(np.any(factor != 1.0) or np.any(offset != 0.0))
+        self.factor = factor if transformed else None
+        self.offset = offset
+        self.setter, self.getter, self.handle = setter, getter, handle
+
+    def apply(self) -> None:
+        """Gather from the bus, transform, and set in the FMU."""
+        np.take(self.bus, self.index, out=self.values)
+        if self.factor is not None:
+            self.values *= self.factor
+            self.values += self.offset
+        self.setter(self.handle, self.vrs, self.n, self.pointer)
+
+    def update(self) -> bool:
+        """Gather from the bus without setting (discrete inputs: no transform); True when changed."""
+        before = self.values.copy()
+        np.take(self.bus, self.index, out=self.values)
+        return not np.array_equal(before, self.values)
+
+    def send(self) -> None:
+        """Set the gathered values in the FMU."""
+        self.setter(self.handle, self.vrs, self.n, self.pointer)
+
+    def seed(self) -> None:
+        """Take the values the FMU has now (so that :meth:`update` sees real changes only)."""
+        self.getter(self.handle, self.vrs, self.n, self.pointer)
+
+
+class _StringInputs:
+    """One unit's String inputs: ``values = bus[index]``, set in one call (no transform)."""
+
+    factor = None
+
+    def __init__(self, setter: Callable, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray,
+                 index: Sequence[int]) -> None:
+        n = len(vrs)
+        self.vrs = (fmi2ValueReference * n)(*vrs)
+        self.n = n
+        self.values = new_bus("String", n)
+        self.buffer = (fmi2String * n)()
+        self.bus = bus
+        self.index = np.asarray(index, dtype=np.intp)
+        self.setter, self.getter, self.handle = setter, getter, handle
+
+    def update(self) -> bool:
+        """Gather from the bus without setting; True when a value changed."""
+        fresh = self.bus[self.index]
+        changed = not np.array_equal(fresh, self.values)
+        self.values[:] = fresh
+        return changed
+
+    def send(self) -> None:
+        """Set the gathered values in the FMU (UTF-8, as FMI 2.0 strings are)."""
+        self.buffer[:] = [text.encode("utf-8") for text in self.values]
+        self.setter(self.handle, self.vrs, self.n, self.buffer)
+
+    def apply(self) -> None:
+        """Gather from the bus and set in the FMU."""
+        self.update()
+        self.send()
+
+    def seed(self) -> None:
+        """Take the values the FMU has now (so that :meth:`update` sees real changes only)."""
+        self.getter(self.handle, self.vrs, self.n, self.buffer)
+        self.values[:] = [b.decode("utf-8", "replace") if b is not None else "" for b in self.buffer]
+
+
+class _Outputs:
+    """One unit's fetched variables of one numeric type, read straight into their bus slice."""
+
+    def __init__(self, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray, start: int,
+                 ctype: Any) -> None:
+        n = len(vrs)
+        self.vrs = (fmi2ValueReference * n)(*vrs)
+        self.n = n
+        self.pointer = ctypes.cast(bus.ctypes.data + start * bus.itemsize, POINTER(ctype))
+        self.getter, self.handle = getter, handle
+
+    def fetch(self) -> None:
+        """Read the variables into the bus."""
+        self.getter(self.handle, self.vrs, self.n, self.pointer)
+
+
+class _StringOutputs:
+    """One unit's fetched String variables, decoded into their bus slice."""
+
+    def __init__(self, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray, start: int) -> None:
+        n = len(vrs)
+        self.vrs = (fmi2ValueReference * n)(*vrs)
+        self.n = n
+        self.buffer = (fmi2String * n)()
+        self.bus, self.slots = bus, slice(start, start + n)
+        self.getter, self.handle = getter, handle
+
+    def fetch(self) -> None:
+        """Read the variables and store them in the bus as ``str`` (the FMU owns its buffers)."""
+        self.getter(self.handle, self.vrs, self.n, self.buffer)
+        self.bus[self.slots] = [b.decode("utf-8", "replace") if b is not None else "" for b in self.buffer]
+
+
+Inputs = Union[_Inputs, _StringInputs]
+
+
+class Unit:
+    """An instantiated FMU in the master (the base of the CS and ME units)."""
+
+    interface = ""
+    fmu_class: type = FMU2Slave
+
+    def __init__(self, component: Component, unzip_dir: str) -> None:
+        self.component = component
+        self.name = component.name
+        self.info = component.info
+        md = component.info.md
+        self.messages: deque = deque(maxlen=20)
+        self._callbacks = _callbacks(self.messages)
+        self.fmu = self.fmu_class(guid=md.guid, unzipDirectory=unzip_dir,
+                                  modelIdentifier=component.info.model_identifier(self.interface),
+                                  instanceName=self.name)
+        self.inputs: List[Inputs] = []
+        self.outputs: List[Union[_Outputs, _StringOutputs]] = []
+        self.step_multiple = component.spec.step_multiple
+        self.instantiated = False
+
+    # --- life cycle ---------------------------------------------------------------------------
+    def instantiate(self, start: float, stop: float) -> None:
+        """fmi2Instantiate + fmi2SetupExperiment (rtol of the solver options as tolerance)."""
+        self.call(self.fmu.instantiate, callbacks=self._callbacks)
+        self.instantiated = True
+        self.call(self.fmu.setupExperiment, tolerance=self.component.spec.solver.get("rtol"),
+                  startTime=start, stopTime=stop)
+
+    def apply_start_values(self) -> None:
+        """Set the scenario's parameters and start values (before initialization mode)."""
+        for port, value in self.component.start_values:
+            self.set_value(port, value)
+
+    def enter_initialization(self) -> None:
+        """fmi2EnterInitializationMode."""
+        self.call(self.fmu.enterInitializationMode)
+
+    def exit_initialization(self, time: float) -> None:
+        """fmi2ExitInitializationMode (the ME unit continues with its event iteration)."""
+        self.call(self.fmu.exitInitializationMode)
+
+    def close(self) -> None:
+        """fmi2Terminate and free the instance; never raises."""
+        if self.instantiated:
+            try:
+                self.fmu.terminate()
+            except Exception:  # noqa: BLE001 - closing after a failure must not hide it
+                pass
+            try:
+                self.fmu.freeInstance()
+            except Exception:  # noqa: BLE001
+                pass
+            self.instantiated = False
+
+    # --- values -------------------------------------------------------------------------------
+    def get_value(self, port: Port) -> Any:
+        """One variable (slow path: initialization and tests); a String comes back as ``str``."""
+        getter = {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger,
+                  "Boolean": self.fmu.getBoolean, "String": self.fmu.getString}[port.type]
+        value = self.call(getter, [port.vr])[0]
+        if port.type == "String":
+            return value.decode("utf-8", "replace") if value is not None else ""
+        return bool(value) if port.type == "Boolean" else value
+
+    def set_value(self, port: Port, value: Any) -> None:
+        """Set one variable (slow path: start values and initialization)."""
+        setter = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
+                  "Boolean": self.fmu.setBoolean, "String": self.fmu.setString}[port.type]
+        self.call(setter, [port.vr], [value])
+
+    def wire_inputs(self, kind: str, vrs: Sequence[int], bus: np.ndarray, index: Sequence[int],
+                    factor: Sequence[float], offset: Sequence[float]) -> None:
+        """Take inputs of FMI type ``kind`` from ``bus[index]`` before every step."""
+        setter, getter = bare_function(self.fmu, f"fmi2Set{kind}"), bare_function(self.fmu, f"fmi2Get{kind}")
+        handle = self.fmu.component
+        if kind == "String":
+            self.inputs.append(_StringInputs(setter, getter, handle, vrs, bus, index))
+        else:
+            self.inputs.append(_Inputs(setter, getter, handle, vrs, bus, index, factor, offset, TYPES[kind][0]))
+
+    def wire_outputs(self, kind: str, vrs: Sequence[int], bus: np.ndarray, start: int) -> None:
+        """Read variables of type ``kind`` into ``bus[start:start + len(vrs)]`` after every step."""
+        getter = bare_function(self.fmu, f"fmi2Get{kind}")
+        if kind == "String":
+            self.outputs.append(_StringOutputs(getter, self.fmu.component, vrs, bus, start))
+        else:
+            self.outputs.append(_Outputs(getter, self.fmu.component, vrs, bus, start, TYPES[kind][0]))
+
+    def pull(self) -> None:
+        """Set this unit's inputs from the buses."""
+        try:
+            for inputs in self.inputs:
+                inputs.apply()
+        except FMICallException as exc:
+            raise self.failure(exc) from None
+
+    def fetch(self) -> None:
+        """Read this unit's outputs (and recorded variables) into the buses."""
+        try:
+            for outputs in self.outputs:
+                outputs.fetch()
+        except FMICallException as exc:
+            raise self.failure(exc) from None
+
+    # --- stepping and state -------------------------------------------------------------------
+    def do_step(self, time: float, step: float) -> None:
+        """Advance from ``time`` by ``step``; raises :class:`Terminated` when the FMU ends the run."""
+        raise NotImplementedError
+
+    @property
+    def can_save_state(self) -> bool:
+        """Whether fmi2GetFMUstate/fmi2SetFMUstate work for this unit."""
+        return self.info.can_get_set_state(self.interface)
+
+    def save_state(self) -> Any:
+        """A snapshot to :meth:`restore_state` (release it with :meth:`free_state`)."""
+        return self.call(self.fmu.getFMUstate)
+
+    def restore_state(self, state: Any) -> None:
+        """Go back to a snapshot."""
+        self.call(self.fmu.setFMUstate, state)
+
+    def free_state(self, state: Any) -> None:
+        """Release a snapshot."""
+        self.call(self.fmu.freeFMUstate, state)
+
+    def call(self, function: Callable, *args: Any, **kwargs: Any) -> Any:
+        """Call an fmpy function, turning an FMI error status into :class:`FmuFailure`."""
+        try:
+            return function(*args, **kwargs)
+        except FMICallException as exc:
+            raise self.failure(exc) from None
+
+    def failure(self, exc: BaseException) -> FmuFailure:
+        """A :class:`FmuFailure` for ``exc`` that quotes the FMU's last log message."""
+        last = ""
+        for status, message in reversed(self.messages):
+            if status >= 2:
+                last = message.strip().splitlines()[-1] if message.strip() else ""
+                break
+        return FmuFailure(f"{self.name}: {str(exc).rstrip('.')}" + (f": {last}" if last else ""))
+
+
+def _callbacks(messages: deque) -> fmi2CallbackFunctions:
+    """fmi2CallbackFunctions whose logger keeps the last messages (quoted when a call fails).
+
+    No fmpy ``addLoggerProxy``: it keeps ONE process-wide pointer to the last logger it wrapped,
+    so per-unit loggers would dangle once freed (a crash at the next message) and every FMU's
+    messages would go to the last unit. The message text is used as is (deltafmi FMUs pass it
+    fully formatted).
+    """
+    from fmpy import calloc, free
+
+    def logger(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
+        text = message.decode("utf-8", "replace") if message else ""
+        messages.append((status, text))
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    return callbacks
