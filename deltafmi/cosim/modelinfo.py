@@ -8,7 +8,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Dict, List, Optional, Set
+from typing import Dict, List, Optional, Set, Tuple
 
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription, ModelVariable
@@ -78,6 +78,13 @@ class ModelInfo:
             return var.unit
         declared = var.declaredType
         return (declared.unit or "") if declared is not None else ""
+
+    def enumeration(self, name: str) -> Optional[Tuple[str, Dict[str, int]]]:
+        """``(type name, {item name: value})`` of an Enumeration variable; None for other types."""
+        var = self.variables[name]
+        if var.type != "Enumeration" or var.declaredType is None:
+            return None
+        return var.declaredType.name, {item.name: int(item.value) for item in var.declaredType.items}
 
     @cached_property
     def feedthrough(self) -> Dict[str, Set[str]]:

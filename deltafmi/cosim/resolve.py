@@ -25,13 +25,19 @@ class Port:
     component: str
     name: str
     vr: int
-    type: str
+    type: str  # the FMI type its values travel as: Real, Integer (also Enumeration), Boolean, String
     unit: str = ""
+    enumeration: str = ""  # the declared type's name for an Enumeration variable
 
     @property
     def ref(self) -> str:
         """``component.variable``."""
         return f"{self.component}.{self.name}"
+
+    @property
+    def type_name(self) -> str:
+        """The FMI type as a user reads it: ``Real``, ..., ``Enumeration 'Color'``."""
+        return f"Enumeration '{self.enumeration}'" if self.enumeration else self.type
 
 
 @dataclass(frozen=True)
@@ -210,12 +216,34 @@ class _Checker:
                                            f"({var.initial or 'calculated'}) and cannot be set")
                     break
                 kind = _TYPE_NAMES.get(var.type, var.type)
-                if not _value_fits(kind, value):
+                enumeration = info.enumeration(name)
+                if enumeration is not None:
+                    value = self._enumeration_value(param.line, f"{where}: '{name}'", enumeration, value)
+                    if value is None:
+                        break
+                elif not _value_fits(kind, value):
                     self.error(param.line, f"{where}: type mismatch: '{name}' is {kind} but the value "
                                            f"{value!r} is {type(value).__name__}")
                     break
                 values.append((_port(component, name), value))
         return values
+
+    def _enumeration_value(self, line: Optional[int], where: str, enumeration: Tuple[str, Dict[str, int]],
+                           value: Any) -> Optional[int]:
+        """An Enumeration start value given by item name or by value; None (reported) if neither."""
+        type_name, items = enumeration
+        listed = ", ".join(f"{name} = {number}" for name, number in items.items())
+        if isinstance(value, str):
+            if value in items:
+                return items[value]
+            self.error(line, f"{where} is Enumeration '{type_name}', which has no item '{value}' "
+                             f"(its items: {listed}){did_you_mean(value, items)}")
+        elif isinstance(value, int) and not isinstance(value, bool) and value in items.values():
+            return value
+        else:
+            self.error(line, f"{where} is Enumeration '{type_name}': give an item name or its value "
+                             f"({listed}), not {value!r}")
+        return None
 
     # --- connections --------------------------------------------------------------------------
     def _links(self) -> List[Link]:
@@ -281,9 +309,17 @@ class _Checker:
         return self.components[port.component].info.variables[port.name].causality
 
     def _compatible(self, conn: ConnectionSpec, source: Port, target: Port) -> bool:
-        if source.type != target.type:
-            self.error(conn.line, f"type mismatch: '{source.ref}' is {source.type} but '{target.ref}' is {target.type}")
+        if source.type_name != target.type_name:
+            self.error(conn.line, f"type mismatch: '{source.ref}' is {source.type_name} but '{target.ref}' "
+                                  f"is {target.type_name}")
             return False
+        if source.enumeration:
+            items = [self.components[p.component].info.enumeration(p.name)[1] for p in (source, target)]
+            if items[0] != items[1]:
+                described = [", ".join(f"{n} = {v}" for n, v in i.items()) for i in items]
+                self.error(conn.line, f"type mismatch: Enumeration '{source.enumeration}' of '{source.ref}' "
+                                      f"({described[0]}) is not the one of '{target.ref}' ({described[1]})")
+                return False
         if conn.has_transform and source.type != "Real":
             self.error(conn.line, f"factor/offset need Real variables; '{source.ref}' is {source.type}")
             return False
@@ -309,7 +345,7 @@ class _Checker:
         if not patterns:
             for component in self.components.values():
                 for v in component.info.md.modelVariables:
-                    if v.causality == "output" and v.type != "String":
+                    if v.causality == "output":
                         recorded.setdefault(f"{component.name}.{v.name}", _port(component, v.name))
             return list(recorded.values())
         every = [(c, v.name) for c in self.components.values() for v in c.info.md.modelVariables]
@@ -323,8 +359,6 @@ class _Checker:
                 continue
             for component, name in hits:
                 port = _port(component, name)
-                if port.type == "String":
-                    continue
                 recorded.setdefault(port.ref, port)
         return list(recorded.values())
 
@@ -338,8 +372,9 @@ class _Checker:
 
 def _port(component: Component, name: str) -> Port:
     var = component.info.variables[name]
+    enumeration = component.info.enumeration(name)
     return Port(component.name, name, var.valueReference, _TYPE_NAMES.get(var.type, var.type),
-                component.info.unit(name))
+                component.info.unit(name), enumeration[0] if enumeration else "")
 
 
 def _settable(var: Any) -> bool:
