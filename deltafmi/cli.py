@@ -7,6 +7,7 @@ import click
 
 from deltafmi.cosim.commands import plot, run, validate
 from deltafmi.export.commands import build, info
+from deltafmi.viz.commands import animate
 
 
 @click.group()
@@ -15,5 +16,5 @@ def main() -> None:
     """deltafmi: Python components as FMI 2.0 FMUs, and a master for closed-loop co-simulation."""
 
 
-for command in (build, info, run, validate, plot):
+for command in (build, info, run, validate, plot, animate):
     main.add_command(command)

@@ -19,7 +19,8 @@ case), the supported fractions are linear in the offset near the centre,
 
 the difference measures the offset, and drives a loop to ``xi = 0``. Beyond that range it
 saturates at ``-+F`` (one pad fully over the hole) up to ``|xi| = (hole_width + spacing - width)/2``,
-the capture range, where both pads leave the hole.
+then fades, keeping its sign, to zero at ``(hole_width + spacing + width)/2``, where both pads rest
+on solid surface: the capture range of a loop that centres the tool.
 """
 from __future__ import annotations
 
