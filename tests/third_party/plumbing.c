@@ -30,6 +30,7 @@ void logError(ModelInstance *comp, const char *format, ...) {
 }
 
 void logInfo(ModelInstance *comp, const char *format, ...) {
+    if (!comp->loggingOn) return;
     va_list args;
     va_start(args, format);
     logMessage(comp, fmi2OK, "logEvents", format, args);
@@ -121,14 +122,15 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     CHECK("fmi2SetDebugLogging", ANY_STATE)
-    (void)loggingOn, (void)nCategories, (void)categories;
+    (void)nCategories, (void)categories;
+    comp->loggingOn = loggingOn != fmi2False;
     return fmi2OK;
 }
 
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
                               fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                               fmi2Boolean visible, fmi2Boolean loggingOn) {
-    (void)visible, (void)loggingOn;
+    (void)visible;
     if (instanceName == NULL || fmuGUID == NULL || strcmp(fmuGUID, MODEL_GUID) != 0) return NULL;
     ModelInstance *comp = calloc(1, sizeof(ModelInstance));
     if (comp == NULL) return NULL;
@@ -136,6 +138,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     comp->instanceName = strdup(instanceName);
     comp->type = fmuType;
     comp->state = Instantiated;
+    comp->loggingOn = loggingOn != fmi2False;
     if (functions != NULL) {
         comp->logger = functions->logger;
         comp->environment = functions->componentEnvironment;
@@ -195,6 +198,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
     comp->state = Instantiated;
     comp->startTime = comp->time = 0.0;
     comp->nextEventTimeDefined = comp->terminateSimulation = false;
+    comp->maxStepSize = 0.0;
     setStartValues(comp);
     return fmi2OK;
 }
@@ -409,6 +413,11 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
         logError(comp, "fmi2DoStep: cannot step from %.17g by %g (the FMU is at %.17g)",
                  currentCommunicationPoint, communicationStepSize, comp->time);
         return fmi2Error;
+    }
+    if (comp->maxStepSize > 0 && communicationStepSize > comp->maxStepSize * (1 + 1e-12)) {
+        logError(comp, "fmi2DoStep: a step of %g s is longer than the %g s this FMU can take",
+                 communicationStepSize, comp->maxStepSize);
+        return fmi2Discard;
     }
     while (comp->time < t_end - eps) {
         double t_stop = comp->nextEventTimeDefined && comp->nextEventTime < t_end ? comp->nextEventTime : t_end;

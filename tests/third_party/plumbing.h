@@ -7,7 +7,9 @@
  * an explicit method), stopping at time events (nextEventTime) and state events (advance()
  * says so) and running the event iteration there. When the model sets terminateSimulation,
  * fmi2DoStep returns fmi2Discard at the time reached, and fmi2GetBooleanStatus(fmi2Terminated)
- * and fmi2GetRealStatus(fmi2LastSuccessfulTime) tell the importer so.
+ * and fmi2GetRealStatus(fmi2LastSuccessfulTime) tell the importer so. A step longer than
+ * maxStepSize (when a model sets it) is discarded without terminating: the importer must retry
+ * with a shorter step or give up.
  */
 #ifndef PLUMBING_H
 #define PLUMBING_H
@@ -40,8 +42,10 @@ typedef struct {
     char resourceDir[4096];  /* fmuResourceLocation as a path, ending in '/' ("" if none) */
     fmi2CallbackLogger logger;
     fmi2ComponentEnvironment environment;
+    bool loggingOn;  /* logInfo() is silent unless the importer turned debug logging on */
     double startTime;
     double time;
+    double maxStepSize;  /* CS: fmi2DoStep discards longer steps (not terminating); 0: any step */
     /* the event iteration's results: eventUpdate() sets them */
     bool newDiscreteStatesNeeded;
     bool terminateSimulation;
@@ -61,7 +65,7 @@ fmi2Status checkSettable(ModelInstance *comp, const char *name, Settable kind);
 fmi2Status copyString(ModelInstance *comp, char *target, fmi2String value);
 
 void logError(ModelInstance *comp, const char *format, ...);
-void logInfo(ModelInstance *comp, const char *format, ...);
+void logInfo(ModelInstance *comp, const char *format, ...);  /* only with debug logging on */
 
 /* A time event is due at the current time (nextEventTime reached, up to round-off). */
 bool timeEventDue(const ModelInstance *comp);

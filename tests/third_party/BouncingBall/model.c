@@ -3,16 +3,18 @@
  *
  *   der(h) = v,  der(v) = -g  (0 at rest);  at h = 0 moving down: v := -e v, bounces += 1
  *
- * Co-Simulation steps with the exact solution: parabolas between impacts found in closed form.
+ * Co-Simulation steps with the exact solution: parabolas between impacts found in closed form,
+ * and discards communication steps longer than max_step (when positive).
  */
 #include <math.h>
 
 #include "plumbing.h"
 
-enum { vr_h = 0, vr_der_h = 1, vr_v = 2, vr_der_v = 3, vr_g = 4, vr_e = 5, vr_v_min = 6, vr_bounces = 10 };
+enum { vr_h = 0, vr_der_h = 1, vr_v = 2, vr_der_v = 3, vr_g = 4, vr_e = 5, vr_v_min = 6, vr_max_step = 7,
+       vr_bounces = 10 };
 
 struct ModelData {
-    double h, v, g, e, v_min;
+    double h, v, g, e, v_min, max_step;
     int bounces;
     bool resting;
 };
@@ -30,11 +32,13 @@ void setStartValues(ModelInstance *comp) {
     M(g) = 9.81;
     M(e) = 0.7;
     M(v_min) = 0.1;
+    M(max_step) = 0.0;
 }
 
 fmi2Status initialize(ModelInstance *comp) {
     M(bounces) = 0;
     M(resting) = false;
+    comp->maxStepSize = M(max_step);
     return fmi2OK;
 }
 
@@ -49,6 +53,7 @@ fmi2Status getReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real *value) 
         case vr_g: *value = M(g); return fmi2OK;
         case vr_e: *value = M(e); return fmi2OK;
         case vr_v_min: *value = M(v_min); return fmi2OK;
+        case vr_max_step: *value = M(max_step); return fmi2OK;
         default: return fmi2Error;
     }
 }
@@ -74,6 +79,10 @@ fmi2Status setReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real value) {
         case vr_v_min:
             if (checkSettable(comp, "v_min", Fixed)) return fmi2Error;
             M(v_min) = value;
+            return fmi2OK;
+        case vr_max_step:
+            if (checkSettable(comp, "max_step", Fixed)) return fmi2Error;
+            M(max_step) = value;
             return fmi2OK;
         default: return fmi2Error;
     }

@@ -3,18 +3,21 @@
  * fmi2Discard with fmi2Terminated in Co-Simulation).
  *
  *   ticks = number of ticks so far          (Integer)
+ *   label = "tick <ticks>"                  (String)
  *   held  = u at the last tick (at the start before the first one)
  *   phase = time since the last tick (since the start before the first one)
  */
 #include <math.h>
+#include <stdio.h>
 
 #include "plumbing.h"
 
-enum { vr_period = 0, vr_u = 1, vr_held = 2, vr_phase = 3, vr_max_ticks = 10, vr_ticks = 11 };
+enum { vr_period = 0, vr_u = 1, vr_held = 2, vr_phase = 3, vr_max_ticks = 10, vr_ticks = 11, vr_label = 20 };
 
 struct ModelData {
     double period, u, held, lastTick;
     int maxTicks, ticks;
+    char label[STRING_SIZE];
 };
 
 const char *const MODEL_GUID = "{5b0f3c1e-6a3d-4a53-9c61-2f1a1f7c0a02}";
@@ -92,8 +95,10 @@ fmi2Status setBoolean(ModelInstance *comp, fmi2ValueReference vr, fmi2Boolean va
 }
 
 fmi2Status getString(ModelInstance *comp, fmi2ValueReference vr, fmi2String *value) {
-    (void)comp, (void)vr, (void)value;
-    return fmi2Error;
+    if (vr != vr_label) return fmi2Error;
+    snprintf(M(label), sizeof(M(label)), "tick %d", M(ticks));
+    *value = M(label);
+    return fmi2OK;
 }
 
 fmi2Status setString(ModelInstance *comp, fmi2ValueReference vr, fmi2String value) {
