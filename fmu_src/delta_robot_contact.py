@@ -104,8 +104,8 @@ class DeltaRobotContact(HybridSystemComponent):
         return system
 
     def apply_inputs(self, system: ContactSystem) -> None:
-        system.model.u = list(self.u)
-        system.model.f = list(self.f)
+        system.model.u = self.u.tolist()
+        system.model.f = self.f.tolist()
 
     def publish_modes(self, modes) -> None:
         self.mode = int(modes[0])

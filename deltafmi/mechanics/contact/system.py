@@ -48,6 +48,10 @@ class Mode(IntEnum):
     CONTACT = 2
 
 
+# plain ints for the hot paths (an IntEnum member lookup costs a few microseconds per evaluation)
+FREE, COLLISION, CONTACT = int(Mode.FREE), int(Mode.COLLISION), int(Mode.CONTACT)
+
+
 class LagrangianModel:
     """A mechanical system with constraint (gap) functions. Subclass and fill in the methods.
 
@@ -90,9 +94,9 @@ class LagrangianModel:
         """``v^T M v / 2``."""
         return 0.5 * float(v @ self.mass_matrix(q) @ v)
 
-    def inputs_key(self, t: float, q: np.ndarray, v: np.ndarray) -> bytes:
-        """Bytes that differ whenever the dynamics at the same ``(t, q, v)`` may differ (the
-        model's inputs), for caching. Default: the applied forces."""
+    def inputs_key(self, t: float, q: np.ndarray, v: np.ndarray) -> object:
+        """A value (compared with ``==``) that differs whenever the dynamics at the same
+        ``(t, q, v)`` may differ: the model's inputs, for caching. Default: the applied forces."""
         return np.asarray(self.applied_forces(t, q, v), float).tobytes()
 
     # Optional, both or neither: dynamics with constraints of the model's own (closed loops).
@@ -164,7 +168,7 @@ class ContactSystem:
         if self._own_dynamics and not self.active_dofs.all():
             raise ValueError("frozen coordinates (active_dofs) need the default dynamics: "
                              "the model's contact_dynamics would have to honour them")
-        self.modes = np.full(n_c, int(Mode.FREE), dtype=int)
+        self.modes = np.full(n_c, int(FREE), dtype=int)
         self.m_eff = np.zeros(n_c)
         self.impact_speed = np.zeros(n_c)
         self._cache_key: Optional[tuple] = None
@@ -218,9 +222,9 @@ class ContactSystem:
         lam = np.zeros(model.n_c)
         K = []
         for i in self._cons:
-            if modes[i] == Mode.COLLISION:
+            if modes[i] == COLLISION:
                 lam[i] = self.m_eff[i] * self.laws[i].acceleration(-h[i], -hdot[i])
-            elif modes[i] == Mode.CONTACT:
+            elif modes[i] == CONTACT:
                 material = self.materials[i]
                 if material is None or i == rigid:
                     K.append(i)
@@ -294,9 +298,9 @@ class ContactSystem:
         bodies, h = h' = 0) strictly inside the positive domain: no indicator sits at 0, and the
         round-off motion of touching bodies (~1e-30 m/s) cannot fire events."""
         law, mode = self.laws[i], self.modes[i]
-        if mode == Mode.FREE:
+        if mode == FREE:
             return max(ev.h[i] / law.length, ev.hdot[i] / law.reference_speed + EPS), 1.0
-        if mode == Mode.COLLISION:
+        if mode == COLLISION:
             return (law.end_indicator(-ev.h[i], -ev.hdot[i]) + EPS,
                     -ev.hdot[i] / law.reference_speed + EPS)
         material = self.materials[i]
@@ -307,7 +311,7 @@ class ContactSystem:
     def initialize(self, t: float, x: np.ndarray) -> None:
         """Consistent modes at the start: touching or penetrating contacts enter COLLISION (a
         compliant contact carrying no force yet), then the event iteration settles the rest."""
-        self.modes[:] = Mode.FREE
+        self.modes[:] = FREE
         ev = self._solve(t, x, self.modes)
         for i in self._cons:
             if ev.h[i] <= EPS * self.laws[i].length:   # touching, up to round-off
@@ -319,7 +323,7 @@ class ContactSystem:
         q, v = self.split(np.asarray(x, float))
         self.m_eff[i] = 1.0 / float(ev.H[i] @ self._mobility(t, q, v, ev.H, [i])[:, 0])
         self.impact_speed[i] = max(-ev.hdot[i], 0.0)
-        self.modes[i] = Mode.COLLISION
+        self.modes[i] = COLLISION
         material = self.materials[i]
         if material is not None:
             self.laws[i] = material.collision_law(self.m_eff[i])
@@ -328,7 +332,7 @@ class ContactSystem:
         """Multiplier contact i would carry in (rigid) CONTACT, the other modes unchanged: the
         load pressing it, whatever its own law."""
         trial = self.modes.copy()
-        trial[i] = Mode.CONTACT
+        trial[i] = CONTACT
         return float(self._solve(t, x, trial, rigid=i).lam[i])
 
     def _rebound_estimate(self, i: int, ev: _Evaluation, load: float) -> float:
@@ -366,12 +370,12 @@ class ContactSystem:
         """FREE -> COLLISION and COLLISION -> FREE: force-form laws do not couple, so all at once."""
         changed = False
         for i in self._cons:
-            if self.modes[i] == Mode.FREE and self._indicator_pair(i, ev)[0] <= 0.0:
+            if self.modes[i] == FREE and self._indicator_pair(i, ev)[0] <= 0.0:
                 self._enter_collision(i, ev, t, x)
                 changed = True
-            elif self.modes[i] == Mode.COLLISION and self._collision_ended(i, ev):
+            elif self.modes[i] == COLLISION and self._collision_ended(i, ev):
                 if ev.hdot[i] >= self.capture_speed or self._load_if_contact(t, x, i) <= 0.0:
-                    self.modes[i] = Mode.FREE
+                    self.modes[i] = FREE
                     changed = True
         return changed
 
@@ -381,20 +385,20 @@ class ContactSystem:
     def _contact_transition(self, t: float, x: np.ndarray, ev: _Evaluation) -> bool:
         """One CONTACT change (they couple through the joint solve): release the most negative
         multiplier first, else capture the first loaded collision that cannot leave."""
-        pull = {i: self._indicator_pair(i, ev)[0] for i in self._cons if self.modes[i] == Mode.CONTACT}
+        pull = {i: self._indicator_pair(i, ev)[0] for i in self._cons if self.modes[i] == CONTACT}
         released = [i for i, z in pull.items() if z <= 0.0]
         if released:
-            self.modes[min(released, key=lambda i: pull[i])] = Mode.FREE
+            self.modes[min(released, key=lambda i: pull[i])] = FREE
             return True
         if self.capture_speed <= 0.0:
             return False
         for i in self._cons:
-            if self.modes[i] != Mode.COLLISION or (ev.h[i] >= 0.0 and not self._collision_ended(i, ev)):
+            if self.modes[i] != COLLISION or (ev.h[i] >= 0.0 and not self._collision_ended(i, ev)):
                 continue
             load = self._load_if_contact(t, x, i)
             if load > 0.0 and (self._collision_ended(i, ev)
                                or self._rebound_estimate(i, ev, load) < self.capture_speed):
-                self.modes[i] = Mode.CONTACT
+                self.modes[i] = CONTACT
                 return True
         return False
 
@@ -405,8 +409,8 @@ class ContactSystem:
         e = self.model.kinetic_energy(q, v) + self.model.potential_energy(q)
         h = self.model.gaps(q)
         for i in self._cons:
-            if self.modes[i] == Mode.COLLISION:
+            if self.modes[i] == COLLISION:
                 e += self.m_eff[i] * self.laws[i].potential(-h[i])
-            elif self.modes[i] == Mode.CONTACT and self.materials[i] is not None:
+            elif self.modes[i] == CONTACT and self.materials[i] is not None:
                 e += self.materials[i].potential(-h[i])
         return float(e)

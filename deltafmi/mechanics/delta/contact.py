@@ -18,7 +18,6 @@ inertia along ``n`` with the loops closed, not ``H M^-1 H^T`` of the unconnected
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -27,7 +26,7 @@ import numpy as np
 from ..contact.material import CompliantMaterial
 from ..contact.system import ContactSystem, LagrangianModel
 from .dynamics import accelerations, energy, mass_matrix
-from .kinematics import ARM_COS_SIN, arm_bias, inverse_kinematics, joint_rates
+from .kinematics import arm_bias, inverse_kinematics, joint_rates, wrist_along
 from .params import ARM_ROTATIONS, DeltaParams
 
 __all__ = ["Plane", "DeltaToolModel", "make_robot_contact", "robot_start_state"]
@@ -69,27 +68,20 @@ class DeltaToolModel(LagrangianModel):
         self.tool = tuple(float(c) for c in tool)
         self.u = [0.0, 0.0, 0.0]
         self.f = [0.0, 0.0, 0.0]
+        self._last_key: bytes = b""
+        self._last: tuple = (0.0, ())
         n = plane.normal
         # h = n . mean_i P_i + offset
         self._offset = sum(n[k] * self.tool[k] for k in range(3)) - n[2] * plane.height
 
-    # --- geometry (plain floats: evaluated at every derivative call) -----------------------
-    def _arms(self, q: Sequence[float]) -> tuple[float, list[float]]:
-        """n . mean_i P_i (m) and the row n^T Jv (9 floats)."""
-        p, (nx, ny, nz) = self.params, self.plane.normal
-        l0l3, l1, l2 = p.l0 - p.l3, p.l1, p.l2
-        ql = q.tolist() if isinstance(q, np.ndarray) else [float(t) for t in q]
-        height, row = 0.0, []
-        for arm, (cr, sr) in enumerate(ARM_COS_SIN):
-            q1, q2, q3 = ql[3 * arm:3 * arm + 3]
-            s1, c1, s2, c2, s3, c3 = (math.sin(q1), math.cos(q1), math.sin(q2), math.cos(q2),
-                                      math.sin(q3), math.cos(q3))
-            ax, ay = cr * nx + sr * ny, cr * ny - sr * nx  # R_i^T n (z unchanged)
-            height += ax * l2 * s2 * s3 + ay * (l0l3 + l1 * c1 + l2 * c2) + nz * (l1 * s1 + l2 * s2 * c3)
-            row += [(-ay * l1 * s1 + nz * l1 * c1) / 3.0,
-                    (ax * l2 * c2 * s3 - ay * l2 * s2 + nz * l2 * c2 * c3) / 3.0,
-                    (ax * l2 * s2 * c3 - nz * l2 * s2 * s3) / 3.0]
-        return height / 3.0, row
+    # --- geometry ---------------------------------------------------------------------------
+    def _arms(self, q: np.ndarray) -> tuple[float, tuple]:
+        """n . z(q) and n^T Jv(q); the machine asks for gap and Jacobian at the same q in turn."""
+        key = q.tobytes() if isinstance(q, np.ndarray) else bytes(np.asarray(q, float))
+        if key != self._last_key:
+            ql = q.tolist() if isinstance(q, np.ndarray) else [float(t) for t in q]
+            self._last_key, self._last = key, wrist_along(self.params, self.plane.normal, ql)
+        return self._last
 
     def gaps(self, q: np.ndarray) -> np.ndarray:
         """``[h]``: the tool tip's signed distance from the plane (m)."""
@@ -134,9 +126,9 @@ class DeltaToolModel(LagrangianModel):
         """Gravity potential, zero in the base plane."""
         return energy(self.params, q, np.zeros(9))
 
-    def inputs_key(self, t: float, q: np.ndarray, v: np.ndarray) -> bytes:
+    def inputs_key(self, t: float, q: np.ndarray, v: np.ndarray) -> tuple:
         """The inputs ``u`` and ``f``."""
-        return np.array(list(self.u) + list(self.f), float).tobytes()
+        return (*self.u, *self.f)
 
     def effective_mass(self, q: np.ndarray) -> float:
         """Inertia the plane feels at the tool, ``1 / (H Y)`` (kg), with the loops closed."""

@@ -37,10 +37,12 @@ __all__ = [
     "constraint_jacobian",
     "constraint_bias",
     "virtual_jacobian",
+    "wrist_along",
     "stretched_height",
 ]
 
 ArrayLike = Sequence[float] | np.ndarray
+F9 = tuple[float, float, float, float, float, float, float, float, float]
 
 _SQ3_2 = math.sqrt(3.0) / 2.0
 # (cos, sin) of the arm rotation angles 0, +2pi/3, -2pi/3: rotations done by hand in float math.
@@ -240,6 +242,30 @@ def wrist_position(p: DeltaParams, q: ArrayLike) -> np.ndarray:
 def virtual_jacobian(p: DeltaParams, q: ArrayLike) -> np.ndarray:
     """The seed's virtual Jacobian (3, 9): 1/3 [dpsi/dq(q1), R2 dpsi/dq(q2), R3 dpsi/dq(q3)]."""
     return np.hstack([r @ arm_jacobian(p, qi) for r, qi in zip(ARM_ROTATIONS, _split(q))]) / 3.0
+
+
+def wrist_along(p: DeltaParams, n: tuple[float, float, float], q: list[float]) -> tuple[float, F9]:
+    """``n . z(q)`` and the row ``n^T Jv(q)`` (9 floats) for a direction ``n``, in plain floats.
+
+    ``z`` is the mean of the arms' wrist points (as :func:`wrist_position`), so the row is exactly
+    the derivative of the first value. A contact's gap along a plane normal needs both at every
+    derivative evaluation (compiled with mypyc into FMUs, like the dynamics).
+    """
+    l0l3, l1, l2 = p.l0 - p.l3, p.l1, p.l2
+    nx, ny, nz = n
+    height = 0.0
+    row: list[float] = []
+    for arm in range(3):
+        cr, sr = ARM_COS_SIN[arm]
+        q1, q2, q3 = q[3 * arm], q[3 * arm + 1], q[3 * arm + 2]
+        s1, c1, s2, c2, s3, c3 = (math.sin(q1), math.cos(q1), math.sin(q2), math.cos(q2),
+                                  math.sin(q3), math.cos(q3))
+        ax, ay = cr * nx + sr * ny, cr * ny - sr * nx  # R_i^T n (z unchanged)
+        height += ax * l2 * s2 * s3 + ay * (l0l3 + l1 * c1 + l2 * c2) + nz * (l1 * s1 + l2 * s2 * c3)
+        row.append((nz * l1 * c1 - ay * l1 * s1) / 3.0)
+        row.append((ax * l2 * c2 * s3 - ay * l2 * s2 + nz * l2 * c2 * c3) / 3.0)
+        row.append((ax * l2 * s2 * c3 - nz * l2 * s2 * s3) / 3.0)
+    return height / 3.0, (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8])
 
 
 def wrist_velocity(p: DeltaParams, q: ArrayLike, v: ArrayLike) -> np.ndarray:
