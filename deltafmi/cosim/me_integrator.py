@@ -14,7 +14,7 @@ iteration) raises :class:`~.unit_base.Terminated`: the master ends the run at th
 from __future__ import annotations
 
 from ctypes import POINTER, byref, c_double
-from typing import Any, Callable, Dict, Optional, Union
+from typing import Any, Callable, Dict, Optional, Sequence, Union
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -63,11 +63,21 @@ class ModelExchangeUnit(Unit):
         self._get_indicators = bare_function(fmu, "fmi2GetEventIndicators")
         self._completed_step = bare_function(fmu, "fmi2CompletedIntegratorStep")
 
-    def wire_inputs(self, kind: str, *args: Any) -> None:
-        super().wire_inputs(kind, *args)
-        if kind != "Real":
-            # FMI 2.0 ME: discrete inputs (Integer, Boolean, String) may only change in event mode
-            self._discrete_inputs.append(self.inputs.pop())
+    def wire_inputs(self, kind: str, vrs: Sequence[int], bus: np.ndarray, index: Sequence[int],
+                    factor: Sequence[float], offset: Sequence[float]) -> None:
+        """Continuous inputs are set before every step; discrete ones (Integer, Boolean, String,
+        and Real inputs of variability discrete) only in event mode, as FMI 2.0 ME requires:
+        a change at a communication point is an event there."""
+        discrete_reals = {v.valueReference for v in self.info.md.modelVariables
+                          if v.type == "Real" and v.causality == "input" and v.variability == "discrete"}
+        discrete = [kind != "Real" or vr in discrete_reals for vr in vrs]
+        for in_event_mode in (False, True):
+            chosen = [i for i, flag in enumerate(discrete) if flag == in_event_mode]
+            if chosen:
+                super().wire_inputs(kind, [vrs[i] for i in chosen], bus, [index[i] for i in chosen],
+                                    [factor[i] for i in chosen], [offset[i] for i in chosen])
+                if in_event_mode:
+                    self._discrete_inputs.append(self.inputs.pop())
 
     # --- initialization -----------------------------------------------------------------------
     def exit_initialization(self, time: float) -> None:

@@ -82,10 +82,10 @@ class _Inputs:
         self.pointer = self.values.ctypes.data_as(POINTER(ctype))
         self.bus = bus
         self.index = np.asarray(index, dtype=np.intp)
-        factor, offset = np.asarray(factor, float), np.asarray(offset, float)
-        transformed = bool(np.any(factor != 1.0) or np.any(offset != 0.0))
-        self.factor = factor if transformed else None
-        self.offset = offset
+        scale, shift = np.asarray(factor, float), np.asarray(offset, float)
+        transformed = bool(np.any(scale != 1.0) or np.any(shift != 0.0))
+        self.factor = scale if transformed else None
+        self.offset = shift
         self.setter, self.getter, self.handle = setter, getter, handle
 
     def apply(self) -> None:
@@ -97,9 +97,12 @@ class _Inputs:
         self.setter(self.handle, self.vrs, self.n, self.pointer)
 
     def update(self) -> bool:
-        """Gather from the bus without setting (discrete inputs: no transform); True when changed."""
+        """Gather from the bus and transform without setting; True when the values changed."""
         before = self.values.copy()
         np.take(self.bus, self.index, out=self.values)
+        if self.factor is not None:
+            self.values *= self.factor
+            self.values += self.offset
         return not np.array_equal(before, self.values)
 
     def send(self) -> None:
