@@ -107,6 +107,21 @@ class ModelInfo:
                 result[v.name] = set(inputs)
         return result
 
+    @cached_property
+    def initial_feedthrough(self) -> Dict[str, Set[str]]:
+        """Output name -> inputs it depends on during initialization: the ``dependencies`` of its
+        ``<InitialUnknowns>`` entry where the FMU gives them (a sample-and-hold's initial output
+        is its input), else those of :attr:`feedthrough` (read literally, an entry without
+        ``dependencies`` would depend on every input and close every feedback loop at
+        initialization)."""
+        inputs = {v.name for v in self.md.modelVariables if v.causality == "input"}
+        result = {name: set(inputs_of) for name, inputs_of in self.feedthrough.items()}
+        for unknown in self.md.initialUnknowns:
+            name = unknown.variable.name
+            if name in result and unknown.dependencies is not None:
+                result[name] = {d.name for d in unknown.dependencies if d.name in inputs}
+        return result
+
     def interfaces(self) -> List[str]:
         """``"ME"`` and/or ``"CS"``, as offered by the FMU."""
         return [kind for kind, element in (("ME", self.md.modelExchange), ("CS", self.md.coSimulation))

@@ -130,7 +130,8 @@ class _Checker:
         by_pair = dict(zip(pairs, links))
         return System(self.scenario, [self.components[n] for n in names], links, recorded,
                       stepping_order(names, pairs, feedthrough),
-                      [by_pair[p] for p in initialization_order(pairs, feedthrough)],
+                      [by_pair[p] for p in initialization_order(
+                          pairs, {name: c.info.initial_feedthrough for name, c in self.components.items()})],
                       [d for d in self.found if d.severity == "warning"])
 
     def _loops(self, links: List[Link], pairs: List[Tuple[str, str]], feedthrough: Dict[str, Any]) -> None:
