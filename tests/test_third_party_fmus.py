@@ -324,20 +324,25 @@ def test_strings_agree_with_fmpy(third_party, tmp_path):
 
 
 @pytest.mark.parametrize("interface", ["CS", "ME"])
-def test_a_changing_string_reaches_model_exchange_in_event_mode(third_party, tmp_path, interface):
-    """The ticker's label ("tick n") drives AllTypes' String input: under ME the master sets it in
-    event mode (the FMU rejects it otherwise), one event per change."""
+def test_discrete_inputs_reach_model_exchange_in_event_mode(third_party, oscillator, tmp_path, interface):
+    """The ticker's label ("tick n") and held value (a discrete Real, scaled on the way) drive
+    AllTypes' String and discrete Real inputs: under ME the master sets them in event mode (the
+    FMU rejects them otherwise), one event per tick."""
     summary, c = run(tmp_path, f"""experiment: {{stop: 1.0, step: 0.1}}
 components:
+  osc: {{fmu: {oscillator}, interface: CS}}
   ticker: {{fmu: {third_party['Ticker']}, interface: CS, parameters: {{period: 0.25}}}}
-  mt: {{fmu: {third_party['AllTypes']}, interface: {interface}, parameters: {{prefix: 'seen: '}}}}
+  mt: {{fmu: {third_party['AllTypes']}, interface: {interface}, parameters: {{prefix: 'seen: ', gain: 3.0}}}}
 connections:
+  - {{from: osc.energy, to: ticker.u}}
   - {{from: ticker.label, to: mt.u_str}}
-outputs: [ticker.label, mt.y_str]
+  - {{from: ticker.held, to: mt.u_discrete, factor: 2.0}}
+outputs: [ticker.label, ticker.held, mt.y_str, mt.y_discrete]
 """)
     grid = first_on_grid(c, 0.1)
     assert list(c["mt.y_str"][grid]) == ["seen: " + label for label in c["ticker.label"][grid]]
-    assert c["ticker.label"][-1] == "tick 4"
+    np.testing.assert_allclose(c["mt.y_discrete"][grid], 3.0 * 2.0 * c["ticker.held"][grid], rtol=1e-15)
+    assert c["ticker.label"][-1] == "tick 4" and len(set(c["ticker.held"])) == 5
     assert summary.events == (4 if interface == "ME" else 0)
 
 

@@ -2,6 +2,7 @@
  *
  *   y       = gain * u                 (Real, direct feedthrough)
  *   der(x)  = y                        (Real state x, an output)
+ *   y_discrete = gain * u_discrete     (Real, discrete: the input may change at events only)
  *   y_int   = u_int + offset           (Integer)
  *   y_bool  = u_bool xor invert        (Boolean)
  *   y_str   = prefix + u_str           (String)
@@ -13,7 +14,7 @@
 #include "plumbing.h"
 
 enum {
-    vr_gain = 0, vr_u = 1, vr_y = 2, vr_x = 3, vr_der_x = 4,
+    vr_gain = 0, vr_u = 1, vr_y = 2, vr_x = 3, vr_der_x = 4, vr_u_discrete = 5, vr_y_discrete = 6,
     vr_offset = 10, vr_u_int = 11, vr_y_int = 12,
     vr_invert = 20, vr_u_bool = 21, vr_y_bool = 22,
     vr_prefix = 30, vr_u_str = 31, vr_y_str = 32,
@@ -21,7 +22,7 @@ enum {
 };
 
 struct ModelData {
-    double gain, u, x;
+    double gain, u, x, u_discrete;
     int offset, u_int;
     bool invert, u_bool;
     char prefix[STRING_SIZE], u_str[STRING_SIZE], y_str[2 * STRING_SIZE];
@@ -39,6 +40,7 @@ void setStartValues(ModelInstance *comp) {
     M(gain) = 2.0;
     M(u) = 0.0;
     M(x) = 0.0;
+    M(u_discrete) = 0.0;
     M(offset) = 1;
     M(u_int) = 0;
     M(invert) = false;
@@ -63,6 +65,8 @@ fmi2Status getReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real *value) 
         case vr_y:
         case vr_der_x: *value = M(gain) * M(u); return fmi2OK;
         case vr_x: *value = M(x); return fmi2OK;
+        case vr_u_discrete: *value = M(u_discrete); return fmi2OK;
+        case vr_y_discrete: *value = M(gain) * M(u_discrete); return fmi2OK;
         default: return fmi2Error;
     }
 }
@@ -80,6 +84,10 @@ fmi2Status setReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real value) {
         case vr_x:
             if (checkSettable(comp, "x", Fixed)) return fmi2Error;
             M(x) = value;
+            return fmi2OK;
+        case vr_u_discrete:
+            if (checkSettable(comp, "u_discrete", DiscreteInput)) return fmi2Error;
+            M(u_discrete) = value;
             return fmi2OK;
         default: return fmi2Error;
     }

@@ -50,7 +50,9 @@ fmi2Status getReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real *value) 
     switch (vr) {
         case vr_period: *value = M(period); return fmi2OK;
         case vr_u: *value = M(u); return fmi2OK;
-        case vr_held: *value = M(held); return fmi2OK;
+        case vr_held:  /* initialization computes it from u */
+            *value = comp->state == InitializationMode ? M(u) : M(held);
+            return fmi2OK;
         case vr_phase: *value = comp->time - M(lastTick); return fmi2OK;
         default: return fmi2Error;
     }
