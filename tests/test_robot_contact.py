@@ -210,3 +210,18 @@ def test_resting_force_with_the_plant_in_either_interface(tmp_path, interface, s
     assert c["plant.mode"][-1] == Mode.CONTACT
     assert c["plant.fn"][-1] == pytest.approx(F + m * G, rel=1e-6)
     assert c["plant.penetration"][-1] == pytest.approx((F + m * G) / K_SURFACE, rel=1e-6)
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "scenarios").glob("contact_*.yaml")))
+def test_contact_scenario_runs_from_the_cli(tmp_path, name, monkeypatch):
+    """Each shipped contact scenario starts and runs through ``deltafmi run`` (first 0.3 s)."""
+    from click.testing import CliRunner
+
+    from deltafmi.cli import main
+
+    monkeypatch.chdir(ROOT)  # the scenarios name their sources relative to the project
+    out = tmp_path / f"{name}.csv"
+    result = CliRunner().invoke(main, ["run", f"scenarios/{name}.yaml", "-o", str(out), "--stop", "0.3", "-q"])
+    assert result.exit_code == 0, result.output
+    c = columns(out)
+    assert c["time"][-1] == pytest.approx(0.3) and np.all(np.isfinite(c["plant.gap"]))
