@@ -41,6 +41,11 @@ def new_bus(kind: str, size: int) -> np.ndarray:
     return np.zeros(size, dtype=TYPES[kind][1])
 
 
+def decoded(texts: Sequence[Any]) -> List[str]:
+    """FMI 2.0 strings (UTF-8 bytes, or NULL) as ``str``."""
+    return [text.decode("utf-8", "replace") if text is not None else "" for text in texts]
+
+
 class FmuFailure(RuntimeError):
     """An FMI call failed; the message names the unit, the call and the FMU's last log message."""
 
@@ -117,8 +122,6 @@ class _Inputs:
 class _StringInputs:
     """One unit's String inputs: ``values = bus[index]``, set in one call (no transform)."""
 
-    factor = None
-
     def __init__(self, setter: Callable, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray,
                  index: Sequence[int]) -> None:
         n = len(vrs)
@@ -150,7 +153,7 @@ class _StringInputs:
     def seed(self) -> None:
         """Take the values the FMU has now (so that :meth:`update` sees real changes only)."""
         self.getter(self.handle, self.vrs, self.n, self.buffer)
-        self.values[:] = [b.decode("utf-8", "replace") if b is not None else "" for b in self.buffer]
+        self.values[:] = decoded(self.buffer)
 
 
 class _Outputs:
@@ -183,7 +186,7 @@ class _StringOutputs:
     def fetch(self) -> None:
         """Read the variables and store them in the bus as ``str`` (the FMU owns its buffers)."""
         self.getter(self.handle, self.vrs, self.n, self.buffer)
-        self.bus[self.slots] = [b.decode("utf-8", "replace") if b is not None else "" for b in self.buffer]
+        self.bus[self.slots] = decoded(self.buffer)
 
 
 Inputs = Union[_Inputs, _StringInputs]
@@ -251,7 +254,7 @@ class Unit:
                   "Boolean": self.fmu.getBoolean, "String": self.fmu.getString}[port.type]
         value = self.call(getter, [port.vr])[0]
         if port.type == "String":
-            return value.decode("utf-8", "replace") if value is not None else ""
+            return decoded([value])[0]
         return bool(value) if port.type == "Boolean" else value
 
     def set_value(self, port: Port, value: Any) -> None:
