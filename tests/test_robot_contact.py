@@ -224,4 +224,54 @@ def test_contact_scenario_runs_from_the_cli(tmp_path, name, monkeypatch):
     result = CliRunner().invoke(main, ["run", f"scenarios/{name}.yaml", "-o", str(out), "--stop", "0.3", "-q"])
     assert result.exit_code == 0, result.output
     c = columns(out)
-    assert c["time"][-1] == pytest.approx(0.3) and np.all(np.isfinite(c["plant.gap"]))
+    gaps = [values for name, values in c.items() if name.startswith("plant.gap")]
+    assert c["time"][-1] == pytest.approx(0.3) and gaps and np.all(np.isfinite(gaps))
+
+
+# --- the robot, a movable box and the table (the talk's cartoon) --------------------------------
+
+def test_box_dropped_on_the_table_rests_on_two_corners():
+    """The box falls tilted, its corners collide in turn and it comes to rest on the two bottom
+    corners in CONTACT, each carrying half its weight; the robot, held by its gravity torques far
+    above, does not move. The gap Jacobian matches finite differences of the gaps."""
+    from deltafmi.mechanics.delta.box import make_robot_box_contact
+    from deltafmi.mechanics.delta.control import gravity_torque
+    from deltafmi.mechanics.examples.box_on_table import BoxModel
+
+    p, box = d.RL5, BoxModel(mass=2.0, width=0.2, height=0.1)
+    system = make_robot_box_contact(p, -1.15, box, CompliantMaterial(K_SURFACE, C_SURFACE),
+                                    CompliantMaterial(1e6, 4e3, restitution=0.3))
+    robot = robot_start_state(p, [0.0, 0.0, -0.9])
+    system.model.u = list(gravity_torque(p, robot[[0, 3, 6]]))
+    angle = 0.05
+    lift = 0.02 - float(np.min(box.rotated_corners(angle)[:, 1]))
+    x0 = np.concatenate([robot[:9], [0.0, lift, angle], robot[9:], np.zeros(3)])
+    q = x0[:12] + np.concatenate([np.full(9, 0.01), [0.01, 0.0, 0.1]])
+    numeric = np.array([(system.model.gaps(q + 1e-7 * e) - system.model.gaps(q - 1e-7 * e)) / 2e-7
+                        for e in np.eye(12)]).T
+    np.testing.assert_allclose(system.model.gap_jacobian(q), numeric, atol=1e-8)
+    result = simulate(system, (0.0, 0.6), x0, rtol=1e-7, atol=1e-10)
+    corner_impacts = [ev.t for ev in result.events if ev.modes_before[2:4] == (0, 0) and 1 in ev.modes_after[2:4]]
+    assert len(corner_impacts) >= 2  # it bounced
+    assert list(result.modes[-1]) == [0, 0, 2, 2, 0, 0]
+    np.testing.assert_allclose(result.forces[-1][2:4], [box.mass * G / 2] * 2, rtol=1e-6)
+    np.testing.assert_allclose(d.wrist_position(p, result.x[-1][:9]), [0.0, 0.0, -0.9], atol=1e-9)
+
+
+def test_robot_presses_a_box_off_centre(tmp_path):
+    """contact_box.yaml with the box at rest and the tool 1 cm above it: pressing with F = 20 N at
+    a = 3 cm from the box's centre, the corners carry (F + m g)/2 -+ a F / w (moment balance on the
+    box, with the tool force and lever arm the run gives), the tool force is F less the 1000 N/m
+    impedance's share of the sag (< 1 %)."""
+    path = scenario_variant("contact_box", tmp_path, stop=1.0,
+                            trajectory={"parameters": {"n_waypoints": 1, "wp_z": [-1.05] * 8}},
+                            plant={"parameters": {"z0": [0.0, 0.0, -1.04], "box_drop": 0.0, "box_angle": 0.0}})
+    c = run(path)
+    assert [c[f"plant.mode[{i}]"][-1] for i in range(1, 7)] == [0, 2, 2, 2, 0, 0]
+    tool, left, right = (c[f"plant.fn[{i}]"][-1] for i in (2, 3, 4))
+    m, w, F = 2.0, 0.2, 20.0
+    a = c["plant.tip[1]"][-1] - c["plant.box[1]"][-1]
+    assert a == pytest.approx(0.03, abs=1e-3)
+    assert tool == pytest.approx(F, rel=1e-2)
+    assert left == pytest.approx((tool + m * G) / 2 - a * tool / w, rel=1e-4)
+    assert right == pytest.approx((tool + m * G) / 2 + a * tool / w, rel=1e-4)

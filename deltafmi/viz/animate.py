@@ -5,7 +5,9 @@ Only the recorded servo angles ``<plant>.y[1..3]`` are needed: the wrist follows
 closed-form forward kinematics and each elbow from its servo angle. Whatever else the result
 holds is used when present: the robot's geometry (``<plant>.l0`` ... ``l3``, else RL5), the tool
 offset (``<plant>.tool[1..3]``), the plane (``<plant>.surface_height``,
-``<plant>.surface_normal[1..3]``) and the contact (``<plant>.fn``, ``<plant>.mode``).
+``<plant>.surface_normal[1..3]``), the contact (``<plant>.fn``, ``<plant>.mode``, or the magnitude
+of ``<plant>.normal_force[1..3]``) and a box on the table (``<plant>.box[1..3]``: x, height of its
+centre above the table, rotation; ``<plant>.box_width``, ``<plant>.box_height``).
 """
 from __future__ import annotations
 
@@ -36,8 +38,18 @@ class Recording:
     params: DeltaParams
     tool: np.ndarray                    #: (3,) tool tip from the plate centre
     surface: Optional[tuple[float, np.ndarray]]   #: (height, unit normal) or None
-    force: Optional[np.ndarray]         #: normal force, or None
+    force: Optional[np.ndarray]         #: normal force on the tool, or None
     mode: Optional[np.ndarray]          #: contact mode, or None
+    box: Optional[tuple[np.ndarray, float, float]] = None   #: (poses (n, 3), width, height), or None
+
+    def box_outline(self, row: int) -> np.ndarray:
+        """The box's corners (x, z), world, closed polygon (5 x 2) at ``row``."""
+        poses, width, height = self.box
+        x, lift, theta = poses[row]
+        c, s = math.cos(theta), math.sin(theta)
+        local = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [-1, -1]]) * [width / 2, height / 2]
+        base = self.surface[0] if self.surface is not None else 0.0
+        return np.column_stack([x + c * local[:, 0] - s * local[:, 1], base + lift + s * local[:, 0] + c * local[:, 1]])
 
 
 def find_plants(names: Sequence[str]) -> list[str]:
@@ -78,8 +90,15 @@ def load_recording(result: str | Path, plant: Optional[str] = None) -> Recording
         normal = np.array([first(f"surface_normal[{i}]", 1.0 if i == 3 else 0.0) for i in (1, 2, 3)])
         surface = (first("surface_height", 0.0), normal / np.linalg.norm(normal))
     servo = np.column_stack([column[f"{plant}.y[{i}]"] for i in (1, 2, 3)])
-    return Recording(plant, column["time"], servo, params, tool, surface,
-                     column.get(f"{plant}.fn"), column.get(f"{plant}.mode"))
+    force = column.get(f"{plant}.fn")
+    if force is None and f"{plant}.normal_force[3]" in column:
+        force = np.linalg.norm([column[f"{plant}.normal_force[{i}]"] for i in (1, 2, 3)], axis=0)
+    box = None
+    if f"{plant}.box[3]" in column and f"{plant}.box_width" in column:
+        box = (np.column_stack([column[f"{plant}.box[{i}]"] for i in (1, 2, 3)]),
+               first("box_width", 0.0), first("box_height", 0.0))
+    return Recording(plant, column["time"], servo, params, tool, surface, force,
+                     column.get(f"{plant}.mode"), box)
 
 
 def robot_points(params: DeltaParams, servo: Sequence[float],
@@ -135,7 +154,8 @@ def animate_result(result: str | Path, output: str | Path, plant: Optional[str] 
 
     def draw(k: int):
         row = rows[k]
-        artists = robot.draw(rec.servo[row], wrists[k], rec.mode is not None and rec.mode[row] > 0)
+        touching = rec.force[row] > 0.0 if rec.force is not None else rec.mode is not None and rec.mode[row] > 0
+        artists = robot.draw(rec.servo[row], wrists[k], touching, row)
         if side is not None:
             artists += side.draw(k, row)
         text = f"{rec.plant}   t = {rec.time[row]:.2f} s"
@@ -175,12 +195,16 @@ class _RobotView:
             gx, gy = np.meshgrid(grid, grid)
             gz = height - (n[0] * gx + n[1] * gy) / n[2] if abs(n[2]) > 1e-9 else np.full_like(gx, height)
             ax.plot_surface(gx, gy, gz, color="tan", alpha=0.4, linewidth=0)
+        self.boxes = [ax.plot([], [], [], color="tab:green", lw=1.5)[0] for _ in range(2)] if rec.box else []
         self.upper = [ax.plot([], [], [], color="tab:blue", lw=3)[0] for _ in range(3)]
         self.lower = [ax.plot([], [], [], color="tab:orange", lw=1.5)[0] for _ in range(3)]
         self.plate, = ax.plot([], [], [], color="0.2", lw=2)
         self.tool, = ax.plot([], [], [], color="k", lw=3)
 
-    def draw(self, servo: np.ndarray, wrist: np.ndarray, touching: bool) -> list:
+    def draw(self, servo: np.ndarray, wrist: np.ndarray, touching: bool, row: int) -> list:
+        for line, y in zip(self.boxes, (-0.5, 0.5)):
+            outline = self.rec.box_outline(row)
+            line.set_data_3d(outline[:, 0], np.full(len(outline), y * self.rec.box[1]), outline[:, 1])
         joints = []
         for up, down, (base, elbow, joint) in zip(self.upper, self.lower, robot_points(self.rec.params, servo, wrist)):
             up.set_data_3d(*np.array([base, elbow]).T)
@@ -189,7 +213,7 @@ class _RobotView:
         self.plate.set_data_3d(*np.array(joints + joints[:1]).T)
         self.tool.set_data_3d(*np.array([wrist, wrist + self.rec.tool]).T)
         self.tool.set_color("tab:red" if touching else "k")
-        return [*self.upper, *self.lower, self.plate, self.tool]
+        return [*self.boxes, *self.upper, *self.lower, self.plate, self.tool]
 
 
 class _SideView:
@@ -211,6 +235,7 @@ class _SideView:
         ax.tick_params(labelsize="x-small")
         peak = float(np.max(rec.force)) if rec.force is not None and len(rec.force) else 0.0
         self.scale = 20.0 / peak if peak > 0.0 else 0.0   # the largest force: a 20 mm arrow
+        self.box = ax.fill([], [], color="tab:green", alpha=0.5)[0] if rec.box else None
         self.trace, = ax.plot([], [], color="0.6", lw=1)
         self.tool, = ax.plot([], [], color="k", lw=4, solid_capstyle="butt")
         self.arrow = None
@@ -219,6 +244,8 @@ class _SideView:
     def draw(self, k: int, row: int) -> list:
         rel = (self.tips[:k + 1] - self.origin) * 1e3
         self.trace.set_data(rel[:, 0], rel[:, 2])
+        if self.box is not None:
+            self.box.set_xy((self.rec.box_outline(row) - self.origin[[0, 2]]) * 1e3)
         tip = rel[-1]
         self.tool.set_data([tip[0], tip[0]], [tip[2], tip[2] + 40.0])
         if self.arrow is not None:
@@ -233,5 +260,10 @@ class _SideView:
                                           xytext=(tip[0] - n[0] * length, tip[2] - n[2] * length),
                                           arrowprops=dict(arrowstyle="->", color="tab:red", lw=2))
         gap = self.rec.surface[1] @ (self.tips[k] - np.array([0.0, 0.0, self.rec.surface[0]]))
+        if self.rec.box is not None:  # the tool over the box: its gap to the box's top face
+            (x, lift, theta), height = self.rec.box[0][row], self.rec.box[2]
+            dx, dz = self.tips[k][0] - x, self.tips[k][2] - self.rec.surface[0] - lift
+            gap = min(gap, -math.sin(theta) * dx + math.cos(theta) * dz - height / 2)
         self.label.set_text(f"gap {gap * 1e3:.3f} mm" if gap >= 0 else f"penetration {-gap * 1e3:.3f} mm")
-        return [self.trace, self.tool, self.label] + ([self.arrow] if self.arrow is not None else [])
+        drawn = [self.trace, self.tool, self.label] + ([self.box] if self.box is not None else [])
+        return drawn + ([self.arrow] if self.arrow is not None else [])

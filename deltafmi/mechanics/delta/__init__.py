@@ -4,7 +4,8 @@ This package re-exports the plant: the parameters and frame (:mod:`.params`), th
 the seed talk's nine joint angles (:mod:`.kinematics`) and the stabilised DAE dynamics
 (:mod:`.dynamics`). Its other modules: the feedback-linearising control law (:mod:`.control_law`)
 and the sampled controller around it (:mod:`.control`), wrist reference trajectories
-(:mod:`.trajectory`). Conventions (frame, psi, branches, RL5 defaults) follow DESIGN.md.
+(:mod:`.trajectory`), the robot in contact: its tool against a plane (:mod:`.contact`) and against
+a movable box on a table (:mod:`.box`), and a two-pad tactile sensor (:mod:`.tactile`). Conventions (frame, psi, branches, RL5 defaults) follow DESIGN.md.
 Joint vectors are arm-major: q = [q11, q12, q13, q21, q22, q23, q31, q32, q33].
 """
 
