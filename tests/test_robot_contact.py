@@ -230,6 +230,14 @@ def test_contact_scenario_runs_from_the_cli(tmp_path, name, monkeypatch):
 
 # --- the robot, a movable box and the table (the talk's cartoon) --------------------------------
 
+def test_box_plant_validates(build_fmu_from_src):
+    fmu = build_fmu_from_src("delta_robot_box.py")
+    assert validate_fmu(str(fmu)) == []
+    md = fmpy.read_model_description(str(fmu))
+    assert md.numberOfContinuousStates == 24 and md.numberOfEventIndicators == 12
+    assert {"mode[6]", "fn[6]", "gap[6]", "penetration[6]", "box[3]", "normal_force[3]"} <= {v.name for v in md.modelVariables}
+
+
 def test_box_dropped_on_the_table_rests_on_two_corners():
     """The box falls tilted, its corners collide in turn and it comes to rest on the two bottom
     corners in CONTACT, each carrying half its weight; the robot, held by its gravity torques far
