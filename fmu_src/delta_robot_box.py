@@ -115,9 +115,8 @@ class DeltaRobotBox(HybridSystemComponent):
         robot = robot_start_state(params, self.z0, self.zd0)
         lift = self.box_drop - float(np.min(box.rotated_corners(self.box_angle)[:, 1]))
         x = np.concatenate([robot[:9], [self.box_x, lift, self.box_angle]])
-        below = [name for name, h in zip(("the tool tip", "the tool tip"), system.model.gaps(x)[:2]) if h < 0.0]
-        if below:
-            raise ValueError(f"{below[0]} starts inside the table or the box (z0 = "
+        if min(system.model.gaps(x)[:2]) < 0.0:
+            raise ValueError(f"the tool tip starts inside the table or the box (z0 = "
                              f"{[float(c) for c in self.z0]}, tool = {[float(c) for c in self.tool]}, "
                              f"table at {float(self.surface_height):.6g} m, box top at "
                              f"{float(self.surface_height) + lift + self.box_height / 2:.6g} m): start it above")

@@ -44,6 +44,7 @@ class Recording:
 
     def box_outline(self, row: int) -> np.ndarray:
         """The box's corners (x, z), world, closed polygon (5 x 2) at ``row``."""
+        assert self.box is not None
         poses, width, height = self.box
         x, lift, theta = poses[row]
         c, s = math.cos(theta), math.sin(theta)

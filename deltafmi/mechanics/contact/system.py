@@ -409,8 +409,9 @@ class ContactSystem:
         e = self.model.kinetic_energy(q, v) + self.model.potential_energy(q)
         h = self.model.gaps(q)
         for i in self._cons:
+            material = self.materials[i]
             if self.modes[i] == COLLISION:
                 e += self.m_eff[i] * self.laws[i].potential(-h[i])
-            elif self.modes[i] == CONTACT and self.materials[i] is not None:
-                e += self.materials[i].potential(-h[i])
+            elif self.modes[i] == CONTACT and material is not None:
+                e += material.potential(-h[i])
         return float(e)
