@@ -1,11 +1,11 @@
-"""Command-line interface: ``deltafmi build|info|run|validate|plot``.
+"""Command-line interface: ``deltafmi build|info|run|validate|export-ssp|plot|animate``.
 
 The commands live next to what they drive (``export.commands``, ``cosim.commands``); this module
 only assembles the click group.
 """
 import click
 
-from deltafmi.cosim.commands import plot, run, validate
+from deltafmi.cosim.commands import export_ssp, plot, run, validate
 from deltafmi.export.commands import build, info
 from deltafmi.viz.commands import animate
 
@@ -16,5 +16,5 @@ def main() -> None:
     """deltafmi: Python components as FMI 2.0 FMUs, and a master for closed-loop co-simulation."""
 
 
-for command in (build, info, run, validate, plot, animate):
+for command in (build, info, run, validate, export_ssp, plot, animate):
     main.add_command(command)

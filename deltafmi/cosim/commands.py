@@ -1,4 +1,6 @@
-"""CLI commands of the co-simulation master: ``run``, ``validate`` and ``plot``.
+"""CLI commands of the co-simulation master: ``run``, ``validate``, ``export-ssp`` and ``plot``.
+
+``run`` and ``validate`` take a YAML scenario or an SSP 1.0 archive (``.ssp``, or a bare ``.ssd``).
 
 Bad input (scenario, FMU, signal names) exits with code 2, a failed simulation with code 1; both
 print a one-line reason after any per-line diagnostics.
@@ -7,6 +9,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from tempfile import TemporaryDirectory
 from typing import Optional, Sequence
 
 import click
@@ -14,13 +17,23 @@ import click
 from .errors import BadInput, ScenarioError
 
 
-def _load(path: str, check_fmus: bool = False):
-    """Scenario -> resolved system; prints every diagnostic, raises on errors."""
+def _load(path: str, check_fmus: bool = False, stop: Optional[float] = None):
+    """Scenario (YAML, or an SSP archive) -> resolved system; prints every diagnostic, raises on errors.
+
+    The FMUs of an SSP archive are unpacked into a temporary folder that lives until the
+    command ends. ``stop`` stands in for an SSP without a stop time.
+    """
     from .resolve import resolve_system
     from .scenario import load_scenario
+    from .ssp_read import is_ssp, load_ssp
 
     try:
-        system = resolve_system(load_scenario(path), check_fmus=check_fmus)
+        if is_ssp(path):
+            workdir = click.get_current_context().with_resource(TemporaryDirectory(prefix="deltafmi-ssp-"))
+            scenario = load_ssp(path, Path(workdir), stop)
+        else:
+            scenario = load_scenario(path)
+        system = resolve_system(scenario, check_fmus=check_fmus)
     except ScenarioError as exc:
         if len(exc.diagnostics) > 1:
             for diagnostic in exc.diagnostics:
@@ -41,15 +54,18 @@ def _load(path: str, check_fmus: bool = False):
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: Optional[str],
         quiet: bool) -> None:
-    """Run the co-simulation SCENARIO (a YAML file) and write its results.
+    """Run the co-simulation SCENARIO (a YAML file or an SSP archive) and write its results.
+
+    Ctrl-C stops the run: the rows so far stay in the result file (exit code 130).
 
     \b
     Example:
       deltafmi run scenarios/delta_tracking.yaml -o tracking.csv --stop 2
+      deltafmi run system.ssp
     """
     from .master import Master
 
-    system = _load(scenario)
+    system = _load(scenario, stop=stop)
     master = Master(system, result=Path(output) if output else None, stop=stop, algorithm=algorithm,
                     progress=not quiet and sys.stdout.isatty(),
                     warn=lambda message: click.echo(f"warning: {message}", err=True))
@@ -61,7 +77,7 @@ def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: 
 @click.command()
 @click.argument("scenario", type=click.Path(dir_okay=False))
 def validate(scenario: str) -> None:
-    """Check SCENARIO and its FMUs without simulating.
+    """Check SCENARIO (a YAML file or an SSP archive) and its FMUs without simulating.
 
     Checks the YAML against the schema, every component, variable, connection (causality, type,
     unit, inputs driven twice, unconnected inputs, algebraic loops) and runs fmpy's validation of
@@ -77,6 +93,31 @@ def validate(scenario: str) -> None:
     for line in describe(system):
         click.echo(line)
     click.echo(f"{scenario}: OK")
+
+
+@click.command("export-ssp")
+@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False),
+              help="SSP archive to write (default: <scenario name>.ssp here).")
+def export_ssp(scenario: str, output: Optional[str]) -> None:
+    """Pack SCENARIO and its FMUs into an SSP 1.0 archive that other tools load.
+
+    The archive holds SystemStructure.ssd (components, connectors, connections with
+    ssc:LinearTransformation for factor/offset, start values as parameter sets, start and
+    stop time) and every FMU in resources/ (components given as source: are built). The
+    communication step, master algorithm, ME solver options, step_multiple, recorded outputs
+    and result settings travel as com.deltafmi annotations, so `deltafmi run` on the archive
+    gives the samples the scenario gives.
+
+    \b
+    Example:
+      deltafmi export-ssp scenarios/bouncing_ball.yaml -o bouncing_ball.ssp
+    """
+    from .ssp_write import export_ssp as write
+
+    system = _load(scenario)
+    path = write(system, Path(output) if output else Path(Path(scenario).stem + ".ssp"))
+    click.echo(f"wrote {path} ({len(system.components)} components, {len(system.links)} connections)")
 
 
 @click.command()

@@ -157,6 +157,13 @@ def parse_scenario(text: str, path: Path) -> Scenario:
         raise ScenarioError([Diagnostic(file, exc.line, str(exc))])
     if not isinstance(data, dict):
         raise ScenarioError([Diagnostic(file, lines.line(()), "a scenario must be a YAML mapping")])
+    return scenario_from_data(data, lines, path)
+
+
+def scenario_from_data(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
+    """Check scenario ``data`` (shaped as a YAML scenario, ``lines`` locating its values) and
+    build the :class:`Scenario`; other formats (SSP) come in through here."""
+    file = str(path)
     problems = schema_errors(data, lines, file)
     problems += _semantic_errors(data, lines, file)
     if problems:
