@@ -1,0 +1,273 @@
+"""Exact partial derivatives of the delta robot's stabilised dynamics and of its outputs.
+
+The plant of :mod:`.dynamics` is the ODE x' = [v; a] in x = [q; v] (18 states), the accelerations
+a and the multipliers lam solving (lam eliminated)
+
+    M(q) a - H(q)^T lam = Q,      Q = B u + Jv(q)^T f - C(q, v) - D v - G(q),
+    H(q) a + gamma = 0,           gamma = Hd(q, v) v + 2 p H(q) v + p^2 h(q).
+
+Differentiating both equations with respect to any variable theta of [q, v, u, f], the
+sensitivities (da, dlam) solve a linear system with the same KKT matrix:
+
+    [[M, -H^T], [H, 0]] [da; dlam] = [dQ - (dM) a + (dH)^T lam;  -dgamma - (dH) a],
+
+where every d on the right-hand side differentiates with a and lam held fixed. Everything on
+the right is closed form per arm: the arm's wrist point psi(q_i) and its derivatives up to the
+third order (C, the velocity part of gamma and their q-derivatives), the arm's mass block and its
+first and second derivatives (C from the Christoffel symbols of M, which is how C is built), and
+the Hessian of the potential. One 15 x 15 solve with 24 right-hand sides gives all columns.
+
+Columns ("knowns") are ordered [q (9), v (9), u (3), f (3)], the order of the DeltaRobot FMU's
+states and inputs. No FMI here: the FMU's component hands these matrices to the runtime.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple, Sequence
+
+import numpy as np
+from scipy.linalg.lapack import dgesv  # type: ignore[import-untyped]
+
+from .dynamics import _as_list, _constants, _evaluate
+from .kinematics import ARM_COS_SIN
+from .params import DeltaParams
+
+__all__ = ["PlantJacobian", "plant_jacobian", "N_KNOWNS"]
+
+ArrayLike = Sequence[float] | np.ndarray
+F3 = tuple[float, float, float]
+F9 = tuple[float, float, float, float, float, float, float, float, float]
+
+#: columns of every matrix below: q (9), v (9), u (3), f (3)
+N_KNOWNS = 24
+
+
+class PlantJacobian(NamedTuple):
+    """Values and exact partial derivatives at one point; every ``d*`` has the 24 columns
+    [q, v, u, f] (see the module docstring)."""
+
+    vdot: np.ndarray  #: joint accelerations a (9,)
+    lam: np.ndarray  #: constraint multipliers (6,)
+    dx: np.ndarray  #: d[q'; v'] (18, 24): the state Jacobian [[0, I, 0, 0], [da]] and input matrix
+    dlam: np.ndarray  #: d lam (6, 24)
+    dz: np.ndarray  #: d z (3, 24), z the wrist position (mean of the arms' wrist points)
+    dzd: np.ndarray  #: d zd (3, 24), zd = Jv v
+    denergy: np.ndarray  #: d energy (24,), kinetic plus potential
+
+    @property
+    def A(self) -> np.ndarray:
+        """d x' / d x (18, 18)."""
+        return self.dx[:, :18]
+
+    @property
+    def B(self) -> np.ndarray:
+        """d x' / d [u, f] (18, 6)."""
+        return self.dx[:, 18:]
+
+
+def _arm(consts: tuple[float, float, float, float, float], damping: float, pole: float, cr: float,
+         sr: float, l1: float, l2: float, q1: float, q2: float, q3: float, v1: float, v2: float,
+         v3: float, a1: float, a2: float, a3: float, wx: float, wy: float, wz: float) -> tuple[float, ...]:
+    """One arm's share of the KKT system and of the output derivatives, as 69 plain floats.
+
+    (w_x, w_y, w_z) is f / 3 + F_i, the world force on the arm's wrist (its share of the external
+    force plus the constraint force). The result, 3x3 blocks row-major, in the order of
+    :data:`_BLOCKS`: mass block, Ht (world wrist Jacobian), R1 q-block, R1 v-block,
+    d kappa/dq and d kappa/dv (world), d(Ht v)/dq (world), energy gradient (q then v).
+    """
+    a, b, beta, g1, g2 = consts
+    s1, c1, s2, c2, s3, c3 = (math.sin(q1), math.cos(q1), math.sin(q2), math.cos(q2),
+                              math.sin(q3), math.cos(q3))
+    # local wrist Jacobian columns J_k and nonzero second / third derivatives of psi
+    j1y, j1z = -l1 * s1, l1 * c1
+    j2x, j2y, j2z = l2 * c2 * s3, -l2 * s2, l2 * c2 * c3
+    j3x, j3z = l2 * s2 * c3, -l2 * s2 * s3
+    p11y, p11z = -l1 * c1, -l1 * s1
+    p22x, p22y, p22z = -l2 * s2 * s3, -l2 * c2, -l2 * s2 * c3
+    p23x, p23z = l2 * c2 * c3, -l2 * c2 * s3
+    p33x, p33z = p22x, p22z
+    t111y, t111z = l1 * s1, -l1 * c1
+    t222x, t222y, t222z = -l2 * c2 * s3, l2 * s2, -l2 * c2 * c3
+    t223x, t223z = -l2 * s2 * c3, l2 * s2 * s3  # = t333
+    t233x, t233z = -l2 * c2 * s3, -l2 * c2 * c3
+    # local load R^T w
+    lx, ly, lz = cr * wx + sr * wy, cr * wy - sr * wx, wz
+    # mass block, its first derivatives d(m12), d(m13) (per joint) and d(m33)/dq2
+    m12, m13, m33 = b * (s1 * s2 + c1 * c2 * c3), -b * c1 * s2 * s3, beta * s2 * s2
+    d12 = (b * (c1 * s2 - s1 * c2 * c3), b * (s1 * c2 - c1 * s2 * c3), -b * c1 * c2 * s3)
+    d13 = (b * s1 * s2 * s3, -b * c1 * c2 * s3, -b * c1 * s2 * c3)
+    d33 = 2.0 * beta * s2 * c2
+    cos2 = c2 * c2 - s2 * s2
+    vv1, vv2, vv3, v23 = v1 * v1, v2 * v2, v3 * v3, v2 * v3
+    # the Coriolis vector's derivatives (from its closed form in .dynamics)
+    dc1q1 = b * ((c1 * c2 + s1 * s2 * c3) * vv2 + 2.0 * s1 * c2 * s3 * v23 + s1 * s2 * c3 * vv3)
+    dc1q2 = b * (-(s1 * s2 + c1 * c2 * c3) * vv2 + 2.0 * c1 * s2 * s3 * v23 - c1 * c2 * c3 * vv3)
+    dc1q3 = b * (c1 * s2 * s3 * vv2 - 2.0 * c1 * c2 * c3 * v23 + c1 * s2 * s3 * vv3)
+    dc2q1 = -b * (s1 * s2 + c1 * c2 * c3) * vv1
+    dc2q2 = b * (c1 * c2 + s1 * s2 * c3) * vv1 - beta * cos2 * vv3
+    dc2q3 = b * s1 * c2 * s3 * vv1
+    dc3q1 = b * c1 * s2 * s3 * vv1
+    dc3q2 = b * s1 * c2 * s3 * vv1 + 2.0 * beta * cos2 * v23
+    dc3q3 = b * s1 * s2 * c3 * vv1
+    dc1v2 = 2.0 * b * ((s1 * c2 - c1 * s2 * c3) * v2 - c1 * c2 * s3 * v3)
+    dc1v3 = -2.0 * b * (c1 * c2 * s3 * v2 + c1 * s2 * c3 * v3)
+    dc2v1 = 2.0 * b * (c1 * s2 - s1 * c2 * c3) * v1
+    dc2v3 = -d33 * v3
+    dc3v1 = 2.0 * b * s1 * s2 * s3 * v1
+    dc3v2, dc3v3 = d33 * v3, d33 * v2
+    # R1 q-block: (d2psi/dq dq_k)^T R^T w - dc/dq - d2V/dq2 - (dm/dq_k) a
+    L11 = ly * p11y + lz * p11z
+    L22 = lx * p22x + ly * p22y + lz * p22z
+    L23 = lx * p23x + lz * p23z
+    L33 = lx * p33x + lz * p33z
+    kg23 = -g2 * c2 * s3
+    r1q = (L11 - dc1q1 + g1 * s1 - (d12[0] * a2 + d13[0] * a3),
+           -dc1q2 - (d12[1] * a2 + d13[1] * a3),
+           -dc1q3 - (d12[2] * a2 + d13[2] * a3),
+           -dc2q1 - d12[0] * a1,
+           L22 - dc2q2 + g2 * s2 * c3 - d12[1] * a1,
+           L23 - dc2q3 - kg23 - d12[2] * a1,
+           -dc3q1 - d13[0] * a1,
+           L23 - dc3q2 - kg23 - d13[1] * a1 - d33 * a3,
+           L33 - dc3q3 + g2 * s2 * c3 - d13[2] * a1)
+    r1v = (-damping, -dc1v2, -dc1v3,
+           -dc2v1, -damping, -dc2v3,
+           -dc3v1, -dc3v2, -damping - dc3v3)
+    # d kappa / d q_k (local): P2[:, :, k] (a + 2p v) + P3[:, :, :, k] v v + p^2 J_k
+    tp, pp = 2.0 * pole, pole * pole
+    w1, w2, w3 = a1 + tp * v1, a2 + tp * v2, a3 + tp * v3
+    kq = ((0.0, p11y * w1 + t111y * vv1 + pp * j1y, p11z * w1 + t111z * vv1 + pp * j1z),
+          (p22x * w2 + p23x * w3 + t222x * vv2 + 2.0 * t223x * v23 + t233x * vv3 + pp * j2x,
+           p22y * w2 + t222y * vv2 + pp * j2y,
+           p22z * w2 + p23z * w3 + t222z * vv2 + 2.0 * t223z * v23 + t233z * vv3 + pp * j2z),
+          (p23x * w2 + p33x * w3 + t223x * vv2 + 2.0 * t233x * v23 + t223x * vv3 + pp * j3x,
+           0.0,
+           p23z * w2 + p33z * w3 + t223z * vv2 + 2.0 * t233z * v23 + t223z * vv3 + pp * j3z))
+    # d kappa / d v_k (local): 2 P2[:, k, :] v + 2p J_k ; and P2 v (for dzd/dq)
+    pv = ((0.0, p11y * v1, p11z * v1),
+          (p22x * v2 + p23x * v3, p22y * v2, p22z * v2 + p23z * v3),
+          (p23x * v2 + p33x * v3, 0.0, p23z * v2 + p33z * v3))
+    jl = ((0.0, j1y, j1z), (j2x, j2y, j2z), (j3x, 0.0, j3z))
+    kv = (_twice_plus(pv[0], tp, jl[0]), _twice_plus(pv[1], tp, jl[1]), _twice_plus(pv[2], tp, jl[2]))
+    # energy gradient: v^T dm_k v / 2 + G_k, and m v
+    eq = (d12[0] * v1 * v2 + d13[0] * v1 * v3 + g1 * c1,
+          d12[1] * v1 * v2 + d13[1] * v1 * v3 + 0.5 * d33 * vv3 + g2 * c2 * c3,
+          d12[2] * v1 * v2 + d13[2] * v1 * v3 - g2 * s2 * s3)
+    ev = (a * v1 + m12 * v2 + m13 * v3, m12 * v1 + beta * v2, m13 * v1 + m33 * v3)
+    return ((a, m12, m13, m12, beta, 0.0, m13, 0.0, m33) + _rotate_columns(cr, sr, jl) + r1q + r1v
+            + _rotate_columns(cr, sr, kq) + _rotate_columns(cr, sr, kv) + _rotate_columns(cr, sr, pv)
+            + eq + ev)
+
+def _twice_plus(x: F3, k: float, y: F3) -> F3:
+    """2 x + k y for 3-vectors."""
+    return 2.0 * x[0] + k * y[0], 2.0 * x[1] + k * y[1], 2.0 * x[2] + k * y[2]
+
+
+def _rotate_columns(cr: float, sr: float, columns: tuple[F3, F3, F3]) -> F9:
+    """Three local 3-vectors (the columns of a 3x3 matrix) rotated about z; row-major result."""
+    x0, y0, z0 = columns[0]
+    x1, y1, z1 = columns[1]
+    x2, y2, z2 = columns[2]
+    return (cr * x0 - sr * y0, cr * x1 - sr * y1, cr * x2 - sr * y2,
+            sr * x0 + cr * y0, sr * x1 + cr * y1, sr * x2 + cr * y2,
+            z0, z1, z2)
+
+
+def plant_jacobian(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,
+                   pole: float = 5.0) -> PlantJacobian:
+    """Exact partial derivatives of the plant's state derivative and outputs at (q, v, u, f).
+
+    Args:
+        p: robot parameters.
+        q, v: joint angles (rad) and rates (rad/s), shape (9,), arm-major.
+        u: servo torques (N m), shape (3,).
+        f: external force on the wrist (N, world frame), shape (3,).
+        pole: Baumgarte pole p (1/s).
+
+    Returns:
+        A :class:`PlantJacobian`; its columns are [q, v, u, f].
+
+    Raises:
+        ArithmeticError: H lost rank (a direct-kinematic singularity).
+        numpy.linalg.LinAlgError: likewise, from the KKT solve.
+    """
+    ql, vl, fl = _as_list(q), _as_list(v), _as_list(f)
+    vdot, lam, _ = _evaluate(p, ql, vl, u, fl, pole)
+    la0, la1, la2, lb0, lb1, lb2 = lam
+    forces = ((la0 + lb0, la1 + lb1, la2 + lb2), (-la0, -la1, -la2), (-lb0, -lb1, -lb2))
+    consts, pole, l1, l2, damping = _constants(p), float(pole), p.l1, p.l2, p.damping
+    fx, fy, fz = fl[0] / 3.0, fl[1] / 3.0, fl[2] / 3.0
+    values: list[float] = []
+    for i in range(3):
+        cr, sr = ARM_COS_SIN[i]
+        k = 3 * i
+        w = forces[i]
+        values.extend(_arm(consts, damping, pole, cr, sr, l1, l2, ql[k], ql[k + 1], ql[k + 2], vl[k],
+                           vl[k + 1], vl[k + 2], vdot[k], vdot[k + 1], vdot[k + 2], fx + w[0],
+                           fy + w[1], fz + w[2]))
+    flat = np.array(values)
+    system = _SYSTEM_TEMPLATE.copy()  # [[M, -H^T, R1], [H, 0, R2]], 15 x (15 + 24)
+    system.flat[_SYSTEM_INDEX] = flat[_SYSTEM_SOURCE] * _SYSTEM_SCALE
+    _, _, sens, info = dgesv(system[:, :15], system[:, 15:])
+    if info != 0:
+        raise ArithmeticError("the KKT matrix is singular: the delta robot is in a direct-kinematic "
+                              "singularity (or a gimbal one, sin q_i2 = 0)")
+    dx = np.zeros((18, N_KNOWNS))
+    dx[:9, 9:18] = np.eye(9)
+    dx[9:] = sens[:9]
+    out = np.zeros((7, N_KNOWNS))  # dz, dzd, denergy
+    out.flat[_OUTPUT_INDEX] = flat[_OUTPUT_SOURCE] * _OUTPUT_SCALE
+    return PlantJacobian(np.array(vdot), np.array(lam), dx, sens[9:].copy(), out[:3], out[3:6], out[6])
+
+
+#: offsets of the blocks in one arm's 69 kernel values (see :func:`_arm`)
+_BLOCKS = dict(mass=0, Ht=9, r1q=18, r1v=27, kq=36, kv=45, pv=54, grad=63)
+_ARM_VALUES = 69
+
+
+def _scatter_layout() -> tuple:
+    """Where each kernel value goes in the augmented KKT system and in the output derivatives:
+    (flat target index, source index, scale) arrays for both, and the system's constant part."""
+    system: list[tuple[int, int, float]] = []
+    output: list[tuple[int, int, float]] = []
+    width = 15 + N_KNOWNS
+
+    def put(target: list, row: int, col: int, ncols: int, arm: int, block: str, entry: int,
+            scale: float) -> None:
+        target.append((row * ncols + col, _ARM_VALUES * arm + _BLOCKS[block] + entry, scale))
+
+    for i in range(3):
+        # constraint rows [arm 1 - arm 2; arm 1 - arm 3]: arm 1 enters both with +, arms 2, 3 with -
+        rows_sign = [(9, 1.0), (12, 1.0)] if i == 0 else [(9 + 3 * (i - 1), -1.0)]
+        for r in range(3):
+            for c in range(3):
+                e = 3 * r + c
+                put(system, 3 * i + r, 3 * i + c, width, i, "mass", e, 1.0)
+                put(system, 3 * i + r, 15 + 3 * i + c, width, i, "r1q", e, 1.0)
+                put(system, 3 * i + r, 15 + 9 + 3 * i + c, width, i, "r1v", e, 1.0)
+                put(system, 3 * i + c, 15 + 21 + r, width, i, "Ht", e, 1.0 / 3.0)  # Jv^T f
+                for c0, sign in rows_sign:
+                    put(system, c0 + r, 3 * i + c, width, i, "Ht", e, sign)  # H
+                    put(system, 3 * i + c, c0 + r, width, i, "Ht", e, -sign)  # -H^T
+                    put(system, c0 + r, 15 + 3 * i + c, width, i, "kq", e, -sign)
+                    put(system, c0 + r, 15 + 9 + 3 * i + c, width, i, "kv", e, -sign)
+                put(output, r, 3 * i + c, N_KNOWNS, i, "Ht", e, 1.0 / 3.0)  # dz/dq = Jv
+                put(output, 3 + r, 3 * i + c, N_KNOWNS, i, "pv", e, 1.0 / 3.0)  # dzd/dq
+                put(output, 3 + r, 9 + 3 * i + c, N_KNOWNS, i, "Ht", e, 1.0 / 3.0)  # dzd/dv = Jv
+        for c in range(3):
+            put(output, 6, 3 * i + c, N_KNOWNS, i, "grad", c, 1.0)
+            put(output, 6, 9 + 3 * i + c, N_KNOWNS, i, "grad", 3 + c, 1.0)
+    template = np.zeros((15, width))
+    for i in range(3):
+        template[3 * i, 15 + 18 + i] = 1.0  # B u: the servo torque drives the arm's first joint
+
+    def arrays(entries: list) -> tuple:
+        index, source, scale = zip(*entries)
+        return np.array(index), np.array(source), np.array(scale)
+
+    return arrays(system) + arrays(output) + (template,)
+
+
+(_SYSTEM_INDEX, _SYSTEM_SOURCE, _SYSTEM_SCALE, _OUTPUT_INDEX, _OUTPUT_SOURCE, _OUTPUT_SCALE,
+ _SYSTEM_TEMPLATE) = _scatter_layout()
