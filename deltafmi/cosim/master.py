@@ -15,14 +15,14 @@ import shutil
 import tempfile
 import time as _time
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import fmpy
 import numpy as np
 
 from .errors import BadInput, SimulationError
 from .progress import Progress, Summary, Termination
-from .resolve import System
+from .resolve import Component, System
 from .results import CsvWriter, RowSampler
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
@@ -32,7 +32,12 @@ class Master:
 
     def __init__(self, system: System, result: Optional[Path] = None, stop: Optional[float] = None,
                  algorithm: Optional[str] = None, progress: bool = False,
-                 warn: Callable[[str], None] = lambda message: None) -> None:
+                 warn: Callable[[str], None] = lambda message: None,
+                 fmus: Optional[Callable[[Component], Any]] = None,
+                 writer_class: Callable[..., Any] = CsvWriter) -> None:
+        """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
+        FMU for this run; deltafmi.study keeps them loaded across runs and resets them);
+        ``writer_class(path, names, kinds=...)`` makes the result writer (default: CSV)."""
         scenario = system.scenario
         self.system = system
         self.start = scenario.experiment.start
@@ -57,6 +62,8 @@ class Master:
         self.step_end = self.start
         self._unzip_root = ""
         self._by_name: Dict[str, Unit] = {}
+        self.fmus = fmus
+        self.writer_class = writer_class
 
     # --- public -------------------------------------------------------------------------------
     def run(self) -> Summary:
@@ -101,7 +108,7 @@ class Master:
             unit.apply_start_values()
         self._wire()
         recorded = self.system.recorded
-        self.writer = CsvWriter(self.result_path, [p.ref for p in recorded], kinds=[p.type for p in recorded])
+        self.writer = self.writer_class(self.result_path, [p.ref for p in recorded], kinds=[p.type for p in recorded])
         self._initialize()
         self._record(self.start)
 
@@ -138,10 +145,11 @@ class Master:
     def _load(self, unzip_root: str) -> None:
         extracted: Dict[Path, str] = {}
         for component in self.system.components:
-            if component.fmu not in extracted:
+            fmu = self.fmus(component) if self.fmus is not None else None
+            if fmu is None and component.fmu not in extracted:
                 target = Path(unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
                 extracted[component.fmu] = fmpy.extract(str(component.fmu), unzipdir=str(target))
-            unit = unit_for(component, extracted[component.fmu])
+            unit = unit_for(component, extracted[component.fmu] if fmu is None else fmu.unzipDirectory, fmu)
             if component.interface == "ME":
                 unit.on_event = self._on_event
             self.units.append(unit)

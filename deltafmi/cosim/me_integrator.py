@@ -35,8 +35,8 @@ class ModelExchangeUnit(Unit):
     interface = "ME"
     fmu_class = FMU2Model
 
-    def __init__(self, component: Component, unzip_dir: str) -> None:
-        super().__init__(component, unzip_dir)
+    def __init__(self, component: Component, unzip_dir: str, fmu: Any = None) -> None:
+        super().__init__(component, unzip_dir, fmu)
         md = component.info.md
         self.nx = md.numberOfContinuousStates
         self.nz = md.numberOfEventIndicators

@@ -198,16 +198,17 @@ class Unit:
     interface = ""
     fmu_class: type = FMU2Slave
 
-    def __init__(self, component: Component, unzip_dir: str) -> None:
+    def __init__(self, component: Component, unzip_dir: str, fmu: Any = None) -> None:
+        """``fmu``: an fmpy object already loaded (and maybe instantiated) to use instead of a new one."""
         self.component = component
         self.name = component.name
         self.info = component.info
         md = component.info.md
         self.messages: deque = deque(maxlen=20)
         self._callbacks = _callbacks(self.messages)
-        self.fmu = self.fmu_class(guid=md.guid, unzipDirectory=unzip_dir,
-                                  modelIdentifier=component.info.model_identifier(self.interface),
-                                  instanceName=self.name)
+        self.fmu = fmu if fmu is not None else self.fmu_class(
+            guid=md.guid, unzipDirectory=unzip_dir, modelIdentifier=component.info.model_identifier(self.interface),
+            instanceName=self.name)
         self.inputs: List[Inputs] = []
         self.outputs: List[Union[_Outputs, _StringOutputs]] = []
         self.step_multiple = component.spec.step_multiple

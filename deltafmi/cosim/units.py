@@ -4,7 +4,7 @@
 """
 from __future__ import annotations
 
-from typing import Optional
+from typing import Any, Optional
 
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
@@ -21,8 +21,8 @@ class CoSimulationUnit(Unit):
     interface = "CS"
     fmu_class = FMU2Slave
 
-    def __init__(self, component: Component, unzip_dir: str) -> None:
-        super().__init__(component, unzip_dir)
+    def __init__(self, component: Component, unzip_dir: str, fmu: Any = None) -> None:
+        super().__init__(component, unzip_dir, fmu)
         self._do_step = bare_function(self.fmu, "fmi2DoStep")
         self._handle = None
         self.no_prior_state = 1
@@ -57,9 +57,9 @@ class CoSimulationUnit(Unit):
             return time
 
 
-def unit_for(component: Component, unzip_dir: str) -> Unit:
-    """The right unit class for the component's interface."""
+def unit_for(component: Component, unzip_dir: str, fmu: Any = None) -> Unit:
+    """The right unit class for the component's interface (``fmu``: see :class:`Unit`)."""
     if component.interface == "CS":
-        return CoSimulationUnit(component, unzip_dir)
+        return CoSimulationUnit(component, unzip_dir, fmu)
     from .me_integrator import ModelExchangeUnit  # late: it loads SUNDIALS
-    return ModelExchangeUnit(component, unzip_dir)
+    return ModelExchangeUnit(component, unzip_dir, fmu)
