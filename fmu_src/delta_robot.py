@@ -1,6 +1,9 @@
 """Delta robot plant FMU: a thin component over deltafmi.mechanics.delta (RL5 defaults)."""
+import numpy as np
+
 from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
 from deltafmi.mechanics import delta
+from deltafmi.mechanics.delta.jacobian import plant_jacobian
 
 _D = delta.RL5
 _PARAMS = ("l0", "l1", "l2", "l3", "m1", "r1", "J1", "Jm", "m2", "mp", "payload", "g", "damping")
@@ -87,6 +90,15 @@ class DeltaRobot(Component):
 
     def derivatives(self, t: float) -> list:
         return delta.state_derivative(self._plant, self.states, self.u, self.f, self.pole)
+
+    def jacobian(self, t: float) -> dict:
+        """Exact partial derivatives (deltafmi.mechanics.delta.jacobian); the residual |h|, not
+        differentiable on the closed loops, is left to the runtime's differences."""
+        pj = plant_jacobian(self._plant, self.q, self.v, self.u, self.f, self.pole)
+        servo = np.zeros((3, 24))
+        servo[[0, 1, 2], [0, 3, 6]] = 1.0
+        return {"der": pj.dx, "y": servo, "yd": np.roll(servo, 9, axis=1), "z": pj.dz, "zd": pj.dzd,
+                "lam": pj.dlam, "energy": pj.denergy[None, :]}
 
     def outputs(self, t: float) -> None:
         ev = delta.evaluate_plant(self._plant, self.q, self.v, self.u, self.f, self.pole)

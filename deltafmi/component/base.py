@@ -69,6 +69,20 @@ class Component:
         """``n_event_indicators`` values; an event happens where one changes sign."""
         return ()
 
+    def jacobian(self, t: float) -> Optional[dict[str, Any]]:
+        """Exact partial derivatives at the current time, states and inputs; None: none given.
+
+        A dict from unknowns to matrices with one column per known: the continuous states, then
+        the Real inputs, in declaration order (``nx + n_real_inputs`` columns). Key ``"der"``
+        holds the state derivatives (``nx`` rows); an Output's attribute name holds that
+        output's scalars. Whatever is left out (or everything, by default) the runtime
+        differentiates numerically: central differences with steps from the nominals. The FMU
+        answers ``fmi2GetDirectionalDerivative`` from these, and its Co-Simulation solver uses
+        ``"der"`` as its Newton matrix. The runtime reuses a result while the time and every
+        variable keep their values, until the next event.
+        """
+        return None
+
     def update(self, t: float) -> Optional[bool]:
         """Discrete update at an event; return True if another event iteration is needed."""
         return None
@@ -118,6 +132,11 @@ class Component:
     def watches_drift(cls) -> bool:
         """True when the component checks its states for drift after every ME integrator step."""
         return cls.needs_projection is not Component.needs_projection
+
+    @classmethod
+    def provides_jacobian(cls) -> bool:
+        """True when the component gives exact partial derivatives (:meth:`jacobian`)."""
+        return cls.jacobian is not Component.jacobian
 
     @classmethod
     def overrides_do_step(cls) -> bool:

@@ -41,10 +41,16 @@ _ProjFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_double, c_void
 _set_proj_fn = _bind("CVodeSetProjFn", [c_void_p, _ProjFn])
 _set_proj_err_est = _bind("CVodeSetProjErrEst", [c_void_p, c_int])
 _set_proj_frequency = _bind("CVodeSetProjFrequency", [c_void_p, ctypes.c_long])
+# dense Jacobian: int (*)(t, y, fy, SUNMatrix J, user_data, tmp1, tmp2, tmp3)
+_JacFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p)
+_set_jac_fn = _bind("CVodeSetJacFn", [c_void_p, _JacFn])
+_dense_data = _sun.LIBRARIES["sundials_sunmatrixdense"]["SUNDenseMatrix_Data"]
+_dense_data.argtypes, _dense_data.restype = [c_void_p], ctypes.POINTER(c_double)
 
 Rhs = Callable[[float, np.ndarray, np.ndarray], None]
 Roots = Callable[[float, np.ndarray, np.ndarray], None]
 Project = Callable[[float, np.ndarray, np.ndarray], None]
+Jacobian = Callable[[float, np.ndarray, np.ndarray], None]
 
 
 class CvodeError(RuntimeError):
@@ -58,13 +64,16 @@ class Cvode:
     solver's own memory viewed as a numpy array, valid during the call only. With
     ``project(t, x, correction)`` CVODE projects onto an invariant manifold after every internal
     step (its own projection method: no restart, BDF only): the callback writes the correction
-    that moves ``x`` onto the manifold.
+    that moves ``x`` onto the manifold. With ``jacobian(t, x, J)`` the Newton iteration uses
+    that dense ``d rhs / d x`` (``J`` an (n, n) view of SUNDIALS' matrix, to fill) instead of
+    CVODE's difference quotients.
     """
 
     def __init__(self, rhs: Rhs, x0: np.ndarray, t0: float, *, roots: Optional[Roots] = None,
                  n_roots: int = 0, rtol: float = 1e-6, atol: float | np.ndarray = 1e-8,
                  max_step: float = 0.0, method: str = "bdf", max_num_steps: int = 100000,
-                 project: Optional[Project] = None, project_every: int = 1) -> None:
+                 project: Optional[Project] = None, project_every: int = 1,
+                 jacobian: Optional[Jacobian] = None) -> None:
         self.n = n = len(x0)
         self.n_roots = n_roots if roots is not None else 0
         self._rhs, self._roots = rhs, roots
@@ -94,6 +103,12 @@ class Cvode:
         self._A = SUNDenseMatrix(n, n, self._ctx)
         self._LS = SUNLinSol_Dense(self._y, self._A, self._ctx)
         _check(CVodeSetLinearSolver(self._mem, self._LS, self._A), "CVodeSetLinearSolver")
+        self._jacobian = jacobian
+        if jacobian is not None:
+            # CVODE hands the Jacobian function the matrix given to the linear solver: view it once
+            self._J = np.ctypeslib.as_array(_dense_data(self._A), (n * n,)).reshape((n, n), order="F")
+            self._j = _JacFn(self._j_callback)
+            _check(_set_jac_fn(self._mem, self._j), "CVodeSetJacFn")
         if max_step > 0:
             _check(_cv.CVodeSetMaxStep(self._mem, max_step), "CVodeSetMaxStep")
         _check(_cv.CVodeSetMaxNumSteps(self._mem, max_num_steps), "CVodeSetMaxNumSteps")
@@ -141,6 +156,9 @@ class Cvode:
 
     def _g_callback(self, t: float, y: int, gout: int, _user: int) -> int:
         return self._guarded(self._roots, t, self._view(y), self._roots_view(gout))
+
+    def _j_callback(self, t: float, y: int, _fy: int, _J: int, _user: int, _t1: int, _t2: int, _t3: int) -> int:
+        return self._guarded(self._jacobian, t, self._view(y), self._J)
 
     def _p_callback(self, t: float, y: int, corr: int, _eps: float, _err: int, _user: int) -> int:
         return self._guarded(self._project, t, self._view(y), self._view(corr))

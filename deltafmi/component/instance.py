@@ -17,6 +17,7 @@ import numpy as np
 
 from .base import Component
 from .cvode import Cvode
+from .partials import DirectionalDerivatives
 
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 MODEL_EXCHANGE, CO_SIMULATION = 0, 1
@@ -51,6 +52,7 @@ class FmuInstance:
         self._real_inputs = np.array([s.value_reference for s in layout.scalars
                                       if s.causality == "input" and s.fmi_type == "Real"], dtype=np.intp)
         self._inputs_at_last_step = np.full(len(self._real_inputs), np.nan)
+        self.partials = DirectionalDerivatives(component_class)
 
     def _new_component(self, buffers: Optional[tuple] = None) -> None:
         comp = self.component = self.component_class.__new__(self.component_class)
@@ -114,6 +116,7 @@ class FmuInstance:
         valuesOfContinuousStatesChanged, nextEventTimeDefined, nextEventTime).
         """
         comp = self.component
+        self.partials.invalidate()
         states_before = comp._real[: self.nx].copy()
         if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
             comp.project(t)
@@ -125,6 +128,13 @@ class FmuInstance:
         self._next_time_event = nte
         return (again, self.terminate_requested, False, changed, nte is not None,
                 float(nte) if nte is not None else 0.0)
+
+    def directional_derivative(self, t: float, unknowns: bytes, knowns: bytes, seed: bytes) -> bytes:
+        """``fmi2GetDirectionalDerivative`` at ``t``: value references as uint32 bytes, the seed
+        and the result as float64 bytes (see :mod:`.partials`)."""
+        if self.in_initialization:
+            self.component.initialize(t)
+        return self.partials.directional(self.component, t, unknowns, knowns, seed)
 
     def completed_integrator_step(self, t: float) -> bool:
         """``fmi2CompletedIntegratorStep``: True asks for a step event (the states drifted)."""
@@ -203,6 +213,14 @@ class FmuInstance:
 
         if self.component_class.overrides_project():
             options["project"] = project
+        if self.component_class.provides_jacobian():
+            partials = self.partials
+
+            def jacobian(t: float, x: np.ndarray, J: np.ndarray) -> None:
+                comp._real[:nx] = x
+                J[:, :] = partials.state_jacobian(comp, t)
+
+            options["jacobian"] = jacobian
         return Cvode(rhs, comp._real[:nx].copy(), self.time, roots=roots if self.nz else None,
                      n_roots=self.nz, rtol=rtol, atol=atol, **options)
 
@@ -256,6 +274,7 @@ class FmuInstance:
             delattr(comp, key)
         vars(comp).update(copy.deepcopy(state["internal"]))
         self.time = state["time"]
+        self.partials.invalidate()
         self._next_time_event = state["next_time_event"]
         self.in_initialization = state["in_initialization"]
         self.terminate_requested = state["terminate_requested"]

@@ -39,7 +39,8 @@ def model_description_xml(cls: type[Component], guid: str) -> bytes:
         generationDateAndTime=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         variableNamingConvention="structured", numberOfEventIndicators=str(cls.n_event_indicators)))
     common = dict(modelIdentifier=name, needsExecutionTool="false", canGetAndSetFMUstate="true",
-                  canSerializeFMUstate="true", canNotUseMemoryManagementFunctions="true")
+                  canSerializeFMUstate="true", canNotUseMemoryManagementFunctions="true",
+                  providesDirectionalDerivative="true")
     ET.SubElement(root, "ModelExchange", _attrs(
         **common, completedIntegratorStepNotNeeded="false" if cls.watches_drift() else "true"))
     ET.SubElement(root, "CoSimulation", _attrs(

@@ -24,6 +24,7 @@ typedef struct {
     PyObject *ops[DFMI_N_OPS];
     PyObject *event_update, *completed_step, *get_string, *set_string, *get_state, *set_state;
     PyObject *serialize, *deserialize;
+    PyObject *directional; /* directional_derivative(time, unknowns, knowns, seed) -> bytes */
     PyObject *pending_logs; /* list of (status, category, message) the component queued */
     PyObject *strings;      /* list: last UTF-8 bytes returned per string index (keeps them alive) */
     PyObject *serialized;   /* bytes of the last serialize_state */
@@ -205,6 +206,7 @@ static void release(Bridged *b) {
     Py_XDECREF(b->set_state);
     Py_XDECREF(b->serialize);
     Py_XDECREF(b->deserialize);
+    Py_XDECREF(b->directional);
     Py_XDECREF(b->pending_logs);
     Py_XDECREF(b->strings);
     Py_XDECREF(b->serialized);
@@ -243,6 +245,7 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
         !(b->set_state = py.PyObject_GetAttrString(b->instance, "set_state")) ||
         !(b->serialize = py.PyObject_GetAttrString(b->instance, "serialize_state")) ||
         !(b->deserialize = py.PyObject_GetAttrString(b->instance, "deserialize_state")) ||
+        !(b->directional = py.PyObject_GetAttrString(b->instance, "directional_derivative")) ||
         !(b->pending_logs = py.PyObject_GetAttrString(b->instance, "pending_logs")) ||
         !(b->strings = py.PyList_New(n_str)))
         goto python_error;
@@ -397,6 +400,30 @@ int bridge_deserialize_state(void *handle, const char *bytes, size_t size, void 
     Py_XDECREF(data);
     *state = snapshot;
     int status = snapshot ? 0 : finish(b, NULL, "fmi2DeSerializeFMUstate");
+    LEAVE;
+    return status;
+}
+
+/* The value references and the seed travel as bytes (uint32 and float64 arrays), the result
+ * comes back as float64 bytes: no Python API beyond bytes is needed. */
+int bridge_directional_derivative(void *handle, double time, const unsigned int *unknowns, size_t n_unknown,
+                                  const unsigned int *knowns, size_t n_known, const double *seed, double *out) {
+    Bridged *b = handle;
+    ENTER;
+    PyObject *t = py.PyFloat_FromDouble(time);
+    PyObject *u = py.PyBytes_FromStringAndSize((const char *)unknowns, (Py_ssize_t)(n_unknown * sizeof *unknowns));
+    PyObject *k = py.PyBytes_FromStringAndSize((const char *)knowns, (Py_ssize_t)(n_known * sizeof *knowns));
+    PyObject *s = py.PyBytes_FromStringAndSize((const char *)seed, (Py_ssize_t)(n_known * sizeof *seed));
+    PyObject *result = t && u && k && s ? py.PyObject_CallFunctionObjArgs(b->directional, t, u, k, s, NULL) : NULL;
+    char *bytes = NULL;
+    Py_ssize_t n = 0;
+    int ok = result && py.PyBytes_AsStringAndSize(result, &bytes, &n) == 0 && (size_t)n == n_unknown * sizeof *out;
+    if (ok && n) memcpy(out, bytes, (size_t)n);
+    Py_XDECREF(t);
+    Py_XDECREF(u);
+    Py_XDECREF(k);
+    Py_XDECREF(s);
+    int status = unpacked(b, result, ok, "fmi2GetDirectionalDerivative");
     LEAVE;
     return status;
 }

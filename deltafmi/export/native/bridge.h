@@ -58,5 +58,8 @@ void bridge_free_state(void *state);
 /* Serialize into a bridge-owned buffer valid until the next call on this instance. */
 int bridge_serialize_state(void *instance, void *state, const char **bytes, size_t *size);
 int bridge_deserialize_state(void *instance, const char *bytes, size_t size, void **state);
+/* fmi2GetDirectionalDerivative at `time`: out[i] = sum_j d unknown_i / d known_j seed[j]. */
+int bridge_directional_derivative(void *instance, double time, const unsigned int *unknowns, size_t n_unknown,
+                                  const unsigned int *knowns, size_t n_known, const double *seed, double *out);
 
 #endif

@@ -12,10 +12,10 @@ sensitivities (da, dlam) solve a linear system with the same KKT matrix:
     [[M, -H^T], [H, 0]] [da; dlam] = [dQ - (dM) a + (dH)^T lam;  -dgamma - (dH) a],
 
 where every d on the right-hand side differentiates with a and lam held fixed. Everything on
-the right is closed form per arm: the arm's wrist point psi(q_i) and its derivatives up to the
-third order (C, the velocity part of gamma and their q-derivatives), the arm's mass block and its
-first and second derivatives (C from the Christoffel symbols of M, which is how C is built), and
-the Hessian of the potential. One 15 x 15 solve with 24 right-hand sides gives all columns.
+the right is closed form per arm, in plain floats like the dynamics kernels: the derivatives of
+the arm's wrist point psi(q_i) up to the third order (Jv, H, the velocity part of gamma), of its
+mass block and of the closed-form C(q, v) of :mod:`.dynamics`, and the Hessian of the potential.
+One 15 x 15 solve with 24 right-hand sides gives every column.
 
 Columns ("knowns") are ordered [q (9), v (9), u (3), f (3)], the order of the DeltaRobot FMU's
 states and inputs. No FMI here: the FMU's component hands these matrices to the runtime.
