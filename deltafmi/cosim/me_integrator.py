@@ -23,6 +23,7 @@ from fmpy.fmi2 import FMU2Model, fmi2Boolean
 from deltafmi.component.cvode import Cvode, CvodeError
 
 from .explicit_rk import TABLEAUS, ExplicitRungeKutta, RungeKuttaError
+from .jacobians import FmuJacobian, computes_exact_derivatives
 from .resolve import Component
 from .unit_base import FmuFailure, Terminated, Unit, bare_function
 
@@ -106,9 +107,13 @@ class ModelExchangeUnit(Unit):
             atol = options.get("atol") or rtol * np.abs(nominals)
         else:
             atol = 1.0
+        # the Newton matrix from the FMU's directional derivatives, when it provides them
+        use = options.get("jacobian", computes_exact_derivatives(self.fmu.unzipDirectory))
+        self._newton = FmuJacobian(self.fmu, self.info.md, exact=bool(use))
         return Cvode(self._rhs, self._x.copy(), time, roots=self._roots if self.nz else None, n_roots=self.nz,
                      rtol=rtol, atol=atol, max_step=max_step, method=method,
-                     max_num_steps=int(options.get("max_num_steps", 100000)))
+                     max_num_steps=int(options.get("max_num_steps", 100000)),
+                     jacobian=self._jacobian if self.nx and self._newton.exact else None)
 
     # --- CVODE callbacks ----------------------------------------------------------------------
     def _pointer(self, view: np.ndarray) -> Any:
@@ -126,6 +131,11 @@ class ModelExchangeUnit(Unit):
             self._get_derivatives(handle, self._pointer(xdot), self.nx)
         else:
             xdot[0] = 0.0
+
+    def _jacobian(self, t: float, x: np.ndarray, J: np.ndarray) -> None:
+        self._set_time(self._handle, t)
+        self._set_states(self._handle, self._pointer(x), self.nx)
+        self._newton.fill_state_jacobian(J)
 
     def _roots(self, t: float, x: np.ndarray, g: np.ndarray) -> None:
         handle = self._handle
