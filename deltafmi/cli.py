@@ -7,6 +7,7 @@ import click
 
 from deltafmi.cosim.commands import export_ssp, plot, run, validate
 from deltafmi.export.commands import build, info
+from deltafmi.study.commands import plot_study_command, study_case, sweep
 from deltafmi.viz.commands import animate
 
 
@@ -17,4 +18,6 @@ def main() -> None:
 
 
 for command in (build, info, run, validate, export_ssp, plot, animate):
+    main.add_command(command)
+for command in (sweep, plot_study_command, study_case):  # parameter studies on Dask
     main.add_command(command)

@@ -1,0 +1,138 @@
+"""CLI commands of parameter studies: ``sweep``, ``plot-study`` and ``study-case``.
+
+Bad input (study, scenario, FMU, option) exits with code 2 and a one-line reason after any
+per-line diagnostics; a sweep whose cases fail still exits 0 (the failures are results).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional, Sequence
+
+import click
+
+from deltafmi.cosim.errors import BadInput, ScenarioError
+
+
+def _plan(path: str):
+    """Study file -> checked :class:`~deltafmi.study.plan.PlannedStudy`; prints every diagnostic."""
+    from .plan import plan_study
+    from .spec import load_study
+
+    try:
+        return plan_study(load_study(path))
+    except ScenarioError as exc:
+        if len(exc.diagnostics) > 1:
+            for diagnostic in exc.diagnostics:
+                click.echo(str(diagnostic), err=True)
+        raise
+
+
+def _table_path(planned, output: Optional[str]) -> Path:
+    path = Path(output) if output else planned.study.result_file
+    return path if path.suffix == ".parquet" else path.with_name(path.name + ".parquet")
+
+
+@click.command()
+@click.argument("study", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False),
+              help="Results table (.parquet; default: result.file of the study, else <study>.parquet here). "
+                   "The CSV copy, the journal and the time series go next to it.")
+@click.option("--scheduler", metavar="ADDRESS",
+              help="A running Dask scheduler, e.g. tcp://host:8786 (default: a local cluster).")
+@click.option("--workers", type=click.IntRange(min=1),
+              help="Worker processes of the local cluster (default: one per core).")
+@click.option("--timeseries/--no-timeseries", default=None,
+              help="Keep every case's recorded signals (default: result.timeseries of the study).")
+@click.option("--fresh", is_flag=True, help="Discard earlier results of this study instead of continuing them.")
+@click.option("--retry-failed", is_flag=True, help="Run again the cases that failed in an earlier run.")
+@click.option("--dry-run", is_flag=True, help="Check the study and list its cases; run nothing.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: Optional[int],
+          timeseries: Optional[bool], fresh: bool, retry_failed: bool, dry_run: bool, quiet: bool) -> None:
+    """Run every case of the STUDY (a YAML file) on a Dask cluster and tabulate the metrics.
+
+    Each FMU is built once here and shipped to the workers, which keep it loaded and reset it
+    between cases. Results are stored as cases finish: run the same command again after an
+    interruption and it skips the cases already done.
+
+    \b
+    Examples:
+      deltafmi sweep scenarios/studies/gain_payload.yaml
+      deltafmi sweep study.yaml --scheduler tcp://10.0.0.5:8786 -o results/study.parquet
+    """
+    from .driver import open_store, run_study, summary_lines
+
+    if scheduler is not None and workers is not None:
+        raise BadInput("--workers sizes the local cluster; a cluster given with --scheduler has its own workers")
+    planned = _plan(study)
+    store = open_store(planned, _table_path(planned, output),
+                       planned.study.timeseries if timeseries is None else timeseries)
+    if dry_run:
+        click.echo(f"{study}: OK, {len(planned.cases)} cases varying {', '.join(planned.targets)}; "
+                   f"metrics {', '.join(m.name for m in planned.plan.metrics)}")
+        for case in planned.cases[:10]:
+            click.echo(f"  case {case.id}: {case.describe()}")
+        if len(planned.cases) > 10:
+            click.echo(f"  ... {len(planned.cases) - 10} more")
+        return
+    todo = store.open(planned.cases, fresh=fresh, retry_failed=retry_failed)
+    try:
+        report = run_study(planned, store, todo, scheduler=scheduler, workers=workers,
+                           progress=not quiet and sys.stdout.isatty())
+    finally:
+        store.close()
+    if not quiet:
+        for line in summary_lines(planned, store, report):
+            click.echo(line)
+    if report.interrupted:
+        raise click.exceptions.Exit(130)
+
+
+@click.command("plot-study")
+@click.argument("results", type=click.Path(exists=True, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
+              help="Figure file (.png, .pdf, .svg).")
+@click.option("-m", "--metric", "metrics", multiple=True, help="Metric to draw (repeatable; default: all).")
+@click.option("--x", "x", help="Varied parameter on the horizontal axis.")
+@click.option("--y", "y", help="Second varied parameter (heat map).")
+@click.option("--kind", type=click.Choice(["line", "heatmap", "histogram"]),
+              help="Default: line for one swept parameter, heat map for two, histogram for Monte Carlo.")
+@click.option("--log", is_flag=True, help="Logarithmic metric axis (colour scale of a heat map).")
+@click.option("--title", default="", help="Figure title.")
+def plot_study_command(results: str, output: str, metrics: Sequence[str], x: Optional[str], y: Optional[str],
+                       kind: Optional[str], log: bool, title: str) -> None:
+    """Plot the metrics of a study's RESULTS table (.parquet from deltafmi sweep).
+
+    \b
+    Examples:
+      deltafmi plot-study gain_payload.parquet -o gain.png --log
+      deltafmi plot-study mass_uncertainty.parquet -m steady_state_error -o mc.png
+    """
+    from .plot import plot_study
+
+    path = plot_study(results, output, metrics, x, y, kind, log, title)
+    click.echo(f"wrote {path}")
+
+
+@click.command("study-case")
+@click.argument("study", type=click.Path(dir_okay=False))
+@click.argument("case", type=click.IntRange(min=0))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Scenario file to write.")
+def study_case(study: str, case: int, output: str) -> None:
+    """Write CASE of STUDY as a plain scenario, to run it alone with deltafmi run.
+
+    The scenario is the study's with the case's values set, its FMUs named by absolute path, and
+    every variable the metrics need recorded.
+
+    \b
+    Example:
+      deltafmi study-case scenarios/studies/gain_payload.yaml 17 -o case17.yaml && deltafmi run case17.yaml
+    """
+    from .export import case_scenario
+
+    planned = _plan(study)
+    if case >= len(planned.cases):
+        raise BadInput(f"{study} has {len(planned.cases)} cases (0 to {len(planned.cases) - 1}), not case {case}")
+    Path(output).write_text(case_scenario(planned, planned.cases[case]))
+    click.echo(f"wrote {output} ({planned.cases[case].describe()})")

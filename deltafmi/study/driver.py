@@ -1,0 +1,252 @@
+"""The client side of a sweep: a Dask cluster, one task per case, results stored as they come.
+
+By default the study runs on a :class:`distributed.LocalCluster` of worker processes (one thread
+each) on this machine; with a scheduler address it runs on that cluster instead. Either way the
+FMUs built here travel to the workers inside a worker plugin (:mod:`deltafmi.study.worker`) and
+each task carries only a case's values. Robustness is Dask's: a worker process that dies is
+restarted by its nanny and the case it was running is rescheduled; on the local cluster
+``distributed.scheduler.allowed-failures`` is 1, so a case that kills a second worker is recorded
+as failed (``KilledWorker``) and the study goes on. A case that fails inside the simulation is
+a result row like any other.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time as _time
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Dict, Iterator, List, Optional, TextIO
+
+from deltafmi.cosim.errors import BadInput, SimulationError
+
+from .cases import Case
+from .plan import PlannedStudy
+from .runner import FAILED, OK, CaseResult
+from .store import ResultStore
+from .worker import StudyPlugin, run_case_task
+
+#: seconds between rewrites of the results table while the study runs
+TABLE_EVERY = 10.0
+
+
+@dataclass
+class SweepReport:
+    """How a sweep went."""
+
+    total: int
+    reused: int
+    ran: int
+    failed: int
+    wall_time: float
+    workers: int
+    interrupted: bool = False
+
+    @property
+    def rate(self) -> float:
+        """Cases run per wall-clock second in this session."""
+        return self.ran / self.wall_time if self.wall_time > 0 else 0.0
+
+
+class StudyProgress:
+    """``[#######.......]  42/91 cases, 2 failed, 1.9 cases/s, ETA 0:27`` redrawn at most 5x/s."""
+
+    def __init__(self, total: int, reused: int, enabled: bool, stream: TextIO = sys.stdout) -> None:
+        self.total, self.done, self.failed = total, reused, 0
+        self.ran = 0
+        self.enabled, self.stream = enabled, stream
+        self.start = _time.monotonic()
+        self._next = 0.0
+
+    def add(self, result: CaseResult) -> None:
+        """Count one finished case."""
+        self.done += 1
+        self.ran += 1
+        self.failed += result.status == FAILED
+        self.draw()
+
+    def draw(self, force: bool = False) -> None:
+        """Redraw the line (rate limited unless ``force``)."""
+        if not self.enabled:
+            return
+        now = _time.monotonic()
+        if now < self._next and not force:
+            return
+        self._next = now + 0.2
+        elapsed = now - self.start
+        rate = self.ran / elapsed if elapsed > 0 else 0.0
+        left = self.total - self.done
+        eta = f"ETA {_clock(left / rate)}" if rate > 0 and left else ("done" if not left else "ETA ?")
+        filled = int(30 * self.done / max(self.total, 1))
+        self.stream.write(f"\r[{'#' * filled}{'.' * (30 - filled)}] {self.done}/{self.total} cases, "
+                          f"{self.failed} failed, {rate:.2f} cases/s, {eta}   ")
+        self.stream.flush()
+
+    def close(self) -> None:
+        """Finish the line."""
+        if self.enabled:
+            self.draw(force=True)
+            self.stream.write("\n")
+            self.stream.flush()
+            self.enabled = False
+
+
+def _clock(seconds: float) -> str:
+    seconds = int(round(seconds))
+    hours, rest = divmod(seconds, 3600)
+    return (f"{hours}:" if hours else "") + f"{rest // 60:0{2 if hours else 1}d}:{rest % 60:02d}"
+
+
+def local_workers() -> int:
+    """Worker processes of the default local cluster: one per core this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+@contextmanager
+def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None) -> Iterator[Any]:
+    """A Dask client: of the cluster at ``scheduler``, else of a new local cluster of ``workers``
+    single-threaded worker processes (closed on exit)."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise BadInput(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    # one retry after a worker died running a case (the nanny restarts the worker), then KilledWorker
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def open_store(planned: PlannedStudy, table: Path, timeseries: bool) -> ResultStore:
+    """The result files of ``planned`` at ``table`` (Parquet), with the study described in them."""
+    vary = planned.study.vary
+    distributions = {t.name: d.describe() for t, d in vary.monte_carlo.parameters} if vary.monte_carlo else {}
+    metadata = {
+        "study": str(planned.study.path), "scenario": str(planned.study.scenario),
+        "description": planned.study.description, "fingerprint": planned.plan.fingerprint,
+        "cases": len(planned.cases),
+        "targets": [{"name": t.name, "kind": vary.kind_of(t.name), "unit": planned.units.get(t.name, ""),
+                     **({"distribution": distributions[t.name]} if t.name in distributions else {})}
+                    for t in vary.targets],
+        "metrics": [{**m.spec.as_dict(), "unit": m.unit} for m in planned.plan.metrics],
+    }
+    return ResultStore(table, planned.plan.fingerprint, planned.targets, [m.name for m in planned.plan.metrics],
+                       metadata, timeseries)
+
+
+def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, scheduler: Optional[str] = None,
+              workers: Optional[int] = None, progress: bool = False,
+              on_result: Callable[[CaseResult], None] = lambda result: None) -> SweepReport:
+    """Run the cases ``todo`` of ``planned`` on Dask, storing every result in ``store``.
+
+    Ctrl-C cancels what is left; the finished cases stay recorded (a re-run skips them).
+    """
+    from distributed import as_completed
+
+    total = len(planned.cases)
+    reused = total - len(todo)
+    bar = StudyProgress(total, reused, progress)
+    wall = _time.perf_counter()
+    ran = failed = 0
+    interrupted = False
+    n_workers = 0
+    if todo:
+        blobs = {digest: path.read_bytes() for digest, path in planned.fmu_files.items()}
+        plugin = StudyPlugin(planned.plan, blobs)
+        fingerprint = planned.plan.fingerprint
+        keep = store.timeseries is not None
+        with dask_client(scheduler, workers) as client:
+            n_workers = len(client.scheduler_info(n_workers=-1)["workers"]) if scheduler else (workers or local_workers())
+            try:
+                client.register_plugin(plugin, name=plugin.name)
+            except Exception as exc:  # noqa: BLE001 - e.g. a worker without deltafmi
+                raise SimulationError(f"the Dask workers could not set up the study: {exc}") from None
+            futures = {client.submit(run_case_task, fingerprint, case.id, case.values, keep,
+                                     key=f"deltafmi-case-{fingerprint[:12]}-{case.id}"): case for case in todo}
+            last_table = _time.monotonic()
+            bar.draw(force=True)
+            try:
+                for future in as_completed(futures):
+                    result = _result(future, futures[future])
+                    store.add(result)
+                    ran += 1
+                    failed += result.status == FAILED
+                    bar.add(result)
+                    on_result(result)
+                    if _time.monotonic() - last_table > TABLE_EVERY:
+                        store.write_tables(planned.cases)
+                        last_table = _time.monotonic()
+            except KeyboardInterrupt:
+                interrupted = True
+                client.cancel(list(futures))
+            finally:
+                bar.close()
+                try:
+                    client.unregister_worker_plugin(plugin.name)
+                except Exception:  # noqa: BLE001 - the cluster may be going down already
+                    pass
+    store.write_tables(planned.cases)
+    return SweepReport(total, reused, ran, failed, _time.perf_counter() - wall, n_workers, interrupted)
+
+
+def _result(future: Any, case: Case) -> CaseResult:
+    """The task's result, or a failed result when the task itself did not return one."""
+    from distributed import KilledWorker
+
+    try:
+        return future.result()
+    except KilledWorker:
+        return CaseResult(case.id, case.values, {}, FAILED,
+                          "the worker process died running this case, twice (a crash in an FMU, or out of "
+                          "memory); Dask restarted the worker each time (KilledWorker)")
+    except Exception as exc:  # noqa: BLE001 - a task that raised: record it, go on
+        return CaseResult(case.id, case.values, {}, FAILED, f"{type(exc).__name__}: {exc}")
+
+
+def summary_lines(planned: PlannedStudy, store: ResultStore, report: SweepReport) -> List[str]:
+    """The end-of-sweep summary: counts, rate, and min / median / max of every metric."""
+    import numpy as np
+
+    done = [(c, store.rows[c.key]) for c in planned.cases if c.key in store.rows]
+    rows = [r for _, r in done]
+    ok = [r for r in rows if r["status"] == OK]
+    lines = [f"{planned.study.path.name}: {len(rows)}/{report.total} cases done, {len(ok)} ok, "
+             f"{len(rows) - len(ok)} failed ({report.reused} from an earlier run); ran {report.ran} in "
+             f"{report.wall_time:.1f} s on {report.workers} worker(s): {report.rate:.2f} cases/s"]
+    if report.interrupted:
+        lines.append("interrupted: run the same command again to continue where it stopped")
+    names = [m.name for m in planned.plan.metrics]
+    width = max(len(n) for n in names + ["metric"])
+    lines.append(f"{'metric':<{width}}  {'min':>12} {'median':>12} {'max':>12}  unit")
+    for name in names:
+        values = np.array([r["metrics"].get(name, np.nan) for r in ok], dtype=float)
+        values = values[np.isfinite(values)]
+        stats = [f"{v:12.5g}" for v in (np.min(values), np.median(values), np.max(values))] if len(values) else \
+            [f"{'-':>12}"] * 3
+        lines.append(f"{name:<{width}}  {' '.join(stats)}  {planned.units.get(name, '')}")
+    failures = [(c, r) for c, r in done if r["status"] == FAILED]
+    for case, row in failures[:5]:
+        lines.append(f"failed: case {case.id} ({case.describe()}): {row['error']}")
+    if len(failures) > 5:
+        lines.append(f"... and {len(failures) - 5} more failed cases (column 'error' of the table)")
+    lines.append(f"results: {store.table}, {store.csv}" + (f", {store.timeseries}/" if store.timeseries else ""))
+    return lines

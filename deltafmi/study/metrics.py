@@ -1,0 +1,156 @@
+"""Metrics: one number per run from its recorded signals (no code from YAML, only these).
+
+The signal of a metric is one recorded variable or array (``plant.z``), or the difference of two
+of the same size (``plant.z - trajectory.r``). A one-element signal stays signed unless a ``norm``
+is given (then its absolute value); a vector is reduced at every sample to its norm: Euclidean
+(default), ``inf`` (largest magnitude) or ``1``. Over the samples in the window (both ends
+included; default the whole run):
+
+``max`` / ``min`` / ``final``
+    of the recorded samples.
+``mean`` / ``rms``
+    time averages, trapezoidal rule over the samples (the two rows of an event have the same
+    time stamp and add nothing): ``integral(s dt) / T``, ``sqrt(integral(s^2 dt) / T)``.
+``at``
+    the value at ``time``: the last row at that time (the value after an event there), else
+    linear interpolation between the rows around it; NaN outside the run.
+``settling_time``
+    how long after the window start the signal enters ``|s - target| <= band`` for good
+    (``target`` defaults to the final value); the entry is interpolated linearly between the
+    last sample outside the band and the next one; 0 when it never leaves it, NaN when it ends
+    outside it.
+``first_crossing``
+    the time (absolute) at which the signal first crosses ``level`` in ``direction`` (rising,
+    falling, either), interpolated linearly; NaN when it never does.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Tuple
+
+import numpy as np
+
+from .spec import MetricSpec, Window
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A metric with its signal resolved to recorded scalar columns (``plant.z[1]``, ...)."""
+
+    spec: MetricSpec
+    left: Tuple[str, ...]
+    right: Tuple[str, ...] = ()
+    unit: str = ""
+
+    @property
+    def name(self) -> str:
+        """The metric's name (its result column)."""
+        return self.spec.name
+
+    def signal(self, columns: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The metric's signal at every recorded row."""
+        values = np.column_stack([np.asarray(columns[c], dtype=float) for c in self.left])
+        if self.right:
+            values = values - np.column_stack([np.asarray(columns[c], dtype=float) for c in self.right])
+        return reduce(values, self.spec.norm)
+
+    def value(self, columns: Mapping[str, np.ndarray]) -> float:
+        """The metric of one run; ``columns`` holds ``time`` and the recorded variables."""
+        return statistic(self.spec, np.asarray(columns["time"], dtype=float), self.signal(columns))
+
+
+def reduce(values: np.ndarray, norm: str | None) -> np.ndarray:
+    """Rows x elements -> one value per row: the element itself (one element, no norm), else the norm."""
+    if values.shape[1] == 1 and norm is None:
+        return values[:, 0]
+    if norm == "inf":
+        return np.max(np.abs(values), axis=1)
+    if norm == "1":
+        return np.sum(np.abs(values), axis=1)
+    return np.sqrt(np.sum(values * values, axis=1))
+
+
+def statistic(spec: MetricSpec, time: np.ndarray, signal: np.ndarray) -> float:
+    """``spec.statistic`` of ``signal`` sampled at ``time`` (see the module docstring)."""
+    if spec.statistic == "at":
+        return value_at(time, signal, spec.time)
+    time, signal = windowed(time, signal, spec.window)
+    if len(time) == 0:
+        return math.nan
+    kind = spec.statistic
+    if kind == "max":
+        return float(np.max(signal))
+    if kind == "min":
+        return float(np.min(signal))
+    if kind == "final":
+        return float(signal[-1])
+    if kind in ("mean", "rms"):
+        span = time[-1] - time[0]
+        if span <= 0:
+            return float(signal[-1] if kind == "mean" else abs(signal[-1]))
+        if kind == "mean":
+            return float(np.trapezoid(signal, time) / span)
+        return float(math.sqrt(np.trapezoid(signal * signal, time) / span))
+    if kind == "settling_time":
+        start = spec.window.start if spec.window.start is not None else time[0]
+        target = spec.target if spec.target is not None else signal[-1]
+        return settling_time(time, signal, target, spec.band) - start
+    if kind == "first_crossing":
+        return first_crossing(time, signal, spec.level, spec.direction)
+    raise ValueError(f"unknown statistic '{kind}'")
+
+
+def windowed(time: np.ndarray, signal: np.ndarray, window: Window) -> Tuple[np.ndarray, np.ndarray]:
+    """The rows with ``window.start <= t <= window.stop``."""
+    keep = np.ones(len(time), dtype=bool)
+    if window.start is not None:
+        keep &= time >= window.start
+    if window.stop is not None:
+        keep &= time <= window.stop
+    return time[keep], signal[keep]
+
+
+def value_at(time: np.ndarray, signal: np.ndarray, t: float) -> float:
+    """The last row at ``t``, else linear interpolation; NaN outside the recorded span."""
+    if len(time) == 0 or t < time[0] or t > time[-1]:
+        return math.nan
+    i = int(np.searchsorted(time, t, side="right")) - 1
+    if time[i] == t or i + 1 >= len(time):
+        return float(signal[i])
+    fraction = (t - time[i]) / (time[i + 1] - time[i])
+    return float(signal[i] + fraction * (signal[i + 1] - signal[i]))
+
+
+def settling_time(time: np.ndarray, signal: np.ndarray, target: float, band: float) -> float:
+    """The time from which ``|signal - target| <= band`` holds to the end (interpolated entry);
+    ``time[0]`` when it always holds, NaN when it does not hold at the end."""
+    excess = np.abs(signal - target) - band
+    outside = np.nonzero(excess > 0)[0]
+    if len(outside) == 0:
+        return float(time[0])
+    i = int(outside[-1])
+    if i + 1 >= len(time):
+        return math.nan
+    return _interpolated_zero(time, excess, i)
+
+
+def first_crossing(time: np.ndarray, signal: np.ndarray, level: float, direction: str = "either") -> float:
+    """The first time ``signal`` crosses ``level`` (rising: from below to at-or-above; falling:
+    from above to at-or-below), interpolated linearly; NaN when it never does."""
+    g = signal - level
+    rising = (g[:-1] < 0) & (g[1:] >= 0)
+    falling = (g[:-1] > 0) & (g[1:] <= 0)
+    hits = rising if direction == "rising" else falling if direction == "falling" else rising | falling
+    found = np.nonzero(hits)[0]
+    if len(found) == 0:
+        return math.nan
+    return _interpolated_zero(time, g, int(found[0]))
+
+
+def _interpolated_zero(time: np.ndarray, g: np.ndarray, i: int) -> float:
+    """Where the straight line through (time[i], g[i]) and (time[i+1], g[i+1]) is zero."""
+    dt, dg = time[i + 1] - time[i], g[i + 1] - g[i]
+    if dt == 0 or dg == 0:
+        return float(time[i + 1])
+    return float(time[i] + dt * (-g[i] / dg))

@@ -1,0 +1,154 @@
+"""Loaded FMUs kept across runs: each case after the first resets its instances (``fmi2Reset``)
+instead of loading, extracting and instantiating them again.
+
+A :class:`FmuPool` lends fmpy FMU objects to the master (``Master(fmus=pool.lend)``). A pooled
+object is an ordinary ``FMU2Slave`` / ``FMU2Model`` whose ``instantiate`` calls ``fmi2Instantiate``
+the first time and ``fmi2Reset`` afterwards (FMI 2.0: the FMU is then as if just instantiated),
+and whose ``freeInstance`` gives it back to the pool instead of freeing it. The FMU keeps the
+callback functions it got from the first ``fmi2Instantiate`` until it is freed, so the pool
+hands it a logger of its own that forwards every message to the callbacks of whoever holds the
+FMU now. Instances of a run that failed are freed (:meth:`FmuPool.discard`): a case that went
+wrong leaves nothing behind.
+"""
+from __future__ import annotations
+
+import shutil
+import tempfile
+import threading
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Tuple
+
+import fmpy
+from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+
+from deltafmi.cosim.resolve import Component
+
+Key = Tuple[str, str, str]  # FMU file, interface, instance name
+
+
+class _Pooled:
+    """What the pooled FMU2Slave and FMU2Model add to fmpy's classes."""
+
+    def __init__(self, pool: "FmuPool", key: Key, **kwargs: Any) -> None:
+        super().__init__(**kwargs)  # type: ignore[call-arg]
+        self.pool, self.key = pool, key
+        self.resets = 0
+        self._holder: Optional[fmi2CallbackFunctions] = None
+        self._own: Optional[fmi2CallbackFunctions] = None
+
+    def instantiate(self, visible: bool = False, callbacks: Any = None, loggingOn: bool = False) -> None:
+        """fmi2Instantiate the first time, fmi2Reset afterwards; messages go to ``callbacks``."""
+        self._holder = callbacks
+        if self.component is None:  # type: ignore[attr-defined]
+            self._own = _forwarding_callbacks(self)
+            super().instantiate(visible=visible, callbacks=self._own, loggingOn=loggingOn)  # type: ignore[misc]
+        else:
+            self.reset()  # type: ignore[attr-defined]
+            self.resets += 1
+
+    def freeInstance(self) -> None:
+        """Give the instance back to the pool (it stays instantiated)."""
+        self._holder = None
+        self.pool.give_back(self)
+
+    def free(self) -> None:
+        """fmi2FreeInstance for real (and unload the library, as fmpy does)."""
+        self._holder = None
+        if self.component is not None:  # type: ignore[attr-defined]
+            try:
+                super().freeInstance()  # type: ignore[misc]
+            finally:
+                self.component = None
+
+    def forward(self, env: Any, instance: Any, status: int, category: Any, message: Any) -> None:
+        holder = self._holder
+        if holder is not None and holder.logger:
+            holder.logger(env, instance, status, category, message)
+
+
+# fmpy binds the fmi2 functions of classes whose name starts with "FMU2"
+class FMU2PooledSlave(_Pooled, FMU2Slave):
+    """A Co-Simulation FMU that resets instead of re-instantiating."""
+
+
+class FMU2PooledModel(_Pooled, FMU2Model):
+    """A Model Exchange FMU that resets instead of re-instantiating."""
+
+
+def _forwarding_callbacks(fmu: _Pooled) -> fmi2CallbackFunctions:
+    from fmpy import calloc, free
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(fmu.forward)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    return callbacks
+
+
+class FmuPool:
+    """Idle loaded FMUs by (FMU file, interface, instance name); thread-safe.
+
+    Each FMU file is extracted once under ``root`` (a temporary folder by default).
+    """
+
+    def __init__(self, root: Optional[Path] = None) -> None:
+        self._own_root = root is None
+        self.root = Path(tempfile.mkdtemp(prefix="deltafmi-pool-")) if root is None else Path(root)
+        self._idle: Dict[Key, List[_Pooled]] = {}
+        self._extracted: Dict[str, str] = {}
+        self._lock = threading.Lock()
+        self.created = 0
+
+    def lend(self, component: Component) -> _Pooled:
+        """An FMU object for ``component``: an idle one (to be reset), else a new one."""
+        key = (str(component.fmu), component.interface, component.name)
+        with self._lock:
+            idle = self._idle.get(key)
+            if idle:
+                return idle.pop()
+            directory = self._extracted.get(key[0])
+            if directory is None:
+                target = self.root / f"{len(self._extracted)}-{Path(key[0]).stem}"
+                directory = self._extracted[key[0]] = fmpy.extract(key[0], unzipdir=str(target))
+            cls = FMU2PooledSlave if component.interface == "CS" else FMU2PooledModel
+            self.created += 1
+            return cls(self, key, guid=component.info.md.guid, unzipDirectory=directory,
+                       modelIdentifier=component.info.model_identifier(component.interface),
+                       instanceName=component.name)
+
+    def give_back(self, fmu: _Pooled) -> None:
+        """Make ``fmu`` available again (called by its ``freeInstance``)."""
+        with self._lock:
+            idle = self._idle.setdefault(fmu.key, [])
+            if fmu not in idle:
+                idle.append(fmu)
+
+    def discard(self, fmus: List[_Pooled]) -> None:
+        """Free ``fmus`` for good (their run failed: the next run instantiates afresh)."""
+        for fmu in fmus:
+            with self._lock:
+                idle = self._idle.get(fmu.key, [])
+                if fmu in idle:
+                    idle.remove(fmu)
+            try:
+                fmu.free()
+            except Exception:  # noqa: BLE001 - a broken instance must not stop the study
+                pass
+
+    def forget(self, fmu_file: str) -> None:
+        """Free every idle instance of ``fmu_file`` and remove its extraction."""
+        with self._lock:
+            keys = [k for k in self._idle if k[0] == fmu_file]
+            doomed = [f for k in keys for f in self._idle.pop(k)]
+            directory = self._extracted.pop(fmu_file, None)
+        self.discard(doomed)
+        if directory:
+            shutil.rmtree(directory, ignore_errors=True)
+
+    def close(self) -> None:
+        """Free every idle instance and the extracted files."""
+        for fmu_file in list(self._extracted):
+            self.forget(fmu_file)
+        if self._own_root:
+            shutil.rmtree(self.root, ignore_errors=True)
