@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import difflib
 from dataclasses import dataclass
-from typing import Iterable, Optional
+from typing import IO, Any, Iterable, Optional
 
 import click
 
@@ -49,6 +49,19 @@ class SimulationError(click.ClickException):
     """A run failed after it started (an FMU returned an error, the solver failed). Exit code 1."""
 
     exit_code = 1
+
+
+class Interrupted(click.ClickException):
+    """A run stopped by Ctrl-C (SIGINT) or SIGTERM; the message says when and what is on disk.
+    Exit code 128 + the signal number (130 for Ctrl-C), the shell's convention."""
+
+    def __init__(self, message: str, signum: int) -> None:
+        super().__init__(message)
+        self.exit_code = 128 + signum
+
+    def show(self, file: Optional[IO[Any]] = None) -> None:
+        """The message alone: an interruption is not an error."""
+        click.echo(self.format_message(), file=file, err=file is None)
 
 
 def did_you_mean(word: str, candidates: Iterable[str], n: int = 3) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import signal
 import tempfile
 import time as _time
 from pathlib import Path
@@ -20,10 +21,11 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 import fmpy
 import numpy as np
 
-from .errors import BadInput, SimulationError
+from .errors import BadInput, Interrupted, SimulationError
 from .progress import Progress, Summary, Termination
 from .resolve import Component, System
 from .results import CsvWriter, RowSampler
+from .stop_signals import StopSignals
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 
@@ -64,6 +66,10 @@ class Master:
         self._by_name: Dict[str, Unit] = {}
         self.fmus = fmus
         self.writer_class = writer_class
+        #: Ctrl-C / SIGTERM: checked between steps (see :mod:`.stop_signals`)
+        self.stop_signals = StopSignals()
+        #: time of the last row written, None before the first
+        self.recorded_until: Optional[float] = None
 
     # --- public -------------------------------------------------------------------------------
     def run(self) -> Summary:
@@ -76,19 +82,24 @@ class Master:
         terminated = None
         setup = 0.0
         try:
-            try:
-                self.open()
-                setup = _time.perf_counter() - wall
-                if self.system.scenario.master.adaptive.enabled and self._can_roll_back():
-                    from .adaptive import run_adaptive
-                    run_adaptive(self)
-                else:
-                    self._run_fixed()
-            except Terminated as exc:
-                terminated = self._end_early(exc)
-        except (FmuFailure, fmpy.fmi1.FMICallException, RuntimeError, OSError, ValueError) as exc:
-            raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
-                                  f"{self._partial_note()}") from exc
+            with self.stop_signals:
+                try:
+                    self.open()
+                    setup = _time.perf_counter() - wall
+                    if self.system.scenario.master.adaptive.enabled and self._can_roll_back():
+                        from .adaptive import run_adaptive
+                        run_adaptive(self)
+                    else:
+                        self._run_fixed()
+                except Terminated as exc:
+                    terminated = self._end_early(exc)
+        except (FmuFailure, fmpy.fmi1.FMICallException, RuntimeError, OSError, ValueError, KeyboardInterrupt) as exc:
+            # a stop signal may come back from inside an FMU as its failure
+            if self.stop_signals.received is None and not isinstance(exc, KeyboardInterrupt):
+                raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
+                                      f"{self._partial_note()}") from exc
+            self.close()
+            raise self._interrupted() from None
         finally:
             self.close()
         return Summary(self.steps, self.rejected, self.events,
@@ -134,6 +145,13 @@ class Master:
                 unit.fetch()
             self._record(stop.time)
         return Termination(stop.unit, stop.time)
+
+    def _interrupted(self) -> Interrupted:
+        """The run was stopped by a signal (results flushed by :meth:`close`)."""
+        kept = ("no results written" if self.recorded_until is None else
+                f"results up to {self.recorded_until:.9g} in {self.result_path}")
+        return Interrupted(f"interrupted at t = {self.time:.9g} s ({kept})",
+                           self.stop_signals.received or signal.SIGINT)
 
     def _partial_note(self) -> str:
         if self.writer is None:
@@ -250,7 +268,10 @@ class Master:
         last = n_steps + 1 if abs(start + n_steps * h - stop) <= 1e-9 * h else n_steps
         gauss_seidel = self.algorithm == "gauss-seidel"
         every, record, progress = self.every, self._record, self.progress
+        stop_signals = self.stop_signals
         for k in range(n_steps):
+            if stop_signals.received:
+                raise KeyboardInterrupt
             t = start + k * h
             self.time = t
             self.step_end = start + (k + 1) * h if k + 1 < n_steps else stop
@@ -278,11 +299,15 @@ class Master:
     # --- recording ----------------------------------------------------------------------------
     def _record(self, t: float) -> None:
         self.writer.write(t, self.sampler.sample())
+        self.recorded_until = t
 
     def record_step(self, t: float) -> None:
-        """Record the row at the end of a step that reached ``t``, and show progress."""
+        """Record the row at the end of a step that reached ``t``, and show progress (and stop
+        here if a stop signal came)."""
         self._record(t)
         self.progress.update(t)
+        if self.stop_signals.received:
+            raise KeyboardInterrupt
 
     def _on_event(self, unit: Unit, t: float, after: bool) -> None:
         if after and abs(t - self.step_end) <= 1e-12 * max(1.0, abs(t)):
@@ -308,6 +333,7 @@ class Master:
             self.events += after
             if row is not None:
                 self.writer.write(t, row)
+                self.recorded_until = t
         self._deferred = None
 
     def drop_events(self) -> None:
