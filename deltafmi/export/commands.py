@@ -1,6 +1,7 @@
 """CLI commands ``deltafmi build`` and ``deltafmi info``."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Optional
 
@@ -12,17 +13,19 @@ from .packager import ComponentSourceError, build_fmu
 
 @click.command()
 @click.argument("sources", nargs=-1, type=click.Path(path_type=Path))
-@click.option("-o", "--output", type=click.Path(path_type=Path),
-              help="Output .fmu file (one source) or directory (several or --all).")
+@click.option("-o", "--output", type=click.Path(),
+              help="Output .fmu file, or a directory (existing, or ending in '/') that gets <Model>.fmu; "
+                   "always a directory with several sources or --all.")
 @click.option("--all", "build_all", is_flag=True, help="Build every fmu_src/*.py.")
 @click.option("--validate/--no-validate", default=True, show_default=True,
               help="Check each FMU's modelDescription.xml with fmpy.")
-def build(sources: tuple[Path, ...], output: Optional[Path], build_all: bool, validate: bool) -> None:
+def build(sources: tuple[Path, ...], output: Optional[str], build_all: bool, validate: bool) -> None:
     """Build FMUs (Model Exchange + Co-Simulation) from component sources.
 
     \b
     Examples:
       deltafmi build fmu_src/oscillator.py -o Oscillator.fmu
+      deltafmi build fmu_src/oscillator.py -o build/fmus/
       deltafmi build --all -o build/fmus
     """
     if build_all:
@@ -31,15 +34,18 @@ def build(sources: tuple[Path, ...], output: Optional[Path], build_all: bool, va
             raise click.ClickException("--all: no fmu_src/*.py in the current directory")
     if not sources:
         raise click.UsageError("give a component source file or --all")
-    many = len(sources) > 1 or build_all
+    # a directory when it exists or its text ends in '/' (pathlib drops that '/')
+    to_directory = output is not None and (len(sources) > 1 or build_all or Path(output).is_dir()
+                                           or output.endswith(("/", os.sep)))
+    folder = Path(output) if to_directory else None
     for source in sources:
-        target = (output / f"{source.stem}.fmu.tmp") if (many and output) else output
+        target = folder / f"{source.stem}.fmu.tmp" if folder else (Path(output) if output else None)
         try:
-            path = build_fmu(source, None if many and not output else target)
+            path = build_fmu(source, target)
         except (ComponentSourceError, BuildError) as exc:
             raise click.ClickException(str(exc)) from exc
-        if many and output:  # name the FMU after its model identifier
-            final = output / _model_identifier(path)
+        if folder:  # name the FMU after its model identifier
+            final = folder / _model_identifier(path)
             path.replace(final)
             path = final
         if validate:
