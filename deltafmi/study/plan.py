@@ -117,7 +117,7 @@ class _Checker:
         units: Dict[str, str] = {}
         vary = self.study.vary
         values = {t.name: list(v) for t, v in vary.grid + vary.zipped}
-        distributions = dict(vary.monte_carlo.parameters) if vary.monte_carlo else {}
+        distributions = {t.name: d for t, d in vary.monte_carlo.parameters} if vary.monte_carlo else {}
         for target in vary.targets:
             if target.is_experiment:
                 if "experiment" in self.components:

@@ -311,7 +311,8 @@ def _metric_errors(name: str, spec: Dict[str, Any], lines: LineMap, file: str) -
                                 f"metric '{name}': window 'to' ({window['to']}) must be after 'from' ({window['from']})"))
     signal = spec["signal"]
     match = _SIGNAL.match(signal)
-    if match is None or not all(_REFERENCE.match(r) for r in match.groups() if r is not None):
+    unspaced = match is not None and match["right"] is None and re.search(r"-\s*[A-Za-z_]\w*\.", match["left"])
+    if match is None or unspaced or not all(_REFERENCE.match(r) for r in match.groups() if r is not None):
         hint = (" (write a difference with spaces around the minus: 'plant.z - trajectory.r')"
                 if "-" in signal else "")
         found.append(Diagnostic(file, lines.line(where + ("signal",)),
