@@ -6,6 +6,7 @@ only assembles the click group.
 import click
 
 from deltafmi.cosim.commands import export_ssp, plot, run, validate
+from deltafmi.cosim.linearize_command import linearize
 from deltafmi.export.commands import build, info
 from deltafmi.study.commands import plot_study_command, study_case, sweep
 from deltafmi.viz.commands import animate
@@ -17,7 +18,7 @@ def main() -> None:
     """deltafmi: Python components as FMI 2.0 FMUs, and a master for closed-loop co-simulation."""
 
 
-for command in (build, info, run, validate, export_ssp, plot, animate):
+for command in (build, info, run, validate, export_ssp, plot, animate, linearize):
     main.add_command(command)
 for command in (sweep, plot_study_command, study_case):  # parameter studies on Dask
     main.add_command(command)

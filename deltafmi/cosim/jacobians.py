@@ -84,7 +84,7 @@ class FmuJacobian:
     def _differences(self, unknowns: list, knowns: list) -> np.ndarray:
         """Central differences: states through fmi2SetContinuousStates, inputs through fmi2SetReal."""
         fmu, nx = self.fmu, self.nx
-        x0 = self._get_states()
+        x0 = self.get_states()
         state_index = {vr: i for i, vr in enumerate(self.states)}
         inputs = [vr for vr in knowns if vr not in state_index]
         u0 = dict(zip(inputs, fmu.getReal(inputs))) if inputs else {}
@@ -98,16 +98,16 @@ class FmuJacobian:
                     if vr in state_index:
                         x = x0.copy()
                         x[state_index[vr]] += sign * h
-                        self._set_states(x)
+                        self.set_states(x)
                     else:
                         fmu.setReal([vr], [value + sign * h])
                     sides.append(self._unknowns(unknowns))
-                    self._set_states(x0)
+                    self.set_states(x0)
                     if inputs:
                         fmu.setReal(inputs, [u0[k] for k in inputs])
                 columns.append((sides[0] - sides[1]) / (2.0 * h))
         finally:
-            self._set_states(x0)
+            self.set_states(x0)
             if inputs:
                 fmu.setReal(inputs, [u0[k] for k in inputs])
         return np.column_stack(columns)
@@ -126,13 +126,15 @@ class FmuJacobian:
             values[[i for i, _ in others]] = self.fmu.getReal([vr for _, vr in others])
         return values
 
-    def _get_states(self) -> np.ndarray:
+    def get_states(self) -> np.ndarray:
+        """The FMU's continuous states."""
         x = np.zeros(self.nx)
         if self.nx:
             self.fmu.getContinuousStates(x.ctypes.data_as(POINTER(c_double)), self.nx)
         return x
 
-    def _set_states(self, x: np.ndarray) -> None:
+    def set_states(self, x: np.ndarray) -> None:
+        """Set the FMU's continuous states."""
         if self.nx:
             x = np.ascontiguousarray(x, dtype=float)
             self.fmu.setContinuousStates(x.ctypes.data_as(POINTER(c_double)), self.nx)

@@ -1,0 +1,524 @@
+"""Linearization for control design: one FMU at an operating point, or a whole scenario.
+
+* :func:`linearize_fmu`: a Model Exchange FMU at (states, inputs, time), optionally brought to an
+  equilibrium first (:mod:`.equilibrium`), gives the continuous A, B, C, D from its directional
+  derivatives (central differences when it provides none; :mod:`.jacobians`).
+* :func:`linearize_scenario`: the closed loop of a scenario at a communication point, as the
+  discrete map over one communication step that the master takes there. The master runs to the
+  instant; then each unit becomes a linear one-step map:
+
+  - a Model Exchange unit: its A, B, C, D, discretized exactly over the step with its inputs held
+    (zero-order hold, as the master holds them): Phi = e^(A h), Gamma = int_0^h e^(A s) ds B;
+  - a Co-Simulation unit, whose state FMI keeps hidden: a minimal realization
+    (:mod:`.realization`) of its Markov parameters, its outputs after steps 1, 2, ... in
+    answer to a pulse on each input, each a central difference between two runs from the same
+    saved FMU state (fmi2GetFMUstate / fmi2SetFMUstate). This assumes the unit time-invariant over
+    those steps (exactly so at rest);
+  - a Co-Simulation unit that no tracked signal drives (a reference generator) is a constant.
+
+  The units are then composed as the master steps them (Gauss-Seidel in its order, or Jacobi).
+  The closed loop's state: the units' states, plus every connected value that a unit reads
+  before its producer has stepped (a value held over the step, like a sampled controller's
+  torque), plus requested outputs that are not functions of the states at the communication
+  point. Inputs are perturbations added to chosen FMU inputs; outputs are chosen FMU outputs, at
+  the communication points: x[k+1] = Phi x[k] + Gamma u[k], y[k] = C x[k].
+"""
+from __future__ import annotations
+
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
+
+import fmpy
+import numpy as np
+import scipy.linalg
+from fmpy.fmi2 import FMU2Model
+
+from .equilibrium import find_equilibrium
+from .errors import BadInput, did_you_mean
+from .jacobians import FD_STEP, FmuJacobian
+from .linear_model import LinearModel
+from .modelinfo import ModelInfo, UnknownVariable, model_info
+from .realization import era
+
+Signal = Tuple[str, int]  # (component, value reference)
+
+
+# ------------------------------------------------------------------------------------ one FMU
+
+def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None,
+                  states: Optional[Mapping[str, Any]] = None, time: float = 0.0, rest: bool = False,
+                  free: Sequence[str] = (), hold: Optional[Mapping[str, Any]] = None,
+                  inputs: Sequence[str] = (), outputs: Sequence[str] = ()) -> LinearModel:
+    """Continuous A, B, C, D of the Model Exchange FMU at ``fmu`` at an operating point.
+
+    Args:
+        fmu: the .fmu file.
+        start_values: parameters and start values (name -> value; arrays take a list), set
+            before initialization.
+        states: continuous states to set after initialization (name -> value or list).
+        time: the time of the operating point.
+        rest: move to an equilibrium first: der(x) = 0, solving for the ``free`` inputs (default:
+            every continuous Real input) and, with ``hold``, the states as well.
+        hold: outputs held at given values at the equilibrium (implies ``rest``).
+        inputs, outputs: the model's inputs and outputs (names or array names); default: every
+            continuous Real input and output.
+
+    Raises:
+        BadInput: unknown names, wrong values, no Model Exchange interface, no equilibrium.
+    """
+    info = _info(fmu)
+    if info.md.modelExchange is None:
+        raise BadInput(f"'{fmu}' offers no Model Exchange interface: linearizing an FMU needs its equations")
+    directory = tempfile.mkdtemp(prefix="deltafmi-linearize-")
+    model = None
+    try:
+        model = FMU2Model(guid=info.md.guid, unzipDirectory=fmpy.extract(str(fmu), directory),
+                          modelIdentifier=info.model_identifier("ME"), instanceName="linearize")
+        model.instantiate(loggingOn=False)
+        model.setupExperiment(startTime=time)
+        for name, value in (start_values or {}).items():
+            _set(model, info, name, value, str(fmu))
+        model.enterInitializationMode()
+        model.exitInitializationMode()
+        while model.newDiscreteStates()[0]:
+            pass
+        model.enterContinuousTimeMode()
+        jac = FmuJacobian(model, info.md)
+        state_names = [d.variable.derivative.name for d in info.md.derivatives]
+        if states:
+            x = jac.get_states()
+            for name, value in states.items():
+                names = _expand(info, name, str(fmu))
+                values = _values(name, value, len(names))
+                for n, v in zip(names, values):
+                    if n not in state_names:
+                        raise BadInput(f"'{n}' is not a continuous state of '{fmu}'"
+                                       f"{did_you_mean(n, state_names)}")
+                    x[state_names.index(n)] = float(v)
+            jac.set_states(x)
+        real_inputs = [v.name for v in info.md.modelVariables
+                       if v.causality == "input" and v.type == "Real" and v.variability == "continuous"]
+        real_outputs = [v.name for v in info.md.modelVariables
+                        if v.causality == "output" and v.type == "Real" and v.variability == "continuous"]
+        notes = []
+        if rest or hold:
+            free_names = _expand_all(info, free, str(fmu)) if free else real_inputs
+            targets = {}
+            for name, value in (hold or {}).items():
+                names = _expand(info, name, str(fmu))
+                targets.update({info.variables[n].valueReference: float(v)
+                                for n, v in zip(names, _values(name, value, len(names)))})
+            try:
+                found = find_equilibrium(jac, [info.variables[n].valueReference for n in free_names], targets)
+            except ValueError as exc:
+                raise BadInput(f"'{fmu}': {exc}") from None
+            notes.append(f"equilibrium: largest |der(x)| {found.residual:.3g}; "
+                         + ", ".join(f"{n} = {v:.9g}" for n, v in zip(free_names, found.inputs)))
+        input_names = _expand_all(info, inputs, str(fmu)) if inputs else real_inputs
+        output_names = _expand_all(info, outputs, str(fmu)) if outputs else real_outputs
+        u_vrs = [_real_vr(info, n, "input", str(fmu)) for n in input_names]
+        y_vrs = [_real_vr(info, n, "output", str(fmu)) for n in output_names]
+        nx = jac.nx
+        J = jac.block(jac.derivatives + y_vrs, jac.states + u_vrs)
+        return LinearModel(J[:nx, :nx], J[:nx, nx:], J[nx:, :nx], J[nx:, nx:], state_names, input_names,
+                           output_names, None, time, jac.get_states(),
+                           np.array(model.getReal(u_vrs)) if u_vrs else np.zeros(0),
+                           np.array(model.getReal(y_vrs)) if y_vrs else np.zeros(0), str(fmu), notes)
+    except fmpy.fmi1.FMICallException as exc:
+        raise BadInput(f"'{fmu}': {exc}") from None
+    finally:
+        if model is not None:
+            for call in (model.terminate, model.freeInstance):
+                try:
+                    call()
+                except Exception:  # noqa: BLE001 - cleaning up after a failure must not hide it
+                    pass
+        shutil.rmtree(directory, ignore_errors=True)
+
+
+# ----------------------------------------------------------------------------- a whole scenario
+
+@dataclass
+class _Block:
+    """One unit as a linear one-step map: s' = F s + G w, y(after the step) = C s + D w."""
+
+    name: str
+    inputs: List[int]  # value references of the tracked inputs (w)
+    outputs: List[int]  # value references of the tracked outputs (y)
+    F: np.ndarray
+    G: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    state_names: List[str]
+    x0: np.ndarray
+    #: Model Exchange only: outputs at a communication point, y = Cc s + Dc w
+    Cc: Optional[np.ndarray] = None
+    Dc: Optional[np.ndarray] = None
+    order: List[int] = field(default_factory=list)
+
+
+def linearize_scenario(path: Path, *, at: Optional[float] = None, inputs: Sequence[str] = (),
+                       outputs: Sequence[str] = (), markov_steps: int = 24,
+                       rank_tolerance: float = 1e-7, system: Any = None) -> LinearModel:
+    """The closed loop of the scenario at ``path`` as a discrete-time map over one communication
+    step at time ``at`` (default: the start); see the module docstring.
+
+    Args:
+        inputs: inputs of components ("controller.r[1]", "controller.r") that the model's inputs
+            perturb (added to whatever drives them).
+        outputs: outputs of components ("plant.z") that the model's outputs are.
+        markov_steps: steps of each Co-Simulation unit's pulse responses (even; the realization
+            finds at most markov_steps / 2 states per input and output).
+        rank_tolerance: relative singular value below which a realization stops (see :func:`.era`).
+        system: the scenario already resolved (:func:`.resolve.resolve_system`), if it is.
+    """
+    from .master import Master
+    from .resolve import resolve_system
+    from .scenario import load_scenario
+
+    system = system or resolve_system(load_scenario(str(path)))
+    experiment = system.scenario.experiment
+    start, h = experiment.start, experiment.step
+    at = start if at is None else float(at)
+    k = round((at - start) / h)
+    if k < 0 or abs(start + k * h - at) > 1e-9 * max(h, abs(at)):
+        raise BadInput(f"--at {at:g}: a linearization instant must be a communication point at or after the "
+                       f"start ({start:g} s) on the grid of the step {h:g} s")
+    multi = [c.name for c in system.components if c.spec.step_multiple != 1]
+    if multi:
+        raise BadInput(f"linearize needs every component on the communication step; step_multiple is set for "
+                       f"{', '.join(multi)}")
+    by_name = {c.name: c for c in system.components}
+    perturbed = [_port(by_name, ref, "input") for ref in inputs]
+    observed = [_port(by_name, ref, "output") for ref in outputs]
+    steps = markov_steps + (markov_steps % 2)
+    workdir = tempfile.mkdtemp(prefix="deltafmi-linearize-")
+    master = Master(system, result=Path(workdir) / "run.csv",
+                    stop=max(experiment.stop, at + (steps + 3) * h))
+    try:
+        master.open()
+        ordered = master.ordered_units()
+        for step in range(k):
+            master.step_all(ordered, start + step * h, h)
+        units = {u.name: u for u in master.units}
+        links = [l for l in system.links if l.source.type == "Real"]
+        tracked_in, tracked_out = _tracked(system, links, perturbed, observed)
+        blocks: Dict[str, _Block] = {}
+        for unit in master.units:
+            if unit.name not in tracked_in:
+                continue  # a Co-Simulation unit nothing drives: its outputs are constants here
+            w, y = tracked_in[unit.name], tracked_out.get(unit.name, [])
+            if unit.interface == "ME":
+                blocks[unit.name] = _model_exchange_block(unit, w, y, h)
+            else:
+                blocks[unit.name] = _co_simulation_block(unit, w, y, at, h, steps, rank_tolerance)
+        order = [u.name for u in ordered]
+        return _compose(system, master.algorithm, order, blocks, links, perturbed, observed, units, at, h, path)
+    finally:
+        master.close()
+        shutil.rmtree(workdir, ignore_errors=True)
+
+
+def _tracked(system: Any, links: list, perturbed: list, observed: list) -> Tuple[dict, dict]:
+    """Which inputs and outputs of which units the linear model follows: the units that anything
+    dynamic drives (every Model Exchange unit, and Co-Simulation units fed by a tracked unit or
+    by a perturbed input), their inputs from tracked units, and the outputs feeding those."""
+    names = [c.name for c in system.components]
+    dynamic = {c.name for c in system.components if c.interface == "ME"} | {p.component for p in perturbed}
+    changed = True
+    while changed:
+        changed = False
+        for link in links:
+            if link.source.component in dynamic and link.target.component not in dynamic:
+                dynamic.add(link.target.component)
+                changed = True
+    tracked_in: Dict[str, List[int]] = {n: [] for n in names if n in dynamic}
+    tracked_out: Dict[str, List[int]] = {}
+    for link in links:
+        if link.source.component in dynamic and link.target.component in dynamic:
+            _add(tracked_in[link.target.component], link.target.vr)
+            _add(tracked_out.setdefault(link.source.component, []), link.source.vr)
+    for port in perturbed:
+        _add(tracked_in[port.component], port.vr)
+    for port in observed:
+        if port.component in dynamic:
+            _add(tracked_out.setdefault(port.component, []), port.vr)
+    return tracked_in, tracked_out
+
+
+def _add(values: list, value: Any) -> None:
+    if value not in values:
+        values.append(value)
+
+
+def _model_exchange_block(unit: Any, w: List[int], y: List[int], h: float) -> _Block:
+    """A, B, C, D at the unit's current point, discretized over h with held inputs."""
+    md = unit.info.md
+    jac = FmuJacobian(unit.fmu, md)
+    nx = jac.nx
+    J = jac.block(jac.derivatives + y, jac.states + w)
+    A, B, Cc, Dc = J[:nx, :nx], J[:nx, nx:], J[nx:, :nx], J[nx:, nx:]
+    n, m = nx, len(w)
+    augmented = np.zeros((n + m, n + m))
+    augmented[:n, :n], augmented[:n, n:] = A * h, B * h
+    E = scipy.linalg.expm(augmented)
+    Phi, Gamma = E[:n, :n], E[:n, n:]
+    names = [f"{unit.name}.{d.variable.derivative.name}" for d in md.derivatives]
+    return _Block(unit.name, w, y, Phi, Gamma, Cc @ Phi, Cc @ Gamma + Dc, names, jac.get_states(), Cc, Dc)
+
+
+def _co_simulation_block(unit: Any, w: List[int], y: List[int], at: float, h: float, steps: int,
+                         rank_tolerance: float) -> _Block:
+    """A minimal realization of the unit's step map from its pulse responses (module docstring)."""
+    fmu = unit.fmu
+    nominal = {v.valueReference: abs(float(v.nominal)) for v in unit.info.md.modelVariables
+               if v.type == "Real" and getattr(v, "nominal", None)}
+    w0 = np.array(fmu.getReal(w), dtype=float)
+    saved = unit.save_state()
+    markov = np.zeros((steps + 1, len(y), len(w)))
+    try:
+        for j, vr in enumerate(w):
+            delta = FD_STEP * max(abs(w0[j]), nominal.get(vr, 1.0))
+            runs = []
+            for sign in (1.0, -1.0):
+                unit.restore_state(saved)
+                pulse = w0.copy()
+                pulse[j] += sign * delta
+                fmu.setReal(w, list(pulse))
+                response = []
+                for step in range(steps + 1):
+                    unit.do_step(at + step * h, h)
+                    response.append(fmu.getReal(y) if y else [])
+                    if step == 0:
+                        fmu.setReal(w, list(w0))
+                runs.append(np.array(response, dtype=float).reshape(steps + 1, len(y)))
+            markov[:, :, j] = (runs[0] - runs[1]) / (2.0 * delta)
+        unit.restore_state(saved)
+    finally:
+        unit.free_state(saved)
+    scaled, rows, columns = _scaled(markov)
+    realization = era(list(scaled), rank_tolerance)
+    F = realization.F
+    G = realization.G * columns[None, :]
+    C = rows[:, None] * realization.C
+    names = [f"{unit.name}.xi[{i + 1}]" for i in range(F.shape[0])]
+    return _Block(unit.name, w, y, F, G, C, markov[0], names, np.zeros(F.shape[0]))
+
+
+def _scaled(markov: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(h~, r, c) with h = diag(r) h~ diag(c) and every output row, then every input column, of
+    h~ of unit size: a relative singular-value threshold then means the same for torques and
+    angles."""
+    rows = np.max(np.abs(markov), axis=(0, 2))
+    rows[rows == 0.0] = 1.0
+    scaled = markov / rows[None, :, None]
+    columns = np.max(np.abs(scaled), axis=(0, 1))
+    columns[columns == 0.0] = 1.0
+    return scaled / columns[None, None, :], rows, columns
+
+
+def _compose(system: Any, algorithm: str, order: List[str], blocks: Dict[str, _Block], links: list,
+             perturbed: list, observed: list, units: dict, at: float, h: float, path: Path) -> LinearModel:
+    """Compose the blocks into the closed loop's one-step map, as the master steps them."""
+    position = {name: i for i, name in enumerate(order)}
+    feeds: Dict[Signal, List[Tuple[Signal, float]]] = {}  # tracked input -> (source signal, factor)
+    for link in links:
+        if link.target.component in blocks and link.source.component in blocks:
+            feeds.setdefault((link.target.component, link.target.vr), []).append(
+                ((link.source.component, link.source.vr), link.factor))
+    # values read before their producer steps are held from the previous step: they are states
+    held: List[Signal] = []
+    for target, sources in feeds.items():
+        for source, _ in sources:
+            if algorithm != "gauss-seidel" or position[target[0]] <= position[source[0]]:
+                _add(held, source)
+    for port in observed:
+        block = blocks.get(port.component)
+        signal = (port.component, port.vr)
+        if block is None or signal in held:
+            continue
+        if block.Cc is None or any(units[port.component].info.variables[n].valueReference in block.inputs
+                                   for n in _feedthrough(units[port.component], port.name)):
+            _add(held, signal)  # not a function of the states at the communication point
+    names = [b for b in (c.name for c in system.components) if b in blocks]
+    offsets, n = {}, 0
+    for name in names:
+        offsets[name] = n
+        n += blocks[name].F.shape[0]
+    slot = {signal: n + i for i, signal in enumerate(held)}
+    nX, m = n + len(held), len(perturbed)
+    bus: Dict[Signal, Tuple[np.ndarray, np.ndarray]] = {}
+    for signal, index in slot.items():
+        bus[signal] = (np.eye(nX)[index], np.zeros(m))
+    perturbation = {(p.component, p.vr): i for i, p in enumerate(perturbed)}
+
+    def inputs_of(block: _Block) -> Tuple[np.ndarray, np.ndarray]:
+        Pw, Qw = np.zeros((len(block.inputs), nX)), np.zeros((len(block.inputs), m))
+        for i, vr in enumerate(block.inputs):
+            for source, factor in feeds.get((block.name, vr), []):
+                P, Q = bus[source]
+                Pw[i] += factor * P
+                Qw[i] += factor * Q
+            if (block.name, vr) in perturbation:
+                Qw[i, perturbation[(block.name, vr)]] += 1.0
+        return Pw, Qw
+
+    new_states: Dict[str, Tuple[np.ndarray, np.ndarray]] = {}
+
+    def step(block: _Block, Pw: np.ndarray, Qw: np.ndarray) -> None:
+        S = np.eye(nX)[offsets[block.name]:offsets[block.name] + block.F.shape[0]]
+        new_states[block.name] = (block.F @ S + block.G @ Pw, block.G @ Qw)
+        Py, Qy = block.C @ S + block.D @ Pw, block.D @ Qw
+        for i, vr in enumerate(block.outputs):
+            bus[(block.name, vr)] = (Py[i], Qy[i])
+
+    stepping = [name for name in order if name in blocks]
+    if algorithm == "gauss-seidel":
+        for name in stepping:
+            step(blocks[name], *inputs_of(blocks[name]))
+    else:
+        gathered = {name: inputs_of(blocks[name]) for name in stepping}
+        for name in stepping:
+            step(blocks[name], *gathered[name])
+    Phi, Gamma = np.zeros((nX, nX)), np.zeros((nX, m))
+    for name in names:
+        rows = slice(offsets[name], offsets[name] + blocks[name].F.shape[0])
+        Phi[rows], Gamma[rows] = new_states[name]
+    for signal, index in slot.items():
+        Phi[index], Gamma[index] = bus[signal]
+    C = np.zeros((len(observed), nX))
+    for i, port in enumerate(observed):
+        signal, block = (port.component, port.vr), blocks.get(port.component)
+        if signal in slot:
+            C[i, slot[signal]] = 1.0
+        elif block is not None and block.Cc is not None:
+            row = block.outputs.index(port.vr)
+            C[i, offsets[port.component]:offsets[port.component] + block.F.shape[0]] = block.Cc[row]
+    state_names = [s for name in names for s in blocks[name].state_names]
+    state_names += [f"{c}.{_name(units[c], vr)} (held)" for c, vr in held]
+    x0 = np.concatenate([blocks[name].x0 for name in names] +
+                        [np.array([_value(units[c], vr) for c, vr in held])])
+    notes = [f"{name}: {blocks[name].F.shape[0]} states realized from its pulse responses"
+             for name in names if blocks[name].Cc is None]
+    notes += [f"{name}: discretized exactly over the step (inputs held)" for name in names if blocks[name].Cc is not None]
+    return LinearModel(Phi, Gamma, C, np.zeros((len(observed), m)), state_names, [p.ref for p in perturbed],
+                       [p.ref for p in observed], h, at, x0,
+                       np.array([_value(units[p.component], p.vr) for p in perturbed]),
+                       np.array([_value(units[p.component], p.vr) for p in observed]), str(path), notes)
+
+
+def _feedthrough(unit: Any, output: str) -> set:
+    return unit.info.feedthrough.get(output, set())
+
+
+def _name(unit: Any, vr: int) -> str:
+    return next(v.name for v in unit.info.md.modelVariables if v.valueReference == vr and v.type == "Real")
+
+
+def _value(unit: Any, vr: int) -> float:
+    return float(unit.fmu.getReal([vr])[0])
+
+
+def _port(components: Mapping[str, Any], reference: str, causality: str) -> Any:
+    """The scenario port named ``reference`` ("comp.var"); arrays are not expanded here."""
+    from .resolve import Port
+    comp_name, _, var = reference.partition(".")
+    component = components.get(comp_name)
+    if component is None or not var:
+        raise BadInput(f"'{reference}': no component '{comp_name}' in the scenario"
+                       f"{did_you_mean(comp_name, list(components))}")
+    try:
+        names = component.info.expand(var)
+    except UnknownVariable as exc:
+        raise BadInput(f"'{reference}': component '{comp_name}' has no variable '{exc.reference}'"
+                       f"{did_you_mean(exc.reference, exc.names)}") from None
+    if len(names) != 1:
+        raise BadInput(f"'{reference}' names {len(names)} variables; name one (arrays are expanded by the command)")
+    variable = component.info.variables[names[0]]
+    if variable.causality != causality or variable.type != "Real":
+        raise BadInput(f"'{reference}' is {_describe(variable)}; linearize takes Real {causality}s here")
+    return Port(comp_name, names[0], variable.valueReference, "Real", component.info.unit(names[0]))
+
+
+def expand_references(components: Mapping[str, Any], references: Sequence[str]) -> List[str]:
+    """``comp.var`` references with arrays expanded (``plant.z`` -> ``plant.z[1]`` ...)."""
+    out = []
+    for reference in references:
+        comp_name, _, var = reference.partition(".")
+        component = components.get(comp_name)
+        if component is None or not var:
+            raise BadInput(f"'{reference}': no component '{comp_name}' in the scenario"
+                           f"{did_you_mean(comp_name, list(components))}")
+        try:
+            out += [f"{comp_name}.{n}" for n in component.info.expand(var)]
+        except UnknownVariable as exc:
+            raise BadInput(f"'{reference}': component '{comp_name}' has no variable '{exc.reference}'"
+                           f"{did_you_mean(exc.reference, exc.names)}") from None
+    return out
+
+
+def _describe(variable: Any) -> str:
+    return f"a {variable.type} {variable.causality}"
+
+
+# ------------------------------------------------------------------------------------ helpers
+
+def _info(fmu: Path) -> ModelInfo:
+    if not Path(fmu).is_file():
+        raise BadInput(f"FMU '{fmu}' not found")
+    try:
+        return model_info(str(fmu))
+    except Exception as exc:  # noqa: BLE001 - any unreadable FMU is a user error here
+        raise BadInput(f"cannot read FMU '{fmu}': {exc}") from None
+
+
+def _expand(info: ModelInfo, name: str, where: str) -> List[str]:
+    try:
+        return info.expand(name)
+    except UnknownVariable as exc:
+        raise BadInput(f"'{where}' has no variable '{exc.reference}'{did_you_mean(exc.reference, exc.names)}") from None
+
+
+def _expand_all(info: ModelInfo, names: Sequence[str], where: str) -> List[str]:
+    return [n for name in names for n in _expand(info, name, where)]
+
+
+def _values(name: str, value: Any, count: int) -> list:
+    values = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
+    if len(values) != count:
+        raise BadInput(f"'{name}' has {count} element(s) but {len(values)} value(s) were given")
+    return values
+
+
+def _real_vr(info: ModelInfo, name: str, causality: str, where: str) -> int:
+    variable = info.variables[name]
+    if variable.type != "Real" or variable.causality != causality:
+        raise BadInput(f"'{name}' of '{where}' is {_describe(variable)}; linearize takes Real {causality}s")
+    return variable.valueReference
+
+
+def _set(model: FMU2Model, info: ModelInfo, name: str, value: Any, where: str) -> None:
+    names = _expand(info, name, where)
+    for n, v in zip(names, _values(name, value, len(names))):
+        variable = info.variables[n]
+        kind = variable.type
+        try:
+            if kind == "Real":
+                model.setReal([variable.valueReference], [float(v)])
+            elif kind in ("Integer", "Enumeration"):
+                model.setInteger([variable.valueReference], [int(v)])
+            elif kind == "Boolean":
+                model.setBoolean([variable.valueReference], [bool(v)])
+            else:
+                model.setString([variable.valueReference], [str(v)])
+        except (TypeError, ValueError):
+            raise BadInput(f"'{n}' of '{where}' is {kind}: cannot take {v!r}") from None
+        except fmpy.fmi1.FMICallException:
+            raise BadInput(f"'{n}' of '{where}' ({variable.causality}, {variable.variability}) cannot be set "
+                           "before initialization") from None
+
+
+__all__ = ["linearize_fmu", "linearize_scenario", "expand_references", "LinearModel"]
