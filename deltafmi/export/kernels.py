@@ -32,7 +32,7 @@ from .compiler import build_into, cache_dir
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: modules compiled into FMUs (their imports are type-checked, not compiled)
 COMPILED_MODULES = ("mechanics/delta/kinematics.py", "mechanics/delta/dynamics.py",
-                    "mechanics/delta/control_law.py")
+                    "mechanics/delta/control_law.py", "mechanics/delta/jacobian.py")
 _SUFFIX = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
 #: export only PyInit_* (mypyc's runtime helpers, CPy*, stay private to each FMU's copy)
 _CFLAGS = "-fvisibility=hidden"

@@ -70,7 +70,8 @@ def content_key(source: Path) -> str:
     digest = hashlib.sha256(Path(source).read_bytes())
     for path, arcname in runtime_files():
         digest.update(arcname.encode() + path.read_bytes())
-    for path in native_source_files() + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]:
+    for path in native_source_files() + [Path(__file__), PACKAGE_DIR / "export" / "boot.py",
+                                         PACKAGE_DIR / "export" / "kernels.py"]:
         digest.update(path.read_bytes())
     digest.update(python_runtime_config().encode())
     digest.update(f"mypyc {mypyc_version()}".encode())
