@@ -1,10 +1,16 @@
-"""``deltafmi run``, ``validate`` and ``plot`` through click's CliRunner: help texts, exit codes,
-one-line reasons, result files."""
+"""``deltafmi run``, ``validate``, ``plot`` and ``build`` through click's CliRunner: help texts, exit
+codes, one-line reasons, result files; Ctrl-C and SIGTERM sent to a real ``deltafmi run``."""
 from __future__ import annotations
 
 import io
+import re
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -27,6 +33,7 @@ def scenario(build_fmu_from_src, tmp_path_factory) -> Path:
     ("run", "deltafmi run scenarios/delta_tracking.yaml -o tracking.csv --stop 2"),
     ("validate", "deltafmi validate scenarios/delta_tracking.yaml"),
     ("plot", "deltafmi plot tracking.csv 'plant.z[*]' 'trajectory.r[1:3]' -o tracking.png"),
+    ("export-ssp", "deltafmi export-ssp scenarios/bouncing_ball.yaml -o bouncing_ball.ssp"),
 ])
 def test_help_shows_an_example(command, example):
     result = CliRunner().invoke(main, [command, "--help"])
@@ -112,3 +119,48 @@ def test_progress_bar_draws_on_a_terminal():
     bar.close(2.0)
     text = stream.getvalue()
     assert text.startswith("\r[") and " 25.0% t = 0.5 s" in text and text.endswith("100.0% t = 2 s\n")
+
+
+@pytest.mark.parametrize("target", ["existing", "slash/"])
+def test_build_into_a_directory_names_the_fmu_after_its_model(tmp_path, target):
+    folder = tmp_path / target
+    if target == "existing":
+        folder.mkdir()
+    source = Path(__file__).parents[1] / "fmu_src" / "oscillator.py"
+    result = CliRunner().invoke(main, ["build", str(source), "-o", f"{tmp_path}/{target}", "--no-validate"])
+    assert result.exit_code == 0, result.output
+    assert result.output.strip() == f"built {folder / 'Oscillator.fmu'}"
+    assert [p.name for p in folder.iterdir()] == ["Oscillator.fmu"]
+
+
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_interrupted_run_keeps_its_rows_and_says_where(build_fmu_from_src, tmp_path, signum, code):
+    """A real ``deltafmi run`` of a long Co-Simulation (the FMU's CVODE runs Python code in this
+    process, where the signal lands): stopped once rows are on disk, it ends between two
+    steps, says when, and leaves every row up to there in the file."""
+    path = tmp_path / "long.yaml"
+    path.write_text(f"experiment: {{stop: 1.0e+6, step: 1.0e-3}}\n"
+                    f"components:\n  osc: {{fmu: {build_fmu_from_src('oscillator.py')}, interface: CS}}\n"
+                    "outputs: [osc.x, osc.v]\n")
+    out = tmp_path / "long.csv"
+    process = subprocess.Popen([sys.executable, "-c", "from deltafmi.cli import main; main()", "run", str(path),
+                                "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (out.exists() and out.read_text().count("\n") > 2):  # header and two rows
+            assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+            time.sleep(0.05)
+        process.send_signal(signum)
+        stdout, stderr = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == code, stderr
+    assert "Traceback" not in stderr and stdout == ""
+    last = stderr.strip().splitlines()[-1]
+    match = re.fullmatch(r"interrupted at t = (\S+) s \(results up to (\S+) in (.+)\)", last)
+    assert match, last
+    assert match[3] == str(out)
+    c = columns(out)
+    assert float(match[1]) == float(match[2]) == c["time"][-1] > 0
+    assert np.array_equal(c["time"], np.arange(len(c["time"])) * 1e-3)  # every step up to there
