@@ -6,7 +6,9 @@ FMUs built here travel to the workers inside a worker plugin (:mod:`deltafmi.stu
 each task carries only a case's values. Robustness is Dask's: a worker process that dies is
 restarted by its nanny and the case it was running is rescheduled; on the local cluster
 ``distributed.scheduler.allowed-failures`` is 1, so a case that kills a second worker is recorded
-as failed (``KilledWorker``) and the study goes on. A case that fails inside the simulation is
+as failed (``KilledWorker``) and the study goes on, and ``worker-saturation`` is 1.0, so a worker
+holds only the case it runs (a death counts against every task assigned to the worker). A cluster
+given by address keeps its own settings of both. A case that fails inside the simulation is
 a result row like any other.
 """
 from __future__ import annotations
@@ -124,8 +126,11 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None) 
         finally:
             client.close()
         return
-    # one retry after a worker died running a case (the nanny restarts the worker), then KilledWorker
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+    # One retry after a worker died running a case (the nanny restarts the worker), then
+    # KilledWorker. A worker holds one case at a time (saturation 1.0): Dask counts a death against
+    # every task assigned to the worker, so a case queued behind a crashing one must not be there.
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1,
+                          "distributed.scheduler.worker-saturation": 1.0}):
         cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR)
     client = Client(cluster)

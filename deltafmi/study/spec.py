@@ -34,6 +34,9 @@ STATISTIC_KEYS: Dict[str, Tuple[Tuple[str, ...], Tuple[str, ...]]] = {
 DISTRIBUTIONS: Dict[str, Tuple[str, str]] = {
     "uniform": ("low", "high"), "normal": ("mean", "std"), "lognormal": ("mu", "sigma")}
 
+#: columns of the results table besides the varied values and the metrics
+RESERVED_COLUMNS = ("case", "status", "error", "wall_time", "setup_time", "worker")
+
 _SIGNAL = re.compile(r"^\s*(?P<left>\S+?)(?:\s+-\s+(?P<right>\S+))?\s*$")
 _REFERENCE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\.\S+$")
 
@@ -283,6 +286,9 @@ def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Di
         elif kind == "uniform" and spec["high"] <= spec["low"]:
             error(where, f"'{name}': uniform needs low < high (got {spec['low']}, {spec['high']})")
     for name, spec in data["metrics"].items():
+        if name in RESERVED_COLUMNS or name in seen:
+            error(("metrics", name), f"metric name '{name}' is taken by a column of the results "
+                                     f"({', '.join(RESERVED_COLUMNS)} and the varied values)", key=True)
         found.extend(_metric_errors(name, spec, lines, file))
     return found
 

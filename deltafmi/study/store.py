@@ -36,7 +36,6 @@ from .cases import Case, case_key
 from .runner import FAILED, CaseResult
 
 METADATA_KEY = b"deltafmi.study"
-FIXED_COLUMNS = ("status", "error", "wall_time", "setup_time", "worker")
 
 
 class ResultStore:
