@@ -54,6 +54,10 @@ class _Plan:
         #: per key: flat indices of the (rows x knowns) block in a C-ordered (rows, n_known) matrix
         self.blocks = {k: r[:, None] * owner.n_known + self.columns[None, :] for k, (_, r) in self.groups.items()}
         self.size = len(rows)
+        #: one group whose rows come in result order: its flat indices, for a one-known shortcut
+        only = next(iter(self.groups.values())) if len(self.groups) == 1 else None
+        self.whole = (next(iter(self.blocks.values()))[:, 0] if only is not None and len(columns) == 1
+                      and np.array_equal(only[0], np.arange(len(rows))) else None)
         self.output_buffers = {k: owner.output_buffers[k][r] for k, (_, r) in self.groups.items() if k != "der"}
 
 
@@ -77,10 +81,16 @@ class DirectionalDerivatives:
                 self.output_buffers[decl.name] = np.arange(decl.offset, decl.offset + decl.size)
                 self.unknown_row.update({decl.offset + i: (decl.name, i) for i in range(decl.size)})
         self.names = {s.value_reference: s.name for s in layout.scalars}
-        # what the exact Jacobian may depend on: states, parameters, inputs (and the int buffer)
-        self.independent = np.array([s.value_reference for s in layout.scalars[:layout.n_real]
-                                     if s.value_reference < nx or s.causality in ("parameter", "input")],
-                                    dtype=np.intp)
+        # what the exact Jacobian may depend on: states, parameters, inputs (and the int buffer),
+        # as runs of consecutive reals (compared as bytes: no copies through fancy indexing)
+        independent = [s.value_reference for s in layout.scalars[:layout.n_real]
+                       if s.value_reference < nx or s.causality in ("parameter", "input")]
+        self.runs: list[slice] = []
+        for vr in independent:
+            if self.runs and self.runs[-1].stop == vr:
+                self.runs[-1] = slice(self.runs[-1].start, vr + 1)
+            else:
+                self.runs.append(slice(vr, vr + 1))
         self.exact = cls.provides_jacobian()
         self._plans: dict[tuple[bytes, bytes], _Plan] = {}
         self._key: Optional[tuple] = None
@@ -113,6 +123,8 @@ class DirectionalDerivatives:
             matrix = blocks.get(key)
             if matrix is None:
                 numeric.append(key)
+            elif plan.whole is not None and len(direction) == 1:
+                return (np.take(matrix, plan.whole) * direction[0]).tobytes()  # the usual: one column
             else:
                 result[positions] = np.take(matrix, plan.blocks[key]) @ direction
         if numeric:
@@ -121,7 +133,8 @@ class DirectionalDerivatives:
 
     def blocks(self, comp: Component, t: float) -> dict[str, np.ndarray]:
         """The component's exact Jacobian blocks, cached while time, variables and model stay."""
-        key = (t, id(comp), comp._real[self.independent].tobytes(), comp._int.tobytes())
+        real = comp._real
+        key = (t, id(comp), comp._int.tobytes(), *(real[run].tobytes() for run in self.runs))
         if key != self._key:
             given = comp.jacobian(t) or {}
             self._blocks = {k: self._checked_block(k, np.ascontiguousarray(m, dtype=float)) for k, m in given.items()}
