@@ -40,11 +40,23 @@ class Adaptive:
 
 
 @dataclass(frozen=True)
+class Loops:
+    """How the master solves algebraic loops (see :mod:`deltafmi.cosim.loops`)."""
+
+    method: str = "newton"
+    tolerance: float = 1e-10
+    fixed_point_iterations: int = 5
+    max_iterations: int = 50
+    jacobian: str = "auto"
+
+
+@dataclass(frozen=True)
 class MasterSettings:
     """How the master steps the components."""
 
     algorithm: str = "gauss-seidel"
     adaptive: Adaptive = field(default_factory=Adaptive)
+    loops: Loops = field(default_factory=Loops)
 
 
 @dataclass(frozen=True)
@@ -239,7 +251,8 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
     experiment = Experiment(float(exp.get("start", 0.0)), float(exp["stop"]), float(exp["step"]))
     master_data = data.get("master") or {}
     adaptive = Adaptive(**master_data.get("adaptive", {}))
-    master = MasterSettings(master_data.get("algorithm", "gauss-seidel"), adaptive)
+    master = MasterSettings(master_data.get("algorithm", "gauss-seidel"), adaptive,
+                            Loops(**master_data.get("loops", {})))
     components = tuple(
         ComponentSpec(
             name=name,
