@@ -31,7 +31,7 @@ def run_adaptive(master: "Master") -> None:
     h = master.step
     h_min = settings.min_step or h / 1000.0
     h_max = settings.max_step or 100.0 * h
-    units = master.ordered_units()
+    units = master.stepping_blocks()
     for unit in units:
         unit.no_prior_state = 0  # we will set earlier states again
     double = settings.error_estimate == "double-step"

@@ -5,6 +5,8 @@
   inputs are read after those inputs are set), so the closed loop starts consistent.
 * Stepping: Gauss-Seidel in the system's stepping order (default) or Jacobi; a unit with
   ``step_multiple`` m steps every m-th communication step over m steps.
+* Algebraic loops are solved at initialization and at every step (:mod:`deltafmi.cosim.loops`):
+  the units of a loop step as one block.
 * Optional adaptive communication step with rollback (:mod:`deltafmi.cosim.adaptive`).
 * Results stream to CSV; events of ME units add rows at the event instant.
 """
@@ -16,12 +18,13 @@ import signal
 import tempfile
 import time as _time
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import fmpy
 import numpy as np
 
 from .errors import BadInput, Interrupted, SimulationError
+from .loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from .progress import Progress, Summary, Termination
 from .resolve import Component, System
 from .results import CsvWriter, RowSampler
@@ -53,6 +56,9 @@ class Master:
         self.progress = Progress(self.start, self.stop, progress)
         self.warn = warn
         self.units: List[Unit] = []
+        #: one block per algebraic loop solved at every step, and the loops of the initialization
+        self.loops: List[LoopBlock] = []
+        self.initial_loops: Optional[InitialLoops] = None
         self.writer: Optional[CsvWriter] = None
         self.sampler: Optional[RowSampler] = None
         self.buses: Dict[str, np.ndarray] = {}
@@ -104,7 +110,7 @@ class Master:
             self.close()
         return Summary(self.steps, self.rejected, self.events,
                        _time.perf_counter() - wall, self.time - self.start,
-                       self.writer.rows_written, self.result_path, terminated, setup)
+                       self.writer.rows_written, self.result_path, terminated, setup, self.loop_statistics())
 
     def open(self) -> None:
         """Load, instantiate, wire and initialize every unit; record the first row.
@@ -194,6 +200,10 @@ class Master:
             parts.append((self.buses[kind], [slot[(kind, recorded[i].component, recorded[i].vr)] for i in columns],
                           columns))
         self.sampler = RowSampler(parts, len(recorded))
+        self.loops = [LoopBlock(loop, [self._by_name[name] for name in loop.members], self.buses,
+                                [slot[("Real", port.component, port.vr)] for port in loop.tears],
+                                self.system.scenario.master.loops, self)
+                      for loop in self.system.loops]
 
     def _wire_outputs(self) -> Dict[Tuple[str, str, int], int]:
         """Give every connected or recorded variable a bus slot; returns (type, unit, vr) -> slot."""
@@ -218,7 +228,10 @@ class Master:
         for unit in self.units:
             unit.enter_initialization()
         by_name = self._by_name
+        loops = self.initial_loops = InitialLoops(self.system.init_loops, by_name, self.system.scenario.master.loops)
         for link in self.system.init_links:
+            if loops.solve_with(link):  # solved with the rest of its loop
+                continue
             value = by_name[link.source.component].get_value(link.source)
             if link.source.type == "Real":
                 value = link.factor * value + link.offset
@@ -242,8 +255,18 @@ class Master:
             return [self._by_name[name] for name in self.system.order]
         return list(self.units)
 
-    def step_all(self, units: List[Unit], t: float, step: float) -> None:
-        """One communication step of ``units`` from ``t`` (all the same step size)."""
+    def stepping_blocks(self) -> List[Stepper]:
+        """:meth:`ordered_units`, each algebraic loop's units replaced by their :class:`LoopBlock`."""
+        block_of = {unit.name: block for block in self.loops for unit in block.units}
+        blocks: List[Stepper] = []
+        for unit in self.ordered_units():
+            block = block_of.get(unit.name, unit)
+            if not any(b is block for b in blocks):
+                blocks.append(block)
+        return blocks
+
+    def step_all(self, units: Sequence[Stepper], t: float, step: float) -> None:
+        """One communication step of ``units`` (units or loop blocks) from ``t``, all the same step size."""
         if self.algorithm == "gauss-seidel":
             for unit in units:
                 unit.pull()
@@ -260,7 +283,7 @@ class Master:
     def _run_fixed(self) -> None:
         start, stop, h = self.start, self.stop, self.step
         n_steps = max(1, math.ceil((stop - start) / h - 1e-9))
-        ordered = self.ordered_units()
+        ordered = self.stepping_blocks()
         period = math.lcm(*[u.step_multiple for u in ordered])
         # per phase of the multi-rate period: (unit, step multiple) of the units due
         due = [[(u, u.step_multiple) for u in ordered if phase % u.step_multiple == 0] for phase in range(period)]
@@ -340,6 +363,32 @@ class Master:
         """Forget the held event rows (their step was rolled back); keep deferring."""
         if self._deferred is not None:
             self._deferred = []
+
+    def hold_events(self) -> Tuple[bool, int]:
+        """Hold event rows back from here (a loop's step may be redone); a mark for
+        :meth:`rewind_events` and :meth:`release_events`."""
+        started = self._deferred is None
+        if started:
+            self.defer_events()
+        return started, len(self._deferred)
+
+    def rewind_events(self, mark: Tuple[bool, int]) -> None:
+        """Forget the event rows held since ``mark``."""
+        del self._deferred[mark[1]:]
+
+    def release_events(self, mark: Tuple[bool, int]) -> None:
+        """Stop holding if ``mark`` started it: write the rows held."""
+        if mark[0]:
+            self.commit_events()
+
+    def loop_statistics(self) -> LoopStatistics:
+        """Solves and evaluations of every algebraic loop so far (initialization included)."""
+        total = LoopStatistics()
+        for block in self.loops:
+            total.add(block.statistics)
+        if self.initial_loops is not None:
+            total.add(self.initial_loops.statistics)
+        return total
 
     # --- rollback helpers (used by the adaptive loop) -----------------------------------------
     def save(self) -> Tuple[list, Dict[str, np.ndarray]]:

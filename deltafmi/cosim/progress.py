@@ -5,7 +5,7 @@ import sys
 import time as _time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, TextIO
+from typing import Any, Optional, TextIO
 
 
 class Progress:
@@ -67,6 +67,8 @@ class Summary:
     terminated: Optional[Termination] = None
     #: wall seconds spent before the first step (extracting, loading, initializing)
     setup_time: float = 0.0
+    #: algebraic loops solved (a :class:`~deltafmi.cosim.loops.LoopStatistics`; None: no loop)
+    loops: Any = None
 
     @property
     def real_time_factor(self) -> float:
@@ -79,4 +81,6 @@ class Summary:
                 f"(real-time factor {self.real_time_factor:.1f}x); {self.rows} rows -> {self.result}")
         if self.terminated:
             text += f"; {self.terminated}"
+        if self.loops is not None and self.loops.solves:
+            text += f"; algebraic loops: {self.loops}"
         return text

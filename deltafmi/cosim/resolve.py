@@ -2,8 +2,8 @@
 
 Every finding is a :class:`Diagnostic` at ``file:line``: unknown components and variables (with
 suggestions), connections that do not go output -> input, type and unit mismatches, inputs driven
-twice, unconnected inputs (warning), algebraic loops (from each FMU's direct feedthrough),
-parameters that cannot be set, record patterns that match nothing.
+twice, unconnected inputs (warning), algebraic loops the master cannot solve (from each FMU's
+direct feedthrough), parameters that cannot be set, record patterns that match nothing.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from .errors import Diagnostic, ScenarioError, did_you_mean
-from .graph import algebraic_loops, initialization_order, stepping_order
+from .graph import block_stepping_order, initialization_order, loop_groups, tear
 from .modelinfo import ModelInfo, UnknownVariable, model_info
 from .scenario import ComponentSpec, ConnectionSpec, Scenario
 
@@ -51,6 +51,28 @@ class Link:
     line: Optional[int] = None
 
 
+@dataclass(frozen=True)
+class AlgebraicLoop:
+    """Connections that close a cycle of direct feedthrough: the master solves them together.
+
+    ``members`` step (or, at initialization, are evaluated) in this order, each taking the
+    fresh outputs of those before it; ``tears`` are the outputs read by a member at or before
+    their own component in that order: their values are guessed and iterated on (see
+    :mod:`deltafmi.cosim.loops`).
+    """
+
+    members: Tuple[str, ...]
+    links: Tuple[Link, ...]
+    tears: Tuple[Port, ...]
+    line: Optional[int] = None
+    initial: bool = False  # a loop of the initialization (from <InitialUnknowns>)
+
+    def __str__(self) -> str:
+        connections = ", ".join(f"{l.source.ref} -> {l.target.ref}" for l in self.links)
+        where = f"; line {self.line}" if self.line is not None else ""
+        return f"algebraic loop {connections} ({', '.join(self.members)}{where})"
+
+
 @dataclass
 class Component:
     """A scenario component with its FMU located, read and its start values checked."""
@@ -78,6 +100,9 @@ class System:
     order: List[str]
     init_links: List[Link]
     warnings: List[Diagnostic]
+    #: algebraic loops solved at every step, and those solved during initialization
+    loops: List[AlgebraicLoop] = field(default_factory=list)
+    init_loops: List[AlgebraicLoop] = field(default_factory=list)
 
 
 _SETTABLE_CAUSALITIES = ("parameter", "input")
@@ -121,7 +146,9 @@ class _Checker:
         self._unconnected(links)
         feedthrough = {name: c.info.feedthrough for name, c in self.components.items()}
         pairs = [(l.source.ref, l.target.ref) for l in links]
-        self._loops(links, pairs, feedthrough)
+        initial_feedthrough = {name: c.info.initial_feedthrough for name, c in self.components.items()}
+        loops = self._loops(links, feedthrough, initial=False)
+        init_loops = self._loops(links, initial_feedthrough, initial=True)
         recorded = self._recorded()
         self._settings()
         if any(d.severity == "error" for d in self.found):
@@ -129,20 +156,53 @@ class _Checker:
         names = [c.name for c in self.scenario.components]
         by_pair = dict(zip(pairs, links))
         return System(self.scenario, [self.components[n] for n in names], links, recorded,
-                      stepping_order(names, pairs, feedthrough),
-                      [by_pair[p] for p in initialization_order(
-                          pairs, {name: c.info.initial_feedthrough for name, c in self.components.items()})],
-                      [d for d in self.found if d.severity == "warning"])
+                      block_stepping_order(names, pairs, feedthrough, [loop.members for loop in loops]),
+                      [by_pair[p] for p in initialization_order(pairs, initial_feedthrough)],
+                      [d for d in self.found if d.severity == "warning"], loops, init_loops)
 
-    def _loops(self, links: List[Link], pairs: List[Tuple[str, str]], feedthrough: Dict[str, Any]) -> None:
-        line_of = {pair: link.line for pair, link in zip(pairs, links)}
-        for loop in algebraic_loops(pairs, feedthrough):
-            members = sorted({ref.split(".", 1)[0] for ref in loop})
-            lines = [line_of[(a, b)] for a, b in zip(loop, loop[1:] + loop[:1]) if (a, b) in line_of]
-            self.error(min(lines) if lines else None,
-                       f"algebraic loop between {', '.join(members)}: "
-                       f"{' -> '.join(loop + loop[:1])} (every step in it is a connection or a direct "
-                       "feedthrough; cut it with a component whose outputs do not depend directly on its inputs)")
+    def _loops(self, links: List[Link], feedthrough: Dict[str, Any], initial: bool) -> List[AlgebraicLoop]:
+        """The algebraic loops of ``links`` under ``feedthrough``, torn; errors for those the
+        master cannot solve."""
+        by_pair = {(l.source.ref, l.target.ref): l for l in links}
+        position = {spec.name: i for i, spec in enumerate(self.scenario.components)}
+        loops = []
+        for pairs in loop_groups(by_pair, feedthrough):
+            inside = [by_pair[p] for p in pairs]
+            line = min((l.line for l in inside if l.line is not None), default=None)
+            members = sorted({p.component for l in inside for p in (l.source, l.target)}, key=position.__getitem__)
+            sources = {l.source.ref: l.source for l in inside}
+            loop = AlgebraicLoop(tuple(members), tuple(inside), (), line, initial)
+            try:
+                order, torn = tear(members, pairs, lambda ref: sources[ref].type == "Real")
+            except ValueError:
+                self.error(line, f"{loop}{' at initialization' * initial}: every way to cut it passes through "
+                                 "a connection that is not Real; the master iterates on Real values only")
+                continue
+            loop = AlgebraicLoop(tuple(order), tuple(inside), tuple(sources[ref] for ref in torn), line, initial)
+            if not initial:
+                self._check_loop(loop)
+            loops.append(loop)
+        return loops
+
+    def _check_loop(self, loop: AlgebraicLoop) -> None:
+        """Solving a loop at every step redoes its members' steps: each must restore its state, and
+        all must step together (same step_multiple)."""
+        members = [self.components[name] for name in loop.members]
+        for c in members:
+            if not c.info.can_get_set_state(c.interface):
+                self.error(loop.line, f"{loop}: component '{c.name}' ({c.interface}) cannot save and restore its "
+                                      "state (canGetAndSetFMUstate is not true), which solving the loop at every "
+                                      "step needs: each iteration redoes the loop's step from the saved state")
+        multiples = {c.spec.step_multiple for c in members}
+        if len(multiples) > 1:
+            self.error(loop.line, f"{loop}: its components step together, so they need the same step_multiple "
+                                  f"(they have {', '.join(f'{c.name}: {c.spec.step_multiple}' for c in members)})")
+        if self.scenario.master.loops.jacobian == "directional-derivative":
+            for c in members:
+                element = c.info.md.modelExchange if c.interface == "ME" else c.info.md.coSimulation
+                if not element.providesDirectionalDerivative:
+                    self.error(loop.line, f"{loop}: master.loops.jacobian is directional-derivative but component "
+                                          f"'{c.name}' ({c.interface}) does not provide fmi2GetDirectionalDerivative")
 
     # --- components ---------------------------------------------------------------------------
     def _component(self, spec: ComponentSpec, check_fmus: bool) -> Optional[Component]:
@@ -444,4 +504,9 @@ def describe(system: System) -> Sequence[str]:
              f"stepping order ({system.scenario.master.algorithm}): {' -> '.join(system.order)}"]
     for c in system.components:
         lines.append(f"  {c.name}: {c.interface} {c.info.md.modelName} ({c.fmu})")
+    initial = {frozenset(loop.links): loop for loop in system.init_loops}
+    for loop in system.loops + list(initial.values()):
+        when = ("at initialization" if loop.initial else
+                "at initialization and at every step" if initial.pop(frozenset(loop.links), None) else "at every step")
+        lines.append(f"{loop}: solved {when}, iterating on {', '.join(p.ref for p in loop.tears)}")
     return lines
