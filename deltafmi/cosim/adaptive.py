@@ -11,28 +11,66 @@ retried with a smaller step. Two estimates:
 
 The error is scaled as ``|e| / (abs_tolerance + tolerance * |value|)``; a step is accepted when its
 maximum is <= 1. Events found during a trial are recorded only if the trial is kept.
+
+The loop drives anything that offers :class:`SteppedSystem` (the master does); it imports nothing
+of the master.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, List
+from typing import Any, Dict, List, Protocol, Sequence
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from .master import Master
-    from .units import Unit
+from .loops import Stepper
+from .scenario import Adaptive
+from .unit_base import Unit
 
 _SAFETY, _SHRINK, _GROW = 0.9, 0.2, 2.0
 
 
-def run_adaptive(master: "Master") -> None:
+class SteppedSystem(Protocol):
+    """What the adaptive loop needs of a master: its span, units and buses, one communication
+    step of everything, snapshots, held-back event rows, and the row at the end of a step."""
+
+    start: float
+    stop: float
+    step: float
+    #: where the run is, the end of the step under way, accepted and rejected steps
+    time: float
+    step_end: float
+    steps: int
+    rejected: int
+    units: List[Unit]
+    buses: Dict[str, np.ndarray]
+
+    def stepping_blocks(self) -> List[Stepper]: ...
+
+    def step_all(self, blocks: Sequence[Stepper], t: float, step: float) -> None: ...
+
+    def save(self) -> Any: ...
+
+    def restore(self, snapshot: Any) -> None: ...
+
+    def release(self, snapshot: Any) -> None: ...
+
+    def defer_events(self) -> None: ...
+
+    def commit_events(self) -> None: ...
+
+    def drop_events(self) -> None: ...
+
+    def record_step(self, t: float) -> None: ...
+
+    def warn(self, message: str) -> None: ...
+
+
+def run_adaptive(master: SteppedSystem, settings: Adaptive) -> None:
     """Step ``master`` from its start to its stop time with an adaptive communication step."""
-    settings = master.system.scenario.master.adaptive
     h = master.step
     h_min = settings.min_step or h / 1000.0
     h_max = settings.max_step or 100.0 * h
-    units = master.stepping_blocks()
-    for unit in units:
+    blocks = master.stepping_blocks()
+    for unit in master.units:
         unit.no_prior_state = 0  # we will set earlier states again
     double = settings.error_estimate == "double-step"
     order = 2.0 if double else 1.0
@@ -45,10 +83,11 @@ def run_adaptive(master: "Master") -> None:
         master.defer_events()
         try:
             if double:
-                error = _double_step_error(master, units, t, step, snapshot, settings)
+                error = _double_step_error(master, blocks, t, step, snapshot, settings)
             else:
-                master.step_all(units, t, step)
-                error = _io_gap_error(units, snapshot[1], settings)
+                before = master.buses["Real"].copy()
+                master.step_all(blocks, t, step)
+                error = _io_gap_error(master.units, before, settings)
             factor = _SAFETY * error ** (-1.0 / order) if error > 0 else _GROW
             if error <= 1.0 or step <= h_min * (1 + 1e-9):
                 if error > 1.0 and not warned:
@@ -69,26 +108,27 @@ def run_adaptive(master: "Master") -> None:
             master.release(snapshot)
 
 
-def _double_step_error(master: "Master", units: List["Unit"], t: float, step: float, snapshot, settings) -> float:
-    master.step_all(units, t, step)
+def _double_step_error(master: SteppedSystem, blocks: List[Stepper], t: float, step: float, snapshot: Any,
+                       settings: Adaptive) -> float:
+    master.step_all(blocks, t, step)
     coarse = master.buses["Real"].copy()
     master.restore(snapshot)
     master.drop_events()
     half = 0.5 * step
-    master.step_all(units, t, half)
-    master.step_all(units, t + half, half)
+    master.step_all(blocks, t, half)
+    master.step_all(blocks, t + half, half)
     fine = master.buses["Real"]
     scale = settings.abs_tolerance + settings.tolerance * np.maximum(np.abs(fine), np.abs(coarse))
     return float(np.max(np.abs(fine - coarse) / scale)) if len(fine) else 0.0
 
 
-def _io_gap_error(units: List["Unit"], before: dict, settings) -> float:
+def _io_gap_error(units: List[Unit], before: np.ndarray, settings: Adaptive) -> float:
     error = 0.0
     for unit in units:
         for inputs in unit.inputs:
             if inputs.values.dtype != np.float64:
                 continue
-            start, end = before["Real"][inputs.index], inputs.bus[inputs.index]
+            start, end = before[inputs.index], inputs.bus[inputs.index]
             if inputs.factor is not None:
                 start, end = start * inputs.factor, end * inputs.factor
             scale = settings.abs_tolerance + settings.tolerance * np.abs(end + inputs.offset)

@@ -23,6 +23,7 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 import fmpy
 import numpy as np
 
+from .adaptive import run_adaptive
 from .errors import BadInput, Interrupted, SimulationError
 from .loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from .progress import Progress, Summary, Termination
@@ -93,8 +94,7 @@ class Master:
                     self.open()
                     setup = _time.perf_counter() - wall
                     if self.system.scenario.master.adaptive.enabled and self._can_roll_back():
-                        from .adaptive import run_adaptive
-                        run_adaptive(self)
+                        run_adaptive(self, self.system.scenario.master.adaptive)
                     else:
                         self._run_fixed()
                 except Terminated as exc:
