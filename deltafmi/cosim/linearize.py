@@ -273,6 +273,12 @@ def _model_exchange_block(unit: Any, w: List[int], y: List[int], h: float) -> _B
 def _co_simulation_block(unit: Any, w: List[int], y: List[int], at: float, h: float, steps: int,
                          rank_tolerance: float) -> _Block:
     """A minimal realization of the unit's step map from its pulse responses (module docstring)."""
+    if not y:  # nothing it outputs is followed: its state plays no part
+        return _Block(unit.name, w, y, np.zeros((0, 0)), np.zeros((0, len(w))), np.zeros((0, 0)),
+                      np.zeros((0, len(w))), [], np.zeros(0))
+    if not unit.can_save_state:
+        raise BadInput(f"component '{unit.name}' cannot save and restore its state (canGetAndSetFMUstate is "
+                       "false): linearize needs that to take its pulse responses")
     fmu = unit.fmu
     nominal = {v.valueReference: abs(float(v.nominal)) for v in unit.info.md.modelVariables
                if v.type == "Real" and getattr(v, "nominal", None)}
