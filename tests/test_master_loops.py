@@ -13,7 +13,7 @@ and w) and ``Lag`` (tests/components/lag: T x' = u - x, y = x + d u). Closed for
 """
 from __future__ import annotations
 
-import shutil
+import ast
 import subprocess
 import sys
 import textwrap
@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import deltafmi.cosim
 from deltafmi.cli import main
 from deltafmi.cosim.master import Master
 from deltafmi.cosim.resolve import resolve_system
@@ -297,7 +298,14 @@ def test_loop_settings_are_checked_with_their_line(fmus):
     assert "master.loops.method: 'newtn' is not allowed (did you mean 'newton'?)" in result.output
 
 
-def test_adaptive_and_master_import_no_cycle():
-    """The adaptive loop drives any SteppedSystem: importing it loads no master."""
+def test_adaptive_and_loops_import_nothing_of_the_master():
+    """The master imports the adaptive loop and the loop solver; they drive it through small
+    protocols and import nothing of it, not even for type checking (no import cycle)."""
+    cosim = Path(deltafmi.cosim.__file__).parent
+    for module in ("adaptive.py", "loops.py"):
+        tree = ast.parse((cosim / module).read_text())
+        imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+        imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+        assert not {name for name in imported if name and name.split(".")[-1] == "master"}, module
     code = "import sys, deltafmi.cosim.adaptive; assert 'deltafmi.cosim.master' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -29,11 +29,11 @@ evaluations (one per tear; the last one is reused at the next step while it serv
 (``jacobian: auto``) the directional derivatives are used where they are the loop's exact
 Jacobian and every FMU in it provides them: at initialization, and at steps when no member has
 states. Through a step a held input also moves the states (``dx(t+h)/du``), which no partial
-derivative at one instant contains; finite differences of whole evaluations do. A
-difference step is ``sqrt(accuracy)`` times the tear's scale, where the accuracy is the relative
-tolerance of the members' solvers when one of them integrates states (an evaluation is no more
-accurate than its solver), machine epsilon otherwise. A loop that is not solved within its budget fails the run with
-its connections and the residual named.
+derivative at one instant contains; finite differences of whole evaluations do. A difference
+step is ``sqrt(accuracy)`` times the tear's scale, where the accuracy is the relative tolerance
+of the members' solvers when one of them integrates states (an evaluation is no more accurate
+than its solver), machine epsilon otherwise. A loop that is not solved within its budget fails
+the run with its connections and the residual named.
 """
 from __future__ import annotations
 
@@ -220,8 +220,9 @@ class TearSolver:
             attempt.note = f"{settings.max_iterations} Newton evaluations spent"
             return
         attempt.note = "scipy hybr: " + " ".join(str(result.message).split())
+        end = result.x * scale
         budget_left = attempt.evaluations - attempt.fixed_point < settings.max_iterations
-        if (budget_left or attempt.known(result.x * scale)) and attempt.error_at(result.x * scale) <= settings.tolerance:
+        if (budget_left or attempt.known(end)) and attempt.error_at(end) <= settings.tolerance:
             raise _Converged
         self._cached_jacobian = None
 
@@ -301,15 +302,11 @@ class _Chain:
     """
 
     def __init__(self, loop: AlgebraicLoop, units: Sequence[Unit]) -> None:
-        position = {name: i for i, name in enumerate(loop.members)}
         self.tears = {port.ref: i for i, port in enumerate(loop.tears)}
-        self.plans: List[Tuple[Unit, List[Tuple[Link, bool]], List[Port]]] = []
-        for unit in units:
-            inputs = [(l, position[l.source.component] >= position[unit.name]) for l in loop.links
-                      if l.target.component == unit.name and l.target.type == "Real"]
-            outputs = list({l.source.ref: l.source for l in loop.links
-                            if l.source.component == unit.name and l.source.type == "Real"}.values())
-            self.plans.append((unit, inputs, outputs))
+        # only Real variables have partial derivatives; the others carry no sensitivity
+        self.plans = [(unit, [(l, torn) for l, torn in inputs if l.target.type == "Real"],
+                       [port for port in outputs if port.type == "Real"])
+                      for unit, inputs, outputs in _members(loop, units)]
 
     def jacobian(self) -> np.ndarray:
         """dG/dtau at the loop's current point, one row per tear."""
@@ -337,6 +334,18 @@ class _Chain:
         return np.array([fresh[ref] for ref in self.tears])
 
 
+def _members(loop: AlgebraicLoop, units: Sequence[Unit]) -> List[Tuple[Unit, List[Tuple[Link, bool]], List[Port]]]:
+    """Per member of ``loop`` in its order (``units`` in that order): the loop's connections into
+    it, each with whether it reads a tear (its source is at or after the member), and the
+    member's outputs that the loop reads."""
+    position = {name: i for i, name in enumerate(loop.members)}
+    return [(unit,
+             [(l, position[l.source.component] >= position[unit.name])
+              for l in loop.links if l.target.component == unit.name],
+             list({l.source.ref: l.source for l in loop.links if l.source.component == unit.name}.values()))
+            for unit in units]
+
+
 def _provides_directional_derivatives(units: Sequence[Unit]) -> bool:
     for unit in units:
         md = unit.info.md
@@ -358,7 +367,9 @@ def _accuracy(units: Sequence[Unit]) -> float:
     return accuracy
 
 
-def _tear_solver(loop: AlgebraicLoop, units: Sequence[Unit], settings: Loops) -> Tuple[TearSolver, Optional[_Chain]]:
+def _tear_solver(loop: AlgebraicLoop, units: Sequence[Unit], settings: Loops) -> Tuple[TearSolver, Optional["_Chain"]]:
+    """The solver of ``loop`` (``units``: its members in order) and, when its Jacobian is to come
+    from directional derivatives, their chain."""
     by_name = {u.name: u for u in units}
     nominal = []
     for port in loop.tears:
@@ -449,12 +460,7 @@ class InitialLoop:
     def __init__(self, loop: AlgebraicLoop, by_name: Dict[str, Unit], settings: Loops) -> None:
         self.loop = loop
         self.units = [by_name[name] for name in loop.members]
-        position = {name: i for i, name in enumerate(loop.members)}
-        self._plan = [(unit,
-                       [(l, position[l.source.component] >= position[unit.name])
-                        for l in loop.links if l.target.component == unit.name],
-                       list({l.source.ref: l.source for l in loop.links if l.source.component == unit.name}.values()))
-                      for unit in self.units]
+        self._plan = _members(loop, self.units)
         self.solver, self._chain = _tear_solver(loop, self.units, settings)
 
     def solve(self) -> None:
