@@ -96,7 +96,7 @@ def results(tmp_path_factory):
     (folder / "study.yaml").write_text(STUDY)
     planned = plan_study(load_study(folder / "study.yaml"))
     cache = WorkerCache(folder / "fmus")
-    cache.add_fmus({digest: path.read_bytes() for digest, path in planned.fmu_files.items()})
+    cache.add_fmus(planned.fmu_bytes)
     cache.add_plan(planned.plan)
     template = cache.template(planned.plan.fingerprint)
     try:

@@ -45,6 +45,8 @@ class SweepReport:
     wall_time: float
     workers: int
     interrupted: bool = False
+    #: seconds to connect and to register the study on the workers (FMUs shipped, unpacked, resolved)
+    setup_time: float = 0.0
 
     @property
     def rate(self) -> float:
@@ -172,11 +174,11 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
     bar = StudyProgress(total, reused, progress)
     wall = _time.perf_counter()
     ran = failed = 0
+    setup = 0.0
     interrupted = False
     n_workers = 0
     if todo:
-        blobs = {digest: path.read_bytes() for digest, path in planned.fmu_files.items()}
-        plugin = StudyPlugin(planned.plan, blobs)
+        plugin = StudyPlugin(planned.plan, planned.fmu_bytes)
         fingerprint = planned.plan.fingerprint
         keep = store.timeseries is not None
         with dask_client(scheduler, workers) as client:
@@ -185,6 +187,7 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
                 client.register_plugin(plugin, name=plugin.name)
             except Exception as exc:  # noqa: BLE001 - e.g. a worker without deltafmi
                 raise SimulationError(f"the Dask workers could not set up the study: {exc}") from None
+            setup = _time.perf_counter() - wall
             futures = {client.submit(run_case_task, fingerprint, case.id, case.values, keep,
                                      key=f"deltafmi-case-{fingerprint[:12]}-{case.id}"): case for case in todo}
             last_table = _time.monotonic()
@@ -210,7 +213,7 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
                 except Exception:  # noqa: BLE001 - the cluster may be going down already
                     pass
     store.write_tables(planned.cases)
-    return SweepReport(total, reused, ran, failed, _time.perf_counter() - wall, n_workers, interrupted)
+    return SweepReport(total, reused, ran, failed, _time.perf_counter() - wall, n_workers, interrupted, setup)
 
 
 def _result(future: Any, case: Case) -> CaseResult:

@@ -53,6 +53,8 @@ class PlannedStudy:
     cases: List[Case]
     #: sha256 -> FMU file on this machine
     fmu_files: Dict[str, Path]
+    #: sha256 -> the FMU's bytes, as read when planning (what the workers get)
+    fmu_bytes: Dict[str, bytes]
     #: unit of every varied target and metric ("" when none)
     units: Dict[str, str]
     #: the resolved scenario (client side)
@@ -86,14 +88,18 @@ def plan_study(study: Study) -> PlannedStudy:
     outputs = recorded + [c for m in metrics for c in m.left + m.right if c not in recorded]
     outputs = list(dict.fromkeys(outputs))
     scenario = dataclasses.replace(scenario, outputs=tuple(OutputSpec(ref, None) for ref in outputs))
-    fmu_files = {_sha256(c.fmu): c.fmu for c in system.components}
-    fmus = tuple((c.name, _sha256(c.fmu)) for c in system.components)
+    # read once: what is hashed is what the workers get, even if the file is rebuilt meanwhile
+    blobs = {str(c.fmu): Path(c.fmu).read_bytes() for c in system.components}
+    digests = {path: hashlib.sha256(data).hexdigest() for path, data in blobs.items()}
+    fmu_files = {digests[str(c.fmu)]: c.fmu for c in system.components}
+    fmu_bytes = {digests[path]: data for path, data in blobs.items()}
+    fmus = tuple((c.name, digests[str(c.fmu)]) for c in system.components)
     probe = checker.probe_values()
     fingerprint = _fingerprint(scenario, fmus, metrics)
     plan = StudyPlan(scenario, fmus, probe, tuple(metrics), fingerprint)
     cases = generate_cases(study.vary, checker.nominals)
     units.update({m.name: m.unit for m in metrics})
-    return PlannedStudy(study, plan, cases, fmu_files, units, system)
+    return PlannedStudy(study, plan, cases, fmu_files, fmu_bytes, units, system)
 
 
 class _Checker:
@@ -277,14 +283,6 @@ def _one_of_each_type(values: Sequence[Any]) -> List[Any]:
             types.add(type(value))
             chosen.append(value)
     return chosen
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as file:
-        for block in iter(lambda: file.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _fingerprint(scenario: Scenario, fmus: Tuple[Tuple[str, str], ...], metrics: Sequence[Metric]) -> str:

@@ -86,6 +86,8 @@ class CaseResult:
     wall_time: float = 0.0
     #: seconds before the first step: lending or loading, reset or instantiation, initialization
     setup_time: float = 0.0
+    #: seconds of the stepping loop (the simulation itself)
+    sim_time: float = 0.0
     #: the recorded signals (``time`` first), when the study keeps time series
     timeseries: Optional[Dict[str, np.ndarray]] = field(default=None, repr=False)
     #: where it ran (a Dask worker address, or "local")
@@ -163,12 +165,12 @@ def run_case(template: CaseTemplate, pool: FmuPool, case: int, values: Mapping[s
         recorders.append(MemoryRecorder(path, names, kinds))
         return recorders[-1]
 
-    status, error, setup = OK, "", 0.0
+    status, error, setup, stepping = OK, "", 0.0, 0.0
     metrics = {m.name: math.nan for m in template.plan.metrics}
     try:
         system, stop = template.system(values)
         summary = Master(system, result=Path(f"case-{case}"), stop=stop, fmus=lend, writer_class=recorder).run()
-        setup = summary.setup_time
+        setup, stepping = summary.setup_time, summary.wall_time - summary.setup_time
     except (SimulationError, BadInput, ScenarioError) as exc:
         # the rows up to the failure are in memory, not in the file the master names
         status, error = FAILED, exc.format_message().replace(f" (results up to the failure in case-{case})", "")
@@ -183,7 +185,7 @@ def run_case(template: CaseTemplate, pool: FmuPool, case: int, values: Mapping[s
                 metrics[metric.name] = metric.value(columns)
             except Exception as exc:  # noqa: BLE001
                 status, error = FAILED, f"metric '{metric.name}': {type(exc).__name__}: {exc}"
-    return CaseResult(case, dict(values), metrics, status, error, _time.perf_counter() - wall, setup,
+    return CaseResult(case, dict(values), metrics, status, error, _time.perf_counter() - wall, setup, stepping,
                       columns if keep_timeseries else None, worker)
 
 

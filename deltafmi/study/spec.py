@@ -35,7 +35,7 @@ DISTRIBUTIONS: Dict[str, Tuple[str, str]] = {
     "uniform": ("low", "high"), "normal": ("mean", "std"), "lognormal": ("mu", "sigma")}
 
 #: columns of the results table besides the varied values and the metrics
-RESERVED_COLUMNS = ("case", "status", "error", "wall_time", "setup_time", "worker")
+RESERVED_COLUMNS = ("case", "status", "error", "wall_time", "setup_time", "sim_time", "worker")
 
 _SIGNAL = re.compile(r"^\s*(?P<left>\S+?)(?:\s+-\s+(?P<right>\S+))?\s*$")
 _REFERENCE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\.\S+$")

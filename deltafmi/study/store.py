@@ -8,7 +8,8 @@ For ``results/gain.parquet``:
     varied values, so a grid that grows or a Monte Carlo study asked for more samples reuses
     what is done.
 ``gain.parquet`` and ``gain.csv``
-    the table: case, varied values, metrics, status, error, wall_time, setup_time, worker;
+    the table: case, varied values, metrics, status, error, wall_time (the case on its worker),
+    setup_time (loading or resetting and initializing), sim_time (stepping), worker;
     rewritten (atomically) every few seconds and at the end. The Parquet file's metadata
     (key ``deltafmi.study``) describes the study: targets and how they vary, metrics and units.
 ``gain.timeseries/case=<id>/part-0.parquet``
@@ -119,7 +120,7 @@ class ResultStore:
         """Record a finished case (journal line, and its time series); returns its row."""
         row = {"case": result.case, "values": result.values, "metrics": result.metrics,
                "status": result.status, "error": result.error, "wall_time": result.wall_time,
-               "setup_time": result.setup_time, "worker": result.worker}
+               "setup_time": result.setup_time, "sim_time": result.sim_time, "worker": result.worker}
         if self.timeseries is not None and result.timeseries is not None:
             self._write_timeseries(result.case, result.timeseries)
         self._file.write(json.dumps(row) + "\n")
@@ -158,6 +159,7 @@ class ResultStore:
         columns["error"] = pa.array([r["error"] for r in rows], pa.string())
         columns["wall_time"] = pa.array([r["wall_time"] for r in rows], pa.float64())
         columns["setup_time"] = pa.array([r["setup_time"] for r in rows], pa.float64())
+        columns["sim_time"] = pa.array([r.get("sim_time", math.nan) for r in rows], pa.float64())
         columns["worker"] = pa.array([r.get("worker", "") for r in rows], pa.string())
         table = pa.table(columns)
         return table.replace_schema_metadata({METADATA_KEY: json.dumps(self.metadata).encode()})

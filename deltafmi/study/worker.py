@@ -103,6 +103,7 @@ class StudyPlugin(WorkerPlugin):
         cache = worker_cache()
         cache.add_fmus(self.blobs)
         cache.add_plan(self.plan)
+        cache.template(self.plan.fingerprint)  # resolve now: a problem shows at registration
 
     def teardown(self, worker: Any) -> None:
         worker_cache().remove_plan(self.plan.fingerprint)

@@ -1,0 +1,137 @@
+"""Study throughput: a loop of ``deltafmi run`` processes against ``deltafmi sweep`` on Dask.
+
+The cases are flagship runs (scenarios/studies/gain_payload.yaml: pick-and-place, 3.5 s
+simulated, outer-loop pole x unknown payload), spread over its grid. Measured in one run, on this
+machine, all with the same cases:
+
+1. baseline: a sequential loop of ``deltafmi run case<i>.yaml`` processes (the cases exported
+   as plain scenarios; each process starts Python, loads and instantiates the FMUs, runs);
+2. the sweep on a LocalCluster of 1 worker process and of 2 (the cluster already started: its
+   start-up is printed apart; FMU shipping, loading and every case's metrics included);
+3. the per-case overhead of the sweep against the simulation itself (the master's stepping loop
+   on the worker): reset + initialization, and everything else (Dask, metrics, transfer);
+4. the scaling from 1 to 2 workers.
+
+Targets on a 2-core machine: 2 workers >= 1.8x one worker, per-case overhead <= 5 % of a
+flagship case, sweep >= 3x the loop of processes.
+
+Usage: python benchmarks/sweep.py [--cases 12] [--repeats 1]
+"""
+from __future__ import annotations
+
+import argparse
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Dict, List, Tuple
+
+from deltafmi.study.cases import Case
+from deltafmi.study.driver import dask_client, open_store, run_study
+from deltafmi.study.export import case_scenario
+from deltafmi.study.plan import PlannedStudy, plan_study
+from deltafmi.study.spec import load_study
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ROOT / "scenarios" / "studies" / "gain_payload.yaml"
+DELTAFMI = Path(sys.executable).parent / "deltafmi"
+
+
+def spread(cases: List[Case], n: int) -> List[Case]:
+    """``n`` cases evenly spread over the study's cases."""
+    step = max(1, len(cases) // n)
+    return cases[::step][:n]
+
+
+def process_loop(planned: PlannedStudy, cases: List[Case], folder: Path) -> float:
+    """Wall seconds of running every case as its own ``deltafmi run`` process, one after another."""
+    files = []
+    for case in cases:
+        path = folder / f"case{case.id}.yaml"
+        path.write_text(case_scenario(planned, case))
+        files.append(path)
+    subprocess.run([str(DELTAFMI), "run", str(files[0]), "-q", "-o", str(folder / "warm.csv")], check=True,
+                   capture_output=True)  # builds anything the interpreter of deltafmi needs, untimed
+    wall = time.perf_counter()
+    for path in files:
+        subprocess.run([str(DELTAFMI), "run", str(path), "-q", "-o", str(path.with_suffix(".csv"))], check=True,
+                       capture_output=True)
+    return time.perf_counter() - wall
+
+
+def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) -> Tuple[float, float, List[dict], float]:
+    """(cluster start-up s, sweep wall s, result rows, registration s) of the cases on a LocalCluster
+    of ``workers``."""
+    started = time.perf_counter()
+    with dask_client(workers=workers) as client:
+        client.wait_for_workers(workers)
+        startup = time.perf_counter() - started
+        store = open_store(planned, folder / f"sweep{workers}.parquet", timeseries=False)
+        todo = store.open(cases, fresh=True)
+        wall = time.perf_counter()
+        report = run_study(planned, store, todo, scheduler=client.scheduler.address)
+        wall = time.perf_counter() - wall
+        store.close()
+    assert report.failed == 0, "a benchmark case failed"
+    return startup, wall, [store.rows[c.key] for c in cases], report.setup_time
+
+
+def per_case(rows: List[dict], wall: float, registration: float) -> Dict[str, float]:
+    """Per-case figures of a 1-worker sweep (``wall`` seconds for ``rows``): medians over the cases
+    after the first (which loads the FMUs): simulation (the stepping loop), reset + initialization,
+    the rest on the worker (case set-up, closing, metrics); and Dask plus the client per case."""
+    first = max(rows, key=lambda r: r["setup_time"])
+    steady = [r for r in rows if r is not first]
+    busy = sum(r["wall_time"] for r in rows)  # the worker's time inside the tasks
+    return {"simulation": statistics.median(r["sim_time"] for r in steady),
+            "reset": statistics.median(r["setup_time"] for r in steady),
+            "worker_rest": statistics.median(r["wall_time"] - r["setup_time"] - r["sim_time"] for r in steady),
+            "dask": (wall - registration - busy) / len(rows),
+            "load": first["setup_time"]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", type=int, default=12, help="flagship cases per measurement")
+    parser.add_argument("--repeats", type=int, default=1, help="repeat each measurement, report medians")
+    args = parser.parse_args()
+    planned = plan_study(load_study(STUDY))
+    cases = spread(planned.cases, args.cases)
+    n = len(cases)
+    folder = Path(tempfile.mkdtemp(prefix="deltafmi-bench-sweep-"))
+    try:
+        print(f"{n} flagship cases of {STUDY.relative_to(ROOT)} ({planned.system.scenario.experiment.stop} s "
+              f"simulated each), {args.repeats} repeat(s), medians:")
+        loop = statistics.median(process_loop(planned, cases, folder) for _ in range(args.repeats))
+        print(f"  loop of `deltafmi run` processes: {n} cases in {loop:.2f} s: {n / loop:.2f} cases/s "
+              f"({loop / n:.3f} s per case)")
+        results = {}
+        for workers in (1, 2):
+            runs = [sweep(planned, cases, workers, folder) for _ in range(args.repeats)]
+            startup = statistics.median(r[0] for r in runs)
+            wall = statistics.median(r[1] for r in runs)
+            best = min(runs, key=lambda r: r[1])
+            results[workers] = (wall, best[2], best[3])
+            print(f"  sweep, {workers} worker{'s' * (workers > 1)}: {n} cases in {wall:.2f} s: {n / wall:.2f} cases/s "
+                  f"= {loop / wall:.2f}x the loop (target >= 3x); cluster start-up {startup:.2f} s apart "
+                  f"({n / (wall + startup):.2f} cases/s with it)")
+        one, two = results[1][0], results[2][0]
+        print(f"  scaling: 2 workers {one / two:.2f}x one worker (target >= 1.8x), efficiency {one / two / 2:.0%}")
+        stats = per_case(results[1][1], one, results[1][2])
+        steady = stats["reset"] + stats["worker_rest"] + stats["dask"]
+        print(f"  per case, 1 worker: simulation {stats['simulation']:.3f} s; overhead {1e3 * steady:.1f} ms = "
+              f"{steady / stats['simulation']:.1%} of it (target <= 5 %): reset + initialization "
+              f"{1e3 * stats['reset']:.1f} ms, case set-up + metrics + closing on the worker "
+              f"{1e3 * stats['worker_rest']:.1f} ms, Dask and the client {1e3 * stats['dask']:.1f} ms")
+        print(f"  once per sweep: registration (FMUs shipped, stored, scenario resolved on the worker) "
+              f"{1e3 * results[1][2]:.0f} ms; per worker, its first case loads and instantiates the FMUs: "
+              f"{1e3 * stats['load']:.0f} ms (the loop of processes pays both in every case)")
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
