@@ -213,8 +213,7 @@ def plant_jacobian(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: 
     if info != 0:
         raise ArithmeticError("the KKT matrix is singular: the delta robot is in a direct-kinematic "
                               "singularity (or a gimbal one, sin q_i2 = 0)")
-    dx = np.zeros((18, N_KNOWNS))
-    dx[:9, 9:18] = np.eye(9)
+    dx = _DX_TEMPLATE.copy()  # q' = v on top
     dx[9:] = sens[:9]
     out = np.zeros((7, N_KNOWNS))  # dz, dzd, denergy
     out.flat[_OUTPUT_INDEX] = flat[_OUTPUT_SOURCE] * _OUTPUT_SCALE
@@ -271,3 +270,4 @@ def _scatter_layout() -> tuple:
 
 (_SYSTEM_INDEX, _SYSTEM_SOURCE, _SYSTEM_SCALE, _OUTPUT_INDEX, _OUTPUT_SOURCE, _OUTPUT_SCALE,
  _SYSTEM_TEMPLATE) = _scatter_layout()
+_DX_TEMPLATE = np.hstack([np.zeros((18, 9)), np.vstack([np.eye(9), np.zeros((9, 9))]), np.zeros((18, 6))])
