@@ -260,6 +260,7 @@ def test_validate_describes_how_a_loop_is_solved(fmus):
     assert result.exit_code == 0, result.output
     assert ("algebraic loop g1.y -> g2.u, g2.y -> g1.u (g1, g2; line 7): solved at initialization and at every step, "
             "iterating on g2.y") in result.output
+    assert result.output.count("algebraic loop") == 1
 
 
 def test_a_loop_needs_components_that_restore_their_state(fmus):

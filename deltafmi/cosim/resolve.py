@@ -505,8 +505,8 @@ def describe(system: System) -> Sequence[str]:
     for c in system.components:
         lines.append(f"  {c.name}: {c.interface} {c.info.md.modelName} ({c.fmu})")
     initial = {frozenset(loop.links): loop for loop in system.init_loops}
-    for loop in system.loops + list(initial.values()):
-        when = ("at initialization" if loop.initial else
-                "at initialization and at every step" if initial.pop(frozenset(loop.links), None) else "at every step")
+    solved = [(loop, "at initialization and at every step" if initial.pop(frozenset(loop.links), None)
+               else "at every step") for loop in system.loops]
+    for loop, when in solved + [(loop, "at initialization") for loop in initial.values()]:
         lines.append(f"{loop}: solved {when}, iterating on {', '.join(p.ref for p in loop.tears)}")
     return lines
