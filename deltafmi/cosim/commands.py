@@ -115,8 +115,11 @@ def export_ssp(scenario: str, output: Optional[str]) -> None:
     """
     from .ssp_write import export_ssp as write
 
+    target = Path(output) if output else Path(Path(scenario).stem + ".ssp")
+    if target.resolve() == Path(scenario).resolve():
+        raise BadInput(f"{target}: that is the scenario itself; write the archive elsewhere with -o")
     system = _load(scenario)
-    path = write(system, Path(output) if output else Path(Path(scenario).stem + ".ssp"))
+    path = write(system, target)
     click.echo(f"wrote {path} ({len(system.components)} components, {len(system.links)} connections)")
 
 

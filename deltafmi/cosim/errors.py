@@ -57,7 +57,7 @@ class Interrupted(click.ClickException):
 
     def __init__(self, message: str, signum: int) -> None:
         super().__init__(message)
-        self.exit_code = 128 + signum
+        self.exit_code = 128 + signum  # type: ignore[misc]  # click's is a class variable
 
     def show(self, file: Optional[IO[Any]] = None) -> None:
         """The message alone: an interruption is not an error."""

@@ -79,7 +79,7 @@ class _Reader:
         try:
             text = self._read(None, None)
             self._raise()
-            root = self._parse(text, None)
+            root = self._parse(text or b"", None)
             self._system(root)
             self._experiment(root)
             self._results(root)
@@ -97,24 +97,26 @@ class _Reader:
         if self.found:
             raise ScenarioError(self.found)
 
-    def _read(self, member: Optional[str], line: Optional[int]) -> Optional[bytes]:
-        """Bytes of the SSD (``member`` None) or of a file it names, from the archive or next to
-        the .ssd; None (reported) when missing."""
+    def _read(self, member: Optional[str], line: Optional[int], owner: str = "") -> Optional[bytes]:
+        """Bytes of the SSD (``member`` None) or of a file it names (for ``owner``, which starts the
+        message), from the archive or next to the .ssd; None (reported) when missing."""
         try:
             if not self.archive:
                 return (self.path if member is None else self.path.parent / member).read_bytes()
             if self._zip is None:
                 self._zip = zipfile.ZipFile(self.path)
             return self._zip.read(member or SSD_NAME)
-        except FileNotFoundError:
-            self.error(line, f"'{member or self.path}' not found")
         except KeyError:
             names = self._zip.namelist() if self._zip else []
-            self.error(line, f"no '{member or SSD_NAME}' in the archive{did_you_mean(member or SSD_NAME, names)}"
+            self.error(line, f"{owner}no '{member or SSD_NAME}' in the archive{did_you_mean(member or SSD_NAME, names)}"
                              + ("" if names else " (it is empty)"))
         except (OSError, zipfile.BadZipFile) as exc:
-            self.found.append(Diagnostic(str(self.path), None, f"cannot read SSP archive: "
-                                                               f"{getattr(exc, 'strerror', None) or exc}"))
+            reason = getattr(exc, "strerror", None) or str(exc)
+            if member is None:  # the archive or the .ssd itself
+                what = "SSP archive" if self.archive else "SSD"
+                self.found.append(Diagnostic(str(self.path), None, f"cannot read {what}: {reason}"))
+            else:
+                self.error(line, f"{owner}cannot read '{member}' next to the SSD: {reason}")
         return None
 
     def _parse(self, text: bytes, line: Optional[int], kind: str = "ssd") -> Optional[etree._Element]:
@@ -223,7 +225,7 @@ class _Reader:
             return path
         target = self.workdir / relative
         if not target.is_file():
-            data = self._read(relative, line)
+            data = self._read(relative, line, f"component '{name}': ")
             if data is None:
                 return None
             target.parent.mkdir(parents=True, exist_ok=True)
@@ -245,7 +247,7 @@ class _Reader:
             return []
         source = binding.get("source")
         if source:
-            text = self._read(posixpath.normpath(unquote(source)), line)
+            text = self._read(posixpath.normpath(unquote(source)), line, f"{owner}: parameter set ")
             parameter_set = self._parse(text, line, "ssv") if text is not None else None
             if parameter_set is None:
                 return []
@@ -381,7 +383,7 @@ class _Reader:
                     self._put(("result", key), _typed(key, value), line, result)
             self._result_file = annotation.get("file")
             self.data["result"] = result
-            outputs = []
+            outputs: List[str] = []
             for record in annotation.iterfind("dfmi:Record", NAMESPACES):
                 self._put(("outputs", len(outputs)), record.get("pattern"), record.sourceline)
                 outputs.append(record.get("pattern"))
@@ -413,8 +415,9 @@ class _Reader:
     def _put(self, path: Tuple[Any, ...], value: Any, line: Optional[int],
              into: Optional[Dict[str, Any]] = None) -> None:
         """Record ``line`` for ``path`` (and store ``value`` under its last key in ``into``)."""
-        self.lines.value_lines[path] = line
-        self.lines.key_lines[path] = line
+        if line is not None:
+            self.lines.value_lines[path] = line
+            self.lines.key_lines[path] = line
         if into is not None:
             into[path[-1]] = value
 

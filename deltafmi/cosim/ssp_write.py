@@ -25,7 +25,7 @@ from lxml import etree
 
 import deltafmi
 from .resolve import Component, Port, System
-from .scenario import Adaptive
+from .scenario import Adaptive, Scenario
 from .ssp_format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE, SSD_NAME,
                          tag)
 
@@ -50,6 +50,9 @@ def export_ssp(system: System, output: Path) -> Path:
         except BaseException:
             os.unlink(tmp.name)
             raise
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp.name, 0o666 & ~umask)  # a temporary file is private; the archive is not
     os.replace(tmp.name, output)
     return output
 
@@ -58,13 +61,14 @@ def ssd_tree(system: System, sources: Dict[str, Tuple[Path, str]]) -> etree._Ele
     """The ``SystemStructureDescription`` element; ``sources`` maps a component name to its
     FMU file and that file's name in the archive."""
     scenario = system.scenario
+    name, _ = _origin(scenario)
     root = etree.Element(tag("ssd", "SystemStructureDescription"), nsmap=NAMESPACES)
     root.set("version", "1.0")
-    root.set("name", scenario.path.stem)
+    root.set("name", name)
     root.set("generationTool", f"deltafmi {deltafmi.__version__}")
     root.set("generationDateAndTime",
              datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z"))
-    sys_element = _sub(root, "ssd", "System", name=scenario.path.stem)
+    sys_element = _sub(root, "ssd", "System", name=name)
     if scenario.description:
         sys_element.set("description", scenario.description)
     elements = _sub(sys_element, "ssd", "Elements")
@@ -156,7 +160,9 @@ def _enumerations(system: System) -> Dict[str, Dict[str, int]]:
     for link in system.links:
         for port in (link.source, link.target):
             if port.enumeration:
-                found.setdefault(port.enumeration, dict(by_name[port.component].info.enumeration(port.name)[1]))
+                enumeration = by_name[port.component].info.enumeration(port.name)
+                assert enumeration is not None  # the port has an enumeration type
+                found.setdefault(port.enumeration, dict(enumeration[1]))
     return found
 
 
@@ -178,13 +184,23 @@ def _default_experiment(root: etree._Element, system: System) -> None:
 def _results(root: etree._Element, system: System) -> None:
     """What to record and where: the scenario's ``outputs`` patterns and ``result`` settings."""
     scenario = system.scenario
+    name, folder = _origin(scenario)
     result = scenario.result
     ours = etree.Element(tag("dfmi", "Results"), every=str(result.every), format=result.format)
-    if result.file != Path(scenario.path.stem + ".csv"):  # not the default: keep it, relative
-        ours.set("file", Path(os.path.relpath(result.file, scenario.directory)).as_posix())
+    if result.file != Path(name + ".csv"):  # not the default: keep it, relative
+        ours.set("file", Path(os.path.relpath(result.file, folder)).as_posix())
     for output in scenario.outputs:
         _sub(ours, "dfmi", "Record", pattern=output.pattern)
     _annotations(root, [(ANNOTATION_TYPE, ours)])
+
+
+def _origin(scenario: Scenario) -> Tuple[str, Path]:
+    """Name and folder of the scenario's file: for one read from an SSP archive, the archive's
+    (its path is ``<archive>/SystemStructure.ssd``), as the reader resolves the result file."""
+    path = scenario.path
+    if path.name == SSD_NAME and path.parent.suffix.lower() == ".ssp":
+        path = path.parent
+    return path.stem, path.parent
 
 
 def _annotations(parent: etree._Element, annotations: Iterable[Tuple[str, etree._Element]]) -> None:
