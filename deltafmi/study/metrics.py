@@ -74,7 +74,7 @@ def reduce(values: np.ndarray, norm: str | None) -> np.ndarray:
 def statistic(spec: MetricSpec, time: np.ndarray, signal: np.ndarray) -> float:
     """``spec.statistic`` of ``signal`` sampled at ``time`` (see the module docstring)."""
     if spec.statistic == "at":
-        return value_at(time, signal, spec.time)
+        return value_at(time, signal, _given(spec.time))
     time, signal = windowed(time, signal, spec.window)
     if len(time) == 0:
         return math.nan
@@ -95,10 +95,17 @@ def statistic(spec: MetricSpec, time: np.ndarray, signal: np.ndarray) -> float:
     if kind == "settling_time":
         start = spec.window.start if spec.window.start is not None else time[0]
         target = spec.target if spec.target is not None else signal[-1]
-        return settling_time(time, signal, target, spec.band) - start
+        return settling_time(time, signal, target, _given(spec.band)) - start
     if kind == "first_crossing":
-        return first_crossing(time, signal, spec.level, spec.direction)
+        return first_crossing(time, signal, _given(spec.level), spec.direction)
     raise ValueError(f"unknown statistic '{kind}'")
+
+
+def _given(value: float | None) -> float:
+    """An option the study checks made sure of."""
+    if value is None:
+        raise ValueError("a statistic is missing its option")
+    return value
 
 
 def windowed(time: np.ndarray, signal: np.ndarray, window: Window) -> Tuple[np.ndarray, np.ndarray]:

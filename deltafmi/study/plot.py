@@ -64,8 +64,10 @@ def plot_study(results: str | Path, output: str | Path, metrics: Sequence[str] =
         if kind == "histogram":
             _histogram(ax, values, label, log)
         elif kind == "heatmap":
+            assert x is not None and y is not None
             _heatmap(fig, ax, table, x, y, values, label, units, log)
         else:
+            assert x is not None
             _lines(ax, table, x, y if y else _other(targets, kinds, x), values, label, units, log)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
@@ -120,6 +122,7 @@ def _histogram(ax: Any, values: np.ndarray, label: str, log: bool) -> None:
     if len(finite) == 0:
         ax.text(0.5, 0.5, "no successful case", ha="center", transform=ax.transAxes)
         return
+    bins: Any
     if log and np.all(finite > 0):
         bins = np.logspace(np.log10(finite.min()), np.log10(finite.max()), 30) if finite.min() < finite.max() else 10
         ax.set_xscale("log")

@@ -40,7 +40,7 @@ class _Pooled:
     def instantiate(self, visible: bool = False, callbacks: Any = None, loggingOn: bool = False) -> None:
         """fmi2Instantiate the first time, fmi2Reset afterwards; messages go to ``callbacks``."""
         self._holder = callbacks
-        if self.component is None:  # type: ignore[attr-defined]
+        if self.component is None:  # type: ignore[attr-defined,has-type]
             self._own = _forwarding_callbacks(self)
             super().instantiate(visible=visible, callbacks=self._own, loggingOn=loggingOn)  # type: ignore[misc]
         else:
@@ -55,7 +55,7 @@ class _Pooled:
     def free(self) -> None:
         """fmi2FreeInstance for real (and unload the library, as fmpy does)."""
         self._holder = None
-        if self.component is not None:  # type: ignore[attr-defined]
+        if self.component is not None:  # type: ignore[attr-defined,has-type]
             try:
                 super().freeInstance()  # type: ignore[misc]
             finally:

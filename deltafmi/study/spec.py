@@ -263,7 +263,7 @@ def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Di
                                              f"of the experiment{did_you_mean(name, EXPERIMENT_TARGETS)}", key=True)
     for name, values in vary.get("grid", {}).items():
         if isinstance(values, dict):
-            where = ("vary", "grid", name)
+            where: Tuple[Any, ...] = ("vary", "grid", name)
             if ("step" in values) == ("num" in values):
                 error(where, f"grid '{name}': give either 'step' or 'num' with 'from' and 'to'")
             elif values["to"] < values["from"]:
@@ -368,6 +368,7 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Study:
     metrics = []
     for name, spec in data["metrics"].items():
         match = _SIGNAL.match(spec["signal"])
+        assert match is not None  # checked by _metric_errors
         window = spec.get("window", {})
         metrics.append(MetricSpec(
             name=name, signal=spec["signal"].strip(), left=match["left"], right=match["right"],

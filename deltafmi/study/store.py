@@ -122,14 +122,16 @@ class ResultStore:
                "status": result.status, "error": result.error, "wall_time": result.wall_time,
                "setup_time": result.setup_time, "sim_time": result.sim_time, "worker": result.worker}
         if self.timeseries is not None and result.timeseries is not None:
-            self._write_timeseries(result.case, result.timeseries)
+            self._write_timeseries(self.timeseries / f"case={result.case}", result.timeseries)
+        if self._file is None:
+            raise RuntimeError("ResultStore.add before open")
         self._file.write(json.dumps(row) + "\n")
         self._file.flush()
         self.rows[case_key(result.values)] = row
         return row
 
-    def _write_timeseries(self, case: int, columns: Mapping[str, np.ndarray]) -> None:
-        partition = self.timeseries / f"case={case}"
+    @staticmethod
+    def _write_timeseries(partition: Path, columns: Mapping[str, np.ndarray]) -> None:
         partition.mkdir(parents=True, exist_ok=True)
         table = pa.table({name: pa.array(list(column) if column.dtype == object else column)
                           for name, column in columns.items()})
