@@ -309,6 +309,28 @@ def test_bare_ssd_without_our_annotations_runs(build_fmu_from_src, tmp_path):
     assert np.max(np.abs(bare["a.energy"][1:] - ours[:, 1])) <= 1e-12
 
 
+def test_parameters_from_an_ssv_file_bound_at_system_level(build_fmu_from_src, tmp_path):
+    """a's parameters moved out of the SSD into resources/a.ssv, bound to the system with
+    prefix "a." (SSP 1.0's way to aim a component's parameter set at one element)."""
+    ssp, ours = pair(build_fmu_from_src, tmp_path)
+    root = ssd_of(ssp)
+    bindings = root.xpath("//ssd:Component[@name='a']/ssd:ParameterBindings", namespaces=NAMESPACES)[0]
+    parameter_set = bindings.xpath(".//ssv:ParameterSet", namespaces=NAMESPACES)[0]
+    bindings.getparent().remove(bindings)
+    system = root.find("ssd:System", NAMESPACES)
+    system.insert(0, etree.fromstring(
+        f'<ssd:ParameterBindings xmlns:ssd="{NAMESPACES["ssd"]}">'
+        '<ssd:ParameterBinding source="resources/a.ssv" prefix="a."/></ssd:ParameterBindings>'))
+    moved = tmp_path / "moved.ssp"
+    with zipfile.ZipFile(ssp) as source, zipfile.ZipFile(moved, "w") as target:
+        for item in source.infolist():
+            target.writestr(item, etree.tostring(root) if item.filename == SSD_NAME else source.read(item))
+        target.writestr("resources/a.ssv", etree.tostring(parameter_set))
+    cli("run", moved, "-o", tmp_path / "moved.csv", "-q")
+    moved_result = columns(tmp_path / "moved.csv")
+    assert np.max(np.abs(np.column_stack([moved_result[n][1:] for n in PAIR_COLUMNS]) - ours)) <= 1e-12
+
+
 def test_validate_accepts_an_ssp(build_fmu_from_src, tmp_path):
     ssp, _ = pair(build_fmu_from_src, tmp_path)
     output = cli("validate", ssp)
