@@ -14,6 +14,7 @@ and w) and ``Lag`` (tests/components/lag: T x' = u - x, y = x + d u). Closed for
 from __future__ import annotations
 
 import ast
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -221,6 +222,35 @@ def test_loops_under_the_adaptive_step(fmus):
     # a seventh of the error of the fixed 0.01 s step (2.4e-3 at t = 0.3 s)
     assert np.max(np.abs(c["lag.x"] - X0 * np.exp(LAMBDA * c["time"]))) < 5e-4
     assert summary.loops.solves >= 3 * summary.steps
+
+
+def test_events_inside_a_loop_are_recorded_once(fmus, build_fmu_from_src):
+    """Two oscillators (ME; no direct_feedthrough declared, so energy depends on F) drive each
+    other's force from their energy: a loop. a bounces on its wall; each redo of a step finds the
+    impact again, but only the accepted evaluation's event rows (before, after) are written."""
+    shutil.copy(build_fmu_from_src("oscillator.py"), fmus / "Osc.fmu")
+    system = """\
+        experiment: {{stop: 1.2, step: 0.01}}
+        components:
+          a: {{fmu: Osc.fmu, interface: ME, parameters: {{t_step: 100.0}}}}
+          b: {{fmu: Osc.fmu, interface: ME, parameters: {{t_step: 100.0, wall: -5.0}}}}
+        connections:
+          - {{from: a.energy, to: b.F, factor: 0.01}}
+        {feedback}
+        outputs: [a.energy, a.impacts, b.energy, a.F, b.F]
+        """
+    # without the feedback (no loop): how many events the master sees per impact of this FMU
+    one_way, c = simulate(write(fmus, "one_way", system.format(feedback="")))
+    per_impact = one_way.events / c["a.impacts"][-1]
+    summary, c = simulate(write(fmus, "oscillators", system.format(
+        feedback="  - {from: b.energy, to: a.F, factor: 0.01}")))
+    t = c["time"]
+    on_grid = np.abs(t / 0.01 - np.round(t / 0.01)) < 1e-9
+    assert c["a.impacts"][-1] == 2 and summary.events == per_impact * 2
+    assert np.count_nonzero(~on_grid) == 2 * summary.events and np.all(np.diff(t) >= 0)
+    # at every communication point both connections hold (event rows show the others' latest values)
+    assert np.max(np.abs(c["b.F"] - 0.01 * c["a.energy"])[on_grid]) < 1e-9
+    assert np.max(np.abs(c["a.F"] - 0.01 * c["b.energy"])[on_grid]) < 1e-9
 
 
 # ---------------------------------------------------------------------------- validation
