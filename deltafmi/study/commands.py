@@ -98,7 +98,8 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: 
 @click.option("--y", "y", help="Second varied parameter (heat map).")
 @click.option("--kind", type=click.Choice(["line", "heatmap", "histogram"]),
               help="Default: line for one swept parameter, heat map for two, histogram for Monte Carlo.")
-@click.option("--log", is_flag=True, help="Logarithmic metric axis (colour scale of a heat map).")
+@click.option("--log", is_flag=True,
+              help="Logarithmic scale (axis, or colours of a heat map) for metrics spanning more than a decade.")
 @click.option("--title", default="", help="Figure title.")
 def plot_study_command(results: str, output: str, metrics: Sequence[str], x: Optional[str], y: Optional[str],
                        kind: Optional[str], log: bool, title: str) -> None:

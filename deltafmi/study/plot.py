@@ -61,14 +61,15 @@ def plot_study(results: str | Path, output: str | Path, metrics: Sequence[str] =
     for ax, name in zip(axes.flat, chosen):
         values = np.where(ok, columns[name], np.nan)
         label = _label(name, units)
+        logarithmic = log and _spans_decades(values)
         if kind == "histogram":
-            _histogram(ax, values, label, log)
+            _histogram(ax, values, label, logarithmic)
         elif kind == "heatmap":
             assert x is not None and y is not None
-            _heatmap(fig, ax, table, x, y, values, label, units, log)
+            _heatmap(fig, ax, table, x, y, values, label, units, logarithmic)
         else:
             assert x is not None
-            _lines(ax, table, x, y if y else _other(targets, kinds, x), values, label, units, log)
+            _lines(ax, table, x, y if y else _other(targets, kinds, x), values, label, units, logarithmic)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
     study = Path(meta.get("study", str(results))).name
@@ -106,6 +107,12 @@ def _two_axes(targets: List[str], kinds: Dict[str, str], x: Optional[str], y: Op
 
 def _other(targets: List[str], kinds: Dict[str, str], x: str) -> Optional[str]:
     return next((t for t in targets if t != x and kinds[t] != "monte_carlo"), None)
+
+
+def _spans_decades(values: np.ndarray) -> bool:
+    """Positive values whose largest is more than ten times the smallest (worth a log scale)."""
+    finite = values[np.isfinite(values)]
+    return bool(len(finite) and np.all(finite > 0) and finite.max() > 10 * finite.min())
 
 
 def _floats(column: pa.ChunkedArray) -> np.ndarray:
@@ -173,9 +180,7 @@ def _heatmap(fig: Any, ax: Any, table: pa.Table, x: str, y: str, values: np.ndar
 def _colormap() -> Any:
     import matplotlib
 
-    cmap = matplotlib.colormaps["viridis"].copy()
-    cmap.set_bad("#bbbbbb")  # failed cases
-    return cmap
+    return matplotlib.colormaps["viridis"].with_extremes(bad="#bbbbbb")  # grey: failed cases
 
 
 def _lines(ax: Any, table: pa.Table, x: str, family: Optional[str], values: np.ndarray, label: str,
