@@ -51,7 +51,7 @@ Signal = Tuple[str, int]  # (component, value reference)
 def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None,
                   states: Optional[Mapping[str, Any]] = None, time: float = 0.0, rest: bool = False,
                   free: Sequence[str] = (), hold: Optional[Mapping[str, Any]] = None,
-                  inputs: Sequence[str] = (), outputs: Sequence[str] = ()) -> LinearModel:
+                  inputs: Sequence[str] = (), outputs: Sequence[str] = (), label: Optional[str] = None) -> LinearModel:
     """Continuous A, B, C, D of the Model Exchange FMU at ``fmu`` at an operating point.
 
     Args:
@@ -65,13 +65,15 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
         hold: outputs held at given values at the equilibrium (implies ``rest``).
         inputs, outputs: the model's inputs and outputs (names or array names); default: every
             continuous Real input and output.
+        label: how messages name the FMU (default: its path), e.g. the source it was built from.
 
     Raises:
         BadInput: unknown names, wrong values, no Model Exchange interface, no equilibrium.
     """
     info = _info(fmu)
+    where = label or str(fmu)
     if info.md.modelExchange is None:
-        raise BadInput(f"'{fmu}' offers no Model Exchange interface: linearizing an FMU needs its equations")
+        raise BadInput(f"'{where}' offers no Model Exchange interface: linearizing an FMU needs its equations")
     directory = tempfile.mkdtemp(prefix="deltafmi-linearize-")
     model = None
     try:
@@ -80,7 +82,7 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
         model.instantiate(loggingOn=False)
         model.setupExperiment(startTime=time)
         for name, value in (start_values or {}).items():
-            _set(model, info, name, value, str(fmu))
+            _set(model, info, name, value, where)
         model.enterInitializationMode()
         model.exitInitializationMode()
         while model.newDiscreteStates()[0]:
@@ -91,11 +93,11 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
         if states:
             x = jac.get_states()
             for name, value in states.items():
-                names = _expand(info, name, str(fmu))
+                names = _expand(info, name, where)
                 values = _values(name, value, len(names))
                 for n, v in zip(names, values):
                     if n not in state_names:
-                        raise BadInput(f"'{n}' is not a continuous state of '{fmu}'"
+                        raise BadInput(f"'{n}' is not a continuous state of '{where}'"
                                        f"{did_you_mean(n, state_names)}")
                     x[state_names.index(n)] = float(v)
             jac.set_states(x)
@@ -105,22 +107,22 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
                         if v.causality == "output" and v.type == "Real" and v.variability == "continuous"]
         notes = []
         if rest or hold:
-            free_names = _expand_all(info, free, str(fmu)) if free else real_inputs
+            free_names = _expand_all(info, free, where) if free else real_inputs
             targets = {}
             for name, value in (hold or {}).items():
-                names = _expand(info, name, str(fmu))
+                names = _expand(info, name, where)
                 targets.update({info.variables[n].valueReference: float(v)
                                 for n, v in zip(names, _values(name, value, len(names)))})
             try:
                 found = find_equilibrium(jac, [info.variables[n].valueReference for n in free_names], targets)
             except ValueError as exc:
-                raise BadInput(f"'{fmu}': {exc}") from None
+                raise BadInput(f"'{where}': {exc}") from None
             notes.append(f"equilibrium: largest |der(x)| {found.residual:.3g}; "
                          + ", ".join(f"{n} = {v:.9g}" for n, v in zip(free_names, found.inputs)))
-        input_names = _expand_all(info, inputs, str(fmu)) if inputs else real_inputs
-        output_names = _expand_all(info, outputs, str(fmu)) if outputs else real_outputs
-        u_vrs = [_real_vr(info, n, "input", str(fmu)) for n in input_names]
-        y_vrs = [_real_vr(info, n, "output", str(fmu)) for n in output_names]
+        input_names = _expand_all(info, inputs, where) if inputs else real_inputs
+        output_names = _expand_all(info, outputs, where) if outputs else real_outputs
+        u_vrs = [_real_vr(info, n, "input", where) for n in input_names]
+        y_vrs = [_real_vr(info, n, "output", where) for n in output_names]
         nx = jac.nx
         J = jac.block(jac.derivatives + y_vrs, jac.states + u_vrs)
         return LinearModel(J[:nx, :nx], J[:nx, nx:], J[nx:, :nx], J[nx:, nx:], state_names, input_names,
@@ -128,7 +130,7 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
                            np.array(model.getReal(u_vrs)) if u_vrs else np.zeros(0),
                            np.array(model.getReal(y_vrs)) if y_vrs else np.zeros(0), str(fmu), notes)
     except fmpy.fmi1.FMICallException as exc:
-        raise BadInput(f"'{fmu}': {exc}") from None
+        raise BadInput(f"'{where}': {exc}") from None
     finally:
         if model is not None:
             for call in (model.terminate, model.freeInstance):

@@ -81,7 +81,7 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
         fmu_only = [name for name, given in (("--set", sets), ("--state", states), ("--rest", rest),
                                              ("--free", free), ("--hold", hold)) if given]
         if fmu_only:
-            raise BadInput(f"{', '.join(fmu_only)} apply to an FMU; for a scenario set values in the scenario file")
+            raise BadInput(f"{', '.join(fmu_only)}: only for an FMU; a scenario takes its values from its file")
         from .commands import _load
         system = _load(str(path))
         components = {c.name: c for c in system.components}
@@ -96,7 +96,7 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
             raise BadInput(f"'{target}': expected an .fmu, a component .py or a scenario .yaml/.ssp")
         model = linearize_fmu(fmu, start_values=_assignments(sets, "--set"),
                               states=_assignments(states, "--state"), time=at or 0.0, rest=rest, free=free,
-                              hold=_assignments(hold, "--hold"), inputs=inputs, outputs=outputs)
+                              hold=_assignments(hold, "--hold"), inputs=inputs, outputs=outputs, label=target)
     kind = f"discrete, Ts = {model.sample_time:g} s" if model.discrete else "continuous"
     click.echo(f"{target} at t = {model.time:g} s: {len(model.states)} states, {len(model.inputs)} inputs, "
                f"{len(model.outputs)} outputs ({kind})")
