@@ -131,8 +131,11 @@ def _histogram(ax: Any, values: np.ndarray, label: str, log: bool) -> None:
         return
     bins: Any
     if log and np.all(finite > 0):
+        from matplotlib.ticker import NullFormatter
+
         bins = np.logspace(np.log10(finite.min()), np.log10(finite.max()), 30) if finite.min() < finite.max() else 10
         ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap within a decade
     else:
         bins = "auto"
     ax.hist(finite, bins=bins, color="#4477aa", edgecolor="white")
