@@ -190,7 +190,7 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
             setup = _time.perf_counter() - wall
             futures = {client.submit(run_case_task, fingerprint, case.id, case.values, keep,
                                      key=f"deltafmi-case-{fingerprint[:12]}-{case.id}"): case for case in todo}
-            last_table = _time.monotonic()
+            last_table = bar.start = _time.monotonic()  # rates and ETA from here, the cluster up
             bar.draw(force=True)
             try:
                 for future in as_completed(futures):
