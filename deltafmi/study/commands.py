@@ -80,6 +80,10 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: 
     try:
         report = run_study(planned, store, todo, scheduler=scheduler, workers=workers,
                            progress=not quiet and sys.stdout.isatty())
+    except KeyboardInterrupt:  # while the cluster started or stopped: the journal has every finished case
+        click.echo(f"interrupted: run the same command again to continue ({store.journal} keeps what finished)",
+                   err=True)
+        raise click.exceptions.Exit(130) from None
     finally:
         store.close()
     if not quiet:

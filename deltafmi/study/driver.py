@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterator, List, Optional, TextIO
 
+from distributed import WorkerPlugin
+
 from deltafmi.cosim.errors import BadInput, SimulationError
 
 from .cases import Case
@@ -134,13 +136,28 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None) 
     with dask.config.set({"distributed.scheduler.allowed-failures": 1,
                           "distributed.scheduler.worker-saturation": 1.0}):
         cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=":0", silence_logs=logging.ERROR)  # any free port
     client = Client(cluster)
     try:
+        client.register_plugin(_IgnoreInterrupts(), name="deltafmi-ignore-interrupts")
         yield client
     finally:
         client.close()
         cluster.close()
+
+
+class _IgnoreInterrupts(WorkerPlugin):
+    """Worker plugin of the local cluster: Ctrl-C in a terminal reaches every process of the
+    group; the client handles it (cancels, saves, closes the cluster), the workers ignore it."""
+
+    name = "deltafmi-ignore-interrupts"
+
+    def setup(self, worker: Any) -> None:
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def open_store(planned: PlannedStudy, table: Path, timeseries: bool) -> ResultStore:
