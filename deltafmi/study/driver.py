@@ -254,9 +254,10 @@ def summary_lines(planned: PlannedStudy, store: ResultStore, report: SweepReport
     done = [(c, store.rows[c.key]) for c in planned.cases if c.key in store.rows]
     rows = [r for _, r in done]
     ok = [r for r in rows if r["status"] == OK]
+    ran = (f"ran {report.ran} in {report.wall_time:.1f} s on {report.workers} worker(s): {report.rate:.2f} cases/s"
+           if report.ran or report.interrupted else "nothing left to run")
     lines = [f"{planned.study.path.name}: {len(rows)}/{report.total} cases done, {len(ok)} ok, "
-             f"{len(rows) - len(ok)} failed ({report.reused} from an earlier run); ran {report.ran} in "
-             f"{report.wall_time:.1f} s on {report.workers} worker(s): {report.rate:.2f} cases/s"]
+             f"{len(rows) - len(ok)} failed ({report.reused} from an earlier run); {ran}"]
     if report.interrupted:
         lines.append("interrupted: run the same command again to continue where it stopped")
     names = [m.name for m in planned.plan.metrics]
