@@ -102,7 +102,8 @@ def results(tmp_path_factory):
     template = cache.template(planned.plan.fingerprint)
     try:
         runs = [run_case(template, cache.pool, case.id, case.values) for case in planned.cases]
-        assert cache.pool.created == 1  # one FMU instance served every case (reset in between)
+        assert cache.pool.created == 1  # one FMU instance served every case:
+        assert cache.pool.lend(template.base.components[0]).resets == len(runs) - 1  # fmi2Reset in between
     finally:
         cache.pool.close()
     return runs
