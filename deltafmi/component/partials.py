@@ -18,7 +18,10 @@ from .variables import flatten
 
 #: relative central-difference step: balances truncation (step^2) against rounding (eps / step)
 FD_STEP = float(np.finfo(float).eps) ** (1.0 / 3.0)
-_MAX_PLANS = 256
+_MAX_PLANS = 1024
+#: resolved (unknowns, knowns) pairs per component class, shared by its instances (an importer
+#: that builds its Jacobian column by column asks the same nx + nu questions of every instance)
+_PLANS: dict[tuple[type, bytes, bytes], "_Plan"] = {}
 
 
 class _Plan:
@@ -56,6 +59,7 @@ class _Plan:
         self.size = len(rows)
         #: one group whose rows come in result order: its flat indices, for a one-known shortcut
         only = next(iter(self.groups.values())) if len(self.groups) == 1 else None
+        self.only = next(iter(self.groups)) if only is not None else ""
         self.whole = (next(iter(self.blocks.values()))[:, 0] if only is not None and len(columns) == 1
                       and np.array_equal(only[0], np.arange(len(rows))) else None)
         self.output_buffers = {k: owner.output_buffers[k][r] for k, (_, r) in self.groups.items() if k != "der"}
@@ -92,7 +96,6 @@ class DirectionalDerivatives:
             else:
                 self.runs.append(slice(vr, vr + 1))
         self.exact = cls.provides_jacobian()
-        self._plans: dict[tuple[bytes, bytes], _Plan] = {}
         self._key: Optional[tuple] = None
         self._blocks: dict[str, np.ndarray] = {}
         self._checked: set[str] = set()
@@ -109,22 +112,24 @@ class DirectionalDerivatives:
     def directional(self, comp: Component, t: float, unknowns: bytes, knowns: bytes, seed: bytes) -> bytes:
         """``dvUnknown`` (float64 bytes) for value references ``unknowns``/``knowns`` (uint32 bytes)
         and the seed ``dvKnown`` (float64 bytes)."""
-        plan = self._plans.get((unknowns, knowns))
+        plan = _PLANS.get((self.cls, unknowns, knowns))
         if plan is None:
-            if len(self._plans) >= _MAX_PLANS:
-                self._plans.clear()
-            plan = self._plans[(unknowns, knowns)] = _Plan(
+            if len(_PLANS) >= _MAX_PLANS:
+                _PLANS.clear()
+            plan = _PLANS[(self.cls, unknowns, knowns)] = _Plan(
                 self, np.frombuffer(unknowns, dtype=np.uint32), np.frombuffer(knowns, dtype=np.uint32))
         direction = np.frombuffer(seed, dtype=float)
+        blocks = self.blocks(comp, t) if self.exact else {}
+        if plan.whole is not None:
+            matrix = blocks.get(plan.only)
+            if matrix is not None:  # the usual: one known, one kind of unknown, all exact
+                return (np.take(matrix, plan.whole) * direction[0]).tobytes()
         result = np.zeros(plan.size)
         numeric = []
-        blocks = self.blocks(comp, t) if self.exact else {}
         for key, (positions, _) in plan.groups.items():
             matrix = blocks.get(key)
             if matrix is None:
                 numeric.append(key)
-            elif plan.whole is not None and len(direction) == 1:
-                return (np.take(matrix, plan.whole) * direction[0]).tobytes()  # the usual: one column
             else:
                 result[positions] = np.take(matrix, plan.blocks[key]) @ direction
         if numeric:
