@@ -35,25 +35,25 @@ class _Plan:
                 raise ValueError(f"fmi2GetDirectionalDerivative: {owner.describe(vr)} is not a known: FMI 2.0 "
                                  "allows the continuous states and the Real inputs")
             columns.append(column)
-        rows = []
+        rows: list[tuple[str, int]] = []
         for vr in unknowns.tolist():
-            row = owner.unknown_row.get(vr)
-            if row is None:
+            found = owner.unknown_row.get(vr)
+            if found is None:
                 raise ValueError(f"fmi2GetDirectionalDerivative: {owner.describe(vr)} is not an unknown: FMI 2.0 "
                                  "allows the state derivatives and the Real outputs")
-            rows.append(row)
+            rows.append(found)
         self.columns = np.array(columns, dtype=np.intp)
         # the knowns' value references may repeat: numerical differences move each buffer once
         self.unique_columns, self.inverse = np.unique(self.columns, return_inverse=True)
         self.known_buffer = owner.column_buffer[self.unique_columns]
         self.known_nominal = owner.column_nominal[self.unique_columns]
         #: per unknown key ("der" or an output's name): (positions in the result, rows of its matrix)
-        self.groups: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        grouped: dict[str, tuple[list[int], list[int]]] = {}
         for position, (key, row) in enumerate(rows):
-            positions, matrix_rows = self.groups.setdefault(key, ([], []))
+            positions, matrix_rows = grouped.setdefault(key, ([], []))
             positions.append(position)
             matrix_rows.append(row)
-        self.groups = {k: (np.array(p, dtype=np.intp), np.array(r, dtype=np.intp)) for k, (p, r) in self.groups.items()}
+        self.groups = {k: (np.array(p, dtype=np.intp), np.array(r, dtype=np.intp)) for k, (p, r) in grouped.items()}
         #: per key: flat indices of the (rows x knowns) block in a C-ordered (rows, n_known) matrix
         self.blocks = {k: r[:, None] * owner.n_known + self.columns[None, :] for k, (_, r) in self.groups.items()}
         self.size = len(rows)
