@@ -79,3 +79,25 @@ def test_discrete_inputs_reach_a_model_exchange_unit(tmp_path: Path, algorithm: 
     exact = np.clip(t - t_open, 0.0, None) + np.clip(t - t_double, 0.0, None)
     np.testing.assert_allclose(c["tank.level"], exact, atol=1e-9)
     assert c["tank.inflow"][-1] == 2.0
+
+
+@pytest.mark.parametrize("method", ["bdf", "rk4"])
+def test_discrete_inputs_survive_a_rejected_adaptive_step(tmp_path: Path, method: str):
+    """The adaptive master redoes steps from a saved FMU state: the state brings back the tank's
+    old valve and gain, so the redone step must see their change again and set them."""
+    (tmp_path / "schedule.py").write_text(SCHEDULE)
+    (tmp_path / "tank.py").write_text(TANK)
+    path = tmp_path / "tank.yaml"
+    text = SCENARIO.format(algorithm="gauss-seidel", method=method, schedule=tmp_path / "schedule.py",
+                           tank=tmp_path / "tank.py")
+    path.write_text(text.replace("master: {algorithm: gauss-seidel}",
+                                 "master: {algorithm: gauss-seidel, adaptive: {enabled: true, tolerance: 1e-6}}"))
+    Master(resolve_system(load_scenario(path)), result=tmp_path / "tank.csv").run()
+    c = columns(tmp_path / "tank.csv")
+    # Gauss-Seidel: over each step the tank sees the schedule's values from that step's end
+    t, level = c["time"], c["tank.level"]
+    rate = c["schedule.valve"] * c["schedule.gain"]
+    advancing = np.diff(t) > 0
+    expected = rate[1:][advancing] * np.diff(t)[advancing]
+    np.testing.assert_allclose(np.diff(level)[advancing], expected, atol=1e-9)
+    assert level[-1] > 0.5  # the valve opened before 0.6 s and the gain doubled

@@ -265,6 +265,8 @@ class ModelExchangeUnit(Unit):
     def restore_state(self, state: Any) -> None:
         fmu_state, time, self.next_event_time = state
         self.call(self.fmu.setFMUstate, fmu_state)
+        for inputs in self._discrete_inputs:
+            self.call(inputs.seed)  # the restored values: the redone step sees their change again
         if self.nx:
             self.call(self.fmu.getContinuousStates, self._x_pointer, self.nx)
         self.solver.reinit(time, self._x)
