@@ -17,6 +17,7 @@ from click.testing import CliRunner
 from deltafmi.cli import main
 from deltafmi.cosim.progress import Progress
 from deltafmi.cosim.results import columns
+from deltafmi.files import USER_FILE_MODE
 
 
 @pytest.fixture(scope="module")
@@ -131,6 +132,8 @@ def test_build_into_a_directory_names_the_fmu_after_its_model(tmp_path, target):
     assert result.exit_code == 0, result.output
     assert result.output.strip() == f"built {folder / 'Oscillator.fmu'}"
     assert [p.name for p in folder.iterdir()] == ["Oscillator.fmu"]
+    # written through a private temporary file, the FMU still gets the user's usual permissions
+    assert (folder / "Oscillator.fmu").stat().st_mode & 0o777 == USER_FILE_MODE
 
 
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])

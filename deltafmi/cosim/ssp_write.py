@@ -15,7 +15,6 @@ import datetime
 import hashlib
 import math
 import os
-import tempfile
 import zipfile
 from dataclasses import asdict
 from pathlib import Path
@@ -24,6 +23,7 @@ from typing import Any, Dict, Iterable, List, Tuple
 from lxml import etree
 
 import deltafmi
+from ..files import replaced_atomically
 from .resolve import Component, Port, System
 from .scenario import Adaptive, Scenario
 from .ssp_format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE, SSD_NAME,
@@ -39,21 +39,12 @@ def export_ssp(system: System, output: Path) -> Path:
     sources = _archive_names(system.components)
     ssd = etree.tostring(ssd_tree(system, sources), xml_declaration=True, encoding="UTF-8",
                          pretty_print=True)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=output.parent, suffix=".ssp.tmp", delete=False) as tmp:
-        try:
-            with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive:
-                archive.writestr(SSD_NAME, ssd)
-                for path, name in sorted(set(sources.values()), key=lambda item: item[1]):
-                    # an FMU is a zip already: store it
-                    archive.write(path, name, compress_type=zipfile.ZIP_STORED)
-        except BaseException:
-            os.unlink(tmp.name)
-            raise
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp.name, 0o666 & ~umask)  # a temporary file is private; the archive is not
-    os.replace(tmp.name, output)
+    with replaced_atomically(output) as tmp:
+        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive:
+            archive.writestr(SSD_NAME, ssd)
+            for path, name in sorted(set(sources.values()), key=lambda item: item[1]):
+                # an FMU is a zip already: store it
+                archive.write(path, name, compress_type=zipfile.ZIP_STORED)
     return output
 
 

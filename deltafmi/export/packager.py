@@ -5,7 +5,6 @@ import hashlib
 import importlib.util
 import json
 import keyword
-import os
 import py_compile
 import re
 import sys
@@ -18,6 +17,7 @@ from typing import Optional
 import deltafmi
 from ..component import Component
 from ..component.model_description import model_description_xml
+from ..files import replaced_atomically
 from .compiler import cache_dir, fmu_binary, native_source_files, python_runtime_config
 from .kernels import compiled_kernels, mypyc_version
 
@@ -89,8 +89,7 @@ def build_fmu(source: Path, output: Optional[Path] = None) -> Path:
     binary = fmu_binary()
     info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
             "guid": guid, "deltafmi_version": deltafmi.__version__}
-    output.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=output.parent, suffix=".fmu.tmp", delete=False) as tmp:
+    with replaced_atomically(output) as tmp:
         with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as fmu:
             fmu.writestr("modelDescription.xml", model_description_xml(cls, guid))
             fmu.write(binary, f"binaries/linux64/{identifier}.so")
@@ -108,7 +107,6 @@ def build_fmu(source: Path, output: Optional[Path] = None) -> Path:
             for path in native_source_files():
                 fmu.write(path, f"sources/{path.name}")
             fmu.writestr("documentation/index.html", _documentation(cls))
-    os.replace(tmp.name, output)
     return output
 
 

@@ -20,9 +20,7 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import shutil
-import tempfile
 from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence
 
@@ -32,6 +30,7 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
 from deltafmi.cosim.errors import BadInput
+from deltafmi.files import replaced_atomically
 
 from .cases import Case, case_key
 from .runner import FAILED, CaseResult
@@ -198,23 +197,6 @@ def _number(value: Any) -> float:
     return math.nan if value is None else float(value)
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-#: result files get the permissions of any file the user creates (mkstemp makes them private)
-_FILE_MODE = 0o666 & ~_umask()
-
-
 def _atomic_write(path: Path, write: Any) -> None:
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
-    os.close(handle)
-    try:
-        write(temporary)
-        os.chmod(temporary, _FILE_MODE)
-        os.replace(temporary, path)
-    finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
+    with replaced_atomically(path) as temporary:
+        write(str(temporary))

@@ -11,8 +11,6 @@ study's fingerprint, the case id and its values.
 from __future__ import annotations
 
 import hashlib
-import os
-import tempfile
 import threading
 from pathlib import Path
 from typing import Any, Dict, Mapping, Optional
@@ -20,6 +18,7 @@ from typing import Any, Dict, Mapping, Optional
 from distributed import WorkerPlugin
 
 from deltafmi.export.compiler import cache_dir
+from deltafmi.files import replaced_atomically
 
 from .plan import StudyPlan
 from .pool import FmuPool
@@ -45,10 +44,8 @@ class WorkerCache:
             if not path.is_file() or _sha256(path) != digest:
                 if hashlib.sha256(data).hexdigest() != digest:
                     raise ValueError(f"FMU bytes do not match their hash {digest}")
-                handle, temporary = tempfile.mkstemp(dir=self.fmu_dir, suffix=".part")
-                with os.fdopen(handle, "wb") as file:
-                    file.write(data)
-                os.replace(temporary, path)  # atomic: other worker processes may share the folder
+                with replaced_atomically(path) as temporary:  # other workers may share the folder
+                    temporary.write_bytes(data)
             self.files[digest] = path
 
     def add_plan(self, plan: StudyPlan) -> None:
