@@ -14,7 +14,8 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import jsonschema
 
-from .errors import Diagnostic, ScenarioError, did_you_mean
+from .errors import Diagnostic, ScenarioError
+from .schema_check import dotted, schema_diagnostics
 from .yaml_lines import LineMap, YamlSyntaxError, load_yaml
 
 
@@ -185,28 +186,11 @@ def scenario_from_data(data: Dict[str, Any], lines: LineMap, path: Path) -> Scen
 
 def schema_errors(data: Any, lines: LineMap, file: str) -> List[Diagnostic]:
     """Schema violations of ``data`` as located diagnostics, with suggestions for misspellings."""
-    validator = jsonschema.Draft202012Validator(schema())
-    found = []
-    for error in sorted(validator.iter_errors(data), key=lambda e: list(map(str, e.absolute_path))):
-        found.extend(_describe(error, lines, file))
-    return sorted(set(found), key=lambda d: (d.line or 0, d.message))
+    return schema_diagnostics(data, lines, file, schema(), "scenario", _scenario_wording)
 
 
-def _describe(error: jsonschema.ValidationError, lines: LineMap, file: str) -> List[Diagnostic]:
+def _scenario_wording(error: jsonschema.ValidationError, lines: LineMap, file: str) -> Optional[List[Diagnostic]]:
     path = tuple(error.absolute_path)
-    where = _dotted(path)
-    if error.validator == "additionalProperties" and isinstance(error.instance, dict):
-        allowed = list(error.schema.get("properties", {}))
-        extra = [k for k in error.instance if k not in allowed]
-        return [Diagnostic(file, lines.key_line(path + (k,)),
-                           f"unknown key '{k}' in {where or 'the scenario'}{did_you_mean(str(k), allowed)}")
-                for k in extra]
-    if error.validator == "enum":
-        choices = [str(c) for c in error.validator_value]
-        hint = did_you_mean(str(error.instance), choices) or f" (one of {', '.join(choices)})"
-        return [Diagnostic(file, lines.line(path), f"{where}: '{error.instance}' is not allowed{hint}")]
-    if error.validator == "required":
-        return [Diagnostic(file, lines.line(path), f"{where or 'the scenario'}: {error.message}")]
     if error.validator == "oneOf" and len(path) == 2 and path[0] == "components":
         return [Diagnostic(file, lines.line(path),
                            f"component '{path[1]}' needs exactly one of 'fmu' (a file) or 'source' (a .py to build)")]
@@ -215,15 +199,8 @@ def _describe(error: jsonschema.ValidationError, lines: LineMap, file: str) -> L
                            f"component name '{error.instance}' must be an identifier (letters, digits, _)")]
     if error.validator == "pattern" and path and path[0] in ("connections", "outputs"):
         return [Diagnostic(file, lines.line(path),
-                           f"{where}: '{error.instance}' is not a 'component.variable' reference")]
-    return [Diagnostic(file, lines.line(path), f"{where or 'scenario'}: {error.message}")]
-
-
-def _dotted(path: Tuple[Any, ...]) -> str:
-    text = ""
-    for part in path:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
-    return text
+                           f"{dotted(path)}: '{error.instance}' is not a 'component.variable' reference")]
+    return None
 
 
 def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Diagnostic]:

@@ -19,6 +19,7 @@ from typing import Any, Dict, List, Optional, Tuple
 import jsonschema
 
 from deltafmi.cosim.errors import Diagnostic, ScenarioError, did_you_mean
+from deltafmi.cosim.schema_check import schema_diagnostics
 from deltafmi.cosim.yaml_lines import LineMap, YamlSyntaxError, load_yaml
 
 #: experiment settings a study may vary
@@ -204,41 +205,19 @@ def parse_study(text: str, path: Path) -> Study:
 
 # --- schema --------------------------------------------------------------------------------------
 def _schema_errors(data: Any, lines: LineMap, file: str) -> List[Diagnostic]:
-    validator = jsonschema.Draft202012Validator(schema())
-    found: List[Diagnostic] = []
-    for error in validator.iter_errors(data):
-        found.extend(_describe(error, lines, file))
-    return sorted(set(found), key=lambda d: (d.line or 0, d.message))
+    return schema_diagnostics(data, lines, file, schema(), "study", _study_wording)
 
 
-def _describe(error: jsonschema.ValidationError, lines: LineMap, file: str) -> List[Diagnostic]:
-    path = tuple(error.absolute_path)
-    where = _dotted(path) or "the study"
-    if error.validator == "additionalProperties" and isinstance(error.instance, dict):
-        allowed = list(error.schema.get("properties", {}))
-        extra = [k for k in error.instance if k not in allowed]
-        return [Diagnostic(file, lines.key_line(path + (k,)),
-                           f"unknown key '{k}' in {where}{did_you_mean(str(k), allowed)}") for k in extra]
-    if error.validator == "enum":
-        choices = [str(c) for c in error.validator_value]
-        hint = did_you_mean(str(error.instance), choices) or f" (one of {', '.join(choices)})"
-        return [Diagnostic(file, lines.line(path), f"{where}: '{error.instance}' is not allowed{hint}")]
-    if "propertyNames" in error.absolute_schema_path:
-        key = error.instance
-        if path and path[-1] == "metrics":
-            message = f"metric name '{key}' must be an identifier (letters, digits, _)"
-        else:
-            message = (f"'{key}' is not something a study can vary: write 'component.variable' "
-                       f"(or experiment.stop / experiment.step)")
-        return [Diagnostic(file, lines.key_line(path + (key,)), message)]
-    return [Diagnostic(file, lines.line(path), f"{where}: {error.message}")]
-
-
-def _dotted(path: Tuple[Any, ...]) -> str:
-    text = ""
-    for part in path:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
-    return text
+def _study_wording(error: jsonschema.ValidationError, lines: LineMap, file: str) -> Optional[List[Diagnostic]]:
+    if "propertyNames" not in error.absolute_schema_path:
+        return None
+    path, key = tuple(error.absolute_path), error.instance
+    if path and path[-1] == "metrics":
+        message = f"metric name '{key}' must be an identifier (letters, digits, _)"
+    else:
+        message = (f"'{key}' is not something a study can vary: write 'component.variable' "
+                   f"(or experiment.stop / experiment.step)")
+    return [Diagnostic(file, lines.key_line(path + (key,)), message)]
 
 
 # --- checks the schema cannot express ------------------------------------------------------------

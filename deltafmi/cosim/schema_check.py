@@ -1,0 +1,48 @@
+"""JSON Schema violations of a YAML document as diagnostics at their file and line, with
+did-you-mean suggestions: shared by scenario and study files."""
+from __future__ import annotations
+
+from typing import Any, Callable, Dict, List, Optional, Tuple
+
+import jsonschema
+
+from .errors import Diagnostic, did_you_mean
+from .yaml_lines import LineMap
+
+#: a document's own wording for some errors: None to fall back to the generic one
+Special = Callable[[jsonschema.ValidationError, LineMap, str], Optional[List[Diagnostic]]]
+
+
+def schema_diagnostics(data: Any, lines: LineMap, file: str, schema: Dict[str, Any], document: str,
+                       special: Optional[Special] = None) -> List[Diagnostic]:
+    """Every violation of ``schema`` in ``data`` (read from ``file``), one diagnostic each, sorted
+    by line; ``document`` names the whole ("scenario") in messages about its top level."""
+    validator = jsonschema.Draft202012Validator(schema)
+    found: List[Diagnostic] = []
+    for error in sorted(validator.iter_errors(data), key=lambda e: list(map(str, e.absolute_path))):
+        own = special(error, lines, file) if special else None
+        found.extend(own if own is not None else _describe(error, lines, file, document))
+    return sorted(set(found), key=lambda d: (d.line or 0, d.message))
+
+
+def _describe(error: jsonschema.ValidationError, lines: LineMap, file: str, document: str) -> List[Diagnostic]:
+    path = tuple(error.absolute_path)
+    where = dotted(path) or f"the {document}"
+    if error.validator == "additionalProperties" and isinstance(error.instance, dict):
+        allowed = list(error.schema.get("properties", {}))
+        extra = [k for k in error.instance if k not in allowed]
+        return [Diagnostic(file, lines.key_line(path + (k,)),
+                           f"unknown key '{k}' in {where}{did_you_mean(str(k), allowed)}") for k in extra]
+    if error.validator == "enum":
+        choices = [str(c) for c in error.validator_value]
+        hint = did_you_mean(str(error.instance), choices) or f" (one of {', '.join(choices)})"
+        return [Diagnostic(file, lines.line(path), f"{where}: '{error.instance}' is not allowed{hint}")]
+    return [Diagnostic(file, lines.line(path), f"{where}: {error.message}")]
+
+
+def dotted(path: Tuple[Any, ...]) -> str:
+    """``('components', 'plant', 'solver')`` -> ``components.plant.solver``, list indices in brackets."""
+    text = ""
+    for part in path:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
