@@ -113,6 +113,17 @@ def test_plot_rejects_a_file_that_is_no_result(tmp_path):
     assert result.output.startswith(f"Error: cannot read '{junk}' as a result file")
 
 
+def test_plot_leaves_out_string_columns(tmp_path):
+    result = tmp_path / "r.csv"
+    result.write_text('time,a.label,a.x\n0.0,"hello",1.0\n0.1,"world",2.0\n')
+    png = tmp_path / "r.png"
+    outcome = CliRunner().invoke(main, ["plot", str(result), "a.label", "-o", str(png)])
+    assert outcome.exit_code == 2
+    assert outcome.output == "Error: 'a.label' is a String column: a plot draws numbers\n"
+    outcome = CliRunner().invoke(main, ["plot", str(result), "a.*", "-o", str(png)])
+    assert outcome.exit_code == 0 and png.stat().st_size > 0
+
+
 def test_progress_bar_draws_on_a_terminal():
     stream = io.StringIO()
     bar = Progress(0.0, 2.0, enabled=True, stream=stream)

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Sequence
+from typing import Collection, List, Sequence
 
 from .errors import did_you_mean
 from .resolve import pattern_regex
@@ -13,15 +13,21 @@ class UnknownSignal(LookupError):
     """A requested signal (or pattern) matches no column; the message carries a suggestion."""
 
 
-def select_columns(names: Sequence[str], signals: Sequence[str]) -> List[str]:
-    """Columns matching ``signals`` (exact names, ``*``/``?`` globs, ``[i:j]`` ranges), in order."""
+def select_columns(names: Sequence[str], signals: Sequence[str], texts: Collection[str] = ()) -> List[str]:
+    """Columns matching ``signals`` (exact names, ``*``/``?`` globs, ``[i:j]`` ranges), in order;
+    the ``texts`` columns (Strings) are left out, and a signal matching only those is an error."""
     chosen: List[str] = []
     for signal in signals:
         regex = pattern_regex(signal)
         hits = [n for n in names if n != "time" and regex.match(n)]
-        if not hits:
+        numbers = [n for n in hits if n not in texts]
+        if not numbers:
+            if hits == [signal]:
+                raise UnknownSignal(f"'{signal}' is a String column: a plot draws numbers")
+            if hits:
+                raise UnknownSignal(f"'{signal}' matches only String columns ({', '.join(hits)}): a plot draws numbers")
             raise UnknownSignal(f"no column '{signal}' in the result{did_you_mean(signal, names)}")
-        chosen.extend(h for h in hits if h not in chosen)
+        chosen.extend(h for h in numbers if h not in chosen)
     return chosen
 
 
@@ -33,7 +39,9 @@ def plot_result(result: str | Path, signals: Sequence[str], output: str | Path,
     import matplotlib.pyplot as plt
 
     names, data = read_csv(result)
-    chosen = select_columns(names, signals)
+    texts = {name for i, name in enumerate(names)
+             if data.dtype == object and any(isinstance(value, str) for value in data[:, i])}
+    chosen = select_columns(names, signals, texts)
     time = data[:, 0]
     rows = len(chosen) if separate else 1
     fig, axes = plt.subplots(rows, 1, sharex=True, figsize=(8, 2.2 + 1.6 * rows), squeeze=False)
