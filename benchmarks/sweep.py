@@ -62,34 +62,38 @@ def process_loop(planned: PlannedStudy, cases: List[Case], folder: Path) -> floa
     return time.perf_counter() - wall
 
 
-def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) -> Tuple[float, float, List[dict], float]:
-    """(cluster start-up s, sweep wall s, result rows, registration s) of the cases on a LocalCluster
-    of ``workers``."""
+def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) -> Tuple[float, float, List[dict], float, List[float], float]:
+    """(cluster start-up s, sweep wall s, result rows, registration s, the client's arrival time of
+    each result, wrap-up s after the last one) of the cases on a LocalCluster of ``workers``."""
     started = time.perf_counter()
+    arrivals: List[float] = []
     with dask_client(workers=workers) as client:
         client.wait_for_workers(workers)
         startup = time.perf_counter() - started
         store = open_store(planned, folder / f"sweep{workers}.parquet", timeseries=False)
         todo = store.open(cases, fresh=True)
         wall = time.perf_counter()
-        report = run_study(planned, store, todo, scheduler=client.scheduler.address)
-        wall = time.perf_counter() - wall
+        report = run_study(planned, store, todo, scheduler=client.scheduler.address,
+                           on_result=lambda result: arrivals.append(time.perf_counter()))
+        end = time.perf_counter()
+        wall = end - wall
         store.close()
     assert report.failed == 0, "a benchmark case failed"
-    return startup, wall, [store.rows[c.key] for c in cases], report.setup_time
+    return startup, wall, [store.rows[c.key] for c in cases], report.setup_time, arrivals, end - arrivals[-1]
 
 
-def per_case(rows: List[dict], wall: float, registration: float) -> Dict[str, float]:
-    """Per-case figures of a 1-worker sweep (``wall`` seconds for ``rows``): medians over the cases
-    after the first (which loads the FMUs): simulation (the stepping loop), reset + initialization,
-    the rest on the worker (case set-up, closing, metrics); and Dask plus the client per case."""
+def per_case(rows: List[dict], arrivals: List[float]) -> Dict[str, float]:
+    """Per-case figures of a 1-worker sweep: medians over the cases after the first (which loads
+    the FMUs) of the simulation (the stepping loop), reset + initialization, the rest on the worker
+    (case set-up, closing, metrics), and Dask plus the client: the interval between two results
+    reaching the client less the worker's time in the task."""
     first = max(rows, key=lambda r: r["setup_time"])
     steady = [r for r in rows if r is not first]
-    busy = sum(r["wall_time"] for r in rows)  # the worker's time inside the tasks
+    intervals = [b - a for a, b in zip(arrivals, arrivals[1:])]
     return {"simulation": statistics.median(r["sim_time"] for r in steady),
             "reset": statistics.median(r["setup_time"] for r in steady),
             "worker_rest": statistics.median(r["wall_time"] - r["setup_time"] - r["sim_time"] for r in steady),
-            "dask": (wall - registration - busy) / len(rows),
+            "dask": statistics.median(intervals) - statistics.median(r["wall_time"] for r in steady),
             "load": first["setup_time"]}
 
 
@@ -114,20 +118,21 @@ def main() -> None:
             startup = statistics.median(r[0] for r in runs)
             wall = statistics.median(r[1] for r in runs)
             best = min(runs, key=lambda r: r[1])
-            results[workers] = (wall, best[2], best[3])
+            results[workers] = (wall, best[2], best[3], best[4], best[5])
             print(f"  sweep, {workers} worker{'s' * (workers > 1)}: {n} cases in {wall:.2f} s: {n / wall:.2f} cases/s "
                   f"= {loop / wall:.2f}x the loop (target >= 3x); cluster start-up {startup:.2f} s apart "
                   f"({n / (wall + startup):.2f} cases/s with it)")
         one, two = results[1][0], results[2][0]
         print(f"  scaling: 2 workers {one / two:.2f}x one worker (target >= 1.8x), efficiency {one / two / 2:.0%}")
-        stats = per_case(results[1][1], one, results[1][2])
+        stats = per_case(results[1][1], results[1][3])
         steady = stats["reset"] + stats["worker_rest"] + stats["dask"]
         print(f"  per case, 1 worker: simulation {stats['simulation']:.3f} s; overhead {1e3 * steady:.1f} ms = "
               f"{steady / stats['simulation']:.1%} of it (target <= 5 %): reset + initialization "
               f"{1e3 * stats['reset']:.1f} ms, case set-up + metrics + closing on the worker "
               f"{1e3 * stats['worker_rest']:.1f} ms, Dask and the client {1e3 * stats['dask']:.1f} ms")
         print(f"  once per sweep: registration (FMUs shipped, stored, scenario resolved on the worker) "
-              f"{1e3 * results[1][2]:.0f} ms; per worker, its first case loads and instantiates the FMUs: "
+              f"{1e3 * results[1][2]:.0f} ms; wrap-up (study removed from the workers, final tables) "
+              f"{1e3 * results[1][4]:.0f} ms; per worker, its first case loads and instantiates the FMUs: "
               f"{1e3 * stats['load']:.0f} ms (the loop of processes pays both in every case)")
     finally:
         shutil.rmtree(folder, ignore_errors=True)
