@@ -10,8 +10,9 @@ from __future__ import annotations
 import copy
 import math
 import pickle
+import struct
 from contextlib import nullcontext
-from typing import Callable, ContextManager, Optional
+from typing import Callable, ContextManager, Optional, Sequence
 
 import numpy as np
 
@@ -53,10 +54,24 @@ class FmuInstance:
                                       if s.causality == "input" and s.fmi_type == "Real"], dtype=np.intp)
         self._inputs_at_last_step = np.full(len(self._real_inputs), np.nan)
         self.partials = DirectionalDerivatives(component_class)
+        self._steps_itself = component_class.overrides_do_step()
+        # derivatives returned as a list or tuple are packed straight into the real buffer
+        self._pack_derivatives = struct.Struct(f"={self.nx}d")
 
     def _new_component(self, buffers: Optional[tuple] = None) -> None:
         comp = self.component = self.component_class.__new__(self.component_class)
         comp._attach(self.resources_dir, self.pending_logs, buffers)
+
+    def _store_derivatives(self, values: Sequence[float]) -> None:
+        comp = self.component
+        cls = type(values)
+        if cls is list or cls is tuple:
+            try:
+                self._pack_derivatives.pack_into(comp._real, 8 * self.nx, *values)
+                return
+            except Exception:
+                pass  # not a flat sequence of nx numbers: numpy assigns it, or says what is wrong
+        comp._real[self.nx:2 * self.nx] = values
 
     # --- what the native layer needs to know ------------------------------------------------
     def native_layout(self) -> tuple:
@@ -87,8 +102,14 @@ class FmuInstance:
     # --- evaluation -------------------------------------------------------------------------
     def evaluate(self, t: float) -> int:
         """Compute derivatives, event indicators and outputs at ``t`` into the buffers."""
-        self.evaluate_derivatives(t)
-        self.component.outputs(t)
+        comp = self.component
+        if self.in_initialization:
+            comp.initialize(t)
+        if self.nx:
+            self._store_derivatives(comp.derivatives(t))
+        if self.nz:
+            self.event_indicators[:] = comp.event_indicators(t)
+        comp.outputs(t)
         return OK
 
     def evaluate_derivatives(self, t: float) -> int:
@@ -97,7 +118,7 @@ class FmuInstance:
         if self.in_initialization:
             comp.initialize(t)
         if self.nx:
-            comp._real[self.nx:2 * self.nx] = comp.derivatives(t)
+            self._store_derivatives(comp.derivatives(t))
         if self.nz:
             self.event_indicators[:] = comp.event_indicators(t)
         return OK
@@ -149,7 +170,7 @@ class FmuInstance:
                      f"fmi2DoStep: currentCommunicationPoint {t!r} differs from the FMU time {self.time!r}")
             return ERROR
         t_end = t + h
-        if self.component_class.overrides_do_step():
+        if self._steps_itself:
             comp.do_step(t, h)
             self.time = t_end
             self.evaluate(t_end)

@@ -7,12 +7,15 @@ Array declarations become Modelica-style scalar FMI variables ``q[1]``, ``q[2]``
 """
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 from typing import Any, Optional, Sequence
 
 import numpy as np
 
 _TYPES = {float: "Real", int: "Integer", bool: "Boolean", str: "String"}
+# what a declaration's descriptor does (Variable._kind)
+_REAL_SCALAR, _REAL_ARRAY, _INT_SCALAR, _BOOL_SCALAR, _INT_ARRAY, _STR_SCALAR, _STR_ARRAY = range(7)
 
 
 @dataclass(frozen=True)
@@ -79,6 +82,30 @@ class Variable:
         self.fmi_name = name  # the FMI name when it differs (e.g. the keyword "lambda")
         self.offset = 0  # index of the first scalar in the component's buffer of this type
 
+    # The descriptor runs on every access a model makes (several per evaluation), so what it
+    # needs is derived once from type, shape and offset: which access it is (_kind), the end of
+    # the slice and, for real arrays, a struct that packs a list or tuple straight into the
+    # buffer (about twice as fast as numpy's slice assignment from a sequence).
+    @property
+    def offset(self) -> int:
+        """Index of the first scalar in the component's buffer of this type (set by the layout)."""
+        return self._offset
+
+    @offset.setter
+    def offset(self, value: int) -> None:
+        self._offset = value
+        self._end = value + self.size
+        self._byte_offset = 8 * value
+        if self.type is str:
+            self._kind = _STR_SCALAR if self.shape is None else _STR_ARRAY
+        elif self.type is float:
+            self._kind = _REAL_SCALAR if self.shape is None else _REAL_ARRAY
+        elif self.type is bool:
+            self._kind = _BOOL_SCALAR if self.shape is None else _INT_ARRAY
+        else:
+            self._kind = _INT_SCALAR if self.shape is None else _INT_ARRAY
+        self._pack = struct.Struct(f"={self.size}d") if self._kind == _REAL_ARRAY else None
+
     # --- naming -----------------------------------------------------------------------------
     def __set_name__(self, owner: type, name: str) -> None:
         self.name = name
@@ -112,26 +139,42 @@ class Variable:
     def __get__(self, obj: Any, owner: type) -> Any:
         if obj is None:
             return self
-        if self.type is str:
-            return obj._str[self.offset] if self.shape is None else obj._str[self.offset:self.offset + self.shape]
-        buf = obj._real if self.type is float else obj._int
-        if self.shape is None:
-            value = buf.item(self.offset)
-            return bool(value) if self.type is bool else value
-        return buf[self.offset:self.offset + self.shape]
+        kind = self._kind
+        if kind == _REAL_SCALAR:
+            return obj._real.item(self._offset)
+        if kind == _REAL_ARRAY:
+            return obj._real[self._offset:self._end]
+        if kind == _INT_SCALAR:
+            return obj._int.item(self._offset)
+        if kind == _BOOL_SCALAR:
+            return bool(obj._int.item(self._offset))
+        if kind == _INT_ARRAY:
+            return obj._int[self._offset:self._end]
+        if kind == _STR_SCALAR:
+            return obj._str[self._offset]
+        return obj._str[self._offset:self._end]
 
     def __set__(self, obj: Any, value: Any) -> None:
-        if self.type is str:
-            if self.shape is None:
-                obj._str[self.offset] = str(value)
-            else:
-                obj._str[self.offset:self.offset + self.shape] = [str(v) for v in value]
-            return
-        buf = obj._real if self.type is float else obj._int
-        if self.shape is None:
-            buf[self.offset] = value
+        kind = self._kind
+        if kind == _REAL_SCALAR:
+            obj._real[self._offset] = value
+        elif kind == _REAL_ARRAY:
+            cls = type(value)
+            if cls is list or cls is tuple:
+                try:
+                    self._pack.pack_into(obj._real, self._byte_offset, *value)
+                    return
+                except Exception:
+                    pass  # not a flat sequence of numbers of the right length: numpy decides
+            obj._real[self._offset:self._end] = value
+        elif kind == _STR_SCALAR:
+            obj._str[self._offset] = str(value)
+        elif kind == _STR_ARRAY:
+            obj._str[self._offset:self._end] = [str(v) for v in value]
+        elif kind == _INT_ARRAY:
+            obj._int[self._offset:self._end] = value
         else:
-            buf[self.offset:self.offset + self.shape] = value
+            obj._int[self._offset] = value
 
 
 class Parameter(Variable):
