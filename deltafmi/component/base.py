@@ -44,6 +44,7 @@ class Component:
         if buffers is None:
             buffers = (np.empty_like(layout.real_start), np.empty_like(layout.int_start), [])
         self._real, self._int, self._str = buffers
+        self._real_view = memoryview(self._real)  # indexing it is cheaper than ndarray.item()
         self._real[:] = layout.real_start
         self._int[:] = layout.int_start
         self._str[:] = layout.str_start

@@ -24,7 +24,7 @@ OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 MODEL_EXCHANGE, CO_SIMULATION = 0, 1
 _MAX_EVENT_ITERATIONS = 100
 _TINY = 1e-12  # relative time below which intervals are round-off, not integration
-_RUNTIME_ATTRIBUTES = frozenset({"_real", "_int", "_str", "_log_sink", "resources_dir"})
+_RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_int", "_str", "_log_sink", "resources_dir"})
 
 
 class FmuInstance:
@@ -55,6 +55,7 @@ class FmuInstance:
         self._inputs_at_last_step = np.full(len(self._real_inputs), np.nan)
         self.partials = DirectionalDerivatives(component_class)
         self._steps_itself = component_class.overrides_do_step()
+        self._has_outputs = component_class.outputs is not Component.outputs  # else nothing to call
         # derivatives returned as a list or tuple are packed straight into the real buffer
         self._pack_derivatives = struct.Struct(f"={self.nx}d")
 
@@ -109,7 +110,8 @@ class FmuInstance:
             self._store_derivatives(comp.derivatives(t))
         if self.nz:
             self.event_indicators[:] = comp.event_indicators(t)
-        comp.outputs(t)
+        if self._has_outputs:
+            comp.outputs(t)
         return OK
 
     def evaluate_derivatives(self, t: float) -> int:
@@ -127,7 +129,8 @@ class FmuInstance:
         """Outputs only, for getters (in initialization everything: the model initializes)."""
         if self.in_initialization:
             return self.evaluate(t)
-        self.component.outputs(t)
+        if self._has_outputs:
+            self.component.outputs(t)
         return OK
 
     def event_update(self, t: float) -> tuple:
@@ -165,7 +168,8 @@ class FmuInstance:
     def do_step(self, t: float, h: float) -> int:
         """``fmi2DoStep`` from ``t`` to ``t + h``: integrate with CVODE, handle events inside."""
         comp = self.component
-        if abs(t - self.time) > 1e-9 * max(1.0, abs(t)):
+        scale = abs(t)
+        if abs(t - self.time) > 1e-9 * (scale if scale > 1.0 else 1.0):  # max() costs more
             self.log(ERROR, "logStatusError",
                      f"fmi2DoStep: currentCommunicationPoint {t!r} differs from the FMU time {self.time!r}")
             return ERROR

@@ -141,7 +141,7 @@ class Variable:
             return self
         kind = self._kind
         if kind == _REAL_SCALAR:
-            return obj._real.item(self._offset)
+            return obj._real_view[self._offset]
         if kind == _REAL_ARRAY:
             return obj._real[self._offset:self._end]
         if kind == _INT_SCALAR:
@@ -157,7 +157,10 @@ class Variable:
     def __set__(self, obj: Any, value: Any) -> None:
         kind = self._kind
         if kind == _REAL_SCALAR:
-            obj._real[self._offset] = value
+            if type(value) is float:
+                obj._real_view[self._offset] = value
+            else:
+                obj._real[self._offset] = value  # numpy's conversions (ints, numpy scalars, ...)
         elif kind == _REAL_ARRAY:
             cls = type(value)
             if cls is list or cls is tuple:
