@@ -113,7 +113,10 @@ class DeltaController(Component):
 
     def _sample(self) -> None:
         ctl = self._ctl
-        self.u = ctl.step(self.y, self.yd, self.r, self.rd, self.rdd, self.force, self.tactile)
+        # lists, not the buffer views: the compiled control law indexes a list several times
+        # faster than a numpy array
+        self.u = ctl.step(self.y.tolist(), self.yd.tolist(), self.r.tolist(), self.rd.tolist(),
+                          self.rdd.tolist(), self.force.tolist(), self.tactile)
         self.cond_Jc, self.status, self.shift = ctl.cond, ctl.status, ctl.shift
         if ctl.last is not None and not ctl.status & delta_control.STATUS_SINGULAR:
             self.z_est = ctl.last.z
@@ -132,6 +135,7 @@ class DeltaController(Component):
         return self._next_sample()
 
     def do_step(self, t: float, h: float) -> None:
-        end = t + h - 1e-9 * self.sample_period
-        while self._next_sample() < end:
+        period = self.sample_period
+        end = t + h - 1e-9 * period
+        while self._t0 + self._k * period < end:  # _next_sample(), inlined: once per step
             self._sample()
