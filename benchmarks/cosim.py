@@ -9,18 +9,37 @@
    connection, rows kept in memory); and the same for a chain of cheap oscillators, where FMU
    work is small and the master's own per-step cost shows.
 
+3. The crossing of FMI (issue 16): the flagship's stepping against its in-process floor, the same
+   physics in one Python loop with no FMI, measured in the same run: the compiled kernels
+   shipped in the DeltaRobot FMU (imported from that FMU's own ``resources/python``), the same
+   classical RK4 (four ``state_derivative`` stages per 1 ms step, inputs held), the plant's
+   recorded outputs from one ``evaluate_plant``, the same ``MinimumJerkPath.evaluate`` and
+   ``DeltaController.step``; rows kept in memory. Target: flagship / floor <= 1.5x. Then each
+   piece through the master's own units (fmi2 calls as the master makes them) against its
+   in-process call: one plant right-hand side (fmi2SetTime + fmi2SetContinuousStates +
+   fmi2GetDerivatives, looped in C as the master's rk4 does) against ``state_derivative``
+   (target: <= 1 us more); the plant's whole step (rk4 + completed step + outputs read) against
+   four stages plus ``evaluate_plant``; trajectory fmi2DoStep + its outputs read against
+   ``path.evaluate``; controller inputs set + fmi2DoStep + outputs read against ``ctl.step``
+   (targets <= 1.5x). The master's own cost is the stepping less its three units' pieces.
+
 Prints medians over ``--repeats`` runs, all measured now on this machine.
-Usage: python benchmarks/cosim.py [--stop 3.5] [--repeats 5]
+Usage: python benchmarks/cosim.py [--stop 3.5] [--repeats 5] [--only floor]
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+import importlib
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Callable
 
+import numpy as np
 from fmpy import extract
 from fmpy.fmi2 import FMU2Slave
 
@@ -85,25 +104,30 @@ def master_run(system: System, stop: float, out: Path, algorithm: str | None = N
     return Master(system, result=out, stop=stop, algorithm=algorithm).run()
 
 
-def time_shares(system: System, stop: float, out: Path) -> str:
-    """Wall time per unit (its steps and reads) and the rest (the master itself), and RHS calls."""
+def unit_times(system: System, stop: float, out: Path) -> tuple:
+    """One instrumented master run: its summary, and wall seconds per unit of each unit's own
+    calls (pull, do_step, fetch) and of each ME unit's right-hand sides, with their counts."""
     from deltafmi.cosim.me_integrator import ModelExchangeUnit
     from deltafmi.cosim.units import CoSimulationUnit, Unit
 
     spent: dict = {}
+    depth = [0]  # an ME unit's pull calls Unit.pull: count the outer call only
     originals = {(cls, name): cls.__dict__[name] for cls, name in
-                 [(CoSimulationUnit, "do_step"), (ModelExchangeUnit, "do_step"), (Unit, "fetch"),
-                  (ModelExchangeUnit, "_rhs")]}
+                 [(CoSimulationUnit, "do_step"), (ModelExchangeUnit, "do_step"), (Unit, "fetch"), (Unit, "pull"),
+                  (ModelExchangeUnit, "pull"), (ModelExchangeUnit, "_rhs")]}
 
     def timed(function, key):
         def wrapper(unit, *args):
+            depth[0] += 1
             begin = time.perf_counter()
             try:
                 return function(unit, *args)
             finally:
-                entry = spent.setdefault((unit.name, key), [0.0, 0])
-                entry[0] += time.perf_counter() - begin
-                entry[1] += 1
+                depth[0] -= 1
+                if depth[0] == 0 or key == "_rhs":
+                    entry = spent.setdefault((unit.name, key), [0.0, 0])
+                    entry[0] += time.perf_counter() - begin
+                    entry[1] += 1
         return wrapper
 
     for (cls, name), function in originals.items():
@@ -113,6 +137,12 @@ def time_shares(system: System, stop: float, out: Path) -> str:
     finally:
         for (cls, name), function in originals.items():
             setattr(cls, name, function)
+    return summary, spent
+
+
+def time_shares(system: System, stop: float, out: Path) -> str:
+    """Wall time per unit (its steps and reads) and the rest (the master itself), and RHS calls."""
+    summary, spent = unit_times(system, stop, out)
     loop = summary.wall_time - summary.setup_time
     units = {n: sum(v[0] for (u, k), v in spent.items() if u == n and k != "_rhs") for n, _ in spent}
     parts = [f"{name} {100 * t / loop:.0f} %" for name, t in units.items()]
@@ -145,11 +175,205 @@ def overhead(name: str, system: System, stop: float, repeats: int, out: Path) ->
           f"({1e6 * (ours - loop) / steps:+.1f} us/step)")
 
 
+# --- 3. the in-process floor --------------------------------------------------------------------
+@contextlib.contextmanager
+def _fmu_python(unzip_dir: str):
+    """Inside the block ``import deltafmi...`` resolves to an FMU's own copy (its compiled kernels)."""
+    python_dir = str(Path(unzip_dir) / "resources" / "python")
+    ours = lambda name: name == "deltafmi" or name.startswith("deltafmi.")  # noqa: E731
+    saved = {name: sys.modules.pop(name) for name in [n for n in sys.modules if ours(n)]}
+    sys.path.insert(0, python_dir)
+    try:
+        yield
+    finally:
+        sys.path.remove(python_dir)
+        for name in [n for n in sys.modules if ours(n)]:
+            del sys.modules[name]
+        sys.modules.update(saved)
+
+
+class Floor:
+    """The flagship's physics in one Python loop, no FMI: the kernels shipped in its DeltaRobot FMU."""
+
+    def __init__(self, system: System, unzip_dir: Path) -> None:
+        by_name = {c.name: c for c in system.components}
+        with _fmu_python(extract(str(by_name["plant"].fmu), unzipdir=str(unzip_dir))):
+            delta = importlib.import_module("deltafmi.mechanics.delta")
+            control = importlib.import_module("deltafmi.mechanics.delta.control")
+            trajectory = importlib.import_module("deltafmi.mechanics.delta.trajectory")
+            #: the shipped dynamics module: a mypyc extension (.so) unless the FMU fell back to source
+            self.kernels = importlib.import_module("deltafmi.mechanics.delta.dynamics").__file__
+        self.delta, self.control, self.trajectory = delta, control, trajectory
+        self.system = system
+        given = {c.name: {p.name: p.value for p in c.spec.parameters} for c in system.components}
+        self.given = given
+        self.h = system.scenario.experiment.step
+        self.start = system.scenario.experiment.start
+
+    def fresh(self):
+        """(plant params, pole, x0, controller, path) at the scenario's start."""
+        delta, given = self.delta, self.given
+        fields = set(delta.DeltaParams.__dataclass_fields__)
+        plant = delta.DeltaParams(**{k: v for k, v in given["plant"].items() if k in fields})
+        pole = float(given["plant"].get("pole", 5.0))
+        q0 = delta.inverse_kinematics(plant, given["plant"].get("z0", [0.0, 0.0, -1.0]))
+        x0 = [float(v) for v in q0] + [0.0] * 9
+        c = given["controller"]
+        model = delta.DeltaParams(**{k: v for k, v in c.items() if k in fields})
+        ctl = self.control.DeltaController(model, pole=float(c.get("pole", 7.0)),
+                                           sample_period=float(c.get("sample_period", 1e-3)),
+                                           feedforward=bool(c.get("feedforward", True)))
+        t = given["trajectory"]
+        n = int(t["n_waypoints"])
+        path = self.trajectory.MinimumJerkPath(list(zip(t["wp_x"][:n], t["wp_y"][:n], t["wp_z"][:n])),
+                                               t["wp_T"][:n - 1], dwell=float(t.get("dwell", 0.2)),
+                                               t0=float(t.get("t_start", 0.0)))
+        return plant, pole, x0, ctl, path
+
+    def plant_step(self, plant, pole: float, x: list, u) -> tuple:
+        """One classical RK4 step (the master's stage structure), then the plant's outputs."""
+        derivative, h = self.delta.state_derivative, self.h
+        half, sixth, f = 0.5 * h, h / 6.0, (0.0, 0.0, 0.0)
+        k1 = derivative(plant, x, u, f, pole)
+        k2 = derivative(plant, [a + half * b for a, b in zip(x, k1)], u, f, pole)
+        k3 = derivative(plant, [a + half * b for a, b in zip(x, k2)], u, f, pole)
+        k4 = derivative(plant, [a + h * b for a, b in zip(x, k3)], u, f, pole)
+        x = [a + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4) for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4)]
+        return x, self.delta.evaluate_plant(plant, x[:9], x[9:], u, f, pole)
+
+    def run(self, steps: int) -> tuple:
+        """Wall seconds of ``steps`` steps, and the rows (time, z, zd, r, u, status, residual)."""
+        plant, pole, x, ctl, path = self.fresh()
+        plant_step, evaluate_plant = self.plant_step, self.delta.evaluate_plant
+        h, t0 = self.h, self.start
+        f, force = [0.0, 0.0, 0.0], (0.0, 0.0, 0.0)
+        rows = np.empty((steps + 1, 15))
+        # initialization: the controller samples once at the start (the FMUs do the same)
+        r, rd, rdd = path.evaluate(t0)
+        q, v = x[:9], x[9:]
+        u = ctl.step(q[0::3], v[0::3], r.tolist(), rd.tolist(), rdd.tolist(), force, 0.0)
+        ev = evaluate_plant(plant, q, v, u, f, pole)
+        rows[0] = [t0, *ev.z, *ev.zd, *r, *u, ctl.status, ev.residual]
+        wall = time.perf_counter()
+        for k in range(steps):
+            t = t0 + (k + 1) * h
+            r, rd, rdd = path.evaluate(t)
+            x, ev = plant_step(plant, pole, x, u)
+            q, v = x[:9], x[9:]
+            if k > 0:  # the sample at the start was taken at initialization
+                u = ctl.step(q[0::3], v[0::3], r.tolist(), rd.tolist(), rdd.tolist(), force, 0.0)
+            rows[k + 1] = [t, *ev.z, *ev.zd, *r, *u, ctl.status, ev.residual]
+        return time.perf_counter() - wall, rows
+
+
+def median_us(function: Callable[[int], None], calls: int, repeats: int) -> float:
+    """Median over ``repeats`` of the mean microseconds per call of ``function(calls)``."""
+    samples = []
+    for _ in range(repeats):
+        begin = time.perf_counter()
+        function(calls)
+        samples.append((time.perf_counter() - begin) / calls * 1e6)
+    return statistics.median(samples)
+
+
+def pieces(system: System, floor: Floor, repeats: int, out: Path) -> list:
+    """(piece, us through the master's unit, us in-process) for the flagship's pieces."""
+    from deltafmi.cosim.explicit_rk import ExplicitRungeKutta
+
+    master = Master(system, result=out)
+    master.open()
+    try:
+        units = {u.name: u for u in master.units}
+        plant_unit, trajectory_unit, controller_unit = units["plant"], units["trajectory"], units["controller"]
+        params, pole, x0, ctl, path = floor.fresh()
+        u = [float(v) for v in ctl.step(x0[0:9:3], [0.0] * 3, [0.0, 0.0, -1.0], [0.0] * 3, [0.0] * 3)]
+        h, clock = master.step, {"plant": master.start, "trajectory": master.start, "controller": master.start}
+
+        # one RHS: fmi2SetTime + fmi2SetContinuousStates + fmi2GetDerivatives from the master's C loop
+        x = plant_unit.solver.x.copy()
+        tiny = 1e-9
+        euler = ExplicitRungeKutta(plant_unit.fmu, x, master.start, "euler", max_step=tiny)
+
+        def rhs_fmi(n: int) -> None:
+            euler.reinit(master.start, x)
+            euler.advance(master.start + (n - 0.5) * tiny)
+        derivative, xl, f = floor.delta.state_derivative, [float(v) for v in x], (0.0, 0.0, 0.0)
+
+        def rhs_direct(n: int) -> None:
+            for _ in range(n):
+                derivative(params, xl, u, f, pole)
+        rows = [("plant RHS (SetTime+SetContinuousStates+GetDerivatives)",
+                 median_us(rhs_fmi, 2000, repeats), median_us(rhs_direct, 2000, repeats))]
+
+        def through(unit) -> Callable[[int], None]:
+            def steps(n: int) -> None:
+                t = clock[unit.name]
+                for _ in range(n):
+                    unit.pull()
+                    unit.do_step(t, h)
+                    unit.fetch()
+                    t += h
+                clock[unit.name] = t
+            return steps
+
+        def plant_direct(n: int) -> None:
+            for _ in range(n):
+                floor.plant_step(params, pole, xl, u)
+        rows.append(("plant step (rk4 + CompletedIntegratorStep + GetReal outputs)",
+                     median_us(through(plant_unit), 300, repeats), median_us(plant_direct, 300, repeats)))
+
+        def path_direct(n: int) -> None:
+            t = master.start
+            for _ in range(n):
+                path.evaluate(t)
+                t += h
+        rows.append(("trajectory (DoStep + GetReal outputs)",
+                     median_us(through(trajectory_unit), 500, repeats), median_us(path_direct, 500, repeats)))
+        y, r = x0[0:9:3], [0.0, 0.0, -1.0]
+
+        def control_direct(n: int) -> None:
+            for _ in range(n):
+                ctl.step(y, [0.0] * 3, r, [0.0] * 3, [0.0] * 3, (0.0, 0.0, 0.0), 0.0)
+        rows.append(("controller (SetReal inputs + DoStep + GetReal outputs)",
+                     median_us(through(controller_unit), 500, repeats), median_us(control_direct, 500, repeats)))
+    finally:
+        master.close()
+    return rows
+
+
+def crossing(system: System, stop: float, repeats: int, out: Path) -> None:
+    """Section 3: flagship stepping against the in-process floor, and per piece."""
+    steps = int(round((stop - system.scenario.experiment.start) / system.scenario.experiment.step))
+    floor = Floor(system, out / "floor-fmu")
+    compiled = floor.kernels.endswith(".so")
+    runs = [master_run(system, stop, out / "crossing.csv") for _ in range(repeats)]
+    stepping = statistics.median(1e6 * (r.wall_time - r.setup_time) / r.steps for r in runs)
+    floors = [floor.run(steps) for _ in range(repeats)]
+    floor_us = statistics.median(1e6 * wall / steps for wall, _ in floors)
+    print(f"  flagship stepping {stepping:6.1f} us/step, in-process floor {floor_us:6.1f} us/step "
+          f"({'compiled kernels' if compiled else 'PLAIN PYTHON kernels: the FMU shipped no compiled ones'}) "
+          f"-> ratio {stepping / floor_us:.2f}x (target <= 1.5x)")
+    rows = pieces(system, floor, max(repeats, 7), out / "pieces.csv")
+    print(f"  {'piece, us per call':64s} {'FMI':>7s} {'direct':>7s} {'ratio':>6s} {'over':>7s}")
+    for name, fmi, direct in rows:
+        print(f"  {name:64s} {fmi:7.2f} {direct:7.2f} {fmi / direct:6.2f} {fmi - direct:+7.2f}")
+    summary, spent = unit_times(system, stop, out / "instrumented.csv")
+    per_unit = {}
+    for (name, key), (seconds, _) in spent.items():
+        if key != "_rhs":
+            per_unit[name] = per_unit.get(name, 0.0) + 1e6 * seconds / summary.steps
+    shares = ", ".join(f"{name} {us:.1f}" for name, us in per_unit.items())
+    loop = 1e6 * (summary.wall_time - summary.setup_time) / summary.steps
+    print(f"  master's own cost: an instrumented run's stepping {loop:.1f} us/step less its units' pull + "
+          f"do_step + fetch ({shares}) = {loop - sum(per_unit.values()):.1f} us/step (timers included)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--stop", type=float, default=None,
                         help="simulated seconds per run (default: the flagship's own stop time)")
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--only", choices=["crossing"], help="run only section 3 (the floor and the pieces)")
     args = parser.parse_args()
     out = Path(tempfile.mkdtemp(prefix="deltafmi-bench-"))
 
@@ -159,6 +383,11 @@ def main() -> None:
         print(f"flagship cannot run: {exc.message}")
         flagship = None
     stop = args.stop or (flagship.scenario.experiment.stop if flagship else 1.0)
+    if args.only == "crossing":
+        if flagship is not None:
+            print(f"3. crossing FMI: flagship against the same physics in-process, {stop} s:")
+            crossing(flagship, stop, args.repeats, out)
+        return
     print(f"1. flagship {FLAGSHIP.relative_to(ROOT)} (plant ME, Gauss-Seidel, 1 kHz), {stop} s:")
     if flagship is not None:
         for label, system in (("as written (plant rk4)", flagship),
@@ -177,6 +406,9 @@ def main() -> None:
         overhead("flagship, all CS", all_cs(flagship), stop, args.repeats, out / "cs.csv")
     chain = resolve_system(parse_scenario(CHAIN, ROOT / "scenarios" / "oscillator_chain.yaml"))
     overhead("3 oscillators, CS", chain, stop, args.repeats, out / "chain.csv")
+    if flagship is not None:
+        print(f"3. crossing FMI: flagship against the same physics in-process, {stop} s:")
+        crossing(flagship, stop, args.repeats, out)
 
 
 if __name__ == "__main__":
