@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import shutil
 import statistics
 import subprocess
 import sys
@@ -81,6 +82,21 @@ def c_host_us(fmu: Path, steps: int, repeats: int, workdir: Path) -> dict[str, f
     return {key: statistics.median(values) for key, values in runs.items()}
 
 
+def c_host_instructions(fmu: Path, workdir: Path, steps: int = 2000) -> float | None:
+    """Instructions per fmi2DoStep from the C host under callgrind (exact where wall clocks of
+    a shared machine are not), or None without valgrind. The host calls fmi2DoStep 2 x steps."""
+    if shutil.which("valgrind") is None:
+        return None
+    md = fmpy.read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    directory, out = fmpy.extract(str(fmu)), workdir / "callgrind.out"
+    subprocess.run(["valgrind", "--tool=callgrind", "--toggle-collect=fmi2DoStep", f"--callgrind-out-file={out}",
+                    str(workdir / "host"), directory, "Lag", md.guid, "bench", str(steps), str(vr["u"]),
+                    str(vr["y"])], capture_output=True, check=True, env={"PATH": "/usr/bin:/bin"})
+    summary = next(line for line in out.read_text().splitlines() if line.startswith("summary:"))
+    return int(summary.split()[1]) / (2 * steps)
+
+
 def build_pythonfmu(workdir: Path) -> Path | None:
     """The pythonfmu FMU of the same model, or None when pythonfmu is not installed."""
     if importlib.util.find_spec("pythonfmu") is None:
@@ -94,6 +110,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=20000)
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--callgrind", action="store_true",
+                        help="also count the instructions of the C host's fmi2DoStep (needs valgrind)")
     args = parser.parse_args()
     from deltafmi.export import build_fmu
     with tempfile.TemporaryDirectory() as tmp:
@@ -104,6 +122,7 @@ def main() -> None:
         theirs_us = fmpy_step_us(theirs, args.steps, args.repeats) if theirs else None
         direct_us = direct_step_us(args.steps, args.repeats)
         c_us = c_host_us(ours, args.steps * 10, args.repeats, workdir)
+        instructions = c_host_instructions(ours, workdir) if args.callgrind else None
     print(f"FMI overhead, medians of {args.repeats} runs x {args.steps} steps (us per set/doStep/get step)")
     print(f"  direct Python calls (floor)        {direct_us:8.3f}")
     print(f"  deltafmi FMU through fmpy          {ours_us:8.3f}")
@@ -116,6 +135,8 @@ def main() -> None:
     print(f"  fmi2GetReal                        {c_us['get_us']:8.4f}")
     print(f"  fmi2DoStep (enters Python)         {c_us['dostep_us']:8.4f}")
     print(f"  set + doStep + get                 {c_us['step_us']:8.4f}")
+    if instructions is not None:
+        print(f"  fmi2DoStep, instructions (callgrind) {instructions:8.0f}")
 
 
 if __name__ == "__main__":
