@@ -106,7 +106,8 @@ def master_run(system: System, stop: float, out: Path, algorithm: str | None = N
 
 def unit_times(system: System, stop: float, out: Path) -> tuple:
     """One instrumented master run: its summary, and wall seconds per unit of each unit's own
-    calls (pull, do_step, fetch) and of each ME unit's right-hand sides, with their counts."""
+    calls (pull, do_step, fetch: timed in Python, or by the master's C loop where it runs the
+    steps) and of each ME unit's right-hand sides, with their counts."""
     from deltafmi.cosim.me_integrator import ModelExchangeUnit
     from deltafmi.cosim.units import CoSimulationUnit, Unit
 
@@ -130,13 +131,28 @@ def unit_times(system: System, stop: float, out: Path) -> tuple:
                     entry[1] += 1
         return wrapper
 
+    from deltafmi.cosim import master as master_module
+    loops = []
+
+    class TimedLoop(master_module.NativeLoop):  # the C loop times its own FMI calls
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.timed()
+            loops.append(self)
+
     for (cls, name), function in originals.items():
         setattr(cls, name, timed(function, name))
+    master_module.NativeLoop = TimedLoop
     try:
         summary = master_run(system, stop, out)
     finally:
         for (cls, name), function in originals.items():
             setattr(cls, name, function)
+        master_module.NativeLoop = TimedLoop.__bases__[0]
+    for loop in loops:
+        for name, seconds in loop.unit_seconds().items():
+            entry = spent.setdefault((name, "in C"), [0.0, 0])
+            entry[0] += seconds
     return summary, spent
 
 

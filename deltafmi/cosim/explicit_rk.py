@@ -18,7 +18,7 @@ import ctypes
 import math
 from ctypes import POINTER, c_double, c_int, c_size_t, c_void_p
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Callable, Optional, Tuple
 
 import numpy as np
 from fmpy.fmi2 import FMU2Model
@@ -138,8 +138,19 @@ class ExplicitRungeKutta:
         self.t, self.x[:] = t0 + high * h, x
         self._z = None  # the event changes the model: indicators are read afresh after it
 
+    @property
+    def kernel(self) -> Tuple[int, int]:
+        """(address of the C function taking steps, address of this solver's plan for it): what
+        :mod:`.native_loop` calls ``steps(plan, t, h, n, x)`` with, as :meth:`advance` does."""
+        return ctypes.cast(self._steps, c_void_p).value, ctypes.addressof(self._plan)
+
     def _run(self, t: float, h: float, n: int, x: np.ndarray) -> None:
         status = self._steps(ctypes.byref(self._plan), t, h, n, x.ctypes.data)
         if status > 1:
-            raise RungeKuttaError(f"an FMI call in a Runge-Kutta step from t = {t:.9g} s returned "
-                                  f"status {status} (see the FMU's log)")
+            raise step_failure(t, status)
+
+
+def step_failure(t: float, status: int) -> RungeKuttaError:
+    """The error of Runge-Kutta steps from ``t`` that stopped on an FMI ``status`` above fmi2Warning."""
+    return RungeKuttaError(f"an FMI call in a Runge-Kutta step from t = {t:.9g} s returned "
+                           f"status {status} (see the FMU's log)")

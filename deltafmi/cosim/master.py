@@ -18,7 +18,7 @@ import signal
 import tempfile
 import time as _time
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 import fmpy
 import numpy as np
@@ -31,6 +31,19 @@ from .resolve import Component, System
 from .results import CsvWriter, RowSampler
 from .stop_signals import StopSignals
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
+from .explicit_rk import step_failure
+from .native_loop import FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STEP, STEP_EVENT, TERMINATED, NativeLoop
+
+#: steps per call of the C loop (stop signals and progress are looked at in between)
+_C_STEPS = 64
+
+
+class _FixedGrid(NamedTuple):
+    start: float
+    stop: float
+    h: float
+    n_steps: int
+    last: int  # steps from k with k + m < last are m * h long, later ones end at stop
 
 
 class Master:
@@ -40,10 +53,11 @@ class Master:
                  algorithm: Optional[str] = None, progress: bool = False,
                  warn: Callable[[str], None] = lambda message: None,
                  fmus: Optional[Callable[[Component], Any]] = None,
-                 writer_class: Callable[..., Any] = CsvWriter) -> None:
+                 writer_class: Callable[..., Any] = CsvWriter, native: bool = True) -> None:
         """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
         FMU for this run; deltafmi.study keeps them loaded across runs and resets them);
-        ``writer_class(path, names, kinds=...)`` makes the result writer (default: CSV)."""
+        ``writer_class(path, names, kinds=...)`` makes the result writer (default: CSV);
+        ``native``: run fixed steps in C where :mod:`.native_loop` can (same calls, same results)."""
         scenario = system.scenario
         self.system = system
         self.start = scenario.experiment.start
@@ -73,6 +87,7 @@ class Master:
         self._by_name: Dict[str, Unit] = {}
         self.fmus = fmus
         self.writer_class = writer_class
+        self.native = native
         #: Ctrl-C / SIGTERM: checked between steps (see :mod:`.stop_signals`)
         self.stop_signals = StopSignals()
         #: time of the last row written, None before the first
@@ -284,45 +299,93 @@ class Master:
         start, stop, h = self.start, self.stop, self.step
         n_steps = max(1, math.ceil((stop - start) / h - 1e-9))
         ordered = self.stepping_blocks()
-        period = math.lcm(*[u.step_multiple for u in ordered])
-        # per phase of the multi-rate period: (unit, step multiple) of the units due
-        due = [[(u, u.step_multiple) for u in ordered if phase % u.step_multiple == 0] for phase in range(period)]
         # on an exact grid every step is m * h (bit for bit what a plain loop passes to doStep)
         last = n_steps + 1 if abs(start + n_steps * h - stop) <= 1e-9 * h else n_steps
-        gauss_seidel = self.algorithm == "gauss-seidel"
-        every, record, progress = self.every, self._record, self.progress
-        stop_signals = self.stop_signals
-        for k in range(n_steps):
+        if self.algorithm == "gauss-seidel":
+            actions = [(u, action, u.step_multiple) for u in ordered for action in (PULL, STEP, FETCH)]
+        else:
+            actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
+        native = None
+        if self.native and NativeLoop.fits(ordered, self.sampler):
+            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
+        fixed = _FixedGrid(start, stop, h, n_steps, last)
+        stop_signals, progress = self.stop_signals, self.progress
+        k = 0
+        while k < n_steps:
             if stop_signals.received:
                 raise KeyboardInterrupt
-            t = start + k * h
-            self.time = t
-            self.step_end = start + (k + 1) * h if k + 1 < n_steps else stop
-            units = due[k % period]
-            if gauss_seidel:
-                for unit, m in units:
-                    unit.pull()
-                    unit.do_step(t, m * h if k + m < last else stop - t)
-                    unit.fetch()
+            if native is not None and native.ready():
+                k = self._steps_in_c(native, fixed, k, min(n_steps, k + _C_STEPS))
+                progress.update(self.time)
             else:
-                for unit, _ in units:
-                    unit.pull()
-                for unit, m in units:
-                    unit.do_step(t, m * h if k + m < last else stop - t)
-                for unit, _ in units:
-                    unit.fetch()
-            self.steps = k + 1
-            t_next = start + (k + 1) * h if k + 1 < n_steps else stop
-            self.time = t_next
-            if (k + 1) % every == 0 or k + 1 == n_steps:
-                record(t_next)
-            if k & 63 == 0:
-                progress.update(t_next)
+                self._step_in_python(actions, fixed, k)
+                if k & 63 == 0:
+                    progress.update(self.time)
+                k += 1
+
+    def _step_in_python(self, actions: Sequence[Tuple[Any, str, int]], grid: "_FixedGrid", k: int,
+                        first: int = 0) -> None:
+        """Step ``k`` of the fixed grid from action ``first`` on (earlier ones done), and its row."""
+        t = self.time = grid.start + k * grid.h
+        n_steps, last, h = grid.n_steps, grid.last, grid.h
+        self.step_end = grid.start + (k + 1) * h if k + 1 < n_steps else grid.stop
+        for unit, action, m in actions[first:]:
+            if k % m:
+                continue
+            if action == STEP:
+                unit.do_step(t, m * h if k + m < last else grid.stop - t)
+            elif action == PULL:
+                unit.pull()
+            else:
+                unit.fetch()
+        self.steps = k + 1
+        t_next = self.time = self.step_end
+        if (k + 1) % self.every == 0 or k + 1 == n_steps:
+            self._record(t_next)
+
+    def _steps_in_c(self, native: NativeLoop, grid: "_FixedGrid", k: int, k_end: int) -> int:
+        """Steps ``k`` ... ``k_end - 1`` in C as far as they go, the step where C stopped (an
+        event, a failure, a termination) finished here; returns the next step to take."""
+        why, done, rows = native.run(k, k_end)
+        if rows:
+            self._record_rows(native.rows[:rows])
+        if done > k:
+            self.steps = done
+            self.time = self.step_end = grid.start + done * grid.h if done < grid.n_steps else grid.stop
+        if why in (RAN, ROWS_FULL):
+            return done
+        # step `done` stopped inside: the state the Python loop would have there
+        t = self.time = grid.start + done * grid.h
+        self.step_end = grid.start + (done + 1) * grid.h if done + 1 < grid.n_steps else grid.stop
+        unit, action, index, function = native.stopped_at()
+        plan = native.plan
+        if why == STEP_EVENT:
+            unit.finish_step_event(plan.time)
+            self._step_in_python(native.actions, grid, done, index + 1)
+            return done + 1
+        if why == TERMINATED:
+            raise Terminated(unit.name, plan.time)
+        if why == RK_FAILED:
+            raise FmuFailure(f"{unit.name}: {step_failure(plan.rk_time, plan.status)}")
+        exc = fmpy.fmi1.FMICallException(function=function, status=plan.status)
+        if action == STEP and unit.interface == "CS":
+            unit.step_failed(exc, t)
+        raise unit.failure(exc)
 
     # --- recording ----------------------------------------------------------------------------
     def _record(self, t: float) -> None:
         self.writer.write(t, self.sampler.sample())
         self.recorded_until = t
+
+    def _record_rows(self, rows: np.ndarray) -> None:
+        """Rows ``time, values...`` recorded at once (a writer without ``write_rows`` gets them one by one)."""
+        write_rows = getattr(self.writer, "write_rows", None)
+        if write_rows is not None:
+            write_rows(rows)
+        else:
+            for row in rows:
+                self.writer.write(float(row[0]), row[1:])
+        self.recorded_until = float(rows[-1, 0])
 
     def record_step(self, t: float) -> None:
         """Record the row at the end of a step that reached ``t``, and show progress (and stop

@@ -193,6 +193,16 @@ class ModelExchangeUnit(Unit):
         except (CvodeError, RungeKuttaError) as exc:
             raise FmuFailure(f"{self.name}: {exc}") from None
 
+    def finish_step_event(self, t: float) -> None:
+        """The rest of :meth:`do_step` after fmi2CompletedIntegratorStep asked for a step event
+        at the step's end ``t`` (where :mod:`.native_loop` hands back): the event, in event mode."""
+        try:
+            self._event(t)
+        except FMICallException as exc:
+            raise self.failure(exc) from None
+        except (CvodeError, RungeKuttaError) as exc:
+            raise FmuFailure(f"{self.name}: {exc}") from None
+
     def _advance(self, t_stop: float) -> bool:
         """CVODE to ``t_stop``; on a failure, restart it once from where this call began.
 

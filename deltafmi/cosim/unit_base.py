@@ -273,6 +273,7 @@ class Unit:
             self.inputs.append(_StringInputs(setter, getter, handle, vrs, bus, index))
         else:
             self.inputs.append(_Inputs(setter, getter, handle, vrs, bus, index, factor, offset, TYPES[kind][0]))
+        self.inputs[-1].kind = kind
 
     def wire_outputs(self, kind: str, vrs: Sequence[int], bus: np.ndarray, start: int) -> None:
         """Read variables of type ``kind`` into ``bus[start:start + len(vrs)]`` after every step."""
@@ -281,6 +282,7 @@ class Unit:
             self.outputs.append(_StringOutputs(getter, self.fmu.component, vrs, bus, start))
         else:
             self.outputs.append(_Outputs(getter, self.fmu.component, vrs, bus, start, TYPES[kind][0]))
+        self.outputs[-1].kind = kind
 
     def pull(self) -> None:
         """Set this unit's inputs from the buses."""

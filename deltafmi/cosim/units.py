@@ -37,11 +37,15 @@ class CoSimulationUnit(Unit):
         try:
             self._do_step(self._handle, time, step, self.no_prior_state)
         except FMICallException as exc:
-            if exc.status == fmi2Discard:
-                reached = self._terminated_at(time)
-                if reached is not None:
-                    raise Terminated(self.name, reached) from None
-            raise self.failure(exc) from None
+            self.step_failed(exc, time)
+
+    def step_failed(self, exc: FMICallException, time: float) -> None:
+        """Raise what a failed fmi2DoStep from ``time`` means: :class:`Terminated` or a failure."""
+        if exc.status == fmi2Discard:
+            reached = self._terminated_at(time)
+            if reached is not None:
+                raise Terminated(self.name, reached) from None
+        raise self.failure(exc) from None
 
     def _terminated_at(self, time: float) -> Optional[float]:
         """After fmi2Discard: the time the FMU terminated at (fmi2LastSuccessfulTime, else the

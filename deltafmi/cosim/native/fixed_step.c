@@ -1,0 +1,227 @@
+/* The master's fixed-step communication loop in C: the same FMI 2.0 calls, in the same order and
+ * with the same arguments, as the Python loop of deltafmi/cosim/master.py makes through fmpy's
+ * ctypes bindings (fmi2Set/Get<Type> of each unit's batched value references, fmi2DoStep,
+ * and for a Model Exchange unit on a fixed-step Runge-Kutta method its stages, fmi2SetTime,
+ * fmi2SetContinuousStates and fmi2CompletedIntegratorStep), for a run of steps at once, with
+ * the recorded rows gathered into a block. Anything else (a failure, an event, a termination)
+ * stops the run and hands back to Python, which carries on exactly where this stopped.
+ * Plain C, no Python.
+ */
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <time.h>
+
+typedef unsigned int fmi2ValueReference;
+typedef int (*SetReal)(void *, const fmi2ValueReference *, size_t, const double *);
+typedef int (*GetReal)(void *, const fmi2ValueReference *, size_t, double *);
+typedef int (*SetInt)(void *, const fmi2ValueReference *, size_t, const int *);
+typedef int (*GetInt)(void *, const fmi2ValueReference *, size_t, int *);
+typedef int (*DoStep)(void *, double, double, int);
+typedef int (*SetTime)(void *, double);
+typedef int (*SetStates)(void *, const double *, size_t);
+typedef int (*Completed)(void *, int, int *, int *);
+typedef int (*ErkSteps)(const void *plan, double t, double h, int steps, double *x);
+
+enum { FMI2_WARNING = 1 };
+/* operations */
+enum { SET_REAL = 0, GET_REAL = 1, SET_INT = 2, GET_INT = 3, DO_STEP = 4, ME_STEP = 5 };
+/* why a run stopped */
+enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_FULL = 5 };
+
+typedef struct {
+    int kind;
+    int multiple;            /* runs at the steps k with k % multiple == 0 */
+    void *function;          /* fmi2Set/Get<Type> or fmi2DoStep */
+    void *component;
+    const fmi2ValueReference *vrs;
+    size_t n;
+    void *values;            /* SET_*: the gathered values; GET_*: the bus slice read into */
+    const void *bus;         /* SET_*: the bus gathered from */
+    const intptr_t *index;
+    const double *factor;    /* SET_REAL: NULL when untransformed */
+    const double *offset;
+    int no_prior_state;
+    /* ME_STEP */
+    ErkSteps erk;
+    const void *erk_plan;
+    double *x;
+    size_t nx;
+    double *t;               /* the solver's time */
+    double max_step;
+    SetTime set_time;
+    SetStates set_states;
+    Completed completed;     /* NULL: the FMU needs no fmi2CompletedIntegratorStep */
+} Op;
+
+typedef struct {
+    const void *bus;
+    int is_int;
+    size_t n;
+    const intptr_t *index;
+    const intptr_t *columns;
+} RowPart;
+
+typedef struct {
+    Op *ops;
+    size_t n_ops;
+    RowPart *parts;
+    size_t n_parts;
+    size_t width;            /* recorded columns after time */
+    double start, h, stop;
+    long n_steps, last, every;
+    /* out: where and why the last run stopped */
+    long op;                 /* the operation that stopped it */
+    int status;              /* its fmi2Status */
+    int call;                /* ME_STEP FAILED: 0 fmi2SetTime, 1 fmi2SetContinuousStates, 2 fmi2CompletedIntegratorStep */
+    double time;             /* ME_STEP: the time reached */
+    double rk_time;          /* RK_FAILED: the time its Runge-Kutta call started from */
+    double *op_seconds;      /* NULL, or per operation: wall seconds spent in it (benchmarks) */
+} Plan;
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int me_step(Plan *p, Op *o, double t, double step)
+{
+    double t_end = t + step;
+    double eps = 1e-12 * fmax(1.0, fabs(t_end));
+    int status;
+    if (t_end - *o->t > eps) {
+        double span = t_end - *o->t;
+        int n = 1;
+        if (o->max_step > 0) {
+            double c = ceil(span / o->max_step - 1e-9);
+            n = c > 1.0 ? (int)c : 1;
+        }
+        status = o->erk(o->erk_plan, *o->t, span / n, n, o->x);
+        if (status > FMI2_WARNING) {
+            p->status = status;
+            p->rk_time = *o->t;
+            return RK_FAILED;
+        }
+        *o->t = t_end;
+    }
+    double reached = *o->t;
+    p->time = reached;
+    p->call = 0;
+    if ((status = o->set_time(o->component, reached)) > FMI2_WARNING) goto failed;
+    p->call = 1;
+    if (o->nx && (status = o->set_states(o->component, o->x, o->nx)) > FMI2_WARNING) goto failed;
+    if (o->completed) {
+        int enter = 0, terminate = 0;
+        p->call = 2;
+        if ((status = o->completed(o->component, o->no_prior_state, &enter, &terminate)) > FMI2_WARNING)
+            goto failed;
+        if (terminate) return TERMINATED;
+        if (enter) return STEP_EVENT;
+    }
+    return RAN;
+failed:
+    p->status = status;
+    return FAILED;
+}
+
+static int run_op(Plan *p, Op *o, long k, double t)
+{
+    int status = 0;
+    switch (o->kind) {
+    case SET_REAL: {
+        double *v = (double *)o->values;
+        const double *bus = (const double *)o->bus;
+        for (size_t i = 0; i < o->n; i++) v[i] = bus[o->index[i]];
+        if (o->factor) {
+            for (size_t i = 0; i < o->n; i++) v[i] *= o->factor[i];
+            for (size_t i = 0; i < o->n; i++) v[i] += o->offset[i];
+        }
+        status = ((SetReal)o->function)(o->component, o->vrs, o->n, v);
+        break;
+    }
+    case GET_REAL:
+        status = ((GetReal)o->function)(o->component, o->vrs, o->n, (double *)o->values);
+        break;
+    case SET_INT: {
+        int *v = (int *)o->values;
+        const int *bus = (const int *)o->bus;
+        for (size_t i = 0; i < o->n; i++) v[i] = bus[o->index[i]];
+        status = ((SetInt)o->function)(o->component, o->vrs, o->n, v);
+        break;
+    }
+    case GET_INT:
+        status = ((GetInt)o->function)(o->component, o->vrs, o->n, (int *)o->values);
+        break;
+    case DO_STEP:
+    case ME_STEP: {
+        long m = o->multiple;
+        double step = k + m < p->last ? (double)m * p->h : p->stop - t;
+        if (o->kind == ME_STEP) return me_step(p, o, t, step);
+        status = ((DoStep)o->function)(o->component, t, step, o->no_prior_state);
+        break;
+    }
+    }
+    if (status > FMI2_WARNING) {
+        p->status = status;
+        return FAILED;
+    }
+    return RAN;
+}
+
+static void record(const Plan *p, double t, double *row)
+{
+    row[0] = t;
+    for (size_t j = 0; j < p->n_parts; j++) {
+        const RowPart *part = &p->parts[j];
+        if (part->is_int)
+            for (size_t i = 0; i < part->n; i++)
+                row[1 + part->columns[i]] = (double)((const int *)part->bus)[part->index[i]];
+        else
+            for (size_t i = 0; i < part->n; i++)
+                row[1 + part->columns[i]] = ((const double *)part->bus)[part->index[i]];
+    }
+}
+
+/* Steps k_begin, k_begin + 1, ... before k_end, every recorded row into `rows` (room for
+ * max_rows). Returns why it stopped (RAN: k_end reached; ROWS_FULL: no room for the next
+ * step's row; else the stop of operation plan->op in step *k_done); *k_done is the first step
+ * not completed and *n_rows the rows written. */
+__attribute__((visibility("default")))
+int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max_rows, long *k_done,
+                         long *n_rows)
+{
+    long k = k_begin, written = 0;
+    int why = RAN;
+    for (; k < k_end; k++) {
+        long next = k + 1;
+        int due = next % p->every == 0 || next == p->n_steps;
+        if (due && written == max_rows) {
+            why = ROWS_FULL;
+            break;
+        }
+        double t = p->start + (double)k * p->h;
+        for (size_t i = 0; i < p->n_ops; i++) {
+            Op *o = &p->ops[i];
+            if (k % o->multiple) continue;
+            double begin = p->op_seconds ? now() : 0.0;
+            int stop = run_op(p, o, k, t);
+            if (p->op_seconds) p->op_seconds[i] += now() - begin;
+            if (stop != RAN) {
+                p->op = (long)i;
+                *k_done = k;
+                *n_rows = written;
+                return stop;
+            }
+        }
+        if (due) {
+            double t_next = next < p->n_steps ? p->start + (double)next * p->h : p->stop;
+            record(p, t_next, rows + written * (long)(p->width + 1));
+            written++;
+        }
+    }
+    *k_done = k;
+    *n_rows = written;
+    return why;
+}

@@ -1,0 +1,214 @@
+"""The master's fixed-step loop run in C (``native/fixed_step.c``) for the common case.
+
+A communication step of the Python loop costs a dozen ctypes calls and their Python around
+them (the flagship: about 30 us a step, more than the trajectory and controller FMUs' own work).
+:class:`NativeLoop` lays the same calls out once as a plan (per unit, in stepping order: the
+batched fmi2Set<Type> of its inputs, fmi2DoStep or a Model Exchange unit's Runge-Kutta step,
+the batched fmi2Get<Type> of its outputs) and runs many steps per foreign call, the recorded
+rows gathered into a block the result writer takes at once. The calls, their order and their
+arguments are those of the Python loop, bit for bit.
+
+It covers Co-Simulation units and Model Exchange units on a fixed-step Runge-Kutta method
+without event indicators, time events or discrete inputs, with numeric (not String) values and
+no algebraic loop. Anything else runs in Python; so do the steps after a C run stopped at an
+event, a failure or a termination, which the master finishes exactly as its Python loop would.
+"""
+from __future__ import annotations
+
+import ctypes
+from ctypes import POINTER, c_double, c_int, c_long, c_size_t, c_void_p
+from pathlib import Path
+from typing import Any, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from deltafmi.export.compiler import plain_c_library
+
+from .explicit_rk import ExplicitRungeKutta
+from .unit_base import Unit, _Inputs, _Outputs
+
+SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP = range(6)
+#: why a C run stopped
+RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL = range(6)
+_SET, _GET = {"Real": SET_REAL, "Integer": SET_INT, "Boolean": SET_INT}, \
+    {"Real": GET_REAL, "Integer": GET_INT, "Boolean": GET_INT}
+#: the ME_STEP call that failed (Plan.call)
+ME_CALLS = ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2CompletedIntegratorStep")
+#: the actions of a unit in a step, in the Python loop's terms
+PULL, STEP, FETCH = "pull", "do_step", "fetch"
+
+
+class _Op(ctypes.Structure):
+    _fields_ = [("kind", c_int), ("multiple", c_int), ("function", c_void_p), ("component", c_void_p),
+                ("vrs", c_void_p), ("n", c_size_t), ("values", c_void_p), ("bus", c_void_p), ("index", c_void_p),
+                ("factor", c_void_p), ("offset", c_void_p), ("no_prior_state", c_int),
+                ("erk", c_void_p), ("erk_plan", c_void_p), ("x", c_void_p), ("nx", c_size_t), ("t", c_void_p),
+                ("max_step", c_double), ("set_time", c_void_p), ("set_states", c_void_p), ("completed", c_void_p)]
+
+
+class _RowPart(ctypes.Structure):
+    _fields_ = [("bus", c_void_p), ("is_int", c_int), ("n", c_size_t), ("index", c_void_p), ("columns", c_void_p)]
+
+
+class _Plan(ctypes.Structure):
+    _fields_ = [("ops", POINTER(_Op)), ("n_ops", c_size_t), ("parts", POINTER(_RowPart)), ("n_parts", c_size_t),
+                ("width", c_size_t), ("start", c_double), ("h", c_double), ("stop", c_double),
+                ("n_steps", c_long), ("last", c_long), ("every", c_long),
+                ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
+                ("op_seconds", c_void_p)]
+
+
+_kernel: Optional[Any] = None
+
+
+def _steps_function() -> Any:
+    global _kernel
+    if _kernel is None:
+        library = ctypes.CDLL(str(plain_c_library(Path(__file__).parent / "native" / "fixed_step.c")))
+        _kernel = library.deltafmi_fixed_steps
+        _kernel.argtypes = [POINTER(_Plan), c_long, c_long, c_void_p, c_long, POINTER(c_long), POINTER(c_long)]
+        _kernel.restype = c_int
+    return _kernel
+
+
+def _address(fmu: Any, name: str) -> int:
+    return ctypes.cast(getattr(fmu.dll, name), c_void_p).value
+
+
+def _pointer(array: Optional[np.ndarray]) -> Optional[int]:
+    return None if array is None else array.ctypes.data
+
+
+def _fits(unit: Unit) -> bool:
+    """Whether the C loop can step ``unit`` as the Python loop does (see the module docstring)."""
+    if not all(isinstance(i, _Inputs) and i.kind in _SET for i in unit.inputs):
+        return False
+    if any(i.factor is not None and i.kind != "Real" for i in unit.inputs):
+        return False
+    if not all(isinstance(o, _Outputs) and o.kind in _GET for o in unit.outputs):
+        return False
+    if unit.interface == "CS":
+        return True
+    return (unit.interface == "ME" and unit.nz == 0 and not unit._discrete_inputs
+            and isinstance(unit.solver, ExplicitRungeKutta))
+
+
+class NativeLoop:
+    """The fixed-step loop of one master run as a C plan; see the module docstring.
+
+    ``actions``: (unit, PULL | STEP | FETCH, step multiple) in the order one step runs them;
+    ``sampler``: the master's row sampler (its parts are gathered in C as it gathers them).
+    """
+
+    def __init__(self, actions: Sequence[Tuple[Unit, str, int]], sampler: Any, start: float, h: float,
+                 stop: float, n_steps: int, last: int, every: int, block_rows: int = 256) -> None:
+        self.actions = list(actions)
+        self._keep: List[Any] = []  # what the plan points into
+        ops: List[_Op] = []
+        self.op_action: List[int] = []
+        self.op_function: List[str] = []  # the fmi2 function of each operation (for messages)
+        self._me: List[Tuple[Any, int, np.ndarray]] = []  # (unit, op index, its solver time box)
+        for a, (unit, action, m) in enumerate(self.actions):
+            for op, function in self._ops(unit, action, m):
+                self.op_action.append(a)
+                self.op_function.append(function)
+                ops.append(op)
+        self._ops_array = (_Op * max(1, len(ops)))(*ops)
+        parts = [_RowPart(_pointer(bus), int(bus.dtype != np.float64), len(index), _pointer(index), _pointer(columns))
+                 for bus, index, columns in sampler._parts]
+        self._keep.append(sampler)
+        self._parts_array = (_RowPart * max(1, len(parts)))(*parts)
+        width = len(sampler.row)
+        self.rows = np.empty((block_rows, width + 1))
+        self.plan = _Plan(self._ops_array, len(ops), self._parts_array, len(parts), width, start, h, stop,
+                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, None)
+        #: set :meth:`timed` to have the C loop add up the wall time of each operation
+        self.op_seconds: Optional[np.ndarray] = None
+        self._run = _steps_function()
+        self._k_done, self._n_rows = c_long(0), c_long(0)
+
+    @staticmethod
+    def fits(units: Sequence[Any], sampler: Any) -> bool:
+        """Whether a run of ``units`` (and recording with ``sampler``) can use the C loop."""
+        return (sampler.row.dtype == np.float64 and all(isinstance(u, Unit) and _fits(u) for u in units)
+                and all(bus.dtype in (np.float64, np.int32) for bus, _, _ in sampler._parts))
+
+    def _ops(self, unit: Unit, action: str, m: int) -> List[Tuple[_Op, str]]:
+        handle = unit.fmu.component
+        if action == PULL:
+            return [(self._value_op(unit, inputs, _SET[inputs.kind], f"fmi2Set{inputs.kind}", m, inputs.values,
+                                    inputs.bus, inputs.index, inputs.factor, inputs.offset), f"fmi2Set{inputs.kind}")
+                    for inputs in unit.inputs]
+        if action == FETCH:
+            return [(self._value_op(unit, outputs, _GET[outputs.kind], f"fmi2Get{outputs.kind}", m, None, None,
+                                    None, None, None, values_address=ctypes.cast(outputs.pointer, c_void_p).value),
+                     f"fmi2Get{outputs.kind}") for outputs in unit.outputs]
+        if unit.interface == "CS":
+            return [(_Op(kind=DO_STEP, multiple=m, function=_address(unit.fmu, "fmi2DoStep"), component=handle,
+                         no_prior_state=unit.no_prior_state), "fmi2DoStep")]
+        solver = unit.solver
+        erk, erk_plan = solver.kernel
+        box = np.array([solver.t])
+        self._keep.append(box)
+        self._me.append((unit, len(self.op_action), box))
+        fmu = unit.fmu
+        return [(_Op(kind=ME_STEP, multiple=m, component=handle, no_prior_state=unit.no_prior_state,
+                     erk=erk, erk_plan=erk_plan, x=_pointer(solver.x), nx=unit.nx, t=_pointer(box),
+                     max_step=solver.max_step, set_time=_address(fmu, "fmi2SetTime"),
+                     set_states=_address(fmu, "fmi2SetContinuousStates"),
+                     completed=_address(fmu, "fmi2CompletedIntegratorStep") if unit.needs_completed else None),
+                 "")]
+
+    def _value_op(self, unit: Unit, holder: Any, kind: int, function: str, m: int, values: Optional[np.ndarray],
+                  bus: Optional[np.ndarray], index: Optional[np.ndarray], factor: Optional[np.ndarray],
+                  offset: Optional[np.ndarray], values_address: Optional[int] = None) -> _Op:
+        self._keep.append(holder)
+        return _Op(kind=kind, multiple=m, function=_address(unit.fmu, function), component=unit.fmu.component,
+                   vrs=ctypes.cast(holder.vrs, c_void_p).value, n=holder.n,
+                   values=values_address if values is None else _pointer(values), bus=_pointer(bus),
+                   index=_pointer(index), factor=_pointer(factor), offset=_pointer(offset))
+
+    def ready(self) -> bool:
+        """Whether the next steps can run in C: no time event pending in a Model Exchange unit
+        and its solver still the one planned (an event may have replaced it)."""
+        for unit, index, box in self._me:
+            if unit.next_event_time is not None or not isinstance(unit.solver, ExplicitRungeKutta):
+                return False
+            op = self._ops_array[index]
+            if op.x != unit.solver.x.ctypes.data:
+                erk, erk_plan = unit.solver.kernel
+                op.erk, op.erk_plan, op.x, op.max_step = erk, erk_plan, unit.solver.x.ctypes.data, unit.solver.max_step
+                self._keep.append(unit.solver)
+        return True
+
+    def timed(self) -> None:
+        """From now on add each operation's wall seconds to :attr:`op_seconds` (for benchmarks)."""
+        self.op_seconds = np.zeros(max(1, len(self.op_action)))
+        self.plan.op_seconds = self.op_seconds.ctypes.data
+
+    def unit_seconds(self) -> dict:
+        """Wall seconds spent in each unit's operations since :meth:`timed`."""
+        spent: dict = {}
+        for i, a in enumerate(self.op_action):
+            name = self.actions[a][0].name
+            spent[name] = spent.get(name, 0.0) + float(self.op_seconds[i])
+        return spent
+
+    def run(self, k: int, k_end: int) -> Tuple[int, int, int]:
+        """Steps ``k`` ... ``k_end - 1`` in C: (why it stopped, first step not completed, rows in
+        :attr:`rows`). The Model Exchange units' solvers are up to date on return."""
+        for unit, _, box in self._me:
+            box[0] = unit.solver.t
+        why = self._run(ctypes.byref(self.plan), k, k_end, self.rows.ctypes.data, len(self.rows),
+                        ctypes.byref(self._k_done), ctypes.byref(self._n_rows))
+        for unit, _, box in self._me:
+            unit.solver.t = float(box[0])
+        return why, self._k_done.value, self._n_rows.value
+
+    def stopped_at(self) -> Tuple[Unit, str, int, str]:
+        """Where the last run stopped: the action (unit, PULL | STEP | FETCH, its index in
+        ``actions``) and the fmi2 function that failed, if one did."""
+        plan = self.plan
+        a = self.op_action[plan.op]
+        unit, action, _ = self.actions[a]
+        return unit, action, a, self.op_function[plan.op] or ME_CALLS[plan.call]
