@@ -5,7 +5,7 @@ the same bit for bit, the result files byte for byte: the flagship (ME plant on 
 controller and trajectory, Gauss-Seidel), the flagship with step events from the plant's loop
 projection (the C loop hands each event back to Python mid-step), Jacobi with a step multiple
 and a transformed link, Integer and Boolean columns, and a Co-Simulation FMU failing mid-run
-(same message, same rows kept). The result writer's C formatting of Reals against ``repr``.
+(same message, same rows kept). Rows written in blocks as the C loop hands them over.
 """
 from __future__ import annotations
 
@@ -113,7 +113,7 @@ def test_failure_in_c_same_message_and_rows(tmp_path, build_fmu_from_src, c_runs
     assert texts[0] == texts[1] and len(texts[0].splitlines()) == 1 + 101  # header, t = 0 ... 1 s
 
 
-def test_csv_reals_written_as_repr(tmp_path):
+def test_rows_written_in_blocks_read_as_repr(tmp_path):
     rng = np.random.default_rng(16)
     bits = rng.integers(0, 2 ** 64, 20000, dtype=np.uint64).view(np.float64)
     special = [0.0, -0.0, 1.0, 0.1, 1e15, 1e16, 1.5e16, 9999999999999998.0, 1e-4, 1e-5, 5e-324, 2.0 ** -1022,

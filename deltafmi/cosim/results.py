@@ -2,40 +2,24 @@
 
 The file starts with a ``time`` column followed by one column per recorded ``comp.var``. An event
 shows as two rows with the same time stamp (values just before and just after). Real values are
-written as ``repr`` writes them (they read back bit for bit; a block of numeric rows is
-formatted in C, ``native/csv_rows.c``, about 1 us a number faster than ``repr``), Integer,
-Boolean and Enumeration values as integers, String values quoted by the :mod:`csv` module's rules (``QUOTE_NONNUMERIC``: every
+written with ``repr`` (they read back bit for bit), Integer, Boolean and Enumeration values as
+integers, String values quoted by the :mod:`csv` module's rules (``QUOTE_NONNUMERIC``: every
 string in double quotes, a quote inside doubled). Rows are buffered and written out whenever
 the buffer fills up or half a second has passed, so a failing or killed run keeps (almost)
 everything up to the failure.
 """
 from __future__ import annotations
 
-import ctypes
 import csv
 import io
 import time as _time
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from deltafmi.export.compiler import plain_c_library
-
 _FLUSH_SECONDS = 0.5
 _INTEGERS = ("Integer", "Boolean")
-_format_rows: Optional[Any] = None
-
-
-def _rows_formatter() -> Any:
-    """The C function writing rows of doubles as CSV text (``native/csv_rows.c``)."""
-    global _format_rows
-    if _format_rows is None:
-        library = ctypes.CDLL(str(plain_c_library(Path(__file__).parent / "native" / "csv_rows.c")))
-        _format_rows = library.deltafmi_csv_rows
-        _format_rows.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_char_p]
-        _format_rows.restype = ctypes.c_size_t
-    return _format_rows
 
 
 class CsvWriter:
@@ -63,9 +47,7 @@ class CsvWriter:
             self._csv = csv.writer(self._file, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
         else:
             self._block = np.empty((chunk, len(names) + 1))
-            self._integer = (ctypes.c_int * (len(names) + 1))(0, *[kind in _INTEGERS for kind in kinds])
-            self._text_out = ctypes.create_string_buffer(chunk * (len(names) + 1) * 33)
-            self._format_rows = _rows_formatter()
+            self._format = ",".join(["%r"] + ["%d" if kind in _INTEGERS else "%r" for kind in kinds])
         self._n = 0
         self._last_flush = _time.monotonic()
         self.rows_written = 0
@@ -105,9 +87,9 @@ class CsvWriter:
                 self._csv.writerows(self._rows)
                 self._rows = []
             else:
-                size = self._format_rows(self._block.ctypes.data, self._n, self._block.shape[1], self._integer,
-                                         self._text_out)
-                self._file.write(ctypes.string_at(self._text_out, size).decode("ascii"))
+                # repr's shortest round-trip digits (~1 us a number: most of a row's cost)
+                fmt = self._format
+                self._file.write("\n".join(fmt % tuple(row) for row in self._block[: self._n].tolist()) + "\n")
             self.rows_written += self._n
             self._n = 0
         self._file.flush()
