@@ -131,35 +131,22 @@ def unit_times(system: System, stop: float, out: Path) -> tuple:
                     entry[1] += 1
         return wrapper
 
-    from deltafmi.cosim import master as master_module
-    loops = []
-
-    class TimedLoop(master_module.NativeLoop):  # the C loop times its own FMI calls
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            self.timed()
-            loops.append(self)
-
     for (cls, name), function in originals.items():
         setattr(cls, name, timed(function, name))
-    master_module.NativeLoop = TimedLoop
     try:
-        summary = master_run(system, stop, out)
+        summary, in_c = timed_master_run(system, stop, out)
     finally:
         for (cls, name), function in originals.items():
             setattr(cls, name, function)
-        master_module.NativeLoop = TimedLoop.__bases__[0]
-    for loop in loops:
-        for name, seconds in loop.unit_seconds().items():
-            entry = spent.setdefault((name, "in C"), [0.0, 0])
-            entry[0] += seconds
+    for name, seconds in in_c.items():
+        spent[(name, "in C")] = [seconds, 0]
     return summary, spent
 
 
 def time_shares(system: System, stop: float, out: Path) -> str:
     """Wall time per unit (its steps and reads) and the rest (the master itself), and RHS calls."""
     summary, spent = unit_times(system, stop, out)
-    loop = summary.wall_time - summary.setup_time
+    loop = summary.stepping_time
     units = {n: sum(v[0] for (u, k), v in spent.items() if u == n and k != "_rhs") for n, _ in spent}
     parts = [f"{name} {100 * t / loop:.0f} %" for name, t in units.items()]
     rhs = [f"{u}: {v[1] / summary.steps:.1f} RHS calls/step, {1e6 * v[0] / v[1]:.0f} us each"
@@ -184,7 +171,7 @@ def all_cs(system: System) -> System:
 def overhead(name: str, system: System, stop: float, repeats: int, out: Path) -> None:
     steps = int(round((stop - system.scenario.experiment.start) / system.scenario.experiment.step))
     runs = [master_run(system, stop, out, "jacobi") for _ in range(repeats)]
-    ours = statistics.median(r.wall_time - r.setup_time for r in runs)  # stepping + CSV, as the loop
+    ours = statistics.median(r.stepping_time for r in runs)  # stepping + CSV, as the loop
     loop = statistics.median(plain_loop(system, stop) for _ in range(repeats))
     print(f"  {name}: master {1e6 * ours / steps:8.1f} us/step, plain fmpy loop {1e6 * loop / steps:8.1f} "
           f"us/step -> master overhead {100 * (ours - loop) / loop:+.1f} % "
@@ -257,8 +244,10 @@ class Floor:
         x = [a + sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4) for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4)]
         return x, self.delta.evaluate_plant(plant, x[:9], x[9:], u, f, pole)
 
-    def run(self, steps: int) -> tuple:
-        """Wall seconds of ``steps`` steps, and the rows (time, z, zd, r, u, status, residual)."""
+    def run(self, steps: int, timed: bool = False) -> tuple:
+        """Wall seconds of ``steps`` steps, the rows (time, z, zd, r, u, status, residual), and
+        with ``timed`` the seconds spent per piece (trajectory, plant, controller; the loop then
+        pays for the clock)."""
         plant, pole, x, ctl, path = self.fresh()
         plant_step, evaluate_plant = self.plant_step, self.delta.evaluate_plant
         h, t0 = self.h, self.start
@@ -270,118 +259,129 @@ class Floor:
         u = ctl.step(q[0::3], v[0::3], r.tolist(), rd.tolist(), rdd.tolist(), force, 0.0)
         ev = evaluate_plant(plant, q, v, u, f, pole)
         rows[0] = [t0, *ev.z, *ev.zd, *r, *u, ctl.status, ev.residual]
-        wall = time.perf_counter()
+        spent = {"trajectory": 0.0, "plant": 0.0, "controller": 0.0}
+        clock = time.perf_counter
+        wall = clock()
+        if not timed:
+            for k in range(steps):
+                t = t0 + (k + 1) * h
+                r, rd, rdd = path.evaluate(t)
+                x, ev = plant_step(plant, pole, x, u)
+                q, v = x[:9], x[9:]
+                if k > 0:  # the sample at the start was taken at initialization
+                    u = ctl.step(q[0::3], v[0::3], r.tolist(), rd.tolist(), rdd.tolist(), force, 0.0)
+                rows[k + 1] = [t, *ev.z, *ev.zd, *r, *u, ctl.status, ev.residual]
+            return clock() - wall, rows, spent
         for k in range(steps):
             t = t0 + (k + 1) * h
+            a = clock()
             r, rd, rdd = path.evaluate(t)
+            b = clock()
             x, ev = plant_step(plant, pole, x, u)
+            c = clock()
             q, v = x[:9], x[9:]
-            if k > 0:  # the sample at the start was taken at initialization
+            if k > 0:
                 u = ctl.step(q[0::3], v[0::3], r.tolist(), rd.tolist(), rdd.tolist(), force, 0.0)
+            d = clock()
+            spent["trajectory"] += b - a
+            spent["plant"] += c - b
+            spent["controller"] += d - c
             rows[k + 1] = [t, *ev.z, *ev.zd, *r, *u, ctl.status, ev.residual]
-        return time.perf_counter() - wall, rows
+        return clock() - wall, rows, spent
 
 
-def median_us(function: Callable[[int], None], calls: int, repeats: int) -> float:
-    """Median over ``repeats`` of the mean microseconds per call of ``function(calls)``."""
-    samples = []
-    for _ in range(repeats):
-        begin = time.perf_counter()
-        function(calls)
-        samples.append((time.perf_counter() - begin) / calls * 1e6)
-    return statistics.median(samples)
-
-
-def pieces(system: System, floor: Floor, repeats: int, out: Path) -> list:
-    """(piece, us through the master's unit, us in-process) for the flagship's pieces."""
+def rhs_pair(system: System, floor: Floor, out: Path, calls: int = 2000) -> tuple:
+    """Microseconds of one plant right-hand side through FMI (fmi2SetTime +
+    fmi2SetContinuousStates + fmi2GetDerivatives looped in C by the master's Runge-Kutta kernel,
+    as its rk4 does, Euler steps of 1e-9 s from the plant's initial state) and in-process
+    (``state_derivative`` on the same state), measured back to back."""
     from deltafmi.cosim.explicit_rk import ExplicitRungeKutta
 
     master = Master(system, result=out)
     master.open()
     try:
-        units = {u.name: u for u in master.units}
-        plant_unit, trajectory_unit, controller_unit = units["plant"], units["trajectory"], units["controller"]
-        params, pole, x0, ctl, path = floor.fresh()
-        u = [float(v) for v in ctl.step(x0[0:9:3], [0.0] * 3, [0.0, 0.0, -1.0], [0.0] * 3, [0.0] * 3)]
-        h, clock = master.step, {"plant": master.start, "trajectory": master.start, "controller": master.start}
-
-        # one RHS: fmi2SetTime + fmi2SetContinuousStates + fmi2GetDerivatives from the master's C loop
-        x = plant_unit.solver.x.copy()
-        tiny = 1e-9
-        euler = ExplicitRungeKutta(plant_unit.fmu, x, master.start, "euler", max_step=tiny)
-
-        def rhs_fmi(n: int) -> None:
-            euler.reinit(master.start, x)
-            euler.advance(master.start + (n - 0.5) * tiny)
+        plant = next(u for u in master.units if u.name == "plant")
+        x, t0, tiny = plant.solver.x.copy(), master.start, 1e-9
+        euler = ExplicitRungeKutta(plant.fmu, x, t0, "euler", max_step=tiny)
+        params, pole, _, _, _ = floor.fresh()
         derivative, xl, f = floor.delta.state_derivative, [float(v) for v in x], (0.0, 0.0, 0.0)
-
-        def rhs_direct(n: int) -> None:
-            for _ in range(n):
-                derivative(params, xl, u, f, pole)
-        rows = [("plant RHS (SetTime+SetContinuousStates+GetDerivatives)",
-                 median_us(rhs_fmi, 2000, repeats), median_us(rhs_direct, 2000, repeats))]
-
-        def through(unit) -> Callable[[int], None]:
-            def steps(n: int) -> None:
-                t = clock[unit.name]
-                for _ in range(n):
-                    unit.pull()
-                    unit.do_step(t, h)
-                    unit.fetch()
-                    t += h
-                clock[unit.name] = t
-            return steps
-
-        def plant_direct(n: int) -> None:
-            for _ in range(n):
-                floor.plant_step(params, pole, xl, u)
-        rows.append(("plant step (rk4 + CompletedIntegratorStep + GetReal outputs)",
-                     median_us(through(plant_unit), 300, repeats), median_us(plant_direct, 300, repeats)))
-
-        def path_direct(n: int) -> None:
-            t = master.start
-            for _ in range(n):
-                path.evaluate(t)
-                t += h
-        rows.append(("trajectory (DoStep + GetReal outputs)",
-                     median_us(through(trajectory_unit), 500, repeats), median_us(path_direct, 500, repeats)))
-        y, r = x0[0:9:3], [0.0, 0.0, -1.0]
-
-        def control_direct(n: int) -> None:
-            for _ in range(n):
-                ctl.step(y, [0.0] * 3, r, [0.0] * 3, [0.0] * 3, (0.0, 0.0, 0.0), 0.0)
-        rows.append(("controller (SetReal inputs + DoStep + GetReal outputs)",
-                     median_us(through(controller_unit), 500, repeats), median_us(control_direct, 500, repeats)))
+        u = [float(v) for v in master.buses["Real"][plant.inputs[0].index]]
+        begin = time.perf_counter()
+        euler.advance(t0 + (calls - 0.5) * tiny)
+        fmi = time.perf_counter() - begin
+        begin = time.perf_counter()
+        for _ in range(calls):
+            derivative(params, xl, u, f, pole)
+        direct = time.perf_counter() - begin
     finally:
         master.close()
-    return rows
+    return 1e6 * fmi / calls, 1e6 * direct / calls
+
+
+def timed_master_run(system: System, stop: float, out: Path) -> tuple:
+    """A master run whose C loop times its FMI calls: (summary, {unit: seconds in its calls})."""
+    from deltafmi.cosim import master as master_module
+    loops = []
+
+    class TimedLoop(master_module.NativeLoop):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.timed()
+            loops.append(self)
+
+    master_module.NativeLoop = TimedLoop
+    try:
+        summary = master_run(system, stop, out)
+    finally:
+        master_module.NativeLoop = TimedLoop.__bases__[0]
+    spent: dict = {}
+    for loop in loops:
+        for name, seconds in loop.unit_seconds().items():
+            spent[name] = spent.get(name, 0.0) + seconds
+    return summary, spent
 
 
 def crossing(system: System, stop: float, repeats: int, out: Path) -> None:
-    """Section 3: flagship stepping against the in-process floor, and per piece."""
+    """Section 3: flagship stepping against the in-process floor, and per piece; every figure
+    a median over ``repeats`` rounds, each round measuring both sides back to back (the ratios
+    are medians of the rounds' ratios, so a busy spell on the shared machine hits both sides)."""
     steps = int(round((stop - system.scenario.experiment.start) / system.scenario.experiment.step))
     floor = Floor(system, out / "floor-fmu")
     compiled = floor.kernels.endswith(".so")
-    runs = [master_run(system, stop, out / "crossing.csv") for _ in range(repeats)]
-    stepping = statistics.median(1e6 * (r.wall_time - r.setup_time) / r.steps for r in runs)
-    floors = [floor.run(steps) for _ in range(repeats)]
-    floor_us = statistics.median(1e6 * wall / steps for wall, _ in floors)
-    print(f"  flagship stepping {stepping:6.1f} us/step, in-process floor {floor_us:6.1f} us/step "
-          f"({'compiled kernels' if compiled else 'PLAIN PYTHON kernels: the FMU shipped no compiled ones'}) "
-          f"-> ratio {stepping / floor_us:.2f}x (target <= 1.5x)")
-    rows = pieces(system, floor, max(repeats, 7), out / "pieces.csv")
-    print(f"  {'piece, us per call':64s} {'FMI':>7s} {'direct':>7s} {'ratio':>6s} {'over':>7s}")
-    for name, fmi, direct in rows:
-        print(f"  {name:64s} {fmi:7.2f} {direct:7.2f} {fmi / direct:6.2f} {fmi - direct:+7.2f}")
-    summary, spent = unit_times(system, stop, out / "instrumented.csv")
-    per_unit = {}
-    for (name, key), (seconds, _) in spent.items():
-        if key != "_rhs":
-            per_unit[name] = per_unit.get(name, 0.0) + 1e6 * seconds / summary.steps
-    shares = ", ".join(f"{name} {us:.1f}" for name, us in per_unit.items())
-    loop = 1e6 * (summary.wall_time - summary.setup_time) / summary.steps
-    print(f"  master's own cost: an instrumented run's stepping {loop:.1f} us/step less its units' pull + "
-          f"do_step + fetch ({shares}) = {loop - sum(per_unit.values()):.1f} us/step (timers included)")
+    _, reference, _ = floor.run(steps)
+    fig: dict = {}
+
+    def add(key: str, fmi: float, direct: float) -> None:
+        fig.setdefault(key, []).append((fmi, direct, fmi / direct))
+    for _ in range(repeats):
+        run = master_run(system, stop, out / "crossing.csv")
+        wall, _, _ = floor.run(steps)
+        add("flagship", 1e6 * run.stepping_time / run.steps, 1e6 * wall / steps)
+        timed, in_units = timed_master_run(system, stop, out / "timed.csv")
+        if not in_units:
+            raise SystemExit("the flagship did not run in the master's C loop")
+        wall, _, spent = floor.run(steps, timed=True)
+        for name in ("trajectory", "plant", "controller"):
+            add(name, 1e6 * in_units[name] / timed.steps, 1e6 * spent[name] / steps)
+        fig.setdefault("own", []).append(1e6 * (timed.stepping_time - sum(in_units.values())) / timed.steps)
+        add("rhs", *rhs_pair(system, floor, out / "rhs.csv"))
+    from deltafmi.cosim.results import read_csv
+    _, rows = read_csv(out / "crossing.csv")
+    gap = float(np.max(np.abs(rows - reference)[:, 1:]))
+    med = lambda key, i: statistics.median(v[i] for v in fig[key])  # noqa: E731
+    print(f"  flagship stepping {med('flagship', 0):6.1f} us/step, in-process floor {med('flagship', 1):6.1f} us/step "
+          f"({'compiled kernels' if compiled else 'PLAIN PYTHON kernels: the FMU shipped no compiled ones'}; "
+          f"its samples within {gap:.1e} of the flagship's) -> ratio {med('flagship', 2):.2f}x (target <= 1.5x)")
+    print(f"  {'piece, us per step (per call for the RHS)':60s} {'FMI':>7s} {'direct':>7s} {'ratio':>6s} {'over':>7s}")
+    for key, label in (("rhs", "plant RHS: SetTime + SetContinuousStates + GetDerivatives"),
+                       ("plant", "plant: rk4 (4 RHS) + CompletedIntegratorStep + GetReal"),
+                       ("trajectory", "trajectory: DoStep + GetReal"),
+                       ("controller", "controller: SetReal + DoStep + GetReal")):
+        print(f"  {label:60s} {med(key, 0):7.2f} {med(key, 1):7.2f} {med(key, 2):6.2f} "
+              f"{med(key, 0) - med(key, 1):+7.2f}")
+    print(f"  master's own cost: stepping less the time in its units' FMI calls (timed by its C loop) = "
+          f"{statistics.median(fig['own']):.1f} us/step (CSV rows included)")
+    print("  targets: RHS overhead <= 1 us; trajectory, controller <= 1.5x")
 
 
 def main() -> None:
@@ -410,7 +410,7 @@ def main() -> None:
                               ("baseline: plant on CVODE BDF rtol 1e-8", with_plant_solver(flagship))):
             runs = [master_run(system, stop, out / "flagship.csv") for _ in range(args.repeats)]
             wall = statistics.median(r.wall_time for r in runs)
-            loop = statistics.median(r.wall_time - r.setup_time for r in runs)
+            loop = statistics.median(r.stepping_time for r in runs)
             setup = statistics.median(r.setup_time for r in runs)
             print(f"  {label}: {runs[0].steps} steps in {wall:.3f} s (loading {setup:.3f} s): real-time "
                   f"factor {stop / wall:.2f}x end to end, {stop / loop:.2f}x stepping "

@@ -43,7 +43,7 @@ class RungeKuttaError(RuntimeError):
 class _Plan(ctypes.Structure):
     _fields_ = [("set_time", c_void_p), ("set_states", c_void_p), ("get_derivatives", c_void_p),
                 ("component", c_void_p), ("stages", c_int), ("a", c_void_p), ("b", c_void_p),
-                ("c", c_void_p), ("nx", c_size_t), ("work", c_void_p)]
+                ("c", c_void_p), ("nx", c_size_t), ("work", c_void_p), ("current", c_int)]
 
 
 _kernel: Optional[ctypes._CFuncPtr] = None
@@ -139,10 +139,13 @@ class ExplicitRungeKutta:
         self._z = None  # the event changes the model: indicators are read afresh after it
 
     @property
-    def kernel(self) -> Tuple[int, int]:
-        """(address of the C function taking steps, address of this solver's plan for it): what
-        :mod:`.native_loop` calls ``steps(plan, t, h, n, x)`` with, as :meth:`advance` does."""
-        return ctypes.cast(self._steps, c_void_p).value, ctypes.addressof(self._plan)
+    def kernel(self) -> Tuple[int, int, int]:
+        """(address of the C function taking steps, address of this solver's plan for it, address
+        of the plan's int ``current``): what :mod:`.native_loop` calls ``steps(plan, t, h, n, x)``
+        with, as :meth:`advance` does; ``current`` set to 1 before a call says the FMU holds the
+        start time and states already (its first stage then sets neither)."""
+        plan = ctypes.addressof(self._plan)
+        return ctypes.cast(self._steps, c_void_p).value, plan, plan + _Plan.current.offset
 
     def _run(self, t: float, h: float, n: int, x: np.ndarray) -> None:
         status = self._steps(ctypes.byref(self._plan), t, h, n, x.ctypes.data)

@@ -102,7 +102,7 @@ class Master:
         """
         wall = _time.perf_counter()
         terminated = None
-        setup = 0.0
+        setup = closing = 0.0
         try:
             with self.stop_signals:
                 try:
@@ -122,10 +122,12 @@ class Master:
             self.close()
             raise self._interrupted() from None
         finally:
+            closing = _time.perf_counter()
             self.close()
-        return Summary(self.steps, self.rejected, self.events,
-                       _time.perf_counter() - wall, self.time - self.start,
-                       self.writer.rows_written, self.result_path, terminated, setup, self.loop_statistics())
+        end = _time.perf_counter()
+        return Summary(self.steps, self.rejected, self.events, end - wall, self.time - self.start,
+                       self.writer.rows_written, self.result_path, terminated, setup, self.loop_statistics(),
+                       end - closing)
 
     def open(self) -> None:
         """Load, instantiate, wire and initialize every unit; record the first row.

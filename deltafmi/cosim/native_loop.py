@@ -42,7 +42,8 @@ class _Op(ctypes.Structure):
     _fields_ = [("kind", c_int), ("multiple", c_int), ("function", c_void_p), ("component", c_void_p),
                 ("vrs", c_void_p), ("n", c_size_t), ("values", c_void_p), ("bus", c_void_p), ("index", c_void_p),
                 ("factor", c_void_p), ("offset", c_void_p), ("no_prior_state", c_int),
-                ("erk", c_void_p), ("erk_plan", c_void_p), ("x", c_void_p), ("nx", c_size_t), ("t", c_void_p),
+                ("erk", c_void_p), ("erk_plan", c_void_p), ("erk_current", c_void_p), ("holds_end", c_int),
+                ("x", c_void_p), ("nx", c_size_t), ("t", c_void_p),
                 ("max_step", c_double), ("set_time", c_void_p), ("set_states", c_void_p), ("completed", c_void_p)]
 
 
@@ -147,13 +148,13 @@ class NativeLoop:
             return [(_Op(kind=DO_STEP, multiple=m, function=_address(unit.fmu, "fmi2DoStep"), component=handle,
                          no_prior_state=unit.no_prior_state), "fmi2DoStep")]
         solver = unit.solver
-        erk, erk_plan = solver.kernel
+        erk, erk_plan, erk_current = solver.kernel
         box = np.array([solver.t])
         self._keep.append(box)
         self._me.append((unit, len(self.op_action), box))
         fmu = unit.fmu
         return [(_Op(kind=ME_STEP, multiple=m, component=handle, no_prior_state=unit.no_prior_state,
-                     erk=erk, erk_plan=erk_plan, x=_pointer(solver.x), nx=unit.nx, t=_pointer(box),
+                     erk=erk, erk_plan=erk_plan, erk_current=erk_current, x=_pointer(solver.x), nx=unit.nx, t=_pointer(box),
                      max_step=solver.max_step, set_time=_address(fmu, "fmi2SetTime"),
                      set_states=_address(fmu, "fmi2SetContinuousStates"),
                      completed=_address(fmu, "fmi2CompletedIntegratorStep") if unit.needs_completed else None),
@@ -176,8 +177,9 @@ class NativeLoop:
                 return False
             op = self._ops_array[index]
             if op.x != unit.solver.x.ctypes.data:
-                erk, erk_plan = unit.solver.kernel
-                op.erk, op.erk_plan, op.x, op.max_step = erk, erk_plan, unit.solver.x.ctypes.data, unit.solver.max_step
+                erk, erk_plan, erk_current = unit.solver.kernel
+                op.erk, op.erk_plan, op.erk_current = erk, erk_plan, erk_current
+                op.x, op.max_step = unit.solver.x.ctypes.data, unit.solver.max_step
                 self._keep.append(unit.solver)
         return True
 

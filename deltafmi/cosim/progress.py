@@ -69,6 +69,13 @@ class Summary:
     setup_time: float = 0.0
     #: algebraic loops solved (a :class:`~deltafmi.cosim.loops.LoopStatistics`; None: no loop)
     loops: Any = None
+    #: wall seconds spent after the last step (last results written, units freed, files removed)
+    close_time: float = 0.0
+
+    @property
+    def stepping_time(self) -> float:
+        """Wall seconds of the stepping alone (neither set-up nor close)."""
+        return self.wall_time - self.setup_time - self.close_time
 
     @property
     def real_time_factor(self) -> float:

@@ -23,9 +23,11 @@ typedef struct {
     const double *c;
     size_t nx;
     double *work;    /* (stages + 1) * nx doubles */
+    int current;     /* 1: the FMU holds the next step's start time and states already: the first
+                      * stage sets neither (cleared once used) */
 } ErkPlan;
 
-static int erk_step(const ErkPlan *p, double t, double h, double *x)
+static int erk_step(ErkPlan *p, double t, double h, double *x)
 {
     const size_t nx = p->nx;
     double *stage_x = p->work + (size_t)p->stages * nx;
@@ -41,12 +43,20 @@ static int erk_step(const ErkPlan *p, double t, double h, double *x)
             }
             point = stage_x;
         }
-        int status = p->set_time(p->component, t + p->c[i] * h);
-        if (status > worst) worst = status;
-        if (worst > FMI2_WARNING) return worst;
-        status = p->set_states(p->component, point, nx);
-        if (status > worst) worst = status;
-        if (worst > FMI2_WARNING) return worst;
+        int status;
+        if (i == 0 && p->current) {
+            p->current = 0;
+        } else {
+            /* a stage at the time of the one before (rk4's second and third) leaves it set */
+            if (i == 0 || p->c[i] != p->c[i - 1]) {
+                status = p->set_time(p->component, t + p->c[i] * h);
+                if (status > worst) worst = status;
+                if (worst > FMI2_WARNING) return worst;
+            }
+            status = p->set_states(p->component, point, nx);
+            if (status > worst) worst = status;
+            if (worst > FMI2_WARNING) return worst;
+        }
         status = p->get_derivatives(p->component, p->work + (size_t)i * nx, nx);
         if (status > worst) worst = status;
         if (worst > FMI2_WARNING) return worst;
@@ -63,7 +73,7 @@ static int erk_step(const ErkPlan *p, double t, double h, double *x)
 /* `steps` equal steps of size h from t, updating x in place. Returns the worst fmi2Status seen;
  * a status above fmi2Warning stops at once (x then holds the last completed step). */
 __attribute__((visibility("default")))
-int deltafmi_erk_steps(const ErkPlan *plan, double t, double h, int steps, double *x)
+int deltafmi_erk_steps(ErkPlan *plan, double t, double h, int steps, double *x)
 {
     int worst = 0;
     for (int k = 0; k < steps; k++) {

@@ -45,6 +45,8 @@ typedef struct {
     /* ME_STEP */
     ErkSteps erk;
     const void *erk_plan;
+    int *erk_current;        /* the plan's flag: the FMU holds the start time and states already */
+    int holds_end;           /* 1 after this op set the step's end time and states (valid within a run) */
     double *x;
     size_t nx;
     double *t;               /* the solver's time */
@@ -98,7 +100,11 @@ static int me_step(Plan *p, Op *o, double t, double step)
             double c = ceil(span / o->max_step - 1e-9);
             n = c > 1.0 ? (int)c : 1;
         }
+        /* since this op set them at the last step's end, the FMU got new inputs only */
+        *o->erk_current = o->holds_end;
+        o->holds_end = 0;
         status = o->erk(o->erk_plan, *o->t, span / n, n, o->x);
+        *o->erk_current = 0;
         if (status > FMI2_WARNING) {
             p->status = status;
             p->rk_time = *o->t;
@@ -112,6 +118,7 @@ static int me_step(Plan *p, Op *o, double t, double step)
     if ((status = o->set_time(o->component, reached)) > FMI2_WARNING) goto failed;
     p->call = 1;
     if (o->nx && (status = o->set_states(o->component, o->x, o->nx)) > FMI2_WARNING) goto failed;
+    o->holds_end = 1;
     if (o->completed) {
         int enter = 0, terminate = 0;
         p->call = 2;
@@ -194,6 +201,8 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
 {
     long k = k_begin, written = 0;
     int why = RAN;
+    for (size_t i = 0; i < p->n_ops; i++)
+        p->ops[i].holds_end = 0; /* Python may have called the FMUs since the last run */
     for (; k < k_end; k++) {
         long next = k + 1;
         int due = next % p->every == 0 || next == p->n_steps;
