@@ -5,7 +5,9 @@ the same bit for bit, the result files byte for byte: the flagship (ME plant on 
 controller and trajectory, Gauss-Seidel), the flagship with step events from the plant's loop
 projection (the C loop hands each event back to Python mid-step), Jacobi with a step multiple
 and a transformed link, Integer and Boolean columns, and a Co-Simulation FMU failing mid-run
-(same message, same rows kept). Rows written in blocks as the C loop hands them over.
+(same message, same rows kept). The result writer's C formatting of Reals (Ryu's shortest
+digits laid out as repr lays them out) against ``repr`` itself, on random bit patterns, powers of
+two and their neighbours (where the rounding interval is lopsided), subnormals and specials.
 """
 from __future__ import annotations
 
@@ -113,14 +115,15 @@ def test_failure_in_c_same_message_and_rows(tmp_path, build_fmu_from_src, c_runs
     assert texts[0] == texts[1] and len(texts[0].splitlines()) == 1 + 101  # header, t = 0 ... 1 s
 
 
-def test_rows_written_in_blocks_read_as_repr(tmp_path):
+def test_csv_reals_written_as_repr(tmp_path):
     rng = np.random.default_rng(16)
-    bits = rng.integers(0, 2 ** 64, 20000, dtype=np.uint64).view(np.float64)
+    bits = rng.integers(0, 2 ** 64, 90000, dtype=np.uint64).view(np.float64)
     special = [0.0, -0.0, 1.0, 0.1, 1e15, 1e16, 1.5e16, 9999999999999998.0, 1e-4, 1e-5, 5e-324, 2.0 ** -1022,
                1.7976931348623157e308, 1e22, np.nan, np.inf, -np.inf, 7.291122019556398e-304]
-    powers = [np.ldexp(1.0, e) for e in range(-1074, 1024, 7)]
+    powers = [np.ldexp(1.0, e) for e in range(-1074, 1024)]
     values = np.concatenate([bits, rng.random(2000), np.round(rng.random(2000) * 1e4, 3), special, powers,
-                             np.nextafter(powers, 0.0)])
+                             np.nextafter(powers, 0.0), np.nextafter(powers, np.inf), 10.0 ** np.arange(-323, 308),
+                             np.arange(-100, 100) * 0.5])
     reals = values[: len(values) // 3 * 3].reshape(-1, 3)
     integers = rng.integers(-2 ** 31, 2 ** 31, len(reals)).astype(float)  # an int32 bus's values
     rows = np.column_stack([reals, integers])
