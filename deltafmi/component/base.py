@@ -34,6 +34,7 @@ class Component:
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         cls._layout = build_layout(cls)
+        cls._real_spans = {}  # names -> spans of the real buffer, for read_reals()
 
     def __init__(self, resources_dir: str = "") -> None:
         self._attach(resources_dir, [])
@@ -115,6 +116,40 @@ class Component:
         raise NotImplementedError
 
     # --- services ---------------------------------------------------------------------------
+    def read_reals(self, *names: str) -> list[float]:
+        """The values of the named Real variables (attribute names), flat, as Python floats.
+
+        Equal to concatenating ``self.<name>`` for each name, but one slice of the value buffer
+        instead of one descriptor call and one numpy view per variable: for a model whose
+        compiled or plain-Python math wants lists (``y, yd = v[0:3], v[3:6]``), it is the cheap
+        way to read many inputs at once.
+        """
+        spans = self._real_spans.get(names)
+        if spans is None:
+            spans = self._real_spans[names] = self._spans_of(names)
+        view = self._real_view
+        if len(spans) == 1:
+            return view[spans[0][0]:spans[0][1]].tolist()
+        values: list[float] = []
+        for start, end in spans:
+            values += view[start:end].tolist()
+        return values
+
+    @classmethod
+    def _spans_of(cls, names: tuple) -> list[tuple[int, int]]:
+        """(start, end) slices of the real buffer holding ``names``, neighbours merged."""
+        declarations = {d.name: d for d in cls._layout.declarations}
+        spans: list[tuple[int, int]] = []
+        for name in names:
+            decl = declarations.get(name)
+            if decl is None or decl.type is not float:
+                raise ValueError(f"read_reals: {name!r} is not a Real variable of {cls.__name__}")
+            if spans and spans[-1][1] == decl.offset:
+                spans[-1] = (spans[-1][0], decl.offset + decl.size)
+            else:
+                spans.append((decl.offset, decl.offset + decl.size))
+        return spans
+
     def log(self, message: str, level: str = "info") -> None:
         """Send a message to the importer's FMI logger (``info``, ``warning`` or ``error``)."""
         self._log_sink.append((LOG_LEVELS.get(level, 0), f"log{level.capitalize()}", str(message)))
