@@ -134,3 +134,23 @@ def test_csv_reals_written_as_repr(tmp_path):
     writer.close()
     lines = (tmp_path / "r.csv").read_text().splitlines()[1:]
     assert lines == [f"{t!r},{a!r},{b!r},{int(n)}" for t, a, b, n in rows.tolist()]
+
+
+def test_study_recorder_takes_blocks_and_event_rows(tmp_path, c_runs):
+    # deltafmi.study keeps rows in memory: blocks from the C loop between single rows (the
+    # initial row, the rows before step events) must come out in order, as the Python loop's
+    from deltafmi.study.runner import MemoryRecorder
+    path = tmp_path / "s.yaml"
+    path.write_text(flagship("      loop_tolerance: 1.0e-13\n"))
+    system = resolve_system(load_scenario(path))
+    kept = []
+
+    def recorder(*args, **kwargs):
+        kept.append(MemoryRecorder(*args, chunk=50, **kwargs))
+        return kept[-1]
+    summaries = [Master(system, stop=0.4, writer_class=recorder, native=native).run() for native in (True, False)]
+    assert c_runs and summaries[0].events == summaries[1].events > 5
+    c, python = (k.columns() for k in kept)
+    assert list(c) == list(python) and len(c["time"]) == summaries[1].rows
+    for name in c:
+        assert np.array_equal(c[name], python[name]), name

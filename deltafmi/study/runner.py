@@ -55,6 +55,18 @@ class MemoryRecorder:
         self._n += 1
         self.rows_written += 1
 
+    def write_rows(self, rows: np.ndarray) -> None:
+        """Keep a block of rows ``time, values...`` (how the master's C loop hands them over)."""
+        if self._text:
+            for row in rows:
+                self.write(float(row[0]), row[1:])
+            return
+        if self._blocks and self._n < self._chunk:
+            self._blocks[-1] = self._blocks[-1][: self._n]  # only the last block may have room left
+        self._blocks.append(np.array(rows, dtype=float))
+        self._n = self._chunk  # the next single row starts a new block
+        self.rows_written += len(rows)
+
     def flush(self) -> None:
         """Nothing to flush."""
 
