@@ -94,7 +94,11 @@ class Trajectory(Component):
     def outputs(self, t: float) -> None:
         if self._path is None:
             self._path = self._make_path()
-        self.r, self.rd, self.rdd = self._path.evaluate(t)
+        flat = getattr(self._path, "evaluate_flat", None)  # the waypoint paths: nine floats
+        if flat is not None:
+            self.write_reals(flat(t), "r", "rd", "rdd")
+        else:
+            self.r, self.rd, self.rdd = self._path.evaluate(t)
 
     def do_step(self, t: float, h: float) -> None:
         pass  # no state: the runtime evaluates the outputs at t + h

@@ -50,3 +50,17 @@ def test_array_assignments_keep_numpy_semantics():
     assert c.flag is False
     c.n = 4
     assert c.n == 4
+
+
+def test_write_reals_is_the_inverse_of_read_reals():
+    c = Sample()
+    values = [0.5, 1.5, 2.5, 3.5, 4.5, 5.5]
+    c.write_reals(values, "a", "b", "y")       # contiguous: a, b... and y after the integer
+    assert c.read_reals("a", "b", "y") == values
+    assert c.a.tolist() == values[:3] and c.b == values[3] and c.y.tolist() == values[4:]
+    c.write_reals((7, np.float64(8.0)), "x")  # ints and numpy scalars, as for the attributes
+    assert c.x.tolist() == [7.0, 8.0]
+    with pytest.raises(ValueError, match="3 values for the 2 scalars of x"):
+        c.write_reals([1.0, 2.0, 3.0], "x")
+    with pytest.raises(ValueError, match="'flag' is not a Real variable"):
+        c.write_reals([1.0], "flag")

@@ -1,6 +1,7 @@
 """The :class:`Component` base class that models and controllers derive from."""
 from __future__ import annotations
 
+import struct
 from typing import Any, ClassVar, Optional, Sequence
 
 import numpy as np
@@ -35,6 +36,7 @@ class Component:
         super().__init_subclass__(**kwargs)
         cls._layout = build_layout(cls)
         cls._real_spans = {}  # names -> spans of the real buffer, for read_reals()
+        cls._real_packers = {}  # names -> (start, end, struct) per span, for write_reals()
 
     def __init__(self, resources_dir: str = "") -> None:
         self._attach(resources_dir, [])
@@ -134,6 +136,30 @@ class Component:
         for start, end in spans:
             values += view[start:end].tolist()
         return values
+
+    def write_reals(self, values: Sequence[float], *names: str) -> None:
+        """Assign the named Real variables from one flat sequence of numbers, in order.
+
+        The inverse of :meth:`read_reals`: ``self.write_reals((1.0, 2.0, 3.0, 4.0), "r", "s")``
+        for a 3-vector ``r`` and a scalar ``s``. The numbers are packed straight into the value
+        buffer (one struct per contiguous stretch, no numpy arrays made).
+        """
+        entry = self._real_packers.get(names)
+        if entry is None:
+            spans = self._spans_of(names)
+            entry = self._real_packers[names] = (sum(end - start for start, end in spans), [
+                (start, end - start, struct.Struct(f"={end - start}d")) for start, end in spans])
+        size, packers = entry
+        if len(values) != size:
+            raise ValueError(f"write_reals: {len(values)} values for the {size} scalars of {', '.join(names)}")
+        buffer = self._real
+        if len(packers) == 1:
+            packers[0][2].pack_into(buffer, 8 * packers[0][0], *values)
+            return
+        first = 0
+        for start, n, packer in packers:
+            packer.pack_into(buffer, 8 * start, *values[first:first + n])
+            first += n
 
     @classmethod
     def _spans_of(cls, names: tuple) -> list[tuple[int, int]]:

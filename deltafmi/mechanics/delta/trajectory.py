@@ -102,6 +102,20 @@ def _move_starts(t0: float, durations: np.ndarray, dwell: np.ndarray) -> list[fl
     return (t0 + before + dwell[:-1]).tolist()
 
 
+Flat9 = tuple[float, float, float, float, float, float, float, float, float]
+
+
+def _resting(point: np.ndarray) -> Flat9:
+    """At rest at ``point``: r, rd, rdd as nine floats."""
+    x, y, z = point.tolist()
+    return (x, y, z, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def _vectors(flat: Flat9) -> Vector3:
+    """r, rd, rdd as three arrays from nine floats."""
+    return np.array(flat[0:3]), np.array(flat[3:6]), np.array(flat[6:9])
+
+
 def _reachable(params, point: np.ndarray) -> bool:
     try:
         inverse_kinematics_servo(params, point)
@@ -135,17 +149,22 @@ class MinimumJerkPath:
         self._starts = _move_starts(self.t0, T, D)
         self._moves = [(float(T[k]), tuple(pts[k].tolist()), tuple((pts[k + 1] - pts[k]).tolist()))
                        for k in range(len(T))]
+        self._at_rest = _resting(pts[0])
 
     def evaluate(self, t: float) -> Vector3:
         """Reference position, velocity and acceleration at time ``t``."""
+        return _vectors(self.evaluate_flat(t))
+
+    def evaluate_flat(self, t: float) -> Flat9:
+        """:meth:`evaluate` as nine plain floats r, rd, rdd (no arrays: for writing into buffers)."""
         k = bisect.bisect_right(self._starts, t) - 1
         if k < 0:
-            return self.waypoints[0].copy(), np.zeros(3), np.zeros(3)
+            return self._at_rest
         T, p, d = self._moves[k]
         s, ds, dds = minimum_jerk((t - self._starts[k]) / T)
         ds, dds = ds / T, dds / (T * T)
-        return (np.array([p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2]]),
-                np.array([ds * d[0], ds * d[1], ds * d[2]]), np.array([dds * d[0], dds * d[1], dds * d[2]]))
+        return (p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2], ds * d[0], ds * d[1], ds * d[2],
+                dds * d[0], dds * d[1], dds * d[2])
 
 
 class ConstantSpeedPath:
@@ -181,6 +200,7 @@ class ConstantSpeedPath:
         self.duration = float(D.sum() + self.durations.sum())
         self._starts = _move_starts(self.t0, self.durations, D)
         self._moves = moves
+        self._at_rest = _resting(pts[0])
 
     def _along(self, tau: float, T: float, V: float, length: float) -> tuple[float, float, float]:
         """Distance, speed and acceleration along a move at time ``tau`` into it."""
@@ -197,13 +217,17 @@ class ConstantSpeedPath:
 
     def evaluate(self, t: float) -> Vector3:
         """Reference position, velocity and acceleration at time ``t``."""
+        return _vectors(self.evaluate_flat(t))
+
+    def evaluate_flat(self, t: float) -> Flat9:
+        """:meth:`evaluate` as nine plain floats r, rd, rdd (no arrays: for writing into buffers)."""
         k = bisect.bisect_right(self._starts, t) - 1
         if k < 0:
-            return self.waypoints[0].copy(), np.zeros(3), np.zeros(3)
+            return self._at_rest
         T, V, length, p, u = self._moves[k]
         s, v, a = self._along(min(t - self._starts[k], T), T, V, length)
-        return (np.array([p[0] + s * u[0], p[1] + s * u[1], p[2] + s * u[2]]),
-                np.array([v * u[0], v * u[1], v * u[2]]), np.array([a * u[0], a * u[1], a * u[2]]))
+        return (p[0] + s * u[0], p[1] + s * u[1], p[2] + s * u[2], v * u[0], v * u[1], v * u[2],
+                a * u[0], a * u[1], a * u[2])
 
 
 class CirclePath:
