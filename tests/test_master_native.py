@@ -3,7 +3,8 @@
 The C loop makes the same fmi2 calls with the same arguments in the same order, so a run must be
 the same bit for bit, the result files byte for byte: the flagship (ME plant on rk4, CS
 controller and trajectory, Gauss-Seidel), the flagship with step events from the plant's loop
-projection (the C loop hands each event back to Python mid-step), Jacobi with a step multiple
+projection (the C loop hands each event back to Python mid-step), state events of an ME unit
+on rk4 (located by the same bisection after the C loop found the crossing), Jacobi with a step multiple
 and a transformed link, Integer and Boolean columns, and a Co-Simulation FMU failing mid-run
 (same message, same rows kept). The result writer's C formatting of Reals (Ryu's shortest
 digits laid out as repr lays them out) against ``repr`` itself, on random bit patterns, powers of
@@ -34,8 +35,9 @@ def c_runs(monkeypatch) -> list:
     original = native_loop.NativeLoop.run
 
     def counted(self, k, k_end):
-        calls.append((k, k_end))
-        return original(self, k, k_end)
+        result = original(self, k, k_end)
+        calls.append(result[0])  # why it stopped
+        return result
     monkeypatch.setattr(native_loop.NativeLoop, "run", counted)
     return calls
 
@@ -71,6 +73,21 @@ def test_step_events_handed_back_mid_step(tmp_path, c_runs):
     (c, c_text), (python, python_text) = both(tmp_path, flagship("      loop_tolerance: 1.0e-13\n"), stop=0.6)
     assert python.events > 10 and c.events == python.events
     assert len(c_runs) > python.events  # C ran again after every event
+    assert c_text == python_text
+
+
+def test_state_events_located_after_c(tmp_path, build_fmu_from_src, c_runs):
+    # rk4 in ME with wall impacts (state events) and a force step (a time event: Python steps
+    # while it is pending): the C loop hands every crossing back for the bisection
+    fmu = build_fmu_from_src("oscillator.py")
+    text = f"""\
+        experiment: {{stop: 4.0, step: 0.01}}
+        components:
+          osc: {{fmu: {fmu}, interface: ME, parameters: {{t_step: 0.05, F_step: -20.0}}, solver: {{method: rk4, max_step: 0.005}}}}
+        outputs: [osc.x, osc.v, osc.impacts, osc.force_on]
+        """
+    (c, c_text), (python, python_text) = both(tmp_path, text, stop=4.0)
+    assert c_runs.count(native_loop.STATE_EVENT) >= 3 and c.events == python.events
     assert c_text == python_text
 
 

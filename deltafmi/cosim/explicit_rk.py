@@ -123,6 +123,20 @@ class ExplicitRungeKutta:
             self._z = z
         return False
 
+    @property
+    def last_indicators(self) -> Optional[np.ndarray]:
+        """The event indicators at the end of the last step (None: to be read before the next)."""
+        return self._z
+
+    @last_indicators.setter
+    def last_indicators(self, z: Optional[np.ndarray]) -> None:
+        self._z = z
+
+    def locate(self, t0: float, x0: np.ndarray, h: float) -> None:
+        """The step from (t0, x0) of size h crossed an event: bisect it, as :meth:`advance` does
+        (for :mod:`.native_loop`, whose C steps found the crossing)."""
+        self._locate(t0, x0, h)
+
     def _locate(self, t0: float, x0: np.ndarray, h: float) -> None:
         """Bisect the step (t0, x0) -> t0 + h down to round-off; stop just past the crossing."""
         low, high, x = 0.0, 1.0, self.x.copy()

@@ -31,8 +31,9 @@ from .resolve import Component, System
 from .results import CsvWriter, RowSampler
 from .stop_signals import StopSignals
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
-from .explicit_rk import step_failure
-from .native_loop import FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STEP, STEP_EVENT, TERMINATED, NativeLoop
+from .explicit_rk import RungeKuttaError, step_failure
+from .native_loop import (FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT, TERMINATED,
+                          NativeLoop)
 
 #: steps per call of the C loop (stop signals and progress are looked at in between)
 _C_STEPS = 64
@@ -361,8 +362,18 @@ class Master:
         self.step_end = grid.start + (done + 1) * grid.h if done + 1 < grid.n_steps else grid.stop
         unit, action, index, function = native.stopped_at()
         plan = native.plan
-        if why == STEP_EVENT:
-            unit.finish_step_event(plan.time)
+        if why in (STEP_EVENT, STATE_EVENT):
+            if why == STEP_EVENT:
+                unit.finish_step_event(plan.time)
+            else:
+                try:
+                    native.locate(unit)
+                except RungeKuttaError as exc:
+                    raise FmuFailure(f"{unit.name}: {exc}") from None
+                except fmpy.fmi1.FMICallException as exc:
+                    raise unit.failure(exc) from None
+                _, _, m = native.actions[index]
+                unit.finish_state_event(t, m * grid.h if done + m < grid.last else grid.stop - t)
             self._step_in_python(native.actions, grid, done, index + 1)
             return done + 1
         if why == TERMINATED:

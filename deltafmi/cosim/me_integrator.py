@@ -159,6 +159,14 @@ class ModelExchangeUnit(Unit):
 
     def do_step(self, time: float, step: float) -> None:
         """Integrate from ``time`` to ``time + step``, handling every event on the way."""
+        self._step(time, step)
+
+    def finish_state_event(self, time: float, step: float) -> None:
+        """The rest of :meth:`do_step` from ``time`` after the solver's first advance stopped at a
+        state event it has located (where :mod:`.native_loop` hands back)."""
+        self._step(time, step, located=True)
+
+    def _step(self, time: float, step: float, located: bool = False) -> None:
         t_end = time + step
         eps = 1e-12 * max(1.0, abs(t_end))
         stuck, t_previous = 0, time  # events in a row without time advancing
@@ -166,7 +174,10 @@ class ModelExchangeUnit(Unit):
             while True:
                 event_time = self.next_event_time
                 t_stop = event_time if event_time is not None and event_time < t_end - eps else t_end
-                root = self._advance(t_stop) if t_stop - self.solver.t > eps else False
+                if located:  # the first advance was made (in C) and stopped at a state event
+                    root, located = True, False
+                else:
+                    root = self._advance(t_stop) if t_stop - self.solver.t > eps else False
                 solver = self.solver
                 t = solver.t
                 self._set_time(self._handle, t)

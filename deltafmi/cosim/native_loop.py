@@ -9,9 +9,11 @@ rows gathered into a block the result writer takes at once. The calls, their ord
 arguments are those of the Python loop, bit for bit.
 
 It covers Co-Simulation units and Model Exchange units on a fixed-step Runge-Kutta method
-without event indicators, time events or discrete inputs, with numeric (not String) values and
-no algebraic loop. Anything else runs in Python; so do the steps after a C run stopped at an
-event, a failure or a termination, which the master finishes exactly as its Python loop would.
+without time events or discrete inputs (event indicators are compared after every Runge-Kutta
+step, as :class:`.ExplicitRungeKutta` does), with numeric (not String) values and no algebraic
+loop. Anything else runs in Python; so do the steps after a C run stopped at an event (a state
+event is located by the solver's bisection), a failure or a termination, which the master
+finishes exactly as its Python loop would.
 """
 from __future__ import annotations
 
@@ -29,11 +31,11 @@ from .unit_base import Unit, _Inputs, _Outputs
 
 SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP = range(6)
 #: why a C run stopped
-RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL = range(6)
+RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT = range(7)
 _SET, _GET = {"Real": SET_REAL, "Integer": SET_INT, "Boolean": SET_INT}, \
     {"Real": GET_REAL, "Integer": GET_INT, "Boolean": GET_INT}
 #: the ME_STEP call that failed (Plan.call)
-ME_CALLS = ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2CompletedIntegratorStep")
+ME_CALLS = ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2CompletedIntegratorStep", "fmi2GetEventIndicators")
 #: the actions of a unit in a step, in the Python loop's terms
 PULL, STEP, FETCH = "pull", "do_step", "fetch"
 
@@ -44,7 +46,9 @@ class _Op(ctypes.Structure):
                 ("factor", c_void_p), ("offset", c_void_p), ("no_prior_state", c_int),
                 ("erk", c_void_p), ("erk_plan", c_void_p), ("erk_current", c_void_p), ("holds_end", c_int),
                 ("x", c_void_p), ("nx", c_size_t), ("t", c_void_p),
-                ("max_step", c_double), ("set_time", c_void_p), ("set_states", c_void_p), ("completed", c_void_p)]
+                ("max_step", c_double), ("set_time", c_void_p), ("set_states", c_void_p), ("completed", c_void_p),
+                ("nz", c_size_t), ("get_indicators", c_void_p), ("z", c_void_p), ("z_last", c_void_p),
+                ("z_valid", c_void_p), ("x0", c_void_p)]
 
 
 class _RowPart(ctypes.Structure):
@@ -56,7 +60,7 @@ class _Plan(ctypes.Structure):
                 ("width", c_size_t), ("start", c_double), ("h", c_double), ("stop", c_double),
                 ("n_steps", c_long), ("last", c_long), ("every", c_long),
                 ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
-                ("op_seconds", c_void_p)]
+                ("rk_step", c_double), ("op_seconds", c_void_p)]
 
 
 _kernel: Optional[Any] = None
@@ -90,8 +94,27 @@ def _fits(unit: Unit) -> bool:
         return False
     if unit.interface == "CS":
         return True
-    return (unit.interface == "ME" and unit.nz == 0 and not unit._discrete_inputs
-            and isinstance(unit.solver, ExplicitRungeKutta))
+    return unit.interface == "ME" and not unit._discrete_inputs and isinstance(unit.solver, ExplicitRungeKutta)
+
+
+class _Indicators:
+    """An ME unit's event indicators as the C loop compares them, and the solver's copy of the
+    last ones (``ExplicitRungeKutta._z``: None until first read) handed over around each run."""
+
+    def __init__(self, nz: int, nx: int) -> None:
+        self.z, self.z_last = np.zeros(max(nz, 1)), np.zeros(max(nz, 1))
+        self.valid = np.zeros(1, dtype=np.intc)
+        self.x0 = np.zeros(max(nx, 1))
+        self.nz = nz
+
+    def take(self, solver: ExplicitRungeKutta) -> None:
+        last = solver.last_indicators
+        self.valid[0] = last is not None
+        if last is not None:
+            self.z_last[:self.nz] = last
+
+    def give(self, solver: ExplicitRungeKutta) -> None:
+        solver.last_indicators = self.z_last[:self.nz].copy() if self.valid[0] else None
 
 
 class NativeLoop:
@@ -109,6 +132,7 @@ class NativeLoop:
         self.op_action: List[int] = []
         self.op_function: List[str] = []  # the fmi2 function of each operation (for messages)
         self._me: List[Tuple[Any, int, np.ndarray]] = []  # (unit, op index, its solver time box)
+        self._indicators: dict = {}  # ME unit name -> its _Indicators
         for a, (unit, action, m) in enumerate(self.actions):
             for op, function in self._ops(unit, action, m):
                 self.op_action.append(a)
@@ -122,7 +146,7 @@ class NativeLoop:
         width = len(sampler.row)
         self.rows = np.empty((block_rows, width + 1))
         self.plan = _Plan(self._ops_array, len(ops), self._parts_array, len(parts), width, start, h, stop,
-                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, None)
+                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None)
         #: set :meth:`timed` to have the C loop add up the wall time of each operation
         self.op_seconds: Optional[np.ndarray] = None
         self._run = _steps_function()
@@ -153,11 +177,16 @@ class NativeLoop:
         self._keep.append(box)
         self._me.append((unit, len(self.op_action), box))
         fmu = unit.fmu
+        indicators = _Indicators(unit.nz, unit.nx)
+        self._indicators[unit.name] = indicators
         return [(_Op(kind=ME_STEP, multiple=m, component=handle, no_prior_state=unit.no_prior_state,
                      erk=erk, erk_plan=erk_plan, erk_current=erk_current, x=_pointer(solver.x), nx=unit.nx, t=_pointer(box),
                      max_step=solver.max_step, set_time=_address(fmu, "fmi2SetTime"),
                      set_states=_address(fmu, "fmi2SetContinuousStates"),
-                     completed=_address(fmu, "fmi2CompletedIntegratorStep") if unit.needs_completed else None),
+                     completed=_address(fmu, "fmi2CompletedIntegratorStep") if unit.needs_completed else None,
+                     nz=unit.nz, get_indicators=_address(fmu, "fmi2GetEventIndicators"), z=_pointer(indicators.z),
+                     z_last=_pointer(indicators.z_last), z_valid=_pointer(indicators.valid),
+                     x0=_pointer(indicators.x0)),
                  "")]
 
     def _value_op(self, unit: Unit, holder: Any, kind: int, function: str, m: int, values: Optional[np.ndarray],
@@ -201,11 +230,18 @@ class NativeLoop:
         :attr:`rows`). The Model Exchange units' solvers are up to date on return."""
         for unit, _, box in self._me:
             box[0] = unit.solver.t
+            self._indicators[unit.name].take(unit.solver)
         why = self._run(ctypes.byref(self.plan), k, k_end, self.rows.ctypes.data, len(self.rows),
                         ctypes.byref(self._k_done), ctypes.byref(self._n_rows))
         for unit, _, box in self._me:
             unit.solver.t = float(box[0])
+            self._indicators[unit.name].give(unit.solver)
         return why, self._k_done.value, self._n_rows.value
+
+    def locate(self, unit: Any) -> None:
+        """After a STATE_EVENT in ``unit``: bisect the Runge-Kutta step that crossed, as
+        :meth:`.ExplicitRungeKutta.advance` does (the solver then stands just past the crossing)."""
+        unit.solver.locate(self.plan.rk_time, self._indicators[unit.name].x0.copy(), self.plan.rk_step)
 
     def stopped_at(self) -> Tuple[Unit, str, int, str]:
         """Where the last run stopped: the action (unit, PULL | STEP | FETCH, its index in

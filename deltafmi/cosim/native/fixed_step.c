@@ -21,13 +21,14 @@ typedef int (*DoStep)(void *, double, double, int);
 typedef int (*SetTime)(void *, double);
 typedef int (*SetStates)(void *, const double *, size_t);
 typedef int (*Completed)(void *, int, int *, int *);
+typedef int (*GetIndicators)(void *, double *, size_t);
 typedef int (*ErkSteps)(const void *plan, double t, double h, int steps, double *x);
 
 enum { FMI2_WARNING = 1 };
 /* operations */
 enum { SET_REAL = 0, GET_REAL = 1, SET_INT = 2, GET_INT = 3, DO_STEP = 4, ME_STEP = 5 };
 /* why a run stopped */
-enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_FULL = 5 };
+enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_FULL = 5, STATE_EVENT = 6 };
 
 typedef struct {
     int kind;
@@ -54,6 +55,13 @@ typedef struct {
     SetTime set_time;
     SetStates set_states;
     Completed completed;     /* NULL: the FMU needs no fmi2CompletedIntegratorStep */
+    /* ME_STEP with event indicators: compared after every Runge-Kutta step with the last ones */
+    size_t nz;
+    GetIndicators get_indicators;
+    double *z;               /* nz: the indicators now */
+    double *z_last;          /* nz: at the last step's end, valid when *z_valid */
+    int *z_valid;
+    double *x0;              /* nx: the states at the start of the step that crossed */
 } Op;
 
 typedef struct {
@@ -75,9 +83,11 @@ typedef struct {
     /* out: where and why the last run stopped */
     long op;                 /* the operation that stopped it */
     int status;              /* its fmi2Status */
-    int call;                /* ME_STEP FAILED: 0 fmi2SetTime, 1 fmi2SetContinuousStates, 2 fmi2CompletedIntegratorStep */
+    int call;                /* ME_STEP FAILED: 0 fmi2SetTime, 1 fmi2SetContinuousStates,
+                              * 2 fmi2CompletedIntegratorStep, 3 fmi2GetEventIndicators */
     double time;             /* ME_STEP: the time reached */
-    double rk_time;          /* RK_FAILED: the time its Runge-Kutta call started from */
+    double rk_time;          /* RK_FAILED, STATE_EVENT: the time its Runge-Kutta step started from */
+    double rk_step;          /* STATE_EVENT: that step's size (the states it started from in op->x0) */
     double *op_seconds;      /* NULL, or per operation: wall seconds spent in it (benchmarks) */
 } Plan;
 
@@ -86,6 +96,52 @@ static double now(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* the event indicators at (t, x) into z (as the master's Python does: time, states, indicators) */
+static int indicators(Plan *p, Op *o, double t, double *z)
+{
+    int status;
+    p->call = 0;
+    if ((status = o->set_time(o->component, t)) > FMI2_WARNING) return status;
+    p->call = 1;
+    if (o->nx && (status = o->set_states(o->component, o->x, o->nx)) > FMI2_WARNING) return status;
+    p->call = 3;
+    return o->get_indicators(o->component, z, o->nz);
+}
+
+/* Runge-Kutta steps to t_end with the indicators checked after each (ExplicitRungeKutta.advance) */
+static int steps_with_indicators(Plan *p, Op *o, double t_end, double h, int n)
+{
+    int status;
+    if (!*o->z_valid) {
+        if ((status = indicators(p, o, *o->t, o->z_last)) > FMI2_WARNING) goto failed;
+        *o->z_valid = 1;
+    }
+    for (int k = 0; k < n; k++) {
+        double t0 = *o->t;
+        for (size_t i = 0; i < o->nx; i++) o->x0[i] = o->x[i];
+        status = o->erk(o->erk_plan, t0, h, 1, o->x);
+        if (status > FMI2_WARNING) {
+            p->status = status;
+            p->rk_time = t0;
+            return RK_FAILED;
+        }
+        *o->t = k == n - 1 ? t_end : t0 + h;
+        if ((status = indicators(p, o, *o->t, o->z)) > FMI2_WARNING) goto failed;
+        for (size_t i = 0; i < o->nz; i++) {
+            if ((o->z[i] > 0) != (o->z_last[i] > 0)) {
+                p->rk_time = t0;
+                p->rk_step = h;
+                return STATE_EVENT;
+            }
+        }
+        for (size_t i = 0; i < o->nz; i++) o->z_last[i] = o->z[i];
+    }
+    return RAN;
+failed:
+    p->status = status;
+    return FAILED;
 }
 
 static int me_step(Plan *p, Op *o, double t, double step)
@@ -103,14 +159,20 @@ static int me_step(Plan *p, Op *o, double t, double step)
         /* since this op set them at the last step's end, the FMU got new inputs only */
         *o->erk_current = o->holds_end;
         o->holds_end = 0;
-        status = o->erk(o->erk_plan, *o->t, span / n, n, o->x);
-        *o->erk_current = 0;
-        if (status > FMI2_WARNING) {
-            p->status = status;
-            p->rk_time = *o->t;
-            return RK_FAILED;
+        if (o->nz) {
+            int stop = steps_with_indicators(p, o, t_end, span / n, n);
+            *o->erk_current = 0;
+            if (stop != RAN) return stop;
+        } else {
+            status = o->erk(o->erk_plan, *o->t, span / n, n, o->x);
+            *o->erk_current = 0;
+            if (status > FMI2_WARNING) {
+                p->status = status;
+                p->rk_time = *o->t;
+                return RK_FAILED;
+            }
+            *o->t = t_end;
         }
-        *o->t = t_end;
     }
     double reached = *o->t;
     p->time = reached;
