@@ -117,10 +117,12 @@ class DeltaController(Component):
         # faster than a numpy array, and one read_reals is cheaper than seven attribute reads
         v = self.read_reals("y", "yd", "r", "rd", "rdd", "force", "tactile")
         ctl.step(v[0:3], v[3:6], v[6:9], v[9:12], v[12:15], v[15:18], v[18])
-        self.u = ctl.u  # what step() returned, as the tuple it made that array from
-        self.cond_Jc, self.status, self.shift = ctl.cond, ctl.status, ctl.shift
+        # the real outputs u, cond_Jc, z_est, shift in one write (ctl.u: the torque step() returned)
         if ctl.last is not None and not ctl.status & delta_control.STATUS_SINGULAR:
-            self.z_est = ctl.last.z
+            self.write_reals((*ctl.u, ctl.cond, *ctl.last.z, ctl.shift), "u", "cond_Jc", "z_est", "shift")
+        else:  # singular: the estimate is kept
+            self.write_reals((*ctl.u, ctl.cond, ctl.shift), "u", "cond_Jc", "shift")
+        self.status = ctl.status
         warning = ctl.pending_warning()
         if warning:
             self.log(warning, level="warning")
