@@ -9,6 +9,8 @@
   the units of a loop step as one block.
 * Optional adaptive communication step with rollback (:mod:`deltafmi.cosim.adaptive`).
 * Results stream to CSV; events of ME units add rows at the event instant.
+* Fixed steps run in C where :mod:`deltafmi.cosim.native_loop` can (the same fmi2 calls, 64
+  steps per foreign call); the step where C stops (an event, a failure) is finished here.
 """
 from __future__ import annotations
 
@@ -25,15 +27,15 @@ import numpy as np
 
 from .adaptive import run_adaptive
 from .errors import BadInput, Interrupted, SimulationError
+from .explicit_rk import RungeKuttaError, step_failure
 from .loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
+from .native_loop import (FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT, TERMINATED,
+                          NativeLoop)
 from .progress import Progress, Summary, Termination
 from .resolve import Component, System
 from .results import CsvWriter, RowSampler
 from .stop_signals import StopSignals
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
-from .explicit_rk import RungeKuttaError, step_failure
-from .native_loop import (FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT, TERMINATED,
-                          NativeLoop)
 
 #: steps per call of the C loop (stop signals and progress are looked at in between)
 _C_STEPS = 64
