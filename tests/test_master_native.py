@@ -114,6 +114,18 @@ def test_jacobi_multi_rate_transformed_integer_boolean_same_bits(tmp_path, build
     assert any(int(row[6]) > 0 for row in rows)  # a's wall impacts counted, written as integers
 
 
+@pytest.mark.parametrize("algorithm, stop, every", [("gauss-seidel", 1.234, 3), ("jacobi", 0.995, 7)])
+def test_off_grid_stop_and_sparse_rows_same_bits(tmp_path, build_fmu_from_src, c_runs, algorithm, stop, every):
+    # the last step ends at stop (shorter), b's double step there too; every n-th row and the last
+    fmu = build_fmu_from_src("oscillator.py")
+    text = OSCILLATORS.format(fmu=fmu, force=2.0).replace("{algorithm: jacobi}", f"{{algorithm: {algorithm}}}")
+    text = text.rstrip() + f"\n    result: {{every: {every}}}\n"
+    (c, c_text), (python, python_text) = both(tmp_path, text, stop=stop)
+    assert c_runs and c_text == python_text
+    times = [float(line.split(",")[0]) for line in c_text.splitlines()[1:]]
+    assert times[-1] == stop and c.rows == python.rows == len(times)
+
+
 def test_failure_in_c_same_message_and_rows(tmp_path, build_fmu_from_src, c_runs):
     # an absurd force step at t = 1 s makes b's own CVODE fail inside its fmi2DoStep
     fmu = build_fmu_from_src("oscillator.py")
