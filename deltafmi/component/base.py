@@ -48,6 +48,10 @@ class Component:
             buffers = (np.empty_like(layout.real_start), np.empty_like(layout.int_start), [])
         self._real, self._int, self._str = buffers
         self._real_view = memoryview(self._real)  # indexing it is cheaper than ndarray.item()
+        # what the variable declarations' getters call (see variables.py): C all the way
+        self._real_item, self._real_items = self._real_view.__getitem__, self._real.__getitem__
+        self._int_item, self._int_items = memoryview(self._int).__getitem__, self._int.__getitem__
+        self._str_items = self._str.__getitem__
         self._real[:] = layout.real_start
         self._int[:] = layout.int_start
         self._str[:] = layout.str_start

@@ -24,7 +24,8 @@ OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 MODEL_EXCHANGE, CO_SIMULATION = 0, 1
 _MAX_EVENT_ITERATIONS = 100
 _TINY = 1e-12  # relative time below which intervals are round-off, not integration
-_RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_int", "_str", "_log_sink", "resources_dir"})
+_RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
+                                 "_int_items", "_str", "_str_items", "_log_sink", "resources_dir"})
 
 
 class FmuInstance:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from operator import methodcaller
 from typing import Any, Optional, Sequence
 
 import numpy as np
@@ -28,7 +29,7 @@ class Experiment:
     tolerance: float = 1e-6
 
 
-class Variable:
+class Variable(property):
     """Base declaration: one scalar or a 1-D array of scalars of one FMI type.
 
     ``name`` sets the FMI name when the attribute name cannot be used (``lambda`` is a Python
@@ -52,6 +53,7 @@ class Variable:
         initial: Optional[str] = None,
         name: Optional[str] = None,
     ) -> None:
+        super().__init__()  # the accessors are installed when the offset is set (below)
         if start is not None and not isinstance(start, (str, bool, int, float)):
             start_list = list(np.asarray(start).ravel().tolist())
             if shape is not None and shape != len(start_list):
@@ -82,10 +84,13 @@ class Variable:
         self.fmi_name = name  # the FMI name when it differs (e.g. the keyword "lambda")
         self.offset = 0  # index of the first scalar in the component's buffer of this type
 
-    # The descriptor runs on every access a model makes (several per evaluation), so what it
-    # needs is derived once from type, shape and offset: which access it is (_kind), the end of
-    # the slice and, for real arrays, a struct that packs a list or tuple straight into the
-    # buffer (about twice as fast as numpy's slice assignment from a sequence).
+    # The descriptor runs on every access a model makes (several per evaluation). A declaration
+    # is a property whose getter is a C-level call, operator.methodcaller, of a bound
+    # __getitem__ of the component's buffers (Component._attach sets them): reading a value
+    # runs no Python frame. What the setter needs is derived once from type, shape and offset:
+    # which access it is (_kind), the end of the slice and, for real arrays, a struct that
+    # packs a list or tuple straight into the buffer (about twice as fast as numpy's slice
+    # assignment from a sequence).
     @property
     def offset(self) -> int:
         """Index of the first scalar in the component's buffer of this type (set by the layout)."""
@@ -105,6 +110,12 @@ class Variable:
         else:
             self._kind = _INT_SCALAR if self.shape is None else _INT_ARRAY
         self._pack = struct.Struct(f"={self.size}d") if self._kind == _REAL_ARRAY else None
+        span = slice(value, self._end)
+        getter = {_REAL_SCALAR: methodcaller("_real_item", value), _REAL_ARRAY: methodcaller("_real_items", span),
+                  _INT_SCALAR: methodcaller("_int_item", value), _INT_ARRAY: methodcaller("_int_items", span),
+                  _STR_SCALAR: methodcaller("_str_items", value), _STR_ARRAY: methodcaller("_str_items", span),
+                  _BOOL_SCALAR: self._get_bool}[self._kind]
+        property.__init__(self, getter, self._set)
 
     # --- naming -----------------------------------------------------------------------------
     def __set_name__(self, owner: type, name: str) -> None:
@@ -136,25 +147,10 @@ class Variable:
         return "continuous" if self.type is float else "discrete"
 
     # --- descriptor -------------------------------------------------------------------------
-    def __get__(self, obj: Any, owner: type) -> Any:
-        if obj is None:
-            return self
-        kind = self._kind
-        if kind == _REAL_SCALAR:
-            return obj._real_view[self._offset]
-        if kind == _REAL_ARRAY:
-            return obj._real[self._offset:self._end]
-        if kind == _INT_SCALAR:
-            return obj._int.item(self._offset)
-        if kind == _BOOL_SCALAR:
-            return bool(obj._int.item(self._offset))
-        if kind == _INT_ARRAY:
-            return obj._int[self._offset:self._end]
-        if kind == _STR_SCALAR:
-            return obj._str[self._offset]
-        return obj._str[self._offset:self._end]
+    def _get_bool(self, obj: Any) -> bool:
+        return bool(obj._int_item(self._offset))
 
-    def __set__(self, obj: Any, value: Any) -> None:
+    def _set(self, obj: Any, value: Any) -> None:
         kind = self._kind
         if kind == _REAL_SCALAR:
             if type(value) is float:
