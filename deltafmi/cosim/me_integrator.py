@@ -22,7 +22,7 @@ from fmpy.fmi2 import FMU2Model, fmi2Boolean
 
 from deltafmi.component.cvode import Cvode, CvodeError
 
-from .explicit_rk import TABLEAUS, ExplicitRungeKutta, RungeKuttaError
+from .explicit_rk import TABLEAUS, ExplicitRungeKutta, FmuEvaluations, RungeKuttaError
 from .jacobians import FmuJacobian, computes_exact_derivatives
 from .resolve import Component
 from .unit_base import FmuFailure, Terminated, Unit, bare_function
@@ -60,8 +60,8 @@ class ModelExchangeUnit(Unit):
         fmu, handle = self.fmu, self.fmu.component
         self._handle = handle
         self._set_time, self._set_states = bare_function(fmu, "fmi2SetTime"), bare_function(fmu, "fmi2SetContinuousStates")
-        self._get_derivatives = bare_function(fmu, "fmi2GetDerivatives")
         self._get_indicators = bare_function(fmu, "fmi2GetEventIndicators")
+        self._evaluations = FmuEvaluations(fmu, self.nx)
         self._completed_step = bare_function(fmu, "fmi2CompletedIntegratorStep")
 
     def wire_inputs(self, kind: str, vrs: Sequence[int], bus: np.ndarray, index: Sequence[int],
@@ -124,12 +124,10 @@ class ModelExchangeUnit(Unit):
         return pointer
 
     def _rhs(self, t: float, x: np.ndarray, xdot: np.ndarray) -> None:
-        handle = self._handle
-        self._set_time(handle, t)
         if self.nx:
-            self._set_states(handle, self._pointer(x), self.nx)
-            self._get_derivatives(handle, self._pointer(xdot), self.nx)
+            self._evaluations.derivatives(t, self._pointer(x), self._pointer(xdot), self.nx)
         else:
+            self._set_time(self._handle, t)
             xdot[0] = 0.0
 
     def _jacobian(self, t: float, x: np.ndarray, J: np.ndarray) -> None:
@@ -138,15 +136,19 @@ class ModelExchangeUnit(Unit):
         self._newton.fill_state_jacobian(J)
 
     def _roots(self, t: float, x: np.ndarray, g: np.ndarray) -> None:
-        handle = self._handle
-        self._set_time(handle, t)
+        self._roots_at(t, self._pointer(x), self._pointer(g))
+
+    def _roots_at(self, t: float, x: Any, g: Any) -> None:
         if self.nx:
-            self._set_states(handle, self._pointer(x), self.nx)
-        self._get_indicators(handle, self._pointer(g), self.nz)
+            self._evaluations.indicators(t, x, g, self.nz)
+        else:
+            self._set_time(self._handle, t)
+            self._get_indicators(self._handle, g, self.nz)
 
     def _indicators(self, t: float, x: np.ndarray) -> np.ndarray:
+        # fresh arrays (the Runge-Kutta bisection's trials): their addresses, not the pointer cache
         g = np.empty(self.nz)
-        self._roots(t, x, g)
+        self._roots_at(t, x.ctypes.data, g.ctypes.data)
         return g
 
     # --- stepping -----------------------------------------------------------------------------

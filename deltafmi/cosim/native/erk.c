@@ -9,6 +9,7 @@
 typedef int (*SetTime)(void *component, double time);
 typedef int (*SetStates)(void *component, const double *x, size_t nx);
 typedef int (*GetDerivatives)(void *component, double *dx, size_t nx);
+typedef int (*GetIndicators)(void *component, double *z, size_t nz);
 
 enum { FMI2_WARNING = 1 };
 
@@ -82,4 +83,23 @@ int deltafmi_erk_steps(ErkPlan *plan, double t, double h, int steps, double *x)
         if (worst > FMI2_WARNING) break;
     }
     return worst;
+}
+
+/* What an integrator's callback asks of the FMU in one foreign call: fmi2SetTime and
+ * fmi2SetContinuousStates, then fmi2GetDerivatives (get_indicators NULL) or
+ * fmi2GetEventIndicators into out. Returns the worst fmi2Status, or at the first status above
+ * fmi2Warning that status plus 256 times the failing call (0 SetTime, 1 SetContinuousStates,
+ * 2 the get). */
+__attribute__((visibility("default")))
+int deltafmi_fmu_evaluate(const ErkPlan *p, GetIndicators get_indicators, double t, const double *x,
+                          double *out, size_t n_out)
+{
+    int worst = p->set_time(p->component, t);
+    if (worst > FMI2_WARNING) return worst;
+    int status = p->set_states(p->component, x, p->nx);
+    if (status > FMI2_WARNING) return status + 256;
+    if (status > worst) worst = status;
+    status = get_indicators ? get_indicators(p->component, out, n_out) : p->get_derivatives(p->component, out, n_out);
+    if (status > FMI2_WARNING) return status + 512;
+    return status > worst ? status : worst;
 }
