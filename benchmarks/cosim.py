@@ -10,21 +10,23 @@
    work is small and the master's own per-step cost shows.
 
 3. The crossing of FMI (issue 16): the flagship's stepping against its in-process floor, the same
-   physics in one Python loop with no FMI, measured in the same run: the compiled kernels
-   shipped in the DeltaRobot FMU (imported from that FMU's own ``resources/python``), the same
-   classical RK4 (four ``state_derivative`` stages per 1 ms step, inputs held), the plant's
-   recorded outputs from one ``evaluate_plant``, the same ``MinimumJerkPath.evaluate`` and
-   ``DeltaController.step``; rows kept in memory. Target: flagship / floor <= 1.5x. Then each
-   piece through the master's own units (fmi2 calls as the master makes them) against its
-   in-process call: one plant right-hand side (fmi2SetTime + fmi2SetContinuousStates +
-   fmi2GetDerivatives, looped in C as the master's rk4 does) against ``state_derivative``
-   (target: <= 1 us more); the plant's whole step (rk4 + completed step + outputs read) against
-   four stages plus ``evaluate_plant``; trajectory fmi2DoStep + its outputs read against
-   ``path.evaluate``; controller inputs set + fmi2DoStep + outputs read against ``ctl.step``
-   (targets <= 1.5x). The master's own cost is the stepping less its three units' pieces.
+   physics in one Python loop with no FMI: the compiled kernels shipped in the DeltaRobot FMU
+   (imported from that FMU's own ``resources/python``), the same classical RK4 (four
+   ``state_derivative`` stages per 1 ms step, inputs held), the plant's recorded outputs from one
+   ``evaluate_plant``, the same ``MinimumJerkPath.evaluate`` and ``DeltaController.step``; rows
+   kept in memory; its samples are compared with the flagship's. Target: flagship / floor <= 1.5x.
+   Then each piece as the master runs it (its C loop timing its own fmi2 calls along the real run)
+   against the same piece timed inside the floor's loop: the plant's step (rk4 + completed step
+   + outputs read) against four stages plus ``evaluate_plant``, trajectory fmi2DoStep + outputs
+   read against ``path.evaluate``, controller inputs set + fmi2DoStep + outputs read against
+   ``ctl.step`` (targets <= 1.5x); and one plant right-hand side (fmi2SetTime +
+   fmi2SetContinuousStates + fmi2GetDerivatives, looped in C by the master's Runge-Kutta kernel)
+   against ``state_derivative`` on the same state (target: <= 1 us more). The master's own cost
+   is its stepping less the time inside its units' fmi2 calls. Each round measures both sides
+   back to back; ratios are medians of the rounds' ratios (the machine is shared).
 
 Prints medians over ``--repeats`` runs, all measured now on this machine.
-Usage: python benchmarks/cosim.py [--stop 3.5] [--repeats 5] [--only floor]
+Usage: python benchmarks/cosim.py [--stop 3.5] [--repeats 5] [--only crossing]
 """
 from __future__ import annotations
 
