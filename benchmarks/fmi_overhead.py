@@ -23,8 +23,9 @@ ROOT = Path(__file__).resolve().parents[1]
 MODELS = Path(__file__).parent / "models"
 
 
-def fmpy_step_us(fmu: Path, steps: int, repeats: int) -> float:
-    """Median microseconds per setReal/doStep/getReal through fmpy's FMU2Slave."""
+def fmpy_step_us(fmu: Path, steps: int, repeats: int, do_step: bool = True) -> float:
+    """Median microseconds per setReal/doStep/getReal through fmpy's FMU2Slave (without doStep:
+    what fmpy's own wrappers cost, for our FMU answers setReal/getReal in C)."""
     md = fmpy.read_model_description(str(fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     slave = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
@@ -38,9 +39,10 @@ def fmpy_step_us(fmu: Path, steps: int, repeats: int) -> float:
         start = time.perf_counter()
         for k in range(steps):
             slave.setReal(u, [1.0])
-            slave.doStep(t, h)
+            if do_step:
+                slave.doStep(t, h)
+                t += h
             slave.getReal(y)
-            t += h
         samples.append((time.perf_counter() - start) / steps * 1e6)
     slave.terminate()
     slave.freeInstance()
@@ -119,6 +121,7 @@ def main() -> None:
         ours = build_fmu(MODELS / "lag_deltafmi.py", workdir / "ours" / "Lag.fmu")
         theirs = build_pythonfmu(workdir)
         ours_us = fmpy_step_us(ours, args.steps, args.repeats)
+        fmpy_us = fmpy_step_us(ours, args.steps, args.repeats, do_step=False)
         theirs_us = fmpy_step_us(theirs, args.steps, args.repeats) if theirs else None
         direct_us = direct_step_us(args.steps, args.repeats)
         c_us = c_host_us(ours, args.steps * 10, args.repeats, workdir)
@@ -126,6 +129,7 @@ def main() -> None:
     print(f"FMI overhead, medians of {args.repeats} runs x {args.steps} steps (us per set/doStep/get step)")
     print(f"  direct Python calls (floor)        {direct_us:8.3f}")
     print(f"  deltafmi FMU through fmpy          {ours_us:8.3f}")
+    print(f"    of which fmpy's setReal+getReal  {fmpy_us:8.3f}   (answered in C: fmpy's own cost)")
     if theirs_us is None:
         print("  pythonfmu FMU through fmpy         skipped: pythonfmu is not installed")
     else:
