@@ -15,8 +15,8 @@ from typing import Any, Dict, List, Optional, Tuple
 import jsonschema
 
 from .errors import Diagnostic, ScenarioError
-from .schema_check import dotted, schema_diagnostics
-from .yaml_lines import LineMap, YamlSyntaxError, load_yaml
+from .schema_check import dotted, load_mapping, read_document, schema_diagnostics
+from .yaml_lines import LineMap
 
 
 @dataclass(frozen=True)
@@ -154,22 +154,12 @@ def schema() -> Dict[str, Any]:
 def load_scenario(path: str | Path) -> Scenario:
     """Read, schema-check and parse a scenario file. Raises :class:`ScenarioError` (exit code 2)."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioError([Diagnostic(str(path), None, f"cannot read scenario: {exc.strerror}")])
-    return parse_scenario(text, path)
+    return parse_scenario(read_document(path, "scenario"), path)
 
 
 def parse_scenario(text: str, path: Path) -> Scenario:
     """Parse scenario ``text``; ``path`` names it in diagnostics and anchors relative paths."""
-    file = str(path)
-    try:
-        data, lines = load_yaml(text)
-    except YamlSyntaxError as exc:
-        raise ScenarioError([Diagnostic(file, exc.line, str(exc))])
-    if not isinstance(data, dict):
-        raise ScenarioError([Diagnostic(file, lines.line(()), "a scenario must be a YAML mapping")])
+    data, lines = load_mapping(text, str(path), "scenario")
     return scenario_from_data(data, lines, path)
 
 

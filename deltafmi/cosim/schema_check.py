@@ -1,16 +1,37 @@
-"""JSON Schema violations of a YAML document as diagnostics at their file and line, with
-did-you-mean suggestions: shared by scenario and study files."""
+"""Reading a YAML document (scenario or study file) as a mapping, and its JSON Schema violations
+as diagnostics at their file and line, with did-you-mean suggestions."""
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import jsonschema
 
-from .errors import Diagnostic, did_you_mean
-from .yaml_lines import LineMap
+from .errors import Diagnostic, ScenarioError, did_you_mean
+from .yaml_lines import LineMap, YamlSyntaxError, load_yaml
 
 #: a document's own wording for some errors: None to fall back to the generic one
 Special = Callable[[jsonschema.ValidationError, LineMap, str], Optional[List[Diagnostic]]]
+
+
+def read_document(path: Path, document: str) -> str:
+    """The text of ``path``; :class:`ScenarioError` naming the file if it cannot be read."""
+    try:
+        return path.read_text()
+    except OSError as exc:
+        raise ScenarioError([Diagnostic(str(path), None, f"cannot read {document}: {exc.strerror}")])
+
+
+def load_mapping(text: str, file: str, document: str) -> Tuple[Dict[str, Any], LineMap]:
+    """``text`` parsed as a YAML mapping with its line map; :class:`ScenarioError` at the line of a
+    syntax error, or if the top level is not a mapping."""
+    try:
+        data, lines = load_yaml(text)
+    except YamlSyntaxError as exc:
+        raise ScenarioError([Diagnostic(file, exc.line, str(exc))])
+    if not isinstance(data, dict):
+        raise ScenarioError([Diagnostic(file, lines.line(()), f"a {document} must be a YAML mapping")])
+    return data, lines
 
 
 def schema_diagnostics(data: Any, lines: LineMap, file: str, schema: Dict[str, Any], document: str,

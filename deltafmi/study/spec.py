@@ -19,8 +19,8 @@ from typing import Any, Dict, List, Optional, Tuple
 import jsonschema
 
 from deltafmi.cosim.errors import Diagnostic, ScenarioError, did_you_mean
-from deltafmi.cosim.schema_check import schema_diagnostics
-from deltafmi.cosim.yaml_lines import LineMap, YamlSyntaxError, load_yaml
+from deltafmi.cosim.schema_check import load_mapping, read_document, schema_diagnostics
+from deltafmi.cosim.yaml_lines import LineMap
 
 #: experiment settings a study may vary
 EXPERIMENT_TARGETS = ("experiment.stop", "experiment.step")
@@ -179,22 +179,13 @@ def schema() -> Dict[str, Any]:
 def load_study(path: str | Path) -> Study:
     """Read, schema-check and parse a study file. Raises :class:`ScenarioError` (exit code 2)."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioError([Diagnostic(str(path), None, f"cannot read study: {exc.strerror}")])
-    return parse_study(text, path)
+    return parse_study(read_document(path, "study"), path)
 
 
 def parse_study(text: str, path: Path) -> Study:
     """Parse study ``text``; ``path`` names it in diagnostics and anchors relative paths."""
     file = str(path)
-    try:
-        data, lines = load_yaml(text)
-    except YamlSyntaxError as exc:
-        raise ScenarioError([Diagnostic(file, exc.line, str(exc))])
-    if not isinstance(data, dict):
-        raise ScenarioError([Diagnostic(file, lines.line(()), "a study must be a YAML mapping")])
+    data, lines = load_mapping(text, file, "study")
     problems = _schema_errors(data, lines, file)
     if not problems:
         problems = _semantic_errors(data, lines, file)

@@ -124,7 +124,18 @@ def _reachable(params, point: np.ndarray) -> bool:
     return True
 
 
-class MinimumJerkPath:
+class _WaypointPath:
+    """Moves between waypoints, evaluated as nine plain floats by the subclass's ``evaluate_flat``."""
+
+    def evaluate_flat(self, t: float) -> Flat9:
+        raise NotImplementedError
+
+    def evaluate(self, t: float) -> Vector3:
+        """Reference position, velocity and acceleration at time ``t``."""
+        return _vectors(self.evaluate_flat(t))
+
+
+class MinimumJerkPath(_WaypointPath):
     """Rest-to-rest minimum-jerk moves through ``waypoints`` (n x 3, metres).
 
     ``durations[k]`` (n-1 values, s) is the time of the move from waypoint k to waypoint k+1;
@@ -151,10 +162,6 @@ class MinimumJerkPath:
                        for k in range(len(T))]
         self._at_rest = _resting(pts[0])
 
-    def evaluate(self, t: float) -> Vector3:
-        """Reference position, velocity and acceleration at time ``t``."""
-        return _vectors(self.evaluate_flat(t))
-
     def evaluate_flat(self, t: float) -> Flat9:
         """:meth:`evaluate` as nine plain floats r, rd, rdd (no arrays: for writing into buffers)."""
         k = bisect.bisect_right(self._starts, t) - 1
@@ -167,7 +174,7 @@ class MinimumJerkPath:
                 dds * d[0], dds * d[1], dds * d[2])
 
 
-class ConstantSpeedPath:
+class ConstantSpeedPath(_WaypointPath):
     """Straight moves through ``waypoints`` (n x 3, m) at ``speeds[k]`` (m/s) along move k.
 
     Each move starts from rest, reaches its speed along the minimum-jerk blend over ``blend``
@@ -214,10 +221,6 @@ class ConstantSpeedPath:
             s, ds, _ = minimum_jerk(x)
             return length - V * Tb * x ** 4 * (2.5 + x * (-3.0 + x)), V * s, -V * ds / Tb
         return V * (tau - 0.5 * Tb), V, 0.0
-
-    def evaluate(self, t: float) -> Vector3:
-        """Reference position, velocity and acceleration at time ``t``."""
-        return _vectors(self.evaluate_flat(t))
 
     def evaluate_flat(self, t: float) -> Flat9:
         """:meth:`evaluate` as nine plain floats r, rd, rdd (no arrays: for writing into buffers)."""
