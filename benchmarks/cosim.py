@@ -292,11 +292,13 @@ class Floor:
         return clock() - wall, rows, spent
 
 
-def rhs_pair(system: System, floor: Floor, out: Path, calls: int = 2000) -> tuple:
+def rhs_pair(system: System, floor: Floor, out: Path, calls: int = 500, bursts: int = 9) -> tuple:
     """Microseconds of one plant right-hand side through FMI (fmi2SetTime +
     fmi2SetContinuousStates + fmi2GetDerivatives looped in C by the master's Runge-Kutta kernel,
     as its rk4 does, Euler steps of 1e-9 s from the plant's initial state) and in-process
-    (``state_derivative`` on the same state), measured back to back."""
+    (``state_derivative`` on the same state): medians of ``bursts`` bursts of ``calls`` each,
+    the two sides alternating (one call takes a few us: a single burst is at the mercy of the
+    shared machine's slow spells)."""
     from deltafmi.cosim.explicit_rk import ExplicitRungeKutta
 
     master = Master(system, result=out)
@@ -308,16 +310,18 @@ def rhs_pair(system: System, floor: Floor, out: Path, calls: int = 2000) -> tupl
         params, pole, _, _, _ = floor.fresh()
         derivative, xl, f = floor.delta.state_derivative, [float(v) for v in x], (0.0, 0.0, 0.0)
         u = [float(v) for v in master.buses["Real"][plant.inputs[0].index]]
-        begin = time.perf_counter()
-        euler.advance(t0 + (calls - 0.5) * tiny)
-        fmi = time.perf_counter() - begin
-        begin = time.perf_counter()
-        for _ in range(calls):
-            derivative(params, xl, u, f, pole)
-        direct = time.perf_counter() - begin
+        fmi, direct = [], []
+        for burst in range(1, bursts + 1):
+            begin = time.perf_counter()
+            euler.advance(t0 + (burst * calls - 0.5) * tiny)
+            fmi.append(time.perf_counter() - begin)
+            begin = time.perf_counter()
+            for _ in range(calls):
+                derivative(params, xl, u, f, pole)
+            direct.append(time.perf_counter() - begin)
     finally:
         master.close()
-    return 1e6 * fmi / calls, 1e6 * direct / calls
+    return 1e6 * statistics.median(fmi) / calls, 1e6 * statistics.median(direct) / calls
 
 
 def timed_master_run(system: System, stop: float, out: Path) -> tuple:

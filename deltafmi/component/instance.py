@@ -72,8 +72,11 @@ class FmuInstance:
                 self._pack_derivatives.pack_into(comp._real, 8 * self.nx, *values)
                 return
             except Exception:
-                pass  # not a flat sequence of nx numbers: numpy assigns it, or says what is wrong
-        comp._real[self.nx:2 * self.nx] = values
+                pass  # not a flat sequence of nx numbers: numpy converts it, or says what is wrong
+        comp._real[self.nx:2 * self.nx] = _exactly(values, self.nx, "derivatives", "states")
+
+    def _store_event_indicators(self, values: Sequence[float]) -> None:
+        self.event_indicators[:] = _exactly(values, self.nz, "event_indicators", "event indicators")
 
     # --- what the native layer needs to know ------------------------------------------------
     def native_layout(self) -> tuple:
@@ -110,20 +113,25 @@ class FmuInstance:
         if self.nx:
             self._store_derivatives(comp.derivatives(t))
         if self.nz:
-            self.event_indicators[:] = comp.event_indicators(t)
+            self._store_event_indicators(comp.event_indicators(t))
         if self._has_outputs:
             comp.outputs(t)
         return OK
 
     def evaluate_derivatives(self, t: float) -> int:
-        """Only what an integrator asks for: derivatives and event indicators (not outputs)."""
+        """Only what an integrator asks for: derivatives and event indicators (not outputs).
+
+        The native layer does the same itself in Model Exchange's event and continuous-time
+        modes (bridge_derivatives), calling ``derivatives`` and ``event_indicators`` directly and
+        handing results that are not lists or tuples to ``_store_derivatives`` and
+        ``_store_event_indicators``."""
         comp = self.component
         if self.in_initialization:
             comp.initialize(t)
         if self.nx:
             self._store_derivatives(comp.derivatives(t))
         if self.nz:
-            self.event_indicators[:] = comp.event_indicators(t)
+            self._store_event_indicators(comp.event_indicators(t))
         return OK
 
     def evaluate_outputs(self, t: float) -> int:
@@ -344,3 +352,11 @@ class FmuInstance:
     def log(self, status: int, category: str, message: str) -> None:
         """Queue a message for the importer's logger."""
         self.pending_logs.append((status, category, message))
+
+
+def _exactly(values: Sequence[float], n: int, hook: str, what: str) -> np.ndarray:
+    """``values`` as n floats; a clear error rather than numpy broadcasting a wrong count."""
+    array = np.asarray(values, dtype=float)
+    if array.size != n:
+        raise ValueError(f"{hook}() returned {array.size} values for {n} {what}")
+    return array.reshape(n)

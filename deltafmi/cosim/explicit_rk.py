@@ -54,7 +54,7 @@ _evaluate: Optional[ctypes._CFuncPtr] = None
 def _steps_function() -> ctypes._CFuncPtr:
     global _kernel, _evaluate
     if _kernel is None:
-        library = ctypes.CDLL(str(plain_c_library(Path(__file__).parent / "native" / "erk.c")))
+        library = ctypes.PyDLL(str(plain_c_library(Path(__file__).parent / "native" / "erk.c")))
         _kernel = library.deltafmi_erk_steps
         _kernel.argtypes = [POINTER(_Plan), c_double, c_double, c_int, c_void_p]
         _kernel.restype = c_int

@@ -69,7 +69,7 @@ _kernel: Optional[Any] = None
 def _steps_function() -> Any:
     global _kernel
     if _kernel is None:
-        library = ctypes.CDLL(str(plain_c_library(Path(__file__).parent / "native" / "fixed_step.c")))
+        library = ctypes.PyDLL(str(plain_c_library(Path(__file__).parent / "native" / "fixed_step.c")))
         _kernel = library.deltafmi_fixed_steps
         _kernel.argtypes = [POINTER(_Plan), c_long, c_long, c_void_p, c_long, POINTER(c_long), POINTER(c_long)]
         _kernel.restype = c_int

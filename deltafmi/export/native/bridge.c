@@ -25,6 +25,8 @@ typedef struct {
     PyObject *event_update, *completed_step, *get_string, *set_string, *get_state, *set_state;
     PyObject *serialize, *deserialize;
     PyObject *directional; /* directional_derivative(time, unknowns, knowns, seed) -> bytes */
+    PyObject *store_derivatives, *store_indicators; /* for results that are not lists or tuples */
+    PyObject *name_component, *name_derivatives, *name_indicators; /* interned attribute names */
     PyObject *pending_logs; /* list of (status, category, message) the component queued */
     PyObject *strings;      /* list: last UTF-8 bytes returned per string index (keeps them alive) */
     PyObject *serialized;   /* bytes of the last serialize_state */
@@ -207,6 +209,11 @@ static void release(Bridged *b) {
     Py_XDECREF(b->serialize);
     Py_XDECREF(b->deserialize);
     Py_XDECREF(b->directional);
+    Py_XDECREF(b->store_derivatives);
+    Py_XDECREF(b->store_indicators);
+    Py_XDECREF(b->name_component);
+    Py_XDECREF(b->name_derivatives);
+    Py_XDECREF(b->name_indicators);
     Py_XDECREF(b->pending_logs);
     Py_XDECREF(b->strings);
     Py_XDECREF(b->serialized);
@@ -246,6 +253,11 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
         !(b->serialize = py.PyObject_GetAttrString(b->instance, "serialize_state")) ||
         !(b->deserialize = py.PyObject_GetAttrString(b->instance, "deserialize_state")) ||
         !(b->directional = py.PyObject_GetAttrString(b->instance, "directional_derivative")) ||
+        !(b->store_derivatives = py.PyObject_GetAttrString(b->instance, "_store_derivatives")) ||
+        !(b->store_indicators = py.PyObject_GetAttrString(b->instance, "_store_event_indicators")) ||
+        !(b->name_component = py.PyUnicode_InternFromString("component")) ||
+        !(b->name_derivatives = py.PyUnicode_InternFromString("derivatives")) ||
+        !(b->name_indicators = py.PyUnicode_InternFromString("event_indicators")) ||
         !(b->pending_logs = py.PyObject_GetAttrString(b->instance, "pending_logs")) ||
         !(b->strings = py.PyList_New(n_str)))
         goto python_error;
@@ -284,6 +296,70 @@ int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
     for (int i = 0; i < nargs; i++) py.PyTuple_SetItem(tuple, i, py.PyFloat_FromDouble(args[i]));
     int status = finish(b, py.PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
     Py_DECREF(tuple);
+    LEAVE;
+    return status;
+}
+
+/* A list or tuple of n numbers into out: 0; anything else: -1, no exception pending. */
+static int copy_numbers(PyObject *values, double *out, size_t n) {
+    int is_list = 1;
+    Py_ssize_t size = py.PyList_Size(values);
+    if (size < 0) {
+        py.PyErr_Clear();
+        is_list = 0;
+        size = py.PyTuple_Size(values);
+        if (size < 0) {
+            py.PyErr_Clear();
+            return -1;
+        }
+    }
+    if ((size_t)size != n) return -1;
+    for (Py_ssize_t i = 0; i < size; i++) {
+        PyObject *item = is_list ? py.PyList_GetItem(values, i) : py.PyTuple_GetItem(values, i);
+        double value = py.PyFloat_AsDouble(item);
+        if (value == -1.0 && py.PyErr_Occurred()) {
+            py.PyErr_Clear();
+            return -1;
+        }
+        out[i] = value;
+    }
+    return 0;
+}
+
+/* component.<method>(t) into out (n values); any other result than a list or tuple of n numbers
+ * goes to store(result) in Python, which assigns it or says what is wrong. 0, or -1 raised. */
+static int evaluated_into(PyObject *component, PyObject *method, PyObject *store, PyObject *t,
+                          double *out, size_t n) {
+    PyObject *result = py.PyObject_CallMethodObjArgs(component, method, t, NULL);
+    if (!result) return -1;
+    PyObject *stored = NULL;
+    if (copy_numbers(result, out, n) < 0 && !(stored = py.PyObject_CallFunctionObjArgs(store, result, NULL))) {
+        Py_DECREF(result);
+        return -1;
+    }
+    Py_XDECREF(stored);
+    Py_DECREF(result);
+    return 0;
+}
+
+/* What FmuInstance.evaluate_derivatives does out of initialization, without its Python frame and
+ * with the results copied in C: the integrator's hot path (about 1 us less per evaluation). */
+int bridge_derivatives(void *handle, double time, double *dx, size_t nx, double *z, size_t nz) {
+    Bridged *b = handle;
+    ENTER;
+    PyObject *component = py.PyObject_GetAttr(b->instance, b->name_component);
+    PyObject *t = py.PyFloat_FromDouble(time);
+    int ok = component && t &&
+             (!nx || evaluated_into(component, b->name_derivatives, b->store_derivatives, t, dx, nx) == 0) &&
+             (!nz || evaluated_into(component, b->name_indicators, b->store_indicators, t, z, nz) == 0);
+    Py_XDECREF(component);
+    Py_XDECREF(t);
+    int status = 0;
+    if (!ok) {
+        report_exception(b->log, b->log_env, "fmi2GetDerivatives");
+        status = 3;
+    }
+    drain_logs(b);
     LEAVE;
     return status;
 }

@@ -44,6 +44,9 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
                          int fmu_type, DfmiLogFn log, void *log_env, DfmiLayout *layout);
 void bridge_free_instance(void *instance);
 int bridge_call(void *instance, DfmiOp op, const double *args, int nargs);
+/* Model Exchange out of initialization: the component's derivatives (nx) and event indicators
+ * (nz) at `time`, written into dx and z (the buffers of the layout). */
+int bridge_derivatives(void *instance, double time, double *dx, size_t nx, double *z, size_t nz);
 /* fmi2NewDiscreteStates: flags = newDiscreteStatesNeeded, terminateSimulation,
  * nominalsChanged, valuesOfContinuousStatesChanged, nextEventTimeDefined. */
 int bridge_event_update(void *instance, double time, int flags[5], double *next_event_time);

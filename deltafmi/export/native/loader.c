@@ -386,7 +386,10 @@ static fmi2Status ensure_evaluated(Instance *c) {
 /* Derivatives and event indicators up to date: the integrator's hot path. */
 static fmi2Status ensure_derivatives(Instance *c) {
     if (!c->dirty || !(c->state & MASK_EVALUATE)) return fmi2OK;
-    int status = bridge_call(c->py, DFMI_EVALUATE_DERIVATIVES, &c->time, 1);
+    int status = c->state & (EventMode | ContinuousTimeMode)
+                     ? bridge_derivatives(c->py, c->time, c->L.real + c->L.dx_offset, c->L.nx,
+                                          c->L.event_indicators, c->L.nz)
+                     : bridge_call(c->py, DFMI_EVALUATE_DERIVATIVES, &c->time, 1);
     if (status < fmi2Error) c->dirty = 0; /* the outputs stay stale */
     return settle(c, status);
 }

@@ -38,12 +38,14 @@ typedef struct _ts PyThreadState;
     X(void, PyErr_Clear, (void))                                                                    \
     X(PyObject *, PyImport_ImportModule, (const char *))                                            \
     X(PyObject *, PyObject_GetAttrString, (PyObject *, const char *))                               \
+    X(PyObject *, PyObject_GetAttr, (PyObject *, PyObject *))                                       \
     X(int, PyObject_IsTrue, (PyObject *))                                                           \
     X(PyObject *, PyObject_Call, (PyObject *, PyObject *, PyObject *))                              \
     X(PyObject *, PyObject_CallNoArgs, (PyObject *))                                                \
     X(PyObject *, PyObject_CallFunction, (PyObject *, const char *, ...))                           \
     X(PyObject *, PyObject_CallMethod, (PyObject *, const char *, const char *, ...))               \
     X(PyObject *, PyObject_CallFunctionObjArgs, (PyObject *, ...))                                  \
+    X(PyObject *, PyObject_CallMethodObjArgs, (PyObject *, PyObject *, ...))                        \
     X(int, PyArg_ParseTuple, (PyObject *, const char *, ...))                                       \
     X(PyObject *, PyTuple_New, (Py_ssize_t))                                                        \
     X(int, PyTuple_SetItem, (PyObject *, Py_ssize_t, PyObject *))                                   \
@@ -56,8 +58,10 @@ typedef struct _ts PyThreadState;
     X(int, PyList_SetSlice, (PyObject *, Py_ssize_t, Py_ssize_t, PyObject *))                       \
     X(PyObject *, PyDict_GetItemString, (PyObject *, const char *))                                 \
     X(PyObject *, PyFloat_FromDouble, (double))                                                     \
+    X(double, PyFloat_AsDouble, (PyObject *))                                                       \
     X(long, PyLong_AsLong, (PyObject *))                                                            \
     X(PyObject *, PyUnicode_FromString, (const char *))                                             \
+    X(PyObject *, PyUnicode_InternFromString, (const char *))                                       \
     X(PyObject *, PyUnicode_Join, (PyObject *, PyObject *))                                         \
     X(const char *, PyUnicode_AsUTF8AndSize, (PyObject *, Py_ssize_t *))                            \
     X(PyObject *, PyUnicode_AsUTF8String, (PyObject *))                                             \
