@@ -23,30 +23,61 @@ ROOT = Path(__file__).resolve().parents[1]
 MODELS = Path(__file__).parent / "models"
 
 
-def fmpy_step_us(fmu: Path, steps: int, repeats: int, do_step: bool = True) -> float:
-    """Median microseconds per setReal/doStep/getReal through fmpy's FMU2Slave (without doStep:
-    what fmpy's own wrappers cost, for our FMU answers setReal/getReal in C)."""
-    md = fmpy.read_model_description(str(fmu))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
-                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
-    slave.instantiate()
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
-    u, y, t, h, samples = [vr["u"]], [vr["y"]], 0.0, 1e-3, []
-    for _ in range(repeats):
+class FmpySlave:
+    """One instance of an FMU through fmpy's FMU2Slave, initialized, timed in rounds."""
+
+    def __init__(self, fmu: Path) -> None:
+        md = fmpy.read_model_description(str(fmu))
+        vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.slave = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
+                               modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+        self.slave.instantiate()
+        self.slave.setupExperiment(startTime=0.0)
+        self.slave.enterInitializationMode()
+        self.slave.exitInitializationMode()
+        self.u, self.y, self.t = [vr["u"]], [vr["y"]], 0.0
+
+    def round_us(self, steps: int, do_step: bool = True) -> float:
+        """Microseconds per setReal/doStep/getReal (without doStep: what fmpy's own wrappers
+        cost, for our FMU answers setReal/getReal in C)."""
+        slave, u, y, h = self.slave, self.u, self.y, 1e-3
         start = time.perf_counter()
-        for k in range(steps):
+        for _ in range(steps):
             slave.setReal(u, [1.0])
             if do_step:
-                slave.doStep(t, h)
-                t += h
+                slave.doStep(self.t, h)
+                self.t += h
             slave.getReal(y)
-        samples.append((time.perf_counter() - start) / steps * 1e6)
-    slave.terminate()
-    slave.freeInstance()
-    return statistics.median(samples)
+        return (time.perf_counter() - start) / steps * 1e6
+
+    def close(self) -> None:
+        self.slave.terminate()
+        self.slave.freeInstance()
+
+
+def fmpy_rounds(ours: Path, theirs: Path | None, plain_c: Path, steps: int, repeats: int) -> dict[str, float]:
+    """Medians over rounds in which ours, fmpy's wrappers alone, theirs and a plain C FMU run
+    back to back (a slow spell of the shared machine hits all), and of the rounds' ratios."""
+    a, b, c = FmpySlave(ours), FmpySlave(theirs) if theirs else None, FmpySlave(plain_c)
+    rounds: dict[str, list[float]] = {"ours": [], "fmpy": [], "theirs": [], "ratio": [], "c": []}
+    for _ in range(repeats):
+        rounds["ours"].append(a.round_us(steps))
+        rounds["fmpy"].append(a.round_us(steps, do_step=False))
+        rounds["c"].append(c.round_us(steps))
+        if b:
+            rounds["theirs"].append(b.round_us(steps))
+            rounds["ratio"].append(rounds["ours"][-1] / rounds["theirs"][-1])
+    for slave in (a, b, c):
+        if slave:
+            slave.close()
+    return {key: statistics.median(values) if values else float("nan") for key, values in rounds.items()}
+
+
+def build_plain_c(workdir: Path) -> Path:
+    """A C FMU with no Python (tests/third_party AllTypes: y = gain u, same u and y names)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from third_party.build import build_fmu as build_c_fmu
+    return build_c_fmu("AllTypes", workdir / "plain_c")
 
 
 def direct_step_us(steps: int, repeats: int) -> float:
@@ -120,20 +151,20 @@ def main() -> None:
         workdir = Path(tmp)
         ours = build_fmu(MODELS / "lag_deltafmi.py", workdir / "ours" / "Lag.fmu")
         theirs = build_pythonfmu(workdir)
-        ours_us = fmpy_step_us(ours, args.steps, args.repeats)
-        fmpy_us = fmpy_step_us(ours, args.steps, args.repeats, do_step=False)
-        theirs_us = fmpy_step_us(theirs, args.steps, args.repeats) if theirs else None
+        through_fmpy = fmpy_rounds(ours, theirs, build_plain_c(workdir), args.steps, args.repeats)
         direct_us = direct_step_us(args.steps, args.repeats)
         c_us = c_host_us(ours, args.steps * 10, args.repeats, workdir)
         instructions = c_host_instructions(ours, workdir) if args.callgrind else None
     print(f"FMI overhead, medians of {args.repeats} runs x {args.steps} steps (us per set/doStep/get step)")
     print(f"  direct Python calls (floor)        {direct_us:8.3f}")
-    print(f"  deltafmi FMU through fmpy          {ours_us:8.3f}")
-    print(f"    of which fmpy's setReal+getReal  {fmpy_us:8.3f}   (answered in C: fmpy's own cost)")
-    if theirs_us is None:
+    print(f"  deltafmi FMU through fmpy          {through_fmpy['ours']:8.3f}")
+    print(f"    of which fmpy's setReal+getReal  {through_fmpy['fmpy']:8.3f}   (answered in C: fmpy's own cost)")
+    print(f"  a plain C FMU through fmpy         {through_fmpy['c']:8.3f}   (no Python in the FMU: fmpy's floor)")
+    if theirs is None:
         print("  pythonfmu FMU through fmpy         skipped: pythonfmu is not installed")
     else:
-        print(f"  pythonfmu FMU through fmpy         {theirs_us:8.3f}   (deltafmi is {theirs_us / ours_us:.2f}x faster)")
+        print(f"  pythonfmu FMU through fmpy         {through_fmpy['theirs']:8.3f}   (deltafmi / pythonfmu "
+              f"{through_fmpy['ratio']:.2f}x, median of the rounds' ratios; target <= 0.7x)")
     print("C host, deltafmi FMU, no Python in the host process (us per call)")
     print(f"  fmi2SetReal                        {c_us['set_us']:8.4f}")
     print(f"  fmi2GetReal                        {c_us['get_us']:8.4f}")
