@@ -133,8 +133,11 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None) 
     # One retry after a worker died running a case (the nanny restarts the worker), then
     # KilledWorker. A worker holds one case at a time (saturation 1.0): Dask counts a death against
     # every task assigned to the worker, so a case queued behind a crashing one must not be there.
+    # Workers do not sample their own stacks every 10 ms for the dashboard's profile: on a
+    # machine whose every core runs a worker that is time taken from the cases.
     with dask.config.set({"distributed.scheduler.allowed-failures": 1,
-                          "distributed.scheduler.worker-saturation": 1.0}):
+                          "distributed.scheduler.worker-saturation": 1.0,
+                          "distributed.worker.profile.enabled": False}):
         cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=logging.ERROR)  # any free port
     client = Client(cluster)

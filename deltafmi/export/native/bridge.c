@@ -356,7 +356,7 @@ int bridge_derivatives(void *handle, double time, double *dx, size_t nx, double 
     Py_XDECREF(t);
     int status = 0;
     if (!ok) {
-        report_exception(b->log, b->log_env, "fmi2GetDerivatives");
+        report_exception(b->log, b->log_env, "derivatives / event indicators");
         status = 3;
     }
     drain_logs(b);
