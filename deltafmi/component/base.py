@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import struct
+from operator import methodcaller
 from typing import Any, ClassVar, Optional, Sequence
 
 import numpy as np
@@ -35,6 +36,8 @@ class Component:
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         cls._layout = build_layout(cls)
+        # states as a C-level getter, as the variable declarations are (see variables.py)
+        cls.states = property(methodcaller("_real_items", slice(0, cls._layout.nx)), doc=Component.states.__doc__)
         cls._real_spans = {}  # names -> spans of the real buffer, for read_reals()
         cls._real_packers = {}  # names -> (start, end, struct) per span, for write_reals()
 
