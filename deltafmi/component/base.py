@@ -176,7 +176,7 @@ class Component:
         for name in names:
             decl = declarations.get(name)
             if decl is None or decl.type is not float:
-                raise ValueError(f"read_reals: {name!r} is not a Real variable of {cls.__name__}")
+                raise ValueError(f"{name!r} is not a Real variable of {cls.__name__}")
             if spans and spans[-1][1] == decl.offset:
                 spans[-1] = (spans[-1][0], decl.offset + decl.size)
             else:

@@ -107,15 +107,9 @@ class FmuInstance:
     # --- evaluation -------------------------------------------------------------------------
     def evaluate(self, t: float) -> int:
         """Compute derivatives, event indicators and outputs at ``t`` into the buffers."""
-        comp = self.component
-        if self.in_initialization:
-            comp.initialize(t)
-        if self.nx:
-            self._store_derivatives(comp.derivatives(t))
-        if self.nz:
-            self._store_event_indicators(comp.event_indicators(t))
+        self.evaluate_derivatives(t)
         if self._has_outputs:
-            comp.outputs(t)
+            self.component.outputs(t)
         return OK
 
     def evaluate_derivatives(self, t: float) -> int:

@@ -26,6 +26,8 @@ from fmpy.fmi2 import FMU2Model
 
 from deltafmi.export.compiler import plain_c_library
 
+from .unit_base import function_address
+
 #: name -> Butcher tableau (a rows, b, c)
 TABLEAUS = {
     "euler": ([[]], [1.0], [0.0]),
@@ -64,10 +66,6 @@ def _steps_function() -> ctypes._CFuncPtr:
     return _kernel
 
 
-def _address(fmu: FMU2Model, name: str) -> int:
-    return ctypes.cast(getattr(fmu.dll, name), c_void_p).value
-
-
 class FmuEvaluations:
     """An instantiated ME FMU's derivatives or event indicators at (t, x) in one foreign call
     (fmi2SetTime + fmi2SetContinuousStates + fmi2GetDerivatives or fmi2GetEventIndicators), for
@@ -78,10 +76,10 @@ class FmuEvaluations:
 
     def __init__(self, fmu: FMU2Model, nx: int) -> None:
         _steps_function()
-        self._plan = _Plan(_address(fmu, "fmi2SetTime"), _address(fmu, "fmi2SetContinuousStates"),
-                           _address(fmu, "fmi2GetDerivatives"), fmu.component, 0, None, None, None, nx, None, 0)
+        self._plan = _Plan(function_address(fmu, "fmi2SetTime"), function_address(fmu, "fmi2SetContinuousStates"),
+                           function_address(fmu, "fmi2GetDerivatives"), fmu.component, 0, None, None, None, nx, None, 0)
         self._address = ctypes.addressof(self._plan)
-        self._get_indicators = _address(fmu, "fmi2GetEventIndicators")
+        self._get_indicators = function_address(fmu, "fmi2GetEventIndicators")
         self._evaluate = _evaluate
 
     def derivatives(self, t: float, x: Any, dx: Any, nx: int) -> None:
@@ -125,8 +123,8 @@ class ExplicitRungeKutta:
             self._a[i, :len(row)] = row
         self._b, self._c = np.array(b, float), np.array(c, float)
         self._work = np.zeros((stages + 1) * nx)
-        self._plan = _Plan(_address(fmu, "fmi2SetTime"), _address(fmu, "fmi2SetContinuousStates"),
-                           _address(fmu, "fmi2GetDerivatives"), fmu.component, stages,
+        self._plan = _Plan(function_address(fmu, "fmi2SetTime"), function_address(fmu, "fmi2SetContinuousStates"),
+                           function_address(fmu, "fmi2GetDerivatives"), fmu.component, stages,
                            self._a.ctypes.data, self._b.ctypes.data, self._c.ctypes.data, nx,
                            self._work.ctypes.data)
         self._steps = _steps_function()

@@ -27,7 +27,7 @@ import numpy as np
 from deltafmi.export.compiler import plain_c_library
 
 from .explicit_rk import ExplicitRungeKutta
-from .unit_base import Unit, _Inputs, _Outputs
+from .unit_base import Unit, _Inputs, _Outputs, function_address
 
 SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP = range(6)
 #: why a C run stopped
@@ -74,10 +74,6 @@ def _steps_function() -> Any:
         _kernel.argtypes = [POINTER(_Plan), c_long, c_long, c_void_p, c_long, POINTER(c_long), POINTER(c_long)]
         _kernel.restype = c_int
     return _kernel
-
-
-def _address(fmu: Any, name: str) -> int:
-    return ctypes.cast(getattr(fmu.dll, name), c_void_p).value
 
 
 def _pointer(array: Optional[np.ndarray]) -> Optional[int]:
@@ -169,7 +165,7 @@ class NativeLoop:
                                     None, None, None, values_address=ctypes.cast(outputs.pointer, c_void_p).value),
                      f"fmi2Get{outputs.kind}") for outputs in unit.outputs]
         if unit.interface == "CS":
-            return [(_Op(kind=DO_STEP, multiple=m, function=_address(unit.fmu, "fmi2DoStep"), component=handle,
+            return [(_Op(kind=DO_STEP, multiple=m, function=function_address(unit.fmu, "fmi2DoStep"), component=handle,
                          no_prior_state=unit.no_prior_state), "fmi2DoStep")]
         solver = unit.solver
         erk, erk_plan, erk_current = solver.kernel
@@ -181,10 +177,10 @@ class NativeLoop:
         self._indicators[unit.name] = indicators
         return [(_Op(kind=ME_STEP, multiple=m, component=handle, no_prior_state=unit.no_prior_state,
                      erk=erk, erk_plan=erk_plan, erk_current=erk_current, x=_pointer(solver.x), nx=unit.nx, t=_pointer(box),
-                     max_step=solver.max_step, set_time=_address(fmu, "fmi2SetTime"),
-                     set_states=_address(fmu, "fmi2SetContinuousStates"),
-                     completed=_address(fmu, "fmi2CompletedIntegratorStep") if unit.needs_completed else None,
-                     nz=unit.nz, get_indicators=_address(fmu, "fmi2GetEventIndicators"), z=_pointer(indicators.z),
+                     max_step=solver.max_step, set_time=function_address(fmu, "fmi2SetTime"),
+                     set_states=function_address(fmu, "fmi2SetContinuousStates"),
+                     completed=function_address(fmu, "fmi2CompletedIntegratorStep") if unit.needs_completed else None,
+                     nz=unit.nz, get_indicators=function_address(fmu, "fmi2GetEventIndicators"), z=_pointer(indicators.z),
                      z_last=_pointer(indicators.z_last), z_valid=_pointer(indicators.valid),
                      x0=_pointer(indicators.x0)),
                  "")]
@@ -193,7 +189,7 @@ class NativeLoop:
                   bus: Optional[np.ndarray], index: Optional[np.ndarray], factor: Optional[np.ndarray],
                   offset: Optional[np.ndarray], values_address: Optional[int] = None) -> _Op:
         self._keep.append(holder)
-        return _Op(kind=kind, multiple=m, function=_address(unit.fmu, function), component=unit.fmu.component,
+        return _Op(kind=kind, multiple=m, function=function_address(unit.fmu, function), component=unit.fmu.component,
                    vrs=ctypes.cast(holder.vrs, c_void_p).value, n=holder.n,
                    values=values_address if values is None else _pointer(values), bus=_pointer(bus),
                    index=_pointer(index), factor=_pointer(factor), offset=_pointer(offset))

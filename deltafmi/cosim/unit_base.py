@@ -62,6 +62,11 @@ class Terminated(Exception):
         self.time = time
 
 
+def function_address(fmu: Any, name: str) -> int:
+    """The address of the fmi2 function ``name`` of a loaded fmpy FMU (for C code that calls it)."""
+    return ctypes.cast(getattr(fmu.dll, name), ctypes.c_void_p).value
+
+
 def bare_function(fmu: Any, name: str) -> Callable[..., None]:
     """fmpy's ctypes binding of the fmi2 function ``name`` without fmpy's Python wrapper around
     it (call logging, which the master never enables, costs about 1 us a call); raises
