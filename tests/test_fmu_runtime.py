@@ -193,3 +193,28 @@ def test_reset_restores_start_values(lags):
     assert s.real("x[1]") == [1.0]
     s.step(0.1, n=5)
     assert s.real("x[1]")[0] == pytest.approx(math.exp(-0.5), abs=1e-8)
+
+
+@pytest.mark.parametrize("model", ["lags", "counter"])  # integrated by CVODE; stepping itself
+def test_a_step_from_another_time_is_an_error(model, request, capfd):
+    s = Slave(request.getfixturevalue(model))
+    s.step(0.1, n=2)
+    with pytest.raises(FMICallException) as error:
+        s.fmu.doStep(0.1, 0.1)  # the FMU is at 0.2
+    assert error.value.status == 3
+    err = capfd.readouterr()
+    assert "currentCommunicationPoint 0.1 differs from the FMU time 0.2" in err.out + err.err
+
+
+def test_reset_of_a_component_that_steps_itself(counter):
+    s = Slave(counter, u=2.0)
+    s.step(0.1, n=4)
+    s.fmu.reset()
+    s.fmu.setupExperiment(startTime=0.0)
+    s.fmu.enterInitializationMode()
+    s.fmu.exitInitializationMode()
+    s.t = 0.0
+    assert s.real("total") == [0.0] and s.fmu.getInteger([s.vr["count"]]) == [0]
+    s.step(0.1, n=3)  # u is back at its start value 1.0
+    assert s.real("total")[0] == pytest.approx(0.3, abs=1e-15)
+    assert s.fmu.getInteger([s.vr["count"]]) == [3]

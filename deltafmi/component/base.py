@@ -8,12 +8,22 @@ from typing import Any, ClassVar, Optional, Sequence
 import numpy as np
 
 from .layout import Layout, build_layout
-from .variables import Experiment
+from .native_values import ValueDescriptor, ValueHolder
+from .variables import _REAL_ARRAY, Experiment
 
 LOG_LEVELS = {"info": 0, "warning": 1, "error": 3}
 
 
-class Component:
+class _StatesView(ValueDescriptor):
+    """View of all continuous states (flat)."""
+
+    def __init__(self, nx: int) -> None:
+        super().__init__()
+        span = slice(0, nx)
+        self._install(_REAL_ARRAY, 0, span, methodcaller("_real_items", span), None)
+
+
+class Component(ValueHolder):
     """A physical model or controller that becomes one FMI 2.0 FMU (Model Exchange + Co-Simulation).
 
     Declare variables as class attributes (:class:`Parameter`, :class:`Input`, :class:`Output`,
@@ -36,8 +46,7 @@ class Component:
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         cls._layout = build_layout(cls)
-        # states as a C-level getter, as the variable declarations are (see variables.py)
-        cls.states = property(methodcaller("_real_items", slice(0, cls._layout.nx)), doc=Component.states.__doc__)
+        cls.states = _StatesView(cls._layout.nx)  # read as the variable declarations are
         cls._real_spans = {}  # names -> spans of the real buffer, for read_reals()
         cls._real_packers = {}  # names -> (start, end, struct) per span, for write_reals()
 
@@ -55,6 +64,7 @@ class Component:
         self._real_item, self._real_items = self._real_view.__getitem__, self._real.__getitem__
         self._int_item, self._int_items = memoryview(self._int).__getitem__, self._int.__getitem__
         self._str_items = self._str.__getitem__
+        self._bind_buffers(self._real, self._int)
         self._real[:] = layout.real_start
         self._int[:] = layout.int_start
         self._str[:] = layout.str_start

@@ -14,8 +14,10 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
+from .native_values import ValueDescriptor
+
 _TYPES = {float: "Real", int: "Integer", bool: "Boolean", str: "String"}
-# what a declaration's descriptor does (Variable._kind)
+# what a declaration's descriptor does (Variable._kind; the first four as in _values.c)
 _REAL_SCALAR, _REAL_ARRAY, _INT_SCALAR, _BOOL_SCALAR, _INT_ARRAY, _STR_SCALAR, _STR_ARRAY = range(7)
 
 
@@ -29,7 +31,7 @@ class Experiment:
     tolerance: float = 1e-6
 
 
-class Variable(property):
+class Variable(ValueDescriptor):
     """Base declaration: one scalar or a 1-D array of scalars of one FMI type.
 
     ``name`` sets the FMI name when the attribute name cannot be used (``lambda`` is a Python
@@ -84,13 +86,15 @@ class Variable(property):
         self.fmi_name = name  # the FMI name when it differs (e.g. the keyword "lambda")
         self.offset = 0  # index of the first scalar in the component's buffer of this type
 
-    # The descriptor runs on every access a model makes (several per evaluation). A declaration
-    # is a property whose getter is a C-level call, operator.methodcaller, of a bound
-    # __getitem__ of the component's buffers (Component._attach sets them): reading a value
-    # runs no Python frame. What the setter needs is derived once from type, shape and offset:
-    # which access it is (_kind), the end of the slice and, for real arrays, a struct that
-    # packs a list or tuple straight into the buffer (about twice as fast as numpy's slice
-    # assignment from a sequence).
+    # The descriptor runs on every access a model makes (several per evaluation). Compiled
+    # (native_values.COMPILED, always in an FMU) a declaration reads and writes scalars and
+    # reads real arrays in C, from the addresses its component holds. Everything else, and
+    # everything without the compiled module, goes through the accessors installed below: a
+    # getter that is a C-level call, operator.methodcaller, of a bound __getitem__ of the
+    # component's buffers (Component._attach sets them), and the setter _set, for which the
+    # offset setter derives what it needs once: which access it is (_kind), the end of the slice
+    # and, for real arrays, a struct that packs a list or tuple straight into the buffer (about
+    # twice as fast as numpy's slice assignment from a sequence).
     @property
     def offset(self) -> int:
         """Index of the first scalar in the component's buffer of this type (set by the layout)."""
@@ -115,7 +119,7 @@ class Variable(property):
                   _INT_SCALAR: methodcaller("_int_item", value), _INT_ARRAY: methodcaller("_int_items", span),
                   _STR_SCALAR: methodcaller("_str_items", value), _STR_ARRAY: methodcaller("_str_items", span),
                   _BOOL_SCALAR: self._get_bool}[self._kind]
-        property.__init__(self, getter, self._set)
+        self._install(self._kind, value, span, getter, self._set)
 
     # --- naming -----------------------------------------------------------------------------
     def __set_name__(self, owner: type, name: str) -> None:

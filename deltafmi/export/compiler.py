@@ -82,6 +82,23 @@ def plain_c_library(source: Path) -> Path:
     return library
 
 
+def python_extension(source: Path) -> Path:
+    """A C extension module for this Python's stable ABI (``<name>.abi3.so``), from the cache.
+
+    Raises :class:`BuildError` when it cannot be compiled (no compiler, no Python headers)."""
+    cc = _compiler()
+    include = sysconfig.get_paths()["include"]
+    if not Path(include, "Python.h").exists():
+        raise BuildError(f"no Python headers in {include} (install the python3-dev package)")
+    digest = hashlib.sha256(source.read_bytes() + cc.encode() + include.encode()).hexdigest()[:16]
+    target = cache_dir() / "native" / f"{source.stem}-{digest}"
+    module = target / f"{source.stem}.abi3.so"
+    if not module.exists():
+        build_into(target, lambda tmp: _run([cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
+                                              f"-I{include}", str(source), "-o", f"{tmp}/{module.name}"]))
+    return module
+
+
 def build_into(target: Path, build: Callable[[str], object]) -> None:
     """Run ``build(directory)`` in a fresh directory and move it to ``target`` atomically (a
     concurrent build of the same target may win; its result is then used)."""

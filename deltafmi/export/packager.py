@@ -10,6 +10,7 @@ import re
 import sys
 import tempfile
 import uuid
+import warnings
 import zipfile
 from pathlib import Path
 from typing import Optional
@@ -18,12 +19,14 @@ import deltafmi
 from ..component import Component
 from ..component.model_description import model_description_xml
 from ..files import replaced_atomically
-from .compiler import cache_dir, fmu_binary, native_source_files, python_runtime_config
+from .compiler import BuildError, cache_dir, fmu_binary, native_source_files, python_extension, python_runtime_config
 from .kernels import compiled_kernels, mypyc_version
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: the parts of deltafmi an FMU carries: the component runtime and the mechanics it may use
 BUNDLED_PACKAGES = ("component", "mechanics")
+#: compiled value access of the variable declarations (see deltafmi/component/native_values.py)
+VALUE_ACCESS_SOURCE = PACKAGE_DIR / "component" / "_values.c"
 _GUID_NAMESPACE = uuid.UUID("6f1c8a52-4d0e-4f5e-9a53-0d3c5e2b7a11")
 
 
@@ -65,12 +68,24 @@ def runtime_files() -> list[tuple[Path, str]]:
     return files
 
 
+def compiled_value_access() -> list[tuple[Path, str]]:
+    """(extension module, archive name) of the compiled value access, shipped beside its C source;
+    empty, with a warning, when it cannot be compiled (the FMU then reads values in Python)."""
+    try:
+        module = python_extension(VALUE_ACCESS_SOURCE)
+    except BuildError as exc:
+        warnings.warn(f"FMUs ship without the compiled value access (same results, slower): {exc}", stacklevel=2)
+        return []
+    folder = "resources/python/deltafmi/component"
+    return [(module, f"{folder}/{module.name}"), (VALUE_ACCESS_SOURCE, f"{folder}/{VALUE_ACCESS_SOURCE.name}")]
+
+
 def content_key(source: Path) -> str:
     """Hash of everything that determines an FMU built from ``source``."""
     digest = hashlib.sha256(Path(source).read_bytes())
     for path, arcname in runtime_files():
         digest.update(arcname.encode() + path.read_bytes())
-    for path in native_source_files() + [Path(__file__), PACKAGE_DIR / "export" / "boot.py",
+    for path in native_source_files() + [Path(__file__), VALUE_ACCESS_SOURCE, PACKAGE_DIR / "export" / "boot.py",
                                          PACKAGE_DIR / "export" / "kernels.py"]:
         digest.update(path.read_bytes())
     digest.update(python_runtime_config().encode())
@@ -101,6 +116,8 @@ def build_fmu(source: Path, output: Optional[Path] = None) -> Path:
             for path, arcname in runtime_files():
                 fmu.write(path, arcname)
                 fmu.writestr(importlib.util.cache_from_source(arcname), _bytecode(path, arcname))
+            for path, arcname in compiled_value_access():
+                fmu.write(path, arcname)
             for path, relative in compiled_kernels():
                 # stored, not deflated: inflating them took longer than the rest of a load
                 fmu.write(path, f"resources/python/{relative}", compress_type=zipfile.ZIP_STORED)

@@ -21,12 +21,15 @@ static const char *const OP_NAMES[DFMI_N_OPS] = {
 
 typedef struct {
     PyObject *instance;
+    PyObject *component; /* instance.component, fetched again after fmi2Reset (which replaces it) */
     PyObject *ops[DFMI_N_OPS];
     PyObject *event_update, *completed_step, *get_string, *set_string, *get_state, *set_state;
     PyObject *serialize, *deserialize;
     PyObject *directional; /* directional_derivative(time, unknowns, knowns, seed) -> bytes */
     PyObject *store_derivatives, *store_indicators; /* for results that are not lists or tuples */
-    PyObject *name_component, *name_derivatives, *name_indicators; /* interned attribute names */
+    PyObject *name_component, *name_derivatives, *name_indicators, *name_do_step, *name_time; /* interned */
+    int steps_itself;        /* the component's own do_step is the whole of fmi2DoStep ... */
+    int evaluates_after_step; /* ... followed by FmuInstance.evaluate (derivatives, indicators, outputs) */
     PyObject *pending_logs; /* list of (status, category, message) the component queued */
     PyObject *strings;      /* list: last UTF-8 bytes returned per string index (keeps them alive) */
     PyObject *serialized;   /* bytes of the last serialize_state */
@@ -214,9 +217,12 @@ static void release(Bridged *b) {
     Py_XDECREF(b->name_component);
     Py_XDECREF(b->name_derivatives);
     Py_XDECREF(b->name_indicators);
+    Py_XDECREF(b->name_do_step);
+    Py_XDECREF(b->name_time);
     Py_XDECREF(b->pending_logs);
     Py_XDECREF(b->strings);
     Py_XDECREF(b->serialized);
+    Py_XDECREF(b->component);
     Py_XDECREF(b->instance);
     py.PyMem_Free(b);
 }
@@ -235,8 +241,9 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
     unsigned long long real, ints, flags, indicators, nominals;
     Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz;
     int watches_drift;
-    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKp", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
-                                   &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift))
+    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKppp", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
+                                   &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift,
+                                   &b->steps_itself, &b->evaluates_after_step))
         goto python_error;
     *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
                            (const unsigned char *)(uintptr_t)flags, (size_t)n_str, (size_t)nx,
@@ -256,8 +263,11 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
         !(b->store_derivatives = py.PyObject_GetAttrString(b->instance, "_store_derivatives")) ||
         !(b->store_indicators = py.PyObject_GetAttrString(b->instance, "_store_event_indicators")) ||
         !(b->name_component = py.PyUnicode_InternFromString("component")) ||
+        !(b->component = py.PyObject_GetAttr(b->instance, b->name_component)) ||
         !(b->name_derivatives = py.PyUnicode_InternFromString("derivatives")) ||
         !(b->name_indicators = py.PyUnicode_InternFromString("event_indicators")) ||
+        !(b->name_do_step = py.PyUnicode_InternFromString("do_step")) ||
+        !(b->name_time = py.PyUnicode_InternFromString("time")) ||
         !(b->pending_logs = py.PyObject_GetAttrString(b->instance, "pending_logs")) ||
         !(b->strings = py.PyList_New(n_str)))
         goto python_error;
@@ -289,13 +299,43 @@ void bridge_free_instance(void *handle) {
     LEAVE;
 }
 
+/* fmi2DoStep of a component that steps itself: what FmuInstance.do_step does for it, without that
+ * Python frame (the loader has checked the communication point). */
+static PyObject *step_itself(Bridged *b, double t, double h) {
+    PyObject *component = b->component;
+    PyObject *start = py.PyFloat_FromDouble(t), *size = py.PyFloat_FromDouble(h), *end = py.PyFloat_FromDouble(t + h);
+    PyObject *stepped = component && start && size && end
+                            ? py.PyObject_CallMethodObjArgs(component, b->name_do_step, start, size, NULL) : NULL;
+    PyObject *result = NULL;
+    if (stepped && py.PyObject_SetAttr(b->instance, b->name_time, end) == 0) {
+        if (b->evaluates_after_step) result = py.PyObject_CallFunctionObjArgs(b->ops[DFMI_EVALUATE], end, NULL);
+        else result = (Py_INCREF(Py_None), Py_None);
+    }
+    Py_XDECREF(stepped);
+    Py_XDECREF(start);
+    Py_XDECREF(size);
+    Py_XDECREF(end);
+    return result;
+}
+
 int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
     Bridged *b = handle;
     ENTER;
+    if (op == DFMI_DO_STEP && b->steps_itself) {
+        int status = finish(b, step_itself(b, args[0], args[1]), OP_NAMES[op]);
+        LEAVE;
+        return status;
+    }
     PyObject *tuple = py.PyTuple_New(nargs);
     for (int i = 0; i < nargs; i++) py.PyTuple_SetItem(tuple, i, py.PyFloat_FromDouble(args[i]));
     int status = finish(b, py.PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
     Py_DECREF(tuple);
+    if (op == DFMI_RESET) {
+        PyObject *old = b->component;
+        b->component = py.PyObject_GetAttr(b->instance, b->name_component);
+        Py_XDECREF(old);
+        if (!b->component) status = finish(b, NULL, "fmi2Reset");
+    }
     LEAVE;
     return status;
 }
@@ -347,12 +387,10 @@ static int evaluated_into(PyObject *component, PyObject *method, PyObject *store
 int bridge_derivatives(void *handle, double time, double *dx, size_t nx, double *z, size_t nz) {
     Bridged *b = handle;
     ENTER;
-    PyObject *component = py.PyObject_GetAttr(b->instance, b->name_component);
-    PyObject *t = py.PyFloat_FromDouble(time);
+    PyObject *component = b->component, *t = py.PyFloat_FromDouble(time);
     int ok = component && t &&
              (!nx || evaluated_into(component, b->name_derivatives, b->store_derivatives, t, dx, nx) == 0) &&
              (!nz || evaluated_into(component, b->name_indicators, b->store_indicators, t, z, nz) == 0);
-    Py_XDECREF(component);
     Py_XDECREF(t);
     int status = 0;
     if (!ok) {

@@ -812,6 +812,9 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
     CHECK("fmi2DoStep", StepComplete);
     if (!(communicationStepSize > 0.0))
         return fail(c, "fmi2DoStep: communicationStepSize must be > 0, got %g", communicationStepSize);
+    if (fabs(currentCommunicationPoint - c->time) > 1e-9 * fmax(1.0, fabs(currentCommunicationPoint)))
+        return fail(c, "fmi2DoStep: currentCommunicationPoint %.16g differs from the FMU time %.16g",
+                    currentCommunicationPoint, c->time);
     double args[2] = {currentCommunicationPoint, communicationStepSize};
     int status = bridge_call(c->py, DFMI_DO_STEP, args, 2);
     if (status == fmi2OK || status == fmi2Warning) {

@@ -39,6 +39,7 @@ typedef struct _ts PyThreadState;
     X(PyObject *, PyImport_ImportModule, (const char *))                                            \
     X(PyObject *, PyObject_GetAttrString, (PyObject *, const char *))                               \
     X(PyObject *, PyObject_GetAttr, (PyObject *, PyObject *))                                       \
+    X(int, PyObject_SetAttr, (PyObject *, PyObject *, PyObject *))                                  \
     X(int, PyObject_IsTrue, (PyObject *))                                                           \
     X(PyObject *, PyObject_Call, (PyObject *, PyObject *, PyObject *))                              \
     X(PyObject *, PyObject_CallNoArgs, (PyObject *))                                                \

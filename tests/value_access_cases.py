@@ -1,0 +1,64 @@
+"""What a model can do with its variables, as a list of outcomes (value and type, or the error).
+
+Run by test_component_values.py twice: with the pure-Python accessors and, in a subprocess, with
+the compiled ones (deltafmi/component/_values.c). Both must give the same list.
+"""
+import json
+import sys
+
+import numpy as np
+
+from deltafmi.component import Component, Input, Output, Parameter, State
+from deltafmi.component import native_values
+
+
+class Cases(Component):
+    """Every kind of declaration the compiled accessors handle, and those they hand back."""
+
+    x = State([1.0, 2.0])
+    b = Input(6.0)
+    a = Input([3.0, 4.0, 5.0])
+    n = Input(7, type=int)
+    flag = Output(True)
+    label = Parameter("abc")
+    names = Parameter(["p", "q"], type=str)
+
+
+SETS = {
+    "b": [2.5, 3, np.float32(0.25), np.float64(1.5), True, "1.5", None, [1.0], np.array(2.0), 1e308 * 10],
+    "n": [5, True, 2.7, 2**40, -2**31, 2**31, "3", None, np.int64(9)],
+    "flag": [False, True, 0, 2, np.bool_(False), None],
+    "a": [[1, 2, 3], (1.0, 2.0, 3.0), np.arange(3), 0.5, [1.0, 2.0], "x"],
+    "label": ["xyz", 5],
+    "names": [["u", "v"], ("w", 1)],
+    "states": [[0.0, 0.0]],
+}
+
+
+def outcome(thunk):
+    """('ok', repr, type) of what the thunk returns, or ('error', exception type)."""
+    try:
+        value = thunk()
+    except Exception as exc:  # the type is what must agree, not the message
+        return ["error", type(exc).__name__]
+    if isinstance(value, np.ndarray):
+        return ["ok", repr(value.tolist()), f"ndarray {value.dtype}"]
+    return ["ok", repr(value), type(value).__name__]
+
+
+def run() -> list:
+    c = Cases()
+    results = [outcome(lambda name=name: getattr(c, name)) for name in [*SETS, "x"]]
+    for name, values in SETS.items():
+        for value in values:
+            results.append([name, repr(value), outcome(lambda: setattr(c, name, value)),
+                            outcome(lambda: getattr(c, name))])
+    results.append(["del", outcome(lambda: delattr(c, "b")), outcome(lambda: c.b)])
+    results.append(["class", type(Cases.b).__name__, Cases.b.description == "", Cases.a.shape])
+    c.x[1] = 9.0  # an array read is a view of the buffer
+    results.append(["view", c.x.tolist(), c.states.tolist()])
+    return results
+
+
+if __name__ == "__main__":
+    json.dump({"compiled": native_values.COMPILED, "results": run()}, sys.stdout)
