@@ -46,6 +46,14 @@ class Slave:
         self.fmu.exitInitializationMode()
         self.t = 0.0
 
+    def reset(self) -> None:
+        """fmi2Reset, then initialized again from t = 0 with the start values."""
+        self.fmu.reset()
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+        self.t = 0.0
+
     def real(self, *names: str) -> list[float]:
         return self.fmu.getReal([self.vr[n] for n in names])
 
@@ -185,11 +193,7 @@ def test_three_instances_of_one_fmu_side_by_side(lags):
 def test_reset_restores_start_values(lags):
     s = Slave(lags)
     s.step(0.1, n=5)
-    s.fmu.reset()
-    s.fmu.setupExperiment(startTime=0.0)
-    s.fmu.enterInitializationMode()
-    s.fmu.exitInitializationMode()
-    s.t = 0.0
+    s.reset()
     assert s.real("x[1]") == [1.0]
     s.step(0.1, n=5)
     assert s.real("x[1]")[0] == pytest.approx(math.exp(-0.5), abs=1e-8)
@@ -209,11 +213,7 @@ def test_a_step_from_another_time_is_an_error(model, request, capfd):
 def test_reset_of_a_component_that_steps_itself(counter):
     s = Slave(counter, u=2.0)
     s.step(0.1, n=4)
-    s.fmu.reset()
-    s.fmu.setupExperiment(startTime=0.0)
-    s.fmu.enterInitializationMode()
-    s.fmu.exitInitializationMode()
-    s.t = 0.0
+    s.reset()
     assert s.real("total") == [0.0] and s.fmu.getInteger([s.vr["count"]]) == [0]
     s.step(0.1, n=3)  # u is back at its start value 1.0
     assert s.real("total")[0] == pytest.approx(0.3, abs=1e-15)
