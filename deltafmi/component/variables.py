@@ -87,7 +87,7 @@ class Variable(ValueDescriptor):
         self.offset = 0  # index of the first scalar in the component's buffer of this type
 
     # The descriptor runs on every access a model makes (several per evaluation). Compiled
-    # (native_values.COMPILED, always in an FMU) a declaration reads and writes scalars and
+    # (native_values.COMPILED, in every FMU built with Python headers) a declaration reads and writes scalars and
     # reads real arrays in C, from the addresses its component holds. Everything else, and
     # everything without the compiled module, goes through the accessors installed below: a
     # getter that is a C-level call, operator.methodcaller, of a bound __getitem__ of the
