@@ -172,15 +172,11 @@ class FmuInstance:
     def do_step(self, t: float, h: float) -> int:
         """``fmi2DoStep`` from ``t`` to ``t + h``: integrate with CVODE, handle events inside.
 
-        The native layer has checked that ``t`` is the FMU's time. For a component that steps
-        itself it runs the first branch below in C (bridge.c, step_itself), without this frame."""
+        The native layer has checked that ``t`` is the FMU's time. A component that steps itself
+        never comes here: the native layer calls its ``do_step``, sets ``time`` and calls
+        :meth:`evaluate` (bridge.c, step_itself; ``native_layout`` tells it which components)."""
         comp = self.component
         t_end = t + h
-        if self._steps_itself:
-            comp.do_step(t, h)
-            self.time = t_end
-            self.evaluate(t_end)
-            return OK
         if self._solver is not None and self._inputs_changed():
             # a zero-order-hold input jumped: the right-hand side is discontinuous at t
             self._solver.reinit(self.time, comp._real[: self.nx])

@@ -72,31 +72,29 @@ def exported_symbols(library: Path) -> list[str]:
 
 def plain_c_library(source: Path) -> Path:
     """A shared library compiled from one self-contained C file (no Python), from the cache."""
-    cc = _compiler()
-    digest = hashlib.sha256(source.read_bytes() + cc.encode()).hexdigest()[:16]
-    target = cache_dir() / "native" / f"{source.stem}-{digest}"
-    library = target / f"{source.stem}.so"
-    if not library.exists():
-        build_into(target, lambda tmp: _run([cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
-                                              str(source), "-o", f"{tmp}/{library.name}"]))
-    return library
+    return _single_file_library(source, f"{source.stem}.so", [])
 
 
 def python_extension(source: Path) -> Path:
     """A C extension module for this Python's stable ABI (``<name>.abi3.so``), from the cache.
 
     Raises :class:`BuildError` when it cannot be compiled (no compiler, no Python headers)."""
-    cc = _compiler()
     include = sysconfig.get_paths()["include"]
     if not Path(include, "Python.h").exists():
         raise BuildError(f"no Python headers in {include} (install the python3-dev package)")
-    digest = hashlib.sha256(source.read_bytes() + cc.encode() + include.encode()).hexdigest()[:16]
+    return _single_file_library(source, f"{source.stem}.abi3.so", [f"-I{include}"])
+
+
+def _single_file_library(source: Path, name: str, flags: list[str]) -> Path:
+    """``source`` compiled into the shared library ``name``, cached by source, compiler and flags."""
+    cc = _compiler()
+    digest = hashlib.sha256(source.read_bytes() + cc.encode() + " ".join(flags).encode()).hexdigest()[:16]
     target = cache_dir() / "native" / f"{source.stem}-{digest}"
-    module = target / f"{source.stem}.abi3.so"
-    if not module.exists():
-        build_into(target, lambda tmp: _run([cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
-                                              f"-I{include}", str(source), "-o", f"{tmp}/{module.name}"]))
-    return module
+    library = target / name
+    if not library.exists():
+        build_into(target, lambda tmp: _run([cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", *flags,
+                                              str(source), "-o", f"{tmp}/{name}"]))
+    return library
 
 
 def build_into(target: Path, build: Callable[[str], object]) -> None:
