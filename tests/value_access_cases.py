@@ -3,6 +3,7 @@
 Run by test_component_values.py twice: with the pure-Python accessors and, in a subprocess, with
 the compiled ones (deltafmi/component/_values.c). Both must give the same list.
 """
+import array
 import json
 import sys
 
@@ -28,7 +29,10 @@ SETS = {
     "b": [2.5, 3, np.float32(0.25), np.float64(1.5), True, "1.5", None, [1.0], np.array(2.0), 1e308 * 10],
     "n": [5, True, 2.7, 2**40, -2**31, 2**31, "3", None, np.int64(9)],
     "flag": [False, True, 0, 2, np.bool_(False), None],
-    "a": [[1, 2, 3], (1.0, 2.0, 3.0), np.arange(3), 0.5, [1.0, 2.0], "x"],
+    "a": [[1, 2, 3], (1.0, 2.0, 3.0), np.arange(3), 0.5, [1.0, 2.0], "x", [1.5, 2.5, 3.5], [1.0, 2, 3.0],
+          [1.0, 2.0, "3"], [1.0, 2.0, None], np.array([0.5, 1.5, 2.5]), np.arange(6.0)[::2], np.arange(6.0)[::-2],
+          np.array([1.0, 2.0, 3.0], dtype=">f8"), np.ones(3, np.float32), np.ones((3, 1)), np.ones(4), np.float64(2.0),
+          [[1.0], [2.0], [3.0]], array.array("d", [4.0, 5.0, 6.0])],
     "label": ["xyz", 5],
     "names": [["u", "v"], ("w", 1)],
     "states": [[0.0, 0.0]],
@@ -57,6 +61,18 @@ def run() -> list:
     results.append(["class", type(Cases.b).__name__, Cases.b.description == "", Cases.a.shape])
     c.x[1] = 9.0  # an array read is a view of the buffer
     results.append(["view", c.x.tolist(), c.states.tolist()])
+    c.a = [1.0, 2.0, 3.0]
+    c.a = c.a[::-1]  # from a view of the same values: the write must not read what it wrote
+    results.append(["reversed", c.a.tolist()])
+    c.x = c.a[1:]  # from a view of another declaration
+    results.append(["other view", c.x.tolist()])
+    held = c.a
+    c.a = [7.0, 8.0, 9.0]  # a view read earlier sees later writes
+    results.append(["held view", held.tolist(), c.a.tolist(), np.shares_memory(c.a, c._real)])
+    c._attach("", [])  # new buffers: reads are views of those, not of the old ones
+    c.a[0] = -1.0
+    results.append(["rebound", c.a.tolist(), c._real.tolist(),
+                    np.shares_memory(c.a, c._real), np.shares_memory(held, c._real)])
     return results
 
 

@@ -5,8 +5,9 @@
  * ~1,800 per write of a scalar, more than the arithmetic of a small model's step. Here a
  * component (``ValueHolder``) carries the addresses of its real and integer buffers in C fields,
  * and a declaration (``ValueDescriptor``) reads or writes the scalar at its offset straight from
- * those: ~100 instructions. Whatever this does not handle (strings, array writes, a value that
- * is not an exact float, int or bool, a component whose buffers are not bound) goes to the
+ * those: ~100 instructions; a real array is read as a numpy view made once, and written from a
+ * list of floats or a float64 array. Whatever this does not handle (strings, integer arrays, a
+ * value that is not an exact float, int or bool, a component whose buffers are not bound) goes to the
  * declaration's Python accessors, so both paths behave identically.
  *
  * Built against the stable ABI (abi3) by deltafmi.export.compiler and bundled in every FMU;
@@ -27,12 +28,14 @@ typedef struct {
     int32_t *ints;
     Py_ssize_t n_real, n_int;
     PyObject *real_array, *int_array; /* keep the buffers alive while their addresses are held */
+    PyObject *views; /* descriptor -> its numpy view of real_array: slicing an ndarray costs ~1,000
+                      * instructions, a model's right-hand side reads several arrays per call */
 } Holder;
 
 typedef struct {
     PyObject_HEAD
     int kind;
-    Py_ssize_t offset;
+    Py_ssize_t offset, size; /* first item, number of items */
     PyObject *span;       /* slice of the real buffer (REAL_ARRAY) */
     PyObject *fget, *fset; /* the Python accessors: everything the fast paths leave */
     PyObject *holder_class; /* the last class seen to derive from ValueHolder (one compare, not an MRO walk) */
@@ -76,6 +79,7 @@ static PyObject *holder_bind(PyObject *self, PyObject *args) {
         return NULL;
     replace(&h->real_array, real);
     replace(&h->int_array, ints);
+    Py_CLEAR(h->views); /* views of the previous buffers */
     h->real = real_address;
     h->ints = int_address;
     h->n_real = n_real;
@@ -88,6 +92,7 @@ static void holder_dealloc(PyObject *self) {
     PyTypeObject *type = Py_TYPE(self);
     Py_CLEAR(h->real_array);
     Py_CLEAR(h->int_array);
+    Py_CLEAR(h->views);
     freefunc free_slot = (freefunc)PyType_GetSlot(type, Py_tp_free);
     free_slot(self);
     Py_DECREF(type); /* instances of heap types own a reference to their type */
@@ -114,7 +119,13 @@ static PyObject *descriptor_install(PyObject *self, PyObject *args) {
     int kind;
     Py_ssize_t offset;
     PyObject *span, *fget, *fset;
+    Py_ssize_t start, stop, step;
     if (!PyArg_ParseTuple(args, "inOOO:_install", &kind, &offset, &span, &fget, &fset)) return NULL;
+    d->size = 1;
+    if (PySlice_Check(span)) {
+        if (PySlice_Unpack(span, &start, &stop, &step) < 0) return NULL;
+        d->size = step == 1 && stop > start ? stop - start : 0; /* 0: arrays take the Python path */
+    }
     replace(&d->span, span);
     replace(&d->fget, fget);
     replace(&d->fset, fset);
@@ -133,7 +144,18 @@ static inline Holder *bound_holder(Descriptor *d, PyObject *obj) {
     Holder *h = (Holder *)obj;
     int integer = d->kind == INT_SCALAR || d->kind == BOOL_SCALAR;
     Py_ssize_t n = integer ? h->n_int : h->n_real;
-    return (integer ? (void *)h->ints : (void *)h->real) && d->offset >= 0 && d->offset < n ? h : NULL;
+    return (integer ? (void *)h->ints : (void *)h->real) && d->offset >= 0 && d->offset + d->size <= n ? h : NULL;
+}
+
+/* The view of a real array declaration: made at its first read, the same object after that. */
+static PyObject *array_view(Holder *h, Descriptor *d) {
+    if (!h->views && !(h->views = PyDict_New())) return NULL;
+    PyObject *view = PyDict_GetItemWithError(h->views, (PyObject *)d); /* borrowed */
+    if (view) return Py_NewRef(view);
+    if (PyErr_Occurred()) return NULL;
+    view = PyObject_GetItem(h->real_array, d->span);
+    if (view && PyDict_SetItem(h->views, (PyObject *)d, view) < 0) Py_CLEAR(view);
+    return view;
 }
 
 static PyObject *descriptor_get(PyObject *self, PyObject *obj, PyObject *type) {
@@ -144,7 +166,7 @@ static PyObject *descriptor_get(PyObject *self, PyObject *obj, PyObject *type) {
     if (h) {
         switch (d->kind) {
         case REAL_SCALAR: return PyFloat_FromDouble(h->real[d->offset]);
-        case REAL_ARRAY: return PyObject_GetItem(h->real_array, d->span);
+        case REAL_ARRAY: return array_view(h, d);
         case INT_SCALAR: return PyLong_FromLong(h->ints[d->offset]);
         case BOOL_SCALAR: return PyBool_FromLong(h->ints[d->offset] != 0);
         }
@@ -154,6 +176,43 @@ static PyObject *descriptor_get(PyObject *self, PyObject *obj, PyObject *type) {
         return NULL;
     }
     return PyObject_CallFunctionObjArgs(d->fget, obj, NULL);
+}
+
+/* Items of `value` into the n doubles at out when it is a list or tuple of exact floats, or a
+ * 1-D float64 buffer (a numpy array, strided or not) of length n: 0. Anything else: -1, nothing
+ * written or raised (the Python path converts it with numpy, or says what is wrong). Staged
+ * through a copy, as numpy does, so that a view of the same buffer (self.x = self.x[::-1]) reads
+ * only values from before the write. */
+static int write_array(double *out, Py_ssize_t n, PyObject *value) {
+    double stack[32], *staged = n <= 32 ? stack : PyMem_Malloc((size_t)n * sizeof(double));
+    int ok = 0;
+    if (!staged) {
+        PyErr_Clear();
+        return -1;
+    }
+    if (PyList_CheckExact(value) || PyTuple_CheckExact(value)) {
+        int list = PyList_CheckExact(value);
+        ok = (list ? PyList_Size(value) : PyTuple_Size(value)) == n;
+        for (Py_ssize_t i = 0; ok && i < n; i++) {
+            PyObject *item = list ? PyList_GetItem(value, i) : PyTuple_GetItem(value, i);
+            ok = PyFloat_CheckExact(item);
+            if (ok) staged[i] = PyFloat_AsDouble(item);
+        }
+    } else if (PyObject_CheckBuffer(value)) {
+        Py_buffer view;
+        if (PyObject_GetBuffer(value, &view, PyBUF_STRIDES | PyBUF_FORMAT) == 0) {
+            ok = view.ndim == 1 && view.shape[0] == n && view.itemsize == sizeof(double) && view.format &&
+                 strcmp(view.format, "d") == 0;
+            for (Py_ssize_t i = 0; ok && i < n; i++)
+                memcpy(&staged[i], (char *)view.buf + i * view.strides[0], sizeof(double));
+            PyBuffer_Release(&view);
+        } else {
+            PyErr_Clear();
+        }
+    }
+    if (ok) memcpy(out, staged, (size_t)n * sizeof(double));
+    if (staged != stack) PyMem_Free(staged);
+    return ok ? 0 : -1;
 }
 
 static int descriptor_set(PyObject *self, PyObject *obj, PyObject *value) {
@@ -168,6 +227,9 @@ static int descriptor_set(PyObject *self, PyObject *obj, PyObject *value) {
             h->real[d->offset] = PyFloat_AsDouble(value);
             return 0;
         }
+        int writable = d->fset && d->fset != Py_None; /* states: read-only, as in Python */
+        if (d->kind == REAL_ARRAY && d->size > 0 && writable && write_array(h->real + d->offset, d->size, value) == 0)
+            return 0;
         if (d->kind == BOOL_SCALAR && PyBool_Check(value)) {
             h->ints[d->offset] = value == Py_True;
             return 0;
