@@ -218,3 +218,24 @@ def test_reset_of_a_component_that_steps_itself(counter):
     s.step(0.1, n=3)  # u is back at its start value 1.0
     assert s.real("total")[0] == pytest.approx(0.3, abs=1e-15)
     assert s.fmu.getInteger([s.vr["count"]]) == [3]
+
+
+def test_the_python_time_follows_a_component_that_steps_itself(counter):
+    """Such a step leaves FmuInstance.time to the next call that may read it (the bridge's
+    catch_up_time): the snapshot of fmi2GetFMUstate, taken in Python, holds the step's end."""
+    import pickle
+    import struct
+
+    s = Slave(counter, u=2.0)
+    s.step(0.1, n=3)
+    state = s.fmu.getFMUstate()
+    data = bytes(s.fmu.serializeFMUstate(state))
+    _, loader_time, _ = struct.unpack_from("=Idd", data)  # the loader's own copy, then Python's bytes
+    assert loader_time == s.t
+    assert pickle.loads(data[struct.calcsize("=Idd"):])["time"] == s.t
+    s.step(0.1, n=2)
+    s.fmu.setFMUstate(state)  # back at 0.3: stepping on from there is accepted and counts from 3
+    s.t = loader_time
+    s.step(0.1)
+    assert s.fmu.getInteger([s.vr["count"]]) == [4]
+    s.fmu.freeFMUstate(state)

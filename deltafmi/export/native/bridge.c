@@ -30,6 +30,9 @@ typedef struct {
     PyObject *name_component, *name_derivatives, *name_indicators, *name_do_step, *name_time; /* interned */
     int steps_itself;        /* the component's own do_step is the whole of fmi2DoStep ... */
     int evaluates_after_step; /* ... followed by FmuInstance.evaluate (derivatives, indicators, outputs) */
+    PyObject *do_step;       /* component.do_step, bound (again after fmi2Reset) */
+    double time;             /* instance.time after the last step_itself ... */
+    int time_behind;         /* ... not yet written to instance.time (see catch_up_time) */
     PyObject *pending_logs; /* list of (status, category, message) the component queued */
     PyObject *strings;      /* list: last UTF-8 bytes returned per string index (keeps them alive) */
     PyObject *serialized;   /* bytes of the last serialize_state */
@@ -56,6 +59,8 @@ int dfmi_bind_python(void *library, char *error, size_t error_size) {
 #undef DFMI_PYTHON_BIND
     symbol = dlsym(library, "Py_SetProgramName");
     memcpy(&api.Py_SetProgramName, &symbol, sizeof symbol);
+    symbol = dlsym(library, "PyObject_Vectorcall");
+    memcpy(&api.PyObject_Vectorcall, &symbol, sizeof symbol);
     if (!(api.none = dlsym(library, "_Py_NoneStruct"))) {
         snprintf(error, error_size, "the Python library in this process lacks _Py_NoneStruct");
         return -1;
@@ -79,6 +84,19 @@ static void attach_thread(void) {
 
 #define ENTER attach_thread(); PyGILState_STATE gil_ = py.PyGILState_Ensure()
 #define LEAVE py.PyGILState_Release(gil_)
+
+/* A step of a component that steps itself does not write instance.time (a Python float and a
+ * setattr: ~300 instructions of its ~4,000); every other call into the instance, which may read
+ * it, writes it first. */
+static void catch_up_time(Bridged *b) {
+    if (!b->time_behind) return;
+    b->time_behind = 0;
+    PyObject *t = py.PyFloat_FromDouble(b->time);
+    if (!t || py.PyObject_SetAttr(b->instance, b->name_time, t) < 0) py.PyErr_Clear(); /* out of memory only */
+    Py_XDECREF(t);
+}
+
+#define ENTER_INSTANCE(b) ENTER; catch_up_time(b)
 
 static void send_log(Bridged *b, int status, const char *category, const char *message) {
     if (b && b->log) b->log(b->log_env, status, category, message);
@@ -223,8 +241,20 @@ static void release(Bridged *b) {
     Py_XDECREF(b->strings);
     Py_XDECREF(b->serialized);
     Py_XDECREF(b->component);
+    Py_XDECREF(b->do_step);
     Py_XDECREF(b->instance);
     py.PyMem_Free(b);
+}
+
+/* instance.component and its bound do_step: at instantiation and after fmi2Reset, which replaces
+ * the component. 0, or -1 raised. */
+static int fetch_component(Bridged *b) {
+    Py_XDECREF(b->component);
+    Py_XDECREF(b->do_step);
+    b->do_step = NULL;
+    b->component = py.PyObject_GetAttr(b->instance, b->name_component);
+    if (b->component && b->steps_itself) b->do_step = py.PyObject_GetAttr(b->component, b->name_do_step);
+    return b->component && (b->do_step || !b->steps_itself) ? 0 : -1;
 }
 
 void *bridge_instantiate(const char *resources_dir, const char *instance_name, const char *guid,
@@ -263,10 +293,9 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
         !(b->store_derivatives = py.PyObject_GetAttrString(b->instance, "_store_derivatives")) ||
         !(b->store_indicators = py.PyObject_GetAttrString(b->instance, "_store_event_indicators")) ||
         !(b->name_component = py.PyUnicode_InternFromString("component")) ||
-        !(b->component = py.PyObject_GetAttr(b->instance, b->name_component)) ||
         !(b->name_derivatives = py.PyUnicode_InternFromString("derivatives")) ||
         !(b->name_indicators = py.PyUnicode_InternFromString("event_indicators")) ||
-        !(b->name_do_step = py.PyUnicode_InternFromString("do_step")) ||
+        !(b->name_do_step = py.PyUnicode_InternFromString("do_step")) || fetch_component(b) < 0 ||
         !(b->name_time = py.PyUnicode_InternFromString("time")) ||
         !(b->pending_logs = py.PyObject_GetAttrString(b->instance, "pending_logs")) ||
         !(b->strings = py.PyList_New(n_str)))
@@ -302,18 +331,22 @@ void bridge_free_instance(void *handle) {
 /* fmi2DoStep of a component that steps itself: what FmuInstance.do_step does for it, without that
  * Python frame (the loader has checked the communication point). */
 static PyObject *step_itself(Bridged *b, double t, double h) {
-    PyObject *component = b->component;
-    PyObject *start = py.PyFloat_FromDouble(t), *size = py.PyFloat_FromDouble(h), *end = py.PyFloat_FromDouble(t + h);
-    PyObject *stepped = component && start && size && end
-                            ? py.PyObject_CallMethodObjArgs(component, b->name_do_step, start, size, NULL) : NULL;
-    PyObject *result = NULL;
-    if (stepped && py.PyObject_SetAttr(b->instance, b->name_time, end) == 0) {
-        if (b->evaluates_after_step) result = py.PyObject_CallFunctionObjArgs(b->ops[DFMI_EVALUATE], end, NULL);
-        else result = (Py_INCREF(Py_None), Py_None);
-    }
-    Py_XDECREF(stepped);
-    Py_XDECREF(start);
-    Py_XDECREF(size);
+    PyObject *args[3] = {NULL, py.PyFloat_FromDouble(t), py.PyFloat_FromDouble(h)};
+    PyObject *stepped = NULL;
+    if (b->do_step && args[1] && args[2])
+        stepped = py.PyObject_Vectorcall
+                      ? py.PyObject_Vectorcall(b->do_step, args + 1, 2 | PY_VECTORCALL_ARGUMENTS_OFFSET, NULL)
+                      : py.PyObject_CallFunctionObjArgs(b->do_step, args[1], args[2], NULL);
+    Py_XDECREF(args[1]);
+    Py_XDECREF(args[2]);
+    if (!stepped) return NULL;
+    Py_DECREF(stepped);
+    b->time = t + h;
+    b->time_behind = 1;
+    if (!b->evaluates_after_step) return (Py_INCREF(Py_None), Py_None);
+    catch_up_time(b);
+    PyObject *end = py.PyFloat_FromDouble(t + h);
+    PyObject *result = end ? py.PyObject_CallFunctionObjArgs(b->ops[DFMI_EVALUATE], end, NULL) : NULL;
     Py_XDECREF(end);
     return result;
 }
@@ -326,16 +359,12 @@ int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
         LEAVE;
         return status;
     }
+    catch_up_time(b);
     PyObject *tuple = py.PyTuple_New(nargs);
     for (int i = 0; i < nargs; i++) py.PyTuple_SetItem(tuple, i, py.PyFloat_FromDouble(args[i]));
     int status = finish(b, py.PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
     Py_DECREF(tuple);
-    if (op == DFMI_RESET) {
-        PyObject *old = b->component;
-        b->component = py.PyObject_GetAttr(b->instance, b->name_component);
-        Py_XDECREF(old);
-        if (!b->component) status = finish(b, NULL, "fmi2Reset");
-    }
+    if (op == DFMI_RESET && fetch_component(b) < 0) status = finish(b, NULL, "fmi2Reset");
     LEAVE;
     return status;
 }
@@ -386,7 +415,7 @@ static int evaluated_into(PyObject *component, PyObject *method, PyObject *store
  * with the results copied in C: the integrator's hot path (about 1 us less per evaluation). */
 int bridge_derivatives(void *handle, double time, double *dx, size_t nx, double *z, size_t nz) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     PyObject *component = b->component, *t = py.PyFloat_FromDouble(time);
     int ok = component && t &&
              (!nx || evaluated_into(component, b->name_derivatives, b->store_derivatives, t, dx, nx) == 0) &&
@@ -416,7 +445,7 @@ static int unpacked(Bridged *b, PyObject *result, int ok, const char *context) {
 
 int bridge_completed_step(void *handle, double time, int *enter_event_mode) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     PyObject *result = py.PyObject_CallFunction(b->completed_step, "d", time);
     int truth = result ? py.PyObject_IsTrue(result) : -1;
     *enter_event_mode = truth > 0;
@@ -427,7 +456,7 @@ int bridge_completed_step(void *handle, double time, int *enter_event_mode) {
 
 int bridge_event_update(void *handle, double time, int flags[5], double *next_event_time) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     PyObject *result = py.PyObject_CallFunction(b->event_update, "d", time);
     int ok = result && py.PyArg_ParseTuple(result, "pppppd", &flags[0], &flags[1], &flags[2], &flags[3],
                                         &flags[4], next_event_time);
@@ -438,7 +467,7 @@ int bridge_event_update(void *handle, double time, int flags[5], double *next_ev
 
 int bridge_get_string(void *handle, size_t index, const char **value) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     int status = 0;
     PyObject *text = py.PyObject_CallFunction(b->get_string, "n", (Py_ssize_t)index);
     PyObject *bytes = text ? py.PyUnicode_AsUTF8String(text) : NULL;
@@ -455,7 +484,7 @@ int bridge_get_string(void *handle, size_t index, const char **value) {
 
 int bridge_set_string(void *handle, size_t index, const char *value) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     int status = finish(b, py.PyObject_CallFunction(b->set_string, "ns", (Py_ssize_t)index, value), "fmi2SetString");
     LEAVE;
     return status;
@@ -463,7 +492,7 @@ int bridge_set_string(void *handle, size_t index, const char *value) {
 
 int bridge_get_state(void *handle, void **state) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     PyObject *snapshot = py.PyObject_CallNoArgs(b->get_state);
     *state = snapshot;
     int status = snapshot ? 0 : finish(b, NULL, "fmi2GetFMUstate");
@@ -473,7 +502,7 @@ int bridge_get_state(void *handle, void **state) {
 
 int bridge_set_state(void *handle, void *state) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     int status = finish(b, py.PyObject_CallFunctionObjArgs(b->set_state, (PyObject *)state, NULL), "fmi2SetFMUstate");
     LEAVE;
     return status;
@@ -488,7 +517,7 @@ void bridge_free_state(void *state) {
 
 int bridge_serialize_state(void *handle, void *state, const char **bytes, size_t *size) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     int status = 0;
     PyObject *data = py.PyObject_CallFunctionObjArgs(b->serialize, (PyObject *)state, NULL);
     char *buffer;
@@ -508,7 +537,7 @@ int bridge_serialize_state(void *handle, void *state, const char **bytes, size_t
 
 int bridge_deserialize_state(void *handle, const char *bytes, size_t size, void **state) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     PyObject *data = py.PyBytes_FromStringAndSize(bytes, (Py_ssize_t)size);
     PyObject *snapshot = data ? py.PyObject_CallFunctionObjArgs(b->deserialize, data, NULL) : NULL;
     Py_XDECREF(data);
@@ -523,7 +552,7 @@ int bridge_deserialize_state(void *handle, const char *bytes, size_t size, void 
 int bridge_directional_derivative(void *handle, double time, const unsigned int *unknowns, size_t n_unknown,
                                   const unsigned int *knowns, size_t n_known, const double *seed, double *out) {
     Bridged *b = handle;
-    ENTER;
+    ENTER_INSTANCE(b);
     PyObject *t = py.PyFloat_FromDouble(time);
     PyObject *u = py.PyBytes_FromStringAndSize((const char *)unknowns, (Py_ssize_t)(n_unknown * sizeof *unknowns));
     PyObject *k = py.PyBytes_FromStringAndSize((const char *)knowns, (Py_ssize_t)(n_known * sizeof *knowns));

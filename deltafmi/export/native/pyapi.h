@@ -75,6 +75,8 @@ typedef struct _ts PyThreadState;
 typedef struct {
     DFMI_PYTHON_FUNCTIONS(DFMI_PYTHON_FIELD)
     void (*Py_SetProgramName)(const wchar_t *); /* deprecated since 3.11: used when present */
+    /* exported from 3.11 (not by 3.10): used when present */
+    PyObject *(*PyObject_Vectorcall)(PyObject *, PyObject *const *, size_t, PyObject *);
     PyObject *none;                             /* Py_None */
 } DfmiPython;
 
@@ -86,6 +88,7 @@ extern DfmiPython py;
 int dfmi_bind_python(void *library, char *error, size_t error_size);
 
 #define Py_None (py.none)
+#define PY_VECTORCALL_ARGUMENTS_OFFSET ((size_t)1 << (8 * sizeof(size_t) - 1))
 #define Py_INCREF(o) py.Py_IncRef(o)
 #define Py_XINCREF(o) py.Py_IncRef(o) /* Py_IncRef and Py_DecRef accept NULL */
 #define Py_DECREF(o) py.Py_DecRef(o)
