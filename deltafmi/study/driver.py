@@ -1,15 +1,16 @@
-"""The client side of a sweep: a Dask cluster, one task per case, results stored as they come.
+"""The client side of a sweep: a Dask cluster, tasks of a few cases each, results stored as they come.
 
 By default the study runs on a :class:`distributed.LocalCluster` of worker processes (one thread
 each) on this machine; with a scheduler address it runs on that cluster instead. Either way the
 FMUs built here travel to the workers inside a worker plugin (:mod:`deltafmi.study.worker`) and
-each task carries only a case's values. Robustness is Dask's: a worker process that dies is
-restarted by its nanny and the case it was running is rescheduled; on the local cluster
-``distributed.scheduler.allowed-failures`` is 1, so a case that kills a second worker is recorded
-as failed (``KilledWorker``) and the study goes on, and ``worker-saturation`` is 1.0, so a worker
-holds only the case it runs (a death counts against every task assigned to the worker). A cluster
-given by address keeps its own settings of both. A case that fails inside the simulation is
-a result row like any other.
+each task carries only its cases' values (:mod:`deltafmi.study.batches` decides how many). A
+worker process that dies is restarted by its Dask nanny; the cases of the task it was running
+run again, each in a task of its own, and a case that kills the worker running it alone is
+recorded as failed (``KilledWorker``) and the study goes on. On the local cluster
+``worker-saturation`` is 1.0, so a worker holds only the task it runs and a death is that task's,
+and ``allowed-failures`` is 0, so Dask reports the death at once and the retry above is the only
+one. A cluster given by address keeps its own settings of both (Dask then retries a task as they
+say before the retry above). A case that fails inside the simulation is a result row like any other.
 """
 from __future__ import annotations
 
@@ -20,17 +21,18 @@ import time as _time
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator, List, Optional, TextIO
+from typing import Any, Callable, Dict, Iterator, List, Optional, TextIO
 
 from distributed import WorkerPlugin
 
 from deltafmi.cosim.errors import BadInput, SimulationError
 
 from .cases import Case
+from .batches import Batch, Batcher
 from .plan import PlannedStudy
 from .runner import FAILED, OK, CaseResult
 from .store import ResultStore
-from .worker import StudyPlugin, run_case_task
+from .worker import StudyPlugin, run_cases_task
 
 #: seconds between rewrites of the results table while the study runs
 TABLE_EVERY = 10.0
@@ -130,12 +132,12 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None) 
         finally:
             client.close()
         return
-    # One retry after a worker died running a case (the nanny restarts the worker), then
-    # KilledWorker. A worker holds one case at a time (saturation 1.0): Dask counts a death against
-    # every task assigned to the worker, so a case queued behind a crashing one must not be there.
+    # A worker holds one task at a time (saturation 1.0): Dask counts a death against every task
+    # assigned to the worker, so a task queued behind a crashing one must not be there. A death
+    # is reported at once (allowed-failures 0): run_study retries the task's cases one by one.
     # Workers do not sample their own stacks every 10 ms for the dashboard's profile: on a
     # machine whose every core runs a worker that is time taken from the cases.
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1,
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                           "distributed.scheduler.worker-saturation": 1.0,
                           "distributed.worker.profile.enabled": False}):
         cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
@@ -202,30 +204,48 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
         fingerprint = planned.plan.fingerprint
         keep = store.timeseries is not None
         with dask_client(scheduler, workers) as client:
-            n_workers = len(client.scheduler_info(n_workers=-1)["workers"]) if scheduler else (workers or local_workers())
+            if scheduler:
+                threads = [w["nthreads"] for w in client.scheduler_info(n_workers=-1)["workers"].values()]
+                n_workers, slots = len(threads), sum(threads)
+            else:
+                n_workers = slots = workers or local_workers()
             try:
                 client.register_plugin(plugin, name=plugin.name)
             except Exception as exc:  # noqa: BLE001 - e.g. a worker without deltafmi
                 raise SimulationError(f"the Dask workers could not set up the study: {exc}") from None
             setup = _time.perf_counter() - wall
-            futures = {client.submit(run_case_task, fingerprint, case.id, case.values, keep,
-                                     key=f"deltafmi-case-{fingerprint[:12]}-{case.id}"): case for case in todo}
+            batcher = Batcher(todo, slots)
+            running: Dict[Any, Batch] = {}
+            finished = as_completed()
+
+            def submit() -> None:
+                """Keep two tasks per worker thread submitted: one running, the next one waiting."""
+                while batcher and len(running) < 2 * slots:
+                    batch = batcher.next()
+                    key = f"deltafmi-cases-{fingerprint[:12]}-{batch.cases[0].id}{'-alone' if batch.alone else ''}"
+                    future = client.submit(run_cases_task, fingerprint, [(c.id, c.values) for c in batch.cases],
+                                           keep, key=key)
+                    running[future] = batch
+                    finished.add(future)
+
+            submit()
             last_table = bar.start = _time.monotonic()  # rates and ETA from here, the cluster up
             bar.draw(force=True)
             try:
-                for future in as_completed(futures):
-                    result = _result(future, futures[future])
-                    store.add(result)
-                    ran += 1
-                    failed += result.status == FAILED
-                    bar.add(result)
-                    on_result(result)
+                for future in finished:
+                    for result in _results(future, running.pop(future), batcher):
+                        store.add(result)
+                        ran += 1
+                        failed += result.status == FAILED
+                        bar.add(result)
+                        on_result(result)
+                    submit()
                     if _time.monotonic() - last_table > TABLE_EVERY:
                         store.write_tables(planned.cases)
                         last_table = _time.monotonic()
             except KeyboardInterrupt:
                 interrupted = True
-                client.cancel(list(futures))
+                client.cancel(list(running))
             finally:
                 bar.close()
                 try:
@@ -236,18 +256,25 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
     return SweepReport(total, reused, ran, failed, _time.perf_counter() - wall, n_workers, interrupted, setup)
 
 
-def _result(future: Any, case: Case) -> CaseResult:
-    """The task's result, or a failed result when the task itself did not return one."""
+def _results(future: Any, batch: Batch, batcher: Batcher) -> List[CaseResult]:
+    """The results of a finished task; none when its worker died and its cases run again."""
     from distributed import KilledWorker
 
     try:
-        return future.result()
+        results: List[CaseResult] = future.result()
     except KilledWorker:
-        return CaseResult(case.id, case.values, {}, FAILED,
-                          "the worker process died running this case, twice (a crash in an FMU, or out of "
-                          "memory); Dask restarted the worker each time (KilledWorker)")
+        if not batch.alone:
+            batcher.run_again(batch)
+            return []
+        case = batch.cases[0]
+        return [CaseResult(case.id, case.values, {}, FAILED,
+                           "the worker process died running this case (a crash in an FMU, or out of memory), "
+                           "again when it ran alone; Dask restarted the worker each time (KilledWorker)")]
     except Exception as exc:  # noqa: BLE001 - a task that raised: record it, go on
-        return CaseResult(case.id, case.values, {}, FAILED, f"{type(exc).__name__}: {exc}")
+        return [CaseResult(c.id, c.values, {}, FAILED, f"{type(exc).__name__}: {exc}") for c in batch.cases]
+    for result in results:
+        batcher.observe(result.wall_time)
+    return results
 
 
 def summary_lines(planned: PlannedStudy, store: ResultStore, report: SweepReport) -> List[str]:

@@ -5,15 +5,15 @@ plugin to every worker, including workers that join or are restarted later, so n
 shared between the client and the workers but the installed ``deltafmi``. On the worker the
 plugin stores each FMU once in a cache keyed by its sha256 (``$DELTAFMI_CACHE/study-fmus``) and
 the process keeps one :class:`WorkerCache`: the FMU pool (loaded FMUs, reset between cases) and
-the resolved case template of each study. :func:`run_case_task` is the task: it carries only the
-study's fingerprint, the case id and its values.
+the resolved case template of each study. :func:`run_cases_task` is the task: it carries only the
+study's fingerprint and a batch of case ids with their values.
 """
 from __future__ import annotations
 
 import hashlib
 import threading
 from pathlib import Path
-from typing import Any, Dict, Mapping, Optional
+from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 from distributed import WorkerPlugin
 
@@ -106,8 +106,9 @@ class StudyPlugin(WorkerPlugin):
         worker_cache().remove_plan(self.plan.fingerprint)
 
 
-def run_case_task(fingerprint: str, case: int, values: Dict[str, Any], keep_timeseries: bool) -> CaseResult:
-    """The Dask task of one case (runs on a worker)."""
+def run_cases_task(fingerprint: str, cases: List[Tuple[int, Dict[str, Any]]],
+                   keep_timeseries: bool) -> List[CaseResult]:
+    """The Dask task of a batch of cases ``(id, values)`` (runs on a worker)."""
     from distributed import get_worker
 
     cache = worker_cache()
@@ -115,7 +116,8 @@ def run_case_task(fingerprint: str, case: int, values: Dict[str, Any], keep_time
         address = get_worker().address
     except ValueError:  # not on a worker (called directly)
         address = "local"
-    return run_case(cache.template(fingerprint), cache.pool, case, values, keep_timeseries, address)
+    template = cache.template(fingerprint)
+    return [run_case(template, cache.pool, case, values, keep_timeseries, address) for case, values in cases]
 
 
 def _sha256(path: Path) -> str:
