@@ -138,8 +138,7 @@ class Master:
         :meth:`run` calls it; call it yourself only to drive :meth:`step_all` by hand (and then
         :meth:`close`).
         """
-        self._unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
-        self._load(self._unzip_root)
+        self._load()
         for unit in self.units:
             unit.instantiate(self.start, self.stop)
             unit.apply_start_values()
@@ -186,12 +185,14 @@ class Master:
         return f" (results up to the failure in {self.result_path})"
 
     # --- set-up -------------------------------------------------------------------------------
-    def _load(self, unzip_root: str) -> None:
+    def _load(self) -> None:
         extracted: Dict[Path, str] = {}
         for component in self.system.components:
             fmu = self.fmus(component) if self.fmus is not None else None
             if fmu is None and component.fmu not in extracted:
-                target = Path(unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
+                if not self._unzip_root:  # FMUs lent by a study's pool need none
+                    self._unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
+                target = Path(self._unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
                 extracted[component.fmu] = fmpy.extract(str(component.fmu), unzipdir=str(target))
             unit = unit_for(component, extracted[component.fmu] if fmu is None else fmu.unzipDirectory, fmu)
             if component.interface == "ME":

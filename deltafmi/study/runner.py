@@ -15,7 +15,7 @@ import time as _time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -31,41 +31,37 @@ OK, FAILED = "ok", "failed"
 
 
 class MemoryRecorder:
-    """The master's result writer, keeping the rows in memory (same calls as the CSV writer)."""
+    """The master's result writer, keeping the rows in memory (same calls as the CSV writer): one
+    array of rows whose capacity doubles as it fills (no concatenation at the end)."""
 
     def __init__(self, path: Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None,
                  chunk: int = 1024) -> None:
         self.path = path
         self.names = list(names)
         self.kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
-        self._text = "String" in self.kinds
-        self._chunk = chunk
-        self._blocks: List[np.ndarray] = []
-        self._n = chunk  # rows used in the last block
+        self._rows = np.empty((chunk, len(self.names) + 1), dtype=object if "String" in self.kinds else float)
         self.rows_written = 0
+
+    def _room(self, n: int) -> np.ndarray:
+        """The next ``n`` free rows, the array grown (doubled) if needed."""
+        end = self.rows_written + n
+        if end > len(self._rows):
+            grown = np.empty((max(end, 2 * len(self._rows)), self._rows.shape[1]), dtype=self._rows.dtype)
+            grown[: self.rows_written] = self._rows[: self.rows_written]
+            self._rows = grown
+        room = self._rows[self.rows_written:end]
+        self.rows_written = end
+        return room
 
     def write(self, time: float, values: np.ndarray) -> None:
         """Keep one row."""
-        if self._n == self._chunk:
-            self._blocks.append(np.empty((self._chunk, len(self.names) + 1), dtype=object if self._text else float))
-            self._n = 0
-        row = self._blocks[-1][self._n]
+        row = self._room(1)[0]
         row[0] = time
         row[1:] = values
-        self._n += 1
-        self.rows_written += 1
 
     def write_rows(self, rows: np.ndarray) -> None:
         """Keep a block of rows ``time, values...`` (how the master's C loop hands them over)."""
-        if self._text:
-            for row in rows:
-                self.write(float(row[0]), row[1:])
-            return
-        if self._blocks and self._n < self._chunk:
-            self._blocks[-1] = self._blocks[-1][: self._n]  # only the last block may have room left
-        self._blocks.append(np.array(rows, dtype=float))
-        self._n = self._chunk  # the next single row starts a new block
-        self.rows_written += len(rows)
+        self._room(len(rows))[:] = rows
 
     def flush(self) -> None:
         """Nothing to flush."""
@@ -73,17 +69,33 @@ class MemoryRecorder:
     def close(self) -> None:
         """Nothing to close."""
 
-    def columns(self) -> Dict[str, np.ndarray]:
-        """``{"time": ..., name: ...}``: float columns, object columns of ``str`` for Strings."""
-        if self._blocks:
-            data = np.concatenate(self._blocks)[: self.rows_written]
-        else:
-            data = np.empty((0, len(self.names) + 1))
-        result = {"time": data[:, 0].astype(float)}
-        for i, (name, kind) in enumerate(zip(self.names, self.kinds)):
-            column = data[:, i + 1]
-            result[name] = column if kind == "String" else column.astype(float)
-        return result
+    def columns(self) -> "RecordedColumns":
+        """The rows by column: ``time``, then every recorded variable."""
+        return RecordedColumns(self._rows[: self.rows_written], self.names, self.kinds)
+
+
+class RecordedColumns(Mapping[str, np.ndarray]):
+    """Recorded rows by column name; a column is copied out at its first use (a study's metrics
+    read a few of the many recorded variables): float arrays, ``str`` objects for Strings."""
+
+    def __init__(self, rows: np.ndarray, names: Sequence[str], kinds: Sequence[str]) -> None:
+        self._rows = rows
+        self._index = {"time": 0, **{name: i + 1 for i, name in enumerate(names)}}
+        self._strings = {name for name, kind in zip(names, kinds) if kind == "String"}
+        self._copied: Dict[str, np.ndarray] = {}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        column = self._copied.get(name)
+        if column is None:
+            column = self._rows[:, self._index[name]]
+            column = self._copied[name] = column.copy() if name in self._strings else column.astype(float)
+        return column
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._index)
+
+    def __len__(self) -> int:
+        return len(self._index)
 
 
 @dataclass
@@ -198,7 +210,7 @@ def run_case(template: CaseTemplate, pool: FmuPool, case: int, values: Mapping[s
             except Exception as exc:  # noqa: BLE001
                 status, error = FAILED, f"metric '{metric.name}': {type(exc).__name__}: {exc}"
     return CaseResult(case, dict(values), metrics, status, error, _time.perf_counter() - wall, setup, stepping,
-                      columns if keep_timeseries else None, worker)
+                      dict(columns) if keep_timeseries and columns is not None else None, worker)
 
 
 def _where(exc: BaseException) -> str:
