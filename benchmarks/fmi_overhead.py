@@ -164,7 +164,7 @@ def main() -> None:
         print("  pythonfmu FMU through fmpy         skipped: pythonfmu is not installed")
     else:
         print(f"  pythonfmu FMU through fmpy         {through_fmpy['theirs']:8.3f}   (deltafmi / pythonfmu "
-              f"{through_fmpy['ratio']:.2f}x, median of the rounds' ratios; target <= 0.7x)")
+              f"{through_fmpy['ratio']:.3f}x, median of the rounds' ratios; target <= 0.7x)")
     print("C host, deltafmi FMU, no Python in the host process (us per call)")
     print(f"  fmi2SetReal                        {c_us['set_us']:8.4f}")
     print(f"  fmi2GetReal                        {c_us['get_us']:8.4f}")
