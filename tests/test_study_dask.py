@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -29,7 +28,7 @@ from click.testing import CliRunner
 
 from deltafmi.cli import main
 from deltafmi.cosim.results import columns as read_columns
-from deltafmi.study.driver import dask_client, open_store, run_study
+from deltafmi.study.driver import dask_client
 from deltafmi.study.plan import plan_study
 from deltafmi.study.spec import load_study
 
@@ -144,10 +143,10 @@ def test_worker_crash_is_retried_once_then_recorded(cluster, tmp_path):
     again alone and pass, as does case 10 (crashes once); case 13 (always) is recorded."""
     (tmp_path / "crasher.py").write_text(CRASHER)
     marker = tmp_path / "crashed-once"
-    (tmp_path / "crash.yaml").write_text(textwrap.dedent(f"""\
-        experiment: {{stop: 0.1, step: 1.0e-2}}
+    (tmp_path / "crash.yaml").write_text(textwrap.dedent("""\
+        experiment: {stop: 0.1, step: 1.0e-2}
         components:
-          c: {{source: crasher.py, solver: {{rtol: 1.0e-10}}}}
+          c: {source: crasher.py, solver: {rtol: 1.0e-10}}
         outputs: [c.y]
         """))
     crash = [0] * 24
