@@ -50,6 +50,13 @@ static void replace(PyObject **field, PyObject *value) {
     Py_XDECREF(old);
 }
 
+/* tp_free, then the type's reference: the end of every dealloc of a heap type's instance */
+static void free_instance(PyObject *self) {
+    PyTypeObject *type = Py_TYPE(self);
+    ((freefunc)PyType_GetSlot(type, Py_tp_free))(self);
+    Py_DECREF(type);
+}
+
 /* ---- ValueHolder ------------------------------------------------------------------------- */
 
 /* The address and length of a C-contiguous buffer of `format` items, or -1 with an error. */
@@ -89,13 +96,10 @@ static PyObject *holder_bind(PyObject *self, PyObject *args) {
 
 static void holder_dealloc(PyObject *self) {
     Holder *h = (Holder *)self;
-    PyTypeObject *type = Py_TYPE(self);
     Py_CLEAR(h->real_array);
     Py_CLEAR(h->int_array);
     Py_CLEAR(h->views);
-    freefunc free_slot = (freefunc)PyType_GetSlot(type, Py_tp_free);
-    free_slot(self);
-    Py_DECREF(type); /* instances of heap types own a reference to their type */
+    free_instance(self);
 }
 
 static PyMethodDef holder_methods[] = {
@@ -221,14 +225,17 @@ static int descriptor_set(PyObject *self, PyObject *obj, PyObject *value) {
         PyErr_SetString(PyExc_AttributeError, "a variable cannot be deleted");
         return -1;
     }
+    if (!d->fset || d->fset == Py_None) { /* states: read-only */
+        PyErr_SetString(PyExc_AttributeError, "read-only attribute");
+        return -1;
+    }
     Holder *h = bound_holder(d, obj);
     if (h) {
         if (d->kind == REAL_SCALAR && PyFloat_CheckExact(value)) {
             h->real[d->offset] = PyFloat_AsDouble(value);
             return 0;
         }
-        int writable = d->fset && d->fset != Py_None; /* states: read-only, as in Python */
-        if (d->kind == REAL_ARRAY && d->size > 0 && writable && write_array(h->real + d->offset, d->size, value) == 0)
+        if (d->kind == REAL_ARRAY && d->size > 0 && write_array(h->real + d->offset, d->size, value) == 0)
             return 0;
         if (d->kind == BOOL_SCALAR && PyBool_Check(value)) {
             h->ints[d->offset] = value == Py_True;
@@ -243,10 +250,6 @@ static int descriptor_set(PyObject *self, PyObject *obj, PyObject *value) {
             }
             PyErr_Clear(); /* out of range: the Python path raises numpy's error */
         }
-    }
-    if (!d->fset || d->fset == Py_None) {
-        PyErr_SetString(PyExc_AttributeError, "read-only attribute");
-        return -1;
     }
     PyObject *result = PyObject_CallFunctionObjArgs(d->fset, obj, value, NULL);
     Py_XDECREF(result);
@@ -273,12 +276,9 @@ static int descriptor_clear(PyObject *self) {
 }
 
 static void descriptor_dealloc(PyObject *self) {
-    PyTypeObject *type = Py_TYPE(self);
     PyObject_GC_UnTrack(self);
     descriptor_clear(self);
-    freefunc free_slot = (freefunc)PyType_GetSlot(type, Py_tp_free);
-    free_slot(self);
-    Py_DECREF(type);
+    free_instance(self);
 }
 
 static PyMethodDef descriptor_methods[] = {

@@ -173,8 +173,9 @@ class FmuInstance:
         """``fmi2DoStep`` from ``t`` to ``t + h``: integrate with CVODE, handle events inside.
 
         The native layer has checked that ``t`` is the FMU's time. A component that steps itself
-        never comes here: the native layer calls its ``do_step``, sets ``time`` and calls
-        :meth:`evaluate` (bridge.c, step_itself; ``native_layout`` tells it which components)."""
+        never comes here: the native layer calls its ``do_step``, sets ``time`` before anything
+        reads it and calls :meth:`evaluate` when there is something to evaluate (bridge.c,
+        step_itself; ``native_layout`` tells it which components)."""
         comp = self.component
         t_end = t + h
         if self._solver is not None and self._inputs_changed():

@@ -87,8 +87,9 @@ class Variable(ValueDescriptor):
         self.offset = 0  # index of the first scalar in the component's buffer of this type
 
     # The descriptor runs on every access a model makes (several per evaluation). Compiled
-    # (native_values.COMPILED, in every FMU built with Python headers) a declaration reads and writes scalars and
-    # reads real arrays in C, from the addresses its component holds. Everything else, and
+    # (native_values.COMPILED, in every FMU built with Python headers) a declaration reads and
+    # writes scalars and real arrays in C, from the addresses its component holds (see the top
+    # of _values.c for what it takes). Everything else, and
     # everything without the compiled module, goes through the accessors installed below: a
     # getter that is a C-level call, operator.methodcaller, of a bound __getitem__ of the
     # component's buffers (Component._attach sets them), and the setter _set, for which the
