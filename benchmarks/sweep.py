@@ -28,7 +28,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Dict, List, Tuple
+from typing import Dict, List, NamedTuple
 
 from deltafmi.study.cases import Case
 from deltafmi.study.driver import dask_client, open_store, run_study
@@ -92,11 +92,25 @@ def machine_scaling(case_file: Path, runs: int = 4) -> float:
     return 2 * alone / at_once(2)
 
 
-def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) -> Tuple[float, float, List[dict], float, List[float], float]:
-    """(cluster start-up s, sweep wall s, result rows, registration s, the client's arrival time of
-    each result, wrap-up s after the last one) of the cases on a LocalCluster of ``workers``."""
+class SweepRun(NamedTuple):
+    """One sweep on a LocalCluster (seconds)."""
+
+    startup: float  #: the cluster's start-up (not in ``wall``)
+    wall: float  #: the sweep, registration to wrap-up
+    rows: List[dict]  #: the result rows
+    registration: float  #: the study registered on the workers
+    wrapup: float  #: after the last result reached the client
+
+
+def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) -> SweepRun:
+    """The cases on a LocalCluster of ``workers``."""
     started = time.perf_counter()
-    arrivals: List[float] = []
+    last = 0.0  # when the last result reached the client
+
+    def arrived(result: object) -> None:
+        nonlocal last
+        last = time.perf_counter()
+
     with dask_client(workers=workers) as client:
         client.wait_for_workers(workers)
         startup = time.perf_counter() - started
@@ -104,12 +118,11 @@ def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) 
         todo = store.open(cases, fresh=True)
         wall = time.perf_counter()
         report = run_study(planned, store, todo, scheduler=client.scheduler.address,
-                           on_result=lambda result: arrivals.append(time.perf_counter()))
+                           on_result=arrived)
         end = time.perf_counter()
-        wall = end - wall
         store.close()
     assert report.failed == 0, "a benchmark case failed"
-    return startup, wall, [store.rows[c.key] for c in cases], report.setup_time, arrivals, end - arrivals[-1]
+    return SweepRun(startup, end - wall, [store.rows[c.key] for c in cases], report.setup_time, end - last)
 
 
 def per_case(rows: List[dict], wall: float, once: float) -> Dict[str, float]:
@@ -144,40 +157,39 @@ def main() -> None:
               f"({loop / n:.3f} s per case)")
         # 1 and 2 workers and the machine's own ceiling alternate in each repeat, and the ratios
         # are medians of the repeats' ratios: a slow spell of the shared host hits every side
-        runs: Dict[int, list] = {1: [], 2: []}
+        runs: Dict[int, List[SweepRun]] = {1: [], 2: []}
         ceilings, scalings = [], []
         for _ in range(args.repeats):
             for workers in (1, 2):
                 runs[workers].append(sweep(planned, cases, workers, folder))
-            scalings.append(runs[1][-1][1] / runs[2][-1][1])
+            scalings.append(runs[1][-1].wall / runs[2][-1].wall)
             ceilings.append(machine_scaling(folder / f"case{cases[0].id}.yaml"))
-        results = {}
+        best = {}
         for workers in (1, 2):
-            startup = statistics.median(r[0] for r in runs[workers])
-            wall = statistics.median(r[1] for r in runs[workers])
-            best = min(runs[workers], key=lambda r: r[1])
-            results[workers] = (best[1], best[2], best[3], best[4], best[5])
+            startup = statistics.median(r.startup for r in runs[workers])
+            wall = statistics.median(r.wall for r in runs[workers])
+            best[workers] = min(runs[workers], key=lambda r: r.wall)
             print(f"  sweep, {workers} worker{'s' * (workers > 1)}: {n} cases in {wall:.2f} s: {n / wall:.2f} cases/s "
                   f"= {loop / wall:.2f}x the loop (target >= 3x); cluster start-up {startup:.2f} s apart "
                   f"({n / (wall + startup):.2f} cases/s with it)")
         scaling, ceiling = statistics.median(scalings), statistics.median(ceilings)
         # without registration, wrap-up and the first case's loading of the FMUs (in parallel on the workers)
-        steady_rate = {w: n / (results[w][0] - results[w][2] - results[w][4]
-                               - max(r["setup_time"] for r in results[w][1])) for w in (1, 2)}
+        steady_rate = {w: n / (best[w].wall - best[w].registration - best[w].wrapup
+                               - max(r["setup_time"] for r in best[w].rows)) for w in (1, 2)}
         print(f"  scaling: 2 workers {scaling:.2f}x one worker (target >= 1.8x), efficiency {scaling / 2:.0%}; "
               f"without the once-per-sweep costs below: "
               f"{steady_rate[2] / steady_rate[1]:.2f}x; the machine itself: two processes running flagship "
               f"cases at once (no Dask) do {ceiling:.2f}x one alone, so the sweep gets "
               f"{scaling / ceiling:.0%} of what two workers can get here")
-        stats = per_case(results[1][1], results[1][0], results[1][2] + results[1][4])
+        stats = per_case(best[1].rows, best[1].wall, best[1].registration + best[1].wrapup)
         steady = stats["reset"] + stats["worker_rest"] + stats["dask"]
         print(f"  per case, 1 worker: simulation {stats['simulation']:.3f} s; overhead {1e3 * steady:.1f} ms = "
               f"{steady / stats['simulation']:.1%} of it (target <= 5 %): reset + initialization "
               f"{1e3 * stats['reset']:.1f} ms, case set-up + metrics + closing on the worker "
               f"{1e3 * stats['worker_rest']:.1f} ms, Dask and the client {1e3 * stats['dask']:.1f} ms")
         print(f"  once per sweep: registration (FMUs shipped, stored, scenario resolved on the worker) "
-              f"{1e3 * results[1][2]:.0f} ms; wrap-up (study removed from the workers, final tables) "
-              f"{1e3 * results[1][4]:.0f} ms; per worker, its first case loads and instantiates the FMUs: "
+              f"{1e3 * best[1].registration:.0f} ms; wrap-up (study removed from the workers, final tables) "
+              f"{1e3 * best[1].wrapup:.0f} ms; per worker, its first case loads and instantiates the FMUs: "
               f"{1e3 * stats['load']:.0f} ms (the loop of processes pays both in every case)")
     finally:
         shutil.rmtree(folder, ignore_errors=True)

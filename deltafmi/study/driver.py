@@ -27,8 +27,8 @@ from distributed import WorkerPlugin
 
 from deltafmi.cosim.errors import BadInput, SimulationError
 
-from .cases import Case
 from .batches import Batch, Batcher
+from .cases import Case
 from .plan import PlannedStudy
 from .runner import FAILED, OK, CaseResult
 from .store import ResultStore

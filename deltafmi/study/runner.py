@@ -32,7 +32,7 @@ OK, FAILED = "ok", "failed"
 
 class MemoryRecorder:
     """The master's result writer, keeping the rows in memory (same calls as the CSV writer): one
-    array of rows whose capacity doubles as it fills (no concatenation at the end)."""
+    array of rows, ``chunk`` at first, whose capacity doubles as it fills (no concatenation at the end)."""
 
     def __init__(self, path: Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None,
                  chunk: int = 1024) -> None:
