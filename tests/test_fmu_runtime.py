@@ -220,6 +220,19 @@ def test_reset_of_a_component_that_steps_itself(counter):
     assert s.fmu.getInteger([s.vr["count"]]) == [3]
 
 
+def test_a_component_that_steps_itself_sees_every_step_size(counter):
+    """The bridge passes the float of an unchanged step size again: a changed size must arrive."""
+    s = Slave(counter, u=2.0)
+    sizes = [0.1, 0.1, 0.25, 0.05, 0.05, 1e-3, 0.1]
+    for h in sizes:
+        s.step(h)
+    expected = 0.0
+    for h in sizes:  # Counter: accumulated += u * h, in the same order
+        expected += 2.0 * h
+    assert s.real("total") == [expected]
+    assert s.fmu.getInteger([s.vr["count"]]) == [len(sizes)]
+
+
 def test_the_python_time_follows_a_component_that_steps_itself(counter):
     """Such a step leaves FmuInstance.time to the next call that may read it (the bridge's
     catch_up_time): the snapshot of fmi2GetFMUstate, taken in Python, holds the step's end."""

@@ -69,9 +69,23 @@ def run() -> list:
     held = c.a
     c.a = [7.0, 8.0, 9.0]  # a view read earlier sees later writes
     results.append(["held view", held.tolist(), c.a.tolist(), np.shares_memory(c.a, c._real)])
+    # a scalar read after the buffer changed underneath (as fmi2SetReal does) gives the new value,
+    # bit for bit: the compiled access returns the float it made earlier only for the same bits
+    b = Cases.b.offset
+    reads = []
+    for value in [1.25, 1.25, -0.0, 0.0, -0.0, float("nan"), float("nan"), float("inf"), 1.25]:
+        c._real[b] = value
+        reads += [repr(c.b), repr(c.b)]
+    c.b = 0.5
+    c._real[b] = -0.5
+    reads.append(repr(c.b))
+    c.b = -0.0
+    reads.append(repr(c.b))
+    results.append(["scalar reads", reads])
     c._attach("", [])  # new buffers: reads are views of those, not of the old ones
     c.a[0] = -1.0
-    results.append(["rebound", c.a.tolist(), c._real.tolist(),
+    c._real[b] = 3.5
+    results.append(["rebound", c.a.tolist(), c.b, c._real.tolist(),
                     np.shares_memory(c.a, c._real), np.shares_memory(held, c._real)])
     return results
 

@@ -22,6 +22,12 @@
 /* Variable._kind (variables.py) */
 enum { REAL_SCALAR = 0, REAL_ARRAY = 1, INT_SCALAR = 2, BOOL_SCALAR = 3 };
 
+/* The float object last read or written for a real scalar, and its value */
+typedef struct {
+    PyObject *object;
+    double value;
+} KnownFloat;
+
 typedef struct {
     PyObject_HEAD
     double *real;
@@ -30,6 +36,9 @@ typedef struct {
     PyObject *real_array, *int_array; /* keep the buffers alive while their addresses are held */
     PyObject *views; /* descriptor -> its numpy view of real_array: slicing an ndarray costs ~1,000
                       * instructions, a model's right-hand side reads several arrays per call */
+    KnownFloat *floats; /* per real scalar: a read whose value is unchanged (a parameter, an input
+                         * the host did not change, an output the model wrote) returns the same
+                         * object instead of a new float (~60 instructions with its release) */
 } Holder;
 
 typedef struct {
@@ -75,6 +84,33 @@ static int address_of(PyObject *array, const char *format, Py_ssize_t itemsize, 
     return 0;
 }
 
+static void forget_floats(Holder *h) {
+    if (!h->floats) return;
+    for (Py_ssize_t i = 0; i < h->n_real; i++) Py_XDECREF(h->floats[i].object);
+    PyMem_Free(h->floats);
+    h->floats = NULL;
+}
+
+/* `object`, whose value is `value`, as what real scalar i holds now */
+static void know_float(Holder *h, Py_ssize_t i, PyObject *object, double value) {
+    KnownFloat *known = &h->floats[i];
+    PyObject *old = known->object;
+    known->object = Py_NewRef(object);
+    known->value = value;
+    Py_XDECREF(old);
+}
+
+/* Real scalar i as a Python float: the known object while the buffer holds its value bit for bit
+ * (not ==: -0.0 and 0.0 differ, and a NaN is kept too) */
+static PyObject *real_scalar(Holder *h, Py_ssize_t i) {
+    double value = h->real[i];
+    KnownFloat *known = &h->floats[i];
+    if (known->object && memcmp(&known->value, &value, sizeof value) == 0) return Py_NewRef(known->object);
+    PyObject *object = PyFloat_FromDouble(value);
+    if (object) know_float(h, i, object, value);
+    return object;
+}
+
 static PyObject *holder_bind(PyObject *self, PyObject *args) {
     Holder *h = (Holder *)self;
     PyObject *real, *ints;
@@ -84,9 +120,13 @@ static PyObject *holder_bind(PyObject *self, PyObject *args) {
         address_of(real, "d", sizeof(double), &real_address, &n_real) < 0 ||
         address_of(ints, "i", sizeof(int32_t), &int_address, &n_int) < 0)
         return NULL;
+    KnownFloat *floats = n_real ? PyMem_Calloc((size_t)n_real, sizeof *floats) : NULL;
+    if (n_real && !floats) return PyErr_NoMemory();
     replace(&h->real_array, real);
     replace(&h->int_array, ints);
     Py_CLEAR(h->views); /* views of the previous buffers */
+    forget_floats(h);
+    h->floats = floats;
     h->real = real_address;
     h->ints = int_address;
     h->n_real = n_real;
@@ -99,6 +139,7 @@ static void holder_dealloc(PyObject *self) {
     Py_CLEAR(h->real_array);
     Py_CLEAR(h->int_array);
     Py_CLEAR(h->views);
+    forget_floats(h);
     free_instance(self);
 }
 
@@ -169,7 +210,7 @@ static PyObject *descriptor_get(PyObject *self, PyObject *obj, PyObject *type) {
     Holder *h = bound_holder(d, obj);
     if (h) {
         switch (d->kind) {
-        case REAL_SCALAR: return PyFloat_FromDouble(h->real[d->offset]);
+        case REAL_SCALAR: return real_scalar(h, d->offset);
         case REAL_ARRAY: return array_view(h, d);
         case INT_SCALAR: return PyLong_FromLong(h->ints[d->offset]);
         case BOOL_SCALAR: return PyBool_FromLong(h->ints[d->offset] != 0);
@@ -232,7 +273,9 @@ static int descriptor_set(PyObject *self, PyObject *obj, PyObject *value) {
     Holder *h = bound_holder(d, obj);
     if (h) {
         if (d->kind == REAL_SCALAR && PyFloat_CheckExact(value)) {
-            h->real[d->offset] = PyFloat_AsDouble(value);
+            double number = PyFloat_AsDouble(value);
+            h->real[d->offset] = number;
+            know_float(h, d->offset, value, number);
             return 0;
         }
         if (d->kind == REAL_ARRAY && d->size > 0 && write_array(h->real + d->offset, d->size, value) == 0)

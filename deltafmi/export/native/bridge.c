@@ -30,7 +30,11 @@ typedef struct {
     PyObject *name_component, *name_derivatives, *name_indicators, *name_do_step, *name_time; /* interned */
     int steps_itself;        /* the component's own do_step is the whole of fmi2DoStep ... */
     int evaluates_after_step; /* ... followed by FmuInstance.evaluate (derivatives, indicators, outputs) */
-    PyObject *do_step;       /* component.do_step, bound (again after fmi2Reset) */
+    PyObject *do_step;       /* component.do_step, bound (again after fmi2Reset) ... */
+    PyObject *step_function; /* ... or its function, called with the component first (no method object) */
+    PyObject *step_size;     /* the float of the last communication step size, passed again while the
+                              * size stays the same: one float less to make per step */
+    double step_size_value;
     double time;             /* instance.time after the last step_itself ... */
     int time_behind;         /* ... not yet written to instance.time (see catch_up_time) */
     PyObject *pending_logs; /* list of (status, category, message) the component queued */
@@ -242,6 +246,8 @@ static void release(Bridged *b) {
     Py_XDECREF(b->serialized);
     Py_XDECREF(b->component);
     Py_XDECREF(b->do_step);
+    Py_XDECREF(b->step_function);
+    Py_XDECREF(b->step_size);
     Py_XDECREF(b->instance);
     py.PyMem_Free(b);
 }
@@ -251,9 +257,18 @@ static void release(Bridged *b) {
 static int fetch_component(Bridged *b) {
     Py_XDECREF(b->component);
     Py_XDECREF(b->do_step);
-    b->do_step = NULL;
+    Py_XDECREF(b->step_function);
+    b->do_step = b->step_function = NULL;
     b->component = py.PyObject_GetAttr(b->instance, b->name_component);
     if (b->component && b->steps_itself) b->do_step = py.PyObject_GetAttr(b->component, b->name_do_step);
+    if (b->do_step && py.PyObject_Vectorcall) { /* a method defined in Python: call its function */
+        PyObject *function = py.PyObject_GetAttrString(b->do_step, "__func__");
+        PyObject *self = function ? py.PyObject_GetAttrString(b->do_step, "__self__") : NULL;
+        if (self == b->component) b->step_function = function;
+        else Py_XDECREF(function);
+        Py_XDECREF(self);
+        py.PyErr_Clear();
+    }
     return b->component && (b->do_step || !b->steps_itself) ? 0 : -1;
 }
 
@@ -331,13 +346,21 @@ void bridge_free_instance(void *handle) {
 /* fmi2DoStep of a component that steps itself: what FmuInstance.do_step does for it, without that
  * Python frame (the loader has checked the communication point). */
 static PyObject *step_itself(Bridged *b, double t, double h) {
-    PyObject *args[3] = {NULL, py.PyFloat_FromDouble(t), py.PyFloat_FromDouble(h)};
+    if (!b->step_size || memcmp(&b->step_size_value, &h, sizeof h) != 0) {
+        Py_XDECREF(b->step_size);
+        b->step_size = py.PyFloat_FromDouble(h);
+        b->step_size_value = h;
+    }
+    PyObject *args[4] = {NULL, b->component, py.PyFloat_FromDouble(t), b->step_size};
     PyObject *stepped = NULL;
-    if (b->do_step && args[1] && args[2])
-        stepped = py.PyObject_Vectorcall
-                      ? py.PyObject_Vectorcall(b->do_step, args + 1, 2 | PY_VECTORCALL_ARGUMENTS_OFFSET, NULL)
-                      : py.PyObject_CallFunctionObjArgs(b->do_step, args[1], args[2], NULL);
-    Py_XDECREF(args[1]);
+    if (b->do_step && args[2] && args[3]) {
+        if (b->step_function)
+            stepped = py.PyObject_Vectorcall(b->step_function, args + 1, 3 | PY_VECTORCALL_ARGUMENTS_OFFSET, NULL);
+        else if (py.PyObject_Vectorcall)
+            stepped = py.PyObject_Vectorcall(b->do_step, args + 2, 2 | PY_VECTORCALL_ARGUMENTS_OFFSET, NULL);
+        else
+            stepped = py.PyObject_CallFunctionObjArgs(b->do_step, args[2], args[3], NULL);
+    }
     Py_XDECREF(args[2]);
     if (!stepped) return NULL;
     Py_DECREF(stepped);
