@@ -55,9 +55,13 @@ class FmpySlave:
         self.slave.freeInstance()
 
 
-def fmpy_rounds(ours: Path, theirs: Path | None, plain_c: Path, steps: int, repeats: int) -> dict[str, float]:
+def fmpy_rounds(ours: Path, theirs: Path | None, plain_c: Path, steps: int, repeats: int,
+                blocks: int = 10) -> dict[str, float]:
     """Medians over rounds in which ours, fmpy's wrappers alone, theirs and a plain C FMU run
-    back to back (a slow spell of the shared machine hits all), and of the rounds' ratios."""
+    back to back (a slow spell of the shared machine hits all). The ratio ours / theirs is the
+    median over `blocks` pairs per round, each of steps / blocks steps in the order ours, theirs,
+    theirs, ours: the machine's speed drifting within a pair cancels, and no pair is further apart
+    than a few milliseconds."""
     a, b, c = FmpySlave(ours), FmpySlave(theirs) if theirs else None, FmpySlave(plain_c)
     rounds: dict[str, list[float]] = {"ours": [], "fmpy": [], "theirs": [], "ratio": [], "c": []}
     for _ in range(repeats):
@@ -66,7 +70,10 @@ def fmpy_rounds(ours: Path, theirs: Path | None, plain_c: Path, steps: int, repe
         rounds["c"].append(c.round_us(steps))
         if b:
             rounds["theirs"].append(b.round_us(steps))
-            rounds["ratio"].append(rounds["ours"][-1] / rounds["theirs"][-1])
+            n = max(1, steps // blocks)
+            for _ in range(blocks):
+                first, (second, third), last = a.round_us(n), (b.round_us(n), b.round_us(n)), a.round_us(n)
+                rounds["ratio"].append((first + last) / (second + third))
     for slave in (a, b, c):
         if slave:
             slave.close()
