@@ -3,7 +3,6 @@ against numbers derived without the simulation (statics, the minimal-coordinate 
 the collision law's restitution)."""
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from pathlib import Path
 

@@ -19,7 +19,6 @@ from click.testing import CliRunner
 from fmpy.validation import validate_fmu
 
 from deltafmi.cli import main
-from deltafmi.cosim.errors import ScenarioError
 from deltafmi.cosim.master import Master
 from deltafmi.cosim.progress import Termination
 from deltafmi.cosim.resolve import resolve_system

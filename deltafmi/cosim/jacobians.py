@@ -83,7 +83,7 @@ class FmuJacobian:
 
     def _differences(self, unknowns: list, knowns: list) -> np.ndarray:
         """Central differences: states through fmi2SetContinuousStates, inputs through fmi2SetReal."""
-        fmu, nx = self.fmu, self.nx
+        fmu = self.fmu
         x0 = self.get_states()
         state_index = {vr: i for i, vr in enumerate(self.states)}
         inputs = [vr for vr in knowns if vr not in state_index]
