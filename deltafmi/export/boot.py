@@ -64,11 +64,30 @@ def _import_model(resources_dir: str) -> tuple:
     return info, getattr(module, info["class_name"]), runtime.FmuInstance, bundle.active
 
 
+class FmuStartError(RuntimeError):
+    """The FMU cannot run in this interpreter; the bridge logs the message alone, no traceback."""
+
+
+def _missing_module(error: ImportError, resources_dir: str) -> FmuStartError:
+    with open(os.path.join(resources_dir, "deltafmi.json"), encoding="utf-8") as f:
+        source = json.load(f)["source"]
+    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    return FmuStartError(
+        f"this FMU's model needs the Python module '{error.name}', which the Python it runs in "
+        f"({sys.executable or 'embedded'}, CPython {version}) does not have ({error}). Install it there "
+        f"(pip install {(error.name or '').split('.')[0]}), or point DELTAFMI_PYTHON and DELTAFMI_LIBPYTHON at a "
+        f"Python that has it, or rebuild the FMU with `deltafmi build {source} --portable`, which makes an FMU "
+        "that carries its own Python and packages.")
+
+
 def load(resources_dir: str, instance_name: str, guid: str, fmu_type: int):
     """Create the Python side of one FMU instance (called by the bridge from fmi2Instantiate)."""
     resources_dir = os.path.realpath(resources_dir)
     if resources_dir not in _LOADED:
-        _LOADED[resources_dir] = _import_model(resources_dir)
+        try:
+            _LOADED[resources_dir] = _import_model(resources_dir)
+        except ImportError as exc:
+            raise _missing_module(exc, resources_dir) from None
     info, component_class, instance_class, context = _LOADED[resources_dir]
     if guid and guid != info["guid"]:
         raise RuntimeError(f"fmi2Instantiate: GUID {guid} does not match this FMU's {info['guid']} "

@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Callable
 
 NATIVE_DIR = Path(__file__).parent / "native"
-SOURCES = ("loader.c", "bridge.c")
-HEADERS = ("bridge.h", "pyapi.h", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+SOURCES = ("loader.c", "bridge.c", "python_start.c")
+HEADERS = ("bridge.h", "python_start.h", "glibc_floor.h", "pyapi.h", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 
 
 class BuildError(RuntimeError):
@@ -72,20 +72,25 @@ def exported_symbols(library: Path) -> list[str]:
 
 def plain_c_library(source: Path) -> Path:
     """A shared library compiled from one self-contained C file (no Python), from the cache."""
-    return _single_file_library(source, f"{source.stem}.so", [])
+    return single_file_library(source, f"{source.stem}.so", [])
 
 
 def python_extension(source: Path) -> Path:
     """A C extension module for this Python's stable ABI (``<name>.abi3.so``), from the cache.
 
     Raises :class:`BuildError` when it cannot be compiled (no compiler, no Python headers)."""
+    return single_file_library(source, f"{source.stem}.abi3.so", [f"-I{python_include()}"])
+
+
+def python_include() -> str:
+    """This Python's header directory; :class:`BuildError` when it has no headers."""
     include = sysconfig.get_paths()["include"]
     if not Path(include, "Python.h").exists():
         raise BuildError(f"no Python headers in {include} (install the python3-dev package)")
-    return _single_file_library(source, f"{source.stem}.abi3.so", [f"-I{include}"])
+    return include
 
 
-def _single_file_library(source: Path, name: str, flags: list[str]) -> Path:
+def single_file_library(source: Path, name: str, flags: list[str]) -> Path:
     """``source`` compiled into the shared library ``name``, cached by source, compiler and flags."""
     cc = _compiler()
     digest = hashlib.sha256(source.read_bytes() + cc.encode() + " ".join(flags).encode()).hexdigest()[:16]
@@ -124,4 +129,5 @@ def python_runtime_config() -> str:
     soname = sysconfig.get_config_var("INSTSONAME") or sysconfig.get_config_var("LDLIBRARY") or ""
     library = os.path.join(libdir, soname) if sysconfig.get_config_var("Py_ENABLE_SHARED") else ""
     version = f"{sys.version_info.major}.{sys.version_info.minor}"
-    return f"library={library}\nexecutable={sys.executable}\nversion={version}\n"
+    stdlib = sysconfig.get_path("stdlib")
+    return f"library={library}\nexecutable={sys.executable}\nversion={version}\nstdlib={stdlib}\n"

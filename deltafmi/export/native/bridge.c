@@ -6,6 +6,7 @@
  * finalized; the GIL is released between calls, and every foreign thread gets one Python thread
  * state that it keeps (creating one per call costs ~15 us). */
 #define _GNU_SOURCE
+#include "glibc_floor.h"
 #include <dlfcn.h>
 #include <pthread.h>
 #include <stdint.h>
@@ -112,8 +113,14 @@ static void report_exception(DfmiLogFn log, void *env, const char *context) {
     py.PyErr_Fetch(&type, &value, &tb);
     py.PyErr_NormalizeException(&type, &value, &tb);
     const char *text = NULL;
-    PyObject *joined = NULL, *lines = NULL, *traceback = py.PyImport_ImportModule("traceback");
-    if (traceback) {
+    PyObject *joined = NULL, *lines = NULL, *traceback = NULL;
+    PyObject *kind = type ? py.PyObject_GetAttrString(type, "__name__") : NULL;
+    const char *kind_name = kind ? py.PyUnicode_AsUTF8AndSize(kind, NULL) : NULL;
+    int explained = kind_name && !strcmp(kind_name, "FmuStartError"); /* a message for the user, no traceback */
+    if (explained) {
+        joined = py.PyObject_Str(value);
+        if (joined) text = py.PyUnicode_AsUTF8AndSize(joined, NULL);
+    } else if ((traceback = py.PyImport_ImportModule("traceback"))) {
         lines = py.PyObject_CallMethod(traceback, "format_exception", "OOO", type ? type : Py_None,
                                     value ? value : Py_None, tb ? tb : Py_None);
         PyObject *empty = py.PyUnicode_FromString("");
@@ -122,12 +129,14 @@ static void report_exception(DfmiLogFn log, void *env, const char *context) {
         if (joined) text = py.PyUnicode_AsUTF8AndSize(joined, NULL);
     }
     char buffer[8192];
-    snprintf(buffer, sizeof buffer, "%s: Python exception\n%s", context, text ? text : "(traceback unavailable)");
+    if (explained && text) snprintf(buffer, sizeof buffer, "%s: %s", context, text);
+    else snprintf(buffer, sizeof buffer, "%s: Python exception\n%s", context, text ? text : "(traceback unavailable)");
     py.PyErr_Clear();
     if (log) log(env, 3, "logStatusError", buffer);
     Py_XDECREF(joined);
     Py_XDECREF(lines);
     Py_XDECREF(traceback);
+    Py_XDECREF(kind);
     Py_XDECREF(type);
     Py_XDECREF(value);
     Py_XDECREF(tb);

@@ -3,13 +3,14 @@
  * It exports every fmi2 function of Model Exchange and Co-Simulation, enforces the FMI 2.0 state
  * machine, and reads/writes the model's value buffers directly (the Python instance owns them and
  * hands over their addresses), so getters and setters never enter Python. Work that needs the
- * model goes through the Python bridge (bridge.c, linked into this binary), started once libpython
- * is in the process: the host's when it already runs Python, otherwise the library named in
- * resources/python.cfg (written at build time) or by $DELTAFMI_LIBPYTHON.
+ * model goes through the Python bridge (bridge.c, linked into this binary), started once Python
+ * is in the process: the host's when it already runs Python, otherwise the interpreter a portable
+ * FMU carries, or the one named in resources/python.cfg at build time (python_start.c).
  *
  * Built with hidden visibility: the binary exports the fmi2 functions and nothing else, so it can
  * neither interpose on a host's symbols nor be interposed by them. */
 #define _GNU_SOURCE
+#include "glibc_floor.h"
 #include <dlfcn.h>
 #include <math.h>
 #include <pthread.h>
@@ -21,6 +22,7 @@
 
 #include "fmi2Functions.h"
 #include "bridge.h"
+#include "python_start.h"
 
 /* setter rules per scalar, written by deltafmi/component/layout.py */
 #define SET_INSTANTIATED 1
@@ -167,20 +169,6 @@ static void own_directory(char *out, size_t size) {
     }
 }
 
-static void read_config(const char *resources, char *library, char *executable, size_t size) {
-    char path[4096];
-    snprintf(path, sizeof path, "%s/python.cfg", resources);
-    FILE *f = fopen(path, "r");
-    if (!f) return;
-    char line[4096];
-    while (fgets(line, sizeof line, f)) {
-        line[strcspn(line, "\r\n")] = 0;
-        if (!strncmp(line, "library=", 8)) snprintf(library, size, "%s", line + 8);
-        if (!strncmp(line, "executable=", 11)) snprintf(executable, size, "%s", line + 11);
-    }
-    fclose(f);
-}
-
 /* Start the Python bridge once per process; 0 on success, else -1 with the reason in error. */
 static int start_bridge(const char *resources, char *error, size_t size) {
     pthread_mutex_lock(&g_lock);
@@ -188,25 +176,7 @@ static int start_bridge(const char *resources, char *error, size_t size) {
         pthread_mutex_unlock(&g_lock);
         return 0;
     }
-    char library[4096] = "", executable[4096] = "";
-    read_config(resources, library, executable, sizeof library);
-    if (getenv("DELTAFMI_LIBPYTHON")) snprintf(library, sizeof library, "%s", getenv("DELTAFMI_LIBPYTHON"));
-    if (getenv("DELTAFMI_PYTHON")) snprintf(executable, sizeof executable, "%s", getenv("DELTAFMI_PYTHON"));
-    void *python = RTLD_DEFAULT; /* the host's Python (RTLD_DEFAULT is NULL: see `found`) */
-    int found = dlsym(RTLD_DEFAULT, "Py_IsInitialized") != NULL;
-    if (!found) {
-        /* no Python in the host: load libpython globally, as extension modules (numpy) expect */
-        if (!library[0]) {
-            snprintf(error, size, "no Python in this process and no library in %s/python.cfg; "
-                     "set DELTAFMI_LIBPYTHON to a libpython3.x.so", resources);
-        } else if (!(python = dlopen(library, RTLD_NOW | RTLD_GLOBAL))) {
-            snprintf(error, size, "cannot load Python library '%s' (set DELTAFMI_LIBPYTHON): %s",
-                     library, dlerror());
-        } else {
-            found = 1;
-        }
-    }
-    if (found && bridge_start(python, executable, error, size) == 0) g_bridge_started = 1;
+    if (dfmi_start_python(resources, error, size) == 0) g_bridge_started = 1;
     pthread_mutex_unlock(&g_lock);
     return g_bridge_started ? 0 : -1;
 }

@@ -41,6 +41,7 @@ typedef struct _ts PyThreadState;
     X(PyObject *, PyObject_GetAttr, (PyObject *, PyObject *))                                       \
     X(int, PyObject_SetAttr, (PyObject *, PyObject *, PyObject *))                                  \
     X(int, PyObject_IsTrue, (PyObject *))                                                           \
+    X(PyObject *, PyObject_Str, (PyObject *))                                                       \
     X(PyObject *, PyObject_Call, (PyObject *, PyObject *, PyObject *))                              \
     X(PyObject *, PyObject_CallNoArgs, (PyObject *))                                                \
     X(PyObject *, PyObject_CallFunction, (PyObject *, const char *, ...))                           \
