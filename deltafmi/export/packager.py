@@ -93,9 +93,18 @@ def content_key(source: Path) -> str:
     return digest.hexdigest()
 
 
-def build_fmu(source: Path, output: Optional[Path] = None) -> Path:
-    """Build the FMU for the component in ``source``; returns the ``.fmu`` path."""
+def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = False) -> Path:
+    """Build the FMU for the component in ``source``; returns the ``.fmu`` path.
+
+    A ``portable`` FMU also carries the interpreter, standard library and packages its model
+    imports (see :mod:`deltafmi.export.portable`), so that it runs where no Python is installed."""
     source = Path(source)
+    if portable:
+        from .portable import make_portable
+        cls = load_component_class(source)
+        output = Path(output) if output else Path("build") / "fmus" / f"{cls.fmi_model_name()}.fmu"
+        make_portable(build_cached(source), output)
+        return output
     cls = load_component_class(source)
     identifier = cls.fmi_model_name()
     output = Path(output) if output else Path("build") / "fmus" / f"{identifier}.fmu"
@@ -127,15 +136,15 @@ def build_fmu(source: Path, output: Optional[Path] = None) -> Path:
     return output
 
 
-def build_cached(source: Path) -> Path:
+def build_cached(source: Path, portable: bool = False) -> Path:
     """The FMU for ``source`` from the build cache, built when the source or runtime changed."""
     source = Path(source)
-    target = cache_dir() / "fmus" / content_key(source)[:20]
+    target = cache_dir() / "fmus" / (content_key(source)[:20] + ("-portable" if portable else ""))
     existing = list(target.glob("*.fmu")) if target.is_dir() else []
     if existing:
         return existing[0]
     cls = load_component_class(source)
-    return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu")
+    return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable)
 
 
 def _bytecode(path: Path, arcname: str) -> bytes:

@@ -1,0 +1,396 @@
+"""What a portable FMU carries so that it runs where no Python is installed.
+
+``deltafmi build --portable`` adds, under ``resources/python`` beside the FMU's deltafmi runtime:
+
+- ``lib/libpython3.X.so.1.0``: the builder's interpreter (stripped of debug information), and
+  ``lib/deltafmi-starter.so``, which starts it with an isolated configuration (``native/starter.c``);
+- ``lib/python3X.zip``: the part of the standard library the model reaches, as bytecode; the
+  extension modules it loads in ``lib/lib-dynload``;
+- ``site-packages/``: the third-party packages the model imports (numpy and its ``numpy.libs``), as
+  bytecode and extension modules, without the subpackages the model never imports, tests and headers;
+- ``lib/``: every shared library those binaries need that is not part of glibc (libffi, libz,
+  libcrypto, ...), which the loader opens before the interpreter starts (listed in order in
+  ``python.cfg``), so that a binary's dependency is found by its soname;
+- ``documentation/licenses/``: the licence of everything bundled.
+
+What "the model reaches" is the trace of ``imports.py``: the modules in ``sys.modules`` after the
+model ran through the FMU's runtime in the builder's Python, plus what the boot code and bridge need.
+glibc is the one thing not bundled: the FMU records the newest glibc symbol version any bundled
+binary needs (its floor) and the loader refuses, with a message, a machine whose glibc is older.
+"""
+from __future__ import annotations
+
+import importlib.util
+import io
+import marshal
+import os
+import re
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping, Optional
+
+from .compiler import NATIVE_DIR, BuildError, build_into, cache_dir, python_include, single_file_library
+
+PYTHON_DIR = "resources/python"
+#: shared libraries of glibc itself: the host provides them (the FMU states the version it needs)
+GLIBC_LIBRARIES = {"libc.so.6", "libm.so.6", "libdl.so.2", "libpthread.so.0", "librt.so.1", "libutil.so.1",
+                   "libresolv.so.2", "libanl.so.1", "ld-linux-x86-64.so.2", "libmvec.so.1"}
+#: modules the boot code and the bridge use whatever the model imports
+BOOT_MODULES = ("encodings", "runpy", "traceback", "pickle", "copyreg", "json", "hashlib", "contextlib",
+                "importlib.util", "importlib.machinery", "threading", "logging", "warnings", "struct", "math",
+                "copy", "types", "linecache", "tokenize", "weakref")
+#: never bundled from a package: tests, headers, type stubs, sources of compiled code
+_SKIPPED_FILES = re.compile(r"(\.pyi|\.pxd|\.h|\.c|\.pyx|\.typed|\.a)$")
+_SKIPPED_DIRS = {"tests", "test", "__pycache__", "include", "_pyinstaller"}
+_STDLIB_SKIPPED = {"test", "idlelib", "tkinter", "turtledemo", "ensurepip", "lib2to3", "pydoc_data",
+                   "site-packages", "lib-dynload", "config-" + sysconfig.get_config_var("LDVERSION") + "-x86_64-linux-gnu"}
+
+
+@dataclass
+class PortableBundle:
+    """Files of the bundle: (file on disk, archive name), generated (bytes, archive name), python.cfg."""
+    files: list = field(default_factory=list)
+    data: list = field(default_factory=list)
+    config: str = ""
+    glibc_floor: tuple = (2, 0)
+    licenses: list = field(default_factory=list)
+    python_version: str = ""
+
+    def archive_names(self) -> list[str]:
+        return [name for _, name in self.files] + [name for _, name in self.data]
+
+
+def python_tag() -> str:
+    """'3.11' for the builder's interpreter."""
+    return f"{sys.version_info.major}.{sys.version_info.minor}"
+
+
+def _stdlib_dir() -> Path:
+    return Path(sysconfig.get_path("stdlib")).resolve()
+
+
+def _site_dirs() -> list[Path]:
+    import site
+    dirs = set(site.getsitepackages() + [site.getusersitepackages(), sysconfig.get_path("purelib"),
+                                         sysconfig.get_path("platlib")])
+    return sorted({Path(d).resolve() for d in dirs if d and Path(d).is_dir()}, key=lambda p: -len(str(p)))
+
+
+def boot_modules() -> dict[str, Optional[str]]:
+    """Module name -> file of everything ``BOOT_MODULES`` imports, in a clean interpreter."""
+    script = ("import sys, json\nbefore = set(sys.modules)\n"
+              f"for name in {BOOT_MODULES!r}: __import__(name)\n"
+              "print(json.dumps({n: getattr(m, '__file__', None) for n, m in sys.modules.items()}))\n")
+    import json
+    result = subprocess.run([sys.executable, "-I", "-S", "-c", script], capture_output=True, text=True)
+    if result.returncode != 0:
+        raise BuildError(f"listing the modules the FMU's boot code needs failed:\n{result.stderr}")
+    return json.loads(result.stdout)
+
+
+def classify(modules: Mapping[str, Optional[str]]) -> tuple[set, set, dict]:
+    """(stdlib top-level names, lib-dynload files, third-party: site dir -> top-level names)."""
+    stdlib, dynload, third_party = set(), set(), {}
+    root, sites = _stdlib_dir(), _site_dirs()
+    for name, file in modules.items():
+        if not file:
+            continue
+        path = Path(file).resolve()
+        site = next((s for s in sites if s in path.parents), None)
+        if site is not None:
+            top = path.relative_to(site).parts[0]
+            third_party.setdefault(site, set()).add(Path(top).stem if path.parent == site else top)
+        elif path.parent.name == "lib-dynload" and root in path.parents:
+            dynload.add(path)
+        elif root in path.parents:
+            top = path.relative_to(root).parts[0]
+            if top not in _STDLIB_SKIPPED:
+                stdlib.add(Path(top).stem if path.parent == root else top)
+    return stdlib, dynload, third_party
+
+
+def _bytecode(source: Path, archive_name: str) -> bytes:
+    """``source`` as a sourceless, unchecked-hash .pyc (PEP 552): it never needs its source, and
+    an unpacked FMU's file times cannot make the interpreter compile it again."""
+    text = source.read_bytes()
+    code = compile(text, archive_name, "exec", dont_inherit=True)
+    flags = (1).to_bytes(4, "little")  # hash-based, not checked against the source
+    return importlib.util.MAGIC_NUMBER + flags + importlib.util.source_hash(text) + marshal.dumps(code)
+
+
+def _stdlib_zip(tops: set) -> bytes:
+    """The standard library's modules and packages named in ``tops`` as a zip of .pyc files."""
+    root = _stdlib_dir()
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        for top in sorted(tops):
+            package = root / top
+            files = sorted(p for p in package.rglob("*.py") if not _SKIPPED_DIRS & set(p.relative_to(root).parts)) \
+                if package.is_dir() else [root / f"{top}.py"]
+            for path in files:
+                if path.is_file():
+                    name = path.relative_to(root).as_posix()
+                    archive.writestr(name + "c", _bytecode(path, name))
+    return buffer.getvalue()
+
+
+def _package_files(site: Path, top: str, imported: set) -> list[tuple[Path, str]]:
+    """Files of the third-party package ``top`` (its subpackages the model imported only)."""
+    base = site / top
+    if not base.is_dir():
+        return [(p, p.name) for p in site.glob(f"{top}.*") if p.is_file() and p.suffix in (".py", ".so")]
+    out = []
+    for directory, subdirs, files in os.walk(base):
+        relative = Path(directory).relative_to(site)
+        dotted = ".".join(relative.parts)
+        subdirs[:] = [d for d in subdirs if d not in _SKIPPED_DIRS and
+                      (not (Path(directory) / d / "__init__.py").exists() or f"{dotted}.{d}" in imported)]
+        for name in files:
+            if not _SKIPPED_FILES.search(name):
+                out.append((Path(directory) / name, (relative / name).as_posix()))
+    libs = site / f"{top}.libs"  # auditwheel's folder of the wheel's own shared libraries
+    if libs.is_dir():
+        out += [(p, f"{libs.name}/{p.name}") for p in sorted(libs.iterdir()) if p.is_file()]
+    return out
+
+
+def _dynamic(binary: Path) -> str:
+    return subprocess.run(["readelf", "-d", "-W", str(binary)], capture_output=True, text=True).stdout
+
+
+def _needed(binary: Path) -> list[str]:
+    return re.findall(r"\(NEEDED\)\s+Shared library: \[([^\]]+)\]", _dynamic(binary))
+
+
+def _soname(binary: Path) -> str:
+    found = re.search(r"\(SONAME\)\s+Library soname: \[([^\]]+)\]", _dynamic(binary))
+    return found.group(1) if found else binary.name
+
+
+def _resolved(binary: Path) -> dict[str, str]:
+    """soname -> path, as the dynamic linker of this machine resolves ``binary``'s dependencies."""
+    result = subprocess.run(["ldd", str(binary)], capture_output=True, text=True)
+    return dict(re.findall(r"^\s*(\S+) => (/\S+)", result.stdout, re.M))
+
+
+def glibc_versions(binary: Path) -> set[tuple[int, ...]]:
+    """The GLIBC_x.y symbol versions ``binary`` requires."""
+    result = subprocess.run(["readelf", "-V", "-W", str(binary)], capture_output=True, text=True)
+    return {tuple(int(x) for x in v.split(".")) for v in re.findall(r"Name: GLIBC_([0-9.]+)", result.stdout)}
+
+
+def _is_elf(path: Path) -> bool:
+    with open(path, "rb") as f:
+        return f.read(4) == b"\x7fELF"
+
+
+def _stripped_copy(binary: Path) -> Path:
+    """``binary`` without debug information (libpython from pyenv is 23 MB with, ~5 MB without)."""
+    digest = f"{binary.name}-{binary.stat().st_size}-{int(binary.stat().st_mtime)}"
+    target = cache_dir() / "portable" / "stripped" / digest
+    copy = target / binary.name
+    if not copy.exists():
+        def build(tmp: str) -> None:
+            out = Path(tmp) / binary.name
+            shutil.copy2(binary, out)
+            subprocess.run(["strip", "--strip-unneeded", str(out)], capture_output=True)
+        build_into(target, build)
+    return copy
+
+
+def _libpython() -> Path:
+    libdir = sysconfig.get_config_var("LIBDIR") or ""
+    soname = sysconfig.get_config_var("INSTSONAME") or ""
+    path = Path(libdir) / soname
+    if not sysconfig.get_config_var("Py_ENABLE_SHARED") or not path.is_file():
+        raise BuildError(f"--portable needs a Python built with a shared libpython; {sys.executable} has none "
+                         "(pyenv: PYTHON_CONFIGURE_OPTS=--enable-shared)")
+    return path
+
+
+def starter_library() -> Path:
+    """``native/starter.c`` compiled against this Python's headers, from the cache."""
+    return single_file_library(NATIVE_DIR / "starter.c", "deltafmi-starter.so", [f"-I{python_include()}"])
+
+
+def portable_bundle(modules: Mapping[str, Optional[str]], needs_sundials: bool,
+                    sundials_dir: Optional[Path] = None) -> PortableBundle:
+    """The interpreter, standard library, packages and shared libraries for ``modules`` (name -> file)."""
+    everything = dict(boot_modules())
+    everything.update(modules)
+    stdlib, dynload, third_party = classify(everything)
+    bundle = PortableBundle(python_version=python_tag())
+    version = python_tag()
+    zip_name = f"lib/python{version.replace('.', '')}.zip"
+    dynload_dir = f"lib/python{version}/lib-dynload"
+    bundle.data.append((_stdlib_zip(stdlib), f"{PYTHON_DIR}/{zip_name}"))
+    libpython = _libpython()
+    binaries: list[tuple[Path, str]] = [(_stripped_copy(libpython), f"lib/{libpython.name}"),
+                                        (starter_library(), "lib/deltafmi-starter.so")]
+    binaries += [(path, f"{dynload_dir}/{path.name}") for path in sorted(dynload)]
+    imported = set(everything)
+    packaged: list[tuple[Path, str]] = []
+    for site, tops in third_party.items():
+        for top in sorted(tops):
+            packaged += [(p, f"site-packages/{name}") for p, name in _package_files(site, top, imported)]
+            bundle.licenses += _package_licenses(site, top)
+    if needs_sundials and sundials_dir is not None:
+        binaries += [(p, f"sundials/{p.name}") for p in sorted(sundials_dir.glob("*.so"))]
+    for path, name in packaged:
+        if path.suffix == ".py":
+            bundle.data.append((_bytecode(path, name), f"{PYTHON_DIR}/{name}c"))
+        elif _is_elf(path):
+            binaries.append((path, name))
+        else:
+            bundle.files.append((path, f"{PYTHON_DIR}/{name}"))
+    preload = _dependencies(binaries)
+    bundle.files += [(path, f"{PYTHON_DIR}/{name}") for path, name in binaries + preload]
+    floor = max((v for path, _ in binaries + preload for v in glibc_versions(path)), default=(2, 2, 5))
+    bundle.glibc_floor = floor
+    bundle.licenses += _python_licenses() + _system_licenses([p for p, _ in preload])
+    bundle.config = "".join(f"{key}={value}\n" for key, value in (
+        ("portable", "1"), ("version", version), ("home", "python"),
+        ("library", f"python/lib/{libpython.name}"), ("starter", "python/lib/deltafmi-starter.so"),
+        ("paths", f"{zip_name};{dynload_dir};site-packages"),
+        ("preload", ";".join(f"python/{name}" for _, name in preload)),
+        ("glibc", ".".join(map(str, floor)))))
+    return bundle
+
+
+def _dependencies(binaries: list[tuple[Path, str]]) -> list[tuple[Path, str]]:
+    """Shared libraries outside glibc that ``binaries`` need and do not carry, dependencies first."""
+    carried = {Path(name).name for _, name in binaries} | {_soname(path) for path, _ in binaries}
+    found: dict[str, Path] = {}
+    order: list[str] = []
+
+    def visit(binary: Path) -> None:
+        resolved = None
+        for soname in _needed(binary):
+            if soname in GLIBC_LIBRARIES or soname in carried or soname in found:
+                continue
+            resolved = resolved if resolved is not None else _resolved(binary)
+            if soname not in resolved:
+                raise BuildError(f"--portable: {binary} needs {soname}, which this machine does not resolve")
+            found[soname] = Path(resolved[soname])
+            visit(found[soname])
+            order.append(soname)
+
+    for path, _ in binaries:
+        visit(path)
+    return [(found[soname], f"lib/{soname}") for soname in order]
+
+
+def _package_licenses(site: Path, top: str) -> list[tuple[Path, str]]:
+    out = []
+    for info in site.glob("*.dist-info"):
+        record = info / "top_level.txt"
+        names = record.read_text().split() if record.exists() else [info.name.split("-")[0]]
+        if top not in names and info.name.split("-")[0].lower() != top.lower():
+            continue
+        for path in sorted(info.rglob("*")):
+            if path.is_file() and re.match(r"(LICEN[CS]E|COPYING|NOTICE)", path.name, re.I):
+                out.append((path, f"{top}/{path.relative_to(info).as_posix()}"))
+    return out
+
+
+def _python_licenses() -> list[tuple[Path, str]]:
+    license_file = _stdlib_dir() / "LICENSE.txt"
+    return [(license_file, "CPython/LICENSE.txt")] if license_file.exists() else []
+
+
+def _system_licenses(libraries: list[Path]) -> list[tuple[Path, str]]:
+    """Debian's copyright file of the package that installed each library (dpkg -S)."""
+    out = []
+    for library in libraries:
+        result = subprocess.run(["dpkg", "-S", str(library.resolve())], capture_output=True, text=True)
+        package = result.stdout.split(":")[0].strip() if result.returncode == 0 else ""
+        copyright_file = Path("/usr/share/doc") / package / "copyright"
+        if package and copyright_file.exists():
+            out.append((copyright_file, f"{library.name}/copyright"))
+    return out
+
+
+_TRACE = r'''
+import json, math, runpy, sys
+resources, out = sys.argv[1], sys.argv[2]
+sys.path += sys.argv[3:]  # the site directories, without the site module's .pth hooks (not bundled)
+load = runpy.run_path(resources + "/deltafmi_boot.py")["load"]
+for fmu_type in (1, 0):  # Co-Simulation, then Model Exchange
+    instance = load(resources, "trace", "", fmu_type)
+    instance.enter_initialization(0.0, math.nan, math.nan)
+    instance.exit_initialization()
+    for k in range(3):
+        if fmu_type == 1:
+            instance.do_step(k * 1e-3, 1e-3)
+        else:
+            instance.evaluate(k * 1e-3)
+    state = instance.get_state()
+    instance.set_state(instance.deserialize_state(instance.serialize_state(state)))
+    instance.terminate()
+    instance.reset()
+json.dump({n: getattr(m, "__file__", None) for n, m in sys.modules.items()}, open(out, "w"))
+'''
+
+
+def traced_modules(fmu: Path) -> dict[str, Optional[str]]:
+    """Modules (name -> file) the FMU's Python side imports when it runs: its boot code loads the
+    model in a fresh interpreter of this Python, which steps it in CS and evaluates it in ME."""
+    import json
+    with tempfile.TemporaryDirectory() as tmp:
+        with zipfile.ZipFile(fmu) as archive:
+            archive.extractall(tmp)
+        out = Path(tmp) / "modules.json"
+        result = subprocess.run([sys.executable, "-I", "-S", "-c", _TRACE, f"{tmp}/resources", str(out),
+                                 *map(str, _site_dirs())], capture_output=True, text=True)
+        if result.returncode != 0:
+            raise BuildError(f"--portable: running {fmu.name} to see what it imports failed:\n{result.stderr[-3000:]}")
+        return json.loads(out.read_text())
+
+
+def make_portable(fmu: Path, output: Path) -> PortableBundle:
+    """Write ``output``: the non-portable ``fmu`` plus the interpreter and packages it runs on."""
+    from importlib.util import find_spec
+    from ..files import replaced_atomically
+    modules = traced_modules(fmu)
+    spec = find_spec("fmpy")
+    sundials = Path(spec.submodule_search_locations[0]) / "sundials" / "x86_64-linux" if spec else None
+    bundle = portable_bundle(modules, needs_sundials="deltafmi.component.cvode" in modules, sundials_dir=sundials)
+    replaced = {"resources/python.cfg", "documentation/index.html", "resources/README.txt"}
+    with zipfile.ZipFile(fmu) as source, replaced_atomically(output) as tmp:
+        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive:
+            for item in source.infolist():
+                if item.filename not in replaced:
+                    archive.writestr(item, source.read(item.filename))
+            archive.writestr("resources/python.cfg", bundle.config)
+            for path, name in bundle.files:
+                archive.write(path, name)
+            for data, name in bundle.data:
+                archive.writestr(name, data)
+            for path, name in bundle.licenses:
+                archive.write(path, f"documentation/licenses/{name}")
+            archive.writestr("resources/README.txt", portable_readme(bundle))
+            archive.writestr("documentation/index.html", _with_portable_section(
+                source.read("documentation/index.html").decode(), bundle))
+    return bundle
+
+
+def portable_readme(bundle: PortableBundle) -> str:
+    glibc = ".".join(map(str, bundle.glibc_floor))
+    return (f"A portable deltafmi FMU (FMI 2.0, Model Exchange and Co-Simulation).\n\n"
+            f"It carries CPython {bundle.python_version} (python/lib), the part of the standard library and "
+            f"the packages its model imports, and the shared libraries they need beyond glibc. It runs on "
+            f"Linux x86_64 with glibc {glibc} or newer, with no Python installed. In a host that already runs "
+            f"Python (fmpy), it uses the host's interpreter, which needs numpy.\n"
+            f"Licences of everything bundled: documentation/licenses/.\n")
+
+
+def _with_portable_section(page: str, bundle: PortableBundle) -> str:
+    import html
+    section = f"<h2>Requirements (portable FMU)</h2><p>{html.escape(portable_readme(bundle))}</p>"
+    return re.sub(r"<h2>Requirements</h2>.*</body>", lambda _: section + "</body>", page, flags=re.S)
