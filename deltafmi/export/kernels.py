@@ -8,6 +8,13 @@ about 3-5x faster. An FMU carries the compiled modules next to their sources in
 ``resources/python``; Python prefers an extension module over a source file of the same name, and
 falls back to the source when the host's Python differs from the one that built the FMU.
 
+Kernels that import one another are compiled together, as one mypyc group (one shared library,
+native calls between them); unrelated ones in groups of their own, so that an FMU carries only
+the groups of the modules its model reaches (the robot's FMU has no controller kernel, the
+contact examples' FMUs have none).
+The libraries are stripped of their symbol tables (``strip --strip-unneeded``; the dynamic
+symbols stay).
+
 The compiled result is cached like the native binaries. Without mypy, or if compilation fails,
 FMUs ship the plain Python kernels (same results, slower) and a warning says so.
 """
@@ -15,6 +22,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import json
 import os
 import shutil
 import subprocess
@@ -23,11 +31,12 @@ import sysconfig
 import tempfile
 import warnings
 from pathlib import Path
-from typing import Optional
+from typing import Iterable, Optional
 
 import deltafmi
 
 from .compiler import build_into, cache_dir
+from .reach import direct_imports, module_source, reached_modules
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: modules compiled into FMUs (their imports are type-checked, not compiled)
@@ -47,45 +56,109 @@ def mypyc_version() -> Optional[str]:
     return mypy.version.__version__ if importlib.util.find_spec("mypyc") else None
 
 
-def compiled_kernels() -> list[tuple[Path, str]]:
-    """(extension module, path relative to ``resources/python``) for the compiled kernels.
+def kernel_modules() -> list[str]:
+    """Module names of :data:`COMPILED_MODULES`."""
+    return ["deltafmi." + name.removesuffix(".py").replace("/", ".") for name in COMPILED_MODULES]
+
+
+def kernel_groups() -> list[list[str]]:
+    """The compiled modules partitioned into mypyc groups: the connected parts of their imports
+    of one another (the modules of a group call each other natively)."""
+    modules = kernel_modules()
+    group_of = {name: {name} for name in modules}
+    for name in modules:
+        for other in direct_imports(name) & set(modules):
+            merged = group_of[name] | group_of[other]
+            for member in merged:
+                group_of[member] = merged
+    groups = {tuple(sorted(group)) for group in group_of.values()}
+    return [list(group) for group in sorted(groups)]
+
+
+def compiled_kernels(modules: Optional[Iterable[str]] = None) -> list[tuple[Path, str]]:
+    """(extension module, path relative to ``resources/python``) of the compiled kernels that the
+    deltafmi ``modules`` need (all kernels when None): each included kernel module's shim and
+    its group's shared library.
 
     Empty, with a warning, when mypyc is not installed or the compilation failed.
     """
+    wanted = set(kernel_modules() if modules is None else modules) & set(kernel_modules())
+    if not wanted:
+        return []  # no warning either: nothing compiled would go in
     version = mypyc_version()
     if version is None:
         warnings.warn("mypy (mypyc) is not installed: FMUs ship plain Python kernels "
                       "(same results, several times slower)", stacklevel=2)
         return []
-    sources = sorted((PACKAGE_DIR / "mechanics").rglob("*.py"))
-    digest = hashlib.sha256(f"{version}|{sys.version}|{COMPILED_MODULES}|{_CFLAGS}".encode())
-    for path in sources:
-        digest.update(path.relative_to(PACKAGE_DIR).as_posix().encode() + path.read_bytes())
+    groups = kernel_groups()
+    # mypyc type-checks what the kernels import: their sources are part of the compilation
+    digest = hashlib.sha256(f"{version}|{sys.version}|{groups}|{_CFLAGS}|{_SETUP}|strip".encode())
+    for name in reached_modules(modules=kernel_modules(), runtime=False):
+        path = module_source(name)
+        digest.update(name.encode() + path.read_bytes())
     target = cache_dir() / "kernels" / digest.hexdigest()[:16]
     if not target.is_dir():
         try:
-            _compile_into(target)
+            _compile_into(target, groups)
         except (subprocess.CalledProcessError, OSError) as exc:
-            detail = getattr(exc, "stdout", "") or str(exc)
+            detail = (getattr(exc, "stdout", "") or "") + (getattr(exc, "stderr", "") or "") or str(exc)
             warnings.warn(f"compiling the kernels with mypyc failed; FMUs ship plain Python kernels:\n"
                           f"{detail[-2000:]}", stacklevel=2)
             return []
-    return [(path, path.relative_to(target).as_posix()) for path in sorted(target.rglob(f"*{_SUFFIX}"))]
+    owners: dict[str, list[str]] = json.loads((target / _MANIFEST).read_text())
+    return [(target / relative, relative) for relative, owned in sorted(owners.items()) if wanted & set(owned)]
 
 
-def _compile_into(target: Path) -> None:
+#: which modules each compiled file serves (relative path -> module names), written beside them
+_MANIFEST = "kernels.json"
+
+
+def _group_name(group: list[str]) -> str:
+    package = group[0].rpartition(".")[0]
+    return package + "." + "_".join(name.rpartition(".")[2] for name in group)
+
+
+def _compile_into(target: Path, groups: list[list[str]]) -> None:
     def build(out: str) -> None:
         with tempfile.TemporaryDirectory() as tmp:
             work = Path(tmp)
             shutil.copytree(PACKAGE_DIR, work / "deltafmi", ignore=shutil.ignore_patterns("__pycache__", "*.so"))
-            modules = [f"deltafmi/{name}" for name in COMPILED_MODULES]
+            separate = [([_source(name) for name in group], _group_name(group)) for group in groups]
+            (work / "setup.py").write_text(_SETUP.format(paths=[p for paths, _ in separate for p in paths],
+                                                         separate=separate))
             env = dict(os.environ, CFLAGS=f"{os.environ.get('CFLAGS', '')} {_CFLAGS}".strip())
-            subprocess.run([sys.executable, "-m", "mypyc", "--follow-imports=silent", *modules], cwd=work,
+            subprocess.run([sys.executable, "setup.py", "build_ext", "--inplace"], cwd=work,
                            env=env, check=True, capture_output=True, text=True)
-            for library in work.rglob(f"*{_SUFFIX}"):
-                if "build" not in library.relative_to(work).parts:
-                    destination = Path(out) / library.relative_to(work)
+            owners = {}
+            for group, (_, group_name) in zip(groups, separate):
+                files = [(group_name + "__mypyc", group)] + [(name, [name]) for name in group]
+                for module, owned in files:
+                    relative = module.replace(".", "/") + _SUFFIX
+                    destination = Path(out) / relative
                     destination.parent.mkdir(parents=True, exist_ok=True)
-                    shutil.copy2(library, destination)
+                    shutil.copy2(work / relative, destination)
+                    _strip(destination)
+                    owners[relative] = owned
+            (Path(out) / _MANIFEST).write_text(json.dumps(owners, indent=1))
 
     build_into(target, build)
+
+
+def _source(name: str) -> str:
+    return name.replace(".", "/") + ".py"
+
+
+def _strip(library: Path) -> None:
+    """Drop the symbol table and debug information; the dynamic symbols (PyInit_*) stay."""
+    if shutil.which("strip"):
+        subprocess.run(["strip", "--strip-unneeded", str(library)], check=True, capture_output=True, text=True)
+
+
+# mypyc's command line (python -m mypyc) cannot choose the groups; this is its setup.py with them
+_SETUP = """\
+from setuptools import setup
+from mypyc.build import mypycify
+
+setup(name="deltafmi_kernels",
+      ext_modules=mypycify(["--follow-imports=silent", *{paths!r}], opt_level="3", separate={separate!r}))
+"""

@@ -21,12 +21,13 @@ from ..component.model_description import model_description_xml
 from ..files import replaced_atomically
 from .compiler import BuildError, cache_dir, fmu_binary, native_source_files, python_extension, python_runtime_config
 from .kernels import compiled_kernels, mypyc_version
+from .reach import module_source, reached_modules
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
-#: the parts of deltafmi an FMU carries: the component runtime and the mechanics it may use
-BUNDLED_PACKAGES = ("component", "mechanics")
 #: compiled value access of the variable declarations (see deltafmi/component/native_values.py)
 VALUE_ACCESS_SOURCE = PACKAGE_DIR / "component" / "_values.c"
+#: the module that writes modelDescription.xml at build time (FMUs do not carry it)
+_MODEL_DESCRIPTION = "deltafmi.component.model_description"
 _GUID_NAMESPACE = uuid.UUID("6f1c8a52-4d0e-4f5e-9a53-0d3c5e2b7a11")
 
 
@@ -59,18 +60,37 @@ def load_component_class(source: Path) -> type[Component]:
     return cls
 
 
-def runtime_files() -> list[tuple[Path, str]]:
-    """(file, archive name) of the deltafmi runtime bundled under ``resources/python``."""
-    files = [(PACKAGE_DIR / "__init__.py", "resources/python/deltafmi/__init__.py")]
-    for package in BUNDLED_PACKAGES:
-        for path in sorted((PACKAGE_DIR / package).rglob("*.py")):
-            files.append((path, f"resources/python/deltafmi/{path.relative_to(PACKAGE_DIR).as_posix()}"))
+def runtime_modules(source: Path) -> list[str]:
+    """The deltafmi modules an FMU of ``source`` carries: those its component source and the FMU
+    runtime reach through their import statements (see :mod:`deltafmi.export.reach`)."""
+    return reached_modules([Path(source)])
+
+
+def runtime_files(source: Path) -> list[tuple[Path, str]]:
+    """(file, archive name) of the deltafmi sources bundled under ``resources/python`` for ``source``."""
+    files = []
+    for name in runtime_modules(source):
+        path = module_source(name)
+        files.append((path, f"resources/python/{path.relative_to(PACKAGE_DIR.parent).as_posix()}"))
     return files
 
 
-def compiled_value_access() -> list[tuple[Path, str]]:
-    """(extension module, archive name) of the compiled value access, shipped beside its C source;
-    empty, with a warning, when it cannot be compiled (the FMU then reads values in Python)."""
+def binary_files(source: Path) -> list[tuple[Path, str]]:
+    """(file, archive name) of the compiled modules bundled for ``source``: the value access and
+    the kernels of the modules it carries."""
+    modules = runtime_modules(source)
+    # kernels are deflated since they are stripped: inflating the robot's 0.5 MB takes ~3 ms and
+    # saves 0.35 MB (they were stored while they carried 1.4 MB of debug information)
+    return compiled_value_access(modules) + [(path, f"resources/python/{relative}")
+                                             for path, relative in compiled_kernels(modules)]
+
+
+def compiled_value_access(modules: Optional[list[str]] = None) -> list[tuple[Path, str]]:
+    """(extension module, archive name) of the compiled value access, shipped beside its C source,
+    when ``modules`` (default: all) include its user; empty, with a warning, when it cannot be
+    compiled (the FMU then reads values in Python)."""
+    if modules is not None and "deltafmi.component.native_values" not in modules:
+        return []
     try:
         module = python_extension(VALUE_ACCESS_SOURCE)
     except BuildError as exc:
@@ -81,12 +101,15 @@ def compiled_value_access() -> list[tuple[Path, str]]:
 
 
 def content_key(source: Path) -> str:
-    """Hash of everything that determines an FMU built from ``source``."""
+    """Hash of everything that determines an FMU built from ``source``: the files it carries
+    (so that editing a module the model does not reach leaves its cached FMU valid), the native
+    sources of its binary, the code that writes its modelDescription.xml, this packager and the
+    Python it was built for."""
     digest = hashlib.sha256(Path(source).read_bytes())
-    for path, arcname in runtime_files():
-        digest.update(arcname.encode() + path.read_bytes())
-    for path in native_source_files() + [Path(__file__), VALUE_ACCESS_SOURCE, PACKAGE_DIR / "export" / "boot.py",
-                                         PACKAGE_DIR / "export" / "kernels.py"]:
+    for path, arcname in runtime_files(source) + binary_files(source):
+        digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
+    writers = [module_source(name) for name in reached_modules(modules=[_MODEL_DESCRIPTION], runtime=False)]
+    for path in native_source_files() + writers + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]:
         digest.update(path.read_bytes())
     digest.update(python_runtime_config().encode())
     digest.update(f"mypyc {mypyc_version()}".encode())
@@ -122,14 +145,11 @@ def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = Fals
             fmu.writestr("resources/deltafmi.json", json.dumps(info, indent=2))
             fmu.writestr("resources/python.cfg", python_runtime_config())
             fmu.writestr("resources/README.txt", _readme(identifier))
-            for path, arcname in runtime_files():
+            for path, arcname in runtime_files(source):
                 fmu.write(path, arcname)
                 fmu.writestr(importlib.util.cache_from_source(arcname), _bytecode(path, arcname))
-            for path, arcname in compiled_value_access():
+            for path, arcname in binary_files(source):
                 fmu.write(path, arcname)
-            for path, relative in compiled_kernels():
-                # stored, not deflated: inflating them took longer than the rest of a load
-                fmu.write(path, f"resources/python/{relative}", compress_type=zipfile.ZIP_STORED)
             for path in native_source_files():
                 fmu.write(path, f"sources/{path.name}")
             fmu.writestr("documentation/index.html", _documentation(cls))
