@@ -1,9 +1,13 @@
-"""A thin, reusable CVODE integrator over the SUNDIALS libraries that fmpy ships.
+"""A thin, reusable CVODE integrator over SUNDIALS (our own binding, :mod:`.sundials`).
 
 fmpy's own ``CVodeSolver`` is tied to FMU callbacks and integrates past the output point; this one
 works on numpy callbacks, stops exactly at a stop time (``CVodeSetStopTime``) so zero-order-hold
 inputs are never sampled beyond a communication point, reports roots, and keeps its step-size
 history between calls until :meth:`Cvode.reinit` is called after a state jump.
+
+SUNDIALS' errors are kept for the exception (and logged at ERROR on ``deltafmi.solver`` unless a
+callback's own exception explains them); its warnings are logged at WARNING there. Nothing is
+printed.
 """
 from __future__ import annotations
 
@@ -13,39 +17,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from . import sundials as _sun  # first: binds fmpy's SUNDIALS to its own symbols (see there)
-from fmpy.sundials import cvode as _cv  # noqa: E402  (import order matters)
-from fmpy.sundials.nvector_serial import N_VNew_Serial, NV_DATA_S
-from fmpy.sundials.sundials_context import SUNContext_Create, SUNContext_PushErrHandler
-from fmpy.sundials.sundials_nvector import N_Vector
-from fmpy.sundials.sundials_types import SUN_COMM_NULL, SUNContext, SUNErrHandlerFn
-from fmpy.sundials.sunlinsol_dense import SUNLinSol_Dense
-from fmpy.sundials.sunmatrix_dense import SUNDenseMatrix
-from fmpy.sundials.cvode_ls import CVodeSetLinearSolver
-
-
-
-def _bind(name: str, argtypes: list) -> ctypes._CFuncPtr:
-    # a private function object (indexing does not share fmpy's cached one and its argtypes)
-    function = _sun.cvode[name]
-    function.argtypes, function.restype = argtypes, c_int
-    return function
-
-
-_set_stop_time = _bind("CVodeSetStopTime", [c_void_p, c_double])
-# callbacks take raw addresses: cheaper than fmpy's POINTER(struct) arguments, and hashable
-_RhsFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_void_p)
-_cvode_init = _bind("CVodeInit", [c_void_p, _RhsFn, c_double, c_void_p])
-_cvode_root_init = _bind("CVodeRootInit", [c_void_p, c_int, _RhsFn])
-_ProjFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_double, c_void_p, c_void_p)
-_set_proj_fn = _bind("CVodeSetProjFn", [c_void_p, _ProjFn])
-_set_proj_err_est = _bind("CVodeSetProjErrEst", [c_void_p, c_int])
-_set_proj_frequency = _bind("CVodeSetProjFrequency", [c_void_p, ctypes.c_long])
-# dense Jacobian: int (*)(t, y, fy, SUNMatrix J, user_data, tmp1, tmp2, tmp3)
-_JacFn = ctypes.CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p)
-_set_jac_fn = _bind("CVodeSetJacFn", [c_void_p, _JacFn])
-_dense_data = _sun.LIBRARIES["sundials_sunmatrixdense"]["SUNDenseMatrix_Data"]
-_dense_data.argtypes, _dense_data.restype = [c_void_p], ctypes.POINTER(c_double)
+from . import sundials as _sun
 
 Rhs = Callable[[float, np.ndarray, np.ndarray], None]
 Roots = Callable[[float, np.ndarray, np.ndarray], None]
@@ -77,62 +49,64 @@ class Cvode:
         self.n = n = len(x0)
         self.n_roots = n_roots if roots is not None else 0
         self._rhs, self._roots = rhs, roots
-        self._ctx = SUNContext()
-        _check(SUNContext_Create(SUN_COMM_NULL, byref(self._ctx)), "SUNContext_Create")
-        # keep SUNDIALS' messages for the exception instead of printing them: a caller that
-        # recovers from a failure should not leave "[ERROR]" lines on stderr
+        # SUNDIALS' errors are kept for the exception, not printed (see :mod:`.sundials`)
         self.last_message = ""
-        self._err_handler = SUNErrHandlerFn(self._on_error)
-        _sun.SUNContext_ClearErrHandlers(self._ctx)
-        SUNContext_PushErrHandler(self._ctx, self._err_handler, None)
-        self._y = N_VNew_Serial(n, self._ctx)
-        self.x = np.ctypeslib.as_array(NV_DATA_S(self._y), (n,))
+        self.callback_error: Optional[BaseException] = None
+        self._ctx, self._err_handler = _sun.new_context(self._on_error)
+        self._y = _sun.N_VNew_Serial(n, self._ctx)
+        self.x = np.ctypeslib.as_array(_sun.N_VGetArrayPointer(self._y), (n,))
         self.x[:] = x0
-        self._atol = N_VNew_Serial(n, self._ctx)
-        np.ctypeslib.as_array(NV_DATA_S(self._atol), (n,))[:] = atol
-        lmm = _cv.CV_ADAMS if method == "adams" else _cv.CV_BDF
-        self._mem = _cv.CVodeCreate(lmm, self._ctx)
-        # keep the ctypes callbacks referenced: CVODE only holds raw pointers
-        self._f = _RhsFn(self._f_callback)
-        self._g = _RhsFn(self._g_callback)
-        _check(_cvode_init(self._mem, self._f, t0, self._y), "CVodeInit")
-        _check(_cv.CVodeSVtolerances(self._mem, rtol, self._atol), "CVodeSVtolerances")
+        self._atol = _sun.N_VNew_Serial(n, self._ctx)
+        np.ctypeslib.as_array(_sun.N_VGetArrayPointer(self._atol), (n,))[:] = atol
+        lmm = _sun.CV_ADAMS if method == "adams" else _sun.CV_BDF
+        self._mem = _sun.CVodeCreate(lmm, self._ctx)
+        # keep the ctypes callbacks referenced: CVODE only holds raw pointers (which are cheaper
+        # than typed arguments, and hashable)
+        self._f = _sun.RhsFn(self._f_callback)
+        self._g = _sun.RhsFn(self._g_callback)
+        _check(_sun.CVodeInit(self._mem, self._f, t0, self._y), "CVodeInit")
+        _check(_sun.CVodeSVtolerances(self._mem, rtol, self._atol), "CVodeSVtolerances")
         if self.n_roots:
-            _check(_cvode_root_init(self._mem, self.n_roots, self._g), "CVodeRootInit")
-            _check(_cv.CVodeSetNoInactiveRootWarn(self._mem), "CVodeSetNoInactiveRootWarn")
-        self._A = SUNDenseMatrix(n, n, self._ctx)
-        self._LS = SUNLinSol_Dense(self._y, self._A, self._ctx)
-        _check(CVodeSetLinearSolver(self._mem, self._LS, self._A), "CVodeSetLinearSolver")
+            _check(_sun.CVodeRootInit(self._mem, self.n_roots, self._g), "CVodeRootInit")
+            _check(_sun.CVodeSetNoInactiveRootWarn(self._mem), "CVodeSetNoInactiveRootWarn")
+        self._A = _sun.SUNDenseMatrix(n, n, self._ctx)
+        self._LS = _sun.SUNLinSol_Dense(self._y, self._A, self._ctx)
+        _check(_sun.CVodeSetLinearSolver(self._mem, self._LS, self._A), "CVodeSetLinearSolver")
         self._jacobian = jacobian
         if jacobian is not None:
             # CVODE hands the Jacobian function the matrix given to the linear solver: view it once
-            self._J = np.ctypeslib.as_array(_dense_data(self._A), (n * n,)).reshape((n, n), order="F")
-            self._j = _JacFn(self._j_callback)
-            _check(_set_jac_fn(self._mem, self._j), "CVodeSetJacFn")
+            self._J = np.ctypeslib.as_array(_sun.SUNDenseMatrix_Data(self._A), (n * n,)).reshape((n, n), order="F")
+            self._j = _sun.JacFn(self._j_callback)
+            _check(_sun.CVodeSetJacFn(self._mem, self._j), "CVodeSetJacFn")
         if max_step > 0:
-            _check(_cv.CVodeSetMaxStep(self._mem, max_step), "CVodeSetMaxStep")
-        _check(_cv.CVodeSetMaxNumSteps(self._mem, max_num_steps), "CVodeSetMaxNumSteps")
+            _check(_sun.CVodeSetMaxStep(self._mem, max_step), "CVodeSetMaxStep")
+        _check(_sun.CVodeSetMaxNumSteps(self._mem, max_num_steps), "CVodeSetMaxNumSteps")
         self._project = project
         if project is not None:
             if method != "bdf":
                 raise ValueError("CVODE projects only with BDF")
-            self._p = _ProjFn(self._p_callback)
-            _check(_set_proj_fn(self._mem, self._p), "CVodeSetProjFn")
-            _check(_set_proj_err_est(self._mem, 0), "CVodeSetProjErrEst")
-            _check(_set_proj_frequency(self._mem, project_every), "CVodeSetProjFrequency")
+            self._p = _sun.ProjFn(self._p_callback)
+            _check(_sun.CVodeSetProjFn(self._mem, self._p), "CVodeSetProjFn")
+            _check(_sun.CVodeSetProjErrEst(self._mem, 0), "CVodeSetProjErrEst")
+            _check(_sun.CVodeSetProjFrequency(self._mem, project_every), "CVodeSetProjFrequency")
         self._root_info = np.zeros(max(self.n_roots, 1), dtype=np.int32)
         self._views: dict[int, np.ndarray] = {}
         self.t = t0
 
-    def _on_error(self, line, function, file, message, code, user_data, context) -> None:
-        self.last_message = (message or b"").decode(errors="replace")
+    def _on_error(self, _line: int, function: Optional[bytes], _file: Optional[bytes],
+                  message: Optional[bytes], _code: int) -> None:
+        try:
+            self.last_message = (message or b"").decode(errors="replace")
+            if self.callback_error is None:  # else the callback's own exception says it all
+                _sun.LOGGER.error("%s: %s", (function or b"CVODE").decode(errors="replace"), self.last_message)
+        except Exception:  # noqa: BLE001  (nothing may cross into C)
+            pass
 
     def _view(self, vector: int) -> np.ndarray:
         # CVODE passes a handful of internal vectors over and over: build each view only once
         view = self._views.get(vector)
         if view is None:
-            data = NV_DATA_S(ctypes.cast(vector, N_Vector))
-            view = self._views[vector] = np.ctypeslib.as_array(data, (self.n,))
+            view = self._views[vector] = np.ctypeslib.as_array(_sun.N_VGetArrayPointer(vector), (self.n,))
         return view
 
     def _roots_view(self, address: int) -> np.ndarray:
@@ -170,16 +144,16 @@ class Cvode:
         reached time and state, :attr:`roots` which indicators crossed (+1/-1 direction).
         """
         self.callback_error = None
-        _set_stop_time(self._mem, t_stop)
+        _sun.CVodeSetStopTime(self._mem, t_stop)
         tret = c_double(0.0)
-        flag = _cv.CVode(self._mem, t_stop, self._y, byref(tret), _cv.CV_NORMAL)
+        flag = _sun.CVode(self._mem, t_stop, self._y, byref(tret), _sun.CV_NORMAL)
         if flag < 0:
             if self.callback_error is not None:
                 raise self.callback_error
             raise CvodeError(f"CVODE failed with flag {flag} at t = {tret.value:.9g}: {self.last_message}")
         self.t = tret.value
-        if flag == _cv.CV_ROOT_RETURN:
-            _check(_cv.CVodeGetRootInfo(self._mem, self._root_info.ctypes.data_as(ctypes.POINTER(c_int))),
+        if flag == _sun.CV_ROOT_RETURN:
+            _check(_sun.CVodeGetRootInfo(self._mem, self._root_info.ctypes.data_as(ctypes.POINTER(c_int))),
                    "CVodeGetRootInfo")
             return True
         return False
@@ -192,7 +166,7 @@ class Cvode:
     def reinit(self, t: float, x: np.ndarray) -> None:
         """Restart at ``(t, x)``, discarding the step history (after a discontinuity)."""
         self.x[:] = x
-        _check(_cv.CVodeReInit(self._mem, t, self._y), "CVodeReInit")
+        _check(_sun.CVodeReInit(self._mem, t, self._y), "CVodeReInit")
         self.t = t
 
     def free(self) -> None:
@@ -202,7 +176,7 @@ class Cvode:
         runs; owners that drop solvers often (a reset, a restored FMU state) call it at once.
         """
         if getattr(self, "_mem", None):
-            _cv.CVodeFree(byref(c_void_p(self._mem)))
+            _sun.CVodeFree(byref(c_void_p(self._mem)))
             self._mem = None
         for name, destroy in (("_LS", _sun.SUNLinSolFree), ("_A", _sun.SUNMatDestroy),
                               ("_y", _sun.N_VDestroy), ("_atol", _sun.N_VDestroy)):

@@ -1,4 +1,4 @@
-"""Numerical mechanics with no FMI inside. Bundled into FMUs, so it imports only numpy/scipy.
+"""Numerical mechanics with no FMI inside. Bundled into FMUs: what an FMU reaches imports only numpy.
 
 - :mod:`.delta`: the delta robot (parameters, kinematics, stabilised DAE dynamics, control law
   and sampled controller, wrist trajectories);

@@ -21,9 +21,7 @@ import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
-import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
+from . import dopri
 
 
 def _sgnpow(x: float, m: float) -> float:
@@ -52,28 +50,24 @@ def _normalised_impact(chi: float, p: float) -> tuple[float, float, float]:
     """Integrate the normalised impact; return (restitution, duration, maximal compression)."""
     q = 0.5 * (p - 1.0)
 
-    def rhs(_t: float, y: np.ndarray) -> list:
+    def rhs(_t: float, y: tuple[float, ...]) -> tuple[float, float]:
         s = max(y[0], 0.0)
-        return [y[1], -max(s ** p + chi * s ** q * y[1], 0.0)]
+        return y[1], -max(s ** p + chi * s ** q * y[1], 0.0)
 
-    def force_zero(_t: float, y: np.ndarray) -> float:
+    def force_zero(_t: float, y: tuple[float, ...]) -> float:
         return _end_function(y[0], y[1], p - q, chi)
 
-    force_zero.terminal = True
-    force_zero.direction = -1
-
-    def max_compression(_t: float, y: np.ndarray) -> float:
+    def max_compression(_t: float, y: tuple[float, ...]) -> float:
         return y[1]
 
-    max_compression.direction = -1
     # the undamped impact lasts < 2 * 2**(1/(p+1)) * 1.5; damping only shortens the force phase
     t_end = 20.0
-    sol = solve_ivp(rhs, (0.0, t_end), [0.0, 1.0], method="DOP853", rtol=1e-12, atol=1e-14,
-                    events=(force_zero, max_compression))
-    if sol.status != 1 or len(sol.t_events[0]) == 0:
+    sol = dopri.integrate(rhs, (0.0, 1.0), t_end, force_zero, [max_compression], rtol=1e-12, atol=1e-14)
+    if sol.terminal is None:
         raise RuntimeError(f"normalised impact did not end (chi={chi}, p={p})")
-    s_max = float(sol.y_events[1][0][0]) if len(sol.t_events[1]) else float(np.max(sol.y[0]))
-    return float(-sol.y_events[0][0][1]), float(sol.t_events[0][0]), s_max
+    peak = sol.others[0]
+    s_max = peak.y[0] if peak is not None else sol.terminal.y[0]
+    return -sol.terminal.y[1], sol.terminal.t, s_max
 
 
 def elastic_duration(p: float) -> float:
@@ -104,7 +98,7 @@ def calibrate(restitution: float, exponent: float) -> Calibration:
             hi *= 4.0
             if hi > 1e7:
                 raise ValueError(f"restitution {e} too small to calibrate")
-        chi = brentq(lambda c: _normalised_impact(c, p)[0] - e, 0.0, hi, xtol=1e-14, rtol=1e-13)
+        chi = dopri.find_root(lambda c: _normalised_impact(c, p)[0] - e, 0.0, hi, xtol=1e-14, rtol=1e-13)
     e_got, tau, s_max = _normalised_impact(chi, p)
     return Calibration(restitution=e_got, exponent=p, chi=chi, tau=tau, s_max=s_max)
 

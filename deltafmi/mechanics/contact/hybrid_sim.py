@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
-from scipy import integrate
 
 
 @dataclass
@@ -83,6 +82,8 @@ def simulate(system: Any, t_span: tuple[float, float], x0: np.ndarray, *, method
     """Simulate ``system`` from ``x0`` over ``t_span`` with events and discrete updates."""
     t, t_end = float(t_span[0]), float(t_span[1])
     x = np.array(x0, dtype=float)
+    from scipy import integrate  # here: FMUs import this module's types, never scipy
+
     solver_cls = getattr(integrate, method) if isinstance(method, str) else method
     n_rhs = 0
 

@@ -27,7 +27,6 @@ import math
 from typing import NamedTuple, Sequence
 
 import numpy as np
-from scipy.linalg.lapack import dgesv  # type: ignore[import-untyped]
 
 from .dynamics import _as_list, _constants, _evaluate
 from .kinematics import ARM_COS_SIN
@@ -189,8 +188,7 @@ def plant_jacobian(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: 
         A :class:`PlantJacobian`; its columns are [q, v, u, f].
 
     Raises:
-        ArithmeticError: H lost rank (a direct-kinematic singularity).
-        numpy.linalg.LinAlgError: likewise, from the KKT solve.
+        ArithmeticError: H or the KKT matrix lost rank (a direct-kinematic or gimbal singularity).
     """
     ql, vl, fl = _as_list(q), _as_list(v), _as_list(f)
     vdot, lam, _ = _evaluate(p, ql, vl, u, fl, pole)
@@ -209,10 +207,11 @@ def plant_jacobian(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: 
     flat = np.array(values)
     system = _SYSTEM_TEMPLATE.copy()  # [[M, -H^T, R1], [H, 0, R2]], 15 x (15 + 24)
     system.flat[_SYSTEM_INDEX] = flat[_SYSTEM_SOURCE] * _SYSTEM_SCALE
-    _, _, sens, info = dgesv(system[:, :15], system[:, 15:])
-    if info != 0:
+    try:
+        sens = np.linalg.solve(system[:, :15], system[:, 15:])
+    except np.linalg.LinAlgError:
         raise ArithmeticError("the KKT matrix is singular: the delta robot is in a direct-kinematic "
-                              "singularity (or a gimbal one, sin q_i2 = 0)")
+                              "singularity (or a gimbal one, sin q_i2 = 0)") from None
     dx = _DX_TEMPLATE.copy()  # q' = v on top
     dx[9:] = sens[:9]
     out = np.zeros((7, N_KNOWNS))  # dz, dzd, denergy

@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..contact.collision_law import CollisionLaw
 from ..contact.system import ContactSystem, LagrangianModel
@@ -133,6 +132,8 @@ def energy_gain_per_bounce(g: float = 9.81, m: float = 1.0, a0: float = 100.0,
     """Closed form for a1 = 0: ``(q*, m (g q* - a0 q*^2/2 - a2 q*^4/4))`` with
     ``a0 q* + a2 q*^3 = g``. Below the floor the push is conservative (the loop integral of
     ``m g - m a0 q - m a2 q^3`` vanishes); above it, lambda does this work until it turns negative."""
+    from scipy.optimize import brentq  # here: the FMU path does not need scipy
+
     q_star = brentq(lambda q: a0 * q + a2 * q ** 3 - g, 0.0, g / a0 + 1.0, xtol=1e-16, rtol=1e-15)
     return q_star, m * (g * q_star - 0.5 * a0 * q_star ** 2 - 0.25 * a2 * q_star ** 4)
 
