@@ -1,6 +1,8 @@
 """The :class:`Component` base class that models and controllers derive from."""
 from __future__ import annotations
 
+import logging
+import math
 import struct
 from operator import methodcaller
 from typing import Any, ClassVar, Optional, Sequence
@@ -11,7 +13,9 @@ from .layout import Layout, build_layout
 from .native_values import ValueDescriptor, ValueHolder
 from .variables import _REAL_ARRAY, Experiment
 
-LOG_LEVELS = {"info": 0, "warning": 1, "error": 3}
+#: Component.log levels -> (FMI status, log category)
+LOG_LEVELS = {"debug": (0, "logComponent"), "info": (0, "logComponent"), "warning": (1, "logStatusWarning"),
+              "error": (3, "logStatusError")}
 
 
 class _StatesView(ValueDescriptor):
@@ -53,8 +57,12 @@ class Component(ValueHolder):
     def __init__(self, resources_dir: str = "") -> None:
         self._attach(resources_dir, [])
 
-    def _attach(self, resources_dir: str, log_sink: list, buffers: Optional[tuple] = None) -> None:
-        """Set start values (into ``buffers`` when given, so their addresses stay), then setup()."""
+    def _attach(self, resources_dir: str, log_sink: list, buffers: Optional[tuple] = None,
+                control: Optional[np.ndarray] = None) -> None:
+        """Set start values (into ``buffers`` when given, so their addresses stay), then setup().
+
+        ``control``: the runtime's flags the native loader reads ([0] nonzero: the component ended
+        the simulation, [1] the time it reached, NaN when the step's end)."""
         layout = self._layout
         if buffers is None:
             buffers = (np.empty_like(layout.real_start), np.empty_like(layout.int_start), [])
@@ -69,6 +77,7 @@ class Component(ValueHolder):
         self._int[:] = layout.int_start
         self._str[:] = layout.str_start
         self._log_sink = log_sink
+        self._control = control if control is not None else np.array([0.0, math.nan])
         self.resources_dir = resources_dir
         self.setup()
 
@@ -194,8 +203,39 @@ class Component(ValueHolder):
         return spans
 
     def log(self, message: str, level: str = "info") -> None:
-        """Send a message to the importer's FMI logger (``info``, ``warning`` or ``error``)."""
-        self._log_sink.append((LOG_LEVELS.get(level, 0), f"log{level.capitalize()}", str(message)))
+        """Send a message to the importer's FMI logger: ``debug``/``info`` (category logComponent,
+        sent when the importer enables it), ``warning`` (logStatusWarning) or ``error``
+        (logStatusError, always sent). The same as logging through :attr:`logger`; never print().
+        """
+        status, category = LOG_LEVELS.get(level, LOG_LEVELS["info"])
+        self._log_sink.append((status, category, str(message)))
+
+    @property
+    def logger(self) -> logging.Logger:
+        """The logger of the component's module (``logging.getLogger(__name__)`` in its source).
+
+        In an FMU its records go to the importer's FMI logger only: DEBUG and INFO as logComponent,
+        WARNING as logStatusWarning, ERROR as logStatusError. ``warnings.warn`` works too."""
+        return logging.getLogger(type(self).__module__)
+
+    def terminate_simulation(self, reason: str) -> None:
+        """End the simulation here, for ``reason`` (sent to the FMI logger as logStatusDiscard).
+
+        Callable from any hook; from ``update`` (at a time or state event) it ends at an exact
+        time. Model Exchange: the next fmi2CompletedIntegratorStep or fmi2NewDiscreteStates
+        reports terminateSimulation = true (importers may skip the former: the FMU declares it
+        not needed unless :meth:`needs_projection` is overridden). Co-Simulation: the step stops
+        where it is (at the event when called from ``update``) and fmi2DoStep returns fmi2Discard;
+        fmi2GetBooleanStatus(fmi2Terminated) is then true and
+        fmi2GetRealStatus(fmi2LastSuccessfulTime) the time reached."""
+        if not self._control[0]:
+            self._control[0] = 1.0
+            self._log_sink.append((2, "logStatusDiscard", f"ending the simulation: {reason}"))
+
+    @property
+    def terminated(self) -> bool:
+        """Whether :meth:`terminate_simulation` was called (until fmi2Reset)."""
+        return bool(self._control[0])
 
     @classmethod
     def fmi_model_name(cls) -> str:

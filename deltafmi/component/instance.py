@@ -12,20 +12,40 @@ import math
 import pickle
 import struct
 from contextlib import nullcontext
-from typing import Callable, ContextManager, Optional, Sequence
+from typing import TYPE_CHECKING, Callable, ContextManager, Optional, Sequence
 
 import numpy as np
 
+from . import fmu_logging
 from .base import Component
-from .cvode import Cvode
 from .partials import DirectionalDerivatives
+
+if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
+    from .cvode import Cvode
 
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 MODEL_EXCHANGE, CO_SIMULATION = 0, 1
 _MAX_EVENT_ITERATIONS = 100
+_LOG_EVENTS, _LOG_SOLVER = fmu_logging.BITS["logEvents"], fmu_logging.BITS["logSolver"]
 _TINY = 1e-12  # relative time below which intervals are round-off, not integration
 _RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
-                                 "_int_items", "_str", "_str_items", "_log_sink", "resources_dir"})
+                                 "_int_items", "_str", "_str_items", "_log_sink", "_control",
+                                 "resources_dir"})
+
+
+def _cvode_class(module_context: Callable[[], ContextManager]) -> type[Cvode]:
+    """The CVODE wrapper, imported on first use: components that never integrate (no states, or
+    Model Exchange only) never load SUNDIALS. The import runs in the FMU's module context, where
+    its private ``deltafmi`` copy is in ``sys.modules``; once imported it is kept here."""
+    cached = _CVODE.get("class")
+    if cached is None:
+        with module_context():
+            from .cvode import Cvode
+        cached = _CVODE["class"] = Cvode
+    return cached
+
+
+_CVODE: dict = {}
 
 
 class FmuInstance:
@@ -41,14 +61,24 @@ class FmuInstance:
         self._module_context = module_context
         layout = component_class._layout
         self.nx, self.nz = layout.nx, component_class.n_event_indicators
+        if fmu_type == CO_SIMULATION and self.nx and not component_class.overrides_do_step():
+            _cvode_class(module_context)  # a missing SUNDIALS fails fmi2Instantiate, not a later step
         self.pending_logs: list = []
+        #: what the native loader reads after each call: [0] nonzero when the component ended the
+        #: simulation (Component.terminate_simulation), [1] the time it reached (NaN: the step's end)
+        self.control = np.array([0.0, math.nan])
+        #: the FMI log categories the importer enabled (fmu_logging.BITS), set by the loader
+        self.log_mask = fmu_logging.DEFAULT
+        self._hooks = fmu_logging.hooks()
+        self._module = component_class.__module__
+        if self._module.startswith(fmu_logging.MODEL_MODULE_PREFIX):
+            self._hooks.adopt(self._module)
         self.event_indicators = np.zeros(max(self.nz, 1))
         self._new_component()
         self.time = 0.0
         self.stop_time = math.inf
         self.tolerance: Optional[float] = None
         self.in_initialization = False
-        self.terminate_requested = False
         self._solver: Optional[Cvode] = None
         self._next_time_event: Optional[float] = None
         self._real_inputs = np.array([s.value_reference for s in layout.scalars
@@ -62,7 +92,27 @@ class FmuInstance:
 
     def _new_component(self, buffers: Optional[tuple] = None) -> None:
         comp = self.component = self.component_class.__new__(self.component_class)
-        comp._attach(self.resources_dir, self.pending_logs, buffers)
+        comp._attach(self.resources_dir, self.pending_logs, buffers, self.control)
+
+    @property
+    def terminate_requested(self) -> bool:
+        """Whether the component ended the simulation (:meth:`Component.terminate_simulation`)."""
+        return bool(self.control[0])
+
+    @terminate_requested.setter
+    def terminate_requested(self, value: bool) -> None:
+        self.control[0] = 1.0 if value else 0.0
+        if not value:
+            self.control[1] = math.nan
+
+    def set_log_categories(self, mask: int) -> int:
+        """The categories the importer enabled (fmi2Instantiate's loggingOn, fmi2SetDebugLogging):
+        the runtime formats its own messages only for these, and the model's logger makes DEBUG
+        and INFO records only while some instance wants logComponent."""
+        self.log_mask = mask
+        if self._module.startswith(fmu_logging.MODEL_MODULE_PREFIX):
+            self._hooks.want_debug(self._module, id(self), bool(mask & fmu_logging.BITS["logComponent"]))
+        return OK
 
     def _store_derivatives(self, values: Sequence[float]) -> None:
         comp = self.component
@@ -86,7 +136,7 @@ class FmuInstance:
                 layout.flags.ctypes.data, layout.n_str, layout.nx, layout.x_offset,
                 layout.dx_offset, self.event_indicators.ctypes.data, self.nz,
                 layout.nominals.ctypes.data, self.component_class.watches_drift(), self._steps_itself,
-                bool(self.nx or self.nz or self._has_outputs))
+                bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data)
 
     # --- initialization ---------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:
@@ -154,6 +204,9 @@ class FmuInstance:
         self.evaluate(t)
         nte = comp.next_time_event(t)
         self._next_time_event = nte
+        if self.log_mask & _LOG_EVENTS:
+            self.log(OK, "logEvents", f"event at t = {t}: another iteration {again}, states changed "
+                     f"{changed}, next time event {nte}, terminate {self.terminate_requested}")
         return (again, self.terminate_requested, False, changed, nte is not None,
                 float(nte) if nte is not None else 0.0)
 
@@ -194,7 +247,9 @@ class FmuInstance:
             time_event = nte is not None and self.time >= nte - _TINY * max(1.0, abs(nte))
             if root or time_event:
                 self._event_iteration()
-        if not self.terminate_requested:
+        if self.terminate_requested:
+            self.control[1] = self.time  # fmi2LastSuccessfulTime
+        else:
             self.time = t_end  # remove round-off so the next doStep matches exactly
         self.evaluate(self.time)
         return DISCARD if self.terminate_requested else OK
@@ -215,6 +270,7 @@ class FmuInstance:
         return changed
 
     def _make_solver(self) -> Cvode:
+        Cvode = _cvode_class(self._module_context)
         options = dict(self.component_class.cs_options)
         rtol = options.pop("rtol", self.tolerance or self.component_class.default_experiment.tolerance)
         rtol *= options.pop("rtol_factor", 1.0)
@@ -245,6 +301,10 @@ class FmuInstance:
                 J[:, :] = partials.state_jacobian(comp, t)
 
             options["jacobian"] = jacobian
+        if self.log_mask & _LOG_SOLVER:
+            self.log(OK, "logSolver", f"CVODE ({options.get('method', 'bdf')}) from t = {self.time}: "
+                     f"{nx} states, {self.nz} event indicators, rtol = {rtol:g}, "
+                     f"atol = {np.array2string(np.atleast_1d(atol), precision=3)}")
         return Cvode(rhs, comp._real[:nx].copy(), self.time, roots=roots if self.nz else None,
                      n_roots=self.nz, rtol=rtol, atol=atol, **options)
 
@@ -333,6 +393,8 @@ class FmuInstance:
     def free(self) -> None:
         """``fmi2FreeInstance``: release the solver now rather than at the next garbage collection."""
         self._drop_solver()
+        if self._module.startswith(fmu_logging.MODEL_MODULE_PREFIX):
+            self._hooks.want_debug(self._module, id(self), None)
 
     def _drop_solver(self) -> None:
         if self._solver is not None:

@@ -8,6 +8,7 @@ from typing import Optional
 
 from .. import __version__
 from .base import Component
+from .fmu_logging import CATEGORIES, LOG_ALL
 from .layout import ScalarVariable
 
 # SI base-unit exponents for the units the project uses; others are declared without exponents.
@@ -21,12 +22,9 @@ _BASE_UNITS: dict[str, dict[str, int]] = {
     "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1}, "kg.m/s": {"kg": 1, "m": 1, "s": -1},
     "1/s2": {"s": -2}, "1/s3": {"s": -3}, "m.s": {"m": 1, "s": 1},
 }
-LOG_CATEGORIES = (("logEvents", "Events and mode changes"),
-                  ("logStatusWarning", "Warnings"),
-                  ("logStatusError", "Errors, with Python tracebacks"),
-                  ("logInfo", "Information from the component"),
-                  ("logWarning", "Warnings from the component"),
-                  ("logError", "Errors from the component"))
+#: <LogCategories>: the FMI 2.0 names where the standard has one (the Reference FMUs' logEvents,
+#: logStatusError), ours for the component and the solver; see fmu_logging and docs/logging.md
+LOG_CATEGORIES = CATEGORIES + (LOG_ALL,)
 
 
 def model_description_xml(cls: type[Component], guid: str) -> bytes:

@@ -51,12 +51,17 @@ def _load(path: str, check_fmus: bool = False, stop: Optional[float] = None):
 @click.option("--stop", type=float, help="Stop time [s], overriding experiment.stop.")
 @click.option("--algorithm", type=click.Choice(["gauss-seidel", "jacobi"]),
               help="Override master.algorithm.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary, no messages from the FMUs.")
+@click.option("-v", "--verbose", is_flag=True,
+              help="Every message of the FMUs (their debug log categories too), not only warnings and errors.")
 def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: Optional[str],
-        quiet: bool) -> None:
+        quiet: bool, verbose: bool) -> None:
     """Run the co-simulation SCENARIO (a YAML file or an SSP archive) and write its results.
 
-    Ctrl-C stops the run: the rows so far stay in the result file (exit code 130).
+    The FMUs' warnings and errors are shown on stderr as they log them (-v: all their messages,
+    -q: none). A component that ends the simulation itself ends the run there: the results up to
+    that time are written and the summary says who ended it and why. Ctrl-C stops the run: the
+    rows so far stay in the result file (exit code 130).
 
     \b
     Example:
@@ -65,28 +70,56 @@ def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: 
     """
     from .master import Master
 
+    if quiet and verbose:
+        raise BadInput("-q and -v contradict each other: give one")
     system = _load(scenario, stop=stop)
     master = Master(system, result=Path(output) if output else None, stop=stop, algorithm=algorithm,
                     progress=not quiet and sys.stdout.isatty(),
-                    warn=lambda message: click.echo(f"warning: {message}", err=True))
+                    warn=lambda message: click.echo(f"warning: {message}", err=True),
+                    on_message=None if quiet else _fmu_message_printer(verbose), debug_logging=verbose)
     summary = master.run()
     if not quiet:
         click.echo(str(summary))
 
 
+_STATUS_LABELS = ("info", "warning", "discard", "error", "fatal", "pending")
+
+
+def _fmu_message_printer(verbose: bool):
+    """An ``on_message`` for the master: an FMU's message as ``<label>: <component>: <text>`` on
+    stderr; warnings and worse only, unless ``verbose`` (which adds the log category)."""
+
+    # on a terminal the progress bar (stdout) shares the line: clear it, the bar redraws below
+    clear = "\r\x1b[K" if sys.stdout.isatty() and sys.stderr.isatty() else ""
+
+    def show(component: str, status: int, category: str, text: str) -> None:
+        if status < 1 and not verbose:
+            return
+        label = _STATUS_LABELS[status] if 0 <= status < len(_STATUS_LABELS) else f"status {status}"
+        click.echo(f"{clear}{label}: {component}: " + (f"[{category}] " if verbose else "") + text, err=True)
+
+    return show
+
+
 @click.command()
 @click.argument("scenario", type=click.Path(dir_okay=False))
 def validate(scenario: str) -> None:
-    """Check SCENARIO (a YAML file or an SSP archive) and its FMUs without simulating.
+    """Check SCENARIO (a YAML file or an SSP archive) and its FMUs without simulating, or one FMU.
 
     Checks the YAML against the schema, every component, variable, connection (causality, type,
     unit, inputs driven twice, unconnected inputs, algebraic loops) and runs fmpy's validation of
-    each FMU's modelDescription.
+    each FMU's modelDescription. Given a .fmu, runs fmpy's validation and says whether the FMU is
+    portable and, if not, which Python it needs and whether this machine has it.
 
     \b
-    Example:
+    Examples:
       deltafmi validate scenarios/delta_tracking.yaml
+      deltafmi validate build/fmus/DeltaRobot.fmu
     """
+    if scenario.endswith(".fmu"):
+        from ..export.commands import validate_fmu_file
+        validate_fmu_file(Path(scenario))
+        return
     from .resolve import describe
 
     system = _load(scenario, check_fmus=True)

@@ -26,6 +26,7 @@
 from __future__ import annotations
 
 import shutil
+import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +43,7 @@ from .jacobians import FD_STEP, FmuJacobian
 from .linear_model import LinearModel
 from .modelinfo import ModelInfo, UnknownVariable, model_info
 from .realization import era
+from .unit_base import logger_callbacks
 
 Signal = Tuple[str, int]  # (component, value reference)
 
@@ -76,10 +78,12 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
         raise BadInput(f"'{where}' offers no Model Exchange interface: linearizing an FMU needs its equations")
     directory = tempfile.mkdtemp(prefix="deltafmi-linearize-")
     model = None
+    errors: List[str] = []
+    callbacks = logger_callbacks(lambda status, category, text: _said(where, status, text, errors))
     try:
         model = FMU2Model(guid=info.md.guid, unzipDirectory=fmpy.extract(str(fmu), directory),
                           modelIdentifier=info.model_identifier("ME"), instanceName="linearize")
-        model.instantiate(loggingOn=False)
+        model.instantiate(callbacks=callbacks, loggingOn=False)
         model.setupExperiment(startTime=time)
         for name, value in (start_values or {}).items():
             _set(model, info, name, value, where)
@@ -130,7 +134,8 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
                            np.array(model.getReal(u_vrs)) if u_vrs else np.zeros(0),
                            np.array(model.getReal(y_vrs)) if y_vrs else np.zeros(0), str(fmu), notes)
     except fmpy.fmi1.FMICallException as exc:
-        raise BadInput(f"'{where}': {exc}") from None
+        last = errors[-1].strip().splitlines()[-1] if errors and errors[-1].strip() else ""
+        raise BadInput(f"'{where}': {exc}" + (f": {last}" if last else "")) from None
     finally:
         if model is not None:
             for call in (model.terminate, model.freeInstance):
@@ -160,6 +165,14 @@ class _Block:
     Cc: Optional[np.ndarray] = None
     Dc: Optional[np.ndarray] = None
     order: List[int] = field(default_factory=list)
+
+
+def _said(where: str, status: int, text: str, errors: List[str]) -> None:
+    """The FMU's logger: warnings to stderr, errors kept for the failure message."""
+    if status >= 2:
+        errors.append(text)
+    elif status == 1:
+        sys.stderr.write(f"warning: {where}: {text}\n")
 
 
 def linearize_scenario(path: Path, *, at: Optional[float] = None, inputs: Sequence[str] = (),

@@ -56,9 +56,14 @@ class Master:
                  algorithm: Optional[str] = None, progress: bool = False,
                  warn: Callable[[str], None] = lambda message: None,
                  fmus: Optional[Callable[[Component], Any]] = None,
-                 writer_class: Callable[..., Any] = CsvWriter, native: bool = True) -> None:
+                 writer_class: Callable[..., Any] = CsvWriter, native: bool = True,
+                 on_message: Optional[Callable[[str, int, str, str], None]] = None,
+                 debug_logging: bool = False) -> None:
         """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
         FMU for this run; deltafmi.study keeps them loaded across runs and resets them);
+        ``on_message(component, status, category, text)`` gets every message the FMUs log
+        (default: none is shown); ``debug_logging``: instantiate with loggingOn, so the FMUs send
+        their debug categories too;
         ``writer_class(path, names, kinds=...)`` makes the result writer (default: CSV);
         ``native``: run fixed steps in C where :mod:`.native_loop` can (same calls, same results)."""
         scenario = system.scenario
@@ -73,6 +78,8 @@ class Master:
         self.every = scenario.result.every
         self.progress = Progress(self.start, self.stop, progress)
         self.warn = warn
+        self.on_message = on_message
+        self.debug_logging = debug_logging
         self.units: List[Unit] = []
         #: one block per algebraic loop solved at every step, and the loops of the initialization
         self.loops: List[LoopBlock] = []
@@ -169,7 +176,8 @@ class Master:
             for unit in self.units:
                 unit.fetch()
             self._record(stop.time)
-        return Termination(stop.unit, stop.time)
+        unit = self._by_name.get(stop.unit)
+        return Termination(stop.unit, stop.time, unit.termination_reason() if unit is not None else "")
 
     def _interrupted(self) -> Interrupted:
         """The run was stopped by a signal (results flushed by :meth:`close`)."""
@@ -197,6 +205,8 @@ class Master:
             unit = unit_for(component, extracted[component.fmu] if fmu is None else fmu.unzipDirectory, fmu)
             if component.interface == "ME":
                 unit.on_event = self._on_event
+            unit.on_message = self.on_message
+            unit.logging_on = self.debug_logging
             self.units.append(unit)
             self._by_name[unit.name] = unit
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sys
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional, TextIO
 
@@ -47,9 +47,12 @@ class Termination:
 
     component: str
     time: float
+    #: what the component said (its fmi2Discard message), "" when nothing
+    reason: str = field(default="", compare=False)
 
     def __str__(self) -> str:
-        return f"ended early: {self.component} terminated the simulation at t = {self.time:.9g} s"
+        text = f"ended early: {self.component} terminated the simulation at t = {self.time:.9g} s"
+        return text + (f" ({self.reason})" if self.reason else "")
 
 
 @dataclass

@@ -15,7 +15,7 @@ from __future__ import annotations
 import ctypes
 from collections import deque
 from ctypes import POINTER
-from typing import Any, Callable, Dict, List, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -209,8 +209,13 @@ class Unit:
         self.name = component.name
         self.info = component.info
         md = component.info.md
+        #: the FMU's last log messages: (status, category, text)
         self.messages: deque = deque(maxlen=20)
-        self._callbacks = _callbacks(self.messages)
+        #: called with (unit name, status, category, text) for every message the FMU logs
+        self.on_message: Optional[Callable[[str, int, str, str], None]] = None
+        #: fmi2Instantiate's loggingOn: the FMU sends its debug categories too
+        self.logging_on = False
+        self._callbacks = _callbacks(self)
         self.fmu = fmu if fmu is not None else self.fmu_class(
             guid=md.guid, unzipDirectory=unzip_dir, modelIdentifier=component.info.model_identifier(self.interface),
             instanceName=self.name)
@@ -222,7 +227,7 @@ class Unit:
     # --- life cycle ---------------------------------------------------------------------------
     def instantiate(self, start: float, stop: float) -> None:
         """fmi2Instantiate + fmi2SetupExperiment (rtol of the solver options as tolerance)."""
-        self.call(self.fmu.instantiate, callbacks=self._callbacks)
+        self.call(self.fmu.instantiate, callbacks=self._callbacks, loggingOn=self.logging_on)
         self.instantiated = True
         self.call(self.fmu.setupExperiment, tolerance=self.component.spec.solver.get("rtol"),
                   startTime=start, stopTime=stop)
@@ -337,26 +342,50 @@ class Unit:
     def failure(self, exc: BaseException) -> FmuFailure:
         """A :class:`FmuFailure` for ``exc`` that quotes the FMU's last log message."""
         last = ""
-        for status, message in reversed(self.messages):
+        for status, _, message in reversed(self.messages):
             if status >= 2:
                 last = message.strip().splitlines()[-1] if message.strip() else ""
                 break
         return FmuFailure(f"{self.name}: {str(exc).rstrip('.')}" + (f": {last}" if last else ""))
 
+    def termination_reason(self) -> str:
+        """What the FMU said when it ended the simulation: its last fmi2Discard message, if any."""
+        for status, _, message in reversed(self.messages):
+            if status == 2:
+                return message.strip()
+        return ""
 
-def _callbacks(messages: deque) -> fmi2CallbackFunctions:
-    """fmi2CallbackFunctions whose logger keeps the last messages (quoted when a call fails).
 
-    No fmpy ``addLoggerProxy``: it keeps ONE process-wide pointer to the last logger it wrapped,
-    so per-unit loggers would dangle once freed (a crash at the next message) and every FMU's
-    messages would go to the last unit. The message text is used as is (deltafmi FMUs pass it
-    fully formatted).
+def _callbacks(unit: Unit) -> fmi2CallbackFunctions:
+    """The unit's callbacks: the logger keeps the last messages (quoted when a call fails) and
+    passes each to ``unit.on_message``."""
+    messages = unit.messages
+
+    def record(status: int, category: str, text: str) -> None:
+        messages.append((status, category, text))
+        if unit.on_message is not None:
+            unit.on_message(unit.name, status, category, text)
+
+    return logger_callbacks(record)
+
+
+def logger_callbacks(record: Callable[[int, str, str], None]) -> fmi2CallbackFunctions:
+    """fmi2CallbackFunctions whose logger calls ``record(status, category, text)``; keep the
+    result referenced while the instance lives.
+
+    Not fmpy's default callbacks, whose logger prints to stdout. No fmpy ``addLoggerProxy``: it
+    keeps ONE process-wide pointer to the last logger it wrapped, so per-unit loggers would
+    dangle once freed (a crash at the next message) and every FMU's messages would go to the
+    last unit. The message text is used as is (deltafmi FMUs pass it fully formatted).
     """
     from fmpy import calloc, free
 
     def logger(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
-        text = message.decode("utf-8", "replace") if message else ""
-        messages.append((status, text))
+        try:
+            record(status, category.decode("utf-8", "replace") if category else "",
+                   message.decode("utf-8", "replace") if message else "")
+        except Exception:  # noqa: BLE001  (nothing may raise into the FMU's C code)
+            pass
 
     callbacks = fmi2CallbackFunctions()
     callbacks.logger = fmi2CallbackLoggerTYPE(logger)

@@ -6,6 +6,11 @@
  *   host <unzipdir> <identifier> <guid> error                         drive a failing instance
  *
  * Built with sundials_preload.c, it first solves an ODE with its own SUNDIALS (a hostile host).
+ *
+ * Logging: HOST_LOGGING_ON=1 instantiates with loggingOn = true; HOST_DEBUG_LOGGING="<0|1>:<a,b,...>"
+ * then calls fmi2SetDebugLogging(loggingOn, categories) (no names: nCategories = 0). A component
+ * that ends the simulation (cs: fmi2Discard + fmi2Terminated, me: terminateSimulation) gets its
+ * last row printed and "terminated,<time>".
  */
 #include <dlfcn.h>
 #include <math.h>
@@ -71,11 +76,22 @@ int main(int argc, char **argv) {
     LOAD(fmi2GetContinuousStates) LOAD(fmi2SetContinuousStates) LOAD(fmi2CompletedIntegratorStep)
     fmi2CallbackFunctions cb = {logger, calloc, free, NULL, NULL};
     int me = !strcmp(mode, "me");
+    const char *logging_on = getenv("HOST_LOGGING_ON"), *debug_logging = getenv("HOST_DEBUG_LOGGING");
     fmi2Component c = fmi2Instantiate("host", me ? fmi2ModelExchange : fmi2CoSimulation, guid, uri, &cb,
-                                      fmi2False, fmi2False);
+                                      fmi2False, logging_on && !strcmp(logging_on, "1"));
     if (!c) {
         fprintf(stderr, "fmi2Instantiate failed\n");
         return 4;
+    }
+    if (debug_logging && debug_logging[0] && debug_logging[1] == ':') {
+        LOAD(fmi2SetDebugLogging)
+        char names[1024];
+        const char *categories[32];
+        size_t n_categories = 0;
+        snprintf(names, sizeof names, "%s", debug_logging + 2);
+        for (char *name = strtok(names, ","); name && n_categories < 32; name = strtok(NULL, ","))
+            categories[n_categories++] = name;
+        printf("setDebugLogging=%d\n", fmi2SetDebugLogging(c, debug_logging[0] == '1', n_categories, categories));
     }
 
     if (!strcmp(mode, "error")) {
@@ -141,7 +157,19 @@ int main(int argc, char **argv) {
         OK(fmi2GetReal(c, vrs, n, values));
         print_row(t, values, n);
         for (long k = 1; k <= steps; k++) {
-            OK(fmi2DoStep(c, t, h, fmi2True));
+            fmi2Status stepped = fmi2DoStep(c, t, h, fmi2True);
+            if (stepped == fmi2Discard) {
+                LOAD(fmi2GetBooleanStatus) LOAD(fmi2GetRealStatus)
+                fmi2Boolean ended = fmi2False;
+                OK(fmi2GetBooleanStatus(c, fmi2Terminated, &ended));
+                if (!ended) OK(stepped);
+                OK(fmi2GetRealStatus(c, fmi2LastSuccessfulTime, &t));
+                OK(fmi2GetReal(c, vrs, n, values));
+                print_row(t, values, n);
+                printf("terminated,%.17g\n", t);
+                break;
+            }
+            OK(stepped);
             t = k * h;
             OK(fmi2GetReal(c, vrs, n, values));
             print_row(t, values, n);
@@ -154,6 +182,10 @@ int main(int argc, char **argv) {
         size_t nz = (size_t)atol(getenv("HOST_NZ") ? getenv("HOST_NZ") : "0");
         fmi2EventInfo info = {fmi2True, fmi2False, fmi2False, fmi2False, fmi2False, 0.0};
         while (info.newDiscreteStatesNeeded && !info.terminateSimulation) OK(fmi2NewDiscreteStates(c, &info));
+        if (info.terminateSimulation) {
+            printf("terminated,%.17g\n", t);
+            steps = 0;
+        }
         OK(fmi2EnterContinuousTimeMode(c));
         OK(fmi2GetContinuousStates(c, x, nx));
         OK(fmi2GetEventIndicators(c, z_prev, nz));
@@ -174,15 +206,22 @@ int main(int argc, char **argv) {
             for (size_t i = 0; i < nz; i++) state_event |= (z[i] > 0) != (z_prev[i] > 0);
             fmi2Boolean enter = fmi2False, terminate = fmi2False;
             OK(fmi2CompletedIntegratorStep(c, fmi2True, &enter, &terminate));
-            if (state_event || time_event || enter) {
+            if (!terminate && (state_event || time_event || enter)) {
                 OK(fmi2EnterEventMode(c));
                 info.newDiscreteStatesNeeded = fmi2True;
                 while (info.newDiscreteStatesNeeded && !info.terminateSimulation) OK(fmi2NewDiscreteStates(c, &info));
-                OK(fmi2EnterContinuousTimeMode(c));
+                terminate = info.terminateSimulation;
+                if (!terminate) OK(fmi2EnterContinuousTimeMode(c));
                 if (info.valuesOfContinuousStatesChanged) OK(fmi2GetContinuousStates(c, x, nx));
                 OK(fmi2GetEventIndicators(c, z, nz));
             }
             memcpy(z_prev, z, nz * sizeof(double));
+            if (terminate) {
+                OK(fmi2GetReal(c, vrs, n, values));
+                print_row(t, values, n);
+                printf("terminated,%.17g\n", t);
+                break;
+            }
             if (t == t_grid) { /* rows only on the output grid */
                 OK(fmi2GetReal(c, vrs, n, values));
                 print_row(t, values, n);

@@ -39,6 +39,7 @@ typedef struct {
     double time;             /* instance.time after the last step_itself ... */
     int time_behind;         /* ... not yet written to instance.time (see catch_up_time) */
     PyObject *pending_logs; /* list of (status, category, message) the component queued */
+    PyObject *set_log_categories;
     PyObject *strings;      /* list: last UTF-8 bytes returned per string index (keeps them alive) */
     PyObject *serialized;   /* bytes of the last serialize_state */
     DfmiLogFn log;
@@ -48,6 +49,11 @@ typedef struct {
 static pthread_mutex_t g_start_lock = PTHREAD_MUTEX_INITIALIZER;
 static PyObject *g_load; /* load() of the FMU boot module, per resources directory */
 static __thread int g_thread_attached;
+/* This thread's slot: a one-item list in the registry's log_slots dict (keyed by thread id,
+ * shared by every deltafmi FMU in the process), holding the message list of the instance whose
+ * Python code runs on this thread, else None. deltafmi/component/fmu_logging.py sends logging
+ * records and warnings there. Kept for good (a new reference), like the thread state. */
+static __thread PyObject *g_slot;
 
 DfmiPython py;
 
@@ -90,6 +96,56 @@ static void attach_thread(void) {
 #define ENTER attach_thread(); PyGILState_STATE gil_ = py.PyGILState_Ensure()
 #define LEAVE py.PyGILState_Release(gil_)
 
+/* This thread's slot (see g_slot), made on first use; NULL (nothing raised) before any FMU booted. */
+static PyObject *thread_slot(void) {
+    if (g_slot) return g_slot;
+    PyObject *registry = py.PyImport_ImportModule("_deltafmi_fmu_registry");
+    PyObject *name = py.PyUnicode_InternFromString("log_slots");
+    PyObject *slots = registry && name ? py.PyObject_GetAttr(registry, name) : NULL;
+    if (!slots && registry && name) { /* the first instance: its runtime has not made it yet */
+        py.PyErr_Clear();
+        slots = py.PyDict_New();
+        if (slots && py.PyObject_SetAttr(registry, name, slots) < 0) {
+            Py_DECREF(slots);
+            slots = NULL;
+        }
+    }
+    PyObject *key = slots ? py.PyLong_FromUnsignedLong((unsigned long)pthread_self()) : NULL;
+    PyObject *slot = key ? py.PyDict_GetItem(slots, key) : NULL; /* borrowed */
+    if (slot) {
+        Py_INCREF(slot);
+    } else if (key && (slot = py.PyList_New(1))) {
+        Py_INCREF(Py_None);
+        py.PyList_SetItem(slot, 0, Py_None);
+        if (py.PyDict_SetItem(slots, key, slot) < 0) {
+            Py_DECREF(slot);
+            slot = NULL;
+        }
+    }
+    py.PyErr_Clear();
+    Py_XDECREF(key);
+    Py_XDECREF(slots);
+    Py_XDECREF(name);
+    Py_XDECREF(registry);
+    return g_slot = slot;
+}
+
+/* Messages logged on this thread go to `sink` until unlisten(the result). Nesting-safe: an FMU
+ * whose model runs another FMU gets its slot back. */
+static PyObject *listen(PyObject *sink) {
+    PyObject *slot = thread_slot();
+    if (!slot || !sink) return NULL;
+    PyObject *previous = py.PyList_GetItem(slot, 0); /* borrowed */
+    Py_INCREF(previous);
+    Py_INCREF(sink);
+    py.PyList_SetItem(slot, 0, sink); /* steals sink, releases the list's reference to previous */
+    return previous;
+}
+
+static void unlisten(PyObject *previous) {
+    if (previous) py.PyList_SetItem(g_slot, 0, previous); /* steals previous */
+}
+
 /* A step of a component that steps itself and has nothing to evaluate after it does not write
  * instance.time (a Python float and a setattr: ~300 instructions of its ~3,300); every other call
  * into the instance, which may read it, writes it first. */
@@ -101,7 +157,9 @@ static void catch_up_time(Bridged *b) {
     Py_XDECREF(t);
 }
 
-#define ENTER_INSTANCE(b) ENTER; catch_up_time(b)
+/* Around every call into an instance's Python code: the GIL, its time, and its messages. */
+#define ENTER_INSTANCE(b) ENTER; catch_up_time(b); PyObject *previous_ = listen((b)->pending_logs)
+#define LEAVE_INSTANCE unlisten(previous_); LEAVE
 
 static void send_log(Bridged *b, int status, const char *category, const char *message) {
     if (b && b->log) b->log(b->log_env, status, category, message);
@@ -142,13 +200,16 @@ static void report_exception(DfmiLogFn log, void *env, const char *context) {
     Py_XDECREF(tb);
 }
 
-static void drain_logs(Bridged *b) {
-    Py_ssize_t n = py.PyList_Size(b->pending_logs);
-    if (n <= 0) return;
+static void drain_list(Bridged *b, PyObject *pending) {
+    Py_ssize_t n = py.PyList_Size(pending);
+    if (n <= 0) {
+        if (n < 0) py.PyErr_Clear();
+        return;
+    }
     for (Py_ssize_t i = 0; i < n; i++) {
-        PyObject *item = py.PyList_GetItem(b->pending_logs, i); /* borrowed */
+        PyObject *item = py.PyList_GetItem(pending, i); /* borrowed */
         int status = 0;
-        const char *category = "logInfo", *message = "";
+        const char *category = "logComponent", *message = "";
         if (py.PyTuple_Size(item) == 3) { /* anything else raised: cleared below */
             status = (int)py.PyLong_AsLong(py.PyTuple_GetItem(item, 0));
             category = py.PyUnicode_AsUTF8AndSize(py.PyTuple_GetItem(item, 1), NULL);
@@ -158,10 +219,12 @@ static void drain_logs(Bridged *b) {
             py.PyErr_Clear();
             continue;
         }
-        send_log(b, status, category ? category : "logInfo", message ? message : "");
+        send_log(b, status, category ? category : "logComponent", message ? message : "");
     }
-    py.PyList_SetSlice(b->pending_logs, 0, n, NULL);
+    py.PyList_SetSlice(pending, 0, n, NULL);
 }
+
+static void drain_logs(Bridged *b) { drain_list(b, b->pending_logs); }
 
 /* A method's result as an FMI status: None -> OK, an int -> that status, NULL -> error. */
 static int finish(Bridged *b, PyObject *result, const char *context) {
@@ -251,6 +314,7 @@ static void release(Bridged *b) {
     Py_XDECREF(b->name_do_step);
     Py_XDECREF(b->name_time);
     Py_XDECREF(b->pending_logs);
+    Py_XDECREF(b->set_log_categories);
     Py_XDECREF(b->strings);
     Py_XDECREF(b->serialized);
     Py_XDECREF(b->component);
@@ -282,27 +346,37 @@ static int fetch_component(Bridged *b) {
 }
 
 void *bridge_instantiate(const char *resources_dir, const char *instance_name, const char *guid,
-                                int fmu_type, DfmiLogFn log, void *log_env, DfmiLayout *layout) {
+                         int fmu_type, unsigned log_mask, DfmiLogFn log, void *log_env, DfmiLayout *layout) {
     ENTER;
     Bridged *b = py.PyMem_Calloc(1, sizeof *b);
-    PyObject *load = boot_loader(resources_dir, log, log_env), *spec = NULL;
+    PyObject *load = boot_loader(resources_dir, log, log_env), *spec = NULL, *early = NULL;
     if (!b || !load) goto fail;
     b->log = log;
     b->log_env = log_env;
+    /* what the model logs while it is imported and its setup() runs */
+    early = py.PyList_New(0);
+    PyObject *previous = listen(early);
     b->instance = py.PyObject_CallFunction(load, "sssi", resources_dir, instance_name, guid, fmu_type);
+    unlisten(previous);
+    if (early) drain_list(b, early);
+    Py_XDECREF(early);
     if (!b->instance) goto python_error;
+    if (!(b->set_log_categories = py.PyObject_GetAttrString(b->instance, "set_log_categories"))) goto python_error;
+    PyObject *told = py.PyObject_CallFunction(b->set_log_categories, "I", log_mask);
+    if (!told) goto python_error;
+    Py_DECREF(told);
     spec = py.PyObject_CallMethod(b->instance, "native_layout", NULL);
-    unsigned long long real, ints, flags, indicators, nominals;
+    unsigned long long real, ints, flags, indicators, nominals, control;
     Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz;
     int watches_drift;
-    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKppp", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
+    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
                                    &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift,
-                                   &b->steps_itself, &b->evaluates_after_step))
+                                   &b->steps_itself, &b->evaluates_after_step, &control))
         goto python_error;
     *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
                            (const unsigned char *)(uintptr_t)flags, (size_t)n_str, (size_t)nx,
                            (size_t)x_offset, (size_t)dx_offset, (double *)(uintptr_t)indicators, (size_t)nz,
-                           (const double *)(uintptr_t)nominals, watches_drift};
+                           (const double *)(uintptr_t)nominals, watches_drift, (const double *)(uintptr_t)control};
     for (int i = 0; i < DFMI_N_OPS; i++)
         if (!(b->ops[i] = py.PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;
     if (!(b->event_update = py.PyObject_GetAttrString(b->instance, "event_update")) ||
@@ -345,9 +419,12 @@ void bridge_free_instance(void *handle) {
     Bridged *b = handle;
     ENTER;
     /* the instance releases its solver now, not at the next garbage collection */
+    PyObject *previous = listen(b->pending_logs);
     PyObject *result = py.PyObject_CallMethod(b->instance, "free", NULL);
     if (!result) py.PyErr_Clear();
     Py_XDECREF(result);
+    unlisten(previous);
+    drain_logs(b);
     release(b);
     LEAVE;
 }
@@ -383,18 +460,28 @@ static PyObject *step_itself(Bridged *b, double t, double h) {
 int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
     Bridged *b = handle;
     ENTER;
+    PyObject *previous = listen(b->pending_logs);
+    int status;
     if (op == DFMI_DO_STEP && b->steps_itself) {
-        int status = finish(b, step_itself(b, args[0], args[1]), OP_NAMES[op]);
-        LEAVE;
-        return status;
+        status = finish(b, step_itself(b, args[0], args[1]), OP_NAMES[op]);
+    } else {
+        catch_up_time(b);
+        PyObject *tuple = py.PyTuple_New(nargs);
+        for (int i = 0; i < nargs; i++) py.PyTuple_SetItem(tuple, i, py.PyFloat_FromDouble(args[i]));
+        status = finish(b, py.PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
+        Py_DECREF(tuple);
+        if (op == DFMI_RESET && fetch_component(b) < 0) status = finish(b, NULL, "fmi2Reset");
     }
-    catch_up_time(b);
-    PyObject *tuple = py.PyTuple_New(nargs);
-    for (int i = 0; i < nargs; i++) py.PyTuple_SetItem(tuple, i, py.PyFloat_FromDouble(args[i]));
-    int status = finish(b, py.PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
-    Py_DECREF(tuple);
-    if (op == DFMI_RESET && fetch_component(b) < 0) status = finish(b, NULL, "fmi2Reset");
+    unlisten(previous);
     LEAVE;
+    return status;
+}
+
+int bridge_set_log_mask(void *handle, unsigned log_mask) {
+    Bridged *b = handle;
+    ENTER_INSTANCE(b);
+    int status = finish(b, py.PyObject_CallFunction(b->set_log_categories, "I", log_mask), "fmi2SetDebugLogging");
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -456,7 +543,7 @@ int bridge_derivatives(void *handle, double time, double *dx, size_t nx, double 
         status = 3;
     }
     drain_logs(b);
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -479,7 +566,7 @@ int bridge_completed_step(void *handle, double time, int *enter_event_mode) {
     int truth = result ? py.PyObject_IsTrue(result) : -1;
     *enter_event_mode = truth > 0;
     int status = unpacked(b, result, truth >= 0, "fmi2CompletedIntegratorStep");
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -490,7 +577,7 @@ int bridge_event_update(void *handle, double time, int flags[5], double *next_ev
     int ok = result && py.PyArg_ParseTuple(result, "pppppd", &flags[0], &flags[1], &flags[2], &flags[3],
                                         &flags[4], next_event_time);
     int status = unpacked(b, result, ok, "fmi2NewDiscreteStates");
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -507,7 +594,7 @@ int bridge_get_string(void *handle, size_t index, const char **value) {
     } else {
         status = finish(b, NULL, "fmi2GetString");
     }
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -515,7 +602,7 @@ int bridge_set_string(void *handle, size_t index, const char *value) {
     Bridged *b = handle;
     ENTER_INSTANCE(b);
     int status = finish(b, py.PyObject_CallFunction(b->set_string, "ns", (Py_ssize_t)index, value), "fmi2SetString");
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -525,7 +612,7 @@ int bridge_get_state(void *handle, void **state) {
     PyObject *snapshot = py.PyObject_CallNoArgs(b->get_state);
     *state = snapshot;
     int status = snapshot ? 0 : finish(b, NULL, "fmi2GetFMUstate");
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -533,7 +620,7 @@ int bridge_set_state(void *handle, void *state) {
     Bridged *b = handle;
     ENTER_INSTANCE(b);
     int status = finish(b, py.PyObject_CallFunctionObjArgs(b->set_state, (PyObject *)state, NULL), "fmi2SetFMUstate");
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -560,7 +647,7 @@ int bridge_serialize_state(void *handle, void *state, const char **bytes, size_t
         Py_XDECREF(data);
         status = finish(b, NULL, "fmi2SerializeFMUstate");
     }
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -572,7 +659,7 @@ int bridge_deserialize_state(void *handle, const char *bytes, size_t size, void 
     Py_XDECREF(data);
     *state = snapshot;
     int status = snapshot ? 0 : finish(b, NULL, "fmi2DeSerializeFMUstate");
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }
 
@@ -596,6 +683,6 @@ int bridge_directional_derivative(void *handle, double time, const unsigned int 
     Py_XDECREF(k);
     Py_XDECREF(s);
     int status = unpacked(b, result, ok, "fmi2GetDirectionalDerivative");
-    LEAVE;
+    LEAVE_INSTANCE;
     return status;
 }

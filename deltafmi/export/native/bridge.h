@@ -20,6 +20,8 @@ typedef struct {
     double *event_indicators;     size_t nz;
     const double *nominals;
     int watches_drift;            /* fmi2CompletedIntegratorStep asks the model (else: no event) */
+    const double *control;        /* [0] nonzero: the component ended the simulation; [1] the time
+                                   * it reached (NaN: the end of the step) */
 } DfmiLayout;
 
 typedef enum {
@@ -39,9 +41,12 @@ typedef enum {
 /* Bind the Python API in `python` (RTLD_DEFAULT or a libpython handle) and start (or attach to)
  * the interpreter; python_executable names it for sys.prefix. 0 on success. */
 int bridge_start(void *python, const char *python_executable, char *error, size_t error_size);
-/* Load the FMU's Python model and create one instance; NULL on failure (logged). */
+/* Load the FMU's Python model and create one instance; NULL on failure (logged). log_mask: the
+ * log categories enabled (bits in the order of loader.c's CATEGORY_NAMES). */
 void *bridge_instantiate(const char *resources_dir, const char *instance_name, const char *guid,
-                         int fmu_type, DfmiLogFn log, void *log_env, DfmiLayout *layout);
+                         int fmu_type, unsigned log_mask, DfmiLogFn log, void *log_env, DfmiLayout *layout);
+/* Tell the instance which log categories are enabled (fmi2SetDebugLogging). */
+int bridge_set_log_mask(void *instance, unsigned log_mask);
 void bridge_free_instance(void *instance);
 int bridge_call(void *instance, DfmiOp op, const double *args, int nargs);
 /* Model Exchange out of initialization: the component's derivatives (nx) and event indicators

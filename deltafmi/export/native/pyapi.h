@@ -59,6 +59,10 @@ typedef struct _ts PyThreadState;
     X(int, PyList_SetItem, (PyObject *, Py_ssize_t, PyObject *))                                    \
     X(int, PyList_SetSlice, (PyObject *, Py_ssize_t, Py_ssize_t, PyObject *))                       \
     X(PyObject *, PyDict_GetItemString, (PyObject *, const char *))                                 \
+    X(PyObject *, PyDict_New, (void))                                                               \
+    X(PyObject *, PyDict_GetItem, (PyObject *, PyObject *))                                         \
+    X(int, PyDict_SetItem, (PyObject *, PyObject *, PyObject *))                                    \
+    X(PyObject *, PyLong_FromUnsignedLong, (unsigned long))                                         \
     X(PyObject *, PyFloat_FromDouble, (double))                                                     \
     X(double, PyFloat_AsDouble, (PyObject *))                                                       \
     X(long, PyLong_AsLong, (PyObject *))                                                            \
