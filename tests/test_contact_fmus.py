@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from deltafmi.mechanics.examples.bouncing_ball import bounce_figures
+from deltafmi.mechanics.examples.bouncing_ball_figures import bounce_figures
 from deltafmi.mechanics.contact.hybrid_sim import simulate
 from deltafmi.mechanics.examples.newtons_cradle import make_cradle
 
