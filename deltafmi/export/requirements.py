@@ -1,0 +1,99 @@
+"""What an FMU needs to run, read from its ``resources/python.cfg``, and whether this machine has it.
+
+``deltafmi info`` and ``deltafmi validate`` report it: a portable FMU needs only a glibc no older
+than its floor; any other FMU needs the Python recorded when it was built (or the one named by
+``DELTAFMI_PYTHON`` / ``DELTAFMI_LIBPYTHON``) with numpy, when its host does not run Python itself.
+"""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+@dataclass
+class RuntimeRequirement:
+    """The interpreter an FMU runs its model in, and what this machine lacks of it."""
+    portable: bool
+    python_version: str
+    glibc_floor: str = ""
+    library: str = ""
+    executable: str = ""
+    source: str = ""
+    missing: list[str] = field(default_factory=list)
+
+    @property
+    def runs_here(self) -> bool:
+        return not self.missing
+
+    def describe(self) -> list[str]:
+        """Lines for the CLI."""
+        if self.portable:
+            lines = [f"portable: carries CPython {self.python_version} and its packages; needs Linux x86_64 "
+                     f"with glibc {self.glibc_floor} or newer, no Python"]
+        else:
+            lines = [f"not portable: in a host that runs no Python it starts CPython {self.python_version} "
+                     f"({self.library}) with the packages of {self.executable}, or what DELTAFMI_LIBPYTHON and "
+                     f"DELTAFMI_PYTHON name; a Python host lends its own interpreter, which needs numpy. "
+                     f"`deltafmi build {self.source or 'SOURCE'} --portable` makes one that carries its own Python"]
+        if self.missing:
+            lines += [f"this machine: cannot start it: {problem}" for problem in self.missing]
+        else:
+            lines.append("this machine: has what it needs")
+        return lines
+
+
+def read_config(fmu: Path) -> dict[str, str]:
+    """The key=value lines of the FMU's ``resources/python.cfg`` (empty if it has none)."""
+    with zipfile.ZipFile(fmu) as archive:
+        try:
+            text = archive.read("resources/python.cfg").decode()
+        except KeyError:
+            return {}
+    return dict(line.split("=", 1) for line in text.splitlines() if "=" in line)
+
+
+def _source(fmu: Path) -> str:
+    """The component source file the FMU was built from, as recorded in it."""
+    with zipfile.ZipFile(fmu) as archive:
+        try:
+            return json.loads(archive.read("resources/deltafmi.json")).get("source", "")
+        except (KeyError, ValueError):
+            return ""
+
+
+def _version_tuple(text: str) -> tuple[int, ...]:
+    return tuple(int(part) for part in text.split(".") if part.isdigit())
+
+
+def runtime_requirement(fmu: Path) -> RuntimeRequirement:
+    """What ``fmu`` needs to start, checked against this machine."""
+    cfg = read_config(fmu)
+    version = cfg.get("version", "")
+    if cfg.get("portable") == "1":
+        requirement = RuntimeRequirement(True, version, glibc_floor=cfg.get("glibc", ""))
+        libc, have = platform.libc_ver()
+        if platform.system() != "Linux" or platform.machine() != "x86_64":
+            requirement.missing.append(f"it runs on Linux x86_64, this is {platform.system()} {platform.machine()}")
+        elif libc == "glibc" and _version_tuple(have) < _version_tuple(requirement.glibc_floor):
+            requirement.missing.append(f"glibc {have} is older than {requirement.glibc_floor}")
+        return requirement
+    library = os.environ.get("DELTAFMI_LIBPYTHON") or cfg.get("library", "")
+    executable = os.environ.get("DELTAFMI_PYTHON") or cfg.get("executable", "")
+    requirement = RuntimeRequirement(False, version, library=library, executable=executable, source=_source(fmu))
+    if not library or not Path(library).is_file():
+        requirement.missing.append(f"no Python library {library or '(none recorded)'}")
+    if not executable or not Path(executable).is_file():
+        requirement.missing.append(f"no Python interpreter {executable or '(none recorded)'}")
+    else:
+        probe = subprocess.run([executable, "-c", "import sys, numpy; print('%d.%d' % sys.version_info[:2])"],
+                               capture_output=True, text=True)
+        if probe.returncode != 0:
+            requirement.missing.append(f"{executable} cannot import numpy")
+        elif version and probe.stdout.strip() != version:
+            requirement.missing.append(f"{executable} is CPython {probe.stdout.strip()}, the FMU needs {version}")
+    return requirement
