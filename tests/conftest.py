@@ -30,6 +30,20 @@ def build_fmu_from_src(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def portable_oscillator_fmu() -> Path:
+    """The portable Oscillator FMU (``deltafmi build --portable``), from the build cache."""
+    from deltafmi.export.packager import build_cached
+    return build_cached(FMU_SRC / "oscillator.py", portable=True)
+
+
+@pytest.fixture(scope="session")
+def portable_delta_robot_fmu() -> Path:
+    """The portable DeltaRobot FMU (CVODE, numpy, compiled kernels), from the build cache."""
+    from deltafmi.export.packager import build_cached
+    return build_cached(FMU_SRC / "delta_robot.py", portable=True)
+
+
+@pytest.fixture(scope="session")
 def c_host(tmp_path_factory) -> Path:
     """The plain-C FMI importer of tests/c_host, compiled for this session."""
     exe = tmp_path_factory.mktemp("c_host") / "host"

@@ -91,8 +91,11 @@ def test_c_host_missing_python_library_is_a_clear_error(c_host, oscillator_dir):
     md = fmpy.read_model_description(str(oscillator_dir))
     out = subprocess.run([str(c_host), str(oscillator_dir), "Oscillator", md.guid, "cs", "0.1", "0.01", "0"],
                          capture_output=True, text=True, env=clean_env(DELTAFMI_LIBPYTHON="/nonexistent/libpython.so"))
-    assert out.returncode == 4
-    assert "cannot load Python library '/nonexistent/libpython.so'" in out.stderr
+    assert out.returncode == 4 and out.stdout == ""
+    logged, host_line = out.stderr.splitlines()  # one logger message, then the host's own line
+    assert host_line == "fmi2Instantiate failed"
+    assert "the Python library /nonexistent/libpython.so (DELTAFMI_LIBPYTHON) does not exist" in logged
+    assert "DELTAFMI_PYTHON " in logged and "deltafmi build oscillator.py --portable" in logged
 
 
 @pytest.mark.parametrize("step", [1e-4, 0.5])

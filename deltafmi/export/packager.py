@@ -159,7 +159,11 @@ def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = Fals
 def build_cached(source: Path, portable: bool = False) -> Path:
     """The FMU for ``source`` from the build cache, built when the source or runtime changed."""
     source = Path(source)
-    target = cache_dir() / "fmus" / (content_key(source)[:20] + ("-portable" if portable else ""))
+    key = content_key(source)[:20]
+    if portable:
+        from .portable import bundle_key
+        key += "-portable-" + bundle_key()[:12]
+    target = cache_dir() / "fmus" / key
     existing = list(target.glob("*.fmu")) if target.is_dir() else []
     if existing:
         return existing[0]

@@ -45,6 +45,9 @@ GLIBC_LIBRARIES = {"libc.so.6", "libm.so.6", "libdl.so.2", "libpthread.so.0", "l
 BOOT_MODULES = ("encodings", "runpy", "traceback", "pickle", "copyreg", "json", "hashlib", "contextlib",
                 "importlib.util", "importlib.machinery", "threading", "logging", "warnings", "struct", "math",
                 "copy", "types", "linecache", "tokenize", "weakref")
+#: extension modules left out: hashlib falls back to CPython's own hashes without OpenSSL's _hashlib,
+#: which would bring libcrypto (4.6 MB); nothing in an FMU speaks TLS
+_UNBUNDLED = ("_hashlib", "_ssl")
 #: never bundled from a package: tests, headers, type stubs, sources of compiled code
 _SKIPPED_FILES = re.compile(r"(\.pyi|\.pxd|\.h|\.c|\.pyx|\.typed|\.a)$")
 _SKIPPED_DIRS = {"tests", "test", "__pycache__", "include", "_pyinstaller"}
@@ -84,9 +87,13 @@ def _site_dirs() -> list[Path]:
 
 def boot_modules() -> dict[str, Optional[str]]:
     """Module name -> file of everything ``BOOT_MODULES`` imports, in a clean interpreter."""
-    script = ("import sys, json\nbefore = set(sys.modules)\n"
-              f"for name in {BOOT_MODULES!r}: __import__(name)\n"
-              "print(json.dumps({n: getattr(m, '__file__', None) for n, m in sys.modules.items()}))\n")
+    script = "\n".join([
+        "import sys, json",
+        f"for name in {_UNBUNDLED!r}: sys.modules[name] = None",
+        f"for name in {BOOT_MODULES!r}: __import__(name)",
+        "import hashlib; hashlib.sha1(b'')",  # imports the fallback the boot code's digest uses then
+        f"for name in {_UNBUNDLED!r}: del sys.modules[name]",
+        "print(json.dumps({n: getattr(m, '__file__', None) for n, m in sys.modules.items()}))"])
     import json
     result = subprocess.run([sys.executable, "-I", "-S", "-c", script], capture_output=True, text=True)
     if result.returncode != 0:
@@ -107,7 +114,8 @@ def classify(modules: Mapping[str, Optional[str]]) -> tuple[set, set, dict]:
             top = path.relative_to(site).parts[0]
             third_party.setdefault(site, set()).add(Path(top).stem if path.parent == site else top)
         elif path.parent.name == "lib-dynload" and root in path.parents:
-            dynload.add(path)
+            if name not in _UNBUNDLED:
+                dynload.add(path)
         elif root in path.parents:
             top = path.relative_to(root).parts[0]
             if top not in _STDLIB_SKIPPED:
@@ -125,10 +133,13 @@ def _bytecode(source: Path, archive_name: str) -> bytes:
 
 
 def _stdlib_zip(tops: set) -> bytes:
-    """The standard library's modules and packages named in ``tops`` as a zip of .pyc files."""
+    """The standard library's modules and packages named in ``tops`` as a zip of .pyc files.
+
+    Stored, not deflated: zipimport would need zlib to read it before anything else is imported
+    (zlib may not even be bundled), and the FMU's own zip compresses it anyway."""
     root = _stdlib_dir()
     buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_STORED) as archive:
         for top in sorted(tops):
             package = root / top
             files = sorted(p for p in package.rglob("*.py") if not _SKIPPED_DIRS & set(p.relative_to(root).parts)) \
@@ -240,8 +251,15 @@ def portable_bundle(modules: Mapping[str, Optional[str]], needs_sundials: bool,
         for top in sorted(tops):
             packaged += [(p, f"site-packages/{name}") for p, name in _package_files(site, top, imported)]
             bundle.licenses += _package_licenses(site, top)
-    if needs_sundials and sundials_dir is not None:
+    if needs_sundials:
+        if sundials_dir is None or not any(sundials_dir.glob("*.so")):
+            raise BuildError("--portable: the model integrates with CVODE, and the SUNDIALS libraries fmpy ships "
+                             f"are not on this machine ({sundials_dir or 'fmpy is not installed'})")
         binaries += [(p, f"sundials/{p.name}") for p in sorted(sundials_dir.glob("*.so"))]
+        # fmpy's licence file carries SUNDIALS' BSD licence for the libraries it compiled
+        fmpy_site = sundials_dir.parents[2]
+        bundle.licenses += [(path, f"SUNDIALS (built by fmpy)/{Path(name).name}")
+                            for path, name in _package_licenses(fmpy_site, "fmpy")]
     for path, name in packaged:
         if path.suffix == ".py":
             bundle.data.append((_bytecode(path, name), f"{PYTHON_DIR}/{name}c"))
@@ -308,8 +326,15 @@ def _system_licenses(libraries: list[Path]) -> list[tuple[Path, str]]:
     """Debian's copyright file of the package that installed each library (dpkg -S)."""
     out = []
     for library in libraries:
-        result = subprocess.run(["dpkg", "-S", str(library.resolve())], capture_output=True, text=True)
-        package = result.stdout.split(":")[0].strip() if result.returncode == 0 else ""
+        real = str(library.resolve())
+        # merged /usr: dpkg may know the file as /lib/... or /usr/lib/..., by its soname link or real name
+        candidates = {str(library), real, real.removeprefix("/usr"), "/usr" + str(library)}
+        package = ""
+        for candidate in sorted(candidates):
+            result = subprocess.run(["dpkg", "-S", candidate], capture_output=True, text=True)
+            if result.returncode == 0:
+                package = result.stdout.split(":")[0].strip()
+                break
         copyright_file = Path("/usr/share/doc") / package / "copyright"
         if package and copyright_file.exists():
             out.append((copyright_file, f"{library.name}/copyright"))
@@ -317,7 +342,7 @@ def _system_licenses(libraries: list[Path]) -> list[tuple[Path, str]]:
 
 
 _TRACE = r'''
-import json, math, runpy, sys
+import importlib, json, math, os, runpy, sys
 resources, out = sys.argv[1], sys.argv[2]
 sys.path += sys.argv[3:]  # the site directories, without the site module's .pth hooks (not bundled)
 load = runpy.run_path(resources + "/deltafmi_boot.py")["load"]
@@ -334,23 +359,52 @@ for fmu_type in (1, 0):  # Co-Simulation, then Model Exchange
     instance.set_state(instance.deserialize_state(instance.serialize_state(state)))
     instance.terminate()
     instance.reset()
+for name in json.loads(os.environ["DELTAFMI_STATIC_IMPORTS"]):  # what branches that did not run import
+    try:
+        importlib.import_module(name)
+    except Exception:  # a name that is an attribute, not a module ("from numpy.linalg import LinAlgError")
+        pass
 json.dump({n: getattr(m, "__file__", None) for n, m in sys.modules.items()}, open(out, "w"))
 '''
 
 
+def static_imports(python_files: list[Path]) -> list[str]:
+    """Modules outside deltafmi that the import statements of ``python_files`` name anywhere
+    (inside functions too): what a branch the trace did not run may import."""
+    from .reach import absolute_imports
+    names = {name for path in python_files for name in absolute_imports(path)}
+    return sorted(n for n in names if n.split(".")[0] != "deltafmi" and not n.startswith("_deltafmi"))
+
+
 def traced_modules(fmu: Path) -> dict[str, Optional[str]]:
-    """Modules (name -> file) the FMU's Python side imports when it runs: its boot code loads the
-    model in a fresh interpreter of this Python, which steps it in CS and evaluates it in ME."""
+    """Modules (name -> file) the FMU's Python side imports: its boot code loads the model in a
+    fresh interpreter of this Python, which steps it in CS and evaluates it in ME, then imports what
+    the import statements of the FMU's Python files name (a runtime trace alone misses the
+    branches that did not run: a lazily imported module, an ``except ImportError`` fallback)."""
     import json
     with tempfile.TemporaryDirectory() as tmp:
         with zipfile.ZipFile(fmu) as archive:
             archive.extractall(tmp)
         out = Path(tmp) / "modules.json"
+        sources = sorted((Path(tmp) / "resources" / "python").rglob("*.py"))
+        sources += sorted((Path(tmp) / "resources" / "model").glob("*.py"))
+        env = {**os.environ, "DELTAFMI_STATIC_IMPORTS": json.dumps(static_imports(sources))}
         result = subprocess.run([sys.executable, "-I", "-S", "-c", _TRACE, f"{tmp}/resources", str(out),
-                                 *map(str, _site_dirs())], capture_output=True, text=True)
+                                 *map(str, _site_dirs())], capture_output=True, text=True, env=env)
         if result.returncode != 0:
             raise BuildError(f"--portable: running {fmu.name} to see what it imports failed:\n{result.stderr[-3000:]}")
         return json.loads(out.read_text())
+
+
+def bundle_key() -> str:
+    """Hash of what a portable bundle is made from beyond the FMU itself: this module, the starter,
+    the interpreter and the installed distributions (their names carry their versions)."""
+    import hashlib
+    digest = hashlib.sha256(Path(__file__).read_bytes() + (NATIVE_DIR / "starter.c").read_bytes())
+    digest.update(sys.version.encode() + str(_libpython().stat().st_mtime_ns).encode())
+    for site in _site_dirs():
+        digest.update(" ".join(sorted(p.name for p in site.glob("*.dist-info"))).encode())
+    return digest.hexdigest()
 
 
 def make_portable(fmu: Path, output: Path) -> PortableBundle:
@@ -360,7 +414,9 @@ def make_portable(fmu: Path, output: Path) -> PortableBundle:
     modules = traced_modules(fmu)
     spec = find_spec("fmpy")
     sundials = Path(spec.submodule_search_locations[0]) / "sundials" / "x86_64-linux" if spec else None
-    bundle = portable_bundle(modules, needs_sundials="deltafmi.component.cvode" in modules, sundials_dir=sundials)
+    with zipfile.ZipFile(fmu) as archive:  # the runtime imports its solver only when a component integrates
+        needs_sundials = f"{PYTHON_DIR}/deltafmi/component/cvode.py" in archive.namelist()
+    bundle = portable_bundle(modules, needs_sundials=needs_sundials, sundials_dir=sundials)
     replaced = {"resources/python.cfg", "documentation/index.html", "resources/README.txt"}
     with zipfile.ZipFile(fmu) as source, replaced_atomically(output) as tmp:
         with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive:

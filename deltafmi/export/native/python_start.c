@@ -1,5 +1,5 @@
-/* Finding and starting the Python an FMU runs its model in (called once per process, under the
- * process-wide start-up lock, by the loader's fmi2Instantiate).
+/* Finding and starting the Python an FMU runs its model in (called once per FMU binary, under the
+ * process-wide start-up lock of process_lock.c, by the loader's fmi2Instantiate).
  *
  * Three cases, in this order:
  * 1. The process already has Python (a Python host such as fmpy, or an earlier FMU that started
@@ -27,11 +27,12 @@
 typedef struct {
     char library[4096], executable[4096], stdlib[4096], version[32];
     char starter[4096], paths[4096], preload[8192], glibc[32];
+    char source[256]; /* the component's source file, for the `deltafmi build` advice */
     int portable;
 } PythonConfig;
 
 #define ADVICE "Set DELTAFMI_PYTHON to a Python %s interpreter that has numpy installed and DELTAFMI_LIBPYTHON " \
-               "to its libpython%s.so, or rebuild the FMU with `deltafmi build SOURCE --portable`, which makes " \
+               "to its libpython%s.so, or rebuild the FMU with `deltafmi build %s --portable`, which makes " \
                "an FMU that carries its own Python."
 
 static void read_config(const char *resources, PythonConfig *cfg) {
@@ -51,6 +52,29 @@ static void read_config(const char *resources, PythonConfig *cfg) {
         if (!strcmp(line, "portable")) cfg->portable = atoi(value);
     }
     fclose(f);
+}
+
+/* cfg->source: the "source" of resources/deltafmi.json (written by json.dumps, so `"source": "x.py"`),
+ * else "SOURCE" */
+static void read_source(const char *resources, PythonConfig *cfg) {
+    snprintf(cfg->source, sizeof cfg->source, "SOURCE");
+    char path[4352], text[4096];
+    snprintf(path, sizeof path, "%s/deltafmi.json", resources);
+    FILE *f = fopen(path, "r");
+    if (!f) return;
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = 0;
+    const char *p = strstr(text, "\"source\"");
+    if (!p) return;
+    p += strlen("\"source\"");
+    p += strspn(p, " \t\r\n");
+    if (*p++ != ':') return;
+    p += strspn(p, " \t\r\n");
+    if (*p++ != '"') return;
+    size_t length = strcspn(p, "\"\\");
+    if (length && p[length] == '"' && length < sizeof cfg->source)
+        snprintf(cfg->source, sizeof cfg->source, "%.*s", (int)length, p);
 }
 
 static int version_below(const char *have, const char *need) {
@@ -77,8 +101,8 @@ static int start_bundled(const char *resources, const PythonConfig *cfg, char *e
     const char *have = gnu_get_libc_version();
     if (cfg->glibc[0] && version_below(have, cfg->glibc)) {
         snprintf(error, size, "this portable FMU needs glibc %s or newer (the builder's); this machine has glibc "
-                 "%s. Rebuild it with `deltafmi build SOURCE --portable` on a machine whose glibc is no newer "
-                 "than %s.", cfg->glibc, have, have);
+                 "%s. Rebuild it with `deltafmi build %s --portable` on a machine whose glibc is no newer "
+                 "than %s.", cfg->glibc, have, cfg->source, have);
         return -1;
     }
     char path[8600];
@@ -112,6 +136,39 @@ static int start_bundled(const char *resources, const PythonConfig *cfg, char *e
     return bridge_start(python, NULL, error, size);
 }
 
+/* "3.12" of an interpreter, from its virtual environment's pyvenv.cfg or the name it resolves to
+ * (python3.12); "" when neither tells */
+static void executable_version(const char *executable, char *out, size_t size) {
+    out[0] = 0;
+    if (!executable[0]) return;
+    char path[4200];
+    snprintf(path, sizeof path, "%s", executable);
+    char *slash = strrchr(path, '/');
+    if (slash) {
+        *slash = 0;
+        slash = strrchr(path, '/');
+    }
+    if (slash) {
+        snprintf(slash, sizeof path - (size_t)(slash - path), "/pyvenv.cfg");
+        FILE *f = fopen(path, "r");
+        char line[512];
+        int major, minor;
+        while (f && fgets(line, sizeof line, f))
+            if ((sscanf(line, "version_info = %d.%d", &major, &minor) == 2 ||
+                 sscanf(line, "version = %d.%d", &major, &minor) == 2)) {
+                snprintf(out, size, "%d.%d", major, minor);
+                break;
+            }
+        if (f) fclose(f);
+        if (out[0]) return;
+    }
+    char *real = realpath(executable, NULL);
+    const char *name = real ? strrchr(real, '/') : NULL;
+    int major, minor;
+    if (name && sscanf(name, "/python%d.%d", &major, &minor) == 2) snprintf(out, size, "%d.%d", major, minor);
+    free(real);
+}
+
 static int file_missing(const char *path) { return path[0] && access(path, F_OK) != 0; }
 
 static int start_recorded(const char *resources, PythonConfig *cfg, char *error, size_t size) {
@@ -137,16 +194,19 @@ static int start_recorded(const char *resources, PythonConfig *cfg, char *error,
     void *python = NULL;
     if (!what[0] && !(python = dlopen(cfg->library, RTLD_NOW | RTLD_GLOBAL)))
         snprintf(what, sizeof what, "the Python library %s cannot be loaded: %s", cfg->library, dlerror());
-    if (!what[0] && !overridden && cfg->version[0]) {
-        char found[32];
+    if (!what[0]) {
+        /* the library must be the version of the interpreter whose packages it will import */
+        char found[32], expected[32] = "";
         library_version(python, found, sizeof found);
-        if (strcmp(found, cfg->version) != 0)
-            snprintf(what, sizeof what, "%s is Python %s, but the FMU was built with Python %s", cfg->library,
-                     found[0] ? found : "of an unknown version", cfg->version);
+        executable_version(cfg->executable, expected, sizeof expected);
+        if (!expected[0] && !overridden) snprintf(expected, sizeof expected, "%s", cfg->version);
+        if (expected[0] && strcmp(found, expected) != 0)
+            snprintf(what, sizeof what, "%s is Python %s, but the interpreter %s whose packages it would use is "
+                     "Python %s", cfg->library, found[0] ? found : "of an unknown version", cfg->executable, expected);
     }
     if (what[0]) {
         char advice[1024];
-        snprintf(advice, sizeof advice, ADVICE, version, version);
+        snprintf(advice, sizeof advice, ADVICE, version, version, cfg->source);
         snprintf(error, size, "fmi2Instantiate: this FMU runs its model in Python, and %s. %s", what, advice);
         return -1;
     }
@@ -157,6 +217,7 @@ int dfmi_start_python(const char *resources, char *error, size_t size) {
     PythonConfig cfg;
     memset(&cfg, 0, sizeof cfg);
     read_config(resources, &cfg);
+    read_source(resources, &cfg);
     if (dlsym(RTLD_DEFAULT, "Py_IsInitialized")) { /* a Python host, or an FMU that started one before */
         /* a host that linked libpython without starting it: start it with the recorded interpreter's
          * packages only when it is that interpreter's version, else with its own */
