@@ -7,9 +7,11 @@ again, so FMUs built by different deltafmi versions, a host that imports deltafm
 FMUs whose sources share a file name all coexist in one process. Nothing stays on ``sys.path``.
 This file must run on its own: it imports nothing from deltafmi at module level.
 """
+import _thread
 import contextlib
 import hashlib
 import importlib
+import importlib.machinery
 import importlib.util
 import json
 import os
@@ -21,6 +23,10 @@ import types
 # where the reloaded binary finds them instead of running this file and importing all anew.
 _REGISTRY = sys.modules.setdefault("_deltafmi_fmu_registry", types.ModuleType("_deltafmi_fmu_registry"))
 _LOADED: dict = _REGISTRY.__dict__.setdefault("loaded", {})
+# Host threads may instantiate FMUs at the same time. Swapping deltafmi packages in sys.modules and
+# importing a model must not interleave, across all FMUs of every deltafmi version (the registry
+# holds the one lock; a dict's setdefault is atomic). Re-entrant: a model import swaps its bundle.
+_LOCK = _REGISTRY.__dict__.setdefault("lock", _thread.RLock())
 
 
 class _Bundle:
@@ -32,17 +38,107 @@ class _Bundle:
 
     @contextlib.contextmanager
     def active(self):
-        """Make ``import deltafmi...`` resolve to this FMU's copy inside the block."""
-        saved = {k: sys.modules.pop(k) for k in [k for k in sys.modules if _is_deltafmi(k)]}
-        sys.modules.update(self.modules)
-        sys.path.insert(0, self.python_dir)
-        try:
-            yield
-        finally:
-            sys.path.remove(self.python_dir)
-            for k in [k for k in sys.modules if _is_deltafmi(k)]:
-                self.modules[k] = sys.modules.pop(k)
-            sys.modules.update(saved)
+        """Make ``import deltafmi...`` resolve to this FMU's copy inside the block (one thread at a time)."""
+        with _LOCK:
+            # list() copies the keys without running Python code, so no other thread's import can
+            # change sys.modules under the iteration (holding the lock does not stop other imports)
+            saved = {k: sys.modules.pop(k) for k in [k for k in list(sys.modules) if _is_deltafmi(k)]}
+            sys.modules.update(self.modules)
+            sys.path.insert(0, self.python_dir)
+            try:
+                yield
+            finally:
+                sys.path.remove(self.python_dir)
+                for k in [k for k in list(sys.modules) if _is_deltafmi(k)]:
+                    self.modules[k] = sys.modules.pop(k)
+                sys.modules.update(saved)
+
+
+class _BundledSitePackages:
+    """Last finder on ``sys.meta_path``: portable FMUs' own third-party packages, for their code only.
+
+    A portable FMU carries the packages its model imports (``resources/python/site-packages``) as
+    bytecode and extension modules of the CPython it bundles. In a host running that same CPython
+    version, a top-level package the host cannot import itself (scipy in an environment with
+    nothing but fmpy) comes from there; in any other version those files cannot load, and the FMU
+    is not registered here. Scope, so that the host's own imports behave as without the FMU:
+    - the host's packages always win (this finder is last, and is asked only when all others fail);
+    - only top-level names (a package's submodules follow its ``__path__``);
+    - only for imports made by code under the FMU's resources directory (its model, its deltafmi
+      runtime, a package served from its site-packages), each FMU from its own site-packages.
+    The one leak is that of a shared ``sys.modules``: once an FMU imported scipy from its bundle,
+    the host's ``import scipy`` finds that module too.
+    """
+
+    _IMPORT_MACHINERY = ("importlib", "importlib._bootstrap", "importlib._bootstrap_external")
+
+    def __init__(self) -> None:
+        self.sites: dict = {}  # resources directory + os.sep -> its site-packages
+
+    def find_spec(self, name, path=None, target=None):
+        if path is not None or not self.sites:
+            return None
+        frame = sys._getframe(1)
+        while frame is not None and frame.f_globals.get("__name__") in self._IMPORT_MACHINERY:
+            frame = frame.f_back
+        importer = (frame.f_globals.get("__file__") or "") if frame is not None else ""
+        for root, site in tuple(self.sites.items()):  # a snapshot: another thread may register an FMU
+            if importer.startswith(root):
+                return importlib.machinery.PathFinder.find_spec(name, [site])
+        return None
+
+    def invalidate_caches(self) -> None:
+        pass
+
+
+def _bundled_site_packages() -> _BundledSitePackages:
+    """The process-wide finder (one for every FMU and every copy of this file), appended once."""
+    finder = _REGISTRY.__dict__.get("site_packages_finder")
+    if finder is None:
+        finder = _REGISTRY.__dict__.setdefault("site_packages_finder", _BundledSitePackages())
+        sys.meta_path.append(finder)
+    return finder
+
+
+def _python_config(resources_dir: str) -> dict:
+    """``resources/python.cfg`` (key=value lines written at build time) as a dict."""
+    try:
+        with open(os.path.join(resources_dir, "python.cfg"), encoding="utf-8") as f:
+            return dict(line.rstrip("\n").split("=", 1) for line in f if "=" in line)
+    except OSError:
+        return {}
+
+
+def _register_bundled_packages(resources_dir: str) -> None:
+    """Let a portable FMU's code import its bundled packages the host lacks, in the bundled version only."""
+    config = _python_config(resources_dir)
+    site = os.path.join(resources_dir, "python", "site-packages")
+    if config.get("portable") == "1" and config.get("version") == _running_version() and os.path.isdir(site):
+        sites = _bundled_site_packages().sites
+        for gone in [root for root, other in sites.items() if not os.path.isdir(other)]:
+            del sites[gone]  # FMUs unpacked, then deleted by the host (fmpy's simulate_fmu does)
+        sites[os.path.join(resources_dir, "")] = site
+
+
+def _borrow_builder_python(resources_dir: str) -> None:
+    """A non-portable FMU in the interpreter a portable FMU started (whichever FMU instantiates
+    first starts the process's Python): that bundle carries only what its own model needs, so what
+    else this FMU imports (standard library modules, numpy's friends, fmpy's SUNDIALS) comes from
+    the Python that built it, when it is the same version, from the end of sys.path."""
+    config = _python_config(resources_dir)
+    stdlib = config.get("stdlib", "")
+    in_bundle = os.path.exists(os.path.join(sys.prefix, "lib", "deltafmi-starter.so"))
+    if not in_bundle or config.get("portable") == "1" or config.get("version") != _running_version():
+        return
+    environment = os.path.dirname(os.path.dirname(config.get("executable", "")))
+    for path in (stdlib, os.path.join(stdlib, "lib-dynload"), os.path.join(stdlib, "site-packages"),
+                 os.path.join(environment, "lib", f"python{_running_version()}", "site-packages")):
+        if stdlib and os.path.isdir(path) and path not in sys.path:
+            sys.path.append(path)
+
+
+def _running_version() -> str:
+    return f"{sys.version_info.major}.{sys.version_info.minor}"
 
 
 def _is_deltafmi(name: str) -> bool:
@@ -69,9 +165,15 @@ class FmuStartError(RuntimeError):
 
 
 def _missing_module(error: ImportError, resources_dir: str) -> FmuStartError:
+    if error.name is None:  # not a module lookup (the solver's libraries not found): its message says it all
+        return FmuStartError(str(error))
     with open(os.path.join(resources_dir, "deltafmi.json"), encoding="utf-8") as f:
         source = json.load(f)["source"]
-    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    version = _running_version()
+    bundled = _python_config(resources_dir)
+    if bundled.get("portable") == "1" and bundled.get("version") != version:
+        version += (f"; the packages this portable FMU carries are for CPython {bundled.get('version')} and "
+                    "serve only that version")
     return FmuStartError(
         f"this FMU's model needs the Python module '{error.name}', which the Python it runs in "
         f"({sys.executable or 'embedded'}, CPython {version}) does not have ({error}). Install it there "
@@ -83,16 +185,22 @@ def _missing_module(error: ImportError, resources_dir: str) -> FmuStartError:
 def load(resources_dir: str, instance_name: str, guid: str, fmu_type: int):
     """Create the Python side of one FMU instance (called by the bridge from fmi2Instantiate)."""
     resources_dir = os.path.realpath(resources_dir)
-    if resources_dir not in _LOADED:
-        try:
-            _LOADED[resources_dir] = _import_model(resources_dir)
-        except ImportError as exc:
-            raise _missing_module(exc, resources_dir) from None
+    with _LOCK:  # a second thread waits for the first one's import instead of importing again
+        if resources_dir not in _LOADED:
+            try:
+                _register_bundled_packages(resources_dir)
+                _borrow_builder_python(resources_dir)
+                _LOADED[resources_dir] = _import_model(resources_dir)
+            except ImportError as exc:
+                raise _missing_module(exc, resources_dir) from None
     info, component_class, instance_class, context = _LOADED[resources_dir]
     if guid and guid != info["guid"]:
         raise RuntimeError(f"fmi2Instantiate: GUID {guid} does not match this FMU's {info['guid']} "
                            f"({resources_dir}); the modelDescription.xml and the binary disagree")
-    return instance_class(component_class, instance_name, fmu_type, resources_dir, context)
+    try:
+        return instance_class(component_class, instance_name, fmu_type, resources_dir, context)
+    except ImportError as exc:  # what an instance loads when created (the CVODE solver)
+        raise _missing_module(exc, resources_dir) from None
 
 
 _REGISTRY.__dict__.setdefault("boots", {})[__file__] = load

@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Callable
 
 NATIVE_DIR = Path(__file__).parent / "native"
-SOURCES = ("loader.c", "bridge.c", "python_start.c")
-HEADERS = ("bridge.h", "python_start.h", "glibc_floor.h", "pyapi.h", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+SOURCES = ("loader.c", "bridge.c", "python_start.c", "process_lock.c")
+HEADERS = ("bridge.h", "python_start.h", "process_lock.h", "glibc_floor.h", "pyapi.h", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 
 
 class BuildError(RuntimeError):

@@ -22,6 +22,7 @@
 
 #include "fmi2Functions.h"
 #include "bridge.h"
+#include "process_lock.h"
 #include "python_start.h"
 
 /* setter rules per scalar, written by deltafmi/component/layout.py */
@@ -49,7 +50,7 @@ typedef struct {
     char *name;
     fmi2Type type;
     fmi2CallbackFunctions cb;
-    int logging_on;
+    unsigned log_mask; /* enabled log categories: bit i is CATEGORY_NAMES[i] */
     int state;
     double time, start_time, stop_time, tolerance;
     int stop_defined, tolerance_defined;
@@ -95,8 +96,31 @@ static void emit(const fmi2CallbackFunctions *cb, const char *name, fmi2Status s
     free(escaped);
 }
 
+/* The log categories of <LogCategories> (deltafmi/component/fmu_logging.py CATEGORIES, same order).
+ * fmi2Instantiate with loggingOn = true enables all, with false the status categories (warnings,
+ * discards, errors); fmi2SetDebugLogging changes them. Errors are always sent: FMI 2.0 has a
+ * function that returns fmi2Error explain itself through the logger. */
+static const char *const CATEGORY_NAMES[] = {"logEvents", "logComponent", "logSolver", "logStatusWarning",
+                                             "logStatusDiscard", "logStatusError"};
+#define N_CATEGORIES (sizeof CATEGORY_NAMES / sizeof *CATEGORY_NAMES)
+#define ALL_CATEGORIES ((1u << N_CATEGORIES) - 1)
+#define CATEGORY_COMPONENT 1
+#define STATUS_CATEGORIES (1u << 3 | 1u << 4 | 1u << 5)
+
+static int category_index(const char *name) {
+    for (size_t i = 0; i < N_CATEGORIES; i++)
+        if (!strcmp(name, CATEGORY_NAMES[i])) return (int)i;
+    return -1;
+}
+
+static int wanted(const Instance *c, int status, const char *category) {
+    if (status >= fmi2Error) return 1;
+    int index = category ? category_index(category) : -1;
+    return (c->log_mask >> (index < 0 ? CATEGORY_COMPONENT : index)) & 1u;
+}
+
 static void logf_(Instance *c, fmi2Status status, const char *category, const char *fmt, ...) {
-    if (status == fmi2OK && !c->logging_on) return;
+    if (!wanted(c, status, category)) return;
     char buffer[1024];
     va_list ap;
     va_start(ap, fmt);
@@ -107,7 +131,7 @@ static void logf_(Instance *c, fmi2Status status, const char *category, const ch
 
 static void bridge_log(void *env, int status, const char *category, const char *message) {
     Instance *c = env;
-    if (status == fmi2OK && !c->logging_on) return;
+    if (!wanted(c, status, category)) return;
     emit(&c->cb, c->name, (fmi2Status)status, category, message);
 }
 
@@ -150,6 +174,9 @@ static fmi2Status fail(Instance *c, const char *fmt, ...) {
     return fmi2Error;
 }
 
+/* Whether the component ended the simulation (Component.terminate_simulation). */
+static int terminated(const Instance *c) { return c->L.control && c->L.control[0] != 0.0; }
+
 /* A bridge call's status: errors move the instance to the error state. */
 static fmi2Status settle(Instance *c, int status) {
     if (status >= fmi2Error) c->state = Error;
@@ -169,16 +196,26 @@ static void own_directory(char *out, size_t size) {
     }
 }
 
-/* Start the Python bridge once per process; 0 on success, else -1 with the reason in error. */
+/* A start-up that takes longer than this is stuck: say so rather than hang the host. */
+#define START_LOCK_TIMEOUT_S 120.0
+
+/* Start the Python bridge once per binary; 0 on success, else -1 with the reason in error.
+ * g_lock orders this binary's threads (and makes later calls a flag test). The process-wide lock
+ * orders the binaries: one of them finds no interpreter and starts it, every later one (another
+ * model, another deltafmi version, portable or not) finds it initialized and binds to it. The
+ * process lock covers no Python call that needs the GIL, so a host thread that holds the GIL
+ * while it calls fmi2Instantiate cannot deadlock with a thread that holds the lock. */
 static int start_bridge(const char *resources, char *error, size_t size) {
     pthread_mutex_lock(&g_lock);
-    if (g_bridge_started) {
-        pthread_mutex_unlock(&g_lock);
-        return 0;
+    if (!g_bridge_started) {
+        int lock = dfmi_process_lock(START_LOCK_TIMEOUT_S, error, size);
+        if (lock != DFMI_PROCESS_LOCK_TIMEOUT && dfmi_start_python(resources, error, size) == 0)
+            g_bridge_started = 1;
+        dfmi_process_unlock(lock);
     }
-    if (dfmi_start_python(resources, error, size) == 0) g_bridge_started = 1;
+    int started = g_bridge_started;
     pthread_mutex_unlock(&g_lock);
-    return g_bridge_started ? 0 : -1;
+    return started ? 0 : -1;
 }
 
 /* resources URI -> path: file:///a/b, file:/a/b, file://localhost/a/b, with %XX decoding */
@@ -239,7 +276,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     c->name = strdup(instanceName);
     c->type = fmuType;
     c->cb = *functions;
-    c->logging_on = loggingOn;
+    c->log_mask = loggingOn ? ALL_CATEGORIES : STATUS_CATEGORIES;
     c->stop_time = NAN;
     c->tolerance = NAN;
     char *resources = resources_path(fmuResourceLocation);
@@ -247,7 +284,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     if (!resources || start_bridge(resources, error, sizeof error) != 0) {
         emit(functions, instanceName, fmi2Error, "logStatusError", error[0] ? error : "out of memory");
     } else {
-        c->py = bridge_instantiate(resources, instanceName, fmuGUID ? fmuGUID : "", (int)fmuType,
+        c->py = bridge_instantiate(resources, instanceName, fmuGUID ? fmuGUID : "", (int)fmuType, c->log_mask,
                                    bridge_log, c, &c->L);
     }
     free(resources);
@@ -273,10 +310,37 @@ fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean loggingOn, s
                                const fmi2String categories[]) {
     Instance *c = component;
     CHECK("fmi2SetDebugLogging", ANY_INSTANCE);
-    (void)nCategories;
-    (void)categories;
-    c->logging_on = loggingOn;
-    return fmi2OK;
+    /* FMI 2.0: no categories switches all of them; with categories, loggingOn = true enables
+     * exactly those ("only debug messages according to the categories argument"), false disables
+     * them. logAll names every category. An unknown name changes nothing and is an error. */
+    unsigned named = 0;
+    if (nCategories && !categories) {
+        logf_(c, fmi2Error, "logStatusError", "fmi2SetDebugLogging: categories is NULL for %zu categories", nCategories);
+        return fmi2Error;
+    }
+    for (size_t i = 0; i < nCategories; i++) {
+        const char *name = categories[i];
+        int index = name ? category_index(name) : -1;
+        if (name && !strcmp(name, "logAll")) {
+            named = ALL_CATEGORIES;
+        } else if (index < 0) {
+            char known[256] = "";
+            for (size_t k = 0; k < N_CATEGORIES; k++) {
+                strncat(known, CATEGORY_NAMES[k], sizeof known - strlen(known) - 1);
+                strncat(known, ", ", sizeof known - strlen(known) - 1);
+            }
+            /* nothing changed: the instance goes on, unlike after a failed computation */
+            logf_(c, fmi2Error, "logStatusError", "fmi2SetDebugLogging: unknown log category '%s' (this FMU's "
+                  "categories: %slogAll)", name ? name : "(NULL)", known);
+            return fmi2Error;
+        } else {
+            named |= 1u << index;
+        }
+    }
+    unsigned mask = !nCategories ? (loggingOn ? ALL_CATEGORIES : 0u)
+                    : loggingOn ? named : c->log_mask & ~named;
+    c->log_mask = mask;
+    return settle(c, bridge_set_log_mask(c->py, mask));
 }
 
 fmi2Status fmi2SetupExperiment(fmi2Component component, fmi2Boolean toleranceDefined, fmi2Real tolerance,
@@ -564,6 +628,9 @@ fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate FMUstate) {
         c->time = saved->time;
         c->last_successful_time = saved->last_successful_time;
         c->dirty = c->outputs_dirty = 1;
+        /* back before the component ended the simulation: stepping may go on */
+        c->terminated_by_model = terminated(c);
+        if (c->state == StepFailed && !c->terminated_by_model) c->state = StepComplete;
     }
     return settle(c, status);
 }
@@ -694,11 +761,14 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component component, fmi2Boolean noSe
     CHECK("fmi2CompletedIntegratorStep", ContinuousTimeMode);
     if (!enterEventMode || !terminateSimulation) return fail(c, "fmi2CompletedIntegratorStep: NULL argument");
     *enterEventMode = fmi2False;
-    *terminateSimulation = fmi2False;
-    if (!c->L.watches_drift) return fmi2OK;
-    int enter = 0;
-    int status = bridge_completed_step(c->py, c->time, &enter);
-    *enterEventMode = enter ? fmi2True : fmi2False;
+    int status = fmi2OK;
+    if (c->L.watches_drift) {
+        int enter = 0;
+        status = bridge_completed_step(c->py, c->time, &enter);
+        *enterEventMode = enter ? fmi2True : fmi2False;
+    }
+    /* the component may have ended the simulation in any evaluation since the last step */
+    *terminateSimulation = terminated(c) ? fmi2True : fmi2False;
     return settle(c, status);
 }
 
@@ -787,13 +857,20 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
                     currentCommunicationPoint, c->time);
     double args[2] = {currentCommunicationPoint, communicationStepSize};
     int status = bridge_call(c->py, DFMI_DO_STEP, args, 2);
+    int ended = terminated(c);
+    if (ended && status < fmi2Discard) status = fmi2Discard; /* a component that steps itself ended it */
     if (status == fmi2OK || status == fmi2Warning) {
         c->time = currentCommunicationPoint + communicationStepSize;
         c->last_successful_time = c->time;
         c->dirty = c->outputs_dirty = 0;
     } else if (status == fmi2Discard) {
         c->state = StepFailed;
-        c->terminated_by_model = 1;
+        if (ended) { /* fmi2Terminated; fmi2LastSuccessfulTime is where the component ended it */
+            double reached = c->L.control[1];
+            c->terminated_by_model = 1;
+            c->time = c->last_successful_time =
+                isnan(reached) ? currentCommunicationPoint + communicationStepSize : reached;
+        }
     }
     return settle(c, status);
 }
@@ -811,7 +888,7 @@ fmi2Status fmi2GetStatus(fmi2Component component, const fmi2StatusKind s, fmi2St
     CHECK("fmi2GetStatus", MASK_STATUS);
     (void)s;
     if (value) *value = fmi2OK;
-    logf_(c, fmi2Discard, "logStatusWarning", "fmi2GetStatus: steps are synchronous, nothing is pending");
+    logf_(c, fmi2Discard, "logStatusDiscard", "fmi2GetStatus: steps are synchronous, nothing is pending");
     return fmi2Discard;
 }
 
