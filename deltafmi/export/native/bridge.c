@@ -271,8 +271,7 @@ int bridge_start(void *python, const char *python_executable, char *error, size_
 /* load() of resources/deltafmi_boot.py. A host may unload this binary and load it again (fmpy's
  * freeInstance does), which forgets g_load: the boot file keeps its load() in a process-wide
  * registry module, so the file runs once per process, not once per load of the binary. */
-static PyObject *boot_loader(const char *resources_dir, DfmiLogFn log, void *env) {
-    if (g_load) return g_load;
+static PyObject *run_boot(const char *resources_dir, DfmiLogFn log, void *env) {
     char path[4352];
     snprintf(path, sizeof path, "%s/deltafmi_boot.py", resources_dir);
     PyObject *registry = py.PyImport_ImportModule("_deltafmi_fmu_registry");
@@ -292,6 +291,19 @@ static PyObject *boot_loader(const char *resources_dir, DfmiLogFn log, void *env
     if (!g_load) report_exception(log, env, "fmi2Instantiate: loading resources/deltafmi_boot.py");
     Py_XDECREF(globals);
     Py_XDECREF(runpy);
+    return g_load;
+}
+
+/* The boot code's load(), found or run once per binary. Two threads instantiating this FMU at once:
+ * the second waits for the first without holding the GIL, which the first needs to run the boot. */
+static PyObject *boot_loader(const char *resources_dir, DfmiLogFn log, void *env) {
+    static pthread_mutex_t boot_lock = PTHREAD_MUTEX_INITIALIZER;
+    if (g_load) return g_load;
+    PyThreadState *state = py.PyEval_SaveThread();
+    pthread_mutex_lock(&boot_lock);
+    py.PyEval_RestoreThread(state);
+    if (!g_load) run_boot(resources_dir, log, env);
+    pthread_mutex_unlock(&boot_lock);
     return g_load;
 }
 

@@ -25,6 +25,7 @@ typedef struct _ts PyThreadState;
     X(wchar_t *, Py_DecodeLocale, (const char *, size_t *))                                         \
     X(int, PyRun_SimpleString, (const char *))                                                      \
     X(PyThreadState *, PyEval_SaveThread, (void))                                                   \
+    X(void, PyEval_RestoreThread, (PyThreadState *))                                                \
     X(PyThreadState *, PyGILState_GetThisThreadState, (void))                                       \
     X(PyGILState_STATE, PyGILState_Ensure, (void))                                                  \
     X(void, PyGILState_Release, (PyGILState_STATE))                                                 \
