@@ -31,12 +31,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from deltafmi.cosim import me_integrator
-from deltafmi.cosim.explicit_rk import ExplicitRungeKutta
-from deltafmi.cosim.master import Master
-from deltafmi.cosim.resolve import resolve_system
-from deltafmi.cosim.results import columns
-from deltafmi.cosim.scenario import load_scenario
+from deltafmi.cosim.results.csv_file import columns
+from deltafmi.cosim.scenario.resolve import resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario
+from deltafmi.cosim.stepping import me_integrator
+from deltafmi.cosim.stepping.explicit_rk import ExplicitRungeKutta
+from deltafmi.cosim.stepping.master import Master
 
 ROOT = Path(__file__).resolve().parents[1]
 WRIST_MASS = 17.0         # kg: the wrist's inertia along z at the contact (tests/test_robot_contact.py)

@@ -44,10 +44,10 @@ import numpy as np
 from fmpy import extract
 from fmpy.fmi2 import FMU2Slave
 
-from deltafmi.cosim.errors import ScenarioError
-from deltafmi.cosim.master import Master
-from deltafmi.cosim.resolve import System, resolve_system
-from deltafmi.cosim.scenario import load_scenario, parse_scenario
+from deltafmi.cosim.scenario.resolve import System, resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario, parse_scenario
+from deltafmi.cosim.stepping.master import Master
+from deltafmi.errors import ScenarioError
 
 ROOT = Path(__file__).resolve().parents[1]
 FLAGSHIP = ROOT / "scenarios" / "delta_tracking.yaml"
@@ -109,8 +109,8 @@ def unit_times(system: System, stop: float, out: Path) -> tuple:
     """One instrumented master run: its summary, and wall seconds per unit of each unit's own
     calls (pull, do_step, fetch: timed in Python, or by the master's C loop where it runs the
     steps) and of each ME unit's right-hand sides, with their counts."""
-    from deltafmi.cosim.me_integrator import ModelExchangeUnit
-    from deltafmi.cosim.units import CoSimulationUnit, Unit
+    from deltafmi.cosim.stepping.me_integrator import ModelExchangeUnit
+    from deltafmi.cosim.stepping.units import CoSimulationUnit, Unit
 
     spent: dict = {}
     depth = [0]  # an ME unit's pull calls Unit.pull: count the outer call only
@@ -298,7 +298,7 @@ def rhs_pair(system: System, floor: Floor, out: Path, calls: int = 500, bursts: 
     (``state_derivative`` on the same state): medians of ``bursts`` bursts of ``calls`` each,
     the two sides alternating (one call takes a few us: a single burst is at the mercy of the
     shared machine's slow spells)."""
-    from deltafmi.cosim.explicit_rk import ExplicitRungeKutta
+    from deltafmi.cosim.stepping.explicit_rk import ExplicitRungeKutta
 
     master = Master(system, result=out)
     master.open()
@@ -325,7 +325,7 @@ def rhs_pair(system: System, floor: Floor, out: Path, calls: int = 500, bursts: 
 
 def timed_master_run(system: System, stop: float, out: Path) -> tuple:
     """A master run whose C loop times its FMI calls: (summary, {unit: seconds in its calls})."""
-    from deltafmi.cosim import master as master_module
+    from deltafmi.cosim.stepping import master as master_module
     loops = []
 
     class TimedLoop(master_module.NativeLoop):
@@ -370,7 +370,7 @@ def crossing(system: System, stop: float, repeats: int, out: Path) -> None:
             add(name, 1e6 * in_units[name] / timed.steps, 1e6 * spent[name] / steps)
         fig.setdefault("own", []).append(1e6 * (timed.stepping_time - sum(in_units.values())) / timed.steps)
         add("rhs", *rhs_pair(system, floor, out / "rhs.csv"))
-    from deltafmi.cosim.results import read_csv
+    from deltafmi.cosim.results.csv_file import read_csv
     _, rows = read_csv(out / "crossing.csv")
     gap = float(np.max(np.abs(rows - reference)[:, 1:]))
     med = lambda key, i: statistics.median(v[i] for v in fig[key])  # noqa: E731

@@ -6,7 +6,7 @@ through the FMU's own fmi2 functions, the FMU loaded by fmpy in this process, an
 same Python object the FMU runs (its compiled kernels, its path, its controller) called directly:
 
 - plant RHS: fmi2SetTime + fmi2SetContinuousStates + fmi2GetDerivatives, looped in C by the
-  master's Runge-Kutta kernel (deltafmi.cosim.explicit_rk, Euler, one RHS per step), against
+  master's Runge-Kutta kernel (deltafmi.cosim.stepping.explicit_rk, Euler, one RHS per step), against
   ``state_derivative(params, x, u, f, pole)``;
 - trajectory: fmi2DoStep + fmi2GetReal(r, rd, rdd), against ``path.evaluate(t)``;
 - controller: fmi2SetReal(y, yd, r, rd, rdd) + fmi2DoStep + fmi2GetReal(u), against ``ctl.step``.
@@ -71,7 +71,7 @@ def vrs(md, *names: str) -> list[int]:
 
 
 def plant_piece(workdir: Path, repeats: int) -> tuple[float, float]:
-    from deltafmi.cosim.explicit_rk import ExplicitRungeKutta
+    from deltafmi.cosim.stepping.explicit_rk import ExplicitRungeKutta
     fmu, md = built("delta_robot.py", workdir)
     m = FMU2Model(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
                   modelIdentifier=md.modelExchange.modelIdentifier, instanceName="plant")

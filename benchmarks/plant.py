@@ -163,10 +163,10 @@ def master_free_fall(fmu: Path, jacobian: bool, repeats: int) -> tuple:
     """1 s of free fall in Model Exchange through the master's CVODE at rtol 1e-6: (median
     seconds of stepping, after the set-up; right-hand sides; Jacobians) with or without the FMU's
     exact Jacobian."""
-    from deltafmi.cosim import me_integrator
-    from deltafmi.cosim.master import Master
-    from deltafmi.cosim.resolve import resolve_system
-    from deltafmi.cosim.scenario import load_scenario
+    from deltafmi.cosim.stepping import me_integrator
+    from deltafmi.cosim.stepping.master import Master
+    from deltafmi.cosim.scenario.resolve import resolve_system
+    from deltafmi.cosim.scenario.spec import load_scenario
 
     counts = {"rhs": 0, "jac": 0}
     original_rhs, original_jac = me_integrator.ModelExchangeUnit._rhs, me_integrator.ModelExchangeUnit._jacobian

@@ -67,9 +67,9 @@ def process_loop(planned: PlannedStudy, cases: List[Case], folder: Path) -> floa
 WORKLOAD = """
 import sys, tempfile, time
 from pathlib import Path
-from deltafmi.cosim.master import Master
-from deltafmi.cosim.resolve import resolve_system
-from deltafmi.cosim.scenario import load_scenario
+from deltafmi.cosim.scenario.resolve import resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario
+from deltafmi.cosim.stepping.master import Master
 system = resolve_system(load_scenario(Path(sys.argv[1])))
 out = Path(tempfile.mkdtemp()) / "run.csv"
 Master(system, result=out).run()

@@ -1,9 +1,63 @@
 """deltafmi: Python components as FMI 2.0 FMUs, and a co-simulation master for them.
 
-This top-level module is deliberately empty of imports: it is bundled into every FMU's
-``resources/`` together with the modules of :mod:`deltafmi.component` and :mod:`deltafmi.mechanics`
-that the FMU's model reaches (``deltafmi.export.reach``), and must stay cheap to import inside an
-embedded interpreter.
+The public API, importable from here (``from deltafmi import load_scenario, Master``):
+
+* scenarios: :func:`load_scenario` -> :class:`Scenario`, :func:`resolve_system` -> :class:`System`
+  (checked against its FMUs), :func:`load_ssp`, :func:`export_ssp`;
+* runs: :class:`Master` (``Master(system, result=...).run()``), :func:`read_csv`, :func:`plot_result`;
+* FMUs: :func:`build_fmu`, :func:`build_cached`;
+* linear models: :func:`linearize_fmu`, :func:`linearize_scenario`, :class:`LinearModel`;
+* studies: :func:`load_study`, :func:`plan_study`, :func:`open_store`, :func:`run_study`;
+* errors: :class:`ScenarioError`, :class:`BadInput`, :class:`SimulationError`.
+
+This module imports nothing when imported: each name loads its module on first use (PEP 562). It
+is bundled into every FMU's ``resources/`` together with the modules of :mod:`deltafmi.component`
+and :mod:`deltafmi.mechanics` that the FMU's model reaches (``deltafmi.export.reach``), and must
+stay cheap to import inside an embedded interpreter. A component's source imports from
+:mod:`deltafmi.component` and :mod:`deltafmi.mechanics` directly, never these names: an FMU
+carries none of their modules (``reach`` follows import statements, not this table).
 """
 
 __version__ = "0.1.0"
+
+#: public name -> the module that defines it
+_API = {
+    "load_scenario": "deltafmi.cosim.scenario.spec",
+    "Scenario": "deltafmi.cosim.scenario.spec",
+    "resolve_system": "deltafmi.cosim.scenario.resolve",
+    "System": "deltafmi.cosim.scenario.resolve",
+    "load_ssp": "deltafmi.cosim.ssp.read",
+    "export_ssp": "deltafmi.cosim.ssp.write",
+    "Master": "deltafmi.cosim.stepping.master",
+    "read_csv": "deltafmi.cosim.results.csv_file",
+    "plot_result": "deltafmi.cosim.results.plot",
+    "build_fmu": "deltafmi.export.packager",
+    "build_cached": "deltafmi.export.packager",
+    "linearize_fmu": "deltafmi.cosim.linearize.fmu",
+    "linearize_scenario": "deltafmi.cosim.linearize.closed_loop",
+    "LinearModel": "deltafmi.cosim.linearize.linear_model",
+    "load_study": "deltafmi.study.spec",
+    "plan_study": "deltafmi.study.plan",
+    "open_store": "deltafmi.study.driver",
+    "run_study": "deltafmi.study.driver",
+    "ScenarioError": "deltafmi.errors",
+    "BadInput": "deltafmi.errors",
+    "SimulationError": "deltafmi.errors",
+}
+
+__all__ = sorted(_API)
+
+
+def __getattr__(name: str) -> object:
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'deltafmi' has no attribute '{name}'")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list:
+    return sorted(set(globals()) | set(_API))

@@ -6,7 +6,7 @@ only assembles the click group.
 import click
 
 from deltafmi.cosim.commands import export_ssp, plot, run, validate
-from deltafmi.cosim.linearize_command import linearize
+from deltafmi.cosim.linearize.commands import linearize
 from deltafmi.export.commands import build, info
 from deltafmi.study.commands import plot_study_command, study_case, sweep
 from deltafmi.viz.commands import animate

@@ -1,8 +1,8 @@
-"""Diagnostics and exceptions of the co-simulation master.
+"""Diagnostics and exceptions shared by deltafmi's commands (scenarios, runs, studies, plots).
 
-A :class:`Diagnostic` is one finding about a scenario, located at ``file:line``. Errors abort with
-:class:`ScenarioError` (exit code 2: bad input); failures while simulating raise
-:class:`SimulationError` (exit code 1).
+A :class:`Diagnostic` is one finding about an input file (a scenario or a study), located at
+``file:line``. Errors abort with :class:`ScenarioError` (exit code 2: bad input), other wrong input
+with :class:`BadInput` (2); failures while simulating raise :class:`SimulationError` (exit code 1).
 """
 from __future__ import annotations
 

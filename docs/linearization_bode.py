@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(output: Path = ROOT / "docs" / "closed_loop_bode.png") -> Path:
-    from deltafmi.cosim.linearize import linearize_scenario
+    from deltafmi.cosim.linearize.closed_loop import linearize_scenario
 
     model = linearize_scenario(ROOT / "scenarios" / "delta_tracking.yaml", at=0.05,
                                inputs=[f"controller.r[{i}]" for i in (1, 2, 3)],

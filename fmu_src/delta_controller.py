@@ -1,13 +1,13 @@
 """Delta robot controller FMU: a thin sampled component over deltafmi.mechanics.delta.control."""
 from deltafmi.component import Component, Experiment, Input, Output, Parameter
 from deltafmi.mechanics.delta import control as delta_control
-from deltafmi.mechanics.delta import params as delta_params
+from deltafmi.models.robot_parameters import robot_parameters
 
-_D = delta_params.RL5
-_PARAMS = ("l0", "l1", "l2", "l3", "m1", "r1", "J1", "Jm", "m2", "mp", "payload", "g", "damping")
+#: the robot's parameters, as the controller models them (they may differ from the plant's)
+ControllerRobotModel = robot_parameters("as the controller models it")
 
 
-class DeltaController(Component):
+class DeltaController(ControllerRobotModel, Component):
     """Feedback-linearising wrist-position controller of the delta robot, sampled (1 kHz).
 
     At every sample instant t_k = t_start + k * sample_period it reads the servo angles y and
@@ -22,30 +22,14 @@ class DeltaController(Component):
     tactile_axis at tactile_gain * tactile m/s: the tactile loop that centres the tool on a
     feature. Model Exchange: time events at the sample instants. Co-Simulation:
     doStep(t, h) takes the samples due in [t, t + h) with the inputs given at t (use h equal to
-    the sample period). The kinematic and inertial parameters are the controller's own model of
-    the robot (same names as the DeltaRobot plant) and may differ from the plant's.
+    the sample period). The kinematic and inertial parameters and the joint damping (compensated)
+    are the controller's own model of the robot (the DeltaRobot plant's declarations,
+    deltafmi.models.robot_parameters) and may differ from the plant's.
     """
 
     model_name = "DeltaController"
     default_experiment = Experiment(start=0.0, stop=1.0, step=1e-3, tolerance=1e-6)
 
-    l0 = Parameter(_D.l0, unit="m", min=0.0,
-                   description="Model: base radius, robot axis to servo axes")
-    l1 = Parameter(_D.l1, unit="m", min=0.0, description="Model: upper-arm length")
-    l2 = Parameter(_D.l2, unit="m", min=0.0, description="Model: forearm length")
-    l3 = Parameter(_D.l3, unit="m", min=0.0, description="Model: travelling-plate radius")
-    m1 = Parameter(_D.m1, unit="kg", min=0.0, description="Model: upper-arm mass")
-    r1 = Parameter(_D.r1, unit="m", description="Model: servo axis to upper-arm centre of mass")
-    J1 = Parameter(_D.J1, unit="kg.m2", min=0.0,
-                   description="Model: upper-arm inertia about the servo axis (includes m1*r1^2)")
-    Jm = Parameter(_D.Jm, unit="kg.m2", min=0.0,
-                   description="Model: gearbox-reflected rotor inertia on the servo axis")
-    m2 = Parameter(_D.m2, unit="kg", min=0.0, description="Model: forearm mass (both bars)")
-    mp = Parameter(_D.mp, unit="kg", min=0.0, description="Model: travelling-plate mass")
-    payload = Parameter(_D.payload, unit="kg", min=0.0, description="Model: payload on the plate")
-    g = Parameter(_D.g, unit="m/s2", description="Model: gravitational acceleration")
-    damping = Parameter(_D.damping, unit="N.m.s/rad", min=0.0,
-                        description="Model: viscous damping on each joint (compensated)")
     pole = Parameter(7.0, unit="1/s", min=0.0,
                      description="Outer-loop triple pole p: kI = p^3, kP = 3 p^2, kD = 3 p")
     kI = Parameter(-1.0, unit="1/s3", description="Integral gain; negative: p^3 from pole")
@@ -97,7 +81,7 @@ class DeltaController(Component):
     def initialize(self, t: float) -> None:
         if not self.sample_period > 0.0:
             raise ValueError(f"sample_period must be > 0, got {self.sample_period}")
-        model = delta_params.DeltaParams(**{n: getattr(self, n) for n in _PARAMS})
+        model = self.robot_params()
         self._ctl = delta_control.DeltaController(
             model, pole=self.pole, kI=self.kI, kP=self.kP, kD=self.kD,
             integral_limit=self.integral_limit, feedforward=self.feedforward,

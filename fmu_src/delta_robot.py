@@ -4,12 +4,10 @@ import numpy as np
 from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
 from deltafmi.mechanics import delta
 from deltafmi.mechanics.delta.jacobian import plant_jacobian
-
-_D = delta.RL5
-_PARAMS = ("l0", "l1", "l2", "l3", "m1", "r1", "J1", "Jm", "m2", "mp", "payload", "g", "damping")
+from deltafmi.models.robot_parameters import RobotParameters
 
 
-class DeltaRobot(Component):
+class DeltaRobot(RobotParameters, Component):
     """Three-arm delta robot (RL5-1450): stabilised index-1 DAE in nine joint angles.
 
     States are the nine joint angles q = [q11, q12, q13, q21, ...] (per arm: servo angle, forearm
@@ -25,24 +23,6 @@ class DeltaRobot(Component):
     direct_feedthrough = {"lam": ["u", "f"]}
     default_experiment = Experiment(start=0.0, stop=1.0, step=1e-3, tolerance=1e-6)
 
-    l0 = Parameter(_D.l0, unit="m", min=0.0, description="Base radius: robot axis to servo axes")
-    l1 = Parameter(_D.l1, unit="m", min=0.0, description="Upper-arm length: servo axis to elbow")
-    l2 = Parameter(_D.l2, unit="m", min=0.0, description="Forearm length: elbow to wrist joint")
-    l3 = Parameter(_D.l3, unit="m", min=0.0,
-                   description="Travelling-plate radius: plate centre to wrist joints")
-    m1 = Parameter(_D.m1, unit="kg", min=0.0, description="Upper-arm mass (elbow pins included)")
-    r1 = Parameter(_D.r1, unit="m", description="Servo axis to upper-arm centre of mass")
-    J1 = Parameter(_D.J1, unit="kg.m2", min=0.0,
-                   description="Upper-arm inertia about the servo axis (includes m1*r1^2)")
-    Jm = Parameter(_D.Jm, unit="kg.m2", min=0.0,
-                   description="Gearbox-reflected rotor inertia on the servo axis")
-    m2 = Parameter(_D.m2, unit="kg", min=0.0,
-                   description="Forearm mass (both bars), modelled as a thin uniform rod")
-    mp = Parameter(_D.mp, unit="kg", min=0.0, description="Travelling-plate mass")
-    payload = Parameter(_D.payload, unit="kg", min=0.0, description="Payload carried by the plate")
-    g = Parameter(_D.g, unit="m/s2", description="Gravitational acceleration (acts along -z)")
-    damping = Parameter(_D.damping, unit="N.m.s/rad", min=0.0,
-                        description="Viscous damping on each of the nine joints")
     pole = Parameter(5.0, unit="1/s", min=0.0,
                      description="Baumgarte pole p: hdd + 2 p hd + p^2 h = 0 stabilises the loops")
     loop_tolerance = Parameter(
@@ -75,7 +55,7 @@ class DeltaRobot(Component):
         self._plant = None  # DeltaParams, built from the parameters at initialization
 
     def initialize(self, t: float) -> None:
-        self._plant = delta.DeltaParams(**{name: getattr(self, name) for name in _PARAMS})
+        self._plant = self.robot_params()
         self.q = delta.inverse_kinematics(self._plant, self.z0)
         self.v = 0.0
 

@@ -5,12 +5,10 @@ from deltafmi.component import Experiment, HybridSystemComponent, Input, Output,
 from deltafmi.mechanics import delta
 from deltafmi.mechanics.contact import CompliantMaterial, ContactSystem
 from deltafmi.mechanics.delta.contact import Plane, make_robot_contact, robot_start_state
-
-_D = delta.RL5
-_PARAMS = ("l0", "l1", "l2", "l3", "m1", "r1", "J1", "Jm", "m2", "mp", "payload", "g", "damping")
+from deltafmi.models.robot_parameters import RobotParameters
 
 
-class DeltaRobotContact(HybridSystemComponent):
+class DeltaRobotContact(RobotParameters, HybridSystemComponent):
     """RL5 delta robot whose tool touches a rigid plane: the robot's DAE plus a unilateral contact.
 
     The DeltaRobot plant (nine joint angles, loop closures solved at every evaluation) with a tool
@@ -29,24 +27,6 @@ class DeltaRobotContact(HybridSystemComponent):
     default_experiment = Experiment(start=0.0, stop=1.0, step=1e-3, tolerance=1e-8)
     n_event_indicators = 2
 
-    l0 = Parameter(_D.l0, unit="m", min=0.0, description="Base radius: robot axis to servo axes")
-    l1 = Parameter(_D.l1, unit="m", min=0.0, description="Upper-arm length: servo axis to elbow")
-    l2 = Parameter(_D.l2, unit="m", min=0.0, description="Forearm length: elbow to wrist joint")
-    l3 = Parameter(_D.l3, unit="m", min=0.0,
-                   description="Travelling-plate radius: plate centre to wrist joints")
-    m1 = Parameter(_D.m1, unit="kg", min=0.0, description="Upper-arm mass (elbow pins included)")
-    r1 = Parameter(_D.r1, unit="m", description="Servo axis to upper-arm centre of mass")
-    J1 = Parameter(_D.J1, unit="kg.m2", min=0.0,
-                   description="Upper-arm inertia about the servo axis (includes m1*r1^2)")
-    Jm = Parameter(_D.Jm, unit="kg.m2", min=0.0,
-                   description="Gearbox-reflected rotor inertia on the servo axis")
-    m2 = Parameter(_D.m2, unit="kg", min=0.0,
-                   description="Forearm mass (both bars), modelled as a thin uniform rod")
-    mp = Parameter(_D.mp, unit="kg", min=0.0, description="Travelling-plate mass (tool included)")
-    payload = Parameter(_D.payload, unit="kg", min=0.0, description="Payload carried by the plate")
-    g = Parameter(_D.g, unit="m/s2", description="Gravitational acceleration (acts along -z)")
-    damping = Parameter(_D.damping, unit="N.m.s/rad", min=0.0,
-                        description="Viscous damping on each of the nine joints")
     pole = Parameter(5.0, unit="1/s", min=0.0,
                      description="Baumgarte pole p: hdd + 2 p hd + p^2 h = 0 stabilises the loops")
     loop_tolerance = Parameter(
@@ -89,7 +69,7 @@ class DeltaRobotContact(HybridSystemComponent):
     penetration = Output(unit="m", description="Depth of the tool tip below the plane (0 when apart)")
 
     def build_system(self, t: float) -> ContactSystem:
-        params = delta.DeltaParams(**{name: getattr(self, name) for name in _PARAMS})
+        params = self.robot_params()
         plane = Plane(self.surface_height, tuple(self.surface_normal))
         material = CompliantMaterial(self.contact_stiffness, self.contact_damping, self.restitution)
         system = make_robot_contact(params, plane, material, tuple(self.tool), self.pole, self.capture_speed)

@@ -15,8 +15,8 @@ import pytest
 from click.testing import CliRunner
 
 from deltafmi.cli import main
-from deltafmi.cosim.progress import Progress
-from deltafmi.cosim.results import columns
+from deltafmi.cosim.results.csv_file import columns
+from deltafmi.cosim.results.progress import Progress
 from deltafmi.files import USER_FILE_MODE
 
 

@@ -86,7 +86,7 @@ def test_master_answers_the_step_events(tmp_path, loop_tolerance):
     from click.testing import CliRunner
 
     from deltafmi.cli import main
-    from deltafmi.cosim.results import columns
+    from deltafmi.cosim.results.csv_file import columns
 
     source = Path(__file__).resolve().parents[1] / "fmu_src" / "delta_robot.py"
     scenario = tmp_path / "fall.yaml"
@@ -138,7 +138,7 @@ def test_singularity_scenario_passes_through_the_stretched_pose(tmp_path, monkey
     from click.testing import CliRunner
 
     from deltafmi.cli import main
-    from deltafmi.cosim.results import columns
+    from deltafmi.cosim.results.csv_file import columns
 
     root = Path(__file__).resolve().parents[1]
     monkeypatch.chdir(root)  # the scenario names its source relative to the project

@@ -210,11 +210,11 @@ def test_master_cvode_takes_the_exact_jacobian(build_fmu_from_src, tmp_path):
     """The DeltaRobot FMU says its derivatives are exact (vendor annotation), the oscillator's are
     its own differences; the master's CVODE then takes the robot's: a free fall at rtol 1e-6 with
     and without lands on the same trajectory within the tolerance's reach of a tight reference."""
-    from deltafmi.cosim.jacobians import computes_exact_derivatives
-    from deltafmi.cosim.master import Master
-    from deltafmi.cosim.resolve import resolve_system
-    from deltafmi.cosim.results import columns
-    from deltafmi.cosim.scenario import load_scenario
+    from deltafmi.cosim.stepping.jacobians import computes_exact_derivatives
+    from deltafmi.cosim.stepping.master import Master
+    from deltafmi.cosim.scenario.resolve import resolve_system
+    from deltafmi.cosim.results.csv_file import columns
+    from deltafmi.cosim.scenario.spec import load_scenario
 
     robot = build_fmu_from_src("delta_robot.py")
     assert computes_exact_derivatives(fmpy.extract(str(robot), str(tmp_path / "robot")))

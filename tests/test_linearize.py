@@ -14,8 +14,9 @@ from click.testing import CliRunner
 from conftest import ROOT
 from delta_reference import SERVO, MinimalModel, fk_minimal
 from deltafmi.cli import main
-from deltafmi.cosim.linear_model import LinearModel
-from deltafmi.cosim.linearize import linearize_fmu, linearize_scenario
+from deltafmi.cosim.linearize.closed_loop import linearize_scenario
+from deltafmi.cosim.linearize.fmu import linearize_fmu
+from deltafmi.cosim.linearize.linear_model import LinearModel
 from deltafmi.mechanics import delta as d
 
 FLAGSHIP = ROOT / "scenarios" / "delta_tracking.yaml"

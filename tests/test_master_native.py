@@ -1,4 +1,4 @@
-"""The master's fixed-step loop in C (deltafmi.cosim.native_loop) against its Python loop.
+"""The master's fixed-step loop in C (deltafmi.cosim.stepping.native_loop) against its Python loop.
 
 The C loop makes the same fmi2 calls with the same arguments in the same order, so a run must be
 the same bit for bit, the result files byte for byte: the flagship (ME plant on rk4, CS
@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.cosim import native_loop
-from deltafmi.cosim.errors import SimulationError
-from deltafmi.cosim.master import Master
-from deltafmi.cosim.resolve import resolve_system
-from deltafmi.cosim.results import CsvWriter
-from deltafmi.cosim.scenario import load_scenario
+from deltafmi.cosim.results.csv_file import CsvWriter
+from deltafmi.cosim.scenario.resolve import resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario
+from deltafmi.cosim.stepping import native_loop
+from deltafmi.cosim.stepping.master import Master
+from deltafmi.errors import SimulationError
 
 ROOT = Path(__file__).resolve().parents[1]
 

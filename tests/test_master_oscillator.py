@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.cosim.errors import SimulationError
-from deltafmi.cosim.master import Master
-from deltafmi.cosim.resolve import resolve_system
-from deltafmi.cosim.results import columns
-from deltafmi.cosim.scenario import load_scenario
+from deltafmi.cosim.results.csv_file import columns
+from deltafmi.cosim.scenario.resolve import resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario
+from deltafmi.cosim.stepping.master import Master
+from deltafmi.errors import SimulationError
 from oscillator_analytic import solution
 
 

@@ -18,10 +18,10 @@ import yaml
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from deltafmi.cosim.master import Master
-from deltafmi.cosim.resolve import resolve_system
-from deltafmi.cosim.results import columns
-from deltafmi.cosim.scenario import load_scenario
+from deltafmi.cosim.results.csv_file import columns
+from deltafmi.cosim.scenario.resolve import resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario
+from deltafmi.cosim.stepping.master import Master
 
 H, N = 1.0 / 512, 100  # a step exact in binary and in libcosim's integer nanoseconds
 # (source component, output, target component, input, factor, offset)

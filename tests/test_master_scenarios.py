@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.cosim.master import Master
-from deltafmi.cosim.resolve import resolve_system
-from deltafmi.cosim.results import columns
-from deltafmi.cosim.scenario import load_scenario
+from deltafmi.cosim.results.csv_file import columns
+from deltafmi.cosim.scenario.resolve import resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario
+from deltafmi.cosim.stepping.master import Master
 
 SCENARIOS = Path(__file__).parents[1] / "scenarios"
 

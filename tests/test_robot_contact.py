@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from deltafmi.cosim.master import Master
-from deltafmi.cosim.resolve import resolve_system
-from deltafmi.cosim.results import columns
-from deltafmi.cosim.scenario import load_scenario
+from deltafmi.cosim.results.csv_file import columns
+from deltafmi.cosim.scenario.resolve import resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario
+from deltafmi.cosim.stepping.master import Master
 from deltafmi.mechanics import delta as d
 from deltafmi.mechanics.contact import CompliantMaterial, Mode
 from deltafmi.mechanics.contact.hybrid_sim import simulate

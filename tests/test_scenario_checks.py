@@ -13,9 +13,9 @@ import pytest
 from click.testing import CliRunner
 
 from deltafmi.cli import main
-from deltafmi.cosim.modelinfo import model_info
-from deltafmi.cosim.resolve import resolve_system
-from deltafmi.cosim.scenario import load_scenario
+from deltafmi.cosim.scenario.modelinfo import model_info
+from deltafmi.cosim.scenario.resolve import resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario
 
 
 @pytest.fixture(scope="module")

@@ -23,8 +23,8 @@ from click.testing import CliRunner
 from lxml import etree
 
 from deltafmi.cli import main
-from deltafmi.cosim.results import columns
-from deltafmi.cosim.ssp_format import NAMESPACES, SSD_NAME, schema_problems
+from deltafmi.cosim.results.csv_file import columns
+from deltafmi.cosim.ssp.format import NAMESPACES, SSD_NAME, schema_problems
 from third_party.build import build_fmu as build_c_fmu
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -17,7 +17,7 @@ import pytest
 from click.testing import CliRunner
 
 from deltafmi.cli import main
-from deltafmi.cosim.results import columns as read_columns
+from deltafmi.cosim.results.csv_file import columns as read_columns
 from deltafmi.study.plan import plan_study
 from deltafmi.study.spec import load_study
 

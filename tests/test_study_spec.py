@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from deltafmi.cli import main
-from deltafmi.cosim.errors import ScenarioError
+from deltafmi.errors import ScenarioError
 from deltafmi.study.cases import generate_cases
 from deltafmi.study.plan import plan_study
 from deltafmi.study.spec import load_study, parse_study

@@ -122,6 +122,15 @@ class Variable(ValueDescriptor):
                   _BOOL_SCALAR: self._get_bool}[self._kind]
         self._install(self._kind, value, span, getter, self._set)
 
+    def __copy__(self) -> "Variable":
+        """The same declaration for another class (a subclass inherits its base's declarations as
+        copies, laid out anew). ``copy.copy``'s default cannot copy a property; the accessors are
+        installed again when the layout sets the copy's offset."""
+        clone = type(self).__new__(type(self))
+        ValueDescriptor.__init__(clone)
+        clone.__dict__.update(self.__dict__)
+        return clone
+
     # --- naming -----------------------------------------------------------------------------
     def __set_name__(self, owner: type, name: str) -> None:
         self.name = name

@@ -14,18 +14,19 @@ from typing import Optional, Sequence
 
 import click
 
-from .errors import BadInput, ScenarioError
+from deltafmi.errors import BadInput, ScenarioError
 
 
-def _load(path: str, check_fmus: bool = False, stop: Optional[float] = None):
-    """Scenario (YAML, or an SSP archive) -> resolved system; prints every diagnostic, raises on errors.
+def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = None):
+    """Scenario (YAML, or an SSP archive) -> resolved system, for a command (it needs click's context):
+    prints every diagnostic, raises on errors.
 
     The FMUs of an SSP archive are unpacked into a temporary folder that lives until the
     command ends. ``stop`` stands in for an SSP without a stop time.
     """
-    from .resolve import resolve_system
-    from .scenario import load_scenario
-    from .ssp_read import is_ssp, load_ssp
+    from .scenario.resolve import resolve_system
+    from .scenario.spec import load_scenario
+    from .ssp.read import is_ssp, load_ssp
 
     try:
         if is_ssp(path):
@@ -68,11 +69,11 @@ def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: 
       deltafmi run scenarios/delta_tracking.yaml -o tracking.csv --stop 2
       deltafmi run system.ssp
     """
-    from .master import Master
+    from .stepping.master import Master
 
     if quiet and verbose:
         raise BadInput("-q and -v contradict each other: give one")
-    system = _load(scenario, stop=stop)
+    system = load_system(scenario, stop=stop)
     master = Master(system, result=Path(output) if output else None, stop=stop, algorithm=algorithm,
                     progress=not quiet and sys.stdout.isatty(),
                     warn=lambda message: click.echo(f"warning: {message}", err=True),
@@ -117,12 +118,12 @@ def validate(scenario: str) -> None:
       deltafmi validate build/fmus/DeltaRobot.fmu
     """
     if scenario.endswith(".fmu"):
-        from ..export.commands import validate_fmu_file
+        from deltafmi.export.commands import validate_fmu_file
         validate_fmu_file(Path(scenario))
         return
-    from .resolve import describe
+    from .scenario.resolve import describe
 
-    system = _load(scenario, check_fmus=True)
+    system = load_system(scenario, check_fmus=True)
     for line in describe(system):
         click.echo(line)
     click.echo(f"{scenario}: OK")
@@ -146,12 +147,12 @@ def export_ssp(scenario: str, output: Optional[str]) -> None:
     Example:
       deltafmi export-ssp scenarios/bouncing_ball.yaml -o bouncing_ball.ssp
     """
-    from .ssp_write import export_ssp as write
+    from .ssp.write import export_ssp as write
 
     target = Path(output) if output else Path(Path(scenario).stem + ".ssp")
     if target.resolve() == Path(scenario).resolve():
         raise BadInput(f"{target}: that is the scenario itself; write the archive elsewhere with -o")
-    system = _load(scenario)
+    system = load_system(scenario)
     path = write(system, target)
     click.echo(f"wrote {path} ({len(system.components)} components, {len(system.links)} connections)")
 
@@ -170,7 +171,7 @@ def plot(result: str, signals: Sequence[str], output: str, separate: bool, title
     Example:
       deltafmi plot tracking.csv 'plant.z[*]' 'trajectory.r[1:3]' -o tracking.png
     """
-    from .plot import UnknownSignal, plot_result
+    from .results.plot import UnknownSignal, plot_result
 
     try:
         path = plot_result(result, signals, output, separate=separate, title=title)

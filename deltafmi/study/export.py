@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import yaml
 
-from deltafmi.cosim.yaml_lines import load_yaml
+from deltafmi.cosim.scenario.yaml_lines import load_yaml
 
 from .cases import Case
 from .plan import PlannedStudy

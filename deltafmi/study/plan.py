@@ -16,10 +16,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
-from deltafmi.cosim.errors import Diagnostic, ScenarioError, did_you_mean
-from deltafmi.cosim.modelinfo import UnknownVariable
-from deltafmi.cosim.resolve import System, resolve_system
-from deltafmi.cosim.scenario import ComponentSpec, OutputSpec, Parameter, Scenario, load_scenario
+from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
+from deltafmi.cosim.scenario.modelinfo import UnknownVariable
+from deltafmi.cosim.scenario.resolve import System, resolve_system
+from deltafmi.cosim.scenario.spec import ComponentSpec, OutputSpec, Parameter, Scenario, load_scenario
 
 from .cases import Case, generate_cases
 from .metrics import Metric

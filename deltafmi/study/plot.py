@@ -13,7 +13,7 @@ from typing import Any, Dict, List, Optional, Sequence
 import numpy as np
 import pyarrow as pa
 
-from deltafmi.cosim.errors import BadInput, did_you_mean
+from deltafmi.errors import BadInput, did_you_mean
 
 from .store import read_results, study_metadata
 

@@ -22,7 +22,7 @@ import fmpy
 from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
-from deltafmi.cosim.resolve import Component
+from deltafmi.cosim.scenario.resolve import Component
 
 Key = Tuple[str, str, str]  # FMU file, interface, instance name
 

@@ -1,7 +1,7 @@
 """Run one case of a study in this process: the worker side of a sweep.
 
 :class:`CaseTemplate` resolves the study's scenario once (against the FMU files by hash) and
-turns each case's values into a :class:`~deltafmi.cosim.resolve.System` by swapping start
+turns each case's values into a :class:`~deltafmi.cosim.scenario.resolve.System` by swapping start
 values, without checking the scenario again. :func:`run_case` runs it through the ordinary
 master with FMUs lent by a :class:`~deltafmi.study.pool.FmuPool` and the rows kept in memory
 (:class:`MemoryRecorder`, the same rows the CSV of ``deltafmi run`` gets), computes the metrics
@@ -19,9 +19,9 @@ from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from deltafmi.cosim.errors import BadInput, ScenarioError, SimulationError
-from deltafmi.cosim.master import Master
-from deltafmi.cosim.resolve import Component, System, resolve_system
+from deltafmi.errors import BadInput, ScenarioError, SimulationError
+from deltafmi.cosim.stepping.master import Master
+from deltafmi.cosim.scenario.resolve import Component, System, resolve_system
 
 from .plan import StudyPlan, with_parameters
 from .pool import FmuPool

@@ -18,9 +18,9 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import jsonschema
 
-from deltafmi.cosim.errors import Diagnostic, ScenarioError, did_you_mean
-from deltafmi.cosim.schema_check import load_mapping, read_document, schema_diagnostics
-from deltafmi.cosim.yaml_lines import LineMap
+from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
+from deltafmi.cosim.scenario.schema_check import load_mapping, read_document, schema_diagnostics
+from deltafmi.cosim.scenario.yaml_lines import LineMap
 
 #: experiment settings a study may vary
 EXPERIMENT_TARGETS = ("experiment.stop", "experiment.step")

@@ -29,7 +29,7 @@ import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
-from deltafmi.cosim.errors import BadInput
+from deltafmi.errors import BadInput
 from deltafmi.files import replaced_atomically
 
 from .cases import Case, case_key

@@ -20,8 +20,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..cosim.errors import BadInput, did_you_mean
-from ..cosim.results import read_csv
+from ..cosim.results.csv_file import read_csv
+from ..errors import BadInput, did_you_mean
 from ..mechanics.delta.kinematics import forward_kinematics
 from ..mechanics.delta.params import ARM_ROTATIONS, RL5, DeltaParams
 

@@ -1,152 +1,44 @@
-"""Linearization for control design: one FMU at an operating point, or a whole scenario.
+"""Linearization of a scenario's closed loop at a communication point, as the discrete map over
+one communication step that the master takes there (:func:`linearize_scenario`).
 
-* :func:`linearize_fmu`: a Model Exchange FMU at (states, inputs, time), optionally brought to an
-  equilibrium first (:mod:`.equilibrium`), gives the continuous A, B, C, D from its directional
-  derivatives (central differences when it provides none; :mod:`.jacobians`).
-* :func:`linearize_scenario`: the closed loop of a scenario at a communication point, as the
-  discrete map over one communication step that the master takes there. The master runs to the
-  instant; then each unit becomes a linear one-step map:
+The master runs to the instant; then each unit becomes a linear one-step map:
 
-  - a Model Exchange unit: its A, B, C, D, discretized exactly over the step with its inputs held
-    (zero-order hold, as the master holds them): Phi = e^(A h), Gamma = int_0^h e^(A s) ds B;
-  - a Co-Simulation unit, whose state FMI keeps hidden: a minimal realization
-    (:mod:`.realization`) of its Markov parameters, its outputs after steps 1, 2, ... in
-    answer to a pulse on each input, each a central difference between two runs from the same
-    saved FMU state (fmi2GetFMUstate / fmi2SetFMUstate). This assumes the unit time-invariant over
-    those steps (exactly so at rest);
-  - a Co-Simulation unit that no tracked signal drives (a reference generator) is a constant.
+- a Model Exchange unit: its A, B, C, D, discretized exactly over the step with its inputs held
+  (zero-order hold, as the master holds them): Phi = e^(A h), Gamma = int_0^h e^(A s) ds B;
+- a Co-Simulation unit, whose state FMI keeps hidden: a minimal realization
+  (:mod:`.realization`) of its Markov parameters, its outputs after steps 1, 2, ... in
+  answer to a pulse on each input, each a central difference between two runs from the same
+  saved FMU state (fmi2GetFMUstate / fmi2SetFMUstate). This assumes the unit time-invariant over
+  those steps (exactly so at rest);
+- a Co-Simulation unit that no tracked signal drives (a reference generator) is a constant.
 
-  The units are then composed as the master steps them (Gauss-Seidel in its order, or Jacobi).
-  The closed loop's state: the units' states, plus every connected value that a unit reads
-  before its producer has stepped (a value held over the step, like a sampled controller's
-  torque), plus requested outputs that are not functions of the states at the communication
-  point. Inputs are perturbations added to chosen FMU inputs; outputs are chosen FMU outputs, at
-  the communication points: x[k+1] = Phi x[k] + Gamma u[k], y[k] = C x[k].
+The units are then composed as the master steps them (Gauss-Seidel in its order, or Jacobi).
+The closed loop's state: the units' states, plus every connected value that a unit reads
+before its producer has stepped (a value held over the step, like a sampled controller's
+torque), plus requested outputs that are not functions of the states at the communication
+point. Inputs are perturbations added to chosen FMU inputs; outputs are chosen FMU outputs, at
+the communication points: x[k+1] = Phi x[k] + Gamma u[k], y[k] = C x[k].
 """
 from __future__ import annotations
 
 import shutil
-import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
-import fmpy
 import numpy as np
 import scipy.linalg
-from fmpy.fmi2 import FMU2Model
 
-from .equilibrium import find_equilibrium
-from .errors import BadInput, did_you_mean
-from .jacobians import FD_STEP, FmuJacobian
+from deltafmi.errors import BadInput, did_you_mean
+
+from ..scenario.modelinfo import UnknownVariable
+from ..stepping.jacobians import FD_STEP, FmuJacobian
 from .linear_model import LinearModel
-from .modelinfo import ModelInfo, UnknownVariable, model_info
 from .realization import era
-from .unit_base import logger_callbacks
 
 Signal = Tuple[str, int]  # (component, value reference)
 
-
-# ------------------------------------------------------------------------------------ one FMU
-
-def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None,
-                  states: Optional[Mapping[str, Any]] = None, time: float = 0.0, rest: bool = False,
-                  free: Sequence[str] = (), hold: Optional[Mapping[str, Any]] = None,
-                  inputs: Sequence[str] = (), outputs: Sequence[str] = (), label: Optional[str] = None) -> LinearModel:
-    """Continuous A, B, C, D of the Model Exchange FMU at ``fmu`` at an operating point.
-
-    Args:
-        fmu: the .fmu file.
-        start_values: parameters and start values (name -> value; arrays take a list), set
-            before initialization.
-        states: continuous states to set after initialization (name -> value or list).
-        time: the time of the operating point.
-        rest: move to an equilibrium first: der(x) = 0, solving for the ``free`` inputs (default:
-            every continuous Real input) and, with ``hold``, the states as well.
-        hold: outputs held at given values at the equilibrium (implies ``rest``).
-        inputs, outputs: the model's inputs and outputs (names or array names); default: every
-            continuous Real input and output.
-        label: how messages name the FMU (default: its path), e.g. the source it was built from.
-
-    Raises:
-        BadInput: unknown names, wrong values, no Model Exchange interface, no equilibrium.
-    """
-    info = _info(fmu)
-    where = label or str(fmu)
-    if info.md.modelExchange is None:
-        raise BadInput(f"'{where}' offers no Model Exchange interface: linearizing an FMU needs its equations")
-    directory = tempfile.mkdtemp(prefix="deltafmi-linearize-")
-    model = None
-    errors: List[str] = []
-    callbacks = logger_callbacks(lambda status, category, text: _said(where, status, text, errors))
-    try:
-        model = FMU2Model(guid=info.md.guid, unzipDirectory=fmpy.extract(str(fmu), directory),
-                          modelIdentifier=info.model_identifier("ME"), instanceName="linearize")
-        model.instantiate(callbacks=callbacks, loggingOn=False)
-        model.setupExperiment(startTime=time)
-        for name, value in (start_values or {}).items():
-            _set(model, info, name, value, where)
-        model.enterInitializationMode()
-        model.exitInitializationMode()
-        while model.newDiscreteStates()[0]:
-            pass
-        model.enterContinuousTimeMode()
-        jac = FmuJacobian(model, info.md)
-        state_names = [d.variable.derivative.name for d in info.md.derivatives]
-        if states:
-            x = jac.get_states()
-            for name, value in states.items():
-                names = _expand(info, name, where)
-                values = _values(name, value, len(names))
-                for n, v in zip(names, values):
-                    if n not in state_names:
-                        raise BadInput(f"'{n}' is not a continuous state of '{where}'"
-                                       f"{did_you_mean(n, state_names)}")
-                    x[state_names.index(n)] = float(v)
-            jac.set_states(x)
-        real_inputs = [v.name for v in info.md.modelVariables
-                       if v.causality == "input" and v.type == "Real" and v.variability == "continuous"]
-        real_outputs = [v.name for v in info.md.modelVariables
-                        if v.causality == "output" and v.type == "Real" and v.variability == "continuous"]
-        notes = []
-        if rest or hold:
-            free_names = _expand_all(info, free, where) if free else real_inputs
-            targets = {}
-            for name, value in (hold or {}).items():
-                names = _expand(info, name, where)
-                targets.update({info.variables[n].valueReference: float(v)
-                                for n, v in zip(names, _values(name, value, len(names)))})
-            try:
-                found = find_equilibrium(jac, [info.variables[n].valueReference for n in free_names], targets)
-            except ValueError as exc:
-                raise BadInput(f"'{where}': {exc}") from None
-            notes.append(f"equilibrium: largest |der(x)| {found.residual:.3g}; "
-                         + ", ".join(f"{n} = {v:.9g}" for n, v in zip(free_names, found.inputs)))
-        input_names = _expand_all(info, inputs, where) if inputs else real_inputs
-        output_names = _expand_all(info, outputs, where) if outputs else real_outputs
-        u_vrs = [_real_vr(info, n, "input", where) for n in input_names]
-        y_vrs = [_real_vr(info, n, "output", where) for n in output_names]
-        nx = jac.nx
-        J = jac.block(jac.derivatives + y_vrs, jac.states + u_vrs)
-        return LinearModel(J[:nx, :nx], J[:nx, nx:], J[nx:, :nx], J[nx:, nx:], state_names, input_names,
-                           output_names, None, time, jac.get_states(),
-                           np.array(model.getReal(u_vrs)) if u_vrs else np.zeros(0),
-                           np.array(model.getReal(y_vrs)) if y_vrs else np.zeros(0), str(fmu), notes)
-    except fmpy.fmi1.FMICallException as exc:
-        last = errors[-1].strip().splitlines()[-1] if errors and errors[-1].strip() else ""
-        raise BadInput(f"'{where}': {exc}" + (f": {last}" if last else "")) from None
-    finally:
-        if model is not None:
-            for call in (model.terminate, model.freeInstance):
-                try:
-                    call()
-                except Exception:  # noqa: BLE001 - cleaning up after a failure must not hide it
-                    pass
-        shutil.rmtree(directory, ignore_errors=True)
-
-
-# ----------------------------------------------------------------------------- a whole scenario
 
 @dataclass
 class _Block:
@@ -167,14 +59,6 @@ class _Block:
     order: List[int] = field(default_factory=list)
 
 
-def _said(where: str, status: int, text: str, errors: List[str]) -> None:
-    """The FMU's logger: warnings to stderr, errors kept for the failure message."""
-    if status >= 2:
-        errors.append(text)
-    elif status == 1:
-        sys.stderr.write(f"warning: {where}: {text}\n")
-
-
 def linearize_scenario(path: Path, *, at: Optional[float] = None, inputs: Sequence[str] = (),
                        outputs: Sequence[str] = (), markov_steps: int = 24,
                        rank_tolerance: float = 1e-7, system: Any = None) -> LinearModel:
@@ -187,12 +71,12 @@ def linearize_scenario(path: Path, *, at: Optional[float] = None, inputs: Sequen
         outputs: outputs of components ("plant.z") that the model's outputs are.
         markov_steps: steps of each Co-Simulation unit's pulse responses (even; the realization
             finds at most markov_steps / 2 states per input and output).
-        rank_tolerance: relative singular value below which a realization stops (see :func:`.era`).
-        system: the scenario already resolved (:func:`.resolve.resolve_system`), if it is.
+        rank_tolerance: relative singular value below which a realization stops (see :func:`.realization.era`).
+        system: the scenario already resolved (:func:`~deltafmi.cosim.scenario.resolve.resolve_system`), if it is.
     """
-    from .master import Master
-    from .resolve import resolve_system
-    from .scenario import load_scenario
+    from ..stepping.master import Master
+    from ..scenario.resolve import resolve_system
+    from ..scenario.spec import load_scenario
 
     system = system or resolve_system(load_scenario(str(path)))
     experiment = system.scenario.experiment
@@ -445,7 +329,7 @@ def _value(unit: Any, vr: int) -> float:
 
 def _port(components: Mapping[str, Any], reference: str, causality: str) -> Any:
     """The scenario port named ``reference`` ("comp.var"); arrays are not expanded here."""
-    from .resolve import Port
+    from ..scenario.resolve import Port
     comp_name, _, var = reference.partition(".")
     component = components.get(comp_name)
     if component is None or not var:
@@ -460,7 +344,7 @@ def _port(components: Mapping[str, Any], reference: str, causality: str) -> Any:
         raise BadInput(f"'{reference}' names {len(names)} variables; name one (arrays are expanded by the command)")
     variable = component.info.variables[names[0]]
     if variable.causality != causality or variable.type != "Real":
-        raise BadInput(f"'{reference}' is {_describe(variable)}; linearize takes Real {causality}s here")
+        raise BadInput(f"'{reference}' is a {variable.type} {variable.causality}; linearize takes Real {causality}s here")
     return Port(comp_name, names[0], variable.valueReference, "Real", component.info.unit(names[0]))
 
 
@@ -479,67 +363,3 @@ def expand_references(components: Mapping[str, Any], references: Sequence[str]) 
             raise BadInput(f"'{reference}': component '{comp_name}' has no variable '{exc.reference}'"
                            f"{did_you_mean(exc.reference, exc.names)}") from None
     return out
-
-
-def _describe(variable: Any) -> str:
-    return f"a {variable.type} {variable.causality}"
-
-
-# ------------------------------------------------------------------------------------ helpers
-
-def _info(fmu: Path) -> ModelInfo:
-    if not Path(fmu).is_file():
-        raise BadInput(f"FMU '{fmu}' not found")
-    try:
-        return model_info(str(fmu))
-    except Exception as exc:  # noqa: BLE001 - any unreadable FMU is a user error here
-        raise BadInput(f"cannot read FMU '{fmu}': {exc}") from None
-
-
-def _expand(info: ModelInfo, name: str, where: str) -> List[str]:
-    try:
-        return info.expand(name)
-    except UnknownVariable as exc:
-        raise BadInput(f"'{where}' has no variable '{exc.reference}'{did_you_mean(exc.reference, exc.names)}") from None
-
-
-def _expand_all(info: ModelInfo, names: Sequence[str], where: str) -> List[str]:
-    return [n for name in names for n in _expand(info, name, where)]
-
-
-def _values(name: str, value: Any, count: int) -> list:
-    values = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
-    if len(values) != count:
-        raise BadInput(f"'{name}' has {count} element(s) but {len(values)} value(s) were given")
-    return values
-
-
-def _real_vr(info: ModelInfo, name: str, causality: str, where: str) -> int:
-    variable = info.variables[name]
-    if variable.type != "Real" or variable.causality != causality:
-        raise BadInput(f"'{name}' of '{where}' is {_describe(variable)}; linearize takes Real {causality}s")
-    return variable.valueReference
-
-
-def _set(model: FMU2Model, info: ModelInfo, name: str, value: Any, where: str) -> None:
-    names = _expand(info, name, where)
-    for n, v in zip(names, _values(name, value, len(names))):
-        variable = info.variables[n]
-        kind = variable.type
-        try:
-            if kind == "Real":
-                model.setReal([variable.valueReference], [float(v)])
-            elif kind in ("Integer", "Enumeration"):
-                model.setInteger([variable.valueReference], [int(v)])
-            elif kind == "Boolean":
-                model.setBoolean([variable.valueReference], [bool(v)])
-            else:
-                model.setString([variable.valueReference], [str(v)])
-        except (TypeError, ValueError):
-            raise BadInput(f"'{n}' of '{where}' is {kind}: cannot take {v!r}") from None
-        except fmpy.fmi1.FMICallException:
-            raise BadInput(f"'{n}' of '{where}' ({variable.causality}, {variable.variability}) cannot be set "
-                           "before initialization") from None
-
-
-__all__ = ["linearize_fmu", "linearize_scenario", "expand_references", "LinearModel"]

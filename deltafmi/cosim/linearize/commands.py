@@ -6,7 +6,7 @@ from typing import Any, Dict, Optional, Sequence
 
 import click
 
-from .errors import BadInput
+from deltafmi.errors import BadInput
 
 
 def _value(text: str) -> Any:
@@ -72,7 +72,8 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
       deltafmi linearize fmu_src/delta_robot.py --set z0=0.1,-0.1,-0.9 --rest --free u -u u -y z
       deltafmi linearize scenarios/delta_tracking.yaml --at 0.05 -u 'controller.r' -y 'plant.z'
     """
-    from .linearize import expand_references, linearize_fmu, linearize_scenario
+    from .closed_loop import expand_references, linearize_scenario
+    from .fmu import linearize_fmu
 
     path = Path(target)
     if not path.is_file():
@@ -82,8 +83,8 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
                                              ("--free", free), ("--hold", hold)) if given]
         if fmu_only:
             raise BadInput(f"{', '.join(fmu_only)}: only for an FMU; a scenario takes its values from its file")
-        from .commands import _load
-        system = _load(str(path))
+        from ..commands import load_system
+        system = load_system(str(path))
         components = {c.name: c for c in system.components}
         model = linearize_scenario(path, at=at, inputs=expand_references(components, inputs),
                                    outputs=expand_references(components, outputs), system=system)

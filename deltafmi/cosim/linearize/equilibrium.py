@@ -15,7 +15,7 @@ from typing import Mapping, NamedTuple, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
-from .jacobians import FmuJacobian
+from ..stepping.jacobians import FmuJacobian
 
 
 class Equilibrium(NamedTuple):

@@ -4,9 +4,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Collection, List, Sequence
 
-from .errors import did_you_mean
-from .resolve import pattern_regex
-from .results import read_csv
+from deltafmi.errors import did_you_mean
+
+from ..scenario.resolve import pattern_regex
+from .csv_file import read_csv
 
 
 class UnknownSignal(LookupError):

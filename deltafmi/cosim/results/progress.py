@@ -70,7 +70,7 @@ class Summary:
     terminated: Optional[Termination] = None
     #: wall seconds spent before the first step (extracting, loading, initializing)
     setup_time: float = 0.0
-    #: algebraic loops solved (a :class:`~deltafmi.cosim.loops.LoopStatistics`; None: no loop)
+    #: algebraic loops solved (a :class:`~deltafmi.cosim.stepping.loops.LoopStatistics`; None: no loop)
     loops: Any = None
     #: wall seconds spent after the last step (last results written, units freed, files removed)
     close_time: float = 0.0

@@ -12,10 +12,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
-from .errors import Diagnostic, ScenarioError, did_you_mean
+from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
+
 from .graph import block_stepping_order, initialization_order, loop_groups, tear
 from .modelinfo import ModelInfo, UnknownVariable, model_info
-from .scenario import ComponentSpec, ConnectionSpec, Scenario
+from .spec import ComponentSpec, ConnectionSpec, Scenario
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ class AlgebraicLoop:
     ``members`` step (or, at initialization, are evaluated) in this order, each taking the
     fresh outputs of those before it; ``tears`` are the outputs read by a member at or before
     their own component in that order: their values are guessed and iterated on (see
-    :mod:`deltafmi.cosim.loops`).
+    :mod:`deltafmi.cosim.stepping.loops`).
     """
 
     members: Tuple[str, ...]

@@ -7,7 +7,8 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import jsonschema
 
-from .errors import Diagnostic, ScenarioError, did_you_mean
+from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
+
 from .yaml_lines import LineMap, YamlSyntaxError, load_yaml
 
 #: a document's own wording for some errors: None to fall back to the generic one

@@ -1,6 +1,6 @@
 """Scenario files: YAML -> checked against ``scenario.schema.json`` -> :class:`Scenario` objects.
 
-This module knows nothing of FMUs; :mod:`deltafmi.cosim.resolve` checks names, types and units
+This module knows nothing of FMUs; :mod:`deltafmi.cosim.scenario.resolve` checks names, types and units
 against each FMU's modelDescription.
 """
 from __future__ import annotations
@@ -14,7 +14,8 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import jsonschema
 
-from .errors import Diagnostic, ScenarioError
+from deltafmi.errors import Diagnostic, ScenarioError
+
 from .schema_check import dotted, load_mapping, read_document, schema_diagnostics
 from .yaml_lines import LineMap
 
@@ -42,7 +43,7 @@ class Adaptive:
 
 @dataclass(frozen=True)
 class Loops:
-    """How the master solves algebraic loops (see :mod:`deltafmi.cosim.loops`)."""
+    """How the master solves algebraic loops (see :mod:`deltafmi.cosim.stepping.loops`)."""
 
     method: str = "newton"
     tolerance: float = 1e-10
@@ -146,8 +147,8 @@ class Scenario:
 
 @lru_cache(maxsize=1)
 def schema() -> Dict[str, Any]:
-    """The JSON Schema of scenario files (shipped as ``deltafmi/cosim/scenario.schema.json``)."""
-    text = resources.files("deltafmi.cosim").joinpath("scenario.schema.json").read_text()
+    """The JSON Schema of scenario files (shipped as ``deltafmi/cosim/scenario/scenario.schema.json``)."""
+    text = resources.files("deltafmi.cosim.scenario").joinpath("scenario.schema.json").read_text()
     return json.loads(text)
 
 

@@ -2,8 +2,8 @@
 
 The SSD is checked against the SSP 1.0 schema, then turned into the data of a YAML scenario
 (components with their FMU files, start values from the parameter bindings, scalar connections
-with their ``ssc:LinearTransformation``, the ``com.deltafmi`` annotations of :mod:`.ssp_write`)
-that goes through the same schema check and, in :func:`~deltafmi.cosim.resolve.resolve_system`,
+with their ``ssc:LinearTransformation``, the ``com.deltafmi`` annotations of :mod:`.write`)
+that goes through the same schema check and, in :func:`~deltafmi.cosim.scenario.resolve.resolve_system`,
 the same validation as a YAML file. Diagnostics name ``<archive>/SystemStructure.ssd`` and the
 SSD's line numbers.
 
@@ -29,11 +29,12 @@ from urllib.parse import unquote, urlsplit
 
 from lxml import etree
 
-from .errors import Diagnostic, ScenarioError, did_you_mean
-from .scenario import ResultSettings, Scenario, scenario_from_data
-from .ssp_format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE,
+from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
+
+from ..scenario.spec import ResultSettings, Scenario, scenario_from_data
+from ..scenario.yaml_lines import LineMap
+from .format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE,
                          PARAMETER_SET_MIME_TYPE, SSD_NAME, schema_problems, tag)
-from .yaml_lines import LineMap
 
 #: annotation attributes that stay text (every other one is read as a number or boolean)
 _TEXT_KEYS = {"algorithm", "error_estimate", "method", "format", "file", "pattern"}

@@ -6,8 +6,8 @@ scenario component (``implementation`` from its interface), the connected variab
 connectors, one scalar connection per connected variable (``ssc:LinearTransformation`` when
 the connection has a factor or offset), the start values as an inline ``ssv:ParameterSet``,
 and the start and stop time as ``DefaultExperiment``. Everything else a scenario says goes
-into ``com.deltafmi`` annotations (see :mod:`.ssp_format`), so reading the archive back
-(:mod:`.ssp_read`) gives a scenario that runs to the same samples.
+into ``com.deltafmi`` annotations (see :mod:`.format`), so reading the archive back
+(:mod:`.read`) gives a scenario that runs to the same samples.
 """
 from __future__ import annotations
 
@@ -23,10 +23,11 @@ from typing import Any, Dict, Iterable, List, Tuple
 from lxml import etree
 
 import deltafmi
-from ..files import replaced_atomically
-from .resolve import Component, Port, System
-from .scenario import Adaptive, Scenario
-from .ssp_format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE, SSD_NAME,
+from deltafmi.files import replaced_atomically
+
+from ..scenario.resolve import Component, Port, System
+from ..scenario.spec import Adaptive, Scenario
+from .format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE, SSD_NAME,
                          tag)
 
 #: name of the parameter set of every component (Ecos applies parameter sets by name)

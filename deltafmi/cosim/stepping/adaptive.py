@@ -21,8 +21,8 @@ from typing import Any, Dict, List, Protocol, Sequence
 
 import numpy as np
 
+from ..scenario.spec import Adaptive
 from .loops import Stepper
-from .scenario import Adaptive
 from .unit_base import Unit
 
 _SAFETY, _SHRINK, _GROW = 0.9, 0.2, 2.0

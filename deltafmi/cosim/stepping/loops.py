@@ -1,6 +1,6 @@
 """Algebraic loops solved by the master, at initialization and at every communication step.
 
-A loop (:class:`~deltafmi.cosim.resolve.AlgebraicLoop`) is a set of components whose connections
+A loop (:class:`~deltafmi.cosim.scenario.resolve.AlgebraicLoop`) is a set of components whose connections
 and direct feedthrough close a cycle. Its components are evaluated in the loop's order, each
 taking the fresh outputs of those before it; the outputs read by a component at or before their
 own in that order are the *tear variables* ``tau``. Evaluating the loop with guessed values
@@ -44,8 +44,8 @@ from typing import Any, Callable, Dict, List, Optional, Protocol, Sequence, Tupl
 import numpy as np
 import scipy.optimize
 
-from .resolve import AlgebraicLoop, Link, Port
-from .scenario import Loops
+from ..scenario.resolve import AlgebraicLoop, Link, Port
+from ..scenario.spec import Loops
 from .unit_base import Unit
 
 #: relative accuracy of a loop evaluation that integrates no states
@@ -61,7 +61,7 @@ class LoopFailure(RuntimeError):
 
 
 class Stepper(Protocol):
-    """What the master steps: a :class:`~deltafmi.cosim.unit_base.Unit` or a :class:`LoopBlock`."""
+    """What the master steps: a :class:`~deltafmi.cosim.stepping.unit_base.Unit` or a :class:`LoopBlock`."""
 
     name: str
     step_multiple: int

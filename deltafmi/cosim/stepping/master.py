@@ -5,11 +5,11 @@
   inputs are read after those inputs are set), so the closed loop starts consistent.
 * Stepping: Gauss-Seidel in the system's stepping order (default) or Jacobi; a unit with
   ``step_multiple`` m steps every m-th communication step over m steps.
-* Algebraic loops are solved at initialization and at every step (:mod:`deltafmi.cosim.loops`):
+* Algebraic loops are solved at initialization and at every step (:mod:`deltafmi.cosim.stepping.loops`):
   the units of a loop step as one block.
-* Optional adaptive communication step with rollback (:mod:`deltafmi.cosim.adaptive`).
+* Optional adaptive communication step with rollback (:mod:`deltafmi.cosim.stepping.adaptive`).
 * Results stream to CSV; events of ME units add rows at the event instant.
-* Fixed steps run in C where :mod:`deltafmi.cosim.native_loop` can (the same fmi2 calls, 64
+* Fixed steps run in C where :mod:`deltafmi.cosim.stepping.native_loop` can (the same fmi2 calls, 64
   steps per foreign call); the step where C stops (an event, a failure) is finished here.
 """
 from __future__ import annotations
@@ -25,15 +25,16 @@ from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Tu
 import fmpy
 import numpy as np
 
+from deltafmi.errors import BadInput, Interrupted, SimulationError
+
+from ..results.csv_file import CsvWriter, RowSampler
+from ..results.progress import Progress, Summary, Termination
+from ..scenario.resolve import Component, System
 from .adaptive import run_adaptive
-from .errors import BadInput, Interrupted, SimulationError
 from .explicit_rk import RungeKuttaError, step_failure
 from .loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from .native_loop import (FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT, TERMINATED,
                           NativeLoop)
-from .progress import Progress, Summary, Termination
-from .resolve import Component, System
-from .results import CsvWriter, RowSampler
 from .stop_signals import StopSignals
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 

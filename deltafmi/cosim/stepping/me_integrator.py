@@ -22,9 +22,9 @@ from fmpy.fmi2 import FMU2Model, fmi2Boolean
 
 from deltafmi.component.cvode import Cvode, CvodeError
 
+from ..scenario.resolve import Component
 from .explicit_rk import TABLEAUS, ExplicitRungeKutta, FmuEvaluations, RungeKuttaError
 from .jacobians import FmuJacobian, computes_exact_derivatives
-from .resolve import Component
 from .unit_base import FmuFailure, Terminated, Unit, bare_function
 
 _MAX_EVENT_ITERATIONS = 1000

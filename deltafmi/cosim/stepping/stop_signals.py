@@ -5,7 +5,7 @@ co-simulation that is mostly code inside an FMU (a deltafmi FMU runs its model i
 interpreter), where the FMU turns it into an fmi2Error: the run would fail with "fmi2DoStep
 failed ... KeyboardInterrupt", possibly after a solver restart has swallowed it. While a
 :class:`StopSignals` is active the signal only sets :attr:`StopSignals.received`; the master
-checks it between steps and ends the run with :class:`~deltafmi.cosim.errors.Interrupted`. A
+checks it between steps and ends the run with :class:`~deltafmi.errors.Interrupted`. A
 second signal raises KeyboardInterrupt at once (a step that never ends can still be broken).
 """
 from __future__ import annotations

@@ -23,7 +23,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Boolean, fmi2Integer, fmi2Real,
                        fmi2String, fmi2ValueReference)
 
-from .resolve import Component, Port
+from ..scenario.resolve import Component, Port
 
 #: FMI type -> (ctypes element type, numpy dtype of its bus); Enumeration values travel as Integer
 TYPES: Dict[str, Tuple[Any, Any]] = {

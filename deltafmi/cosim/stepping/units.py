@@ -9,7 +9,7 @@ from typing import Any, Optional
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
 
-from .resolve import Component
+from ..scenario.resolve import Component
 from .unit_base import TYPES, FmuFailure, Terminated, Unit, bare_function, new_bus
 
 __all__ = ["TYPES", "CoSimulationUnit", "FmuFailure", "Terminated", "Unit", "new_bus", "unit_for"]

@@ -1,0 +1,188 @@
+"""Linearization of one Model Exchange FMU at an operating point: continuous A, B, C, D.
+
+The FMU is instantiated at (states, inputs, time), optionally brought to an equilibrium first
+(:mod:`.equilibrium`), and differentiated with its directional derivatives (central differences
+when it provides none; :mod:`deltafmi.cosim.stepping.jacobians`).
+"""
+from __future__ import annotations
+
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any, List, Mapping, Optional, Sequence
+
+import fmpy
+import numpy as np
+from fmpy.fmi2 import FMU2Model
+
+from deltafmi.errors import BadInput, did_you_mean
+
+from ..scenario.modelinfo import ModelInfo, UnknownVariable, model_info
+from ..stepping.jacobians import FmuJacobian
+from ..stepping.unit_base import logger_callbacks
+from .equilibrium import find_equilibrium
+from .linear_model import LinearModel
+
+
+def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None,
+                  states: Optional[Mapping[str, Any]] = None, time: float = 0.0, rest: bool = False,
+                  free: Sequence[str] = (), hold: Optional[Mapping[str, Any]] = None,
+                  inputs: Sequence[str] = (), outputs: Sequence[str] = (), label: Optional[str] = None) -> LinearModel:
+    """Continuous A, B, C, D of the Model Exchange FMU at ``fmu`` at an operating point.
+
+    Args:
+        fmu: the .fmu file.
+        start_values: parameters and start values (name -> value; arrays take a list), set
+            before initialization.
+        states: continuous states to set after initialization (name -> value or list).
+        time: the time of the operating point.
+        rest: move to an equilibrium first: der(x) = 0, solving for the ``free`` inputs (default:
+            every continuous Real input) and, with ``hold``, the states as well.
+        hold: outputs held at given values at the equilibrium (implies ``rest``).
+        inputs, outputs: the model's inputs and outputs (names or array names); default: every
+            continuous Real input and output.
+        label: how messages name the FMU (default: its path), e.g. the source it was built from.
+
+    Raises:
+        BadInput: unknown names, wrong values, no Model Exchange interface, no equilibrium.
+    """
+    info = _info(fmu)
+    where = label or str(fmu)
+    if info.md.modelExchange is None:
+        raise BadInput(f"'{where}' offers no Model Exchange interface: linearizing an FMU needs its equations")
+    directory = tempfile.mkdtemp(prefix="deltafmi-linearize-")
+    model = None
+    errors: List[str] = []
+    callbacks = logger_callbacks(lambda status, category, text: _said(where, status, text, errors))
+    try:
+        model = FMU2Model(guid=info.md.guid, unzipDirectory=fmpy.extract(str(fmu), directory),
+                          modelIdentifier=info.model_identifier("ME"), instanceName="linearize")
+        model.instantiate(callbacks=callbacks, loggingOn=False)
+        model.setupExperiment(startTime=time)
+        for name, value in (start_values or {}).items():
+            _set(model, info, name, value, where)
+        model.enterInitializationMode()
+        model.exitInitializationMode()
+        while model.newDiscreteStates()[0]:
+            pass
+        model.enterContinuousTimeMode()
+        jac = FmuJacobian(model, info.md)
+        state_names = [d.variable.derivative.name for d in info.md.derivatives]
+        if states:
+            x = jac.get_states()
+            for name, value in states.items():
+                names = _expand(info, name, where)
+                values = _values(name, value, len(names))
+                for n, v in zip(names, values):
+                    if n not in state_names:
+                        raise BadInput(f"'{n}' is not a continuous state of '{where}'"
+                                       f"{did_you_mean(n, state_names)}")
+                    x[state_names.index(n)] = float(v)
+            jac.set_states(x)
+        real_inputs = [v.name for v in info.md.modelVariables
+                       if v.causality == "input" and v.type == "Real" and v.variability == "continuous"]
+        real_outputs = [v.name for v in info.md.modelVariables
+                        if v.causality == "output" and v.type == "Real" and v.variability == "continuous"]
+        notes = []
+        if rest or hold:
+            free_names = _expand_all(info, free, where) if free else real_inputs
+            targets = {}
+            for name, value in (hold or {}).items():
+                names = _expand(info, name, where)
+                targets.update({info.variables[n].valueReference: float(v)
+                                for n, v in zip(names, _values(name, value, len(names)))})
+            try:
+                found = find_equilibrium(jac, [info.variables[n].valueReference for n in free_names], targets)
+            except ValueError as exc:
+                raise BadInput(f"'{where}': {exc}") from None
+            notes.append(f"equilibrium: largest |der(x)| {found.residual:.3g}; "
+                         + ", ".join(f"{n} = {v:.9g}" for n, v in zip(free_names, found.inputs)))
+        input_names = _expand_all(info, inputs, where) if inputs else real_inputs
+        output_names = _expand_all(info, outputs, where) if outputs else real_outputs
+        u_vrs = [_real_vr(info, n, "input", where) for n in input_names]
+        y_vrs = [_real_vr(info, n, "output", where) for n in output_names]
+        nx = jac.nx
+        J = jac.block(jac.derivatives + y_vrs, jac.states + u_vrs)
+        return LinearModel(J[:nx, :nx], J[:nx, nx:], J[nx:, :nx], J[nx:, nx:], state_names, input_names,
+                           output_names, None, time, jac.get_states(),
+                           np.array(model.getReal(u_vrs)) if u_vrs else np.zeros(0),
+                           np.array(model.getReal(y_vrs)) if y_vrs else np.zeros(0), str(fmu), notes)
+    except fmpy.fmi1.FMICallException as exc:
+        last = errors[-1].strip().splitlines()[-1] if errors and errors[-1].strip() else ""
+        raise BadInput(f"'{where}': {exc}" + (f": {last}" if last else "")) from None
+    finally:
+        if model is not None:
+            for call in (model.terminate, model.freeInstance):
+                try:
+                    call()
+                except Exception:  # noqa: BLE001 - cleaning up after a failure must not hide it
+                    pass
+        shutil.rmtree(directory, ignore_errors=True)
+
+
+def _said(where: str, status: int, text: str, errors: List[str]) -> None:
+    """The FMU's logger: warnings to stderr, errors kept for the failure message."""
+    if status >= 2:
+        errors.append(text)
+    elif status == 1:
+        sys.stderr.write(f"warning: {where}: {text}\n")
+
+
+def _describe(variable: Any) -> str:
+    return f"a {variable.type} {variable.causality}"
+
+
+def _info(fmu: Path) -> ModelInfo:
+    if not Path(fmu).is_file():
+        raise BadInput(f"FMU '{fmu}' not found")
+    try:
+        return model_info(str(fmu))
+    except Exception as exc:  # noqa: BLE001 - any unreadable FMU is a user error here
+        raise BadInput(f"cannot read FMU '{fmu}': {exc}") from None
+
+
+def _expand(info: ModelInfo, name: str, where: str) -> List[str]:
+    try:
+        return info.expand(name)
+    except UnknownVariable as exc:
+        raise BadInput(f"'{where}' has no variable '{exc.reference}'{did_you_mean(exc.reference, exc.names)}") from None
+
+
+def _expand_all(info: ModelInfo, names: Sequence[str], where: str) -> List[str]:
+    return [n for name in names for n in _expand(info, name, where)]
+
+
+def _values(name: str, value: Any, count: int) -> list:
+    values = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
+    if len(values) != count:
+        raise BadInput(f"'{name}' has {count} element(s) but {len(values)} value(s) were given")
+    return values
+
+
+def _real_vr(info: ModelInfo, name: str, causality: str, where: str) -> int:
+    variable = info.variables[name]
+    if variable.type != "Real" or variable.causality != causality:
+        raise BadInput(f"'{name}' of '{where}' is {_describe(variable)}; linearize takes Real {causality}s")
+    return variable.valueReference
+
+
+def _set(model: FMU2Model, info: ModelInfo, name: str, value: Any, where: str) -> None:
+    names = _expand(info, name, where)
+    for n, v in zip(names, _values(name, value, len(names))):
+        variable = info.variables[n]
+        kind = variable.type
+        try:
+            if kind == "Real":
+                model.setReal([variable.valueReference], [float(v)])
+            elif kind in ("Integer", "Enumeration"):
+                model.setInteger([variable.valueReference], [int(v)])
+            elif kind == "Boolean":
+                model.setBoolean([variable.valueReference], [bool(v)])
+            else:
+                model.setString([variable.valueReference], [str(v)])
+        except (TypeError, ValueError):
+            raise BadInput(f"'{n}' of '{where}' is {kind}: cannot take {v!r}") from None
+        except fmpy.fmi1.FMICallException:
+            raise BadInput(f"'{n}' of '{where}' ({variable.causality}, {variable.variability}) cannot be set "
+                           "before initialization") from None

@@ -1,0 +1,3 @@
+"""What a run leaves behind and shows: ``csv_file`` streams rows to a CSV result file and reads
+them back (numbers formatted in C, ``native/csv_rows.c``), ``progress`` draws the progress bar and
+the end-of-run summary, ``plot`` draws signals of a result file."""

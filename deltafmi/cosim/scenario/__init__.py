@@ -1,0 +1,9 @@
+"""Scenario files, from YAML to a runnable system, and the checks on the way.
+
+``spec`` reads a scenario (YAML -> ``scenario.schema.json`` -> :class:`~.spec.Scenario`) with the
+help of ``yaml_lines`` (line numbers of every value) and ``schema_check`` (schema violations as
+``file:line`` diagnostics, also used for study files); ``modelinfo`` reads what the master needs
+from an FMU's modelDescription; ``resolve`` checks a scenario against its FMUs and resolves it
+into a :class:`~.resolve.System`, with the stepping order and algebraic loops from ``graph``.
+Nothing here steps an FMU.
+"""
