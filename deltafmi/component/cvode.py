@@ -16,6 +16,7 @@ from ctypes import byref, c_double, c_int, c_void_p
 from typing import Callable, Optional
 
 import numpy as np
+import numpy.ctypeslib  # noqa: F401  (numpy loads it lazily on first use, which raced between threads)
 
 from . import sundials as _sun
 
