@@ -11,7 +11,7 @@ from typing import Optional, Sequence
 
 import click
 
-from deltafmi.cosim.errors import BadInput, ScenarioError
+from deltafmi.errors import BadInput, ScenarioError
 
 
 def _plan(path: str):
@@ -42,6 +42,9 @@ def _table_path(planned, output: Optional[str]) -> Path:
               help="A running Dask scheduler, e.g. tcp://host:8786 (default: a local cluster).")
 @click.option("--workers", type=click.IntRange(min=1),
               help="Worker processes of the local cluster (default: one per core).")
+@click.option("--dashboard", metavar="HOST:PORT",
+              help="Where the local cluster's Dask dashboard listens, and print its link (default: "
+                   "127.0.0.1 on a free port, this machine only; 0.0.0.0:8787 opens it to the network).")
 @click.option("--timeseries/--no-timeseries", default=None,
               help="Keep every case's recorded signals (default: result.timeseries of the study).")
 @click.option("--fresh", is_flag=True, help="Discard earlier results of this study instead of continuing them.")
@@ -49,7 +52,8 @@ def _table_path(planned, output: Optional[str]) -> Path:
 @click.option("--dry-run", is_flag=True, help="Check the study and list its cases; run nothing.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: Optional[int],
-          timeseries: Optional[bool], fresh: bool, retry_failed: bool, dry_run: bool, quiet: bool) -> None:
+          dashboard: Optional[str], timeseries: Optional[bool], fresh: bool, retry_failed: bool, dry_run: bool,
+          quiet: bool) -> None:
     """Run every case of the STUDY (a YAML file) on a Dask cluster and tabulate the metrics.
 
     Each FMU is built once here and shipped to the workers, which keep it loaded and reset it
@@ -60,11 +64,17 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: 
     Examples:
       deltafmi sweep scenarios/studies/gain_payload.yaml
       deltafmi sweep study.yaml --scheduler tcp://10.0.0.5:8786 -o results/study.parquet
+      deltafmi sweep study.yaml --dashboard 0.0.0.0:8787
     """
-    from .driver import open_store, run_study, summary_lines
+    from .driver import LOCAL_DASHBOARD, dashboard_address, open_store, run_study, summary_lines
 
     if scheduler is not None and workers is not None:
         raise BadInput("--workers sizes the local cluster; a cluster given with --scheduler has its own workers")
+    if scheduler is not None and dashboard is not None:
+        raise BadInput("--dashboard places the local cluster's dashboard; a cluster given with --scheduler "
+                       "serves its own (dask scheduler --dashboard-address)")
+    if dashboard is not None:
+        dashboard_address(dashboard)  # a malformed address fails here, before any FMU is built
     planned = _plan(study)
     store = open_store(planned, _table_path(planned, output),
                        planned.study.timeseries if timeseries is None else timeseries)
@@ -79,7 +89,8 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: 
     todo = store.open(planned.cases, fresh=fresh, retry_failed=retry_failed)
     try:
         report = run_study(planned, store, todo, scheduler=scheduler, workers=workers,
-                           progress=not quiet and sys.stdout.isatty())
+                           progress=not quiet and sys.stdout.isatty(), dashboard=dashboard or LOCAL_DASHBOARD,
+                           on_dashboard=_announce if dashboard is not None and not quiet else lambda link: None)
     except KeyboardInterrupt:  # while the cluster started or stopped: the journal has every finished case
         click.echo(f"interrupted: run the same command again to continue ({store.journal} keeps what finished)",
                    err=True)
@@ -91,6 +102,15 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: 
             click.echo(line)
     if report.interrupted:
         raise click.exceptions.Exit(130)
+
+
+def _announce(link: str) -> None:
+    """Print the dashboard's link (on stderr: stdout carries the progress bar and the summary)."""
+    import importlib.util
+
+    note = "" if importlib.util.find_spec("bokeh") else \
+        " (Dask serves its pages without the dashboard's plots: pip install bokeh for them)"
+    click.echo(f"Dask dashboard: {link}{note}", err=True)
 
 
 @click.command("plot-study")

@@ -11,6 +11,9 @@ recorded as failed (``KilledWorker``) and the study goes on. On the local cluste
 and ``allowed-failures`` is 0, so Dask reports the death at once and the retry above is the only
 one. A cluster given by address keeps its own settings of both (Dask then retries a task as they
 say before the retry above). A case that fails inside the simulation is a result row like any other.
+
+The local cluster's scheduler serves Dask's dashboard and HTTP pages (worker logs, call stacks,
+task details) on 127.0.0.1 only, unless the caller gives another address (``dashboard``).
 """
 from __future__ import annotations
 
@@ -21,11 +24,11 @@ import time as _time
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterator, List, Optional, TextIO
+from typing import Any, Callable, Dict, Iterator, List, Optional, TextIO, Tuple
 
 from distributed import WorkerPlugin
 
-from deltafmi.cosim.errors import BadInput, SimulationError
+from deltafmi.errors import BadInput, SimulationError
 
 from .batches import Batch, Batcher
 from .cases import Case
@@ -115,10 +118,46 @@ def local_workers() -> int:
         return os.cpu_count() or 1
 
 
+#: where the local cluster's dashboard listens unless asked otherwise: this machine only, a free port
+LOCAL_DASHBOARD = "127.0.0.1:0"
+
+
+def dashboard_address(text: str) -> Tuple[str, int]:
+    """``HOST:PORT``, ``HOST`` (a free port), ``PORT`` (on 127.0.0.1) or ``[IPv6]:PORT`` -> (host, port).
+
+    Dask reads ``:PORT`` as every interface; that form is refused so that exposing the dashboard
+    is always spelt out (``0.0.0.0:PORT``).
+    """
+    def bad(why: str) -> BadInput:
+        return BadInput(f"--dashboard {text!r}: {why}; expected HOST:PORT, e.g. 127.0.0.1:8787 "
+                        "(this machine only) or 0.0.0.0:8787 (every interface)")
+
+    text = text.strip()
+    if text.startswith("["):
+        host, sep, rest = text[1:].partition("]")
+        if not sep or (rest and not rest.startswith(":")):
+            raise bad("an IPv6 address goes in brackets, [::1]:8787")
+        port_text = rest[1:] if rest else "0"
+    elif text.isdigit():
+        host, port_text = "127.0.0.1", text
+    elif text.count(":") <= 1:
+        host, _, port_text = text.partition(":")
+        port_text = port_text or "0"
+    else:
+        raise bad("an IPv6 address goes in brackets, [::1]:8787")
+    if not host:
+        raise bad("no host (Dask would listen on every interface): name it")
+    if not port_text.isdigit() or not 0 <= int(port_text) <= 65535:
+        raise bad(f"the port {port_text!r} is not a number from 0 to 65535")
+    return host, int(port_text)
+
+
 @contextmanager
-def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None) -> Iterator[Any]:
+def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None,
+                dashboard: str = LOCAL_DASHBOARD) -> Iterator[Any]:
     """A Dask client: of the cluster at ``scheduler``, else of a new local cluster of ``workers``
-    single-threaded worker processes (closed on exit)."""
+    single-threaded worker processes (closed on exit) whose dashboard listens at ``dashboard``
+    (see :func:`dashboard_address`; default 127.0.0.1, a free port)."""
     import dask
     from distributed import Client, LocalCluster
 
@@ -137,11 +176,19 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None) 
     # is reported at once (allowed-failures 0): run_study retries the task's cases one by one.
     # Workers do not sample their own stacks every 10 ms for the dashboard's profile: on a
     # machine whose every core runs a worker that is time taken from the cases.
+    host, port = dashboard_address(dashboard)
     with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                           "distributed.scheduler.worker-saturation": 1.0,
                           "distributed.worker.profile.enabled": False}):
-        cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.ERROR)  # any free port
+        try:
+            # a (host, port) pair: Dask's own parsing of a string splits IPv6 addresses at every colon
+            cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
+                                   dashboard_address=(host, port), silence_logs=logging.ERROR)
+        except (OSError, RuntimeError) as exc:  # "Cluster failed to start" from an OSError of the bind
+            reason = _os_error(exc)
+            if reason is None:
+                raise
+            raise BadInput(f"cannot start the Dask dashboard at {dashboard}: {reason.strerror or reason}") from None
     client = Client(cluster)
     try:
         client.register_plugin(_IgnoreInterrupts(), name="deltafmi-ignore-interrupts")
@@ -149,6 +196,26 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None) 
     finally:
         client.close()
         cluster.close()
+
+
+def _os_error(exc: BaseException) -> Optional[OSError]:
+    """The OSError in the chain of ``exc`` (Dask wraps a failed bind in a RuntimeError), if any."""
+    seen: Optional[BaseException] = exc
+    while seen is not None:
+        if isinstance(seen, OSError):
+            return seen
+        seen = seen.__cause__ or seen.__context__
+    return None
+
+
+def dashboard_link(client: Any) -> str:
+    """The status page of the local cluster of ``client`` at the address its dashboard listens on
+    (Dask's own ``dashboard_link`` names 127.0.0.1 whatever the address)."""
+    import socket
+
+    server = client.cluster.scheduler.http_server
+    host = socket.gethostname() if server.address in ("0.0.0.0", "::") else server.address
+    return f"http://{f'[{host}]' if ':' in host else host}:{server.port}/status"
 
 
 class _IgnoreInterrupts(WorkerPlugin):
@@ -184,9 +251,13 @@ def open_store(planned: PlannedStudy, table: Path, timeseries: bool) -> ResultSt
 
 def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, scheduler: Optional[str] = None,
               workers: Optional[int] = None, progress: bool = False,
-              on_result: Callable[[CaseResult], None] = lambda result: None) -> SweepReport:
+              on_result: Callable[[CaseResult], None] = lambda result: None,
+              dashboard: str = LOCAL_DASHBOARD,
+              on_dashboard: Callable[[str], None] = lambda link: None) -> SweepReport:
     """Run the cases ``todo`` of ``planned`` on Dask, storing every result in ``store``.
 
+    Without ``scheduler`` the local cluster's dashboard listens at ``dashboard`` and
+    ``on_dashboard`` gets its link once the cluster is up.
     Ctrl-C cancels what is left; the finished cases stay recorded (a re-run skips them).
     """
     from distributed import as_completed
@@ -203,12 +274,13 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
         plugin = StudyPlugin(planned.plan, planned.fmu_bytes)
         fingerprint = planned.plan.fingerprint
         keep = store.timeseries is not None
-        with dask_client(scheduler, workers) as client:
+        with dask_client(scheduler, workers, dashboard) as client:
             if scheduler:
                 threads = [w["nthreads"] for w in client.scheduler_info(n_workers=-1)["workers"].values()]
                 n_workers, slots = len(threads), sum(threads)
             else:
                 n_workers = slots = workers or local_workers()
+                on_dashboard(dashboard_link(client))
             try:
                 client.register_plugin(plugin, name=plugin.name)
             except Exception as exc:  # noqa: BLE001 - e.g. a worker without deltafmi
