@@ -48,7 +48,8 @@ def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = Non
 @click.command()
 @click.argument("scenario", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
-              help="Result CSV (default: result.file of the scenario, else <scenario>.csv here).")
+              help="Result file: .csv, .parquet (units in its field metadata) or .mat (MATLAB); "
+                   "default: result.file of the scenario, else <scenario>.csv here.")
 @click.option("--stop", type=float, help="Stop time [s], overriding experiment.stop.")
 @click.option("--algorithm", type=click.Choice(["gauss-seidel", "jacobi"]),
               help="Override master.algorithm.")
@@ -62,17 +63,22 @@ def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: 
     The FMUs' warnings and errors are shown on stderr as they log them (-v: all their messages,
     -q: none). A component that ends the simulation itself ends the run there: the results up to
     that time are written and the summary says who ended it and why. Ctrl-C stops the run: the
-    rows so far stay in the result file (exit code 130).
+    rows so far stay in the result file (exit code 130). The result format follows the file's
+    extension: .csv, .parquet or .mat.
 
     \b
     Example:
       deltafmi run scenarios/delta_tracking.yaml -o tracking.csv --stop 2
       deltafmi run system.ssp
+      deltafmi run scenarios/delta_tracking.yaml -o tracking.parquet
     """
+    from .results.writers import writer_for
     from .stepping.master import Master
 
     if quiet and verbose:
         raise BadInput("-q and -v contradict each other: give one")
+    if output:
+        writer_for(output)  # an unknown extension fails before any FMU is built or run
     system = load_system(scenario, stop=stop)
     master = Master(system, result=Path(output) if output else None, stop=stop, algorithm=algorithm,
                     progress=not quiet and sys.stdout.isatty(),

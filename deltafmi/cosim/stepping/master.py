@@ -27,7 +27,8 @@ import numpy as np
 
 from deltafmi.errors import BadInput, Interrupted, SimulationError
 
-from ..results.csv_file import CsvWriter, RowSampler
+from ..results.csv_file import RowSampler
+from ..results.writers import writer_for
 from ..results.progress import Progress, Summary, Termination
 from ..scenario.resolve import Component, System
 from .adaptive import run_adaptive
@@ -57,7 +58,7 @@ class Master:
                  algorithm: Optional[str] = None, progress: bool = False,
                  warn: Callable[[str], None] = lambda message: None,
                  fmus: Optional[Callable[[Component], Any]] = None,
-                 writer_class: Callable[..., Any] = CsvWriter, native: bool = True,
+                 writer_class: Optional[Callable[..., Any]] = None, native: bool = True,
                  on_message: Optional[Callable[[str, int, str, str], None]] = None,
                  debug_logging: bool = False) -> None:
         """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
@@ -65,7 +66,9 @@ class Master:
         ``on_message(component, status, category, text)`` gets every message the FMUs log
         (default: none is shown); ``debug_logging``: instantiate with loggingOn, so the FMUs send
         their debug categories too;
-        ``writer_class(path, names, kinds=...)`` makes the result writer (default: CSV);
+        ``writer_class(path, names, kinds=...)`` makes the result writer (default: chosen by the
+        result file's extension, :func:`~deltafmi.cosim.results.writers.writer_for`, which also
+        gets ``units=``; an unknown extension is a :class:`BadInput` here, before anything runs);
         ``native``: run fixed steps in C where :mod:`.native_loop` can (same calls, same results)."""
         scenario = system.scenario
         self.system = system
@@ -77,6 +80,7 @@ class Master:
         self.algorithm = algorithm or scenario.master.algorithm
         self.result_path = Path(result) if result is not None else scenario.result.file
         self.every = scenario.result.every
+        self._writer_for_file = writer_for(self.result_path) if writer_class is None else None
         self.progress = Progress(self.start, self.stop, progress)
         self.warn = warn
         self.on_message = on_message
@@ -85,7 +89,7 @@ class Master:
         #: one block per algebraic loop solved at every step, and the loops of the initialization
         self.loops: List[LoopBlock] = []
         self.initial_loops: Optional[InitialLoops] = None
-        self.writer: Optional[CsvWriter] = None
+        self.writer: Optional[Any] = None  # a writer of ..results.writers, or the caller's
         self.sampler: Optional[RowSampler] = None
         self.buses: Dict[str, np.ndarray] = {}
         self.time = self.start
@@ -152,7 +156,12 @@ class Master:
             unit.apply_start_values()
         self._wire()
         recorded = self.system.recorded
-        self.writer = self.writer_class(self.result_path, [p.ref for p in recorded], kinds=[p.type for p in recorded])
+        names, kinds = [p.ref for p in recorded], [p.type for p in recorded]
+        if self.writer_class is not None:
+            self.writer = self.writer_class(self.result_path, names, kinds=kinds)
+        else:
+            self.writer = self._writer_for_file(self.result_path, names, kinds=kinds,
+                                                units=[p.unit for p in recorded])
         self._initialize()
         self._record(self.start)
 

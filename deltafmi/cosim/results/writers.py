@@ -1,0 +1,228 @@
+"""Result writers chosen by the result file's extension: ``.csv``, ``.parquet`` and ``.mat``.
+
+Every writer takes ``(path, names, kinds=..., units=...)`` and offers ``write(time, values)``,
+``write_rows(rows)``, ``flush()``, ``close()`` and ``rows_written``, like
+:class:`~deltafmi.cosim.results.csv_file.CsvWriter`.
+
+- ``.csv``: streamed text (see :mod:`.csv_file`); no units.
+- ``.parquet``: one column per variable, ``time`` first; each field's metadata holds its unit
+  under the key ``unit`` (``s`` for time, ``""`` where the modelDescription declares none).
+  Rows go out as row groups while the run goes on (whenever 8192 rows are queued or half a
+  second has passed); the file's footer is written by :meth:`ParquetWriter.close`, which the
+  master calls after a failure, Ctrl-C or SIGTERM too. A process killed outright (SIGKILL,
+  power loss) leaves a file without a footer, which Parquet readers refuse.
+- ``.mat``: MATLAB 5 file (:func:`scipy.io.savemat`), held in memory and written by
+  :meth:`MatWriter.close` (at the end, and after a failure or interruption). See
+  :func:`matlab_names` for how FMI names become MATLAB names.
+"""
+from __future__ import annotations
+
+import re
+import time as _time
+from pathlib import Path
+from typing import Any, Callable, Dict, List, Optional, Sequence
+
+import numpy as np
+
+from deltafmi.errors import BadInput
+
+from .csv_file import CsvWriter
+
+_FLUSH_SECONDS = 0.5
+#: MATLAB's namelengthmax
+_MATLAB_NAME_LENGTH = 63
+#: the .mat file's own variables, which no recorded variable may take
+_MAT_RESERVED = ("time", "names", "variables", "units")
+
+
+def _csv(path: Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None,
+         units: Optional[Sequence[str]] = None) -> CsvWriter:
+    return CsvWriter(path, names, kinds=kinds)
+
+
+def writer_for(path: str | Path) -> Callable[..., Any]:
+    """The writer class for a result file, by its extension (case-insensitive).
+
+    Raises :class:`BadInput` naming the file and the supported extensions for any other.
+    """
+    suffix = Path(path).suffix.lower()
+    writers: Dict[str, Callable[..., Any]] = {".csv": _csv, ".parquet": ParquetWriter, ".mat": MatWriter}
+    if suffix not in writers:
+        raise BadInput(f"result file '{path}': unknown format '{suffix or '(no extension)'}'; "
+                       f"use {', '.join(writers)}")
+    return writers[suffix]
+
+
+class _Rows:
+    """Rows queued in blocks: floats, or objects when a String variable is recorded."""
+
+    def __init__(self, width: int, kinds: Sequence[str], chunk: int) -> None:
+        self.text = "String" in kinds
+        self.block = np.empty((chunk, width), dtype=object if self.text else float)
+        self.n = 0
+
+    def add(self, time: float, values: np.ndarray) -> bool:
+        """Queue one row; True when the block is full."""
+        self.block[self.n, 0] = time
+        self.block[self.n, 1:] = values
+        self.n += 1
+        return self.n == len(self.block)
+
+    def take(self) -> np.ndarray:
+        """The queued rows (a copy), and an empty queue."""
+        rows = self.block[:self.n].copy()
+        self.n = 0
+        return rows
+
+
+def _column(values: np.ndarray, kind: str) -> np.ndarray:
+    """One column with its FMI type's NumPy type."""
+    if kind == "String":
+        return values.astype(str)
+    if kind == "Boolean":
+        return values.astype(float) != 0
+    if kind in ("Integer", "Enumeration"):
+        return values.astype(np.int64)
+    return values.astype(float)
+
+
+class ParquetWriter:
+    """Streams rows to a Parquet file (pyarrow), one row group per flush; units in field metadata."""
+
+    def __init__(self, path: str | Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None,
+                 units: Optional[Sequence[str]] = None, chunk: int = 8192) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        self._pa = pa
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._kinds = ["Real", *(kinds if kinds is not None else ["Real"] * len(names))]
+        units = ["s", *(units if units is not None else [""] * len(names))]
+        types = {"Real": pa.float64(), "Integer": pa.int64(), "Enumeration": pa.int64(),
+                 "Boolean": pa.bool_(), "String": pa.string()}
+        self._schema = pa.schema([pa.field(name, types[kind], metadata={"unit": unit})
+                                  for name, kind, unit in zip(["time", *names], self._kinds, units)])
+        self._file = pq.ParquetWriter(str(self.path), self._schema)
+        self._rows = _Rows(len(names) + 1, self._kinds, chunk)
+        self._last_flush = _time.monotonic()
+        self.rows_written = 0
+
+    def write(self, time: float, values: np.ndarray) -> None:
+        """Queue one row; it reaches the file with the next row group."""
+        if self._rows.add(time, values) or (self._rows.n & 63 == 0 and
+                                            _time.monotonic() - self._last_flush > _FLUSH_SECONDS):
+            self.flush()
+
+    def write_rows(self, rows: np.ndarray) -> None:
+        """Queue rows ``time, values...`` (a 2-D array) at once."""
+        queue, done = self._rows, 0
+        while done < len(rows):
+            take = min(len(rows) - done, len(queue.block) - queue.n)
+            queue.block[queue.n:queue.n + take] = rows[done:done + take]
+            queue.n += take
+            done += take
+            if queue.n == len(queue.block) or _time.monotonic() - self._last_flush > _FLUSH_SECONDS:
+                self.flush()
+
+    def flush(self) -> None:
+        """Write the queued rows as one row group."""
+        if self._rows.n and self._file is not None:
+            rows = self._rows.take()
+            arrays = [self._pa.array(_column(rows[:, i], kind), type=field.type)
+                      for i, (kind, field) in enumerate(zip(self._kinds, self._schema))]
+            self._file.write_table(self._pa.Table.from_arrays(arrays, schema=self._schema))
+            self.rows_written += len(rows)
+        self._last_flush = _time.monotonic()
+
+    def close(self) -> None:
+        """Write the last rows and the footer (idempotent)."""
+        if self._file is not None:
+            self.flush()
+            self._file.close()
+            self._file = None
+
+
+def matlab_names(names: Sequence[str]) -> List[str]:
+    """MATLAB variable names for FMI names, in order, all distinct.
+
+    Every run of characters other than letters, digits and ``_`` becomes one ``_``, and a
+    trailing ``_`` is dropped: ``plant.z[3]`` -> ``plant_z_3``, ``der(osc.x)`` -> ``der_osc_x``.
+    A name that does not start with a letter gets ``x`` before it; names are cut to 63
+    characters; a name already taken (by an earlier variable or by ``time``, ``names``,
+    ``variables``, ``units``) gets ``_2``, ``_3``, ... .
+    """
+    taken = set(_MAT_RESERVED)
+    result = []
+    for name in names:
+        base = re.sub(r"[^A-Za-z0-9_]+", "_", name).rstrip("_") or "x"
+        if not base[0].isalpha() or not base[0].isascii():
+            base = "x" + base
+        base = base[:_MATLAB_NAME_LENGTH]
+        candidate, n = base, 1
+        while candidate in taken:
+            n += 1
+            candidate = f"{base[:_MATLAB_NAME_LENGTH - len(str(n)) - 1]}_{n}"
+        taken.add(candidate)
+        result.append(candidate)
+    return result
+
+
+class MatWriter:
+    """Keeps rows in memory and writes a MATLAB 5 .mat file when closed.
+
+    The file holds ``time`` (a column), one column per recorded variable under its
+    :func:`matlab_names` name, and three cell arrays (rows), one entry per variable in
+    recording order: ``names`` (the FMI names), ``variables`` (their MATLAB names) and
+    ``units``. In MATLAB: ``r = load('r.mat'); plot(r.time, r.(r.variables{strcmp(r.names,
+    'plant.z[3]')}))``. String variables are cell arrays, the others doubles.
+    """
+
+    def __init__(self, path: str | Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None,
+                 units: Optional[Sequence[str]] = None, chunk: int = 8192) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._names = list(names)
+        self._kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
+        self._units = list(units) if units is not None else [""] * len(names)
+        self._rows = _Rows(len(names) + 1, self._kinds, chunk)
+        self._blocks: List[np.ndarray] = []
+        self._closed = False
+        self.rows_written = 0
+
+    def write(self, time: float, values: np.ndarray) -> None:
+        """Keep one row."""
+        if self._rows.add(time, values):
+            self.flush()
+
+    def write_rows(self, rows: np.ndarray) -> None:
+        """Keep rows ``time, values...`` (a 2-D array)."""
+        self.flush()
+        self._blocks.append(np.array(rows, dtype=self._rows.block.dtype))
+        self.rows_written += len(rows)
+
+    def flush(self) -> None:
+        """Move the queued rows to the kept blocks (the file is written by :meth:`close`)."""
+        if self._rows.n:
+            rows = self._rows.take()
+            self._blocks.append(rows)
+            self.rows_written += len(rows)
+
+    def close(self) -> None:
+        """Write the .mat file with every row kept (idempotent)."""
+        if self._closed:
+            return
+        from scipy.io import savemat
+
+        self.flush()
+        width = len(self._names) + 1
+        data = np.concatenate(self._blocks) if self._blocks else np.empty((0, width), self._rows.block.dtype)
+        variables = matlab_names(self._names)
+        content: Dict[str, Any] = {"time": data[:, 0].astype(float)}
+        for i, (name, kind) in enumerate(zip(variables, self._kinds), start=1):
+            column = data[:, i]
+            content[name] = column.astype(str).astype(object) if kind == "String" else column.astype(float)
+        for key, values in (("names", self._names), ("variables", variables), ("units", self._units)):
+            content[key] = np.array(values, dtype=object).reshape(1, -1)
+        savemat(str(self.path), content, oned_as="column")
+        self._closed = True
