@@ -117,6 +117,13 @@ def build_into(target: Path, build: Callable[[str], object]) -> None:
             os.makedirs(tmp)  # let TemporaryDirectory clean up the (now empty) name
 
 
+def strip_unneeded(library: Path) -> None:
+    """Drop a shared library's symbol table and debug information in place; its dynamic symbols
+    (what dlsym and the loader need) stay. Nothing happens where binutils' strip is missing."""
+    if shutil.which("strip"):
+        subprocess.run(["strip", "--strip-unneeded", str(library)], check=True, capture_output=True, text=True)
+
+
 def _run(command: list[str]) -> None:
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:

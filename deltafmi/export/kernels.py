@@ -35,7 +35,7 @@ from typing import Iterable, Optional
 
 import deltafmi
 
-from .compiler import build_into, cache_dir
+from .compiler import build_into, cache_dir, strip_unneeded
 from .reach import direct_imports, module_source, reached_modules
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
@@ -137,7 +137,7 @@ def _compile_into(target: Path, groups: list[list[str]]) -> None:
                     destination = Path(out) / relative
                     destination.parent.mkdir(parents=True, exist_ok=True)
                     shutil.copy2(work / relative, destination)
-                    _strip(destination)
+                    strip_unneeded(destination)
                     owners[relative] = owned
             (Path(out) / _MANIFEST).write_text(json.dumps(owners, indent=1))
 
@@ -146,12 +146,6 @@ def _compile_into(target: Path, groups: list[list[str]]) -> None:
 
 def _source(name: str) -> str:
     return name.replace(".", "/") + ".py"
-
-
-def _strip(library: Path) -> None:
-    """Drop the symbol table and debug information; the dynamic symbols (PyInit_*) stay."""
-    if shutil.which("strip"):
-        subprocess.run(["strip", "--strip-unneeded", str(library)], check=True, capture_output=True, text=True)
 
 
 # mypyc's command line (python -m mypyc) cannot choose the groups; this is its setup.py with them

@@ -5,10 +5,9 @@ import hashlib
 import importlib.util
 import json
 import keyword
-import py_compile
+import marshal
 import re
 import sys
-import tempfile
 import uuid
 import warnings
 import zipfile
@@ -147,7 +146,7 @@ def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = Fals
             fmu.writestr("resources/README.txt", _readme(identifier))
             for path, arcname in runtime_files(source):
                 fmu.write(path, arcname)
-                fmu.writestr(importlib.util.cache_from_source(arcname), _bytecode(path, arcname))
+                fmu.writestr(importlib.util.cache_from_source(arcname), unchecked_hash_pyc(path, arcname))
             for path, arcname in binary_files(source):
                 fmu.write(path, arcname)
             for path in native_source_files():
@@ -171,14 +170,15 @@ def build_cached(source: Path, portable: bool = False) -> Path:
     return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable)
 
 
-def _bytecode(path: Path, arcname: str) -> bytes:
-    """``path`` compiled for this Python, as an unchecked-hash .pyc (PEP 552): an FMU is
-    unpacked afresh for every run, and compiling the runtime's sources there cost more than
-    the rest of loading it. Another Python version ignores the file and compiles the source."""
-    with tempfile.TemporaryDirectory() as tmp:
-        target = py_compile.compile(str(path), cfile=f"{tmp}/module.pyc", dfile=arcname, doraise=True,
-                                    invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH)
-        return Path(target).read_bytes()
+def unchecked_hash_pyc(path: Path, arcname: str) -> bytes:
+    """``path`` compiled for this Python, as the .pyc ``py_compile`` writes with an unchecked hash
+    (PEP 552), named ``arcname`` in tracebacks. An FMU is unpacked afresh for every run, and its
+    file times must never make the interpreter compile the sources there (that cost more than the
+    rest of loading the runtime). Another Python version ignores the file and compiles the source."""
+    text = path.read_bytes()
+    code = compile(text, arcname, "exec", dont_inherit=True)
+    flags = (0b01).to_bytes(4, "little")  # hash-based, not checked against the source
+    return importlib.util.MAGIC_NUMBER + flags + importlib.util.source_hash(text) + marshal.dumps(code)
 
 
 def _digest(data: bytes) -> str:

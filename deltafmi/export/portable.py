@@ -20,9 +20,8 @@ binary needs (its floor) and the loader refuses, with a message, a machine whose
 """
 from __future__ import annotations
 
-import importlib.util
+import functools
 import io
-import marshal
 import os
 import re
 import shutil
@@ -35,7 +34,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Optional
 
-from .compiler import NATIVE_DIR, BuildError, build_into, cache_dir, python_include, single_file_library
+from .compiler import (NATIVE_DIR, BuildError, build_into, cache_dir, python_include, single_file_library,
+                       strip_unneeded)
+from .packager import unchecked_hash_pyc
 
 PYTHON_DIR = "resources/python"
 #: shared libraries of glibc itself: the host provides them (the FMU states the version it needs)
@@ -64,9 +65,6 @@ class PortableBundle:
     glibc_floor: tuple = (2, 0)
     licenses: list = field(default_factory=list)
     python_version: str = ""
-
-    def archive_names(self) -> list[str]:
-        return [name for _, name in self.files] + [name for _, name in self.data]
 
 
 def python_tag() -> str:
@@ -123,15 +121,6 @@ def classify(modules: Mapping[str, Optional[str]]) -> tuple[set, set, dict]:
     return stdlib, dynload, third_party
 
 
-def _bytecode(source: Path, archive_name: str) -> bytes:
-    """``source`` as a sourceless, unchecked-hash .pyc (PEP 552): it never needs its source, and
-    an unpacked FMU's file times cannot make the interpreter compile it again."""
-    text = source.read_bytes()
-    code = compile(text, archive_name, "exec", dont_inherit=True)
-    flags = (1).to_bytes(4, "little")  # hash-based, not checked against the source
-    return importlib.util.MAGIC_NUMBER + flags + importlib.util.source_hash(text) + marshal.dumps(code)
-
-
 def _stdlib_zip(tops: set) -> bytes:
     """The standard library's modules and packages named in ``tops`` as a zip of .pyc files.
 
@@ -147,7 +136,7 @@ def _stdlib_zip(tops: set) -> bytes:
             for path in files:
                 if path.is_file():
                     name = path.relative_to(root).as_posix()
-                    archive.writestr(name + "c", _bytecode(path, name))
+                    archive.writestr(name + "c", unchecked_hash_pyc(path, name))
     return buffer.getvalue()
 
 
@@ -171,6 +160,7 @@ def _package_files(site: Path, top: str, imported: set) -> list[tuple[Path, str]
     return out
 
 
+@functools.lru_cache(maxsize=None)  # each binary's section is read for its NEEDED and its SONAME
 def _dynamic(binary: Path) -> str:
     return subprocess.run(["readelf", "-d", "-W", str(binary)], capture_output=True, text=True).stdout
 
@@ -210,7 +200,7 @@ def _stripped_copy(binary: Path) -> Path:
         def build(tmp: str) -> None:
             out = Path(tmp) / binary.name
             shutil.copy2(binary, out)
-            subprocess.run(["strip", "--strip-unneeded", str(out)], capture_output=True)
+            strip_unneeded(out)
         build_into(target, build)
     return copy
 
@@ -236,8 +226,8 @@ def portable_bundle(modules: Mapping[str, Optional[str]], needs_sundials: bool,
     everything = dict(boot_modules())
     everything.update(modules)
     stdlib, dynload, third_party = classify(everything)
-    bundle = PortableBundle(python_version=python_tag())
     version = python_tag()
+    bundle = PortableBundle(python_version=version)
     zip_name = f"lib/python{version.replace('.', '')}.zip"
     dynload_dir = f"lib/python{version}/lib-dynload"
     bundle.data.append((_stdlib_zip(stdlib), f"{PYTHON_DIR}/{zip_name}"))
@@ -262,7 +252,7 @@ def portable_bundle(modules: Mapping[str, Optional[str]], needs_sundials: bool,
                             for path, name in _package_licenses(fmpy_site, "fmpy")]
     for path, name in packaged:
         if path.suffix == ".py":
-            bundle.data.append((_bytecode(path, name), f"{PYTHON_DIR}/{name}c"))
+            bundle.data.append((unchecked_hash_pyc(path, name), f"{PYTHON_DIR}/{name}c"))
         elif _is_elf(path):
             binaries.append((path, name))
         else:
