@@ -1,6 +1,6 @@
 """Co-simulation master figures: real-time factor of the flagship, and the master's own overhead.
 
-1. Flagship: scenarios/delta_tracking.yaml as written (plant ME through the master's rk4,
+1. Flagship: deltafmi/examples/delta_tracking.yaml as written (plant ME through the master's rk4,
    controller and trajectory CS, Gauss-Seidel, 1 kHz): real-time factor end to end (loading the
    FMUs included) and of the stepping loop, where the time goes; and the same scenario with the
    plant on CVODE (BDF, rtol 1e-8) as the baseline.
@@ -50,14 +50,14 @@ from deltafmi.cosim.stepping.master import Master
 from deltafmi.errors import ScenarioError
 
 ROOT = Path(__file__).resolve().parents[1]
-FLAGSHIP = ROOT / "scenarios" / "delta_tracking.yaml"
+FLAGSHIP = ROOT / "deltafmi" / "examples" / "delta_tracking.yaml"
 CHAIN = """\
 experiment: {stop: 1.0, step: 1.0e-3}
 master: {algorithm: jacobi}
 components:
-  a: {source: fmu_src/oscillator.py, interface: CS}
-  b: {source: fmu_src/oscillator.py, interface: CS}
-  c: {source: fmu_src/oscillator.py, interface: CS}
+  a: {source: deltafmi/models/oscillator.py, interface: CS}
+  b: {source: deltafmi/models/oscillator.py, interface: CS}
+  c: {source: deltafmi/models/oscillator.py, interface: CS}
 connections:
   - {from: a.energy, to: b.F, factor: 0.05}
   - {from: b.energy, to: c.F, factor: 0.05}
@@ -425,7 +425,7 @@ def main() -> None:
     print("2. master overhead against the plain 20-line fmpy Jacobi loop (target <= 20 %):")
     if flagship is not None:
         overhead("flagship, all CS", all_cs(flagship), stop, args.repeats, out / "cs.csv")
-    chain = resolve_system(parse_scenario(CHAIN, ROOT / "scenarios" / "oscillator_chain.yaml"))
+    chain = resolve_system(parse_scenario(CHAIN, ROOT / "deltafmi" / "examples" / "oscillator_chain.yaml"))
     overhead("3 oscillators, CS", chain, stop, args.repeats, out / "chain.csv")
     if flagship is not None:
         print(f"3. crossing FMI: flagship against the same physics in-process, {stop} s:")

@@ -1,6 +1,6 @@
 """Per-piece cost of the flagship's FMUs through FMI against the same code called in-process.
 
-The flagship (scenarios/delta_tracking.yaml) pays, per 1 ms step, four plant right-hand sides
+The flagship (deltafmi/examples/delta_tracking.yaml) pays, per 1 ms step, four plant right-hand sides
 (rk4 in Model Exchange), one trajectory doStep and one controller doStep. Each is timed here
 through the FMU's own fmi2 functions, the FMU loaded by fmpy in this process, and against the
 same Python object the FMU runs (its compiled kernels, its path, its controller) called directly:
@@ -30,7 +30,7 @@ import numpy as np
 from fmpy.fmi2 import FMU2Model, FMU2Slave
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "scenarios" / "delta_tracking.yaml"
+SCENARIO = ROOT / "deltafmi" / "examples" / "delta_tracking.yaml"
 
 
 def paired_us(through_fmi, in_process, calls: int, repeats: int) -> tuple[float, float, float]:
@@ -51,7 +51,7 @@ def paired_us(through_fmi, in_process, calls: int, repeats: int) -> tuple[float,
 
 def built(source: str, workdir: Path) -> tuple[Path, object]:
     from deltafmi.export import build_fmu
-    fmu = build_fmu(ROOT / "fmu_src" / source, workdir / Path(source).with_suffix(".fmu").name)
+    fmu = build_fmu(ROOT / "deltafmi" / "models" / source, workdir / Path(source).with_suffix(".fmu").name)
     return fmu, fmpy.read_model_description(str(fmu))
 
 

@@ -217,7 +217,7 @@ def main() -> None:
     args = parser.parse_args()
     from deltafmi.export import build_fmu
     with tempfile.TemporaryDirectory() as tmp:
-        fmu = build_fmu(ROOT / "fmu_src" / "delta_robot.py", Path(tmp) / "DeltaRobot.fmu")
+        fmu = build_fmu(ROOT / "deltafmi" / "models" / "delta_robot.py", Path(tmp) / "DeltaRobot.fmu")
         lib = library_us(args.repeats)
         fmi = fmi_derivative_us(fmu, args.repeats)
         me = free_fall_seconds(fmu, "ModelExchange", args.repeats)

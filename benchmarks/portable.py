@@ -2,7 +2,7 @@
 
 Prints, all measured in this one run on this machine (medians over --repeats rounds, each running
 every path once in a fresh process, so that a slow spell of the shared machine hits all paths):
-(a) the zipped size of every fmu_src FMU, non-portable and portable;
+(a) the zipped size of every deltafmi/models FMU, non-portable and portable;
 (b) the first fmi2Instantiate of the portable DeltaRobot in a C host (a fresh process per run, no
     Python in it: the FMU starts the interpreter it carries) against the non-portable FMU (which
     starts the Python recorded at build time);
@@ -32,7 +32,7 @@ from typing import Optional
 import fmpy
 
 ROOT = Path(__file__).resolve().parents[1]
-FMU_SRC = ROOT / "fmu_src"
+FMU_SRC = ROOT / "deltafmi" / "models"
 BUILDER = f"{sys.version_info.major}.{sys.version_info.minor}"
 
 # A C importer that times the first fmi2Instantiate, then N CS steps and N ME derivative evaluations.
@@ -134,10 +134,11 @@ print(json.dumps({"instantiate_s": instantiate, "cs_us": cs, "me_us": me}))
 
 
 def sizes(portable: bool) -> dict[str, int]:
-    """Zipped size in bytes of every fmu_src FMU (from the build cache)."""
+    """Zipped size in bytes of every packaged model's FMU (from the build cache)."""
     from deltafmi.export.packager import build_cached
-    return {source.stem: build_cached(source, portable=portable).stat().st_size
-            for source in sorted(FMU_SRC.glob("*.py"))}
+    from deltafmi.models import MODELS
+    return {module: build_cached(FMU_SRC / f"{module}.py", portable=portable).stat().st_size
+            for module in sorted(MODELS.values())}
 
 
 def timing_host(workdir: Path) -> Path:
@@ -191,7 +192,7 @@ def other_version_python(version: str) -> Optional[Path]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", default="delta_robot", help="fmu_src model for (b) and (c)")
+    parser.add_argument("--model", default="delta_robot", help="deltafmi/models model for (b) and (c)")
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--other", default="3.12", help="CPython version of the other-version fmpy host")
@@ -205,7 +206,7 @@ def main() -> None:
 
     if not args.no_sizes:
         plain, portable = sizes(False), sizes(True)
-        print("(a) zipped FMU sizes (fmu_src)")
+        print("(a) zipped FMU sizes (deltafmi/models)")
         print(f"  {'model':28s} {'non-portable':>14s} {'portable':>12s}")
         for name in plain:
             print(f"  {name:28s} {plain[name] / 1e3:11.0f} KB {portable[name] / 1e6:9.1f} MB")

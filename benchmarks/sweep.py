@@ -1,6 +1,6 @@
 """Study throughput: a loop of ``deltafmi run`` processes against ``deltafmi sweep`` on Dask.
 
-The cases are flagship runs (scenarios/studies/gain_payload.yaml: pick-and-place, 3.5 s
+The cases are flagship runs (deltafmi/examples/studies/gain_payload.yaml: pick-and-place, 3.5 s
 simulated, outer-loop pole x unknown payload), spread over its grid. Measured in one run, on this
 machine, all with the same cases:
 
@@ -37,7 +37,7 @@ from deltafmi.study.plan import PlannedStudy, plan_study
 from deltafmi.study.spec import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
-STUDY = ROOT / "scenarios" / "studies" / "gain_payload.yaml"
+STUDY = ROOT / "deltafmi" / "examples" / "studies" / "gain_payload.yaml"
 DELTAFMI = Path(sys.executable).parent / "deltafmi"
 
 
@@ -142,7 +142,7 @@ def per_case(rows: List[dict], wall: float, once: float) -> Dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=24, help="flagship cases per measurement (the studies in "
-                        "scenarios/studies have 91 and 200)")
+                        "deltafmi/examples/studies have 91 and 200)")
     parser.add_argument("--repeats", type=int, default=1, help="repeat each measurement, report medians")
     args = parser.parse_args()
     planned = plan_study(load_study(STUDY))

@@ -1,4 +1,4 @@
-"""Shared fixtures: FMUs built from fmu_src once per session, the compiled C host."""
+"""Shared fixtures: FMUs built from the packaged models (deltafmi/models) once per session, the compiled C host."""
 from __future__ import annotations
 
 import os
@@ -9,7 +9,9 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-FMU_SRC = ROOT / "fmu_src"
+FMU_SRC = ROOT / "deltafmi" / "models"
+#: the file names of the packaged models (deltafmi.models), one component each
+MODEL_FILES = sorted(f"{module}.py" for module in __import__("deltafmi.models").models.MODELS.values())
 NATIVE = ROOT / "deltafmi" / "export" / "native"
 
 

@@ -31,10 +31,10 @@ def scenario(build_fmu_from_src, tmp_path_factory) -> Path:
 
 
 @pytest.mark.parametrize("command, example", [
-    ("run", "deltafmi run scenarios/delta_tracking.yaml -o tracking.csv --stop 2"),
-    ("validate", "deltafmi validate scenarios/delta_tracking.yaml"),
+    ("run", "deltafmi run deltafmi/examples/delta_tracking.yaml -o tracking.csv --stop 2"),
+    ("validate", "deltafmi validate deltafmi/examples/delta_tracking.yaml"),
     ("plot", "deltafmi plot tracking.csv 'plant.z[*]' 'trajectory.r[1:3]' -o tracking.png"),
-    ("export-ssp", "deltafmi export-ssp scenarios/bouncing_ball.yaml -o bouncing_ball.ssp"),
+    ("export-ssp", "deltafmi export-ssp deltafmi/examples/bouncing_ball.yaml -o bouncing_ball.ssp"),
 ])
 def test_help_shows_an_example(command, example):
     result = CliRunner().invoke(main, [command, "--help"])
@@ -138,7 +138,7 @@ def test_build_into_a_directory_names_the_fmu_after_its_model(tmp_path, target):
     folder = tmp_path / target
     if target == "existing":
         folder.mkdir()
-    source = Path(__file__).parents[1] / "fmu_src" / "oscillator.py"
+    source = Path(__file__).parents[1] / "deltafmi" / "models" / "oscillator.py"
     result = CliRunner().invoke(main, ["build", str(source), "-o", f"{tmp_path}/{target}", "--no-validate"])
     assert result.exit_code == 0, result.output
     assert result.output.strip() == f"built {folder / 'Oscillator.fmu'}"

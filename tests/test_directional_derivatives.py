@@ -1,4 +1,4 @@
-"""fmi2GetDirectionalDerivative: every FMU of fmu_src/ against central differences taken as an
+"""fmi2GetDirectionalDerivative: every FMU of deltafmi/models/ against central differences taken as an
 importer takes them (fmpy, through the FMI calls); the delta robot's exact derivatives against
 Richardson-extrapolated differences of the library; the master's CVODE with those derivatives."""
 from __future__ import annotations
@@ -13,11 +13,11 @@ import pytest
 from fmpy.fmi2 import FMU2Model
 from fmpy.validation import validate_fmu
 
-from conftest import FMU_SRC
+from conftest import FMU_SRC, MODEL_FILES
 from deltafmi.mechanics import delta as d
 from deltafmi.mechanics.delta.jacobian import plant_jacobian
 
-SOURCES = sorted(p.name for p in FMU_SRC.glob("*.py"))
+SOURCES = MODEL_FILES
 #: start values: Newton's cradle's balls touch at rest, where the contact force has a kink (and
 #: pressed together they meet a law stiff as overlap^4): with 1 cm between them every contact is free
 START = {"newtons_cradle.py": {"gap": 0.01}}

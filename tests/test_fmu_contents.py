@@ -1,7 +1,7 @@
 """An FMU carries the deltafmi modules its model imports and the runtime needs, nothing more.
 
 The set comes from reading import statements (deltafmi.export.reach); these tests hold it against
-what Python actually imports, against the archives built from fmu_src, and against the cache key.
+what Python actually imports, against the archives built from deltafmi/models, and against the cache key.
 """
 from __future__ import annotations
 
@@ -21,9 +21,9 @@ from deltafmi.export.kernels import kernel_groups, kernel_modules, mypyc_version
 from deltafmi.export.packager import runtime_modules
 from deltafmi.mechanics import delta as d
 
-from conftest import FMU_SRC, ROOT, unzip
+from conftest import FMU_SRC, MODEL_FILES, ROOT, unzip
 
-SOURCES = sorted(p.name for p in FMU_SRC.glob("*.py"))
+SOURCES = MODEL_FILES
 EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX")
 needs_mypyc = pytest.mark.skipif(mypyc_version() is None, reason="mypy (mypyc) is not installed: no compiled kernels")
 

@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import FMU_SRC, ROOT, unzip
+from conftest import FMU_SRC, MODEL_FILES, ROOT, unzip
 
-#: every FMU of fmu_src: the flagship ones, and the contact ones (whose collision law calibrates
+#: every FMU of deltafmi/models: the flagship ones, and the contact ones (whose collision law calibrates
 #: itself with deltafmi.mechanics.contact.dopri, no longer with scipy)
-SCIPY_FREE = sorted(path.name for path in FMU_SRC.glob("*.py"))
+SCIPY_FREE = MODEL_FILES
 
 _RUN = r'''
 import json, math, runpy, sys

@@ -19,7 +19,7 @@ from deltafmi.cosim.linearize.fmu import linearize_fmu
 from deltafmi.cosim.linearize.linear_model import LinearModel
 from deltafmi.mechanics import delta as d
 
-FLAGSHIP = ROOT / "scenarios" / "delta_tracking.yaml"
+FLAGSHIP = ROOT / "deltafmi" / "examples" / "delta_tracking.yaml"
 TS = 1e-3
 REST_POINTS = [(0.0, 0.0, -1.0), (0.2, -0.1, -0.9), (-0.25, 0.3, -1.15)]
 
@@ -120,8 +120,6 @@ def test_plant_at_rest_under_its_holding_torque(robot, z):
 def _scenario(tmp_path: Path, **controller) -> Path:
     spec = yaml.safe_load(FLAGSHIP.read_text())
     spec["components"]["controller"]["parameters"].update(controller)
-    for component in spec["components"].values():
-        component["source"] = str(ROOT / component["source"])
     path = tmp_path / "loop.yaml"
     path.write_text(yaml.safe_dump(spec))
     return path

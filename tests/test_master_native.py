@@ -56,8 +56,7 @@ def both(tmp_path: Path, text: str, stop: float):
 
 
 def flagship(extra_plant: str = "") -> str:
-    text = (ROOT / "scenarios" / "delta_tracking.yaml").read_text()
-    text = text.replace("source: fmu_src/", f"source: {ROOT}/fmu_src/")
+    text = (ROOT / "deltafmi" / "examples" / "delta_tracking.yaml").read_text()
     return text.replace("      z0: [0.0, 0.0, -1.0]", "      z0: [0.0, 0.0, -1.0]\n" + extra_plant)
 
 

@@ -1,4 +1,4 @@
-"""The master on fmu_src/oscillator.py, checked against its closed-form solution.
+"""The master on deltafmi/models/oscillator.py, checked against its closed-form solution.
 
 ME through the master's own CVODE (state events at the wall, a time event at t_step), CS through
 the FMU's doStep, and the recording of events as repeated time stamps.

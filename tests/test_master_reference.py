@@ -168,10 +168,10 @@ def test_jacobi_equals_libcosim(tmp_path, fmus):
 
 
 class Flagship:
-    """scenarios/delta_tracking.yaml with every component CS and Jacobi, in independent pieces."""
+    """deltafmi/examples/delta_tracking.yaml with every component CS and Jacobi, in independent pieces."""
 
     def __init__(self, build_fmu_from_src, h: float, n: int) -> None:
-        self.scenario = yaml.safe_load((Path(__file__).parents[1] / "scenarios" / "delta_tracking.yaml").read_text())
+        self.scenario = yaml.safe_load((Path(__file__).parents[1] / "deltafmi" / "examples" / "delta_tracking.yaml").read_text())
         sources = {"trajectory": "trajectory.py", "controller": "delta_controller.py", "plant": "delta_robot.py"}
         self.fmus = {name: build_fmu_from_src(source) for name, source in sources.items()}
         self.scenario["components"]["controller"]["parameters"]["sample_period"] = h

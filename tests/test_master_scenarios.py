@@ -1,4 +1,4 @@
-"""The scenarios shipped in scenarios/: each validates, and each runs to physically right answers
+"""The scenarios shipped in deltafmi/examples/: each validates, and each runs to physically right answers
 (checked against closed forms and conservation laws, not against earlier runs)."""
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from deltafmi.cosim.scenario.resolve import resolve_system
 from deltafmi.cosim.scenario.spec import load_scenario
 from deltafmi.cosim.stepping.master import Master
 
-SCENARIOS = Path(__file__).parents[1] / "scenarios"
+SCENARIOS = Path(__file__).parents[1] / "deltafmi" / "examples"
 
 
 @pytest.fixture(scope="module", autouse=True)

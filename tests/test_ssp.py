@@ -28,7 +28,7 @@ from deltafmi.cosim.ssp.format import NAMESPACES, SSD_NAME, schema_problems
 from third_party.build import build_fmu as build_c_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
-OSCILLATOR = ROOT / "fmu_src" / "oscillator.py"
+OSCILLATOR = ROOT / "deltafmi" / "models" / "oscillator.py"
 H = 0.0078125  # 1/128 s: its multiples are exact in binary and in libcosim's nanoseconds
 
 
@@ -157,7 +157,7 @@ def test_yaml_and_its_ssp_give_the_same_samples(all_types, tmp_path, name, algor
 
 def test_delta_robot_loop_through_an_ssp(tmp_path):
     """The flagship loop (three FMUs built from sources, ME plant, 18 scalar connections)."""
-    scenario = ROOT / "scenarios" / "delta_tracking.yaml"
+    scenario = ROOT / "deltafmi" / "examples" / "delta_tracking.yaml"
     cli("run", scenario, "-o", tmp_path / "yaml.csv", "--stop", "0.02", "-q")
     ssp = export(scenario, tmp_path / "delta.ssp")
     cli("run", ssp, "-o", tmp_path / "ssp.csv", "--stop", "0.02", "-q")

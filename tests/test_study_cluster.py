@@ -24,7 +24,7 @@ from deltafmi.study.spec import load_study
 ROOT = Path(__file__).resolve().parents[1]
 DASK = Path(sys.executable).parent / "dask"
 STUDY = f"""\
-scenario: {ROOT / 'scenarios' / 'delta_tracking.yaml'}
+scenario: {ROOT / 'deltafmi' / 'examples' / 'delta_tracking.yaml'}
 vary:
   grid:
     controller.pole: [5, 11]

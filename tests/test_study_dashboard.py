@@ -22,7 +22,7 @@ from deltafmi.study.driver import dashboard_address, dashboard_link, dask_client
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = f"""\
-scenario: {ROOT / 'scenarios' / 'bouncing_ball.yaml'}
+scenario: {ROOT / 'deltafmi' / 'examples' / 'bouncing_ball.yaml'}
 vary:
   grid:
     restitution.e: [0.5, 0.8]

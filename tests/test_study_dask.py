@@ -34,7 +34,7 @@ from deltafmi.study.spec import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 FLAGSHIP_STUDY = f"""\
-scenario: {ROOT / 'scenarios' / 'delta_tracking.yaml'}
+scenario: {ROOT / 'deltafmi' / 'examples' / 'delta_tracking.yaml'}
 vary:
   zip:
     controller.pole: [5, 9, 7, 12]
@@ -176,7 +176,7 @@ def test_interrupted_sweep_resumes_without_redoing_cases(cluster, tmp_path):
     (tmp_path / "osc.yaml").write_text(textwrap.dedent(f"""\
         experiment: {{stop: 1.0, step: 1.0e-3}}
         components:
-          osc: {{source: {ROOT / 'fmu_src' / 'oscillator.py'}, interface: ME}}
+          osc: {{source: {ROOT / 'deltafmi' / 'models' / 'oscillator.py'}, interface: ME}}
         outputs: [osc.x]
         """))
     study = tmp_path / "osc_study.yaml"

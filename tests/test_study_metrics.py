@@ -1,4 +1,4 @@
-"""Study metrics against closed forms: the damped oscillator (fmu_src/oscillator.py, wall out of
+"""Study metrics against closed forms: the damped oscillator (deltafmi/models/oscillator.py, wall out of
 reach, no force step) run case by case exactly as a Dask worker runs it (FMU pool, reset between
 cases, rows in memory), and the statistics on signals whose answers are known exactly.
 
@@ -34,7 +34,7 @@ SCENARIO = f"""\
 experiment: {{stop: {STOP}, step: {H}}}
 components:
   osc:
-    source: {ROOT / 'fmu_src' / 'oscillator.py'}
+    source: {ROOT / 'deltafmi' / 'models' / 'oscillator.py'}
     interface: ME
     solver: {{rtol: 1.0e-10, atol: 1.0e-12}}
     parameters: {{wall: -10.0, F_step: 0.0}}
@@ -217,7 +217,7 @@ def test_steady_state_error_of_an_unknown_payload_matches_the_clamped_integrator
     from deltafmi.mechanics.delta import control, params
 
     study = tmp_path / "payload.yaml"
-    study.write_text(f"scenario: {ROOT / 'scenarios' / 'delta_tracking.yaml'}\n" + textwrap.dedent("""\
+    study.write_text(f"scenario: {ROOT / 'deltafmi' / 'examples' / 'delta_tracking.yaml'}\n" + textwrap.dedent("""\
         vary:
           zip: {controller.pole: [10.0, 15.0], plant.payload: [4.0, 6.0]}
         metrics:

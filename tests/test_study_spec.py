@@ -20,7 +20,7 @@ SCENARIO = f"""\
 experiment: {{stop: 1.0, step: 1.0e-3}}
 components:
   osc:
-    source: {ROOT / 'fmu_src' / 'oscillator.py'}
+    source: {ROOT / 'deltafmi' / 'models' / 'oscillator.py'}
     interface: ME
 outputs: [osc.x]
 """

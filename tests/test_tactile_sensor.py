@@ -105,7 +105,7 @@ def test_tactile_loop_centres_the_tool_on_the_hole(tmp_path):
     """contact_tactile.yaml: the hole is 3 mm off the tool; pressing with 20 N, the loop from the
     pad difference to the horizontal reference brings the tool within 0.1 mm of its centre."""
     out = tmp_path / "tactile.csv"
-    Master(resolve_system(load_scenario(ROOT / "scenarios" / "contact_tactile.yaml")), result=out).run()
+    Master(resolve_system(load_scenario(ROOT / "deltafmi" / "examples" / "contact_tactile.yaml")), result=out).run()
     c = columns(out)
     t, offset = c["time"], c["sensor.offset"]
     assert offset[0] == pytest.approx(-3e-3)

@@ -68,9 +68,9 @@ def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: 
 
     \b
     Example:
-      deltafmi run scenarios/delta_tracking.yaml -o tracking.csv --stop 2
+      deltafmi run deltafmi/examples/delta_tracking.yaml -o tracking.csv --stop 2
       deltafmi run system.ssp
-      deltafmi run scenarios/delta_tracking.yaml -o tracking.parquet
+      deltafmi run deltafmi/examples/delta_tracking.yaml -o tracking.parquet
     """
     from .results.writers import writer_for
     from .stepping.master import Master
@@ -120,7 +120,7 @@ def validate(scenario: str) -> None:
 
     \b
     Examples:
-      deltafmi validate scenarios/delta_tracking.yaml
+      deltafmi validate deltafmi/examples/delta_tracking.yaml
       deltafmi validate build/fmus/DeltaRobot.fmu
     """
     if scenario.endswith(".fmu"):
@@ -151,7 +151,7 @@ def export_ssp(scenario: str, output: Optional[str]) -> None:
 
     \b
     Example:
-      deltafmi export-ssp scenarios/bouncing_ball.yaml -o bouncing_ball.ssp
+      deltafmi export-ssp deltafmi/examples/bouncing_ball.yaml -o bouncing_ball.ssp
     """
     from .ssp.write import export_ssp as write
 

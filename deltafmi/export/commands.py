@@ -7,48 +7,57 @@ from typing import Optional
 
 import click
 
+from deltafmi.errors import BadInput
+
 from .compiler import BuildError
 from .packager import ComponentSourceError, build_fmu
 from .requirements import runtime_requirement
 
 
 @click.command()
-@click.argument("sources", nargs=-1, type=click.Path(path_type=Path))
+@click.argument("sources", nargs=-1)
 @click.option("-o", "--output", type=click.Path(),
               help="Output .fmu file, or a directory (existing, or ending in '/') that gets <Model>.fmu; "
                    "always a directory with several sources or --all.")
-@click.option("--all", "build_all", is_flag=True, help="Build every fmu_src/*.py.")
+@click.option("--all", "build_all", is_flag=True, help="Build every packaged model (deltafmi.models).")
 @click.option("--validate/--no-validate", default=True, show_default=True,
               help="Check each FMU's modelDescription.xml with fmpy.")
 @click.option("--portable", is_flag=True,
               help="Bundle the interpreter, standard library and packages the model imports, so that the FMU "
                    "runs on a Linux x86_64 machine with no Python (glibc no older than this one's).")
-def build(sources: tuple[Path, ...], output: Optional[str], build_all: bool, validate: bool, portable: bool) -> None:
-    """Build FMUs (Model Exchange + Co-Simulation) from component sources.
+def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, validate: bool, portable: bool) -> None:
+    """Build FMUs (Model Exchange + Co-Simulation) from components.
+
+    Each of SOURCES is a packaged model's class name (DeltaRobot), a component source file
+    (my_plant.py, or my_plant.py:MyPlant when it defines several) or a class in an importable
+    module (package.module:Class).
 
     \b
     Examples:
-      deltafmi build fmu_src/oscillator.py -o Oscillator.fmu
-      deltafmi build fmu_src/oscillator.py -o build/fmus/
+      deltafmi build DeltaRobot -o DeltaRobot.fmu
+      deltafmi build my_plant.py -o build/fmus/
       deltafmi build --all -o build/fmus
-      deltafmi build fmu_src/delta_robot.py --portable -o DeltaRobot.fmu
+      deltafmi build DeltaRobot --portable -o DeltaRobot.fmu
     """
+    from .sources import find_component, packaged_model_names
+
     if build_all:
-        sources = tuple(sorted(Path("fmu_src").glob("*.py")))
-        if not sources:
-            raise click.ClickException("--all: no fmu_src/*.py in the current directory")
+        sources = tuple(packaged_model_names())
     if not sources:
-        raise click.UsageError("give a component source file or --all")
+        raise click.UsageError("give a component (a packaged model's class name, a .py file) or --all")
     # a directory when it exists or its text ends in '/' (pathlib drops that '/')
     to_directory = output is not None and (len(sources) > 1 or build_all or Path(output).is_dir()
                                            or output.endswith(("/", os.sep)))
     folder = Path(output) if to_directory else None
-    for source in sources:
-        target = folder / f"{source.stem}.fmu.tmp" if folder else (Path(output) if output else None)
+    for text in sources:
         try:
-            path = build_fmu(source, target, portable=portable)
-        except (ComponentSourceError, BuildError) as exc:
-            raise click.ClickException(str(exc)) from exc
+            source = find_component(text)
+            target = folder / f"{source.path.stem}.fmu.tmp" if folder else (Path(output) if output else None)
+            path = build_fmu(source.path, target, portable=portable, class_name=source.class_name)
+        except ComponentSourceError as exc:
+            raise BadInput(str(exc)) from None
+        except BuildError as exc:
+            raise click.ClickException(str(exc)) from None
         if folder:  # name the FMU after its model identifier
             final = folder / _model_identifier(path)
             path.replace(final)

@@ -21,6 +21,7 @@ from ..files import replaced_atomically
 from .compiler import BuildError, cache_dir, fmu_binary, native_source_files, python_extension, python_runtime_config
 from .kernels import compiled_kernels, mypyc_version
 from .reach import module_source, reached_modules
+from .sources import ComponentSourceError
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: compiled value access of the variable declarations (see deltafmi/component/native_values.py)
@@ -30,12 +31,9 @@ _MODEL_DESCRIPTION = "deltafmi.component.model_description"
 _GUID_NAMESPACE = uuid.UUID("6f1c8a52-4d0e-4f5e-9a53-0d3c5e2b7a11")
 
 
-class ComponentSourceError(ValueError):
-    """The source file does not define exactly one usable Component subclass."""
-
-
-def load_component_class(source: Path) -> type[Component]:
-    """Import ``source`` and return the one Component subclass defined in it."""
+def load_component_class(source: Path, class_name: Optional[str] = None) -> type[Component]:
+    """Import ``source`` and return the Component subclass ``class_name`` defined in it, or
+    the one it defines when ``class_name`` is None."""
     source = Path(source)
     if not source.is_file():
         raise ComponentSourceError(f"{source}: no such file")
@@ -49,6 +47,12 @@ def load_component_class(source: Path) -> type[Component]:
         raise ComponentSourceError(f"{source}: importing it failed: {exc!r}") from exc
     classes = [obj for obj in vars(module).values()
                if isinstance(obj, type) and issubclass(obj, Component) and obj.__module__ == name]
+    if class_name is not None:
+        chosen = [c for c in classes if c.__name__ == class_name]
+        if not chosen:
+            found = ", ".join(c.__name__ for c in classes) or "none"
+            raise ComponentSourceError(f"{source}: defines no component class '{class_name}' (it defines: {found})")
+        classes = chosen
     if len(classes) != 1:
         found = ", ".join(c.__name__ for c in classes) or "none"
         raise ComponentSourceError(f"{source}: expected exactly one Component subclass, found {found}")
@@ -99,12 +103,12 @@ def compiled_value_access(modules: Optional[list[str]] = None) -> list[tuple[Pat
     return [(module, f"{folder}/{module.name}"), (VALUE_ACCESS_SOURCE, f"{folder}/{VALUE_ACCESS_SOURCE.name}")]
 
 
-def content_key(source: Path) -> str:
+def content_key(source: Path, class_name: Optional[str] = None) -> str:
     """Hash of everything that determines an FMU built from ``source``: the files it carries
     (so that editing a module the model does not reach leaves its cached FMU valid), the native
     sources of its binary, the code that writes its modelDescription.xml, this packager and the
     Python it was built for."""
-    digest = hashlib.sha256(Path(source).read_bytes())
+    digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0".encode())
     for path, arcname in runtime_files(source) + binary_files(source):
         digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
     writers = [module_source(name) for name in reached_modules(modules=[_MODEL_DESCRIPTION], runtime=False)]
@@ -115,22 +119,24 @@ def content_key(source: Path) -> str:
     return digest.hexdigest()
 
 
-def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = False) -> Path:
-    """Build the FMU for the component in ``source``; returns the ``.fmu`` path.
+def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = False,
+              class_name: Optional[str] = None) -> Path:
+    """Build the FMU for the component in ``source`` (the class ``class_name``, needed only when
+    the file defines several); returns the ``.fmu`` path.
 
     A ``portable`` FMU also carries the interpreter, standard library and packages its model
     imports (see :mod:`deltafmi.export.portable`), so that it runs where no Python is installed."""
     source = Path(source)
     if portable:
         from .portable import make_portable
-        cls = load_component_class(source)
+        cls = load_component_class(source, class_name)
         output = Path(output) if output else Path("build") / "fmus" / f"{cls.fmi_model_name()}.fmu"
-        make_portable(build_cached(source), output)
+        make_portable(build_cached(source, class_name=class_name), output)
         return output
-    cls = load_component_class(source)
+    cls = load_component_class(source, class_name)
     identifier = cls.fmi_model_name()
     output = Path(output) if output else Path("build") / "fmus" / f"{identifier}.fmu"
-    key = content_key(source)
+    key = content_key(source, class_name)
     guid = "{" + str(uuid.uuid5(_GUID_NAMESPACE, key)) + "}"
     binary = fmu_binary()
     info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
@@ -155,10 +161,10 @@ def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = Fals
     return output
 
 
-def build_cached(source: Path, portable: bool = False) -> Path:
+def build_cached(source: Path, portable: bool = False, class_name: Optional[str] = None) -> Path:
     """The FMU for ``source`` from the build cache, built when the source or runtime changed."""
     source = Path(source)
-    key = content_key(source)[:20]
+    key = content_key(source, class_name)[:20]
     if portable:
         from .portable import bundle_key
         key += "-portable-" + bundle_key()[:12]
@@ -166,8 +172,8 @@ def build_cached(source: Path, portable: bool = False) -> Path:
     existing = list(target.glob("*.fmu")) if target.is_dir() else []
     if existing:
         return existing[0]
-    cls = load_component_class(source)
-    return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable)
+    cls = load_component_class(source, class_name)
+    return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable, class_name=class_name)
 
 
 def unchecked_hash_pyc(path: Path, arcname: str) -> bytes:

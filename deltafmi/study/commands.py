@@ -62,7 +62,7 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: 
 
     \b
     Examples:
-      deltafmi sweep scenarios/studies/gain_payload.yaml
+      deltafmi sweep deltafmi/examples/studies/gain_payload.yaml
       deltafmi sweep study.yaml --scheduler tcp://10.0.0.5:8786 -o results/study.parquet
       deltafmi sweep study.yaml --dashboard 0.0.0.0:8787
     """
@@ -152,7 +152,7 @@ def study_case(study: str, case: int, output: str) -> None:
 
     \b
     Example:
-      deltafmi study-case scenarios/studies/gain_payload.yaml 17 -o case17.yaml && deltafmi run case17.yaml
+      deltafmi study-case deltafmi/examples/studies/gain_payload.yaml 17 -o case17.yaml && deltafmi run case17.yaml
     """
     from .export import case_scenario
 

@@ -177,8 +177,10 @@ def schema() -> Dict[str, Any]:
 
 
 def load_study(path: str | Path) -> Study:
-    """Read, schema-check and parse a study file. Raises :class:`ScenarioError` (exit code 2)."""
-    path = Path(path)
+    """Read, schema-check and parse a study file, or the shipped example study of that name
+    (``"gain_payload"``). Raises :class:`ScenarioError` (exit code 2)."""
+    from deltafmi.examples import find_input
+    path = find_input(path, "study")
     return parse_study(read_document(path, "study"), path)
 
 

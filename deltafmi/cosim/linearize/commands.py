@@ -69,15 +69,13 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
 
     \b
     Examples:
-      deltafmi linearize fmu_src/delta_robot.py --set z0=0.1,-0.1,-0.9 --rest --free u -u u -y z
-      deltafmi linearize scenarios/delta_tracking.yaml --at 0.05 -u 'controller.r' -y 'plant.z'
+      deltafmi linearize deltafmi/models/delta_robot.py --set z0=0.1,-0.1,-0.9 --rest --free u -u u -y z
+      deltafmi linearize deltafmi/examples/delta_tracking.yaml --at 0.05 -u 'controller.r' -y 'plant.z'
     """
     from .closed_loop import expand_references, linearize_scenario
     from .fmu import linearize_fmu
 
-    path = Path(target)
-    if not path.is_file():
-        raise BadInput(f"'{target}' not found")
+    path, packaged = _target_path(target)
     if path.suffix in (".yaml", ".yml", ".ssp", ".ssd"):
         fmu_only = [name for name, given in (("--set", sets), ("--state", states), ("--rest", rest),
                                              ("--free", free), ("--hold", hold)) if given]
@@ -92,7 +90,7 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
         fmu = path
         if path.suffix == ".py":
             from deltafmi.export import build_cached
-            fmu = build_cached(path)
+            fmu = build_cached(path, class_name=packaged)
         elif path.suffix != ".fmu":
             raise BadInput(f"'{target}': expected an .fmu, a component .py or a scenario .yaml/.ssp")
         model = linearize_fmu(fmu, start_values=_assignments(sets, "--set"),
@@ -106,6 +104,32 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
     if not quiet:
         for line in model.pole_table():
             click.echo(line)
-    base = Path(save) if save else path.with_name(f"{path.stem}_linear")
+    # shipped examples and models live in the installed package: their results go here
+    base = Path(save) if save else (Path() if _shipped(path) else path.parent) / f"{path.stem}_linear"
     written = model.save(base)
     click.echo(f"wrote {', '.join(str(p) for p in written)}")
+
+
+def _target_path(target: str) -> tuple[Path, Optional[str]]:
+    """The file to linearize: ``target`` itself, a packaged model's source (with its class name)
+    or a shipped example scenario."""
+    path = Path(target)
+    if path.is_file():
+        return path, None
+    from deltafmi.export.sources import ComponentSourceError, find_component, is_module_reference, \
+        packaged_model_names
+    if target in packaged_model_names() or is_module_reference(target):
+        try:
+            source = find_component(target)
+        except ComponentSourceError as exc:
+            raise BadInput(str(exc)) from None
+        return source.path, source.class_name
+    if path.suffix or len(path.parts) > 1:
+        raise BadInput(f"'{target}' not found")
+    from deltafmi.examples import find_input
+    return find_input(target, "scenario"), None
+
+
+def _shipped(path: Path) -> bool:
+    import deltafmi
+    return Path(deltafmi.__file__).parent in path.resolve().parents

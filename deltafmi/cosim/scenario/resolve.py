@@ -244,14 +244,25 @@ class _Checker:
                                       f"{_file_hint(path, '*.fmu')}")
                 return None
             return path
-        source = _find_upwards(base, spec.source)
-        if source is None:
-            self.error(spec.line, f"component '{spec.name}': source '{spec.source}' not found next to "
-                                  f"the scenario or in a folder above it{_file_hint(base / spec.source, '*.py')}")
+        from deltafmi.export.sources import ComponentSourceError, is_module_reference, module_component, \
+            split_file_reference
+        try:
+            if is_module_reference(spec.source):
+                component = module_component(spec.source)
+                source, class_name = component.path, component.class_name
+            else:
+                file, class_name = split_file_reference(spec.source)
+                source = _find_upwards(base, file)
+                if source is None:
+                    self.error(spec.line, f"component '{spec.name}': source '{file}' not found next to the "
+                                          f"scenario or in a folder above it{_file_hint(base / file, '*.py')}")
+                    return None
+        except ComponentSourceError as exc:
+            self.error(spec.line, f"component '{spec.name}': source {exc}")
             return None
         try:
             from deltafmi.export import build_cached  # keyed by source + runtime hash
-            return build_cached(source)
+            return build_cached(source, class_name=class_name)
         except Exception as exc:  # noqa: BLE001 - a build failure is reported, not raised
             self.error(spec.line, f"component '{spec.name}': building '{spec.source}' failed: {exc}")
             return None

@@ -153,8 +153,10 @@ def schema() -> Dict[str, Any]:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read, schema-check and parse a scenario file. Raises :class:`ScenarioError` (exit code 2)."""
-    path = Path(path)
+    """Read, schema-check and parse a scenario file, or the shipped example of that name
+    (``"delta_tracking"``). Raises :class:`ScenarioError` (exit code 2)."""
+    from deltafmi.examples import find_input
+    path = find_input(path, "scenario")
     return parse_scenario(read_document(path, "scenario"), path)
 
 

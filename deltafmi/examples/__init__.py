@@ -1,0 +1,95 @@
+"""The example scenarios and studies shipped with deltafmi, found by name.
+
+``deltafmi run delta_tracking`` and ``deltafmi.simulate("delta_tracking")`` run the scenario file
+``delta_tracking.yaml`` of this folder, ``deltafmi sweep gain_payload`` the study
+``studies/gain_payload.yaml``. ``deltafmi examples copy NAME DIR`` writes an example and the
+packaged component sources it uses into ``DIR``, as files to edit (:func:`copy_example`).
+"""
+from __future__ import annotations
+
+import re
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import List, Union
+
+from deltafmi.errors import BadInput, did_you_mean
+
+EXAMPLES_DIR = Path(__file__).parent
+STUDIES_DIR = EXAMPLES_DIR / "studies"
+_PACKAGED_SOURCE = re.compile(r"^(?P<head>\s*source:\s*)deltafmi\.models:(?P<name>\w+)(?P<tail>.*)$", re.M)
+_STUDY_SCENARIO = re.compile(r"^(?P<head>scenario:\s*)\.\./(?P<file>[\w.-]+\.yaml)(?P<tail>.*)$", re.M)
+
+
+@dataclass(frozen=True)
+class Example:
+    """A shipped scenario (``kind == "scenario"``) or study (``"study"``)."""
+
+    name: str
+    kind: str
+    path: Path
+
+    @property
+    def summary(self) -> str:
+        """The first sentence of the file's ``description``, at most 100 characters."""
+        import yaml
+        text = " ".join(str(yaml.safe_load(self.path.read_text()).get("description", "")).split())
+        first = re.split(r"(?<=\.)\s", text, maxsplit=1)[0].rstrip(".")
+        return first if len(first) <= 100 else first[:97].rstrip() + "..."
+
+
+def examples() -> List[Example]:
+    """Every shipped example, scenarios first, each group by name."""
+    return ([Example(p.stem, "scenario", p) for p in sorted(EXAMPLES_DIR.glob("*.yaml"))]
+            + [Example(p.stem, "study", p) for p in sorted(STUDIES_DIR.glob("*.yaml"))])
+
+
+def example(name: str) -> Example:
+    """The example called ``name``; :class:`BadInput` naming the closest ones otherwise."""
+    found = {e.name: e for e in examples()}
+    if name in found:
+        return found[name]
+    raise BadInput(f"no example called '{name}'{did_you_mean(name, found)}; `deltafmi examples` lists them")
+
+
+def find_input(text: Union[str, Path], kind: str) -> Path:
+    """``text`` as a file when it is one, else the shipped example of that name and ``kind``
+    ("scenario" or "study"). :class:`BadInput` when it is neither."""
+    path = Path(text)
+    if path.exists() or path.suffix or len(path.parts) > 1:
+        return path  # a file name: its reader reports a missing file
+    chosen = example(str(text))
+    if chosen.kind != kind:
+        raise BadInput(f"'{text}' is an example {chosen.kind}, not a {kind}"
+                       + ("; run it with `deltafmi sweep`" if chosen.kind == "study" else "; sweep needs a study"))
+    return chosen.path
+
+
+def copy_example(name: str, directory: Union[str, Path]) -> List[Path]:
+    """Write the example ``name`` into ``directory`` ready to edit: its YAML, for a study the
+    scenario it varies, and the source of every packaged component it uses (``models/*.py``, the
+    YAML's ``source:`` pointed at them). Returns the files written; refuses to overwrite any."""
+    from deltafmi.models import MODELS
+
+    chosen = example(name)
+    directory = Path(directory)
+    texts = {chosen.path.name: chosen.path.read_text()}
+    if chosen.kind == "study":
+        scenarios = _STUDY_SCENARIO.findall(texts[chosen.path.name])
+        texts[chosen.path.name] = _STUDY_SCENARIO.sub(r"\g<head>\g<file>\g<tail>", texts[chosen.path.name])
+        for _, file, _ in scenarios:
+            texts[file] = (EXAMPLES_DIR / file).read_text()
+    modules = sorted({MODELS[m["name"]] for text in texts.values() for m in _PACKAGED_SOURCE.finditer(text)})
+    for file in list(texts):
+        texts[file] = _PACKAGED_SOURCE.sub(lambda m: f"{m['head']}models/{MODELS[m['name']]}.py{m['tail']}",
+                                           texts[file])
+    models = Path(__file__).parents[1] / "models"
+    files = {directory / file: text for file, text in texts.items()}
+    files.update({directory / "models" / f"{module}.py": (models / f"{module}.py").read_text() for module in modules})
+    existing = [str(path) for path in files if path.exists()]
+    if existing:
+        raise BadInput(f"{', '.join(existing)}: already there; copy into an empty folder or remove them")
+    for path, text in files.items():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    return list(files)
