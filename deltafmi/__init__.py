@@ -4,10 +4,12 @@ The public API, importable from here (``from deltafmi import load_scenario, Mast
 
 * scenarios: :func:`load_scenario` -> :class:`Scenario`, :func:`resolve_system` -> :class:`System`
   (checked against its FMUs), :func:`load_ssp`, :func:`export_ssp`;
-* runs: :class:`Master` (``Master(system, result=...).run()``), :func:`read_csv`, :func:`plot_result`;
+* runs: :func:`simulate` -> :class:`Result` (in memory, with units), :class:`Master`
+  (``Master(system, result=...).run()``), :func:`read_result`, :func:`read_csv`, :func:`plot_result`;
 * FMUs: :func:`build_fmu`, :func:`build_cached`;
 * linear models: :func:`linearize_fmu`, :func:`linearize_scenario`, :class:`LinearModel`;
-* studies: :func:`load_study`, :func:`plan_study`, :func:`open_store`, :func:`run_study`;
+* studies: :func:`load_study`, :func:`plan_study`, :func:`open_store`, :func:`sweep_study`
+  (what ``deltafmi sweep`` runs), :func:`run_study`;
 * errors: :class:`ScenarioError`, :class:`BadInput`, :class:`SimulationError`.
 
 This module imports nothing when imported: each name loads its module on first use (PEP 562). It
@@ -29,6 +31,9 @@ _API = {
     "load_ssp": "deltafmi.cosim.ssp.read",
     "export_ssp": "deltafmi.cosim.ssp.write",
     "Master": "deltafmi.cosim.stepping.master",
+    "simulate": "deltafmi.cosim.simulate",
+    "Result": "deltafmi.cosim.results.result",
+    "read_result": "deltafmi.cosim.results.result",
     "read_csv": "deltafmi.cosim.results.csv_file",
     "plot_result": "deltafmi.cosim.results.plot",
     "build_fmu": "deltafmi.export.packager",
@@ -40,6 +45,7 @@ _API = {
     "plan_study": "deltafmi.study.plan",
     "open_store": "deltafmi.study.driver",
     "run_study": "deltafmi.study.driver",
+    "sweep_study": "deltafmi.study.driver",
     "ScenarioError": "deltafmi.errors",
     "BadInput": "deltafmi.errors",
     "SimulationError": "deltafmi.errors",

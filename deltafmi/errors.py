@@ -28,7 +28,11 @@ class Diagnostic:
 
 
 class ScenarioError(click.ClickException):
-    """The scenario (or an FMU it names) is invalid; carries every error found. Exit code 2."""
+    """The scenario (or an FMU it names) is invalid; carries every error found. Exit code 2.
+
+    The CLI shows every error, one per line, as ``file:line: error: message`` (the way compilers
+    do) and nothing else: no ``Error:`` prefix, which would say "error" twice on one line.
+    """
 
     exit_code = 2
 
@@ -37,6 +41,12 @@ class ScenarioError(click.ClickException):
         first = str(self.diagnostics[0]) if self.diagnostics else "invalid scenario"
         more = len(self.diagnostics) - 1
         super().__init__(first + (f" (and {more} more error{'s' * (more > 1)})" if more > 0 else ""))
+
+    def show(self, file: Optional[IO[Any]] = None) -> None:
+        """Every error, one per line (``file:line: error: message``)."""
+        lines = [str(d) for d in self.diagnostics] or [f"error: {self.format_message()}"]
+        for line in lines:
+            click.echo(line, file=file, err=file is None)
 
 
 class BadInput(click.ClickException):
@@ -49,6 +59,29 @@ class SimulationError(click.ClickException):
     """A run failed after it started (an FMU returned an error, the solver failed). Exit code 1."""
 
     exit_code = 1
+
+
+class ResultWriteError(click.ClickException):
+    """The result file could not take more rows (a full disk, a quota, a file size limit). The
+    rows already in it are complete; the message says how many and up to which time. Exit code 1."""
+
+    exit_code = 1
+
+    def __init__(self, path: Any, rows: int, time: Optional[float], error: OSError, whole_file: bool = False) -> None:
+        """``whole_file``: the format cannot keep part of the rows (a .mat file, a Parquet file
+        whose footer did not fit): the file was removed and ``rows`` is what was lost."""
+        import errno
+
+        reason = {errno.ENOSPC: "disk full", errno.EDQUOT: "disk quota exceeded",
+                  errno.EFBIG: "file size limit reached"}.get(error.errno or 0, f"cannot write: {error.strerror or error}")
+        until = f" (t = {time:.9g} s)" if time is not None else ""
+        counted = f"{rows} row{'s' * (rows != 1)}{until}"
+        if whole_file:
+            message = f"{path}: {reason}: its {counted} did not fit and the file was removed"
+        else:
+            message = f"{path}: {reason} after {counted}; the rows written are complete"
+        super().__init__(message)
+        self.path, self.rows, self.time, self.error = path, rows, time, error
 
 
 class Interrupted(click.ClickException):
@@ -66,7 +99,11 @@ class Interrupted(click.ClickException):
 
 def did_you_mean(word: str, candidates: Iterable[str], n: int = 3) -> str:
     """`` (did you mean 'x'?)`` for the closest candidates to ``word``, or ``""`` when none is close."""
-    matches = difflib.get_close_matches(word, list(candidates), n=n, cutoff=0.6)
+    candidates = list(candidates)
+    same_letters = [c for c in candidates if c.lower() == word.lower() and c != word]  # kp -> kP
+    matches = same_letters + [m for m in difflib.get_close_matches(word, candidates, n=n, cutoff=0.6)
+                              if m not in same_letters]
+    matches = matches[:n]
     if not matches:
         return ""
     return " (did you mean " + " or ".join(f"'{m}'" for m in matches) + "?)"

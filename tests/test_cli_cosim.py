@@ -31,10 +31,10 @@ def scenario(build_fmu_from_src, tmp_path_factory) -> Path:
 
 
 @pytest.mark.parametrize("command, example", [
-    ("run", "deltafmi run deltafmi/examples/delta_tracking.yaml -o tracking.csv --stop 2"),
-    ("validate", "deltafmi validate deltafmi/examples/delta_tracking.yaml"),
+    ("run", "deltafmi run delta_tracking -o tracking.csv --stop 2"),
+    ("validate", "deltafmi validate delta_tracking"),
     ("plot", "deltafmi plot tracking.csv 'plant.z[*]' 'trajectory.r[1:3]' -o tracking.png"),
-    ("export-ssp", "deltafmi export-ssp deltafmi/examples/bouncing_ball.yaml -o bouncing_ball.ssp"),
+    ("export-ssp", "deltafmi export-ssp bouncing_ball -o bouncing_ball.ssp"),
 ])
 def test_help_shows_an_example(command, example):
     result = CliRunner().invoke(main, [command, "--help"])
@@ -67,7 +67,7 @@ def test_run_with_bad_scenario_exits_2(tmp_path):
     result = CliRunner().invoke(main, ["run", str(bad)])
     assert result.exit_code == 2
     assert result.output.strip().splitlines()[-1] == \
-        f"Error: {bad}:3: error: component 'a': FMU 'missing.fmu' not found"
+        f"{bad}:3: error: component 'a': FMU 'missing.fmu' not found"
 
 
 def test_run_failure_exits_1_with_one_line_reason(scenario, tmp_path):

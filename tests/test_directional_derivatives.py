@@ -13,7 +13,7 @@ import pytest
 from fmpy.fmi2 import FMU2Model
 from fmpy.validation import validate_fmu
 
-from conftest import FMU_SRC, MODEL_FILES
+from conftest import MODEL_FILES
 from deltafmi.mechanics import delta as d
 from deltafmi.mechanics.delta.jacobian import plant_jacobian
 

@@ -50,7 +50,7 @@ def test_info_and_validate_of_a_portable_fmu_state_its_glibc_floor(portable_osci
     for command in ("info", "validate"):
         result = CliRunner().invoke(main, [command, str(portable_oscillator_fmu)])
         assert result.exit_code == 0, result.output
-        assert f"portable: carries CPython" in result.output
+        assert "portable: carries CPython" in result.output
         assert f"glibc {floor} or newer, no Python" in result.output
     have = tuple(int(x) for x in platform.libc_ver()[1].split("."))
     assert tuple(int(x) for x in floor.split(".")) <= have  # built here, so it runs here

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import FMU_SRC, MODEL_FILES, ROOT, unzip
+from conftest import MODEL_FILES, ROOT, unzip
 
 #: every FMU of deltafmi/models: the flagship ones, and the contact ones (whose collision law calibrates
 #: itself with deltafmi.mechanics.contact.dopri, no longer with scipy)

@@ -114,10 +114,9 @@ def test_input_driven_twice(fmu_dir):
 def test_unconnected_inputs_are_warnings(fmu_dir):
     path, result = validate(fmu_dir, HEAD + "  - {from: a.energy, to: b.F, factor: 0.5}\n")
     assert result.exit_code == 0, result.output
-    assert f"{path}:3: warning: component 'a': input(s) not connected, kept at their start values: F" in result.output
-    assert f"{path}:5: warning: component 'robot': input(s) not connected" in result.output
-    assert "u[1], u[2], u[3], f[1], f[2], f[3]" in result.output
-    assert "component 'b'" not in result.output
+    warnings = [line for line in result.output.splitlines() if "warning" in line]
+    assert warnings == [f"{path}: warning: input(s) not connected, kept at their start values: a.F, robot.u[1:3], "
+                        "robot.f[1:3] (connect them, or give them a value under the component's parameters:)"]
 
 
 def test_algebraic_loop_is_named_with_how_it_is_solved(fmu_dir):

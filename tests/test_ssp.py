@@ -302,7 +302,7 @@ def test_bare_ssd_without_our_annotations_runs(build_fmu_from_src, tmp_path):
     del root.find("ssd:DefaultExperiment", NAMESPACES).attrib["stopTime"]
     ssd.write_bytes(etree.tostring(root))
     message = cli("run", ssd, code=2).strip().splitlines()[-1]
-    assert re.fullmatch(rf"Error: {re.escape(str(ssd))}:\d+: error: no DefaultExperiment stopTime: .*--stop", message)
+    assert re.fullmatch(rf"{re.escape(str(ssd))}:\d+: error: no DefaultExperiment stopTime: .*--stop", message)
     cli("run", ssd, "-o", tmp_path / "bare.csv", "--stop", "1.0", "-q")
     bare = columns(tmp_path / "bare.csv")
     assert "a.impacts" in bare and "a.x" not in bare  # every output, no states
@@ -364,4 +364,4 @@ def test_broken_archive_names_the_ssd_line(build_fmu_from_src, tmp_path, case):
         text = archive.read(SSD_NAME).decode()
     line = next(i for i, l in enumerate(text.splitlines(), 1) if new in l) - (case == "parameter")
     output = cli("run", broken, code=2)
-    assert output.strip().splitlines()[-1] == f"Error: {broken}/{SSD_NAME}:{line}: error: {message}"
+    assert output.strip().splitlines()[-1] == f"{broken}/{SSD_NAME}:{line}: error: {message}"

@@ -4,17 +4,16 @@ through Dask (``deltafmi sweep --scheduler``). Every case's metrics equal those 
 ``deltafmi run`` of the same case to 1e-12; each worker holds the FMUs it was sent, by hash."""
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
 from click.testing import CliRunner
+
+from dask_processes import DASK, scheduler_address, start_process
 
 from deltafmi.cli import main
 from deltafmi.cosim.results.csv_file import columns as read_columns
@@ -22,7 +21,6 @@ from deltafmi.study.plan import plan_study
 from deltafmi.study.spec import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
-DASK = Path(sys.executable).parent / "dask"
 STUDY = f"""\
 scenario: {ROOT / 'deltafmi' / 'examples' / 'delta_tracking.yaml'}
 vary:
@@ -38,37 +36,20 @@ metrics:
 """
 
 
-def _start(command, folder: Path, env: dict) -> subprocess.Popen:
-    folder.mkdir(parents=True, exist_ok=True)
-    return subprocess.Popen(command, cwd=folder, env=env, stdout=open(folder / "log.txt", "w"),
-                            stderr=subprocess.STDOUT, start_new_session=True)
-
-
-def _scheduler_address(info: Path, timeout: float = 60.0) -> str:
-    """The address the scheduler writes to its file once it listens (the file may be partial)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            return json.loads(info.read_text())["address"]
-        except (OSError, ValueError, KeyError):
-            time.sleep(0.1)
-    raise TimeoutError(f"the Dask scheduler did not start (see {info.parent / 'scheduler' / 'log.txt'})")
-
-
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory):
     """``tcp://127.0.0.1:port`` of a scheduler with two single-threaded workers; and their caches."""
     root = tmp_path_factory.mktemp("cluster")
     info = root / "scheduler.json"
-    processes = [_start([str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+    processes = [start_process([str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
                          "--scheduler-file", str(info)], root / "scheduler", dict(os.environ))]
     try:
-        address = _scheduler_address(info)
+        address = scheduler_address(info, root / "scheduler" / "log.txt")
         caches = []
         for name in ("w1", "w2"):
             cache = root / name / "cache"
             caches.append(cache)
-            processes.append(_start([str(DASK), "worker", address, "--nthreads", "1", "--nworkers", "1",
+            processes.append(start_process([str(DASK), "worker", address, "--nthreads", "1", "--nworkers", "1",
                                      "--host", "127.0.0.1", "--no-dashboard", "--name", name],
                                     root / name, {**os.environ, "DELTAFMI_CACHE": str(cache)}))
         from distributed import Client

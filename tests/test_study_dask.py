@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import signal
 import subprocess
 import sys
@@ -191,7 +192,10 @@ def test_interrupted_sweep_resumes_without_redoing_cases(cluster, tmp_path):
         """))
     journal = tmp_path / "osc_study.journal.jsonl"
     deltafmi = Path(sys.executable).parent / "deltafmi"
+    temporary = tmp_path / "tmp"  # the sweep's and its workers' temporary folder
+    temporary.mkdir()
     process = subprocess.Popen([str(deltafmi), "sweep", str(study), "--workers", "2", "-q"], cwd=tmp_path,
+                               env={**os.environ, "TMPDIR": str(temporary)},
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         deadline = time.monotonic() + 120
@@ -206,6 +210,7 @@ def test_interrupted_sweep_resumes_without_redoing_cases(cluster, tmp_path):
     first = _journal(journal)
     assert 2 <= len(first) < 12, output
     assert pq.read_table(tmp_path / "osc_study.parquet").num_rows == len(first)  # written on the way out
+    assert list(temporary.rglob("deltafmi-pool*")) == []  # the workers' FMU folders went with them
     # the same command again (the same interpreter builds the same FMUs), on the test's cluster
     again = subprocess.run([str(deltafmi), "sweep", str(study), "--scheduler", cluster], cwd=tmp_path,
                            capture_output=True, text=True, timeout=120)

@@ -16,7 +16,7 @@ import fmpy
 import numpy as np
 import pytest
 
-from conftest import FMU_SRC, MODEL_FILES, NATIVE, ROOT, unzip
+from conftest import MODEL_FILES, NATIVE, ROOT, unzip
 from deltafmi.export.compiler import exported_symbols
 from host_loops import co_simulation, host_rows, me_env, model_exchange_euler, run_c_host, shared_libraries
 

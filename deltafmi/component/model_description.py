@@ -8,6 +8,7 @@ from typing import Optional
 
 from .. import __version__
 from .base import Component
+from .checks import feedthrough_of
 from .fmu_logging import CATEGORIES, LOG_ALL
 from .layout import ScalarVariable
 
@@ -95,7 +96,7 @@ def _model_structure(root: ET.Element, cls: type[Component]) -> None:
         if s.causality == "input":
             inputs_by_decl[s.declaration.name].append(index[s.name])
     all_inputs = [i for group in inputs_by_decl.values() for i in group]
-    feedthrough: Optional[dict] = getattr(cls, "direct_feedthrough", None)
+    feedthrough = feedthrough_of(cls)
 
     def output_deps(s: ScalarVariable) -> list[int]:
         if feedthrough is None:

@@ -10,38 +10,49 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 from tempfile import TemporaryDirectory
-from typing import Optional, Sequence
+from typing import TYPE_CHECKING, Callable, Optional, Sequence, Tuple
 
 import click
 
 from deltafmi.errors import BadInput, ScenarioError
 
+if TYPE_CHECKING:
+    from .scenario.spec import Scenario
 
-def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = None):
-    """Scenario (YAML, or an SSP archive) -> resolved system, for a command (it needs click's context):
-    prints every diagnostic, raises on errors.
+
+def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = None,
+                overrides: Optional[Callable[[Scenario], Scenario]] = None, quiet: bool = False):
+    """Scenario (YAML, an SSP archive, or one FMU on its own) -> resolved system, for a command
+    (it needs click's context): prints every diagnostic, raises on errors.
 
     The FMUs of an SSP archive are unpacked into a temporary folder that lives until the
-    command ends. ``stop`` stands in for an SSP without a stop time.
+    command ends. ``stop`` stands in for an SSP without a stop time. ``overrides`` changes the
+    loaded scenario before it is resolved (run options, see :mod:`.scenario.overrides`);
+    ``quiet``: no warnings.
     """
+    from .scenario.fmu_scenario import fmu_scenario, is_fmu
     from .scenario.resolve import resolve_system
     from .scenario.spec import load_scenario
     from .ssp.read import is_ssp, load_ssp
 
     try:
-        if is_ssp(path):
+        if is_fmu(path):
+            scenario = fmu_scenario(path)
+        elif is_ssp(path):
             workdir = click.get_current_context().with_resource(TemporaryDirectory(prefix="deltafmi-ssp-"))
             scenario = load_ssp(path, Path(workdir), stop)
         else:
             scenario = load_scenario(path)
+        if overrides is not None:
+            scenario = overrides(scenario)
         system = resolve_system(scenario, check_fmus=check_fmus)
-    except ScenarioError as exc:
-        if len(exc.diagnostics) > 1:
-            for diagnostic in exc.diagnostics:
-                click.echo(str(diagnostic), err=True)
-        raise
-    for warning in system.warnings:
-        click.echo(str(warning), err=True)
+        if is_fmu(path):  # an FMU run on its own has no connections: its inputs stay at their start values
+            system.warnings = [w for w in system.warnings if "not connected" not in w.message]
+    except ScenarioError:
+        raise  # its show() prints every error, one per line
+    if not quiet:  # -q: nothing on success
+        for warning in system.warnings:
+            click.echo(str(warning), err=True)
     return system
 
 
@@ -50,15 +61,30 @@ def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = Non
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="Result file: .csv, .parquet (units in its field metadata) or .mat (MATLAB); "
                    "default: result.file of the scenario, else <scenario>.csv here.")
+@click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
+              help="Set a parameter or start value, e.g. controller.pole=10, plant.z0=0.1,0,-1.0 or "
+                   "plant.z0[3]=-1.05 (repeatable).")
 @click.option("--stop", type=float, help="Stop time [s], overriding experiment.stop.")
+@click.option("--step", type=float, help="Communication step [s], overriding experiment.step.")
+@click.option("--tolerance", type=float,
+              help="Relative tolerance of every component's integration (ME: CVODE rtol; CS: the "
+                   "tolerance of fmi2SetupExperiment), overriding their solver.rtol.")
+@click.option("--allow-nan", is_flag=True, default=None,
+              help="Record NaN or infinite values and go on (master.allow_nan) instead of stopping.")
 @click.option("--algorithm", type=click.Choice(["gauss-seidel", "jacobi"]),
               help="Override master.algorithm.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary, no messages from the FMUs.")
 @click.option("-v", "--verbose", is_flag=True,
               help="Every message of the FMUs (their debug log categories too), not only warnings and errors.")
-def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: Optional[str],
+def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop: Optional[float],
+        step: Optional[float], tolerance: Optional[float], allow_nan: Optional[bool], algorithm: Optional[str],
         quiet: bool, verbose: bool) -> None:
-    """Run the co-simulation SCENARIO (a YAML file or an SSP archive) and write its results.
+    """Run the co-simulation SCENARIO (a YAML file, an SSP archive, or one .fmu) and write its results.
+
+    A single FMU runs on its default experiment as fmpy's simulate does (Co-Simulation when it
+    offers it), its inputs at their start values, every output recorded.
+    --set, --stop, --step and --tolerance change the run, not the file. A NaN or infinite value
+    stops the run with exit code 1, naming the variable and the time (--allow-nan: go on).
 
     The FMUs' warnings and errors are shown on stderr as they log them (-v: all their messages,
     -q: none). A component that ends the simulation itself ends the run there: the results up to
@@ -68,21 +94,31 @@ def run(scenario: str, output: Optional[str], stop: Optional[float], algorithm: 
 
     \b
     Example:
-      deltafmi run deltafmi/examples/delta_tracking.yaml -o tracking.csv --stop 2
+      deltafmi run delta_tracking -o tracking.csv --stop 2
       deltafmi run system.ssp
-      deltafmi run deltafmi/examples/delta_tracking.yaml -o tracking.parquet
+      deltafmi run delta_tracking -o tracking.parquet
+      deltafmi run delta_tracking --set controller.pole=10 --step 0.002 --tolerance 1e-6
+      deltafmi run Oscillator.fmu --set Oscillator.k=100 --stop 2
     """
     from .results.writers import writer_for
+    from .scenario.overrides import parse_assignment, with_overrides
     from .stepping.master import Master
 
     if quiet and verbose:
         raise BadInput("-q and -v contradict each other: give one")
     if output:
         writer_for(output)  # an unknown extension fails before any FMU is built or run
-    system = load_system(scenario, stop=stop)
-    master = Master(system, result=Path(output) if output else None, stop=stop, algorithm=algorithm,
+    values = dict(parse_assignment(text) for text in assignments)
+
+    def overrides(loaded: Scenario) -> Scenario:
+        return with_overrides(loaded, values, stop=stop, step=step, tolerance=tolerance, allow_nan=allow_nan)
+
+    from deltafmi.export.packager import builds_announced
+    with builds_announced(not quiet):  # -q: nothing on success, not even a first build's line
+        system = load_system(scenario, stop=stop, overrides=overrides, quiet=quiet)
+    master = Master(system, result=Path(output) if output else None, algorithm=algorithm,
                     progress=not quiet and sys.stdout.isatty(),
-                    warn=lambda message: click.echo(f"warning: {message}", err=True),
+                    warn=(lambda message: None) if quiet else lambda message: click.echo(f"warning: {message}", err=True),
                     on_message=None if quiet else _fmu_message_printer(verbose), debug_logging=verbose)
     summary = master.run()
     if not quiet:
@@ -103,6 +139,9 @@ def _fmu_message_printer(verbose: bool):
         if status < 1 and not verbose:
             return
         label = _STATUS_LABELS[status] if 0 <= status < len(_STATUS_LABELS) else f"status {status}"
+        if not verbose and "Traceback (most recent call last)" in text:  # -v shows the whole traceback
+            lines = text.strip().splitlines()
+            text = f"{lines[0]} {lines[-1].strip()}" if len(lines) > 1 else text
         click.echo(f"{clear}{label}: {component}: " + (f"[{category}] " if verbose else "") + text, err=True)
 
     return show
@@ -120,7 +159,7 @@ def validate(scenario: str) -> None:
 
     \b
     Examples:
-      deltafmi validate deltafmi/examples/delta_tracking.yaml
+      deltafmi validate delta_tracking
       deltafmi validate build/fmus/DeltaRobot.fmu
     """
     if scenario.endswith(".fmu"):
@@ -151,7 +190,7 @@ def export_ssp(scenario: str, output: Optional[str]) -> None:
 
     \b
     Example:
-      deltafmi export-ssp deltafmi/examples/bouncing_ball.yaml -o bouncing_ball.ssp
+      deltafmi export-ssp bouncing_ball -o bouncing_ball.ssp
     """
     from .ssp.write import export_ssp as write
 
@@ -168,19 +207,30 @@ def export_ssp(scenario: str, output: Optional[str]) -> None:
 @click.argument("signals", nargs=-1, required=True)
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
               help="Figure file (.png, .pdf, .svg).")
-@click.option("--separate", is_flag=True, help="One subplot per signal.")
+@click.option("--compare", type=click.Path(exists=True, dir_okay=False),
+              help="A second result file: plot RESULT minus it, signal by signal.")
+@click.option("--separate", is_flag=True, help="One subplot per signal (default: one per unit).")
 @click.option("--title", default="", help="Figure title (default: the result file name).")
-def plot(result: str, signals: Sequence[str], output: str, separate: bool, title: str) -> None:
-    """Plot SIGNALS of a RESULT file over time (names or patterns such as 'plant.z[*]').
+def plot(result: str, signals: Sequence[str], output: str, compare: Optional[str], separate: bool,
+         title: str) -> None:
+    """Plot SIGNALS of a RESULT file (.csv, .parquet, .mat) over time.
+
+    A signal is a name, a pattern ('plant.z[*]', 'trajectory.r[1:3]'), an array's name
+    ('plant.z': its elements) or a difference 'A - B' (spaces around the minus) of two with the
+    same number of elements. Signals of different units go on different axes, differences on
+    their own, each axis in a readable unit (um for a tracking error): the units come from a
+    .parquet or .mat result (a .csv result has none).
 
     \b
-    Example:
+    Examples:
       deltafmi plot tracking.csv 'plant.z[*]' 'trajectory.r[1:3]' -o tracking.png
+      deltafmi plot tracking.parquet 'plant.z' 'trajectory.r' 'plant.z - trajectory.r' -o tracking.png
+      deltafmi plot new.csv 'plant.z[*]' --compare old.csv -o change.png
     """
     from .results.plot import UnknownSignal, plot_result
 
     try:
-        path = plot_result(result, signals, output, separate=separate, title=title)
+        path = plot_result(result, signals, output, separate=separate, title=title, compare=compare)
     except UnknownSignal as exc:
         raise BadInput(str(exc)) from None
     except ValueError as exc:

@@ -8,10 +8,9 @@ packaged component sources it uses into ``DIR``, as files to edit (:func:`copy_e
 from __future__ import annotations
 
 import re
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
-from typing import List, Union
+from typing import Dict, List, Union
 
 from deltafmi.errors import BadInput, did_you_mean
 
@@ -42,6 +41,21 @@ def examples() -> List[Example]:
     """Every shipped example, scenarios first, each group by name."""
     return ([Example(p.stem, "scenario", p) for p in sorted(EXAMPLES_DIR.glob("*.yaml"))]
             + [Example(p.stem, "study", p) for p in sorted(STUDIES_DIR.glob("*.yaml"))])
+
+
+def model_summaries() -> Dict[str, str]:
+    """Class name -> the first line of its docstring, for every packaged model (read from the
+    sources: nothing is imported)."""
+    import ast
+    from deltafmi.models import MODELS
+
+    models = Path(__file__).parents[1] / "models"
+    summaries = {}
+    for name, module in sorted(MODELS.items()):
+        tree = ast.parse((models / f"{module}.py").read_text())
+        node = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == name)
+        summaries[name] = (ast.get_docstring(node) or "").split("\n")[0].rstrip(".")
+    return summaries
 
 
 def example(name: str) -> Example:

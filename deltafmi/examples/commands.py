@@ -21,17 +21,22 @@ def examples(context: click.Context) -> None:
 
 @examples.command("list")
 def list_examples() -> None:
-    """Name and one line of every example."""
+    """Name and one line of every example, and of every packaged model."""
     from . import examples as shipped
+    from . import model_summaries
 
     found = shipped()
-    width = max(len(e.name) for e in found)
+    models = model_summaries()
+    width = max(len(name) for name in [e.name for e in found] + list(models))
     for kind, heading, command in (("scenario", "Scenarios", "deltafmi run NAME"),
                                    ("study", "Studies", "deltafmi sweep NAME")):
         click.echo(f"{heading} ({command}):")
         for e in found:
             if e.kind == kind:
                 click.echo(f"  {e.name:<{width}}  {e.summary}")
+    click.echo("Models (deltafmi build NAME; in a scenario, source: deltafmi.models:NAME):")
+    for name, summary in models.items():
+        click.echo(f"  {name:<{width}}  {summary}")
 
 
 @examples.command("copy")

@@ -114,20 +114,32 @@ def info(fmu: Path) -> None:
 
 
 def validate_fmu_file(fmu: Path) -> None:
-    """``deltafmi validate X.fmu``: fmpy's validation, then what the FMU needs to run and whether this
-    machine has it; a ClickException (exit 1) when either fails."""
+    """``deltafmi validate X.fmu``: fmpy's validation (the XML), the binary for this platform, a
+    deltafmi FMU's GUID against its binary's, what the FMU needs to run and whether this machine
+    has it, and one trial fmi2Instantiate; a ClickException (exit 1) at the first that fails."""
+    from fmpy import read_model_description
     from fmpy.validation import validate_fmu
+
+    from .requirements import binary_problem, guid_problem, instantiation_problem
     if not fmu.is_file():
         raise click.ClickException(f"{fmu}: no such file")
     try:
         problems = validate_fmu(str(fmu))
+        md = read_model_description(str(fmu), validate=False)
         requirement = runtime_requirement(fmu)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for broken archives
-        raise click.ClickException(f"{fmu}: not a readable FMU: {exc}") from exc
+        raise click.ClickException(f"{fmu}: not a readable FMU: {exc}") from None
     for line in requirement.describe():
         click.echo(f"{fmu}: {line}")
     if problems:
         raise click.ClickException(f"{fmu}: fmpy validate found problems:\n" + "\n".join(problems))
+    identifiers = [i.modelIdentifier for i in (md.coSimulation, md.modelExchange) if i is not None]
+    problem = binary_problem(fmu, identifiers) or guid_problem(fmu, md.guid)
+    if problem:
+        raise click.ClickException(f"{fmu}: {problem}")
     if not requirement.runs_here:
         raise click.ClickException(f"{fmu}: valid, but it cannot start on this machine")
-    click.echo(f"{fmu}: OK")
+    problem = instantiation_problem(fmu)
+    if problem:
+        raise click.ClickException(f"{fmu}: {problem}")
+    click.echo(f"{fmu}: OK (instantiated and freed once)")

@@ -1,22 +1,30 @@
-"""Compile the FMU binary (FMI loader + Python bridge) with the system C compiler, once, cached.
+"""Compile deltafmi's native pieces with the system C compiler, once, cached; or take them prebuilt.
 
-The binary is the same for every FMU (FMI 2.0 binaries export un-prefixed fmi2 names) and binds
-the Python C API at run time (``native/pyapi.h``), so it needs no Python headers and is built once
-per source version and compiler, then reused for every FMU and every CPython >= 3.10. It exports
-the fmi2 functions and nothing else (hidden visibility, see ``exported_symbols``). The cache lives
-in ``$DELTAFMI_CACHE`` (default ``~/.cache/deltafmi``).
+The FMU binary (FMI loader + Python bridge) is the same for every FMU (FMI 2.0 binaries export
+un-prefixed fmi2 names) and binds the Python C API at run time (``native/pyapi.h``), so it needs
+no Python headers and is built once per source version, then reused for every FMU and every
+CPython >= 3.10. It exports the fmi2 functions and nothing else (hidden visibility, see
+``exported_symbols``).
+
+Every native piece is looked up under one relative path (``native/<stem>-<digest>/<file>``, the
+digest taken over its sources, flags and the Python ABI where it has one) in two places: the
+per-user cache ``$DELTAFMI_CACHE`` (default ``~/.cache/deltafmi``), then ``deltafmi/_prebuilt``,
+which an installed wheel carries (``deltafmi.export.prebuild`` fills it at wheel build time). Only
+when both miss is it compiled, and only then is a C compiler needed. The keys name no compiler
+and no machine path, so that what the wheel's build machine compiled is found on the user's.
 """
 from __future__ import annotations
 
 import hashlib
 import os
+import shlex
 import shutil
 import subprocess
 import sys
 import sysconfig
 import tempfile
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Optional, Sequence
 
 NATIVE_DIR = Path(__file__).parent / "native"
 SOURCES = ("loader.c", "bridge.c", "python_start.c", "process_lock.c")
@@ -25,6 +33,17 @@ HEADERS = ("bridge.h", "python_start.h", "process_lock.h", "glibc_floor.h", "pya
 
 class BuildError(RuntimeError):
     """The native build failed (no compiler, compiler error, missing Python headers)."""
+
+
+class NoCompilerError(BuildError):
+    """A native piece is neither cached nor prebuilt, and no C compiler is there to build it."""
+
+
+#: the read-only layer of prebuilt pieces an installed wheel carries (absent in a source checkout)
+PREBUILT_DIR = Path(__file__).resolve().parent.parent / "_prebuilt"
+#: the most compiler output a BuildError carries (its end: the first error is usually enough, and
+#: the last lines say how many followed)
+_MAX_OUTPUT_LINES = 30
 
 
 def cache_dir() -> Path:
@@ -37,28 +56,55 @@ def native_source_files() -> list[Path]:
     return [NATIVE_DIR / name for name in SOURCES + HEADERS]
 
 
-def _compiler() -> str:
-    cc = os.environ.get("CC", "cc")
-    if not shutil.which(cc):
-        raise BuildError(f"no C compiler found (looked for '{cc}'; set $CC). deltafmi compiles the FMU "
-                         "binary with the system C compiler.")
+def compiler_name() -> str:
+    """The C compiler deltafmi would run: ``$CC``, else ``cc`` (whether or not it exists)."""
+    return os.environ.get("CC") or "cc"
+
+
+def no_compiler_message(cc: Optional[str] = None) -> str:
+    """What to say when something must be compiled and ``cc`` is not there (one line)."""
+    return (f"building needs a C compiler ({cc or compiler_name()} not found; install gcc or set CC); "
+            "the packaged models need none when deltafmi is installed from its wheel, which carries them prebuilt")
+
+
+def require_compiler(what: Path) -> list[str]:
+    """The compiler's command to build ``what`` (``$CC`` may carry words, e.g. ``ccache gcc``);
+    :class:`NoCompilerError` naming ``what`` when there is none."""
+    cc = shlex.split(compiler_name()) or ["cc"]
+    if not shutil.which(cc[0]):
+        raise NoCompilerError(f"{_shown(what)}: {no_compiler_message(cc[0])}")
     return cc
 
 
+def find_built(relative: str) -> Optional[Path]:
+    """``relative`` (a path inside the cache) in the user's cache, else in the prebuilt layer."""
+    for root in (cache_dir(), PREBUILT_DIR):
+        if (root / relative).exists():
+            return root / relative
+    return None
+
+
+def abi_tag() -> str:
+    """The Python ABI a piece built against this interpreter's headers works with
+    (``cpython-311``), stable across machines, unlike the headers' path."""
+    return sys.implementation.cache_tag or sys.implementation.name
+
+
 def fmu_binary() -> Path:
-    """The compiled FMU binary, from the cache or freshly built."""
-    cc = _compiler()
+    """The compiled FMU binary, from the cache, the prebuilt layer, or freshly built."""
     digest = hashlib.sha256()
     for path in native_source_files():
         digest.update(path.read_bytes())
-    digest.update(cc.encode())
-    target = cache_dir() / "native" / digest.hexdigest()[:16]
-    binary = target / "fmu.so"
-    if not binary.exists():
-        build_into(target, lambda tmp: _run(
-            [cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}",
-             *[str(NATIVE_DIR / name) for name in SOURCES], "-o", f"{tmp}/{binary.name}",
-             "-ldl", "-lpthread", "-lm"]))
+    relative = f"native/{digest.hexdigest()[:16]}/fmu.so"
+    found = find_built(relative)
+    if found is not None:
+        return found
+    cc = require_compiler(NATIVE_DIR / SOURCES[0])
+    binary = cache_dir() / relative
+    build_into(binary.parent, lambda tmp: _run(
+        [*cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}",
+         *[str(NATIVE_DIR / name) for name in SOURCES], "-o", f"{tmp}/{binary.name}",
+         "-ldl", "-lpthread", "-lm"], NATIVE_DIR / SOURCES[0]))
     return binary
 
 
@@ -79,7 +125,7 @@ def python_extension(source: Path) -> Path:
     """A C extension module for this Python's stable ABI (``<name>.abi3.so``), from the cache.
 
     Raises :class:`BuildError` when it cannot be compiled (no compiler, no Python headers)."""
-    return single_file_library(source, f"{source.stem}.abi3.so", [f"-I{python_include()}"])
+    return single_file_library(source, f"{source.stem}.abi3.so", [python_include], abi_tag())
 
 
 def python_include() -> str:
@@ -90,15 +136,21 @@ def python_include() -> str:
     return include
 
 
-def single_file_library(source: Path, name: str, flags: list[str]) -> Path:
-    """``source`` compiled into the shared library ``name``, cached by source, compiler and flags."""
-    cc = _compiler()
-    digest = hashlib.sha256(source.read_bytes() + cc.encode() + " ".join(flags).encode()).hexdigest()[:16]
-    target = cache_dir() / "native" / f"{source.stem}-{digest}"
-    library = target / name
-    if not library.exists():
-        build_into(target, lambda tmp: _run([cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", *flags,
-                                              str(source), "-o", f"{tmp}/{name}"]))
+def single_file_library(source: Path, name: str, includes: Sequence[Callable[[], str]] = (),
+                        abi: str = "") -> Path:
+    """``source`` compiled into the shared library ``name``, keyed by the source and ``abi`` (the
+    Python ABI it is built for, empty for none); ``includes`` give its include directories, asked
+    for only when it must be compiled (a Python's headers are needed only then)."""
+    digest = hashlib.sha256(source.read_bytes() + f"\0{name}\0{abi}".encode()).hexdigest()[:16]
+    relative = f"native/{source.stem}-{digest}/{name}"
+    found = find_built(relative)
+    if found is not None:
+        return found
+    cc = require_compiler(source)
+    flags = [f"-I{include()}" for include in includes]
+    library = cache_dir() / relative
+    build_into(library.parent, lambda tmp: _run([*cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
+                                                  *flags, str(source), "-o", f"{tmp}/{name}"], source))
     return library
 
 
@@ -124,10 +176,33 @@ def strip_unneeded(library: Path) -> None:
         subprocess.run(["strip", "--strip-unneeded", str(library)], check=True, capture_output=True, text=True)
 
 
-def _run(command: list[str]) -> None:
-    result = subprocess.run(command, capture_output=True, text=True)
+def _run(command: list[str], source: Path) -> None:
+    try:
+        result = subprocess.run(command, capture_output=True, text=True)
+    except OSError as exc:  # found by which, yet not runnable
+        raise NoCompilerError(f"{_shown(source)}: {no_compiler_message(command[0])} ({exc.strerror})") from None
     if result.returncode != 0:
-        raise BuildError(f"compiling a native library failed:\n$ {' '.join(command)}\n{result.stderr}")
+        raise BuildError(f"{_shown(source)}: compiling failed ({command[0]} exited with {result.returncode}):\n"
+                         f"{compiler_output(result.stdout + result.stderr)}\n$ {' '.join(command)}")
+
+
+def compiler_output(text: str) -> str:
+    """The compiler's messages, at most :data:`_MAX_OUTPUT_LINES` lines (the first ones: the first
+    error is the one to fix), or a note that it printed nothing."""
+    lines = text.strip().splitlines()
+    if not lines:
+        return "(the compiler printed nothing)"
+    if len(lines) > _MAX_OUTPUT_LINES:
+        lines = lines[:_MAX_OUTPUT_LINES] + [f"... ({len(lines) - _MAX_OUTPUT_LINES} more lines)"]
+    return "\n".join(lines)
+
+
+def _shown(path: Path) -> str:
+    """``path`` relative to the package when it is inside it (messages stay short)."""
+    try:
+        return f"deltafmi/{path.resolve().relative_to(Path(__file__).resolve().parent.parent).as_posix()}"
+    except ValueError:
+        return str(path)
 
 
 def python_runtime_config() -> str:

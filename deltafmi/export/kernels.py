@@ -15,8 +15,10 @@ contact examples' FMUs have none).
 The libraries are stripped of their symbol tables (``strip --strip-unneeded``; the dynamic
 symbols stay).
 
-The compiled result is cached like the native binaries. Without mypy, or if compilation fails,
-FMUs ship the plain Python kernels (same results, slower) and a warning says so.
+The compiled result is cached like the native binaries, and found in the wheel's prebuilt layer
+like them (see :mod:`deltafmi.export.compiler`): a wheel user needs neither mypy nor a compiler.
+Where they must be compiled and mypy is missing, or compilation fails, FMUs ship the plain Python
+kernels (same results, slower) and a warning says so.
 """
 from __future__ import annotations
 
@@ -35,7 +37,7 @@ from typing import Iterable, Optional
 
 import deltafmi
 
-from .compiler import build_into, cache_dir, strip_unneeded
+from .compiler import NoCompilerError, abi_tag, build_into, cache_dir, find_built, require_compiler, strip_unneeded
 from .reach import direct_imports, module_source, reached_modules
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
@@ -85,21 +87,21 @@ def compiled_kernels(modules: Optional[Iterable[str]] = None) -> list[tuple[Path
     wanted = set(kernel_modules() if modules is None else modules) & set(kernel_modules())
     if not wanted:
         return []  # no warning either: nothing compiled would go in
-    version = mypyc_version()
-    if version is None:
-        warnings.warn("mypy (mypyc) is not installed: FMUs ship plain Python kernels "
-                      "(same results, several times slower)", stacklevel=2)
-        return []
-    groups = kernel_groups()
-    # mypyc type-checks what the kernels import: their sources are part of the compilation
-    digest = hashlib.sha256(f"{version}|{sys.version}|{groups}|{_CFLAGS}|{_SETUP}|strip".encode())
-    for name in reached_modules(modules=kernel_modules(), runtime=False):
-        path = module_source(name)
-        digest.update(name.encode() + path.read_bytes())
-    target = cache_dir() / "kernels" / digest.hexdigest()[:16]
-    if not target.is_dir():
+    relative = kernels_path()
+    target = find_built(relative)
+    if target is None:
+        if mypyc_version() is None:
+            warnings.warn("mypy (mypyc) is not installed: FMUs ship plain Python kernels "
+                          "(same results, several times slower)", stacklevel=2)
+            return []
         try:
-            _compile_into(target, groups)
+            require_compiler(PACKAGE_DIR / COMPILED_MODULES[0])
+        except NoCompilerError as exc:
+            warnings.warn(f"FMUs ship plain Python kernels (same results, slower): {exc}", stacklevel=2)
+            return []
+        target = cache_dir() / relative
+        try:
+            _compile_into(target, kernel_groups())
         except (subprocess.CalledProcessError, OSError) as exc:
             detail = (getattr(exc, "stdout", "") or "") + (getattr(exc, "stderr", "") or "") or str(exc)
             warnings.warn(f"compiling the kernels with mypyc failed; FMUs ship plain Python kernels:\n"
@@ -107,6 +109,20 @@ def compiled_kernels(modules: Optional[Iterable[str]] = None) -> list[tuple[Path
             return []
     owners: dict[str, list[str]] = json.loads((target / _MANIFEST).read_text())
     return [(target / relative, relative) for relative, owned in sorted(owners.items()) if wanted & set(owned)]
+
+
+def kernels_path() -> str:
+    """Where the compiled kernels of this source tree live, relative to the cache (and to the
+    prebuilt layer): keyed by the sources mypyc compiles and type-checks, the groups, the flags
+    and this Python's ABI (``SOABI``: version and platform), not by the mypy version, since the
+    compiled modules carry mypyc's runtime and need no mypy, nor by the full ``sys.version``:
+    kernels built elsewhere for the same CPython ABI serve here."""
+    abi = sysconfig.get_config_var("SOABI") or abi_tag()
+    digest = hashlib.sha256(f"{abi}|{kernel_groups()}|{_CFLAGS}|{_SETUP}|strip".encode())
+    # mypyc type-checks what the kernels import: their sources are part of the compilation
+    for name in reached_modules(modules=kernel_modules(), runtime=False):
+        digest.update(name.encode() + module_source(name).read_bytes())
+    return f"kernels/{digest.hexdigest()[:16]}"
 
 
 #: which modules each compiled file serves (relative path -> module names), written beside them
@@ -122,7 +138,8 @@ def _compile_into(target: Path, groups: list[list[str]]) -> None:
     def build(out: str) -> None:
         with tempfile.TemporaryDirectory() as tmp:
             work = Path(tmp)
-            shutil.copytree(PACKAGE_DIR, work / "deltafmi", ignore=shutil.ignore_patterns("__pycache__", "*.so"))
+            shutil.copytree(PACKAGE_DIR, work / "deltafmi",
+                            ignore=shutil.ignore_patterns("__pycache__", "*.so", "_prebuilt"))
             separate = [([_source(name) for name in group], _group_name(group)) for group in groups]
             (work / "setup.py").write_text(_SETUP.format(paths=[p for paths, _ in separate for p in paths],
                                                          separate=separate))

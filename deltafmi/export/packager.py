@@ -1,6 +1,7 @@
 """Pack a component source file into a ``.fmu``: model description, binaries, resources, sources."""
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.util
 import json
@@ -12,16 +13,18 @@ import uuid
 import warnings
 import zipfile
 from pathlib import Path
-from typing import Optional
+from typing import Iterator, Optional
 
 import deltafmi
 from ..component import Component
+from ..component.checks import definition_problem
 from ..component.model_description import model_description_xml
 from ..files import replaced_atomically
-from .compiler import BuildError, cache_dir, fmu_binary, native_source_files, python_extension, python_runtime_config
-from .kernels import compiled_kernels, mypyc_version
+from .compiler import (BuildError, NoCompilerError, cache_dir, fmu_binary, native_source_files, no_compiler_message,
+                       python_extension, python_runtime_config)
+from .kernels import compiled_kernels
 from .reach import module_source, reached_modules
-from .sources import ComponentSourceError
+from .sources import ComponentSourceError, find_component
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: compiled value access of the variable declarations (see deltafmi/component/native_values.py)
@@ -55,11 +58,15 @@ def load_component_class(source: Path, class_name: Optional[str] = None) -> type
         classes = chosen
     if len(classes) != 1:
         found = ", ".join(c.__name__ for c in classes) or "none"
-        raise ComponentSourceError(f"{source}: expected exactly one Component subclass, found {found}")
+        hint = f" (build one of them as {source.name}:{classes[0].__name__})" if classes else ""
+        raise ComponentSourceError(f"{source}: expected exactly one Component subclass, found {found}{hint}")
     cls = classes[0]
     identifier = cls.fmi_model_name()
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", identifier) or keyword.iskeyword(identifier):
         raise ComponentSourceError(f"{source}: model name {identifier!r} is not a valid C identifier")
+    problem = definition_problem(cls)
+    if problem:
+        raise ComponentSourceError(problem)
     return cls
 
 
@@ -94,6 +101,8 @@ def compiled_value_access(modules: Optional[list[str]] = None) -> list[tuple[Pat
     compiled (the FMU then reads values in Python)."""
     if modules is not None and "deltafmi.component.native_values" not in modules:
         return []
+    if sys.version_info < (3, 11):  # _values.c uses 3.11's stable ABI (the buffer protocol)
+        return []
     try:
         module = python_extension(VALUE_ACCESS_SOURCE)
     except BuildError as exc:
@@ -108,6 +117,7 @@ def content_key(source: Path, class_name: Optional[str] = None) -> str:
     (so that editing a module the model does not reach leaves its cached FMU valid), the native
     sources of its binary, the code that writes its modelDescription.xml, this packager and the
     Python it was built for."""
+    _fmu_binary_for(source)  # first: without it nothing else matters (no warnings about the rest)
     digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0".encode())
     for path, arcname in runtime_files(source) + binary_files(source):
         digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
@@ -115,18 +125,34 @@ def content_key(source: Path, class_name: Optional[str] = None) -> str:
     for path in native_source_files() + writers + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]:
         digest.update(path.read_bytes())
     digest.update(python_runtime_config().encode())
-    digest.update(f"mypyc {mypyc_version()}".encode())
     return digest.hexdigest()
 
 
-def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = False,
+#: whether :func:`build_cached` says on stderr that it builds an FMU (one line; silent when the
+#: FMU is cached); see :func:`builds_announced`
+announce_builds = True
+
+
+@contextlib.contextmanager
+def builds_announced(announce: bool) -> Iterator[None]:
+    """Within the block, :func:`build_cached` announces its builds or not (``-q``: not)."""
+    global announce_builds
+    before, announce_builds = announce_builds, announce
+    try:
+        yield
+    finally:
+        announce_builds = before
+
+
+def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool = False,
               class_name: Optional[str] = None) -> Path:
     """Build the FMU for the component in ``source`` (the class ``class_name``, needed only when
-    the file defines several); returns the ``.fmu`` path.
+    the file defines several; ``source`` may also name a component as ``deltafmi build`` takes
+    it: ``"DeltaRobot"``, ``"package.module:Class"``, ``"file.py:Class"``); returns the ``.fmu`` path.
 
     A ``portable`` FMU also carries the interpreter, standard library and packages its model
     imports (see :mod:`deltafmi.export.portable`), so that it runs where no Python is installed."""
-    source = Path(source)
+    source, class_name = _component(source, class_name)
     if portable:
         from .portable import make_portable
         cls = load_component_class(source, class_name)
@@ -138,7 +164,7 @@ def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = Fals
     output = Path(output) if output else Path("build") / "fmus" / f"{identifier}.fmu"
     key = content_key(source, class_name)
     guid = "{" + str(uuid.uuid5(_GUID_NAMESPACE, key)) + "}"
-    binary = fmu_binary()
+    binary = _fmu_binary_for(source)
     info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
             "guid": guid, "deltafmi_version": deltafmi.__version__}
     with replaced_atomically(output) as tmp:
@@ -161,9 +187,10 @@ def build_fmu(source: Path, output: Optional[Path] = None, portable: bool = Fals
     return output
 
 
-def build_cached(source: Path, portable: bool = False, class_name: Optional[str] = None) -> Path:
-    """The FMU for ``source`` from the build cache, built when the source or runtime changed."""
-    source = Path(source)
+def build_cached(source: Path | str, portable: bool = False, class_name: Optional[str] = None) -> Path:
+    """The FMU for ``source`` (as :func:`build_fmu` takes it) from the per-user build cache, built
+    when the source or runtime changed."""
+    source, class_name = _component(source, class_name)
     key = content_key(source, class_name)[:20]
     if portable:
         from .portable import bundle_key
@@ -173,7 +200,25 @@ def build_cached(source: Path, portable: bool = False, class_name: Optional[str]
     if existing:
         return existing[0]
     cls = load_component_class(source, class_name)
+    if announce_builds:
+        print(f"building {cls.__name__} FMU (first use, cached in {_home_relative(cache_dir() / 'fmus')}) ...",
+              file=sys.stderr, flush=True)
     return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable, class_name=class_name)
+
+
+def _component(source: Path | str, class_name: Optional[str]) -> tuple[Path, Optional[str]]:
+    """A source file and class name as given, or those of a component named as the CLI names it."""
+    if class_name is None and not Path(source).is_file():
+        found = find_component(str(source))
+        return found.path, found.class_name
+    return Path(source), class_name
+
+
+def _home_relative(path: Path) -> str:
+    try:
+        return "~/" + path.relative_to(Path.home()).as_posix()
+    except ValueError:
+        return str(path)
 
 
 def unchecked_hash_pyc(path: Path, arcname: str) -> bytes:
@@ -185,6 +230,14 @@ def unchecked_hash_pyc(path: Path, arcname: str) -> bytes:
     code = compile(text, arcname, "exec", dont_inherit=True)
     flags = (0b01).to_bytes(4, "little")  # hash-based, not checked against the source
     return importlib.util.MAGIC_NUMBER + flags + importlib.util.source_hash(text) + marshal.dumps(code)
+
+
+def _fmu_binary_for(source: Path) -> Path:
+    """The FMU binary; without a compiler to build it, the error names the component ``source``."""
+    try:
+        return fmu_binary()
+    except NoCompilerError:  # name the component, not the C file that would be compiled
+        raise NoCompilerError(f"{source}: {no_compiler_message()}") from None
 
 
 def _digest(data: bytes) -> str:

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Optional
 
-from .compiler import (NATIVE_DIR, BuildError, build_into, cache_dir, python_include, single_file_library,
+from .compiler import (NATIVE_DIR, BuildError, abi_tag, build_into, cache_dir, python_include, single_file_library,
                        strip_unneeded)
 from .packager import unchecked_hash_pyc
 
@@ -217,7 +217,7 @@ def _libpython() -> Path:
 
 def starter_library() -> Path:
     """``native/starter.c`` compiled against this Python's headers, from the cache."""
-    return single_file_library(NATIVE_DIR / "starter.c", "deltafmi-starter.so", [f"-I{python_include()}"])
+    return single_file_library(NATIVE_DIR / "starter.c", "deltafmi-starter.so", [python_include], abi_tag())
 
 
 def portable_bundle(modules: Mapping[str, Optional[str]], needs_sundials: bool,

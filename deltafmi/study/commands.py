@@ -11,7 +11,7 @@ from typing import Optional, Sequence
 
 import click
 
-from deltafmi.errors import BadInput, ScenarioError
+from deltafmi.errors import BadInput
 
 
 def _plan(path: str):
@@ -19,13 +19,7 @@ def _plan(path: str):
     from .plan import plan_study
     from .spec import load_study
 
-    try:
-        return plan_study(load_study(path))
-    except ScenarioError as exc:
-        if len(exc.diagnostics) > 1:
-            for diagnostic in exc.diagnostics:
-                click.echo(str(diagnostic), err=True)
-        raise
+    return plan_study(load_study(path))  # a ScenarioError shows every error, one per line
 
 
 def _table_path(planned, output: Optional[str]) -> Path:
@@ -39,7 +33,18 @@ def _table_path(planned, output: Optional[str]) -> Path:
               help="Results table (.parquet; default: result.file of the study, else <study>.parquet here). "
                    "The CSV copy, the journal and the time series go next to it.")
 @click.option("--scheduler", metavar="ADDRESS",
-              help="A running Dask scheduler, e.g. tcp://host:8786 (default: a local cluster).")
+              help="A running Dask scheduler, e.g. tcp://host:8786 or tls://host:8786 (default: a local cluster).")
+@click.option("--connect-timeout", type=click.FloatRange(min=0, min_open=True), default=10.0, show_default=True,
+              metavar="SECONDS", help="How long to wait for a --scheduler host that does not answer "
+                                      "(a refused connection fails at once).")
+@click.option("--tls-ca-file", type=click.Path(exists=True, dir_okay=False),
+              help="tls:// scheduler: the CA certificate that signed the scheduler's (PEM); default: Dask's "
+                   "configuration distributed.comm.tls.ca-file.")
+@click.option("--tls-cert", type=click.Path(exists=True, dir_okay=False),
+              help="tls:// scheduler: this client's certificate (PEM); default: distributed.comm.tls.client.cert.")
+@click.option("--tls-key", type=click.Path(exists=True, dir_okay=False),
+              help="tls:// scheduler: this client's private key (PEM), unless --tls-cert holds it; default: "
+                   "distributed.comm.tls.client.key.")
 @click.option("--workers", type=click.IntRange(min=1),
               help="Worker processes of the local cluster (default: one per core).")
 @click.option("--dashboard", metavar="HOST:PORT",
@@ -47,14 +52,17 @@ def _table_path(planned, output: Optional[str]) -> Path:
                    "127.0.0.1 on a free port, this machine only; 0.0.0.0:8787 opens it to the network).")
 @click.option("--timeseries/--no-timeseries", default=None,
               help="Keep every case's recorded signals (default: result.timeseries of the study).")
-@click.option("--fresh", is_flag=True, help="Discard earlier results of this study instead of continuing them.")
+@click.option("--fresh", is_flag=True,
+              help="Discard earlier results of this study instead of continuing them (once the cluster answers).")
 @click.option("--retry-failed", is_flag=True, help="Run again the cases that failed in an earlier run.")
 @click.option("--dry-run", is_flag=True, help="Check the study and list its cases; run nothing.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
-def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: Optional[int],
+def sweep(study: str, output: Optional[str], scheduler: Optional[str], connect_timeout: float,
+          tls_ca_file: Optional[str], tls_cert: Optional[str], tls_key: Optional[str], workers: Optional[int],
           dashboard: Optional[str], timeseries: Optional[bool], fresh: bool, retry_failed: bool, dry_run: bool,
           quiet: bool) -> None:
-    """Run every case of the STUDY (a YAML file) on a Dask cluster and tabulate the metrics.
+    """Run every case of the STUDY (a YAML file, or a shipped example study by name: deltafmi
+    examples lists them) on a Dask cluster and tabulate the metrics.
 
     Each FMU is built once here and shipped to the workers, which keep it loaded and reset it
     between cases. Results are stored as cases finish: run the same command again after an
@@ -62,35 +70,46 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], workers: 
 
     \b
     Examples:
-      deltafmi sweep deltafmi/examples/studies/gain_payload.yaml
+      deltafmi sweep gain_payload
       deltafmi sweep study.yaml --scheduler tcp://10.0.0.5:8786 -o results/study.parquet
+      deltafmi sweep study.yaml --scheduler tls://10.0.0.5:8786 --tls-ca-file ca.pem --tls-cert me.pem --tls-key me.key
       deltafmi sweep study.yaml --dashboard 0.0.0.0:8787
     """
-    from .driver import LOCAL_DASHBOARD, dashboard_address, open_store, run_study, summary_lines
+    from .driver import LOCAL_DASHBOARD, dashboard_address, open_store, summary_lines, sweep_study
+    from .remote import tls_security
 
     if scheduler is not None and workers is not None:
         raise BadInput("--workers sizes the local cluster; a cluster given with --scheduler has its own workers")
     if scheduler is not None and dashboard is not None:
         raise BadInput("--dashboard places the local cluster's dashboard; a cluster given with --scheduler "
                        "serves its own (dask scheduler --dashboard-address)")
+    if scheduler is None and (tls_ca_file or tls_cert or tls_key):
+        raise BadInput("--tls-ca-file, --tls-cert and --tls-key are for a cluster given with --scheduler tls://...")
     if dashboard is not None:
         dashboard_address(dashboard)  # a malformed address fails here, before any FMU is built
+    security = tls_security(tls_ca_file, tls_cert, tls_key)
     planned = _plan(study)
+    if not quiet:  # the scenario's warnings, once for the whole study (the cases run it unchecked)
+        for warning in planned.system.warnings:
+            click.echo(str(warning), err=True)
     store = open_store(planned, _table_path(planned, output),
                        planned.study.timeseries if timeseries is None else timeseries)
     if dry_run:
+        pending = store.pending(planned.cases, fresh=fresh, retry_failed=retry_failed)
         click.echo(f"{study}: OK, {len(planned.cases)} cases varying {', '.join(planned.targets)}; "
                    f"metrics {', '.join(m.name for m in planned.plan.metrics)}")
         for case in planned.cases[:10]:
             click.echo(f"  case {case.id}: {case.describe()}")
         if len(planned.cases) > 10:
             click.echo(f"  ... {len(planned.cases) - 10} more")
+        click.echo(f"results: {store.table} ({len(pending)} cases to run, "
+                   f"{len(planned.cases) - len(pending)} done in an earlier run)")
         return
-    todo = store.open(planned.cases, fresh=fresh, retry_failed=retry_failed)
     try:
-        report = run_study(planned, store, todo, scheduler=scheduler, workers=workers,
-                           progress=not quiet and sys.stdout.isatty(), dashboard=dashboard or LOCAL_DASHBOARD,
-                           on_dashboard=_announce if dashboard is not None and not quiet else lambda link: None)
+        report = sweep_study(planned, store, fresh=fresh, retry_failed=retry_failed, scheduler=scheduler,
+                             workers=workers, security=security, connect_timeout=connect_timeout,
+                             progress=not quiet and sys.stdout.isatty(), dashboard=dashboard or LOCAL_DASHBOARD,
+                             on_dashboard=_announce if dashboard is not None and not quiet else lambda link: None)
     except KeyboardInterrupt:  # while the cluster started or stopped: the journal has every finished case
         click.echo(f"interrupted: run the same command again to continue ({store.journal} keeps what finished)",
                    err=True)
@@ -152,7 +171,7 @@ def study_case(study: str, case: int, output: str) -> None:
 
     \b
     Example:
-      deltafmi study-case deltafmi/examples/studies/gain_payload.yaml 17 -o case17.yaml && deltafmi run case17.yaml
+      deltafmi study-case gain_payload 17 -o case17.yaml && deltafmi run case17.yaml
     """
     from .export import case_scenario
 

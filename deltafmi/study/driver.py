@@ -17,6 +17,7 @@ task details) on 127.0.0.1 only, unless the caller gives another address (``dash
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import sys
@@ -33,6 +34,7 @@ from deltafmi.errors import BadInput, SimulationError
 from .batches import Batch, Batcher
 from .cases import Case
 from .plan import PlannedStudy
+from .remote import CONNECT_TIMEOUT, connect
 from .runner import FAILED, OK, CaseResult
 from .store import ResultStore
 from .worker import StudyPlugin, run_cases_task
@@ -154,18 +156,17 @@ def dashboard_address(text: str) -> Tuple[str, int]:
 
 @contextmanager
 def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None,
-                dashboard: str = LOCAL_DASHBOARD) -> Iterator[Any]:
-    """A Dask client: of the cluster at ``scheduler``, else of a new local cluster of ``workers``
+                dashboard: str = LOCAL_DASHBOARD, security: Any = None,
+                connect_timeout: float = CONNECT_TIMEOUT) -> Iterator[Any]:
+    """A Dask client: of the cluster at ``scheduler`` (see :func:`deltafmi.study.remote.connect`
+    for ``security`` and ``connect_timeout``), else of a new local cluster of ``workers``
     single-threaded worker processes (closed on exit) whose dashboard listens at ``dashboard``
     (see :func:`dashboard_address`; default 127.0.0.1, a free port)."""
     import dask
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
-        try:
-            client = Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError) as exc:
-            raise BadInput(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        client = connect(scheduler, security, connect_timeout)
         try:
             yield client
         finally:
@@ -253,12 +254,16 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
               workers: Optional[int] = None, progress: bool = False,
               on_result: Callable[[CaseResult], None] = lambda result: None,
               dashboard: str = LOCAL_DASHBOARD,
-              on_dashboard: Callable[[str], None] = lambda link: None) -> SweepReport:
-    """Run the cases ``todo`` of ``planned`` on Dask, storing every result in ``store``.
+              on_dashboard: Callable[[str], None] = lambda link: None,
+              client: Any = None, security: Any = None,
+              connect_timeout: float = CONNECT_TIMEOUT) -> SweepReport:
+    """Run the cases ``todo`` of ``planned`` on Dask, storing every result in ``store`` (opened).
 
-    Without ``scheduler`` the local cluster's dashboard listens at ``dashboard`` and
-    ``on_dashboard`` gets its link once the cluster is up.
+    On ``client`` when given (left open), else on the cluster at ``scheduler`` (``security`` and
+    ``connect_timeout`` as in :func:`deltafmi.study.remote.connect`), else on a local cluster whose
+    dashboard listens at ``dashboard``; ``on_dashboard`` gets its link once the cluster is up.
     Ctrl-C cancels what is left; the finished cases stay recorded (a re-run skips them).
+    :func:`sweep_study` opens the store too, once the cluster answers.
     """
     from distributed import as_completed
 
@@ -274,8 +279,8 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
         plugin = StudyPlugin(planned.plan, planned.fmu_bytes)
         fingerprint = planned.plan.fingerprint
         keep = store.timeseries is not None
-        with dask_client(scheduler, workers, dashboard) as client:
-            if scheduler:
+        with _client(client, scheduler, workers, dashboard, security, connect_timeout) as client:
+            if client.cluster is None:  # a cluster given by address
                 threads = [w["nthreads"] for w in client.scheduler_info(n_workers=-1)["workers"].values()]
                 n_workers, slots = len(threads), sum(threads)
             else:
@@ -326,6 +331,39 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
                     pass
     store.write_tables(planned.cases)
     return SweepReport(total, reused, ran, failed, _time.perf_counter() - wall, n_workers, interrupted, setup)
+
+
+def sweep_study(planned: PlannedStudy, store: ResultStore, *, fresh: bool = False, retry_failed: bool = False,
+                scheduler: Optional[str] = None, workers: Optional[int] = None, security: Any = None,
+                connect_timeout: float = CONNECT_TIMEOUT, **options: Any) -> SweepReport:
+    """Open ``store`` and run the cases of ``planned`` it has no result of (all with ``fresh``,
+    the failed ones again with ``retry_failed``); ``options`` as for :func:`run_study`.
+
+    The result files are checked first and changed only once the cluster answers: a ``fresh``
+    sweep that cannot reach its scheduler leaves the earlier results as they were.
+    """
+    wall = _time.perf_counter()
+    if not store.pending(planned.cases, fresh, retry_failed):  # nothing to run: no cluster
+        store.open(planned.cases, fresh, retry_failed)
+        return run_study(planned, store, [], **options)
+    with dask_client(scheduler, workers, options.pop("dashboard", LOCAL_DASHBOARD), security,
+                     connect_timeout) as client:
+        todo = store.open(planned.cases, fresh, retry_failed)
+        connecting = _time.perf_counter() - wall
+        report = run_study(planned, store, todo, client=client, workers=workers, **options)
+    return dataclasses.replace(report, wall_time=report.wall_time + connecting,
+                               setup_time=report.setup_time + connecting)
+
+
+@contextmanager
+def _client(client: Any, scheduler: Optional[str], workers: Optional[int], dashboard: str, security: Any,
+            connect_timeout: float) -> Iterator[Any]:
+    """``client`` as it is, else a new one (closed on exit) as :func:`dask_client` makes it."""
+    if client is not None:
+        yield client
+        return
+    with dask_client(scheduler, workers, dashboard, security, connect_timeout) as made:
+        yield made
 
 
 def _results(future: Any, batch: Batch, batcher: Batcher) -> List[CaseResult]:

@@ -89,16 +89,25 @@ def _forwarding_callbacks(fmu: _Pooled) -> fmi2CallbackFunctions:
 class FmuPool:
     """Idle loaded FMUs by (FMU file, interface, instance name); thread-safe.
 
-    Each FMU file is extracted once under ``root`` (a temporary folder by default).
+    Each FMU file is extracted once under ``root``: a temporary folder by default, made at the
+    first extraction and removed by :meth:`close`.
     """
 
     def __init__(self, root: Optional[Path] = None) -> None:
         self._own_root = root is None
-        self.root = Path(tempfile.mkdtemp(prefix="deltafmi-pool-")) if root is None else Path(root)
+        self._root: Optional[Path] = None if root is None else Path(root)
         self._idle: Dict[Key, List[_Pooled]] = {}
         self._extracted: Dict[str, str] = {}
         self._lock = threading.Lock()
+        self._extractions = 0
         self.created = 0
+
+    @property
+    def root(self) -> Path:
+        """The folder the FMUs are extracted in (a temporary one is made when first needed)."""
+        if self._root is None:
+            self._root = Path(tempfile.mkdtemp(prefix="deltafmi-pool-"))
+        return self._root
 
     def lend(self, component: Component) -> _Pooled:
         """An FMU object for ``component``: an idle one (to be reset), else a new one."""
@@ -109,7 +118,9 @@ class FmuPool:
                 return idle.pop()
             directory = self._extracted.get(key[0])
             if directory is None:
-                target = self.root / f"{len(self._extracted)}-{Path(key[0]).stem}"
+                # a counter, not len(): a folder of a forgotten FMU may not be reused by another
+                target = self.root / f"{self._extractions}-{Path(key[0]).stem}"
+                self._extractions += 1
                 directory = self._extracted[key[0]] = fmpy.extract(key[0], unzipdir=str(target))
             cls = FMU2PooledSlave if component.interface == "CS" else FMU2PooledModel
             self.created += 1
@@ -150,5 +161,7 @@ class FmuPool:
         """Free every idle instance and the extracted files."""
         for fmu_file in list(self._extracted):
             self.forget(fmu_file)
-        if self._own_root:
-            shutil.rmtree(self.root, ignore_errors=True)
+        with self._lock:
+            root, self._root = self._root, (None if self._own_root else self._root)
+        if self._own_root and root is not None:
+            shutil.rmtree(root, ignore_errors=True)

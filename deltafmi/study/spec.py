@@ -351,14 +351,21 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Study:
             line=lines.key_line(("metrics", name))))
     result = data.get("result", {})
     result_file = Path(result["file"]) if "file" in result else Path(path.stem + ".parquet")
-    if "file" in result and not result_file.is_absolute():
-        result_file = path.parent / result_file
+    if "file" in result and not result_file.is_absolute() and not _shipped(path):
+        result_file = path.parent / result_file  # a shipped study's results go here, not into the package
     scenario = Path(data["scenario"])
     if not scenario.is_absolute():
         scenario = path.parent / scenario
     return Study(path, scenario, Vary(grid, zipped, monte_carlo), tuple(metrics), result_file,
                  bool(result.get("timeseries", False)), data.get("description", ""),
                  lines.line(("scenario",)))
+
+
+def _shipped(path: Path) -> bool:
+    """Whether ``path`` is one of the example studies installed with deltafmi."""
+    from deltafmi.examples import STUDIES_DIR
+
+    return path.resolve().parent == STUDIES_DIR.resolve()
 
 
 def _float(value: Any) -> Optional[float]:

@@ -55,31 +55,45 @@ class ResultStore:
         self._file: Optional[Any] = None
 
     # --- opening ------------------------------------------------------------------------------
+    def pending(self, cases: Sequence[Case], fresh: bool = False, retry_failed: bool = False) -> List[Case]:
+        """The cases :meth:`open` with the same arguments would leave to run; reads, writes nothing.
+
+        Raises :class:`BadInput` as :meth:`open` does, so a sweep can check its result files
+        before it connects to a cluster, and connect before :meth:`open` deletes anything.
+        """
+        rows = self._earlier(cases, fresh, retry_failed)
+        return [c for c in cases if c.key not in rows]
+
     def open(self, cases: Sequence[Case], fresh: bool = False, retry_failed: bool = False) -> List[Case]:
         """Read what earlier runs finished and start the journal; returns the cases still to run.
 
         Raises :class:`BadInput` when the files belong to a different study (scenario, FMUs,
         recording or metrics changed) unless ``fresh`` (which deletes them).
         """
+        rows = self._earlier(cases, fresh, retry_failed)  # every check before anything is deleted
         if fresh:
             self.delete()
         self.table.parent.mkdir(parents=True, exist_ok=True)
-        if self.journal.is_file():
-            self.rows = self._read_journal()
-        else:
+        if not self.journal.is_file():
             self._start_journal()
+        self.rows = rows
+        self._file = open(self.journal, "a")
+        return [c for c in cases if c.key not in self.rows]
+
+    def _earlier(self, cases: Sequence[Case], fresh: bool, retry_failed: bool) -> Dict[str, Dict[str, Any]]:
+        """The finished rows an open would keep, checked against ``cases``."""
+        rows = self._read_journal() if not fresh and self.journal.is_file() else {}
         if retry_failed:
-            self.rows = {k: r for k, r in self.rows.items() if r["status"] != FAILED}
+            rows = {k: r for k, r in rows.items() if r["status"] != FAILED}
         by_key = {c.key: c for c in cases}
         if self.timeseries is not None:
-            moved = [(row["case"], by_key[k].id) for k, row in self.rows.items()
+            moved = [(row["case"], by_key[k].id) for k, row in rows.items()
                      if k in by_key and row["case"] != by_key[k].id]
             if moved:
                 raise BadInput(f"the cases of {self.table} were numbered differently when their time series were "
                                f"written (case {moved[0][0]} is now case {moved[0][1]}): run with --fresh, or "
                                "write to another file with -o")
-        self._file = open(self.journal, "a")
-        return [c for c in cases if c.key not in self.rows]
+        return rows
 
     def _start_journal(self) -> None:
         with open(self.journal, "w") as file:

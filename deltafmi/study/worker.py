@@ -10,6 +10,7 @@ study's fingerprint and a batch of case ids with their values.
 """
 from __future__ import annotations
 
+import atexit
 import hashlib
 import threading
 from pathlib import Path
@@ -63,8 +64,16 @@ class WorkerCache:
                 template = self._templates[fingerprint] = CaseTemplate(plan, self.files)
             return template
 
+    def use_folder(self, folder: Path) -> None:
+        """Extract FMUs under ``folder`` from now on, if none was loaded yet. A Dask worker's own
+        directory: Dask removes it when the worker stops, and after a crash at the next start."""
+        with self._lock:
+            if self.pool.created == 0:
+                self.pool = FmuPool(Path(folder) / "deltafmi-pool")
+
     def remove_plan(self, fingerprint: str) -> None:
-        """Forget a study and free the loaded FMUs no other study here uses."""
+        """Forget a study and free the loaded FMUs no other study here uses (all of them, and
+        their folder, when no study is left)."""
         plan = self.plans.pop(fingerprint, None)
         self._templates.pop(fingerprint, None)
         if plan is None:
@@ -73,6 +82,8 @@ class WorkerCache:
         for _, digest in plan.fmus:
             if digest not in still_used and digest in self.files:
                 self.pool.forget(str(self.files[digest]))
+        if not self.plans:
+            self.pool.close()
 
 
 _CACHE: Optional[WorkerCache] = None
@@ -85,7 +96,14 @@ def worker_cache() -> WorkerCache:
     with _CACHE_LOCK:
         if _CACHE is None:
             _CACHE = WorkerCache()
+            atexit.register(_close_pool)
         return _CACHE
+
+
+def _close_pool() -> None:
+    """At the exit of the process: free the loaded FMUs and remove their folder."""
+    if _CACHE is not None:
+        _CACHE.pool.close()
 
 
 class StudyPlugin(WorkerPlugin):
@@ -98,6 +116,7 @@ class StudyPlugin(WorkerPlugin):
 
     def setup(self, worker: Any) -> None:
         cache = worker_cache()
+        cache.use_folder(Path(worker.local_directory))
         cache.add_fmus(self.blobs)
         cache.add_plan(self.plan)
         cache.template(self.plan.fingerprint)  # resolve now: a problem shows at registration

@@ -69,8 +69,8 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
 
     \b
     Examples:
-      deltafmi linearize deltafmi/models/delta_robot.py --set z0=0.1,-0.1,-0.9 --rest --free u -u u -y z
-      deltafmi linearize deltafmi/examples/delta_tracking.yaml --at 0.05 -u 'controller.r' -y 'plant.z'
+      deltafmi linearize DeltaRobot --set z0=0.1,-0.1,-0.9 --rest --free u -u u -y z
+      deltafmi linearize delta_tracking --at 0.05 -u 'controller.r' -y 'plant.z'
     """
     from .closed_loop import expand_references, linearize_scenario
     from .fmu import linearize_fmu

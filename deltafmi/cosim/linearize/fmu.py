@@ -51,6 +51,10 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
     where = label or str(fmu)
     if info.md.modelExchange is None:
         raise BadInput(f"'{where}' offers no Model Exchange interface: linearizing an FMU needs its equations")
+    from deltafmi.export.requirements import binary_problem
+    missing = binary_problem(fmu, [info.model_identifier("ME")])
+    if missing:
+        raise BadInput(f"'{where}' cannot run here: {missing}")
     directory = tempfile.mkdtemp(prefix="deltafmi-linearize-")
     model = None
     errors: List[str] = []
@@ -58,7 +62,12 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
     try:
         model = FMU2Model(guid=info.md.guid, unzipDirectory=fmpy.extract(str(fmu), directory),
                           modelIdentifier=info.model_identifier("ME"), instanceName="linearize")
-        model.instantiate(callbacks=callbacks, loggingOn=False)
+        try:
+            model.instantiate(callbacks=callbacks, loggingOn=False)
+        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when fmi2Instantiate returns NULL
+            model = None  # nothing to free
+            reason = "; ".join(dict.fromkeys(e.strip().splitlines()[-1] for e in errors if e.strip()))
+            raise BadInput(f"'{where}': fmi2Instantiate failed: {reason or 'the FMU logged no reason'}") from None
         model.setupExperiment(startTime=time)
         for name, value in (start_values or {}).items():
             _set(model, info, name, value, where)

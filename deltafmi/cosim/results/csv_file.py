@@ -7,19 +7,21 @@ formatted in C by ``native/csv_rows.c``, Ryu's shortest digits, ten times faster
 Integer, Boolean and Enumeration values as integers, String values quoted by the :mod:`csv` module's rules (``QUOTE_NONNUMERIC``: every
 string in double quotes, a quote inside doubled). Rows are buffered and written out whenever
 the buffer fills up or half a second has passed, so a failing or killed run keeps (almost)
-everything up to the failure.
+everything up to the failure. The file never ends in a partial row, also when the disk fills up.
 """
 from __future__ import annotations
 
 import ctypes
 import csv
 import io
+import os
 import time as _time
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from deltafmi.errors import ResultWriteError
 from deltafmi.export.compiler import plain_c_library
 
 _FLUSH_SECONDS = 0.5
@@ -61,6 +63,11 @@ class CsvWriter:
     ``kinds`` gives each column's FMI type (``Real``, ``Integer``, ``Boolean``, ``String``;
     default all Real). Without String columns rows go through a float block and one format
     string; with them, each row is kept as a list and written by :func:`csv.writer`.
+
+    The file only ever holds whole rows: rows go out with ``os.write`` in blocks, and when a
+    write fails (a full disk, a quota, a file size limit) the file is cut back to the end of the
+    last complete row and :class:`~deltafmi.errors.ResultWriteError` says how many rows it holds
+    and up to which time. After that the writer takes no more rows.
     """
 
     def __init__(self, path: str | Path, names: Sequence[str], chunk: int = 512,
@@ -70,14 +77,15 @@ class CsvWriter:
             raise ValueError(f"{len(names)} column names but {len(kinds)} column types")
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "w", newline="")
-        csv.writer(self._file, lineterminator="\n").writerow(["time", *names])
-        self._file.flush()
+        self._fd: Optional[int] = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        self._size = 0  # bytes of whole rows (and the header) in the file
+        self._failed: Optional[ResultWriteError] = None
         self._chunk = chunk
         self._text = "String" in kinds
         if self._text:
             self._rows: list = []
-            self._csv = csv.writer(self._file, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+            self._csv_buffer = io.StringIO()
+            self._csv = csv.writer(self._csv_buffer, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
         else:
             self._block = np.empty((chunk, len(names) + 1))
             self._integer = (ctypes.c_int * (len(names) + 1))(0, *[kind in _INTEGERS for kind in kinds])
@@ -86,9 +94,16 @@ class CsvWriter:
         self._n = 0
         self._last_flush = _time.monotonic()
         self.rows_written = 0
+        self._last_time: Optional[float] = None  # of the last row in the file
+        header = io.StringIO()
+        csv.writer(header, lineterminator="\n").writerow(["time", *names])
+        data = header.getvalue().encode("utf-8")
+        self._emit(data, np.array([len(data)]), [])
 
     def write(self, time: float, values: np.ndarray) -> None:
         """Queue one row; it reaches the file at the next flush."""
+        if self._failed is not None:
+            raise self._failed
         if self._text:
             self._rows.append([time, *values])
         else:
@@ -106,6 +121,8 @@ class CsvWriter:
             for row in rows:
                 self.write(float(row[0]), row[1:])
             return
+        if self._failed is not None:
+            raise self._failed
         done = 0
         while done < len(rows):
             take = min(len(rows) - done, self._chunk - self._n)
@@ -116,25 +133,67 @@ class CsvWriter:
                 self.flush()
 
     def flush(self) -> None:
-        """Write the queued rows and flush the file."""
+        """Write the queued rows (whole rows only; see the class). After a failed write it does
+        nothing: the error was raised once, where the rows were written."""
+        if self._failed is not None:
+            return
         if self._n:
+            n, self._n = self._n, 0
             if self._text:
-                self._csv.writerows(self._rows)
+                pieces = []
+                for row in self._rows:
+                    self._csv.writerow(row)
+                    pieces.append(self._csv_buffer.getvalue().encode("utf-8"))
+                    self._csv_buffer.seek(0)
+                    self._csv_buffer.truncate()
+                data = b"".join(pieces)
+                ends = np.cumsum([len(piece) for piece in pieces])
+                times = [row[0] for row in self._rows]
                 self._rows = []
             else:
-                size = self._format_rows(self._block.ctypes.data, self._n, self._block.shape[1], self._integer,
+                size = self._format_rows(self._block.ctypes.data, n, self._block.shape[1], self._integer,
                                          self._text_out)
-                self._file.write(ctypes.string_at(self._text_out, size).decode("ascii"))
-            self.rows_written += self._n
-            self._n = 0
-        self._file.flush()
+                data = ctypes.string_at(self._text_out, size)
+                ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == 10) + 1
+                times = self._block[:n, 0]
+            self._emit(data, ends, times)
         self._last_flush = _time.monotonic()
 
+    def _emit(self, data: bytes, ends: np.ndarray, times: Sequence[float]) -> None:
+        """Write ``data``, rows ending at byte offsets ``ends`` (the header when ``times`` is empty);
+        on a failed write cut the file back to its last whole row and raise ResultWriteError."""
+        written = 0
+        try:
+            while written < len(data):
+                written += os.write(self._fd, data[written:])
+        except OSError as exc:
+            whole = int(np.searchsorted(ends, written, side="right"))  # rows entirely written
+            keep = int(ends[whole - 1]) if whole else 0
+            try:
+                os.ftruncate(self._fd, self._size + keep)  # frees space: cannot fail for lack of it
+            except OSError:
+                pass
+            if len(times):
+                self.rows_written += whole
+                if whole:
+                    self._last_time = float(times[whole - 1])
+            self._failed = ResultWriteError(self.path, self.rows_written, self._last_time, exc)
+            raise self._failed from None
+        self._size += written
+        if len(times):
+            self.rows_written += len(ends)
+            self._last_time = float(times[-1])
+
     def close(self) -> None:
-        """Flush and close (idempotent)."""
-        if not self._file.closed:
+        """Flush and close (idempotent). Raises :class:`~deltafmi.errors.ResultWriteError` when
+        the last rows do not fit; the file is closed either way."""
+        if self._fd is None:
+            return
+        try:
             self.flush()
-            self._file.close()
+        finally:
+            os.close(self._fd)
+            self._fd = None
 
 
 class RowSampler:

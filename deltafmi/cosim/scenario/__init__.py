@@ -5,5 +5,7 @@ help of ``yaml_lines`` (line numbers of every value) and ``schema_check`` (schem
 ``file:line`` diagnostics, also used for study files); ``modelinfo`` reads what the master needs
 from an FMU's modelDescription; ``resolve`` checks a scenario against its FMUs and resolves it
 into a :class:`~.resolve.System`, with the stepping order and algebraic loops from ``graph``.
+``overrides`` lays run options over a scenario (``run --set/--stop/--step/--tolerance``, the
+Python API's values); ``fmu_scenario`` makes the scenario of one FMU run on its own.
 Nothing here steps an FMU.
 """

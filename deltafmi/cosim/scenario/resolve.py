@@ -16,6 +16,7 @@ from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 
 from .graph import block_stepping_order, initialization_order, loop_groups, tear
 from .modelinfo import ModelInfo, UnknownVariable, model_info
+from .overrides import Text, from_text, value_items
 from .spec import ComponentSpec, ConnectionSpec, Scenario
 
 
@@ -131,8 +132,9 @@ class _Checker:
         self.found: List[Diagnostic] = []
         self.components: Dict[str, Component] = {}
 
-    def error(self, line: Optional[int], message: str) -> None:
-        self.found.append(Diagnostic(self.file, line, message))
+    def error(self, line: Optional[int], message: str, at: Optional[str] = None) -> None:
+        """An error at ``line`` of the scenario file, or at ``at`` (a run option such as ``--set x``)."""
+        self.found.append(Diagnostic(at or self.file, line, message))
 
     def warn(self, line: Optional[int], message: str) -> None:
         self.found.append(Diagnostic(self.file, line, message, "warning"))
@@ -222,10 +224,19 @@ class _Checker:
                                   f"{'ModelExchange' if interface == 'ME' else 'CoSimulation'} interface "
                                   f"(it has {', '.join(offered) or 'none'})")
             return None
+        from deltafmi.export.requirements import binary_problem
+        missing = binary_problem(path, [info.model_identifier(interface)])
+        if missing:
+            self.error(spec.line, f"component '{spec.name}': FMU '{path.name}' cannot run here: {missing}")
+            return None
         if check_fmus:
             from fmpy.validation import validate_fmu
             for problem in validate_fmu(str(path)):
                 self.error(spec.line, f"component '{spec.name}': FMU validation: {problem.strip()}")
+            from deltafmi.export.requirements import guid_problem
+            mismatch = guid_problem(path, info.md.guid)
+            if mismatch:
+                self.error(spec.line, f"component '{spec.name}': FMU '{path.name}': {mismatch}")
         if interface == "CS":
             ignored = sorted(set(spec.solver) - {"rtol"})
             if ignored:
@@ -272,37 +283,45 @@ class _Checker:
         info = component.info
         for param in component.spec.parameters:
             where = f"component '{component.name}': parameter '{param.name}'"
+            at = param.origin  # a run option (--set) rather than a line of the file
             try:
                 names = info.expand(param.name)
             except UnknownVariable as exc:
                 self.error(param.line, f"{where}: no such variable in the FMU"
-                                       f"{did_you_mean(param.name, exc.names)}")
+                                       f"{did_you_mean(param.name, exc.names)}", at)
                 continue
-            items = param.value if isinstance(param.value, list) else [param.value]
+            items = value_items(param.value, len(names))
             if len(items) != len(names):
-                self.error(param.line, f"{where}: has {len(names)} element(s) but {len(items)} value(s) were given")
+                self.error(param.line, f"{where}: has {len(names)} element(s) but {len(items)} value(s) were given",
+                           at)
                 continue
             for name, value in zip(names, items):
                 var = info.variables[name]
                 if not _settable(var):
                     self.error(param.line, f"{where}: '{name}' is {_article(var.causality)} "
-                                           f"({var.initial or 'calculated'}) and cannot be set")
+                                           f"({var.initial or 'calculated'}) and cannot be set", at)
                     break
                 kind = _TYPE_NAMES.get(var.type, var.type)
                 enumeration = info.enumeration(name)
+                if isinstance(value, Text):
+                    try:
+                        value = from_text(value, "Enumeration" if enumeration is not None else kind)
+                    except ValueError as exc:
+                        self.error(param.line, f"{where}: '{name}' is {kind}: {exc}", at)
+                        break
                 if enumeration is not None:
-                    value = self._enumeration_value(param.line, f"{where}: '{name}'", enumeration, value)
+                    value = self._enumeration_value(param.line, f"{where}: '{name}'", enumeration, value, at)
                     if value is None:
                         break
                 elif not _value_fits(kind, value):
                     self.error(param.line, f"{where}: type mismatch: '{name}' is {kind} but the value "
-                                           f"{value!r} is {type(value).__name__}")
+                                           f"{value!r} is {type(value).__name__}", at)
                     break
                 values.append((_port(component, name), value))
         return values
 
     def _enumeration_value(self, line: Optional[int], where: str, enumeration: Tuple[str, Dict[str, int]],
-                           value: Any) -> Optional[int]:
+                           value: Any, at: Optional[str] = None) -> Optional[int]:
         """An Enumeration start value given by item name or by value; None (reported) if neither."""
         type_name, items = enumeration
         listed = ", ".join(f"{name} = {number}" for name, number in items.items())
@@ -310,12 +329,12 @@ class _Checker:
             if value in items:
                 return items[value]
             self.error(line, f"{where} is Enumeration '{type_name}', which has no item '{value}' "
-                             f"(its items: {listed}){did_you_mean(value, items)}")
+                             f"(its items: {listed}){did_you_mean(value, items)}", at)
         elif isinstance(value, int) and not isinstance(value, bool) and value in items.values():
             return value
         else:
             self.error(line, f"{where} is Enumeration '{type_name}': give an item name or its value "
-                             f"({listed}), not {value!r}")
+                             f"({listed}), not {value!r}", at)
         return None
 
     # --- connections --------------------------------------------------------------------------
@@ -396,20 +415,25 @@ class _Checker:
         if conn.has_transform and source.type != "Real":
             self.error(conn.line, f"factor/offset need Real variables; '{source.ref}' is {source.type}")
             return False
-        if source.unit and target.unit and source.unit != target.unit and not conn.has_transform:
+        if source.unit and target.unit and source.unit != target.unit and not (conn.has_transform or conn.converts):
             self.error(conn.line, f"unit mismatch: '{source.ref}' is in '{source.unit}' but '{target.ref}' "
                                   f"expects '{target.unit}' (convert with factor/offset)")
             return False
         return True
 
     def _unconnected(self, links: List[Link]) -> None:
+        """One warning for the whole scenario listing the inputs neither connected nor given a value
+        in the scenario (an input given one under ``parameters:`` is deliberately set)."""
         driven = {l.target.ref for l in links}
+        loose = []
         for component in self.components.values():
-            loose = [v.name for v in component.info.md.modelVariables
-                     if v.causality == "input" and f"{component.name}.{v.name}" not in driven]
-            if loose:
-                self.warn(component.spec.line, f"component '{component.name}': input(s) not connected, "
-                                               f"kept at their start values: {', '.join(loose)}")
+            given = {port.ref for port, _ in component.start_values}
+            names = [v.name for v in component.info.md.modelVariables if v.causality == "input"
+                     and f"{component.name}.{v.name}" not in driven | given]
+            loose += [f"{component.name}.{name}" for name in _ranges(names)]
+        if loose:
+            self.warn(None, f"input(s) not connected, kept at their start values: {', '.join(loose)} "
+                            "(connect them, or give them a value under the component's parameters:)")
 
     # --- recording and settings ---------------------------------------------------------------
     def _recorded(self) -> List[Port]:
@@ -422,10 +446,13 @@ class _Checker:
                         recorded.setdefault(f"{component.name}.{v.name}", _port(component, v.name))
             return list(recorded.values())
         every = [(c, v.name) for c in self.components.values() for v in c.info.md.modelVariables]
+        unresolved = {c.name for c in self.scenario.components} - set(self.components)
         for spec in patterns:
             regex = pattern_regex(spec.pattern)
             hits = [(c, n) for c, n in every if regex.match(f"{c.name}.{n}")]
             if not hits:
+                if spec.pattern.split(".", 1)[0] in unresolved:
+                    continue  # its component's error is reported already
                 candidates = [f"{c.name}.{n}" for c, n in every]
                 self.error(spec.line, f"output pattern '{spec.pattern}' matches no variable"
                                       f"{did_you_mean(spec.pattern, candidates)}")
@@ -448,6 +475,25 @@ def _port(component: Component, name: str) -> Port:
     enumeration = component.info.enumeration(name)
     return Port(component.name, name, var.valueReference, _TYPE_NAMES.get(var.type, var.type),
                 component.info.unit(name), enumeration[0] if enumeration else "")
+
+
+def _ranges(names: Sequence[str]) -> List[str]:
+    """Variable names with runs of consecutive array elements shortened: ``f[1], f[2], f[3]`` -> ``f[1:3]``."""
+    out: List[str] = []
+    run: Optional[Tuple[str, int, int]] = None  # (array name, first index, last index)
+    for name in [*names, ""]:
+        match = re.fullmatch(r"(.+)\[(\d+)\]", name)
+        if match and run and run[0] == match[1] and int(match[2]) == run[2] + 1:
+            run = (run[0], run[1], run[2] + 1)
+            continue
+        if run:
+            out.append(f"{run[0]}[{run[1]}]" if run[1] == run[2] else f"{run[0]}[{run[1]}:{run[2]}]")
+            run = None
+        if match:
+            run = (match[1], int(match[2]), int(match[2]))
+        elif name:
+            out.append(name)
+    return out
 
 
 def _settable(var: Any) -> bool:

@@ -59,6 +59,8 @@ class MasterSettings:
     algorithm: str = "gauss-seidel"
     adaptive: Adaptive = field(default_factory=Adaptive)
     loops: Loops = field(default_factory=Loops)
+    #: False: a recorded or connected Real that becomes NaN or infinite stops the run (exit 1)
+    allow_nan: bool = False
 
 
 @dataclass(frozen=True)
@@ -68,6 +70,8 @@ class Parameter:
     name: str
     value: Any
     line: Optional[int]
+    #: where the value comes from when not the scenario file (``"--set plant.z0"``)
+    origin: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -95,6 +99,8 @@ class ConnectionSpec:
     line: Optional[int]
     source_line: Optional[int]
     target_line: Optional[int]
+    #: ``factor`` or ``offset`` written in the scenario (whatever its value): a deliberate unit conversion
+    converts: bool = False
 
     @property
     def has_transform(self) -> bool:
@@ -222,7 +228,7 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
     master_data = data.get("master") or {}
     adaptive = Adaptive(**master_data.get("adaptive", {}))
     master = MasterSettings(master_data.get("algorithm", "gauss-seidel"), adaptive,
-                            Loops(**master_data.get("loops", {})))
+                            Loops(**master_data.get("loops", {})), bool(master_data.get("allow_nan", False)))
     components = tuple(
         ComponentSpec(
             name=name,
@@ -242,7 +248,8 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
             factor=float(c.get("factor", 1.0)), offset=float(c.get("offset", 0.0)),
             line=lines.line(("connections", i)),
             source_line=lines.line(("connections", i, "from")),
-            target_line=lines.line(("connections", i, "to")))
+            target_line=lines.line(("connections", i, "to")),
+            converts="factor" in c or "offset" in c)
         for i, c in enumerate(data.get("connections") or []))
     outputs = tuple(OutputSpec(p, lines.line(("outputs", i))) for i, p in enumerate(data.get("outputs") or []))
     result_data = data.get("result") or {}

@@ -72,7 +72,8 @@ def ssd_tree(system: System, sources: Dict[str, Tuple[Path, str]]) -> etree._Ele
             connection = _sub(connections, "ssd", "Connection",
                               startElement=link.source.component, startConnector=link.source.name,
                               endElement=link.target.component, endConnector=link.target.name)
-            if link.factor != 1.0 or link.offset != 0.0:
+            converts = link.source.unit and link.target.unit and link.source.unit != link.target.unit
+            if link.factor != 1.0 or link.offset != 0.0 or converts:  # a unit change is a deliberate conversion
                 # both attributes always: Ecos reads a missing one as 0
                 _sub(connection, "ssc", "LinearTransformation", factor=_real(link.factor), offset=_real(link.offset))
     enumerations = _enumerations(system)
@@ -164,6 +165,8 @@ def _default_experiment(root: etree._Element, system: System) -> None:
                       stopTime=_real(scenario.experiment.stop))
     master = etree.Element(tag("dfmi", "Master"), step=_real(scenario.experiment.step),
                            algorithm=scenario.master.algorithm)
+    if scenario.master.allow_nan:
+        master.set("allow_nan", "true")
     adaptive = scenario.master.adaptive
     if adaptive != Adaptive():
         _sub(master, "dfmi", "Adaptive",

@@ -107,6 +107,11 @@ class Master:
         self.stop_signals = StopSignals()
         #: time of the last row written, None before the first
         self.recorded_until: Optional[float] = None
+        #: check every recorded row and the Real bus for NaN/inf (see :meth:`_check_finite`)
+        self.check_finite = not scenario.master.allow_nan
+        self._real_names: List[str] = []  # the variable in each slot of the Real bus
+        self._real_columns = np.zeros(0, np.intp)  # the Real columns of a recorded row
+        self._zeros = np.zeros(1)
 
     # --- public -------------------------------------------------------------------------------
     def run(self) -> Summary:
@@ -168,13 +173,15 @@ class Master:
     def close(self) -> None:
         """Flush the results and free every unit (safe after a failure, and twice)."""
         self.progress.close(self.time)
-        if self.writer is not None:
-            self.writer.close()
-        for unit in self.units:
-            unit.close()
-        if self._unzip_root:
-            shutil.rmtree(self._unzip_root, ignore_errors=True)
-            self._unzip_root = ""
+        try:
+            if self.writer is not None:
+                self.writer.close()  # may raise ResultWriteError (the last rows did not fit)
+        finally:
+            for unit in self.units:
+                unit.close()
+            if self._unzip_root:
+                shutil.rmtree(self._unzip_root, ignore_errors=True)
+                self._unzip_root = ""
 
     def _end_early(self, stop: Terminated) -> Termination:
         """A unit ended the simulation at ``stop.time``: write the rows held back, then the last
@@ -241,6 +248,13 @@ class Master:
             parts.append((self.buses[kind], [slot[(kind, recorded[i].component, recorded[i].vr)] for i in columns],
                           columns))
         self.sampler = RowSampler(parts, len(recorded))
+        self._real_columns = np.asarray([i for i, p in enumerate(recorded) if p.type == "Real"], np.intp)
+        names = [""] * len(self.buses["Real"])
+        for port in [link.source for link in links] + list(recorded):
+            if port.type == "Real":
+                names[slot[("Real", port.component, port.vr)]] = port.ref
+        self._real_names = names
+        self._zeros = np.zeros(len(names))
         self.loops = [LoopBlock(loop, [self._by_name[name] for name in loop.members], self.buses,
                                 [slot[("Real", port.component, port.vr)] for port in loop.tears],
                                 self.system.scenario.master.loops, self)
@@ -412,9 +426,21 @@ class Master:
     def _record(self, t: float) -> None:
         self.writer.write(t, self.sampler.sample())
         self.recorded_until = t
+        if self.check_finite:
+            bus = self.buses["Real"]  # the recorded Reals and every connected one, as of t
+            # x * 0 is NaN for NaN and inf, else 0: one dot product, cheaper than isfinite(bus).all()
+            if not math.isfinite(np.dot(bus, self._zeros)):
+                self._not_finite(t, [self._real_names[i] for i in np.flatnonzero(~np.isfinite(bus))],
+                                 bus[~np.isfinite(bus)])
 
     def _record_rows(self, rows: np.ndarray) -> None:
         """Rows ``time, values...`` recorded at once (a writer without ``write_rows`` gets them one by one)."""
+        bad = None
+        if self.check_finite and len(self._real_columns):
+            finite = np.isfinite(rows[:, 1 + self._real_columns]).all(axis=1)
+            if not finite.all():
+                bad = int(np.argmin(finite))
+                rows = rows[:bad + 1]  # rows up to the first with a NaN, that one included
         write_rows = getattr(self.writer, "write_rows", None)
         if write_rows is not None:
             write_rows(rows)
@@ -422,6 +448,36 @@ class Master:
             for row in rows:
                 self.writer.write(float(row[0]), row[1:])
         self.recorded_until = float(rows[-1, 0])
+        if bad is not None:
+            self._check_row(float(rows[-1, 0]), rows[-1, 1:])
+
+    def _check_row(self, t: float, row: np.ndarray) -> None:
+        """Stop the run when a Real of the recorded ``row`` is NaN or infinite (unless allowed)."""
+        if not self.check_finite or not len(self._real_columns):
+            return
+        values = np.asarray(row[self._real_columns], dtype=float)
+        bad = ~np.isfinite(values)
+        if bad.any():
+            recorded = self.system.recorded
+            self._not_finite(t, [recorded[i].ref for i in self._real_columns[bad]], values[bad])
+
+    def _not_finite(self, t: float, names: Sequence[str], values: np.ndarray) -> None:
+        """Raise the :class:`SimulationError` for the variables ``names`` that are NaN/inf at ``t``,
+        naming first the one of the unit earliest in the stepping order: in a Gauss-Seidel step a
+        NaN spreads to the units after its source, in a Jacobi step to none yet."""
+        rank = {unit.name: i for i, unit in enumerate(self.ordered_units())}
+        order = sorted(range(len(names)), key=lambda i: rank.get(names[i].split(".", 1)[0], len(rank)))
+        first = order[0]
+        value = values[first]
+        what = "NaN" if np.isnan(value) else f"{'-' if value < 0 else ''}infinite"
+        more = len(names) - 1
+        others = f" (and {more} other variable{'s' * (more > 1)})" if more else ""
+        flush = getattr(self.writer, "flush", None)
+        if flush is not None:
+            flush()
+        raise SimulationError(f"{names[first]} is {what} at t = {t:.9g} s{others}; the rows up to there are in "
+                              f"{self.result_path} (to record it and go on: --allow-nan, or allow_nan: true "
+                              "under master:)")
 
     def record_step(self, t: float) -> None:
         """Record the row at the end of a step that reached ``t``, and show progress (and stop
@@ -456,6 +512,7 @@ class Master:
             if row is not None:
                 self.writer.write(t, row)
                 self.recorded_until = t
+                self._check_row(t, row)
         self._deferred = None
 
     def drop_events(self) -> None:

@@ -216,9 +216,12 @@ class Unit:
         #: fmi2Instantiate's loggingOn: the FMU sends its debug categories too
         self.logging_on = False
         self._callbacks = _callbacks(self)
-        self.fmu = fmu if fmu is not None else self.fmu_class(
-            guid=md.guid, unzipDirectory=unzip_dir, modelIdentifier=component.info.model_identifier(self.interface),
-            instanceName=self.name)
+        try:
+            self.fmu = fmu if fmu is not None else self.fmu_class(
+                guid=md.guid, unzipDirectory=unzip_dir,
+                modelIdentifier=component.info.model_identifier(self.interface), instanceName=self.name)
+        except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions (no binary, a failed dlopen)
+            raise FmuFailure(f"{self.name} ({component.fmu.name}): cannot load its binary: {exc}") from None
         self.inputs: List[Inputs] = []
         self.outputs: List[Union[_Outputs, _StringOutputs]] = []
         self.step_multiple = component.spec.step_multiple
@@ -226,8 +229,19 @@ class Unit:
 
     # --- life cycle ---------------------------------------------------------------------------
     def instantiate(self, start: float, stop: float) -> None:
-        """fmi2Instantiate + fmi2SetupExperiment (rtol of the solver options as tolerance)."""
-        self.call(self.fmu.instantiate, callbacks=self._callbacks, loggingOn=self.logging_on)
+        """fmi2Instantiate + fmi2SetupExperiment (rtol of the solver options as tolerance).
+
+        A failed fmi2Instantiate (fmpy raises a bare "Failed to instantiate model") becomes an
+        :class:`FmuFailure` quoting what the FMU logged while it tried.
+        """
+        self.messages.clear()
+        try:
+            self.fmu.instantiate(callbacks=self._callbacks, loggingOn=self.logging_on)
+        except FMICallException as exc:
+            raise self.failure(exc) from None
+        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when fmi2Instantiate returns NULL
+            raise FmuFailure(f"{self.name} ({self.component.fmu.name}): fmi2Instantiate failed: "
+                             f"{self.instantiation_reason()}") from None
         self.instantiated = True
         self.call(self.fmu.setupExperiment, tolerance=self.component.spec.solver.get("rtol"),
                   startTime=start, stopTime=stop)
@@ -348,12 +362,26 @@ class Unit:
                 break
         return FmuFailure(f"{self.name}: {str(exc).rstrip('.')}" + (f": {last}" if last else ""))
 
+    def instantiation_reason(self) -> str:
+        """What the FMU logged while fmi2Instantiate failed (see :func:`instantiation_reason`)."""
+        return instantiation_reason(self.messages)
+
     def termination_reason(self) -> str:
         """What the FMU said when it ended the simulation: its last fmi2Discard message, if any."""
         for status, _, message in reversed(self.messages):
             if status == 2:
                 return message.strip()
         return ""
+
+
+def instantiation_reason(messages: Sequence[Tuple[int, str, str]]) -> str:
+    """What an FMU logged, as ``(status, category, text)``, while its fmi2Instantiate failed: its
+    errors (else all its messages), the last line of each (a Python traceback ends with the
+    exception), or a note that it said nothing."""
+    logged = [m for m in messages if m[0] >= 3] or list(messages)
+    lines = [text.strip().splitlines()[-1].strip() for _, _, text in logged if text.strip()]
+    return "; ".join(dict.fromkeys(lines)) or ("the FMU logged no reason (a GUID or modelIdentifier that does "
+                                               "not match its binary is the usual cause)")
 
 
 def _callbacks(unit: Unit) -> fmi2CallbackFunctions:

@@ -1,0 +1,87 @@
+"""Build deltafmi's platform wheels from a clean copy of this checkout.
+
+    python tools/build_wheel.py [-o dist] [--python /path/to/python3.12 ...] [--no-build-isolation]
+
+The copy holds the files git knows (``git ls-files``: committed, staged and new files not
+ignored, in their working-tree state), nothing else: no build/, caches or local FMUs. Each Python
+builds a ``cpXY-cpXY-linux_<arch>`` wheel (setup.py compiles the packaged models' native pieces
+into it, see deltafmi/export/prebuild.py); pypa's auditwheel then checks every binary in it
+against the manylinux policy ``--plat`` (default manylinux_2_17, i.e. manylinux2014: glibc 2.17,
+which the binaries' GLIBC symbol versions allow, see export/native/glibc_floor.h) and retags the
+wheel; it fails when a binary needs newer symbols or a library outside the policy (it would graft
+one into the wheel; ours need none). The policy is named rather than auto-detected because
+auditwheel's detection fails when the first binary it reads is a mypyc shim without a libc
+dependency. Prints the path of each wheel made.
+"""
+from __future__ import annotations
+
+import argparse
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def clean_copy(destination: Path) -> Path:
+    """The files git knows, copied from the working tree into ``destination``."""
+    listed = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=ROOT,
+                            check=True, capture_output=True).stdout.decode().split("\0")
+    for name in filter(None, listed):
+        source = ROOT / name
+        if source.is_file():  # a deleted, not yet committed file is listed too
+            (destination / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(source, destination / name)
+    return destination
+
+
+def build_wheel(python: str, source: Path, output: Path, isolation: bool = True, plat: str = "") -> Path:
+    """The manylinux wheel of ``source`` built by ``python``, in ``output``."""
+    with tempfile.TemporaryDirectory(prefix="deltafmi-wheel-") as tmp:
+        command = [python, "-m", "pip", "wheel", "--no-deps", "-q", "-w", tmp, str(source)]
+        if not isolation:
+            command.insert(4, "--no-build-isolation")
+        subprocess.run(command, check=True)
+        (raw,) = Path(tmp).glob("deltafmi-*.whl")
+        before = set(output.glob("*.whl"))
+        plat = plat or f"manylinux_2_17_{platform.machine()}"
+        subprocess.run([sys.executable, "-m", "auditwheel", "repair", "--plat", plat, "-w", str(output), str(raw)],
+                       check=True, stdout=subprocess.DEVNULL)
+        made = set(output.glob("*.whl")) - before
+        if len(made) != 1:  # an existing wheel of the same name was overwritten
+            made = {output / _repaired_name(raw, output)}
+        return made.pop()
+
+
+def _repaired_name(raw: Path, output: Path) -> str:
+    stem = raw.name.removesuffix(".whl").rsplit("-", 1)[0]  # name-version-python-abi
+    (match,) = [p.name for p in output.glob(f"{stem}-*manylinux*.whl")]
+    return match
+
+
+def main() -> None:
+    """Command line (see the module's docstring)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("-o", "--output", type=Path, default=ROOT / "dist")
+    parser.add_argument("--python", action="append", help="a CPython to build for (repeatable; default: this one)")
+    parser.add_argument("--plat", default="", help="the manylinux policy (default manylinux_2_17_<machine>)")
+    parser.add_argument("--no-build-isolation", action="store_true",
+                        help="build with the Python's installed setuptools, mypy and numpy (no download)")
+    args = parser.parse_args()
+    args.output.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="deltafmi-src-") as tmp:
+        source = clean_copy(Path(tmp))
+        for python in args.python or [sys.executable]:
+            try:
+                wheel = build_wheel(python, source, args.output.resolve(), not args.no_build_isolation, args.plat)
+            except subprocess.CalledProcessError as exc:
+                raise SystemExit(f"build_wheel: {python}: {' '.join(exc.cmd[1:4])} failed (exit {exc.returncode}; "
+                                 "its output is above)") from None
+            print(wheel)
+
+
+if __name__ == "__main__":
+    main()
