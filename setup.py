@@ -1,13 +1,15 @@
 """Wheel build: the package plus its prebuilt native pieces (see deltafmi/export/prebuild.py).
 
 Everything else is declared in pyproject.toml. This file only (1) compiles the packaged models'
-native pieces into the wheel's ``deltafmi/_prebuilt`` after the sources are copied, and (2) marks
+native pieces into the wheel's ``deltafmi/_prebuilt`` after the sources are copied and copies the
+guides (docs/*.md and their figures) into ``deltafmi/docs``, and (2) marks
 the wheel as a platform wheel (``cpXY-cpXY-<platform>``), since those pieces are machine code and
 the mypyc kernels are per CPython version. An editable install (``pip install -e .``) skips (1):
 a source checkout compiles on demand into the per-user cache. ``DELTAFMI_NO_PREBUILD=1`` skips
 it too (a pure-source wheel that compiles on the user's machine; it still gets a platform tag).
 """
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -23,7 +25,15 @@ class BuildPyWithPrebuilt(build_py):
 
     def run(self) -> None:
         super().run()
-        if getattr(self, "editable_mode", False) or os.environ.get("DELTAFMI_NO_PREBUILD"):
+        if getattr(self, "editable_mode", False):
+            return
+        # the guides and their figures (`deltafmi guides` says where): the README links to them
+        docs = Path(self.build_lib) / "deltafmi" / "docs"
+        docs.mkdir(parents=True, exist_ok=True)
+        for path in (HERE / "docs").iterdir():
+            if path.suffix in (".md", ".png", ".gif"):
+                shutil.copy2(path, docs / path.name)
+        if os.environ.get("DELTAFMI_NO_PREBUILD"):
             return
         target = Path(self.build_lib).resolve() / "deltafmi" / "_prebuilt"
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")]))

@@ -5,12 +5,15 @@ The public API, importable from here (``from deltafmi import load_scenario, Mast
 * scenarios: :func:`load_scenario` -> :class:`Scenario`, :func:`resolve_system` -> :class:`System`
   (checked against its FMUs), :func:`load_ssp`, :func:`export_ssp`;
 * runs: :func:`simulate` -> :class:`Result` (in memory, with units), :class:`Master`
-  (``Master(system, result=...).run()``), :func:`read_result`, :func:`read_csv`, :func:`plot_result`;
+  (``Master(system, result=...).run()``), :func:`read_result` (``.csv``, ``.parquet``, ``.mat``),
+  :func:`plot_result`;
 * FMUs: :func:`build_fmu`, :func:`build_cached`;
 * linear models: :func:`linearize_fmu`, :func:`linearize_scenario`, :class:`LinearModel`;
 * studies: :func:`load_study`, :func:`plan_study`, :func:`open_store`, :func:`sweep_study`
-  (what ``deltafmi sweep`` runs), :func:`run_study`;
-* errors: :class:`ScenarioError`, :class:`BadInput`, :class:`SimulationError`.
+  (what ``deltafmi sweep`` runs);
+* errors: :class:`ScenarioError`, :class:`BadInput`, :class:`SimulationError`,
+  :class:`ResultWriteError`, :class:`Interrupted` (runs), :class:`ComponentSourceError`,
+  :class:`BuildError` (builds).
 
 This module imports nothing when imported: each name loads its module on first use (PEP 562). It
 is bundled into every FMU's ``resources/`` together with the modules of :mod:`deltafmi.component`
@@ -34,7 +37,6 @@ _API = {
     "simulate": "deltafmi.cosim.simulate",
     "Result": "deltafmi.cosim.results.result",
     "read_result": "deltafmi.cosim.results.result",
-    "read_csv": "deltafmi.cosim.results.csv_file",
     "plot_result": "deltafmi.cosim.results.plot",
     "build_fmu": "deltafmi.export.packager",
     "build_cached": "deltafmi.export.packager",
@@ -44,11 +46,14 @@ _API = {
     "load_study": "deltafmi.study.spec",
     "plan_study": "deltafmi.study.plan",
     "open_store": "deltafmi.study.driver",
-    "run_study": "deltafmi.study.driver",
     "sweep_study": "deltafmi.study.driver",
     "ScenarioError": "deltafmi.errors",
     "BadInput": "deltafmi.errors",
     "SimulationError": "deltafmi.errors",
+    "ResultWriteError": "deltafmi.errors",
+    "Interrupted": "deltafmi.errors",
+    "ComponentSourceError": "deltafmi.export.sources",
+    "BuildError": "deltafmi.export.compiler",
 }
 
 __all__ = sorted(_API)

@@ -1,14 +1,16 @@
-"""Command-line interface: ``deltafmi examples|build|info|run|validate|export-ssp|plot|animate|...``.
+"""Command-line interface: ``deltafmi examples|guides|build|info|run|validate|export-ssp|plot|animate|...``.
 
 The commands live next to what they drive (``export.commands``, ``cosim.commands``); this module
 only assembles the click group.
 """
 import click
 
+from deltafmi.console import show_progress
 from deltafmi.cosim.commands import export_ssp, plot, run, validate
 from deltafmi.cosim.linearize.commands import linearize
 from deltafmi.examples.commands import examples
 from deltafmi.export.commands import build, info
+from deltafmi.guides import guides_command
 from deltafmi.study.commands import plot_study_command, study_case, sweep
 from deltafmi.viz.commands import animate
 
@@ -17,9 +19,10 @@ from deltafmi.viz.commands import animate
 @click.version_option(package_name="deltafmi")
 def main() -> None:
     """deltafmi: Python components as FMI 2.0 FMUs, and a master for closed-loop co-simulation."""
+    show_progress()
 
 
-for command in (examples, build, info, run, validate, export_ssp, plot, animate, linearize):
+for command in (examples, guides_command, build, info, run, validate, export_ssp, plot, animate, linearize):
     main.add_command(command)
 for command in (sweep, plot_study_command, study_case):  # parameter studies on Dask
     main.add_command(command)

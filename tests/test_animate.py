@@ -67,3 +67,28 @@ def test_animate_without_servo_angles_is_bad_input(tmp_path):
                                   "'plant.y[*]')")
     run = CliRunner().invoke(main, ["animate", str(path), "-o", str(tmp_path / "x.png")])
     assert run.exit_code == 2 and "written as .gif or .mp4" in run.output
+
+
+@pytest.mark.parametrize("suffix", [".parquet", ".mat"])
+def test_animate_reads_every_result_format(result, tmp_path, suffix):
+    """A .parquet or .mat result gives the robot the .csv gives (it was read as UTF-8 text)."""
+    from deltafmi.cosim.results.result import read_result
+
+    path, _ = result
+    other = read_result(path).save(tmp_path / f"run{suffix}")
+    text, binary = load_recording(path), load_recording(other)
+    assert np.array_equal(binary.servo, text.servo) and np.array_equal(binary.time, text.time)
+    assert binary.surface[0] == text.surface[0] and np.array_equal(binary.force, text.force)
+    assert np.array_equal(binary.mode, text.mode) and np.array_equal(binary.tool, text.tool)
+    out = tmp_path / "robot.gif"
+    run = CliRunner().invoke(main, ["animate", str(other), "-o", str(out), "--fps", "2", "--size", "4"])
+    assert run.exit_code == 0, run.output
+    with Image.open(out) as gif:
+        assert gif.n_frames == 3
+
+
+def test_animate_a_result_without_rows_is_bad_input(tmp_path):
+    path = tmp_path / "empty.csv"
+    path.write_text("time,plant.y[1],plant.y[2],plant.y[3]\n")
+    run = CliRunner().invoke(main, ["animate", str(path), "-o", str(tmp_path / "x.gif")])
+    assert run.exit_code == 2 and run.output.strip() == f"Error: {path} has no rows"

@@ -121,15 +121,23 @@ def test_output_file_and_save_carry_the_same_rows_and_units(scenario, tmp_path):
     assert str(r.summary.result) == str(tmp_path / "run.parquet")
 
 
-def test_simulate_one_fmu_on_its_default_experiment():
+def test_simulate_one_fmu_on_its_default_experiment(caplog):
     from deltafmi.export.packager import build_cached
     from deltafmi.export.sources import find_component
 
     source = find_component("Oscillator")
-    r = deltafmi.simulate(build_cached(source.path, class_name=source.class_name))
+    caplog.set_level(logging.DEBUG, logger="deltafmi")
+    fmu = build_cached(source.path, class_name=source.class_name)
+    r = deltafmi.simulate(fmu)
     assert float(r.time[-1]) == 4.0  # the Oscillator's default experiment
     assert {"Oscillator.energy", "Oscillator.impacts"} <= set(r.names)
     assert int(r["Oscillator.impacts"][-1]) == 3
+    # its input F has nothing to connect to: no warning (as `deltafmi run X.fmu`)
+    assert not [rec for rec in caplog.records if rec.name == "deltafmi.scenario"]
+    # record= replaces the recorded variables (the YAML's outputs:, run --record)
+    r = deltafmi.simulate(fmu, stop=1.0, record=["Oscillator.x", "Oscillator.energy"])
+    assert r.names == ["Oscillator.x", "Oscillator.energy"] and r.units["Oscillator.x"] == "m"
+    assert np.max(np.abs(r["Oscillator.x"] - solution(r.time)[0])) < 1e-5
 
 
 def test_a_loaded_scenario_is_taken_as_it_is(scenario):
@@ -148,12 +156,21 @@ def test_a_loaded_scenario_is_taken_as_it_is(scenario):
     (dict(step=0), BadInput, "communication step 0 s: must be greater than 0"),
     (dict(stop=float("inf")), BadInput, "stop time inf: must be a finite number"),
     (dict(output="r.txt"), BadInput, "result file 'r.txt': unknown format '.txt'"),
+    (dict(algorithm="foo"), BadInput, "algorithm 'foo': use 'gauss-seidel' or 'jacobi'"),
+    (dict(algorithm="jacobbi"), BadInput, "(did you mean 'jacobi'?)"),
+    # one variable under two names (a one-component scenario takes a bare name) is given twice
+    (dict(parameters={"osc.k": 1.0}, start_values={"k": 2.0}), BadInput,
+     "k: given in both parameters and start_values; give each name once"),
+    (dict(parameters={"osc.e": 2.0}), ScenarioError, "'e' = 2.0 is outside its declared range [0, 1]"),
+    (dict(start_values={"osc.x": float("nan")}), ScenarioError, "'x' = nan is not a finite number"),
+    (dict(record=["osc.zz"]), ScenarioError, "record 'osc.zz': error: output pattern 'osc.zz' matches no variable"),
 ])
 def test_bad_input_is_an_exception_with_the_cli_message(scenario, call, error, message, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(error) as raised:
         deltafmi.simulate(scenario, **call)
     assert message in str(raised.value)
+    assert "--" not in str(raised.value)  # the API's messages name no command-line option
     assert not (tmp_path / "r.txt").exists()
 
 
@@ -208,3 +225,30 @@ def test_an_ssp_archive_runs_as_its_scenario(scenario, oscillator, tmp_path):
     rows = oscillator.time <= 1.0
     assert r.names == oscillator.names and r.units == oscillator.units
     assert np.array_equal(r["osc.x"], oscillator["osc.x"][rows])
+
+
+def test_every_error_simulate_and_build_raise_is_public(tmp_path):
+    """docs/api.md names them; a user catches them from deltafmi."""
+    from deltafmi.errors import Interrupted, ResultWriteError
+    from deltafmi.export.compiler import BuildError, NoCompilerError
+
+    assert (deltafmi.ResultWriteError, deltafmi.Interrupted, deltafmi.BuildError) == \
+        (ResultWriteError, Interrupted, BuildError) and issubclass(NoCompilerError, deltafmi.BuildError)
+    with pytest.raises(deltafmi.ComponentSourceError, match="'DeltaRobott' is neither a file nor a packaged model"):
+        deltafmi.build_fmu("DeltaRobott", tmp_path / "x.fmu")
+    api = (Path(__file__).parent.parent / "docs" / "api.md").read_text()
+    for name in ("ScenarioError", "BadInput", "SimulationError", "Interrupted", "ResultWriteError",
+                 "ComponentSourceError", "BuildError"):
+        assert f"`{name}`" in api, name
+
+
+def test_save_and_read_round_trip_booleans_and_strings(tmp_path):
+    """Booleans go to a CSV as 0/1, as a run writes them (a CSV with 'True' did not read back)."""
+    r = deltafmi.Result({"time": np.array([0.0, 0.5, 1.0]), "a.on": np.array([True, False, True]),
+                         "a.label": np.array(["x", "y,\"z\"", ""], dtype=object), "a.n": np.array([3, -1, 7])})
+    for suffix in ("csv", "parquet", "mat"):
+        again = deltafmi.read_result(r.save(tmp_path / f"r.{suffix}"))
+        assert again.names == r.names, suffix
+        assert list(again["a.on"]) == [1, 0, 1] and list(again["a.n"]) == [3, -1, 7], suffix
+        assert list(again["a.label"]) == ["x", "y,\"z\"", ""] and list(again.time) == [0.0, 0.5, 1.0], suffix
+    assert (tmp_path / "r.csv").read_text().splitlines()[1] == '0.0,1,"x",3'

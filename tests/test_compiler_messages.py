@@ -7,6 +7,7 @@ does not exist, which is what deltafmi runs.
 from __future__ import annotations
 
 import ctypes
+import logging
 import sys
 from pathlib import Path
 
@@ -108,19 +109,53 @@ def test_the_kernels_key_ignores_the_mypy_version_and_the_python_build(monkeypat
     assert kernels.kernels_path() != key  # another CPython ABI: other kernels
 
 
-def test_a_first_build_says_so_in_one_line_and_a_cached_one_is_silent(tmp_path, monkeypatch, capsys):
+def test_a_first_build_says_so_in_one_line_and_a_cached_one_is_silent(tmp_path, monkeypatch, capfd, caplog):
+    """`deltafmi run` shows one line per FMU it builds, none for a cached one, none with -q; the
+    API logs them (INFO, logger deltafmi.build) and prints nothing."""
+    from click.testing import CliRunner
+
+    import deltafmi
+    from deltafmi.cli import main
+
     # the shared cache's compiled pieces serve as the prebuilt layer; FMUs go to a fresh cache
     monkeypatch.setattr(compiler, "PREBUILT_DIR", compiler.cache_dir())
     monkeypatch.setenv("DELTAFMI_CACHE", str(tmp_path / "cache"))
     monkeypatch.setenv("HOME", str(tmp_path))
-    monkeypatch.setattr(packager, "announce_builds", True)
-    fmu = packager.build_cached(MODELS / "bouncing_ball.py")
-    assert capsys.readouterr().err == "building BouncingBall FMU (first use, cached in ~/cache/fmus) ...\n"
-    assert fmu.parent.parent == tmp_path / "cache" / "fmus"
-    assert packager.build_cached(MODELS / "bouncing_ball.py") == fmu
-    assert capsys.readouterr().err == ""
+    monkeypatch.chdir(tmp_path)
+    first = CliRunner().invoke(main, ["run", "bouncing_ball", "--stop", "0.01"])
+    assert first.exit_code == 0, first.output
+    assert [line for line in first.output.splitlines() if line.startswith("building")] == [
+        f"building {model} FMU (cached afterwards in ~/cache/fmus) ..." for model in ("BouncingBall", "BouncingBallRestitution")]
+    again = CliRunner().invoke(main, ["run", "bouncing_ball", "--stop", "0.01"])
+    assert again.exit_code == 0 and "building" not in again.output
 
-    monkeypatch.setattr(packager, "announce_builds", False)
-    monkeypatch.setenv("DELTAFMI_CACHE", str(tmp_path / "other"))
-    packager.build_cached(MODELS / "bouncing_ball.py")
-    assert capsys.readouterr().err == ""
+    monkeypatch.setenv("DELTAFMI_CACHE", str(tmp_path / "quiet"))
+    quiet = CliRunner().invoke(main, ["run", "bouncing_ball", "--stop", "0.01", "-q"])
+    assert quiet.exit_code == 0 and quiet.output == ""
+
+    # a Python process that never ran a command: the messages go to logging only
+    monkeypatch.setattr(packager.BUILD_LOG, "handlers", [])
+    monkeypatch.setattr(packager.BUILD_LOG, "propagate", True)
+    monkeypatch.setenv("DELTAFMI_CACHE", str(tmp_path / "api"))
+    capfd.readouterr()
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="deltafmi.build"):
+        deltafmi.simulate("bouncing_ball", stop=0.01)
+    assert capfd.readouterr() == ("", "")
+    assert [r.getMessage() for r in caplog.records if r.name == "deltafmi.build"] == [
+        f"building {model} FMU (cached afterwards in ~/api/fmus) ..." for model in ("BouncingBall", "BouncingBallRestitution")]
+
+
+def test_the_fmu_cache_key_is_the_environments_not_the_interpreters_name():
+    """A venv's bin/python and bin/python3 (the console scripts' shebang) are one environment: the
+    API and the CLI share the cached FMUs."""
+    import subprocess
+
+    code = ("from pathlib import Path; from deltafmi.export.packager import content_key; "
+            f"print(content_key(Path({str(MODELS / 'oscillator.py')!r})))")
+    keys = set()
+    for name in ("python", "python3"):
+        interpreter = Path(sys.prefix) / "bin" / name
+        if interpreter.exists():
+            keys.add(subprocess.run([str(interpreter), "-c", code], capture_output=True, text=True, check=True).stdout)
+    assert len(keys) == 1

@@ -413,3 +413,30 @@ def test_three_fmus_in_closed_loop_track_a_step(build_fmu_from_src):
         fmu.freeInstance()
     err = np.array(err)
     assert np.max(np.abs(err)) < 1e-6 and np.max(np.abs(err[700:])) < 2e-7
+
+
+def test_controller_fmu_warns_once_when_the_step_is_longer_than_its_sample_period(tmp_path):
+    # --step 0.002 against the controller's 1 ms sample period changes the closed loop: the
+    # controller FMU says so once (fmi2Warning, logStatusWarning), -q hides it, the 1 ms step
+    # of the shipped scenario says nothing
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    deltafmi = Path(sys.executable).parent / "deltafmi"
+
+    def run(*options):
+        return subprocess.run([str(deltafmi), "run", "delta_tracking", "--stop", "0.05", "-o", "r.csv", *options],
+                              cwd=tmp_path, capture_output=True, text=True, timeout=600)
+
+    expected = "communication step 0.002 s is longer than sample_period 0.001 s"
+    long = run("--step", "0.002")
+    assert long.returncode == 0, long.stderr
+    assert long.stderr.count(expected) == 1
+    assert f"warning: controller: {expected}" in long.stderr
+    verbose = run("--step", "0.002", "-v")
+    assert f"warning: controller: [logStatusWarning] {expected}" in verbose.stderr
+    quiet = run("--step", "0.002", "-q")
+    assert (quiet.returncode, quiet.stdout, quiet.stderr) == (0, "", "")
+    shipped = run()
+    assert shipped.returncode == 0 and "sample_period" not in shipped.stderr

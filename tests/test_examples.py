@@ -85,7 +85,8 @@ def test_a_wrong_name_is_one_clear_line(tmp_path, monkeypatch, argv, message):
     monkeypatch.chdir(tmp_path)
     result = _invoke(*argv)
     assert result.exit_code != 0 and message in result.output, result.output
-    assert "Traceback" not in result.output and result.exception is None or isinstance(result.exception, SystemExit)
+    assert "Traceback" not in result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit)
 
 
 def test_build_a_packaged_model_by_class_name_or_module_reference(tmp_path):
@@ -152,3 +153,20 @@ def test_a_copied_study_names_its_copied_scenario(tmp_path):
     study = yaml.safe_load((tmp_path / "study" / "gain_payload.yaml").read_text())
     assert study["scenario"] == "delta_tracking.yaml" and (tmp_path / "study" / "delta_tracking.yaml").is_file()
     assert result.output.strip().splitlines()[-1].startswith("run it: deltafmi sweep ")
+
+
+def test_a_bare_name_runs_the_copy_in_this_folder_else_the_example(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    # a folder named like the example is no error: the name is the shipped example
+    assert _invoke("examples", "copy", "delta_tracking", "delta_tracking").exit_code == 0
+    for command in (["run", "delta_tracking", "--stop", "0.01", "-q", "-o", "shipped.csv"],
+                    ["validate", "delta_tracking"]):
+        result = _invoke(*command)
+        assert result.exit_code == 0, result.output
+    # a copy made here (`examples copy NAME .`) is what the name means in this folder
+    assert _invoke("examples", "copy", "delta_tracking", ".").exit_code == 0
+    here = tmp_path / "delta_tracking.yaml"
+    here.write_text(here.read_text().replace("stop: ", "stop: 0.02 #", 1))
+    result = _invoke("run", "delta_tracking", "-q", "-o", "local.csv")
+    assert result.exit_code == 0, result.output
+    assert columns(tmp_path / "local.csv")["time"][-1] == pytest.approx(0.02)

@@ -64,8 +64,10 @@ def test_import_deltafmi_imports_nothing_else():
 
 def test_every_public_name_resolves_to_its_module():
     names = deltafmi.__all__
-    assert {"load_scenario", "Scenario", "resolve_system", "Master", "build_fmu", "run_study",
+    assert {"load_scenario", "Scenario", "resolve_system", "Master", "build_fmu", "sweep_study",
             "linearize_fmu", "export_ssp", "ScenarioError"} <= set(names)
+    # one public name per job: read_result reads every format, sweep_study runs a study
+    assert not {"read_csv", "run_study"} & set(names)
     for name in names:
         value = getattr(deltafmi, name)
         assert value.__module__ == deltafmi._API[name] and value.__name__ == name, name
@@ -91,3 +93,25 @@ def test_the_robot_fmus_declare_the_same_robot_parameters(build_fmu_from_src):
     robot = robot_parameters("delta_robot.py")
     assert [p[0] for p in robot] == list(DECLARATIONS)
     assert robot_parameters("delta_robot_contact.py") == robot_parameters("delta_robot_box.py") == robot
+
+
+def _imports_in(path: Path) -> set[str]:
+    """Every module an ``import`` in ``path`` names, at any depth (function-level imports too)."""
+    import ast
+
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            names.add(node.module)
+    return names
+
+
+def test_the_export_library_does_not_import_the_master():
+    # export builds FMUs; cosim runs them and may ask export to build: the library modules of
+    # export never reach into cosim (only the CLI's `validate X.fmu` calls the master's checks)
+    export = Path(deltafmi.__file__).parent / "export"
+    reaching = {path.name: sorted(n for n in _imports_in(path) if n.startswith("deltafmi.cosim"))
+                for path in export.glob("*.py") if path.name != "commands.py"}
+    assert {name: found for name, found in reaching.items() if found} == {}

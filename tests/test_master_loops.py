@@ -131,7 +131,7 @@ def test_a_loop_without_solution_at_initialization_fails_cleanly(fmus):
     assert message.startswith("Error: simulation failed at t = 0 s: algebraic loop g1.y -> g2.u, g2.y -> g1.u")
     assert "at initialization not solved: residual 0.5 at g2.y" in message  # b c = 0.5 whatever y1
     assert "Traceback" not in result.output
-    assert path.with_suffix(".csv").read_text().startswith("time,g1.y,g2.y")
+    assert not path.with_suffix(".csv").exists()  # no row computed: no result file made
 
 
 def test_a_loop_that_loses_its_solution_keeps_the_results_so_far(fmus):

@@ -2,12 +2,15 @@
 unit, differences of two signals and of two result files, names that contain '-'."""
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from deltafmi.cli import main
 from deltafmi.cosim.results.plot import UnknownSignal, result_figure
+from deltafmi.cosim.results.result import read_result
 from deltafmi.cosim.results.result import Result
 
 T = np.linspace(0.0, 1.0, 101)
@@ -32,7 +35,8 @@ def lines(ax):
 def test_one_axis_per_unit_and_the_error_in_um():
     fig = result_figure(tracking(), ["plant.z", "trajectory.r[*]", "controller.u", "plant.z - trajectory.r"])
     axes = fig.axes
-    assert [ax.get_ylabel() for ax in axes] == ["[m]", "[N.m]", "difference [um]"]
+    assert [ax.get_ylabel() for ax in axes] == ["plant.z, trajectory.r [m]", "controller.u [N.m]",
+                                              "plant.z - trajectory.r [um]"]
     assert axes[-1].get_xlabel() == "time [s]"
     assert sorted(lines(axes[0])) == sorted([f"plant.z[{i}]" for i in (1, 2, 3)] +
                                              [f"trajectory.r[{i}]" for i in (1, 2, 3)])
@@ -72,11 +76,12 @@ def test_cli_plots_a_parquet_result_with_units_and_a_csv_without(tmp_path):
         assert outcome.exit_code == 0, outcome.output
         assert (tmp_path / f"{name}.png").read_bytes()[:4] == b"\x89PNG"
     with_units = result_figure(tmp_path / "r.parquet", ["plant.z[1]", "plant.z - trajectory.r"])
-    assert [ax.get_ylabel() for ax in with_units.axes] == ["plant.z[1] [m]", "difference [um]"]
-    # a CSV carries no units: no brackets, values as they are (the difference on its own axis still)
+    assert [ax.get_ylabel() for ax in with_units.axes] == ["plant.z[1] [m]", "plant.z - trajectory.r [um]"]
+    # a CSV carries no units: no brackets, a power of ten instead of a prefix (the difference on
+    # its own axis still)
     without = result_figure(tmp_path / "r.csv", ["plant.z[1]", "plant.z - trajectory.r"])
-    assert [ax.get_ylabel() for ax in without.axes] == ["plant.z[1]", "difference"]
-    assert lines(without.axes[1])["plant.z[3] - trajectory.r[3]"] == pytest.approx(9e-6 * T, abs=1e-15)
+    assert [ax.get_ylabel() for ax in without.axes] == ["plant.z[1]", "plant.z - trajectory.r (×1e-6)"]
+    assert lines(without.axes[1])["plant.z[3] - trajectory.r[3]"] == pytest.approx(9.0 * T, abs=1e-9)
 
 
 def test_a_name_with_a_minus_is_a_name(tmp_path):
@@ -95,7 +100,7 @@ def test_compare_two_result_files_on_the_first_ones_times(tmp_path):
     other.save(tmp_path / "b.parquet")
     fig = result_figure(tmp_path / "a.parquet", ["plant.z[1:2]"], compare=tmp_path / "b.parquet")
     (ax,) = fig.axes
-    assert ax.get_ylabel() == "difference [mm]"
+    assert ax.get_ylabel() == "plant.z difference [mm]"
     drawn = lines(ax)
     expected = np.sin(T + 1) - np.interp(T, t, np.sin(t + 1) + 2e-3 * t)
     assert drawn["plant.z[1] (a.parquet - b.parquet)"] == pytest.approx(1e3 * expected, abs=1e-12)
@@ -103,3 +108,69 @@ def test_compare_two_result_files_on_the_first_ones_times(tmp_path):
                                         str(tmp_path / "b.parquet"), "-o", str(tmp_path / "c.png")])
     assert outcome.exit_code == 2
     assert outcome.output.startswith("Error: b.parquet: no column 'plant.z[3]' in the result")
+
+
+def test_axes_without_units_have_no_offset_beside_them(tmp_path):
+    """The default CSV has no units: positions near -1 m that move by 1e-5 and an error of a few
+    1e-6 read as plain numbers, the power of ten in the label, nothing beside the axis."""
+    t = np.linspace(0.0, 1.0, 101)
+    Result({"time": t, "plant.z[3]": -1.0 - 1e-5 * t, "trajectory.r[3]": -1.0 - 1e-5 * t + 4e-6 * t}).save(
+        tmp_path / "r.csv")
+    fig = result_figure(tmp_path / "r.csv", ["plant.z[3]", "trajectory.r[3]", "plant.z[3] - trajectory.r[3]"])
+    fig.savefig(tmp_path / "r.png")  # draws: the tick labels and their offset text are set
+    assert [ax.get_ylabel() for ax in fig.axes] == ["plant.z, trajectory.r", "plant.z[3] - trajectory.r[3] (×1e-6)"]
+    assert [ax.yaxis.get_offset_text().get_text() for ax in fig.axes] == ["", ""]
+    assert lines(fig.axes[1])["plant.z[3] - trajectory.r[3]"] == pytest.approx(-4.0 * t, abs=1e-6)
+    ticks = [float(label.get_text().replace("\u2212", "-")) for label in fig.axes[0].get_yticklabels()]
+    assert all(-1.00002 < tick < -0.99998 for tick in ticks)
+
+
+@pytest.mark.parametrize("unit, values, label, factor", [
+    ("deg", 3e-4, "a.x [deg] (×1e-3)", 1e3),    # no SI prefix for degrees: a power of ten
+    ("m", 3e-4, "a.x [mm]", 1e3),
+    ("", 3e-8, "a.x (×1e-9)", 1e9),
+    ("", 40.0, "a.x", 1.0),
+])
+def test_an_axis_scale_without_a_prefix_is_a_power_of_ten(unit, values, label, factor):
+    result = Result({"time": T, "a.x": values * T}, {"a.x": unit})
+    (ax,) = result_figure(result, ["a.x"]).axes
+    assert ax.get_ylabel() == label
+    assert lines(ax)["a.x"] == pytest.approx(factor * values * T, rel=1e-12)
+
+
+def test_a_result_without_rows_is_an_error_not_an_empty_figure(tmp_path):
+    """A run that ended before its first row leaves a header: reading it is an empty result
+    without numpy's 'input contained no data' warning; plotting it is exit 2."""
+    path = tmp_path / "empty.csv"
+    path.write_text("time,plant.z[1],plant.z[2]\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        empty = read_result(path)
+    assert len(empty) == 0 and empty.names == ["plant.z[1]", "plant.z[2]"] and empty["plant.z"].shape == (0, 2)
+    outcome = CliRunner().invoke(main, ["plot", str(path), "plant.z[1]", "-o", str(tmp_path / "f.png")])
+    assert outcome.exit_code == 2 and outcome.output == f"Error: {path} has no rows\n"
+    assert not (tmp_path / "f.png").exists()
+    tracking().save(tmp_path / "full.csv")
+    outcome = CliRunner().invoke(main, ["plot", str(tmp_path / "full.csv"), "plant.z[1]", "--compare", str(path),
+                                        "-o", str(tmp_path / "f.png")])
+    assert outcome.exit_code == 2 and outcome.output == f"Error: {path} has no rows\n"
+
+
+def test_an_unknown_figure_format_blames_the_figure_file(tmp_path):
+    tracking().save(tmp_path / "r.csv")
+    for name, what in (("a.jpg2", "unknown format '.jpg2'"), ("a", "no extension")):
+        outcome = CliRunner().invoke(main, ["plot", str(tmp_path / "r.csv"), "plant.z[1]", "-o", str(tmp_path / name)])
+        assert outcome.exit_code == 2
+        assert outcome.output.startswith(f"Error: figure file '{tmp_path / name}': {what}; use ")
+        assert ".png" in outcome.output and ".pdf" in outcome.output and ".svg" in outcome.output
+        assert not (tmp_path / name).exists()
+
+
+def test_a_difference_without_spaces_gets_a_hint():
+    with pytest.raises(UnknownSignal) as raised:
+        result_figure(tracking(), ["plant.z-trajectory.r"])
+    assert str(raised.value) == ("no column 'plant.z-trajectory.r' in the result; a difference is written "
+                                 "with spaces: 'plant.z - trajectory.r'")
+    with pytest.raises(UnknownSignal) as raised:  # only where both halves are there
+        result_figure(tracking(), ["plant.z-trajectory.q"])
+    assert "a difference is written" not in str(raised.value)

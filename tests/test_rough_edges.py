@@ -395,3 +395,57 @@ def test_quiet_run_prints_nothing_on_success(osc, tmp_path):
     assert quiet.returncode == 0
     assert (quiet.stdout, quiet.stderr) == ("", "")
     assert read_csv(tmp_path / "r.csv")[1][-1, 0] == pytest.approx(0.55)  # the talker ended the run
+
+
+# --- an exception in a user's component ---------------------------------------------------------
+
+BUGGY = '''"""A component with a bug in one hook, chosen by the parameter ``where``."""
+from deltafmi.component import Component, Output, Parameter
+
+
+class Buggy(Component):
+    """Raises in outputs() (where = 0) or in its own do_step() (where = 1) once t > 0.05."""
+
+    where = Parameter(0, type=int, description="0: outputs, 1: do_step")
+    y = Output(variability="discrete", description="the time")
+
+    def outputs(self, t):
+        if self.where == 0 and t > 0.05:
+            raise RuntimeError("my bug")  # line 13
+        self.y = t
+
+    def do_step(self, t, h):
+        if self.where == 1 and t > 0.05:
+            raise ValueError("bad step")  # line 18
+'''
+
+
+@pytest.mark.parametrize("where, shown", [(0, "RuntimeError: my bug (buggy.py:13 in outputs)"),
+                                          (1, "ValueError: bad step (buggy.py:18 in do_step)")])
+def test_an_exception_in_a_component_names_its_source_line_and_v_shows_the_traceback(tmp_path, where, shown):
+    # the FMU's own message names the hook's line in the model source, also when the native layer
+    # calls the hook itself (a component's own do_step); -v shows the whole traceback
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "buggy.py").write_text(BUGGY)
+    (tmp_path / "s.yaml").write_text(
+        "experiment: {stop: 0.1, step: 0.01}\ncomponents:\n"
+        f"  b: {{source: models/buggy.py, parameters: {{where: {where}}}}}\n")
+    short = cli("run", "s.yaml", "-o", "r.csv", cwd=tmp_path)
+    assert short.returncode == 1
+    assert shown in short.stderr and "Traceback" not in short.stderr
+    full = cli("run", "s.yaml", "-o", "r.csv", "-v", cwd=tmp_path)
+    assert full.returncode == 1
+    assert "Traceback (most recent call last)" in full.stderr
+    line = 13 if where == 0 else 18
+    assert re.search(rf'File ".*/resources/model/buggy.py", line {line}, in {"outputs" if where == 0 else "do_step"}',
+                     full.stderr), full.stderr
+
+
+def test_an_fmu_is_known_by_its_extension_in_any_case(osc, tmp_path):
+    upper = tmp_path / "OSC.FMU"
+    shutil.copy(osc, upper)
+    for command in (["validate", str(upper)], ["linearize", str(upper), "-o", str(tmp_path / "lin.npz")],
+                    ["run", str(upper), "--stop", "0.1", "-q", "-o", str(tmp_path / "r.csv")]):
+        result = CliRunner().invoke(main, command)
+        assert result.exit_code == 0, (command, result.output)
+    assert "OSC.FMU: OK" in CliRunner().invoke(main, ["validate", str(upper)]).output

@@ -137,6 +137,13 @@ def test_tolerance_reaches_the_me_solver(fmus, tmp_path):
     (["--set", "osc.k=stiff"], "--set osc.k: error: component 'osc': parameter 'k': 'k' is Real: 'stiff' is not a number"),
     (["--set", "osc.impacts=1.5"], "'impacts' is an output (calculated) and cannot be set"),
     (["--set", "osc.energy=1"], "'energy' is an output (calculated) and cannot be set"),
+    # the modelDescription's min/max (e: 0 ... 1) and finite Reals
+    (["--set", "osc.e=1.5"], "--set osc.e: error: component 'osc': parameter 'e': 'e' = 1.5 is outside its "
+                             "declared range [0, 1]"),
+    (["--set", "osc.m=-1"], "'m' = -1.0 is outside its declared range [0, inf]"),
+    (["--set", "osc.k=inf"], "--set osc.k: error: component 'osc': parameter 'k': 'k' = inf is not a finite number"),
+    (["--set", "osc.k=-inf"], "'k' = -inf is not a finite number"),
+    (["--record", "osc.zz"], "--record osc.zz: error: output pattern 'osc.zz' matches no variable"),
 ])
 def test_bad_run_options_exit_2_with_one_line(oscillator, tmp_path, args, message):
     result = run(oscillator, *args, "-o", tmp_path / "bad.csv")
@@ -262,3 +269,46 @@ def test_booleans_from_text_and_from_python(build_fmu_from_src, tmp_path):
     result = CliRunner().invoke(main, ["run", str(scenario), "--set", "ball.linFlag=1", "-q", "-o",
                                        str(tmp_path / "b.csv")])
     assert result.exit_code == 0, result.output
+
+
+def test_record_replaces_what_a_run_records(fmus, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    # an FMU on its own records its outputs; --record names the variables instead (its state x, v)
+    result = run(fmus["osc"], "--record", "Oscillator.x", "--record", "Oscillator.v", "--stop", "1", "-q")
+    assert result.exit_code == 0, result.output
+    c = columns(tmp_path / f"{fmus['osc'].stem}.csv")
+    assert list(c) == ["time", "Oscillator.x", "Oscillator.v"]
+    x, v, _ = solution(c["time"])
+    assert np.max(np.abs(c["Oscillator.x"] - x)) < 1e-5 and np.max(np.abs(c["Oscillator.v"] - v)) < 1e-4
+
+
+def test_a_run_failing_before_its_first_row_leaves_the_earlier_result_as_it_was(tmp_path, monkeypatch):
+    """The flagship's controller refuses pole = 0 in its initialize (inside initialization mode):
+    the earlier result file stays, the reason prints once, no FMU is terminated out of order."""
+    monkeypatch.chdir(tmp_path)
+    good = run("delta_tracking", "--stop", "0.01", "-q", "-o", "r.csv")
+    assert good.exit_code == 0, good.output
+    before = (tmp_path / "r.csv").read_bytes()
+    assert len(before.splitlines()) == 12  # header and 11 rows
+    failed = run("delta_tracking", "--stop", "0.01", "--set", "controller.pole=0", "-o", "r.csv")
+    assert failed.exit_code == 1, failed.output
+    assert (tmp_path / "r.csv").read_bytes() == before
+    assert failed.output.strip().splitlines()[-1].endswith("(no rows computed; r.csv left as it was)")
+    assert failed.output.count("pole must be > 0") == 1, failed.output
+    assert "fmi2Terminate" not in failed.output and "Traceback" not in failed.output
+    # without an earlier file none is made
+    failed = run("delta_tracking", "--stop", "0.01", "--set", "controller.pole=0", "-o", "new.csv")
+    assert failed.exit_code == 1 and not (tmp_path / "new.csv").exists()
+
+
+def test_nan_of_a_connected_variable_not_recorded_stops_the_c_loop_as_the_python_loop(fmus, tmp_path):
+    # fragile.y feeds gain.u; only fragile.ok (always finite) is recorded
+    scenario = tmp_path / "hidden.yaml"
+    scenario.write_text(_nan_scenario(fmus, tmp_path).read_text().replace("outputs: [gain.y, fragile.*]",
+                                                                           "outputs: [fragile.ok]"))
+    for native in (True, False):
+        with pytest.raises(SimulationError, match=r"^fragile.y is NaN at t = \S+ s; the rows up to") as raised:
+            Master(resolve_system(load_scenario(scenario)), result=tmp_path / f"{native}.csv", native=native).run()
+        # the Python loop stops at the first NaN step; the C loop at the end of its batch (64 steps)
+        t = float(str(raised.value).split("t = ")[1].split()[0])
+        assert (t == pytest.approx(0.42)) if not native else (0.42 - 1e-9 <= t <= 0.42 + 0.64 + 1e-9)

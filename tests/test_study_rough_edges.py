@@ -19,7 +19,6 @@ import textwrap
 import threading
 from pathlib import Path
 
-import numpy as np
 import pyarrow.parquet as pq
 import pytest
 import yaml
@@ -27,30 +26,9 @@ from click.testing import CliRunner
 
 from deltafmi.cli import main
 from deltafmi.examples import STUDIES_DIR
-from oscillator_analytic import P, solution
+from oscillator_study import check_closed_form, write_study
 
 DELTAFMI = Path(sys.executable).parent / "deltafmi"
-SCENARIO = """\
-experiment: {stop: 1.5, step: 1.0e-2}
-components:
-  osc: {source: deltafmi.models:Oscillator, interface: ME, solver: {rtol: 1.0e-10, atol: 1.0e-12}}
-outputs: [osc.x]
-"""
-STUDY = """\
-scenario: osc.yaml
-vary:
-  grid:
-    osc.k: [20.0, 40.0, 60.0]
-metrics:
-  x_final: {signal: osc.x, statistic: final}
-  x_at: {signal: osc.x, statistic: at, time: 0.75}
-"""
-
-
-def _study(folder: Path) -> Path:
-    (folder / "osc.yaml").write_text(SCENARIO)
-    (folder / "osc_study.yaml").write_text(STUDY)
-    return folder / "osc_study.yaml"
 
 
 def _earlier_results(folder: Path) -> dict:
@@ -97,7 +75,7 @@ def test_shipped_study_by_name_from_any_folder(tmp_path, monkeypatch):
 
 def test_fresh_against_a_refused_scheduler_keeps_earlier_results(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    study = _study(tmp_path)
+    study = write_study(tmp_path)
     earlier = _earlier_results(tmp_path)
     address = _refused_address()
     result = CliRunner().invoke(main, ["sweep", str(study), "--fresh", "--scheduler", address])
@@ -115,7 +93,7 @@ def test_fresh_against_a_refused_scheduler_keeps_earlier_results(tmp_path, monke
 
 def test_a_server_that_is_no_dask_scheduler(tmp_path):
     """Something answers at the address, but not Dask (here: an HTTP server's error replies)."""
-    study = _study(tmp_path)
+    study = write_study(tmp_path)
     server = socket.socket()
     server.bind(("127.0.0.1", 0))
     server.listen()
@@ -144,7 +122,7 @@ def test_a_server_that_is_no_dask_scheduler(tmp_path):
 
 
 def test_tls_options_need_a_tls_scheduler(tmp_path):
-    study = _study(tmp_path)
+    study = write_study(tmp_path)
     ca = tmp_path / "ca.pem"
     ca.write_text("not read")
     local = CliRunner().invoke(main, ["sweep", str(study), "--tls-ca-file", str(ca), "--tls-cert", str(ca)])
@@ -154,7 +132,7 @@ def test_tls_options_need_a_tls_scheduler(tmp_path):
 
 
 def test_fresh_sweep_on_a_local_cluster_discards_warns_once_and_leaves_no_pool_folder(tmp_path):
-    study = _study(tmp_path)
+    study = write_study(tmp_path)
     _earlier_results(tmp_path)
     temporary = tmp_path / "tmp"  # the sweep's and its workers' temporary folder: what is left there is theirs
     temporary.mkdir()
@@ -165,13 +143,7 @@ def test_fresh_sweep_on_a_local_cluster_discards_warns_once_and_leaves_no_pool_f
     # the scenario leaves osc.F unconnected: said once for the study, not once per case
     assert done.stderr.count("not connected") == 1, done.stderr
     assert not (tmp_path / "osc_study.timeseries").exists()  # the earlier time series went with --fresh
-    rows = pq.read_table(tmp_path / "osc_study.parquet").to_pylist()
-    assert [row["osc.k"] for row in rows] == [20.0, 40.0, 60.0]
-    for row in rows:
-        x, _, impacts = solution(np.array([0.75, 1.5]), p={**P, "k": row["osc.k"]})
-        assert impacts  # each case bounces on the wall before the end
-        assert row["x_at"] == pytest.approx(x[0], abs=1e-7)
-        assert row["x_final"] == pytest.approx(x[1], abs=1e-7)
+    check_closed_form(tmp_path / "osc_study.parquet")
     journal = (tmp_path / "osc_study.journal.jsonl").read_text().splitlines()
     assert "earlier" not in journal[0] and len(journal) == 4
     assert sorted(str(p.relative_to(temporary)) for p in temporary.rglob("deltafmi-pool*")) == []

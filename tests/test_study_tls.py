@@ -16,35 +16,14 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
-import pyarrow.parquet as pq
 import pytest
 from click.testing import CliRunner
 
 from deltafmi.cli import main
 from dask_processes import DASK, scheduler_address, start_process
-from oscillator_analytic import P, solution
+from oscillator_study import check_closed_form, write_study
 
 DELTAFMI = Path(sys.executable).parent / "deltafmi"
-SCENARIO = """\
-experiment: {stop: 1.5, step: 1.0e-2}
-components:
-  osc:
-    source: deltafmi.models:Oscillator
-    interface: ME
-    solver: {rtol: 1.0e-10, atol: 1.0e-12}
-    parameters: {F: 0.0}
-outputs: [osc.x]
-"""
-STUDY = """\
-scenario: osc.yaml
-vary:
-  grid:
-    osc.k: [20.0, 40.0, 60.0]
-metrics:
-  x_final: {signal: osc.x, statistic: final}
-  x_at: {signal: osc.x, statistic: at, time: 0.75}
-"""
 
 pytestmark = pytest.mark.skipif(shutil.which("openssl") is None, reason="needs the openssl command")
 
@@ -106,44 +85,27 @@ def tls_cluster(tmp_path_factory):
                 os.killpg(process.pid, signal.SIGKILL)
 
 
-def _study(folder: Path) -> Path:
-    (folder / "osc.yaml").write_text(SCENARIO)
-    (folder / "osc_study.yaml").write_text(STUDY)
-    return folder / "osc_study.yaml"
-
-
-def _check_closed_form(table: Path) -> None:
-    rows = pq.read_table(table).to_pylist()
-    assert [row["osc.k"] for row in rows] == [20.0, 40.0, 60.0]
-    for row in rows:
-        assert row["status"] == "ok", row["error"]
-        x, _, impacts = solution(np.array([0.75, 1.5]), p={**P, "k": row["osc.k"]})
-        assert impacts  # every case bounces on the wall
-        assert row["x_at"] == pytest.approx(x[0], abs=1e-7)
-        assert row["x_final"] == pytest.approx(x[1], abs=1e-7)
-
-
 def test_sweep_over_tls_with_the_options(tls_cluster, tmp_path):
     address, certs = tls_cluster
-    study = _study(tmp_path)
+    study = write_study(tmp_path)
     result = CliRunner().invoke(main, ["sweep", str(study), "--scheduler", address, "-o", str(tmp_path / "r.parquet"),
                                        *tls_options(certs, "client")])
     assert result.exit_code == 0, result.output
     assert "3/3 cases done, 3 ok, 0 failed" in result.output and "on 1 worker(s)" in result.output
-    _check_closed_form(tmp_path / "r.parquet")
+    check_closed_form(tmp_path / "r.parquet")
 
 
 def test_sweep_over_tls_with_dask_configuration(tls_cluster, tmp_path):
     """Dask's own configuration, as environment variables: no deltafmi option at all."""
     address, certs = tls_cluster
-    study = _study(tmp_path)
+    study = write_study(tmp_path)
     env = {**os.environ, "DASK_DISTRIBUTED__COMM__TLS__CA_FILE": str(certs / "ca.pem"),
            "DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT": str(certs / "client.pem"),
            "DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY": str(certs / "client.key")}
     done = subprocess.run([str(DELTAFMI), "sweep", str(study), "--scheduler", address, "-q"], cwd=tmp_path, env=env,
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
-    _check_closed_form(tmp_path / "osc_study.parquet")
+    check_closed_form(tmp_path / "osc_study.parquet")
 
 
 @pytest.mark.parametrize("client, expected", [
@@ -155,7 +117,7 @@ def test_sweep_over_tls_with_dask_configuration(tls_cluster, tmp_path):
 ])
 def test_a_client_without_the_clusters_certificates_is_refused(tls_cluster, tmp_path, client, expected):
     address, certs = tls_cluster
-    study = _study(tmp_path)
+    study = write_study(tmp_path)
     options = {None: [],
                "other-client": ["--tls-ca-file", str(certs / "ca.pem"), "--tls-cert", str(certs / "other-client.pem"),
                                 "--tls-key", str(certs / "other-client.key")],

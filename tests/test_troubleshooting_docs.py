@@ -205,3 +205,30 @@ def test_fmus_that_do_not_start(folder: Path) -> None:
     assert code != 0 and re.search(quoted("Error: NoBin.fmu: no binary"), output), output
     code, output = cli(folder, "run", "junk.fmu")
     assert code != 0 and re.search(quoted("junk.fmu: error:"), output), output
+
+
+BUG_SOURCE = '''\
+from deltafmi.component import Component, Output
+
+
+class Trajectory(Component):
+    """Raises in outputs() after 0.05 s."""
+
+    r = Output(description="Reference")
+
+    def outputs(self, t):
+        if t > 0.05:
+            raise RuntimeError("my bug")
+        self.r = t
+'''
+
+
+def test_an_exception_in_a_component_and_a_too_long_controller_step(tmp_path: Path) -> None:
+    (tmp_path / "trajectory.py").write_text(BUG_SOURCE)
+    (tmp_path / "bug.yaml").write_text("experiment: {stop: 0.1, step: 0.01}\n"
+                                       "components:\n  trajectory: {source: trajectory.py}\n")
+    code, output = cli(tmp_path, "run", "bug.yaml", "-o", "r.csv")
+    assert code == 1 and re.search(quoted("Error: simulation failed at t = <t> s: <component>: fmi2DoStep"),
+                                   output), output
+    code, output = cli(tmp_path, "run", "delta_tracking", "--stop", "0.01", "--step", "0.002", "-o", "r.csv")
+    assert code == 0 and re.search(quoted("warning: controller: communication step"), output), output

@@ -5,8 +5,9 @@ environment outside the checkout, run from an empty folder by a user without a C
 manylinux tag); pip installs it and its dependencies into a new venv (from the registry or pip's
 cache). The commands then run with ``PATH`` holding only that venv's ``bin`` (no ``cc``, ``gcc``
 or ``$CC``: deltafmi looks the compiler up on ``PATH``, as setuptools does for mypyc) and ``HOME``
-a fresh folder (so the per-user cache is ``$HOME/.cache/deltafmi``, empty). Selected with
-``-m wheel``; about 2 minutes, most of it pip.
+a fresh folder (so the per-user cache is ``$HOME/.cache/deltafmi``, empty). Marked ``wheel``
+(``-m "not wheel"`` leaves it out); about 2 minutes, most of it pip, which needs the registry or
+its cache.
 """
 from __future__ import annotations
 
@@ -83,7 +84,8 @@ def test_the_wheel_is_a_manylinux_wheel_with_prebuilt_binaries_models_and_exampl
                   "/dynamics_jacobian_kinematics__mypyc."):
         assert any(piece in n for n in prebuilt), piece
     assert {"deltafmi/models/delta_robot.py", "deltafmi/models/bouncing_ball.py",
-            "deltafmi/examples/delta_tracking.yaml", "deltafmi/examples/studies/gain_payload.yaml"} <= set(names)
+            "deltafmi/examples/delta_tracking.yaml", "deltafmi/examples/studies/gain_payload.yaml",
+            "deltafmi/docs/api.md", "deltafmi/docs/troubleshooting.md", "deltafmi/docs/delta_tracking.png"} <= set(names)
     assert not [n for n in names if n.endswith(".fmu") or n.startswith(("build/", "tests/"))]
 
 
@@ -93,11 +95,14 @@ def test_the_examples_run_from_an_empty_folder_without_a_compiler(user, tmp_path
     listed = run("examples", cwd=tmp_path)
     assert listed.returncode == 0, listed.stderr
     assert re.search(r"^\s*delta_tracking\b.+", listed.stdout, re.M)
+    guides = run("guides", cwd=tmp_path)  # the README's guides, where the wheel put them
+    assert guides.returncode == 0 and re.search(r"^api\.md\s+The Python API$", guides.stdout, re.M), guides.stdout
+    assert guides.stdout.strip().endswith(str(_package_dir(venv) / "docs"))
 
     first = run("run", "delta_tracking", "--stop", "0.3", cwd=tmp_path)
     assert first.returncode == 0, first.stderr
     building = [line for line in first.stderr.splitlines() if line.startswith("building ")]
-    assert building == [f"building {name} FMU (first use, cached in ~/.cache/deltafmi/fmus) ..."
+    assert building == [f"building {name} FMU (cached afterwards in ~/.cache/deltafmi/fmus) ..."
                         for name in ("Trajectory", "DeltaController", "DeltaRobot")]
     assert "Traceback" not in first.stderr and "plain Python kernels" not in first.stderr
     assert _files(tmp_path) == {"delta_tracking.csv"}
@@ -138,7 +143,7 @@ def test_an_edited_copy_runs_without_a_compiler_and_matches_the_packaged_models(
     robot.write_text(robot.read_text() + "\n# edited by the user\n")
     mine = run("run", "d/delta_tracking.yaml", "--stop", "0.2", "-o", "mine.csv", cwd=tmp_path)
     assert mine.returncode == 0, mine.stderr
-    assert "building DeltaRobot FMU (first use" in mine.stderr  # the edited source: a new FMU
+    assert "building DeltaRobot FMU (cached afterwards" in mine.stderr  # the edited source: a new FMU
     packaged = run("run", "delta_tracking", "--stop", "0.2", "-o", "packaged.csv", cwd=tmp_path)
     assert packaged.returncode == 0, packaged.stderr
     a, b = _columns(tmp_path / "mine.csv"), _columns(tmp_path / "packaged.csv")

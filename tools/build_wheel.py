@@ -48,8 +48,10 @@ def build_wheel(python: str, source: Path, output: Path, isolation: bool = True,
         (raw,) = Path(tmp).glob("deltafmi-*.whl")
         before = set(output.glob("*.whl"))
         plat = plat or f"manylinux_2_17_{platform.machine()}"
-        subprocess.run([sys.executable, "-m", "auditwheel", "repair", "--plat", plat, "-w", str(output), str(raw)],
-                       check=True, stdout=subprocess.DEVNULL)
+        repair = subprocess.run([sys.executable, "-m", "auditwheel", "repair", "--plat", plat, "-w", str(output),
+                                 str(raw)], capture_output=True, text=True)
+        if repair.returncode != 0:  # its INFO lines only when they explain a failure
+            sys.exit(f"auditwheel repair failed:\n{repair.stderr}{repair.stdout}")
         made = set(output.glob("*.whl")) - before
         if len(made) != 1:  # an existing wheel of the same name was overwritten
             made = {output / _repaired_name(raw, output)}

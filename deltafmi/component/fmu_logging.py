@@ -143,10 +143,31 @@ class _Hooks:
         logging.getLogger(module_name).setLevel(level)
 
 
+def exception_report(context: str, kind: Any, value: Any, tb: Any) -> str:
+    """The logStatusError message of an exception the FMU's Python code raised in ``context`` (the
+    bridge's name of the FMI call): the traceback, its last line (the one importers quote) ending
+    with the model's own source line, the innermost frame in ``resources/model/``:
+    "RuntimeError: my bug (trajectory.py:96 in outputs)". The bridge calls it through the registry."""
+    text = "".join(traceback.format_exception(kind, value, tb)).rstrip()
+    where = None
+    while tb is not None:
+        code = tb.tb_frame.f_code
+        path = code.co_filename.replace("\\", "/")
+        inside = path.rfind(_MODEL_DIR)
+        if inside >= 0:
+            where = f"{path[inside + len(_MODEL_DIR):]}:{tb.tb_lineno} in {code.co_name}"
+        tb = tb.tb_next
+    return f"{context}: Python exception\n{text}" + (f" ({where})" if where else "")
+
+
+_MODEL_DIR = "/resources/model/"  # where an FMU keeps the model's source (export/packager.py)
+
+
 def hooks() -> Any:
     """Install the process-wide hooks once (whichever FMU's runtime comes first) and return them."""
     shared = registry().__dict__
     found = shared.get(_KEY)
+    shared.setdefault("exception_report_v1", exception_report)  # what the bridge formats exceptions with
     if found is None:
         lock = shared.setdefault("log_lock", threading.Lock())
         with lock:

@@ -8,13 +8,13 @@ print a one-line reason after any per-line diagnostics.
 from __future__ import annotations
 
 import sys
+from contextlib import ExitStack
 from pathlib import Path
-from tempfile import TemporaryDirectory
 from typing import TYPE_CHECKING, Callable, Optional, Sequence, Tuple
 
 import click
 
-from deltafmi.errors import BadInput, ScenarioError
+from deltafmi.errors import BadInput
 
 if TYPE_CHECKING:
     from .scenario.spec import Scenario
@@ -25,31 +25,19 @@ def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = Non
     """Scenario (YAML, an SSP archive, or one FMU on its own) -> resolved system, for a command
     (it needs click's context): prints every diagnostic, raises on errors.
 
-    The FMUs of an SSP archive are unpacked into a temporary folder that lives until the
-    command ends. ``stop`` stands in for an SSP without a stop time. ``overrides`` changes the
-    loaded scenario before it is resolved (run options, see :mod:`.scenario.overrides`);
-    ``quiet``: no warnings.
+    Loads as :func:`deltafmi.simulate` does (:func:`.simulate.load_any`); the FMUs of an SSP
+    archive are unpacked into a temporary folder that lives until the command ends. ``stop``
+    stands in for an SSP without a stop time. ``overrides`` changes the loaded scenario before
+    it is resolved (run options, see :mod:`.scenario.overrides`); ``quiet``: no warnings. A
+    :class:`~deltafmi.errors.ScenarioError` prints every error, one per line.
     """
-    from .scenario.fmu_scenario import fmu_scenario, is_fmu
     from .scenario.resolve import resolve_system
-    from .scenario.spec import load_scenario
-    from .ssp.read import is_ssp, load_ssp
+    from .simulate import load_any
 
-    try:
-        if is_fmu(path):
-            scenario = fmu_scenario(path)
-        elif is_ssp(path):
-            workdir = click.get_current_context().with_resource(TemporaryDirectory(prefix="deltafmi-ssp-"))
-            scenario = load_ssp(path, Path(workdir), stop)
-        else:
-            scenario = load_scenario(path)
-        if overrides is not None:
-            scenario = overrides(scenario)
-        system = resolve_system(scenario, check_fmus=check_fmus)
-        if is_fmu(path):  # an FMU run on its own has no connections: its inputs stay at their start values
-            system.warnings = [w for w in system.warnings if "not connected" not in w.message]
-    except ScenarioError:
-        raise  # its show() prints every error, one per line
+    scenario = load_any(path, click.get_current_context().with_resource(ExitStack()), stop)
+    if overrides is not None:
+        scenario = overrides(scenario)
+    system = resolve_system(scenario, check_fmus=check_fmus)
     if not quiet:  # -q: nothing on success
         for warning in system.warnings:
             click.echo(str(warning), err=True)
@@ -57,7 +45,7 @@ def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = Non
 
 
 @click.command()
-@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.argument("scenario")
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="Result file: .csv, .parquet (units in its field metadata) or .mat (MATLAB); "
                    "default: result.file of the scenario, else <scenario>.csv here.")
@@ -73,18 +61,24 @@ def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = Non
               help="Record NaN or infinite values and go on (master.allow_nan) instead of stopping.")
 @click.option("--algorithm", type=click.Choice(["gauss-seidel", "jacobi"]),
               help="Override master.algorithm.")
+@click.option("--record", "record", multiple=True, metavar="PATTERN",
+              help="Record the variables matching PATTERN instead of the scenario's outputs: list "
+                   "(repeatable), e.g. --record 'plant.z[*]' or, for one FMU, --record 'Oscillator.*'.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary, no messages from the FMUs.")
 @click.option("-v", "--verbose", is_flag=True,
               help="Every message of the FMUs (their debug log categories too), not only warnings and errors.")
 def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop: Optional[float],
         step: Optional[float], tolerance: Optional[float], allow_nan: Optional[bool], algorithm: Optional[str],
-        quiet: bool, verbose: bool) -> None:
+        record: Tuple[str, ...], quiet: bool, verbose: bool) -> None:
     """Run the co-simulation SCENARIO (a YAML file, an SSP archive, or one .fmu) and write its results.
 
-    A single FMU runs on its default experiment as fmpy's simulate does (Co-Simulation when it
-    offers it), its inputs at their start values, every output recorded.
-    --set, --stop, --step and --tolerance change the run, not the file. A NaN or infinite value
-    stops the run with exit code 1, naming the variable and the time (--allow-nan: go on).
+    SCENARIO without a suffix is NAME.yaml in the current folder when there is one, else the
+    shipped example NAME. A single FMU runs on its default experiment as fmpy's simulate does
+    (Co-Simulation when it offers it), its inputs at their start values, every output recorded
+    (--record: others). --set, --stop, --step, --tolerance, --algorithm and --record change the
+    run, not the file. A NaN or infinite value stops the run with exit code 1, naming the
+    variable and the time (--allow-nan: go on). A run that fails before its first row leaves an
+    earlier result file as it was.
 
     The FMUs' warnings and errors are shown on stderr as they log them (-v: all their messages,
     -q: none). A component that ends the simulation itself ends the run there: the results up to
@@ -99,6 +93,7 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
       deltafmi run delta_tracking -o tracking.parquet
       deltafmi run delta_tracking --set controller.pole=10 --step 0.002 --tolerance 1e-6
       deltafmi run Oscillator.fmu --set Oscillator.k=100 --stop 2
+      deltafmi run Oscillator.fmu --record 'Oscillator.*'
     """
     from .results.writers import writer_for
     from .scenario.overrides import parse_assignment, with_overrides
@@ -111,16 +106,27 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
     values = dict(parse_assignment(text) for text in assignments)
 
     def overrides(loaded: Scenario) -> Scenario:
-        return with_overrides(loaded, values, stop=stop, step=step, tolerance=tolerance, allow_nan=allow_nan)
+        return with_overrides(loaded, values, stop=stop, step=step, tolerance=tolerance, allow_nan=allow_nan,
+                              algorithm=algorithm, record=record or None, cli=True)
 
-    from deltafmi.export.packager import builds_announced
-    with builds_announced(not quiet):  # -q: nothing on success, not even a first build's line
+    from deltafmi.console import progress_shown
+
+    printer = None if quiet else _FmuMessagePrinter(verbose)
+    with progress_shown(not quiet):  # -q: nothing on success, not even a first build's line
         system = load_system(scenario, stop=stop, overrides=overrides, quiet=quiet)
-    master = Master(system, result=Path(output) if output else None, algorithm=algorithm,
+    master = Master(system, result=Path(output) if output else None,
                     progress=not quiet and sys.stdout.isatty(),
                     warn=(lambda message: None) if quiet else lambda message: click.echo(f"warning: {message}", err=True),
-                    on_message=None if quiet else _fmu_message_printer(verbose), debug_logging=verbose)
-    summary = master.run()
+                    on_message=printer, debug_logging=verbose)
+    reason = ""
+    try:
+        summary = master.run()
+    except BaseException as exc:
+        reason = str(exc)
+        raise
+    finally:
+        if printer is not None:
+            printer.show_errors(reason)
     if not quiet:
         click.echo(str(summary))
 
@@ -128,27 +134,43 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
 _STATUS_LABELS = ("info", "warning", "discard", "error", "fatal", "pending")
 
 
-def _fmu_message_printer(verbose: bool):
+class _FmuMessagePrinter:
     """An ``on_message`` for the master: an FMU's message as ``<label>: <component>: <text>`` on
-    stderr; warnings and worse only, unless ``verbose`` (which adds the log category)."""
+    stderr; warnings and worse only, unless ``verbose`` (which adds the log category).
 
-    # on a terminal the progress bar (stdout) shares the line: clear it, the bar redraws below
-    clear = "\r\x1b[K" if sys.stdout.isatty() and sys.stderr.isatty() else ""
+    Errors are held until the run ends (:meth:`show_errors`): the one a failure quotes is then
+    not printed a second time above it."""
 
-    def show(component: str, status: int, category: str, text: str) -> None:
+    def __init__(self, verbose: bool) -> None:
+        self.verbose = verbose
+        self.errors: list = []  # (line, the text's last line)
+        # on a terminal the progress bar (stdout) shares the line: clear it, the bar redraws below
+        self.clear = "\r\x1b[K" if sys.stdout.isatty() and sys.stderr.isatty() else ""
+
+    def __call__(self, component: str, status: int, category: str, text: str) -> None:
+        verbose = self.verbose
         if status < 1 and not verbose:
             return
         label = _STATUS_LABELS[status] if 0 <= status < len(_STATUS_LABELS) else f"status {status}"
+        lines = text.strip().splitlines() or [""]
         if not verbose and "Traceback (most recent call last)" in text:  # -v shows the whole traceback
-            lines = text.strip().splitlines()
-            text = f"{lines[0]} {lines[-1].strip()}" if len(lines) > 1 else text
-        click.echo(f"{clear}{label}: {component}: " + (f"[{category}] " if verbose else "") + text, err=True)
+            text = f"{lines[0]}: {lines[-1].strip()} (-v shows the traceback)" if len(lines) > 1 else text
+        line = f"{self.clear}{label}: {component}: " + (f"[{category}] " if verbose else "") + text
+        if status >= 3:
+            self.errors.append((line, lines[-1].strip()))
+        else:
+            click.echo(line, err=True)
 
-    return show
+    def show_errors(self, reason: str) -> None:
+        """Print the errors held, but those whose text ``reason`` (the run's failure) quotes."""
+        for line, last in self.errors:
+            if self.verbose or not last or last not in reason:
+                click.echo(line, err=True)
+        self.errors = []
 
 
 @click.command()
-@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.argument("scenario")
 def validate(scenario: str) -> None:
     """Check SCENARIO (a YAML file or an SSP archive) and its FMUs without simulating, or one FMU.
 
@@ -162,7 +184,9 @@ def validate(scenario: str) -> None:
       deltafmi validate delta_tracking
       deltafmi validate build/fmus/DeltaRobot.fmu
     """
-    if scenario.endswith(".fmu"):
+    from .scenario.fmu_scenario import is_fmu
+
+    if is_fmu(scenario):
         from deltafmi.export.commands import validate_fmu_file
         validate_fmu_file(Path(scenario))
         return
@@ -175,7 +199,7 @@ def validate(scenario: str) -> None:
 
 
 @click.command("export-ssp")
-@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.argument("scenario")
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="SSP archive to write (default: <scenario name>.ssp here).")
 def export_ssp(scenario: str, output: Optional[str]) -> None:
@@ -206,7 +230,7 @@ def export_ssp(scenario: str, output: Optional[str]) -> None:
 @click.argument("result", type=click.Path(exists=True, dir_okay=False))
 @click.argument("signals", nargs=-1, required=True)
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
-              help="Figure file (.png, .pdf, .svg).")
+              help="Figure file; its extension picks the format (.png, .pdf, .svg, ...).")
 @click.option("--compare", type=click.Path(exists=True, dir_okay=False),
               help="A second result file: plot RESULT minus it, signal by signal.")
 @click.option("--separate", is_flag=True, help="One subplot per signal (default: one per unit).")
@@ -233,6 +257,4 @@ def plot(result: str, signals: Sequence[str], output: str, compare: Optional[str
         path = plot_result(result, signals, output, separate=separate, title=title, compare=compare)
     except UnknownSignal as exc:
         raise BadInput(str(exc)) from None
-    except ValueError as exc:
-        raise BadInput(f"cannot read '{result}' as a result file: {exc}") from None
     click.echo(f"wrote {path}")

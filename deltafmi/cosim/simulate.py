@@ -14,14 +14,14 @@ import logging
 from contextlib import ExitStack
 from pathlib import Path
 from tempfile import TemporaryDirectory
-from typing import Any, Callable, List, Mapping, Optional, Tuple
+from typing import Any, Callable, List, Mapping, Optional, Sequence, Tuple
 
 from deltafmi.errors import BadInput, Interrupted, ResultWriteError, SimulationError
 
 from .results.result import Result, ResultRecorder
 from .scenario.spec import Scenario
 
-__all__ = ["simulate", "FMU_LOGGER", "SCENARIO_LOGGER"]
+__all__ = ["simulate", "load_any", "FMU_LOGGER", "SCENARIO_LOGGER"]
 
 #: FMU messages go to ``deltafmi.fmu.<component name>``
 FMU_LOGGER = "deltafmi.fmu"
@@ -37,7 +37,7 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
              parameters: Optional[Mapping[str, Any]] = None, start_values: Optional[Mapping[str, Any]] = None,
              step: Optional[float] = None, tolerance: Optional[float] = None,
              output: Optional[str | Path] = None, algorithm: Optional[str] = None,
-             allow_nan: Optional[bool] = None, verbose: bool = False,
+             record: Optional[Sequence[str]] = None, allow_nan: Optional[bool] = None, verbose: bool = False,
              on_message: Optional[Callable[[str, int, str, str], None]] = None) -> Result:
     """Run ``scenario`` and return its :class:`~deltafmi.cosim.results.result.Result`.
 
@@ -50,9 +50,11 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
     two are one mapping under two names (FMI sets both with start values; a name may be in one
     only). ``stop``, ``step`` (communication step [s]) and ``tolerance`` (every component's
     relative tolerance) replace the scenario's; ``algorithm``: ``"gauss-seidel"`` or
-    ``"jacobi"``; ``allow_nan``: let Reals become NaN without stopping the run. The options
-    are those of ``deltafmi run``: ``--set``, ``--stop``, ``--step``, ``--tolerance``,
-    ``--algorithm``, ``--allow-nan``, ``-o``, ``-v``.
+    ``"jacobi"``; ``record``: patterns of the variables to record (``["plant.z[*]",
+    "controller.*"]``), replacing the scenario's ``outputs:``; ``allow_nan``: let Reals become
+    NaN without stopping the run. The options are those of ``deltafmi run``: ``--set``,
+    ``--stop``, ``--step``, ``--tolerance``, ``--algorithm``, ``--record``, ``--allow-nan``,
+    ``-o``, ``-v``.
 
     ``output``: also write the results to this file (``.csv``, ``.parquet``, ``.mat``) as the
     run goes. ``verbose``: the FMUs send their debug messages too. ``on_message(component,
@@ -73,14 +75,12 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
         writer_for(output)  # an unknown extension fails before anything is built
     _check_mapping(parameters, "parameters")
     _check_mapping(start_values, "start_values")
-    both = sorted(set(parameters or {}) & set(start_values or {}))
-    if both:
-        raise BadInput(f"{', '.join(both)}: given in both parameters and start_values; give each name once")
     with ExitStack() as resources:
-        loaded = _load(scenario, resources, stop)
+        loaded = load_any(scenario, resources, stop)
+        _check_given_once(loaded, parameters or {}, start_values or {})
         loaded = with_overrides(loaded, parameters or {}, origin="parameters")
         loaded = with_overrides(loaded, start_values or {}, stop=stop, step=step, tolerance=tolerance,
-                                allow_nan=allow_nan, origin="start_values")
+                                allow_nan=allow_nan, algorithm=algorithm, record=record, origin="start_values")
         system = resolve_system(loaded)
         scenario_log = logging.getLogger(SCENARIO_LOGGER)
         for diagnostic in system.warnings:
@@ -96,8 +96,8 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
             kept.append(ResultRecorder(names, kinds, units, file_writer, after_rows=messages.deliver))
             return kept[-1]
 
-        master = Master(system, result=Path(output) if output is not None else _IN_MEMORY, algorithm=algorithm,
-                        progress=False, warn=scenario_log.warning, writer_class=recorder,
+        master = Master(system, result=Path(output) if output is not None else _IN_MEMORY, progress=False,
+                        warn=scenario_log.warning, writer_class=recorder,
                         on_message=messages.add, debug_logging=verbose)
         try:
             summary = master.run()
@@ -111,9 +111,12 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
     return kept[0].result(summary)
 
 
-def _load(scenario: Any, resources: ExitStack, stop: Optional[float]) -> Scenario:
-    """A :class:`Scenario` from what the user gave; an SSP's FMUs are unpacked into a
-    temporary folder that ``resources`` removes after the run."""
+def load_any(scenario: Any, resources: ExitStack, stop: Optional[float] = None) -> Scenario:
+    """A :class:`Scenario` from what the user gave (``deltafmi run`` and :func:`simulate` alike):
+    a loaded one as is, one FMU (:func:`~.scenario.fmu_scenario.fmu_scenario`), an SSP archive
+    (its FMUs unpacked into a temporary folder that ``resources`` removes after the run;
+    ``stop`` stands in for an SSP without a stop time), else a scenario file or a shipped
+    example's name (:func:`~.scenario.spec.load_scenario`)."""
     from .scenario.fmu_scenario import fmu_scenario, is_fmu
     from .scenario.spec import load_scenario
     from .ssp.read import is_ssp, load_ssp
@@ -128,6 +131,17 @@ def _load(scenario: Any, resources: ExitStack, stop: Optional[float]) -> Scenari
     if is_fmu(scenario):
         return fmu_scenario(scenario)
     return load_scenario(scenario)
+
+
+def _check_given_once(scenario: Scenario, parameters: Mapping[str, Any], start_values: Mapping[str, Any]) -> None:
+    """:class:`BadInput` when a variable is in both mappings (``"plant.z0"`` and, in a
+    one-component scenario, a bare ``"z0"`` are the same variable)."""
+    from .scenario.overrides import split_name
+
+    given = {split_name(scenario, str(name), "parameters"): name for name in parameters}
+    both = sorted(str(name) for name in start_values if split_name(scenario, str(name), "start_values") in given)
+    if both:
+        raise BadInput(f"{', '.join(both)}: given in both parameters and start_values; give each name once")
 
 
 def _check_mapping(values: Any, what: str) -> None:

@@ -66,12 +66,22 @@ def example(name: str) -> Example:
     raise BadInput(f"no example called '{name}'{did_you_mean(name, found)}; `deltafmi examples` lists them")
 
 
+def is_shipped(path: Union[str, Path]) -> bool:
+    """Whether ``path`` lies in the installed deltafmi package (a shipped example or model): what is
+    made from it (results, linear models) goes to the current folder, never into the package."""
+    return Path(__file__).parents[1].resolve() in Path(path).resolve().parents
+
+
 def find_input(text: Union[str, Path], kind: str) -> Path:
-    """``text`` as a file when it is one, else the shipped example of that name and ``kind``
-    ("scenario" or "study"). :class:`BadInput` when it is neither."""
+    """``text`` as a file when it is one; a bare name (no suffix, no folder) is ``NAME.yaml`` in
+    the current folder when there is one (a copy made by ``deltafmi examples copy``), else the
+    shipped example of that name and ``kind`` ("scenario" or "study"). :class:`BadInput` when
+    it is neither."""
     path = Path(text)
-    if path.exists() or path.suffix or len(path.parts) > 1:
+    if path.is_file() or path.suffix or len(path.parts) > 1:
         return path  # a file name: its reader reports a missing file
+    if path.with_suffix(".yaml").is_file():
+        return path.with_suffix(".yaml")
     chosen = example(str(text))
     if chosen.kind != kind:
         raise BadInput(f"'{text}' is an example {chosen.kind}, not a {kind}"

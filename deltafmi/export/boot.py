@@ -1,8 +1,9 @@
 """Boot code shipped as ``resources/deltafmi_boot.py`` in every FMU; the native bridge runs it.
 
 It imports the FMU's model under a module name unique to the FMU's resources directory, with the
-FMU's own copy of the deltafmi runtime (``resources/python/deltafmi``). That copy is swapped into
-``sys.modules`` only while the model is imported (or FMU states are unpickled) and swapped out
+FMU's own copy of the deltafmi runtime (``resources/python/deltafmi``). That copy (the modules it
+carries) is swapped into ``sys.modules`` only while the model is imported (or FMU states are
+unpickled) and swapped out
 again, so FMUs built by different deltafmi versions, a host that imports deltafmi itself, and two
 FMUs whose sources share a file name all coexist in one process. Nothing stays on ``sys.path``.
 This file must run on its own: it imports nothing from deltafmi at module level.
@@ -30,11 +31,17 @@ _LOCK = _REGISTRY.__dict__.setdefault("lock", _thread.RLock())
 
 
 class _Bundle:
-    """The FMU's private copy of the deltafmi package, active in sys.modules only on demand."""
+    """The FMU's private copy of the deltafmi package, active in sys.modules only on demand.
+
+    Only the modules the FMU carries are swapped: the host's other deltafmi modules stay in
+    sys.modules meanwhile, so that the host's other threads keep finding them (a Dask worker
+    unpickles tasks that name deltafmi.study while an FMU starts in its executor thread; had they
+    been hidden, its import would have run again, half in the FMU's copy)."""
 
     def __init__(self, python_dir: str) -> None:
         self.python_dir = python_dir
         self.modules: dict = {}
+        self.names = _carried_modules(python_dir)
 
     @contextlib.contextmanager
     def active(self):
@@ -42,16 +49,30 @@ class _Bundle:
         with _LOCK:
             # list() copies the keys without running Python code, so no other thread's import can
             # change sys.modules under the iteration (holding the lock does not stop other imports)
-            saved = {k: sys.modules.pop(k) for k in [k for k in list(sys.modules) if _is_deltafmi(k)]}
+            saved = {k: sys.modules.pop(k) for k in [k for k in list(sys.modules) if k in self.names]}
             sys.modules.update(self.modules)
             sys.path.insert(0, self.python_dir)
             try:
                 yield
             finally:
                 sys.path.remove(self.python_dir)
-                for k in [k for k in list(sys.modules) if _is_deltafmi(k)]:
+                for k in [k for k in list(sys.modules) if k in self.names]:
                     self.modules[k] = sys.modules.pop(k)
                 sys.modules.update(saved)
+
+
+def _carried_modules(python_dir: str) -> frozenset:
+    """Dotted names of the deltafmi packages and modules (sources and extensions) under ``python_dir``."""
+    names = set()
+    for folder, dirs, files in os.walk(os.path.join(python_dir, "deltafmi")):
+        dirs[:] = [d for d in dirs if d != "__pycache__"]
+        package = os.path.relpath(folder, python_dir).replace(os.sep, ".")
+        names.add(package)
+        for file in files:
+            stem, _, suffix = file.partition(".")
+            if suffix == "py" or file.endswith(".so"):
+                names.add(package if stem == "__init__" else f"{package}.{stem}")
+    return frozenset(names)
 
 
 class _BundledSitePackages:
@@ -139,10 +160,6 @@ def _borrow_builder_python(resources_dir: str) -> None:
 
 def _running_version() -> str:
     return f"{sys.version_info.major}.{sys.version_info.minor}"
-
-
-def _is_deltafmi(name: str) -> bool:
-    return name == "deltafmi" or name.startswith("deltafmi.")
 
 
 def _import_model(resources_dir: str) -> tuple:

@@ -76,15 +76,20 @@ def _model_identifier(fmu: Path) -> str:
 
 
 @click.command()
-@click.argument("fmu", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-def info(fmu: Path) -> None:
+@click.argument("target")
+def info(target: str) -> None:
     """Show an FMU's interfaces, default experiment and variables.
 
+    TARGET is an .fmu file, or a component as ``deltafmi build`` takes it (a packaged model's class
+    name, a source .py): its FMU from the build cache.
+
     \b
-    Example:
+    Examples:
       deltafmi info build/fmus/DeltaRobot.fmu
+      deltafmi info DeltaRobot
     """
     from fmpy import read_model_description
+    fmu = _fmu_of(target)
     try:
         md = read_model_description(str(fmu), validate=False)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for broken archives
@@ -113,6 +118,25 @@ def info(fmu: Path) -> None:
         click.echo("  ".join(c.ljust(w) for c, w in zip(row[:6], widths)) + "  " + row[6])
 
 
+def _fmu_of(target: str) -> Path:
+    """The .fmu file ``target`` names, or the cached FMU of the component it names."""
+    path = Path(target)
+    if path.is_file() and path.suffix.lower() != ".py":
+        return path
+    if path.suffix.lower() == ".fmu" or path.is_dir():
+        raise BadInput(f"{target}: no such FMU file")
+    from .packager import build_cached
+    from .sources import find_component
+    try:
+        source = find_component(target)
+        return build_cached(source.path, class_name=source.class_name)
+    except ComponentSourceError as exc:
+        raise BadInput(f"{exc}; info takes an .fmu file or a component "
+                       "(`deltafmi build DeltaRobot -o DeltaRobot.fmu` writes one)") from None
+    except BuildError as exc:
+        raise click.ClickException(str(exc)) from None
+
+
 def validate_fmu_file(fmu: Path) -> None:
     """``deltafmi validate X.fmu``: fmpy's validation (the XML), the binary for this platform, a
     deltafmi FMU's GUID against its binary's, what the FMU needs to run and whether this machine
@@ -120,7 +144,8 @@ def validate_fmu_file(fmu: Path) -> None:
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
 
-    from .requirements import binary_problem, guid_problem, instantiation_problem
+    from deltafmi.cosim.scenario.fmu_checks import binary_problem, guid_problem
+    from deltafmi.cosim.stepping.fmu_trial import instantiation_problem
     if not fmu.is_file():
         raise click.ClickException(f"{fmu}: no such file")
     try:

@@ -1,11 +1,11 @@
 """Pack a component source file into a ``.fmu``: model description, binaries, resources, sources."""
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import importlib.util
 import json
 import keyword
+import logging
 import marshal
 import re
 import sys
@@ -13,7 +13,7 @@ import uuid
 import warnings
 import zipfile
 from pathlib import Path
-from typing import Iterator, Optional
+from typing import Optional
 
 import deltafmi
 from ..component import Component
@@ -124,24 +124,15 @@ def content_key(source: Path, class_name: Optional[str] = None) -> str:
     writers = [module_source(name) for name in reached_modules(modules=[_MODEL_DESCRIPTION], runtime=False)]
     for path in native_source_files() + writers + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]:
         digest.update(path.read_bytes())
-    digest.update(python_runtime_config().encode())
+    # the environment, not the interpreter's name in it: bin/python and bin/python3.12 (the console
+    # scripts' shebang) of one venv build the same FMU
+    digest.update(re.sub(r"(?m)^executable=.*$", f"prefix={sys.prefix}", python_runtime_config()).encode())
     return digest.hexdigest()
 
 
-#: whether :func:`build_cached` says on stderr that it builds an FMU (one line; silent when the
-#: FMU is cached); see :func:`builds_announced`
-announce_builds = True
-
-
-@contextlib.contextmanager
-def builds_announced(announce: bool) -> Iterator[None]:
-    """Within the block, :func:`build_cached` announces its builds or not (``-q``: not)."""
-    global announce_builds
-    before, announce_builds = announce_builds, announce
-    try:
-        yield
-    finally:
-        announce_builds = before
+#: where :func:`build_cached` says, at INFO, that it builds an FMU (silent when the FMU is cached);
+#: the commands show it on stderr (``-q``: not), the API leaves it to the user's logging set-up
+BUILD_LOG = logging.getLogger("deltafmi.build")
 
 
 def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool = False,
@@ -200,18 +191,18 @@ def build_cached(source: Path | str, portable: bool = False, class_name: Optiona
     if existing:
         return existing[0]
     cls = load_component_class(source, class_name)
-    if announce_builds:
-        print(f"building {cls.__name__} FMU (first use, cached in {_home_relative(cache_dir() / 'fmus')}) ...",
-              file=sys.stderr, flush=True)
+    BUILD_LOG.info("building %s FMU (cached afterwards in %s) ...", cls.__name__, _home_relative(cache_dir() / "fmus"))
     return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable, class_name=class_name)
 
 
 def _component(source: Path | str, class_name: Optional[str]) -> tuple[Path, Optional[str]]:
     """A source file and class name as given, or those of a component named as the CLI names it."""
-    if class_name is None and not Path(source).is_file():
-        found = find_component(str(source))
-        return found.path, found.class_name
-    return Path(source), class_name
+    if Path(source).is_file():
+        return Path(source), class_name
+    if class_name is not None:
+        raise ComponentSourceError(f"{source}: no such file")
+    found = find_component(str(source))
+    return found.path, found.class_name
 
 
 def _home_relative(path: Path) -> str:

@@ -3,9 +3,8 @@
 ``deltafmi info`` and ``deltafmi validate`` report it: a portable FMU needs only a glibc no older
 than its floor; any other FMU needs the Python recorded when it was built (or the one named by
 ``DELTAFMI_PYTHON`` / ``DELTAFMI_LIBPYTHON``) with numpy, when its host does not run Python itself.
-An FMU not built by deltafmi needs nothing of that. Every FMU needs its binary for this platform
-(:func:`binary_problem`); a deltafmi FMU's modelDescription.xml and binary must agree on the GUID
-(:func:`guid_problem`).
+An FMU not built by deltafmi needs nothing of that. (Whether an FMU archive can run here, its binary
+and GUID, is the master's question: :mod:`deltafmi.cosim.scenario.fmu_checks`.)
 """
 from __future__ import annotations
 
@@ -16,7 +15,6 @@ import subprocess
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Optional
 
 
 @dataclass
@@ -70,12 +68,23 @@ def read_config(fmu: Path) -> dict[str, str]:
 
 
 def _source(fmu: Path) -> str:
-    """The component source file the FMU was built from, as recorded in it."""
+    """What ``deltafmi build`` takes to build the FMU again: a packaged model's class name when the
+    FMU carries that model's source unchanged, else the name of the source file it was built from."""
     with zipfile.ZipFile(fmu) as archive:
         try:
-            return json.loads(archive.read("resources/deltafmi.json")).get("source", "")
+            recorded = json.loads(archive.read("resources/deltafmi.json"))
+            source = recorded.get("source", "")
+            text = archive.read(f"resources/model/{source}") if source else b""
         except (KeyError, ValueError):
             return ""
+    from deltafmi import models
+
+    class_name = recorded.get("class_name", "")
+    if models.MODELS.get(class_name, "") + ".py" == source:
+        packaged = Path(models.__file__).parent / source
+        if packaged.is_file() and packaged.read_bytes() == text:
+            return class_name
+    return source
 
 
 def _version_tuple(text: str) -> tuple[int, ...]:
@@ -111,68 +120,3 @@ def runtime_requirement(fmu: Path) -> RuntimeRequirement:
         elif version and probe.stdout.strip() != version:
             requirement.missing.append(f"{executable} is CPython {probe.stdout.strip()}, the FMU needs {version}")
     return requirement
-
-
-def binary_problem(fmu: Path, model_identifiers: Iterable[str]) -> Optional[str]:
-    """Why ``fmu`` has no binary to load on this platform (``binaries/linux64/<modelIdentifier>.so``
-    for each of ``model_identifiers``), or None when it has them all."""
-    from fmpy import platform, sharedLibraryExtension
-
-    with zipfile.ZipFile(fmu) as archive:
-        names = archive.namelist()
-    binaries = [name for name in names if name.startswith("binaries/") and not name.endswith("/")]
-    for identifier in dict.fromkeys(model_identifiers):
-        expected = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
-        if expected not in names:
-            has = ", ".join(binaries[:6]) + (", ..." if len(binaries) > 6 else "") if binaries else "none"
-            return f"no binary for this platform: {expected} is missing (its binaries: {has})"
-    return None
-
-
-def guid_problem(fmu: Path, guid: str) -> Optional[str]:
-    """For a deltafmi FMU: how the GUID of its modelDescription.xml (``guid``) and the one its
-    binary checks at fmi2Instantiate (``resources/deltafmi.json``) disagree, or None."""
-    with zipfile.ZipFile(fmu) as archive:
-        try:
-            built = json.loads(archive.read("resources/deltafmi.json")).get("guid", "")
-        except (KeyError, ValueError):
-            return None
-    if built and built != guid:
-        return (f"the GUID of modelDescription.xml, {guid}, is not the one its binary was built with, {built}: "
-                "fmi2Instantiate will refuse it (rebuild the FMU, or restore its modelDescription.xml)")
-    return None
-
-
-def instantiation_problem(fmu: Path) -> Optional[str]:
-    """Load the FMU's binary and instantiate it once (Co-Simulation if it offers it, else Model
-    Exchange), then free it: what went wrong, with what the FMU logged, or None.
-
-    This is what catches a GUID its binary refuses in an FMU of any origin (fmpy's validation
-    reads only the XML)."""
-    import tempfile
-
-    import fmpy
-    from fmpy.fmi2 import FMU2Model, FMU2Slave
-
-    from deltafmi.cosim.stepping.unit_base import instantiation_reason, logger_callbacks
-
-    md = fmpy.read_model_description(str(fmu), validate=False)
-    interface = md.coSimulation or md.modelExchange
-    if interface is None:
-        return "it offers neither Co-Simulation nor Model Exchange"
-    messages: list = []
-    callbacks = logger_callbacks(lambda status, category, text: messages.append((status, category, text)))
-    with tempfile.TemporaryDirectory(prefix="deltafmi-validate-") as folder:
-        unzipped = fmpy.extract(str(fmu), unzipdir=folder)
-        try:
-            instance = (FMU2Slave if md.coSimulation else FMU2Model)(
-                guid=md.guid, unzipDirectory=unzipped, modelIdentifier=interface.modelIdentifier,
-                instanceName="validate")
-        except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions
-            return f"its binary does not load: {exc}"
-        try:
-            instance.instantiate(callbacks=callbacks)
-        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when fmi2Instantiate returns NULL
-            return f"fmi2Instantiate failed: {instantiation_reason(messages)}"
-        instance.freeInstance()
-    return None

@@ -66,7 +66,9 @@ def module_component(reference: str) -> ComponentSource:
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
-        raise ComponentSourceError(f"'{reference}': cannot import {module_name}: {exc}") from None
+        file = module_name.replace(".", "/") + ".py"
+        raise ComponentSourceError(f"'{reference}': cannot import {module_name}: {exc} (install its package, put "
+                                   f"its folder on PYTHONPATH, or name the file: {file}:{class_name})") from None
     except Exception as exc:  # noqa: BLE001 - the user's module failed while importing
         raise ComponentSourceError(f"'{reference}': importing {module_name} failed: {exc!r}") from None
     from deltafmi.component import Component

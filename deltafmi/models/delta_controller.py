@@ -22,7 +22,7 @@ class DeltaController(ControllerRobotModel, Component):
     tactile_axis at tactile_gain * tactile m/s: the tactile loop that centres the tool on a
     feature. Model Exchange: time events at the sample instants. Co-Simulation:
     doStep(t, h) takes the samples due in [t, t + h) with the inputs given at t (use h equal to
-    the sample period). The kinematic and inertial parameters and the joint damping (compensated)
+    the sample period; a longer h gets one warning). The kinematic and inertial parameters and the joint damping (compensated)
     are the controller's own model of the robot (the DeltaRobot plant's declarations,
     deltafmi.models.robot_parameters) and may differ from the plant's.
     """
@@ -91,6 +91,7 @@ class DeltaController(ControllerRobotModel, Component):
             impedance=self.impedance, stiffness=self.stiffness, task_damping=self.task_damping,
             tactile_gain=self.tactile_gain, tactile_axis=self.tactile_axis)
         self._t0, self._k = t, 0
+        self._longest_step = self.sample_period * (1.0 + 1e-9)  # longer: warn once (do_step)
 
     def _next_sample(self) -> float:
         return self._t0 + self._k * self.sample_period
@@ -123,6 +124,15 @@ class DeltaController(ControllerRobotModel, Component):
 
     def do_step(self, t: float, h: float) -> None:
         period = self.sample_period
+        if h > self._longest_step:
+            self._warn_long_step(h)
         end = t + h - 1e-9 * period
         while self._t0 + self._k * period < end:  # _next_sample(), inlined: once per step
             self._sample()
+
+    def _warn_long_step(self, h: float) -> None:
+        """Once per run: a communication step longer than the sample period changes the loop."""
+        self._longest_step = float("inf")
+        self.log(f"communication step {h:g} s is longer than sample_period {self.sample_period:g} s: the "
+                 "samples inside a step all see the inputs at its start, a different closed loop from the "
+                 "sampled controller's; use a step of at most sample_period", level="warning")

@@ -28,7 +28,7 @@ def _table_path(planned, output: Optional[str]) -> Path:
 
 
 @click.command()
-@click.argument("study", type=click.Path(dir_okay=False))
+@click.argument("study")
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="Results table (.parquet; default: result.file of the study, else <study>.parquet here). "
                    "The CSV copy, the journal and the time series go next to it.")
@@ -160,7 +160,7 @@ def plot_study_command(results: str, output: str, metrics: Sequence[str], x: Opt
 
 
 @click.command("study-case")
-@click.argument("study", type=click.Path(dir_okay=False))
+@click.argument("study")
 @click.argument("case", type=click.IntRange(min=0))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Scenario file to write.")
 def study_case(study: str, case: int, output: str) -> None:

@@ -19,6 +19,7 @@ from typing import Any, Dict, List, Optional, Tuple
 import jsonschema
 
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
+from deltafmi.examples import is_shipped
 from deltafmi.cosim.scenario.schema_check import load_mapping, read_document, schema_diagnostics
 from deltafmi.cosim.scenario.yaml_lines import LineMap
 
@@ -351,7 +352,7 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Study:
             line=lines.key_line(("metrics", name))))
     result = data.get("result", {})
     result_file = Path(result["file"]) if "file" in result else Path(path.stem + ".parquet")
-    if "file" in result and not result_file.is_absolute() and not _shipped(path):
+    if "file" in result and not result_file.is_absolute() and not is_shipped(path):
         result_file = path.parent / result_file  # a shipped study's results go here, not into the package
     scenario = Path(data["scenario"])
     if not scenario.is_absolute():
@@ -359,13 +360,6 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Study:
     return Study(path, scenario, Vary(grid, zipped, monte_carlo), tuple(metrics), result_file,
                  bool(result.get("timeseries", False)), data.get("description", ""),
                  lines.line(("scenario",)))
-
-
-def _shipped(path: Path) -> bool:
-    """Whether ``path`` is one of the example studies installed with deltafmi."""
-    from deltafmi.examples import STUDIES_DIR
-
-    return path.resolve().parent == STUDIES_DIR.resolve()
 
 
 def _float(value: Any) -> Optional[float]:

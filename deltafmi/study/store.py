@@ -109,8 +109,8 @@ class ResultStore:
             header = {}
         if header.get("fingerprint") != self.fingerprint:
             raise BadInput(f"{self.table} holds results of a different study (its scenario, FMUs, recorded "
-                           f"variables or metrics have changed since): run with --fresh to replace them, or "
-                           f"write to another file with -o")
+                           f"variables or metrics have changed since): write to another file with -o, or run with "
+                           f"--fresh to replace them")
         for line in lines[1:]:
             try:
                 row = json.loads(line)

@@ -20,7 +20,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..cosim.results.csv_file import read_csv
+from ..cosim.results.result import read_result
 from ..errors import BadInput, did_you_mean
 from ..mechanics.delta.kinematics import forward_kinematics
 from ..mechanics.delta.params import ARM_ROTATIONS, RL5, DeltaParams
@@ -64,12 +64,12 @@ def find_plants(names: Sequence[str]) -> list[str]:
 
 
 def load_recording(result: str | Path, plant: Optional[str] = None) -> Recording:
-    """The robot ``plant`` (found automatically when the result holds one robot) of ``result``."""
-    try:
-        names, data = read_csv(result)
-    except (OSError, ValueError) as exc:
-        raise BadInput(f"cannot read '{result}' as a result file: {exc}") from None
-    plants = find_plants(names)
+    """The robot ``plant`` (found automatically when the result holds one robot) of ``result``
+    (a ``.csv``, ``.parquet`` or ``.mat`` result file)."""
+    recorded = read_result(result)
+    if not len(recorded):
+        raise BadInput(f"{result} has no rows")
+    plants = find_plants(recorded.names)
     if plant is None:
         if len(plants) != 1:
             what = "no columns <plant>.y[1..3] (servo angles: record 'plant.y[*]')" if not plants else \
@@ -78,7 +78,7 @@ def load_recording(result: str | Path, plant: Optional[str] = None) -> Recording
         plant = plants[0]
     elif plant not in plants:
         raise BadInput(f"{result}: no servo angles '{plant}.y[1..3]'{did_you_mean(plant, plants)}")
-    column = {name: data[:, i] for i, name in enumerate(names)}
+    column = {name: recorded[name] for name in recorded}
 
     def first(name: str, default: float) -> float:
         values = column.get(f"{plant}.{name}")

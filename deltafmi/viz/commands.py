@@ -16,7 +16,7 @@ import click
               help="Simulated seconds per second of animation.")
 @click.option("--size", type=float, default=8.0, show_default=True, help="Figure width [in] (80 dpi).")
 def animate(result: str, output: str, plant: Optional[str], fps: float, speed: float, size: float) -> None:
-    """Draw the delta robot of RESULT (arms, plate, tool and surface) frame by frame.
+    """Draw the delta robot of RESULT (.csv, .parquet, .mat) frame by frame: arms, plate, tool, surface.
 
     Needs the servo angles '<plant>.y[*]' in the result; uses the tool, the surface and the contact
     force when recorded ('plant.tool[*]', 'plant.surface_height', 'plant.surface_normal[*]',

@@ -32,7 +32,7 @@ def _assignments(items: Sequence[str], option: str) -> Dict[str, Any]:
 
 
 @click.command()
-@click.argument("target", type=click.Path(dir_okay=False))
+@click.argument("target")
 @click.option("-o", "--save", "save", type=click.Path(dir_okay=False),
               help="Base name of the .npz and .mat files written (default: <target>_linear next to it).")
 @click.option("--at", "at", type=float,
@@ -74,6 +74,7 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
     """
     from .closed_loop import expand_references, linearize_scenario
     from .fmu import linearize_fmu
+    from ..scenario.fmu_scenario import is_fmu
 
     path, packaged = _target_path(target)
     if path.suffix in (".yaml", ".yml", ".ssp", ".ssd"):
@@ -91,7 +92,7 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
         if path.suffix == ".py":
             from deltafmi.export import build_cached
             fmu = build_cached(path, class_name=packaged)
-        elif path.suffix != ".fmu":
+        elif not is_fmu(path):
             raise BadInput(f"'{target}': expected an .fmu, a component .py or a scenario .yaml/.ssp")
         model = linearize_fmu(fmu, start_values=_assignments(sets, "--set"),
                               states=_assignments(states, "--state"), time=at or 0.0, rest=rest, free=free,
@@ -104,8 +105,9 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
     if not quiet:
         for line in model.pole_table():
             click.echo(line)
+    from deltafmi.examples import is_shipped
     # shipped examples and models live in the installed package: their results go here
-    base = Path(save) if save else (Path() if _shipped(path) else path.parent) / f"{path.stem}_linear"
+    base = Path(save) if save else (Path() if is_shipped(path) else path.parent) / f"{path.stem}_linear"
     written = model.save(base)
     click.echo(f"wrote {', '.join(str(p) for p in written)}")
 
@@ -126,10 +128,12 @@ def _target_path(target: str) -> tuple[Path, Optional[str]]:
         return source.path, source.class_name
     if path.suffix or len(path.parts) > 1:
         raise BadInput(f"'{target}' not found")
-    from deltafmi.examples import find_input
+    from deltafmi.errors import did_you_mean
+    from deltafmi.examples import examples, find_input
+    if not any(e.name == target for e in examples()):  # a typo: the closest models and scenarios
+        models = packaged_model_names()
+        hint = did_you_mean(target, models + [e.name for e in examples() if e.kind == "scenario"]) or \
+            f" (packaged models: {', '.join(models)}; `deltafmi examples` lists the scenarios)"
+        raise BadInput(f"'{target}' is neither a file, a packaged model nor an example scenario{hint}")
     return find_input(target, "scenario"), None
 
-
-def _shipped(path: Path) -> bool:
-    import deltafmi
-    return Path(deltafmi.__file__).parent in path.resolve().parents

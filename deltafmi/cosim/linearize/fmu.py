@@ -18,9 +18,10 @@ from fmpy.fmi2 import FMU2Model
 
 from deltafmi.errors import BadInput, did_you_mean
 
+from ..scenario.fmu_checks import binary_problem
 from ..scenario.modelinfo import ModelInfo, UnknownVariable, model_info
 from ..stepping.jacobians import FmuJacobian
-from ..stepping.unit_base import logger_callbacks
+from ..stepping.unit_base import instantiation_reason, logger_callbacks
 from .equilibrium import find_equilibrium
 from .linear_model import LinearModel
 
@@ -51,7 +52,6 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
     where = label or str(fmu)
     if info.md.modelExchange is None:
         raise BadInput(f"'{where}' offers no Model Exchange interface: linearizing an FMU needs its equations")
-    from deltafmi.export.requirements import binary_problem
     missing = binary_problem(fmu, [info.model_identifier("ME")])
     if missing:
         raise BadInput(f"'{where}' cannot run here: {missing}")
@@ -66,8 +66,8 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
             model.instantiate(callbacks=callbacks, loggingOn=False)
         except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when fmi2Instantiate returns NULL
             model = None  # nothing to free
-            reason = "; ".join(dict.fromkeys(e.strip().splitlines()[-1] for e in errors if e.strip()))
-            raise BadInput(f"'{where}': fmi2Instantiate failed: {reason or 'the FMU logged no reason'}") from None
+            raise BadInput(f"'{where}': fmi2Instantiate failed: "
+                           f"{instantiation_reason([(3, '', text) for text in errors])}") from None
         model.setupExperiment(startTime=time)
         for name, value in (start_values or {}).items():
             _set(model, info, name, value, where)

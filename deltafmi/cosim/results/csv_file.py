@@ -224,9 +224,10 @@ def read_csv(path: str | Path) -> Tuple[List[str], np.ndarray]:
     with open(path, newline="") as file:
         names = next(csv.reader(file))
         body = file.read()
+    if not body.strip():  # a run that ended before its first row: a header alone
+        return names, np.empty((0, len(names)))
     if '"' not in body:
-        data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
-        return names, data.reshape(-1, len(names)) if data.size == 0 else data
+        return names, np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
     rows = list(csv.reader(io.StringIO(body), quoting=csv.QUOTE_NONNUMERIC))
     data = np.empty((len(rows), len(names)), dtype=object)
     for i, row in enumerate(rows):

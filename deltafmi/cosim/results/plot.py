@@ -9,20 +9,23 @@ signals of a second result are subtracted from the first's (on the first's time 
 Axes carry units from the result (``.parquet`` and ``.mat`` files and :class:`Result` objects
 have them, ``.csv`` files do not): signals of different units get different axes, differences
 get their own axis, and each axis scales its unit by an SI prefix so that its numbers are
-readable (a tracking error in um under positions in m).
+readable (a tracking error in um under positions in m); an axis without a unit, or with one that
+takes no prefix, says the power of ten in its label (``(×1e-6)``), never in an offset beside the
+axis. An axis names what its curves show (``plant.z, trajectory.r [m]``).
 """
 from __future__ import annotations
 
+import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Collection, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from deltafmi.errors import did_you_mean
+from deltafmi.errors import BadInput, did_you_mean
 
-from ..scenario.resolve import pattern_regex
+from ..scenario.modelinfo import split_element
 from .result import Result, read_result
 
 #: `` - `` between two signals: their difference
@@ -30,8 +33,9 @@ _DIFFERENCE = " - "
 #: units an SI prefix may be put in front of (the prefix scales their first symbol)
 _PREFIXABLE = re.compile(r"(m|rad|N|s|V|A|W|J|Pa|Hz)([./].*)?\Z")
 _PREFIXES = ((1.0, ""), (1e-3, "m"), (1e-6, "u"), (1e-9, "n"))
-_ELEMENT = re.compile(r"(.*)\[(\d+)\]\Z")
 _DASHES = ("-", "--", ":", "-.")
+#: an axis shared by several curves names what they are while that stays short, else the legend does
+_LABEL_NAMES, _LABEL_LENGTH = 3, 40
 
 
 class UnknownSignal(LookupError):
@@ -40,38 +44,41 @@ class UnknownSignal(LookupError):
 
 @dataclass
 class Series:
-    """One curve: its label, values, unit ("" unknown or none) and whether it is a difference."""
+    """One curve: its label, values, unit ("" unknown or none), whether it is a difference, and
+    the quantity it shows (its label without element indices: ``plant.z - trajectory.r``)."""
 
     label: str
     values: np.ndarray
     unit: str
     difference: bool
+    quantity: str = ""
 
 
-def select_columns(names: Sequence[str], signals: Sequence[str], texts: Collection[str] = ()) -> List[str]:
-    """Columns matching ``signals`` (exact names, ``*``/``?`` globs, ``[i:j]`` ranges, an array's
-    name for its elements), in order; the ``texts`` columns (Strings) are left out, and a signal
-    matching only those is an error."""
-    chosen: List[str] = []
-    for signal in signals:
-        chosen.extend(h for h in _columns_of(names, signal, texts) if h not in chosen)
-    return chosen
+def _quantity(name: str) -> str:
+    element = split_element(name)
+    return element[0] if element else name
 
 
-def _columns_of(names: Sequence[str], signal: str, texts: Collection[str]) -> List[str]:
-    regex = pattern_regex(signal)
-    hits = [n for n in names if n != "time" and regex.match(n)]
-    if not hits:  # an array's name: its elements
-        element = re.compile(re.escape(signal) + r"\[\d+\]\Z")
-        hits = [n for n in names if element.match(n)]
+def _known(result: Result, signal: str) -> bool:
+    return bool(result.match(signal) or result.elements(signal))
+
+
+def _columns_of(result: Result, signal: str, texts: Collection[str]) -> List[str]:
+    """The numeric columns ``signal`` names: a name, a pattern, or an array's name (its elements)."""
+    hits = result.match(signal) or result.elements(signal)
     numbers = [n for n in hits if n not in texts]
-    if not numbers:
-        if hits == [signal]:
-            raise UnknownSignal(f"'{signal}' is a String column: a plot draws numbers")
-        if hits:
-            raise UnknownSignal(f"'{signal}' matches only String columns ({', '.join(hits)}): a plot draws numbers")
-        raise UnknownSignal(f"no column '{signal}' in the result{did_you_mean(signal, names)}")
-    return numbers
+    if numbers:
+        return numbers
+    if hits == [signal]:
+        raise UnknownSignal(f"'{signal}' is a String column: a plot draws numbers")
+    if hits:
+        raise UnknownSignal(f"'{signal}' matches only String columns ({', '.join(hits)}): a plot draws numbers")
+    for at in [i for i, c in enumerate(signal) if c == "-"]:  # 'a-b' meant as a difference?
+        left, right = signal[:at].strip(), signal[at + 1:].strip()
+        if left and right and _known(result, left) and _known(result, right):
+            raise UnknownSignal(f"no column '{signal}' in the result; a difference is written with spaces: "
+                                f"'{left}{_DIFFERENCE}{right}'")
+    raise UnknownSignal(f"no column '{signal}' in the result{did_you_mean(signal, ['time', *result.names])}")
 
 
 def _texts(result: Result) -> set:
@@ -79,18 +86,19 @@ def _texts(result: Result) -> set:
 
 
 def series_of(result: Result, signals: Sequence[str], compare: Optional[Result] = None,
-              compare_label: str = "") -> List[Series]:
-    """The curves of ``signals`` in ``result`` (minus those of ``compare`` when given)."""
-    names, texts = ["time", *result.names], _texts(result)
+              compare_name: str = "the compared result") -> List[Series]:
+    """The curves of ``signals`` in ``result``; with ``compare``, each minus the same signal of
+    ``compare`` (on ``result``'s times). An error about ``compare`` starts with ``compare_name``."""
+    texts = _texts(result)
     found: List[Series] = []
     for signal in signals:
         left_text, sep, right_text = signal.partition(_DIFFERENCE)
-        left = _columns_of(names, left_text.strip(), texts)
+        left = _columns_of(result, left_text.strip(), texts)
         if not sep:
-            found.extend(Series(n, result[n].astype(float), result.units.get(n, ""), False)
+            found.extend(Series(n, result[n].astype(float), result.units.get(n, ""), False, _quantity(n))
                          for n in left if not any(s.label == n and not s.difference for s in found))
             continue
-        right = _columns_of(names, right_text.strip(), texts)
+        right = _columns_of(result, right_text.strip(), texts)
         if len(left) != len(right):
             raise UnknownSignal(f"'{signal}': {len(left)} signal(s) minus {len(right)}: "
                                 "a difference needs the same number on both sides")
@@ -99,15 +107,15 @@ def series_of(result: Result, signals: Sequence[str], compare: Optional[Result] 
             if unit_a and unit_b and unit_a != unit_b:
                 raise UnknownSignal(f"'{a} - {b}': {a} is in {unit_a}, {b} in {unit_b}")
             found.append(Series(f"{a} - {b}", result[a].astype(float) - result[b].astype(float),
-                                unit_a or unit_b, True))
+                                unit_a or unit_b, True, f"{_quantity(a)} - {_quantity(b)}"))
     if compare is None:
         return found
     try:
         other = series_of(compare, [s.label for s in found])
     except UnknownSignal as exc:
-        raise UnknownSignal(f"{compare_label or 'compared result'}: {exc}") from None
-    return [Series(f"{s.label} ({compare_label})" if compare_label else s.label,
-                   s.values - _on_times(compare.time, o.values, result.time), s.unit, True)
+        raise UnknownSignal(f"{compare_name}: {exc}") from None
+    return [replace(s, values=s.values - _on_times(compare.time, o.values, result.time), difference=True,
+                    quantity=f"{s.quantity} difference")
             for s, o in zip(found, other)]
 
 
@@ -120,50 +128,70 @@ def _on_times(time: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarra
 
 
 def _scale(unit: str, values: Sequence[np.ndarray]) -> Tuple[float, str]:
-    """A factor and the unit shown, so that the largest magnitude reads between 0.1 and 100
-    (m -> mm, um, nm; a unit without SI prefixes, or an unknown one, stays)."""
-    if not unit or not _PREFIXABLE.match(unit):
-        return 1.0, unit
+    """A factor and the axis's unit text, so that the largest magnitude reads between 0.1 and 100:
+    an SI prefix for a unit that takes one (m -> mm, um, nm: `` [um]``), a power of ten after any
+    other unit and without one (`` (×1e-6)``: a CSV result has no units)."""
+    brackets = f" [{unit}]" if unit else ""
     finite = [np.max(np.abs(v[np.isfinite(v)])) for v in values if np.isfinite(v).any()]
     largest = max(finite, default=0.0)
     if largest == 0.0:
-        return 1.0, unit
-    for factor, prefix in _PREFIXES:
-        if largest >= 0.1 * factor:
-            return 1.0 / factor, prefix + unit
-    return 1.0 / _PREFIXES[-1][0], _PREFIXES[-1][1] + unit
+        return 1.0, brackets
+    factor, prefix = next(((f, p) for f, p in _PREFIXES if largest >= 0.1 * f), _PREFIXES[-1])
+    if factor == 1.0:
+        return 1.0, brackets
+    if unit and _PREFIXABLE.match(unit):
+        return 1.0 / factor, f" [{prefix}{unit}]"
+    return 1.0 / factor, f"{brackets} (×1e{round(math.log10(factor))})"
 
 
 def _styles(members: Sequence[Series]) -> List[Dict[str, object]]:
     """Line styles: elements of several arrays on one axis (``plant.z[i]`` and ``trajectory.r[i]``)
     share a colour per index and a dash pattern per array, so each pair reads as one."""
-    parts = [_ELEMENT.match(curve.label) for curve in members]
-    bases = list(dict.fromkeys(p.group(1) for p in parts if p))
+    parts = [split_element(curve.label) for curve in members]
+    bases = list(dict.fromkeys(p[0] for p in parts if p))
     if any(curve.difference for curve in members) or not all(parts) or len(bases) < 2 or len(bases) > len(_DASHES):
         return [{} for _ in members]
-    indices = list(dict.fromkeys(int(p.group(2)) for p in parts if p))
-    return [{"color": f"C{indices.index(int(p.group(2))) % 10}", "linestyle": _DASHES[bases.index(p.group(1))]}
+    indices = list(dict.fromkeys(p[1] for p in parts if p))
+    return [{"color": f"C{indices.index(p[1]) % 10}", "linestyle": _DASHES[bases.index(p[0])]}
             for p in parts if p]
 
 
 def _axis_label(unit: str, series: Sequence[Series]) -> str:
-    """``plant.z[1] [m]`` for one curve, ``[m]`` or ``difference [um]`` for several."""
-    brackets = f" [{unit}]" if unit else ""
+    """``plant.z[1] [m]`` for one curve; for several, the quantities they show while that is short
+    (``plant.z, trajectory.r [m]``, ``plant.z - trajectory.r [um]``), else ``value [m]`` or
+    ``difference [um]`` (the legend names the curves). ``unit``: the text :func:`_scale` gives."""
     if len(series) == 1:
-        return series[0].label + brackets
-    what = "difference" if all(s.difference for s in series) else ""
-    return (what + brackets).strip()
+        return series[0].label + unit
+    quantities = list(dict.fromkeys(s.quantity or s.label for s in series))
+    named = ", ".join(quantities)
+    if len(quantities) > _LABEL_NAMES or len(named) > _LABEL_LENGTH:
+        named = "difference" if all(s.difference for s in series) else "value"
+    return named + unit
+
+
+def _checked_figure_file(output: str | Path) -> Path:
+    """``output`` when matplotlib writes its format (by the extension), else BadInput listing them."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    output = Path(output)
+    formats = FigureCanvasBase.get_supported_filetypes()
+    suffix = output.suffix.lower()
+    if suffix[1:] not in formats:
+        what = f"unknown format '{suffix}'" if suffix else "no extension"
+        raise BadInput(f"figure file '{output}': {what}; use {', '.join('.' + f for f in formats)}")
+    return output
 
 
 def plot_result(result: str | Path | Result, signals: Sequence[str], output: str | Path,
                 separate: bool = False, title: str = "", compare: str | Path | Result | None = None) -> Path:
     """Plot ``signals`` of ``result`` (a result file or a :class:`Result`) over time into
-    ``output`` (png, pdf, svg); one axis per unit, differences on axes of their own
-    (``separate``: one axis per curve). ``compare``: plot ``result - compare`` for each signal.
-    Raises :class:`UnknownSignal` for a signal that is not there, :class:`~deltafmi.errors.BadInput`
-    for a file that is no result."""
+    ``output`` (.png, .pdf, .svg, ...: matplotlib's formats); one axis per unit, differences on
+    axes of their own (``separate``: one axis per curve). ``compare``: plot ``result - compare``
+    for each signal. Raises :class:`UnknownSignal` for a signal that is not there,
+    :class:`~deltafmi.errors.BadInput` for a figure format matplotlib cannot write or a file
+    that is no result or has no rows."""
+    output = _checked_figure_file(output)
     fig = result_figure(result, signals, separate, title, compare)
-    output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(output, dpi=120)
     return output
@@ -175,17 +203,12 @@ def result_figure(result: str | Path | Result, signals: Sequence[str], separate:
     caller's backend and figures alone)."""
     from matplotlib.figure import Figure
 
-    first = result if isinstance(result, Result) else read_result(result)
-    other = None
-    label = ""
-    if compare is not None:
-        other = compare if isinstance(compare, Result) else read_result(compare)
-        try:
-            series_of(other, signals)
-        except UnknownSignal as exc:
-            raise UnknownSignal(f"{_name(compare, 'the compared result')}: {exc}") from None
-        label = f"{_name(result, 'result')} - {_name(compare, 'compared')}"
-    curves = series_of(first, signals, other, label)
+    first = _rows_of(result)
+    other = None if compare is None else _rows_of(compare)
+    curves = series_of(first, signals, other, _name(compare, "the compared result"))
+    label = f"{_name(result, 'result')} - {_name(compare, 'compared')}" if compare is not None else ""
+    if label:
+        curves = [replace(curve, label=f"{curve.label} ({label})") for curve in curves]
     groups: Dict[object, List[Series]] = {}
     for i, curve in enumerate(curves):
         groups.setdefault(i if separate else (curve.unit, curve.difference), []).append(curve)
@@ -198,18 +221,27 @@ def result_figure(result: str | Path | Result, signals: Sequence[str], separate:
         for curve, style in zip(members, _styles(members)):
             ax.plot(time, curve.values * factor, label=curve.label, **style)
         ax.set_ylabel(_axis_label(unit, members))
+        ax.ticklabel_format(style="plain", useOffset=False)  # the scale is in the label, never beside the axis
         ax.grid(True, alpha=0.3)
         if len(members) > 1 or curve.difference and compare is not None:
             ax.legend(loc="best", fontsize="small")
     axes[-1, 0].set_xlabel("time [s]")
-    fig.suptitle(title or (label if compare is not None else _name(result, "result")))
+    fig.suptitle(title or label or _name(result, "result"))
     fig.align_ylabels(axes[:, 0])
     fig.tight_layout()
     return fig
 
 
-def _name(result: str | Path | Result, default: str) -> str:
-    return default if isinstance(result, Result) else Path(result).name
+def _rows_of(result: str | Path | Result) -> Result:
+    """``result``, read when a file; BadInput when it has no rows (nothing to draw)."""
+    loaded = result if isinstance(result, Result) else read_result(result)
+    if not len(loaded):
+        raise BadInput(f"{'the result' if isinstance(result, Result) else result} has no rows")
+    return loaded
 
 
-__all__ = ["plot_result", "result_figure", "select_columns", "series_of", "Series", "UnknownSignal"]
+def _name(result: str | Path | Result | None, default: str) -> str:
+    return default if result is None or isinstance(result, Result) else Path(result).name
+
+
+__all__ = ["plot_result", "result_figure", "series_of", "Series", "UnknownSignal"]

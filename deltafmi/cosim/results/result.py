@@ -8,7 +8,6 @@ Enumeration as int64, Boolean as bool, String as str objects.
 """
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence
 
@@ -16,11 +15,10 @@ import numpy as np
 
 from deltafmi.errors import BadInput, did_you_mean
 
-from .writers import _Rows, _column, writer_for
+from ..scenario.modelinfo import split_element
+from .writers import RowQueue, typed_column, writer_for
 
 __all__ = ["Result", "ResultRecorder", "read_result"]
-
-_ELEMENT = re.compile(r"(.*)\[(\d+)\]\Z")
 
 
 class Result:
@@ -63,13 +61,13 @@ class Result:
         column = self._columns.get(name)
         if column is not None:
             return column
-        elements = self._elements(name)
+        elements = self.elements(name)
         if elements:
             return np.column_stack([self._columns[e] for e in elements])
         raise KeyError(f"no variable '{name}' in the result{did_you_mean(name, self._columns)}")
 
     def __contains__(self, name: object) -> bool:
-        return isinstance(name, str) and (name in self._columns or bool(self._elements(name)))
+        return isinstance(name, str) and (name in self._columns or bool(self.elements(name)))
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._columns)
@@ -82,13 +80,14 @@ class Result:
         span = f", t = {self.time[0]:g} .. {self.time[-1]:g} s" if len(self) else ""
         return f"<Result: {len(self)} rows x {len(self.names)} variables{span}>"
 
-    def _elements(self, name: str) -> List[str]:
-        """``plant.z`` -> ``plant.z[1]``, ``plant.z[2]``, ... (index order) when recorded."""
+    def elements(self, name: str) -> List[str]:
+        """The recorded elements of the array ``name``: ``plant.z`` -> ``plant.z[1]``,
+        ``plant.z[2]``, ... in index order (``[]`` when none is recorded)."""
         found = []
         for column in self._columns:
-            match = _ELEMENT.match(column)
-            if match and match.group(1) == name:
-                found.append((int(match.group(2)), column))
+            element = split_element(column)
+            if element and element[0] == name:
+                found.append((element[1], column))
         return [column for _, column in sorted(found)]
 
     def match(self, pattern: str) -> List[str]:
@@ -103,7 +102,7 @@ class Result:
         """The unit of ``name`` (or of the elements of an array name); ``""`` when unknown."""
         if name in self.units:
             return self.units[name]
-        elements = self._elements(name)
+        elements = self.elements(name)
         return self.units.get(elements[0], "") if elements else ""
 
     # --- conversions --------------------------------------------------------------------------
@@ -134,13 +133,16 @@ class Result:
         writer_class = writer_for(path)
         names = self.names
         kinds = [self.kinds.get(name, _kind_of(self._columns[name])) for name in names]
+        # Booleans as 0/1, as a run records them (the master's buses hold FMI's fmi2Boolean)
+        columns = [self._columns[n].astype(np.int64) if kind == "Boolean" else self._columns[n]
+                   for n, kind in zip(names, kinds)]
         writer = writer_class(path, names, kinds=kinds, units=[self.units.get(n, "") for n in names])
         try:
             if "String" in kinds:
                 for i, t in enumerate(self.time):
-                    writer.write(float(t), np.array([self._columns[n][i] for n in names], dtype=object))
+                    writer.write(float(t), np.array([column[i] for column in columns], dtype=object))
             elif len(self):
-                writer.write_rows(np.column_stack([self.time, *[self._columns[n].astype(float) for n in names]]))
+                writer.write_rows(np.column_stack([self.time, *[column.astype(float) for column in columns]]))
         finally:
             writer.close()
         return path
@@ -168,7 +170,7 @@ class ResultRecorder:
         self.names, self.kinds, self.units = list(names), list(kinds), list(units)
         self.file_writer = file_writer
         self.after_rows = after_rows
-        self._rows = _Rows(len(self.names) + 1, self.kinds, chunk)
+        self._rows = RowQueue(len(self.names) + 1, self.kinds, chunk)
         self._blocks: List[np.ndarray] = []
         self.rows_written = 0
 
@@ -222,7 +224,7 @@ class ResultRecorder:
                 else np.empty((0, width), dtype=self._rows.block.dtype))
         columns = {"time": data[:, 0].astype(float)}
         for i, (name, kind) in enumerate(zip(self.names, self.kinds), start=1):
-            columns[name] = _column(data[:, i], kind)
+            columns[name] = typed_column(data[:, i], kind)
             if kind == "String":
                 columns[name] = columns[name].astype(object)
         units = {"time": "s", **dict(zip(self.names, self.units))}

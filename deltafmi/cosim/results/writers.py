@@ -62,7 +62,7 @@ def writer_for(path: str | Path) -> Callable[..., Any]:
     return writers[suffix]
 
 
-class _Rows:
+class RowQueue:
     """Rows queued in blocks: floats, or objects when a String variable is recorded."""
 
     def __init__(self, width: int, kinds: Sequence[str], chunk: int) -> None:
@@ -84,7 +84,7 @@ class _Rows:
         return rows
 
 
-def _column(values: np.ndarray, kind: str) -> np.ndarray:
+def typed_column(values: np.ndarray, kind: str) -> np.ndarray:
     """One column with its FMI type's NumPy type."""
     if kind == "String":
         return values.astype(str)
@@ -194,7 +194,7 @@ class ParquetWriter:
         self._groups = 0
         self._sink.reserve(self._reserve_size())
         self._file: Any = pq.ParquetWriter(self._sink, self._schema)
-        self._rows = _Rows(len(names) + 1, self._kinds, chunk)
+        self._rows = RowQueue(len(names) + 1, self._kinds, chunk)
         self._last_flush = _time.monotonic()
         self._last_time: Optional[float] = None
         self._failed: Optional[ResultWriteError] = None
@@ -232,7 +232,7 @@ class ParquetWriter:
         """Write the queued rows as one row group (nothing after a failed write)."""
         if self._rows.n and self._file is not None and self._failed is None:
             rows = self._rows.take()
-            arrays = [self._pa.array(_column(rows[:, i], kind), type=field.type)
+            arrays = [self._pa.array(typed_column(rows[:, i], kind), type=field.type)
                       for i, (kind, field) in enumerate(zip(self._kinds, self._schema))]
             before = self._sink.position
             try:
@@ -322,7 +322,7 @@ class MatWriter:
         self._names = list(names)
         self._kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
         self._units = list(units) if units is not None else [""] * len(names)
-        self._rows = _Rows(len(names) + 1, self._kinds, chunk)
+        self._rows = RowQueue(len(names) + 1, self._kinds, chunk)
         self._blocks: List[np.ndarray] = []
         self._closed = False
         self.rows_written = 0

@@ -50,4 +50,4 @@ def fmu_scenario(path: str | Path) -> Scenario:
     name = name if re.match(r"[A-Za-z_]", name) else f"_{name}"
     component = ComponentSpec(name=name, line=None, fmu=str(path.resolve()), solver=solver)
     return Scenario(path, Experiment(start, stop, step), MasterSettings(), (component,), (), (),
-                    ResultSettings(Path(path.stem + ".csv")), description=md.description or "")
+                    ResultSettings(Path(path.stem + ".csv")), description=md.description or "", single_fmu=True)

@@ -15,7 +15,14 @@ from fmpy.model_description import ModelDescription, ModelVariable
 
 _RANGE = re.compile(r"^(?P<base>.+)\[(?P<lo>\d+):(?P<hi>\d+)\]$")
 _ALL = re.compile(r"^(?P<base>.+)\[\*\]$")
-_ELEMENT = re.compile(r"^(?P<base>.+)\[(?P<i>\d+)\]$")
+_ELEMENT = re.compile(r"(?P<base>.+)\[(?P<i>\d+)\]")
+
+
+def split_element(name: str) -> Optional[Tuple[str, int]]:
+    """``plant.z[3]`` -> ``("plant.z", 3)``: an element of a scalarized 1-D array; None for a
+    name that is none (``plant.fn``, ``plant.z[1:3]``)."""
+    m = _ELEMENT.fullmatch(name)
+    return (m["base"], int(m["i"])) if m else None
 
 
 class UnknownVariable(LookupError):
@@ -44,9 +51,9 @@ class ModelInfo:
         """Scalarized 1-D arrays: base name -> element names ordered by index."""
         found: Dict[str, Dict[int, str]] = {}
         for name in self.variables:
-            m = _ELEMENT.match(name)
-            if m:
-                found.setdefault(m["base"], {})[int(m["i"])] = name
+            element = split_element(name)
+            if element:
+                found.setdefault(element[0], {})[element[1]] = name
         return {base: [els[i] for i in sorted(els)] for base, els in found.items()}
 
     def expand(self, reference: str) -> List[str]:

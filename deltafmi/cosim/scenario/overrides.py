@@ -24,13 +24,16 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import replace
-from typing import Any, List, Mapping, Optional, Tuple
+from typing import Any, List, Mapping, Optional, Sequence, Tuple
 
 from deltafmi.errors import BadInput, did_you_mean
 
-from .spec import ComponentSpec, Parameter, Scenario
+from .spec import ComponentSpec, OutputSpec, Parameter, Scenario
 
-__all__ = ["Text", "parse_assignment", "with_overrides", "value_items", "from_text"]
+__all__ = ["ALGORITHMS", "Text", "parse_assignment", "with_overrides", "split_name", "value_items", "from_text"]
+
+#: the master's algorithms (``master.algorithm``, ``--algorithm``)
+ALGORITHMS = ("gauss-seidel", "jacobi")
 
 _NO_VALUES: Mapping[str, Any] = {}
 
@@ -53,39 +56,55 @@ def parse_assignment(text: str) -> Tuple[str, Text]:
 def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *,
                    stop: Optional[float] = None, step: Optional[float] = None,
                    tolerance: Optional[float] = None, allow_nan: Optional[bool] = None,
-                   origin: str = "--set") -> Scenario:
+                   algorithm: Optional[str] = None, record: Optional[Sequence[str]] = None,
+                   origin: str = "--set", cli: bool = False) -> Scenario:
     """``scenario`` with start values (``{"plant.z0": [0.1, 0, -1.0], "controller.pole": 10}``), the
-    stop time, the communication step, every component's relative tolerance and the NaN check
-    (``allow_nan``) replaced; None leaves a setting as it is.
+    stop time, the communication step, every component's relative tolerance, the NaN check
+    (``allow_nan``), the master's ``algorithm`` and the recorded variables replaced; None leaves
+    a setting as it is.
 
     A value replaces the scenario's value of the same name, or is set after it (``plant.z0[3]``
     after the YAML's ``z0``). In a one-component scenario a name may leave out the component.
-    ``origin`` names the values in diagnostics (``"--set plant.z0"``). Raises :class:`BadInput`
-    (exit code 2) for a stop, step or tolerance that is not a finite positive number, or a name of
-    no component; variables and types are checked when the scenario is resolved.
+    ``record``: patterns of the variables to record (``"plant.z[*]"``, ``"Oscillator.*"``),
+    replacing the scenario's ``outputs:``. ``origin`` names the values in diagnostics (``"--set
+    plant.z0"``); ``cli``: messages name the command-line options (``--stop``, ``--record``).
+    Raises :class:`BadInput` (exit code 2) for a stop, step or tolerance that is not a finite
+    positive number, an unknown algorithm, or a name of no component; variables, types and
+    patterns are checked when the scenario is resolved.
     """
     experiment = scenario.experiment
     if stop is not None:
-        stop = _finite(stop, "stop time", "stop")
+        stop = _finite(stop, "stop time", "--stop" if cli else "")
         if stop <= experiment.start:
             raise BadInput(f"stop time {stop:g} s is not after the start time {experiment.start:g} s")
         experiment = replace(experiment, stop=stop)
     if step is not None:
-        step = _finite(step, "communication step", "step")
+        step = _finite(step, "communication step", "--step" if cli else "")
         if step <= 0:
             raise BadInput(f"communication step {step:g} s: must be greater than 0")
         experiment = replace(experiment, step=step)
     if tolerance is not None:
-        tolerance = _finite(tolerance, "tolerance", "tolerance")
+        tolerance = _finite(tolerance, "tolerance", "--tolerance" if cli else "")
         if tolerance <= 0:
             raise BadInput(f"tolerance {tolerance:g}: a relative tolerance must be greater than 0")
     master = scenario.master if allow_nan is None else replace(scenario.master, allow_nan=bool(allow_nan))
+    if algorithm is not None:
+        if algorithm not in ALGORITHMS:
+            raise BadInput(f"algorithm {algorithm!r}: use {' or '.join(map(repr, ALGORITHMS))}"
+                           f"{did_you_mean(str(algorithm), ALGORITHMS)}")
+        master = replace(master, algorithm=algorithm)
+    outputs = scenario.outputs
+    if record is not None:
+        if isinstance(record, str):
+            record = [record]  # one pattern, not its letters
+        outputs = tuple(OutputSpec(str(pattern), None, f"--record {pattern}" if cli else f"record {pattern!r}")
+                        for pattern in record)
     added: dict = {spec.name: [] for spec in scenario.components}
     for name, value in values.items():
-        component, variable = _split(scenario, str(name), origin)
+        component, variable = split_name(scenario, str(name), origin)
         added[component].append(Parameter(variable, _plain(value), None, f"{origin} {name}"))
     components = tuple(_component(spec, added[spec.name], tolerance) for spec in scenario.components)
-    return replace(scenario, experiment=experiment, master=master, components=components)
+    return replace(scenario, experiment=experiment, master=master, components=components, outputs=outputs)
 
 
 def value_items(value: Any, count: int) -> List[Any]:
@@ -128,6 +147,7 @@ def from_text(text: str, kind: str) -> Any:
 
 
 def _finite(value: Any, what: str, option: str) -> float:
+    """``value`` as a finite float; ``option``: the command-line option to name, if any."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         try:
             value = float(value)
@@ -135,12 +155,13 @@ def _finite(value: Any, what: str, option: str) -> float:
             raise BadInput(f"{what} {value!r}: not a number") from None
     value = float(value)
     if not math.isfinite(value):
-        raise BadInput(f"{what} {value!r}: must be a finite number (--{option})")
+        raise BadInput(f"{what} {value!r}: must be a finite number" + (f" ({option})" if option else ""))
     return value
 
 
-def _split(scenario: Scenario, name: str, origin: str) -> Tuple[str, str]:
-    """``comp.var`` -> (comp, var); in a one-component scenario also a bare ``var``."""
+def split_name(scenario: Scenario, name: str, origin: str) -> Tuple[str, str]:
+    """``comp.var`` -> (comp, var); in a one-component scenario also a bare ``var``;
+    :class:`BadInput` naming ``origin`` for a name of no component."""
     names = [spec.name for spec in scenario.components]
     component, dot, variable = name.partition(".")
     if dot and component in names and variable:

@@ -7,6 +7,7 @@ direct feedthrough), parameters that cannot be set, record patterns that match n
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,7 +16,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 
 from .graph import block_stepping_order, initialization_order, loop_groups, tear
-from .modelinfo import ModelInfo, UnknownVariable, model_info
+from .modelinfo import ModelInfo, UnknownVariable, model_info, split_element
 from .overrides import Text, from_text, value_items
 from .spec import ComponentSpec, ConnectionSpec, Scenario
 
@@ -146,7 +147,8 @@ class _Checker:
             if component is not None:
                 self.components[spec.name] = component
         links = self._links()
-        self._unconnected(links)
+        if not self.scenario.single_fmu:
+            self._unconnected(links)
         feedthrough = {name: c.info.feedthrough for name, c in self.components.items()}
         pairs = [(l.source.ref, l.target.ref) for l in links]
         initial_feedthrough = {name: c.info.initial_feedthrough for name, c in self.components.items()}
@@ -224,7 +226,7 @@ class _Checker:
                                   f"{'ModelExchange' if interface == 'ME' else 'CoSimulation'} interface "
                                   f"(it has {', '.join(offered) or 'none'})")
             return None
-        from deltafmi.export.requirements import binary_problem
+        from .fmu_checks import binary_problem
         missing = binary_problem(path, [info.model_identifier(interface)])
         if missing:
             self.error(spec.line, f"component '{spec.name}': FMU '{path.name}' cannot run here: {missing}")
@@ -233,7 +235,7 @@ class _Checker:
             from fmpy.validation import validate_fmu
             for problem in validate_fmu(str(path)):
                 self.error(spec.line, f"component '{spec.name}': FMU validation: {problem.strip()}")
-            from deltafmi.export.requirements import guid_problem
+            from .fmu_checks import guid_problem
             mismatch = guid_problem(path, info.md.guid)
             if mismatch:
                 self.error(spec.line, f"component '{spec.name}': FMU '{path.name}': {mismatch}")
@@ -316,6 +318,10 @@ class _Checker:
                 elif not _value_fits(kind, value):
                     self.error(param.line, f"{where}: type mismatch: '{name}' is {kind} but the value "
                                            f"{value!r} is {type(value).__name__}", at)
+                    break
+                outside = _outside_range(var, kind, value)
+                if outside:
+                    self.error(param.line, f"{where}: '{name}' = {value!r} {outside}", at)
                     break
                 values.append((_port(component, name), value))
         return values
@@ -455,7 +461,7 @@ class _Checker:
                     continue  # its component's error is reported already
                 candidates = [f"{c.name}.{n}" for c, n in every]
                 self.error(spec.line, f"output pattern '{spec.pattern}' matches no variable"
-                                      f"{did_you_mean(spec.pattern, candidates)}")
+                                      f"{did_you_mean(spec.pattern, candidates)}", spec.origin)
                 continue
             for component, name in hits:
                 port = _port(component, name)
@@ -482,15 +488,15 @@ def _ranges(names: Sequence[str]) -> List[str]:
     out: List[str] = []
     run: Optional[Tuple[str, int, int]] = None  # (array name, first index, last index)
     for name in [*names, ""]:
-        match = re.fullmatch(r"(.+)\[(\d+)\]", name)
-        if match and run and run[0] == match[1] and int(match[2]) == run[2] + 1:
+        element = split_element(name)
+        if element and run and run[0] == element[0] and element[1] == run[2] + 1:
             run = (run[0], run[1], run[2] + 1)
             continue
         if run:
             out.append(f"{run[0]}[{run[1]}]" if run[1] == run[2] else f"{run[0]}[{run[1]}:{run[2]}]")
             run = None
-        if match:
-            run = (match[1], int(match[2]), int(match[2]))
+        if element:
+            run = (element[0], element[1], element[1])
         elif name:
             out.append(name)
     return out
@@ -514,6 +520,28 @@ def _value_fits(kind: str, value: Any) -> bool:
     if kind == "Boolean":
         return isinstance(value, bool)
     return isinstance(value, str)
+
+
+def _outside_range(var: Any, kind: str, value: Any) -> str:
+    """Why a Real or Integer start value is not one the FMU takes (not finite, or outside the
+    min/max its modelDescription declares, declared type included), else ``""``."""
+    if kind not in ("Real", "Integer"):
+        return ""
+    if kind == "Real" and not math.isfinite(value):
+        return "is not a finite number"
+    declared = getattr(var, "declaredType", None)
+    low, high = (_bound(var, declared, "min", -math.inf), _bound(var, declared, "max", math.inf))
+    if low <= value <= high:
+        return ""
+    return f"is outside its declared range [{low:g}, {high:g}]"
+
+
+def _bound(var: Any, declared: Any, which: str, default: float) -> float:
+    for source in (var, declared):
+        bound = getattr(source, which, None)
+        if bound is not None:
+            return float(bound)
+    return default
 
 
 def _article(causality: str) -> str:

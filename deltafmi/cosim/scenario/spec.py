@@ -114,6 +114,8 @@ class OutputSpec:
 
     pattern: str
     line: Optional[int]
+    #: where the pattern comes from when not the scenario file (``"--record"``)
+    origin: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -137,6 +139,9 @@ class Scenario:
     outputs: Tuple[OutputSpec, ...]
     result: ResultSettings
     description: str = ""
+    #: one FMU run on its own (``deltafmi run Model.fmu``): its inputs have nothing to connect
+    #: to, so they stay at their start values without a warning
+    single_fmu: bool = False
 
     @property
     def directory(self) -> Path:

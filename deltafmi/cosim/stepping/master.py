@@ -160,6 +160,9 @@ class Master:
             unit.instantiate(self.start, self.stop)
             unit.apply_start_values()
         self._wire()
+        self._initialize()
+        # the result file is opened only now, with a first row to write: a run that fails
+        # before leaves an earlier result file as it was
         recorded = self.system.recorded
         names, kinds = [p.ref for p in recorded], [p.type for p in recorded]
         if self.writer_class is not None:
@@ -167,7 +170,6 @@ class Master:
         else:
             self.writer = self._writer_for_file(self.result_path, names, kinds=kinds,
                                                 units=[p.unit for p in recorded])
-        self._initialize()
         self._record(self.start)
 
     def close(self) -> None:
@@ -198,16 +200,20 @@ class Master:
 
     def _interrupted(self) -> Interrupted:
         """The run was stopped by a signal (results flushed by :meth:`close`)."""
-        kept = ("no results written" if self.recorded_until is None else
+        kept = (self._nothing_kept() if self.recorded_until is None else
                 f"results up to {self.recorded_until:.9g} in {self.result_path}")
         return Interrupted(f"interrupted at t = {self.time:.9g} s ({kept})",
                            self.stop_signals.received or signal.SIGINT)
 
     def _partial_note(self) -> str:
         if self.writer is None:
-            return ""
+            return f" ({self._nothing_kept()})" if self.result_path.exists() else ""
         self.writer.flush()
         return f" (results up to the failure in {self.result_path})"
+
+    def _nothing_kept(self) -> str:
+        existing = self.result_path.exists() and self.writer is None
+        return f"no rows computed; {self.result_path} left as it was" if existing else "no rows computed"
 
     # --- set-up -------------------------------------------------------------------------------
     def _load(self) -> None:
@@ -393,6 +399,7 @@ class Master:
             self.steps = done
             self.time = self.step_end = grid.start + done * grid.h if done < grid.n_steps else grid.stop
         if why in (RAN, ROWS_FULL):
+            self._check_bus(self.time)  # the rows held the recorded variables, this the connected ones
             return done
         # step `done` stopped inside: the state the Python loop would have there
         t = self.time = grid.start + done * grid.h
@@ -426,8 +433,13 @@ class Master:
     def _record(self, t: float) -> None:
         self.writer.write(t, self.sampler.sample())
         self.recorded_until = t
+        self._check_bus(t)
+
+    def _check_bus(self, t: float) -> None:
+        """Stop the run when a Real on the bus (recorded or connected, as of ``t``) is NaN or
+        infinite, unless allowed."""
         if self.check_finite:
-            bus = self.buses["Real"]  # the recorded Reals and every connected one, as of t
+            bus = self.buses["Real"]
             # x * 0 is NaN for NaN and inf, else 0: one dot product, cheaper than isfinite(bus).all()
             if not math.isfinite(np.dot(bus, self._zeros)):
                 self._not_finite(t, [self._real_names[i] for i in np.flatnonzero(~np.isfinite(bus))],

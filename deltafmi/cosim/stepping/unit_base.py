@@ -20,7 +20,7 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Boolean, fmi2Integer, fmi2Real,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Boolean, fmi2Error, fmi2Integer, fmi2Real,
                        fmi2String, fmi2ValueReference)
 
 from ..scenario.resolve import Component, Port
@@ -226,6 +226,10 @@ class Unit:
         self.outputs: List[Union[_Outputs, _StringOutputs]] = []
         self.step_multiple = component.spec.step_multiple
         self.instantiated = False
+        #: out of initialization mode (stepping, event or continuous-time mode): fmi2Terminate allowed
+        self.initialized = False
+        #: a call returned fmi2Error or fmi2Fatal: the FMU is in its error state, only free it
+        self.failed = False
 
     # --- life cycle ---------------------------------------------------------------------------
     def instantiate(self, start: float, stop: float) -> None:
@@ -235,6 +239,7 @@ class Unit:
         :class:`FmuFailure` quoting what the FMU logged while it tried.
         """
         self.messages.clear()
+        self.initialized = self.failed = False
         try:
             self.fmu.instantiate(callbacks=self._callbacks, loggingOn=self.logging_on)
         except FMICallException as exc:
@@ -258,14 +263,17 @@ class Unit:
     def exit_initialization(self, time: float) -> None:
         """fmi2ExitInitializationMode (the ME unit continues with its event iteration)."""
         self.call(self.fmu.exitInitializationMode)
+        self.initialized = True
 
     def close(self) -> None:
-        """fmi2Terminate and free the instance; never raises."""
+        """fmi2Terminate where the FMI 2.0 state machine allows it (after initialization, no
+        error returned), then free the instance; never raises."""
         if self.instantiated:
-            try:
-                self.fmu.terminate()
-            except Exception:  # noqa: BLE001 - closing after a failure must not hide it
-                pass
+            if self.initialized and not self.failed:
+                try:
+                    self.fmu.terminate()
+                except Exception:  # noqa: BLE001 - closing after a failure must not hide it
+                    pass
             try:
                 self.fmu.freeInstance()
             except Exception:  # noqa: BLE001
@@ -355,6 +363,8 @@ class Unit:
 
     def failure(self, exc: BaseException) -> FmuFailure:
         """A :class:`FmuFailure` for ``exc`` that quotes the FMU's last log message."""
+        if getattr(exc, "status", fmi2Error) >= fmi2Error:
+            self.failed = True  # the FMU is in its error (or fatal) state now
         last = ""
         for status, _, message in reversed(self.messages):
             if status >= 2:

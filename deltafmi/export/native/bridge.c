@@ -171,14 +171,26 @@ static void report_exception(DfmiLogFn log, void *env, const char *context) {
     py.PyErr_Fetch(&type, &value, &tb);
     py.PyErr_NormalizeException(&type, &value, &tb);
     const char *text = NULL;
-    PyObject *joined = NULL, *lines = NULL, *traceback = NULL;
+    PyObject *joined = NULL, *lines = NULL, *traceback = NULL, *reported = NULL;
     PyObject *kind = type ? py.PyObject_GetAttrString(type, "__name__") : NULL;
     const char *kind_name = kind ? py.PyUnicode_AsUTF8AndSize(kind, NULL) : NULL;
     int explained = kind_name && !strcmp(kind_name, "FmuStartError"); /* a message for the user, no traceback */
     if (explained) {
         joined = py.PyObject_Str(value);
         if (joined) text = py.PyUnicode_AsUTF8AndSize(joined, NULL);
-    } else if ((traceback = py.PyImport_ImportModule("traceback"))) {
+    } else {
+        /* the runtime's report (component/fmu_logging.exception_report: the model's file, line and
+         * function first, then the traceback), else the bare traceback */
+        PyObject *registry = py.PyImport_ImportModule("_deltafmi_fmu_registry");
+        PyObject *report = registry ? py.PyObject_GetAttrString(registry, "exception_report_v1") : NULL;
+        if (report) reported = py.PyObject_CallFunction(report, "sOOO", context, type ? type : Py_None,
+                                                     value ? value : Py_None, tb ? tb : Py_None);
+        if (reported) text = py.PyUnicode_AsUTF8AndSize(reported, NULL);
+        if (!text) py.PyErr_Clear();
+        Py_XDECREF(report);
+        Py_XDECREF(registry);
+    }
+    if (!explained && !text && (traceback = py.PyImport_ImportModule("traceback"))) {
         lines = py.PyObject_CallMethod(traceback, "format_exception", "OOO", type ? type : Py_None,
                                     value ? value : Py_None, tb ? tb : Py_None);
         PyObject *empty = py.PyUnicode_FromString("");
@@ -188,10 +200,12 @@ static void report_exception(DfmiLogFn log, void *env, const char *context) {
     }
     char buffer[8192];
     if (explained && text) snprintf(buffer, sizeof buffer, "%s: %s", context, text);
+    else if (reported && text) snprintf(buffer, sizeof buffer, "%s", text);
     else snprintf(buffer, sizeof buffer, "%s: Python exception\n%s", context, text ? text : "(traceback unavailable)");
     py.PyErr_Clear();
     if (log) log(env, 3, "logStatusError", buffer);
     Py_XDECREF(joined);
+    Py_XDECREF(reported);
     Py_XDECREF(lines);
     Py_XDECREF(traceback);
     Py_XDECREF(kind);
