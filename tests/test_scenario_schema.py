@@ -116,6 +116,14 @@ def test_yaml_syntax_error_has_line(tmp_path):
     assert f"{path}:" in result.output and "YAML syntax error" in result.output
 
 
+def test_a_key_without_its_colon_is_pointed_at(tmp_path):
+    """YAML reads `stop 1.0` as text running on into the next key and fails only there: the
+    message names the line that lacks its ':'."""
+    path, result = validate(tmp_path, "experiment:\n  stop 1.0\n  step: 0.01\n")
+    expect_error(result, f"{path}:3", "YAML syntax error: mapping values are not allowed here "
+                                      "(is the ':' missing on line 2, 'stop 1.0'?)")
+
+
 def test_duplicate_key_is_an_error(tmp_path):
     path, result = validate(tmp_path, GOOD + "  osc: {fmu: other.fmu}\n")
     expect_error(result, f"{path}:6", "duplicate key 'osc'")

@@ -46,6 +46,16 @@ class LineMap:
         return self.key_lines.get(tuple(path)) or self.line(path)
 
 
+def _missing_colon(lines: list, line: int) -> str:
+    """A hint when the key line above ``line`` (1-based) lacks its ':': YAML reads it as text
+    running on into ``line`` and notices only there."""
+    previous = next((n for n in range(line - 1, 0, -1) if lines[n - 1].strip() and
+                     not lines[n - 1].lstrip().startswith("#")), None)
+    if previous is None or ":" in lines[previous - 1]:
+        return ""
+    return f" (is the ':' missing on line {previous}, '{lines[previous - 1].strip()}'?)"
+
+
 class YamlSyntaxError(ValueError):
     """The text is not YAML (or repeats a key); ``line`` is 1-based."""
 
@@ -63,6 +73,8 @@ def load_yaml(text: str) -> Tuple[Any, LineMap]:
         line = mark.line + 1 if mark is not None else None
         hint = (" (inside {...} or [...], quote references that contain brackets: 'plant.y[1:3]')"
                 if "'['" in str(exc.problem) or "']'" in str(exc.problem) else "")
+        if line is not None and "mapping values are not allowed" in str(exc.problem):
+            hint = _missing_colon(text.splitlines(), line) or hint
         raise YamlSyntaxError(f"YAML syntax error: {exc.problem or exc}{hint}", line) from None
     lines = LineMap()
     if node is None:
