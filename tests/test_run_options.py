@@ -119,6 +119,30 @@ def test_tolerance_reaches_the_me_solver(fmus, tmp_path):
     assert errors["1e-3"] > 100 * errors["1e-9"]
 
 
+def test_the_scenarios_tolerance_is_each_components_unless_it_gives_its_own(fmus, tmp_path):
+    """experiment.tolerance (the name --tolerance and simulate(tolerance=) use) sets the rtol of
+    the components without solver.rtol; a component's own rtol wins; --tolerance sets them all."""
+    def error(scenario: Path, *args: str) -> dict:
+        out = tmp_path / "tol.csv"
+        result = run(scenario, "-o", out, "-q", *args)
+        assert result.exit_code == 0, result.output
+        c = columns(out)
+        regular = np.diff(c["time"], append=np.inf) > 0  # leave out the rows before an event
+        x, _, _ = solution(c["time"][regular])
+        return {name: np.max(np.abs(c[f"{name}.x"][regular] - x)) for name in ("a", "b")}
+
+    scenario = tmp_path / "two.yaml"
+    scenario.write_text(f"experiment: {{stop: 0.3, step: 0.01, tolerance: 1.0e-3}}\n"  # before the first bounce
+                        f"components:\n  a: {{fmu: {fmus['osc']}, interface: ME}}\n"
+                        f"  b: {{fmu: {fmus['osc']}, interface: ME, solver: {{rtol: 1.0e-9}}}}\n"
+                        "outputs: [a.x, b.x]\n")
+    loose_a = error(scenario)
+    assert loose_a["b"] < 1e-6 < loose_a["a"]  # b keeps its own rtol, a takes the scenario's
+    tight = error(scenario, "--tolerance", "1e-9")
+    assert max(tight.values()) < 1e-6
+    assert load_scenario(scenario).experiment.tolerance == 1e-3
+
+
 @pytest.mark.parametrize("args, message", [
     (["--step", "0"], "communication step 0 s: must be greater than 0"),
     (["--step", "-0.01"], "communication step -0.01 s: must be greater than 0"),

@@ -13,8 +13,8 @@ Values are Python numbers, bools, strings or lists of them (a numpy array is a l
 (``plant.z0=0.1,0,-1.0``); one element is ``plant.z0[3]=-1.05``.
 
 The tolerance rule: a component's relative tolerance is its ``solver: {rtol: ...}``, else the
-FMU's default experiment tolerance (ME: else 1e-6; CS: the FMU's own choice).
-``tolerance=`` replaces it for every component: an ME component's CVODE ``rtol`` and the
+scenario's ``experiment: {tolerance: ...}``, else the FMU's default experiment tolerance (ME: else
+1e-6; CS: the FMU's own choice). ``tolerance=`` (``--tolerance``) replaces it for every component: an ME component's CVODE ``rtol`` and the
 tolerance a CS component gets in ``fmi2SetupExperiment``. ``atol`` given in the YAML stays;
 otherwise it follows rtol (rtol x the states' nominals). The adaptive master's
 ``master.adaptive.tolerance`` and ``master.loops.tolerance`` are other tolerances and stay.
@@ -87,6 +87,7 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
         tolerance = _finite(tolerance, "tolerance", "--tolerance" if cli else "")
         if tolerance <= 0:
             raise BadInput(f"tolerance {tolerance:g}: a relative tolerance must be greater than 0")
+        experiment = replace(experiment, tolerance=tolerance)
     master = scenario.master if allow_nan is None else replace(scenario.master, allow_nan=bool(allow_nan))
     if algorithm is not None:
         if algorithm not in ALGORITHMS:

@@ -22,11 +22,13 @@ from .yaml_lines import LineMap
 
 @dataclass(frozen=True)
 class Experiment:
-    """Time span and communication step [s]."""
+    """Time span and communication step [s]; ``tolerance``: the relative tolerance of every
+    component that gives no ``solver.rtol`` of its own (None: each FMU's default)."""
 
     start: float
     stop: float
     step: float
+    tolerance: Optional[float] = None
 
 
 @dataclass(frozen=True)
@@ -229,7 +231,10 @@ def _number(value: Any) -> bool:
 
 def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
     exp = data["experiment"]
-    experiment = Experiment(float(exp.get("start", 0.0)), float(exp["stop"]), float(exp["step"]))
+    tolerance = float(exp["tolerance"]) if "tolerance" in exp else None
+    experiment = Experiment(float(exp.get("start", 0.0)), float(exp["stop"]), float(exp["step"]), tolerance)
+    # the scenario's tolerance is each component's rtol unless it gives its own
+    rtol = {} if tolerance is None else {"rtol": tolerance}
     master_data = data.get("master") or {}
     adaptive = Adaptive(**master_data.get("adaptive", {}))
     master = MasterSettings(master_data.get("algorithm", "gauss-seidel"), adaptive,
@@ -243,7 +248,7 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
             interface=spec.get("interface"),
             parameters=tuple(Parameter(k, v, lines.key_line(("components", name, "parameters", k)))
                              for k, v in (spec.get("parameters") or {}).items()),
-            solver=dict(spec.get("solver") or {}),
+            solver={**rtol, **(spec.get("solver") or {})},
             step_multiple=int(spec.get("step_multiple", 1)),
         )
         for name, spec in data["components"].items())
