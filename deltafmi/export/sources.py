@@ -9,6 +9,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -82,7 +83,12 @@ def module_component(reference: str) -> ComponentSource:
     path = inspect.getsourcefile(cls)
     if path is None:
         raise ComponentSourceError(f"'{reference}': the source file of {class_name} is not available")
-    return ComponentSource(Path(path), cls.__name__)
+    defining = sys.modules[cls.__module__]
+    others = [obj for obj in vars(defining).values() if isinstance(obj, type) and issubclass(obj, Component)
+              and obj.__module__ == cls.__module__ and obj is not cls]
+    # the class is named only where its file defines several: the same FMU (and cache entry) as
+    # the file named alone, or a copy of it (`deltafmi examples copy`)
+    return ComponentSource(Path(path), cls.__name__ if others else None)
 
 
 def find_component(text: str) -> ComponentSource:
