@@ -91,7 +91,7 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
       deltafmi run delta_tracking -o tracking.csv --stop 2
       deltafmi run system.ssp
       deltafmi run delta_tracking -o tracking.parquet
-      deltafmi run delta_tracking --set controller.pole=10 --step 0.002 --tolerance 1e-6
+      deltafmi run delta_tracking --set controller.pole=10 --step 0.0005 --tolerance 1e-6
       deltafmi run Oscillator.fmu --set Oscillator.k=100 --stop 2
       deltafmi run Oscillator.fmu --record 'Oscillator.*'
     """
