@@ -330,16 +330,7 @@ def _value(unit: Any, vr: int) -> float:
 def _port(components: Mapping[str, Any], reference: str, causality: str) -> Any:
     """The scenario port named ``reference`` ("comp.var"); arrays are not expanded here."""
     from ..scenario.resolve import Port
-    comp_name, _, var = reference.partition(".")
-    component = components.get(comp_name)
-    if component is None or not var:
-        raise BadInput(f"'{reference}': no component '{comp_name}' in the scenario"
-                       f"{did_you_mean(comp_name, list(components))}")
-    try:
-        names = component.info.expand(var)
-    except UnknownVariable as exc:
-        raise BadInput(f"'{reference}': component '{comp_name}' has no variable '{exc.reference}'"
-                       f"{did_you_mean(exc.reference, exc.names)}") from None
+    comp_name, component, names = _expanded(components, reference)
     if len(names) != 1:
         raise BadInput(f"'{reference}' names {len(names)} variables; name one (arrays are expanded by the command)")
     variable = component.info.variables[names[0]]
@@ -352,14 +343,21 @@ def expand_references(components: Mapping[str, Any], references: Sequence[str]) 
     """``comp.var`` references with arrays expanded (``plant.z`` -> ``plant.z[1]`` ...)."""
     out = []
     for reference in references:
-        comp_name, _, var = reference.partition(".")
-        component = components.get(comp_name)
-        if component is None or not var:
-            raise BadInput(f"'{reference}': no component '{comp_name}' in the scenario"
-                           f"{did_you_mean(comp_name, list(components))}")
-        try:
-            out += [f"{comp_name}.{n}" for n in component.info.expand(var)]
-        except UnknownVariable as exc:
-            raise BadInput(f"'{reference}': component '{comp_name}' has no variable '{exc.reference}'"
-                           f"{did_you_mean(exc.reference, exc.names)}") from None
+        comp_name, _, names = _expanded(components, reference)
+        out += [f"{comp_name}.{n}" for n in names]
     return out
+
+
+def _expanded(components: Mapping[str, Any], reference: str) -> Tuple[str, Any, List[str]]:
+    """(component name, component, its variable names) of ``comp.var`` (arrays expanded);
+    :class:`BadInput` naming what is not there."""
+    comp_name, _, var = reference.partition(".")
+    component = components.get(comp_name)
+    if component is None or not var:
+        raise BadInput(f"'{reference}': no component '{comp_name}' in the scenario"
+                       f"{did_you_mean(comp_name, list(components))}")
+    try:
+        return comp_name, component, component.info.expand(var)
+    except UnknownVariable as exc:
+        raise BadInput(f"'{reference}': component '{comp_name}' has no variable '{exc.reference}'"
+                       f"{did_you_mean(exc.reference, exc.names)}") from None

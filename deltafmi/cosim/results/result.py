@@ -16,7 +16,7 @@ import numpy as np
 from deltafmi.errors import BadInput, did_you_mean
 
 from ..scenario.modelinfo import split_element
-from .writers import RowQueue, typed_column, writer_for
+from .writers import KeptRows, typed_column, write_rows_to, writer_for
 
 __all__ = ["Result", "ResultRecorder", "read_result"]
 
@@ -170,14 +170,16 @@ class ResultRecorder:
         self.names, self.kinds, self.units = list(names), list(kinds), list(units)
         self.file_writer = file_writer
         self.after_rows = after_rows
-        self._rows = RowQueue(len(self.names) + 1, self.kinds, chunk)
-        self._blocks: List[np.ndarray] = []
-        self.rows_written = 0
+        self._rows = KeptRows(len(self.names) + 1, self.kinds, chunk)
+
+    @property
+    def rows_written(self) -> int:
+        """Rows kept so far."""
+        return self._rows.rows_written
 
     def write(self, time: float, values: np.ndarray) -> None:
         """Keep one row (and pass it on)."""
-        if self._rows.add(time, values):
-            self._keep()
+        self._rows.write(time, values)
         if self.file_writer is not None:
             self.file_writer.write(time, values)
         if self.after_rows is not None:
@@ -185,43 +187,27 @@ class ResultRecorder:
 
     def write_rows(self, rows: np.ndarray) -> None:
         """Keep rows ``time, values...`` (a 2-D array), and pass them on."""
-        self._keep()
-        self._blocks.append(np.array(rows, dtype=self._rows.block.dtype))
-        self.rows_written += len(rows)
+        self._rows.write_rows(rows)
         if self.file_writer is not None:
-            write_rows = getattr(self.file_writer, "write_rows", None)
-            if write_rows is not None:
-                write_rows(rows)
-            else:
-                for row in rows:
-                    self.file_writer.write(float(row[0]), row[1:])
+            write_rows_to(self.file_writer, rows)
         if self.after_rows is not None:
             self.after_rows()
 
-    def _keep(self) -> None:
-        if self._rows.n:
-            rows = self._rows.take()
-            self._blocks.append(rows)
-            self.rows_written += len(rows)
-
     def flush(self) -> None:
         """Flush the file writer (the rows in memory need none)."""
-        self._keep()
+        self._rows.flush()
         if self.file_writer is not None:
             self.file_writer.flush()
 
     def close(self) -> None:
         """Close the file writer (idempotent)."""
-        self._keep()
+        self._rows.flush()
         if self.file_writer is not None:
             self.file_writer.close()
 
     def result(self, summary: Any = None) -> Result:
         """Every row kept so far as a :class:`Result`."""
-        self._keep()
-        width = len(self.names) + 1
-        data = (np.concatenate(self._blocks) if self._blocks
-                else np.empty((0, width), dtype=self._rows.block.dtype))
+        data = self._rows.data()
         columns = {"time": data[:, 0].astype(float)}
         for i, (name, kind) in enumerate(zip(self.names, self.kinds), start=1):
             columns[name] = typed_column(data[:, i], kind)

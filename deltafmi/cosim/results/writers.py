@@ -84,6 +84,52 @@ class RowQueue:
         return rows
 
 
+class KeptRows:
+    """Every row ``time, values...`` kept in memory, for a writer that needs them all at the end
+    (the .mat file, the API's result). ``rows_written`` counts the rows moved out of the queue."""
+
+    def __init__(self, width: int, kinds: Sequence[str], chunk: int) -> None:
+        self._queue = RowQueue(width, kinds, chunk)
+        self._blocks: List[np.ndarray] = []
+        self.rows_written = 0
+
+    def write(self, time: float, values: np.ndarray) -> None:
+        """Keep one row."""
+        if self._queue.add(time, values):
+            self.flush()
+
+    def write_rows(self, rows: np.ndarray) -> None:
+        """Keep rows ``time, values...`` (a 2-D array)."""
+        self.flush()
+        self._blocks.append(np.array(rows, dtype=self._queue.block.dtype))
+        self.rows_written += len(rows)
+
+    def flush(self) -> None:
+        """Move the queued rows to the kept blocks."""
+        if self._queue.n:
+            rows = self._queue.take()
+            self._blocks.append(rows)
+            self.rows_written += len(rows)
+
+    def data(self) -> np.ndarray:
+        """Every row kept, as one array (floats, or objects when a String variable is kept)."""
+        self.flush()
+        if self._blocks:
+            return np.concatenate(self._blocks)
+        return np.empty((0, self._queue.block.shape[1]), dtype=self._queue.block.dtype)
+
+
+def write_rows_to(writer: Any, rows: np.ndarray) -> None:
+    """Rows ``time, values...`` to ``writer``: at once when it takes them so, else row by row (a
+    user's writer class may offer ``write`` only)."""
+    write_rows = getattr(writer, "write_rows", None)
+    if write_rows is not None:
+        write_rows(rows)
+    else:
+        for row in rows:
+            writer.write(float(row[0]), row[1:])
+
+
 def typed_column(values: np.ndarray, kind: str) -> np.ndarray:
     """One column with its FMI type's NumPy type."""
     if kind == "String":
@@ -322,28 +368,25 @@ class MatWriter:
         self._names = list(names)
         self._kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
         self._units = list(units) if units is not None else [""] * len(names)
-        self._rows = RowQueue(len(names) + 1, self._kinds, chunk)
-        self._blocks: List[np.ndarray] = []
+        self._rows = KeptRows(len(names) + 1, self._kinds, chunk)
         self._closed = False
-        self.rows_written = 0
+
+    @property
+    def rows_written(self) -> int:
+        """Rows kept so far (written to the file by :meth:`close`)."""
+        return self._rows.rows_written
 
     def write(self, time: float, values: np.ndarray) -> None:
         """Keep one row."""
-        if self._rows.add(time, values):
-            self.flush()
+        self._rows.write(time, values)
 
     def write_rows(self, rows: np.ndarray) -> None:
         """Keep rows ``time, values...`` (a 2-D array)."""
-        self.flush()
-        self._blocks.append(np.array(rows, dtype=self._rows.block.dtype))
-        self.rows_written += len(rows)
+        self._rows.write_rows(rows)
 
     def flush(self) -> None:
-        """Move the queued rows to the kept blocks (the file is written by :meth:`close`)."""
-        if self._rows.n:
-            rows = self._rows.take()
-            self._blocks.append(rows)
-            self.rows_written += len(rows)
+        """Move the queued rows to the kept ones (the file is written by :meth:`close`)."""
+        self._rows.flush()
 
     def close(self) -> None:
         """Write the .mat file with every row kept (idempotent)."""
@@ -351,9 +394,7 @@ class MatWriter:
             return
         from scipy.io import savemat
 
-        self.flush()
-        width = len(self._names) + 1
-        data = np.concatenate(self._blocks) if self._blocks else np.empty((0, width), self._rows.block.dtype)
+        data = self._rows.data()
         variables = matlab_names(self._names)
         content: Dict[str, Any] = {"time": data[:, 0].astype(float)}
         for i, (name, kind) in enumerate(zip(variables, self._kinds), start=1):

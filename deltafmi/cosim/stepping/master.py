@@ -28,7 +28,7 @@ import numpy as np
 from deltafmi.errors import BadInput, Interrupted, SimulationError
 
 from ..results.csv_file import RowSampler
-from ..results.writers import writer_for
+from ..results.writers import write_rows_to, writer_for
 from ..results.progress import Progress, Summary, Termination
 from ..scenario.resolve import Component, System
 from .adaptive import run_adaptive
@@ -453,12 +453,7 @@ class Master:
             if not finite.all():
                 bad = int(np.argmin(finite))
                 rows = rows[:bad + 1]  # rows up to the first with a NaN, that one included
-        write_rows = getattr(self.writer, "write_rows", None)
-        if write_rows is not None:
-            write_rows(rows)
-        else:
-            for row in rows:
-                self.writer.write(float(row[0]), row[1:])
+        write_rows_to(self.writer, rows)
         self.recorded_until = float(rows[-1, 0])
         if bad is not None:
             self._check_row(float(rows[-1, 0]), rows[-1, 1:])
