@@ -5,6 +5,7 @@ only assembles the click group.
 """
 import click
 
+from deltafmi.compat.commands import compat
 from deltafmi.console import show_progress
 from deltafmi.cosim.commands import export_ssp, plot, run, validate
 from deltafmi.cosim.linearize.commands import linearize
@@ -22,7 +23,7 @@ def main() -> None:
     show_progress()
 
 
-for command in (examples, guides_command, build, info, run, validate, export_ssp, plot, animate, linearize):
+for command in (examples, guides_command, build, info, run, validate, export_ssp, plot, animate, linearize, compat):
     main.add_command(command)
 for command in (sweep, plot_study_command, study_case):  # parameter studies on Dask
     main.add_command(command)

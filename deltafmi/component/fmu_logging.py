@@ -29,7 +29,7 @@ from typing import Any, Optional
 
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 
-#: the FMU's <LogCategories>, in the bit order the loader uses (loader.c CATEGORY_NAMES);
+#: the FMU's <LogCategories>, in the bit order the loader uses (native/core.c CATEGORY_NAMES);
 #: ``logAll`` is a name for all of them in fmi2SetDebugLogging, not a category of its own
 CATEGORIES = (
     ("logEvents", "Events, event iterations and the end of the simulation (status OK)"),

@@ -65,8 +65,9 @@ class FmuInstance:
             _cvode_class(module_context)  # a missing SUNDIALS fails fmi2Instantiate, not a later step
         self.pending_logs: list = []
         #: what the native loader reads after each call: [0] nonzero when the component ended the
-        #: simulation (Component.terminate_simulation), [1] the time it reached (NaN: the step's end)
-        self.control = np.array([0.0, math.nan])
+        #: simulation (Component.terminate_simulation), [1] the time it reached (NaN: the step's end),
+        #: [2] nonzero when a Co-Simulation step in event mode stopped at an event it left unhandled
+        self.control = np.array([0.0, math.nan, 0.0])
         #: the FMI log categories the importer enabled (fmu_logging.BITS), set by the loader
         self.log_mask = fmu_logging.DEFAULT
         self._hooks = fmu_logging.hooks()
@@ -81,6 +82,7 @@ class FmuInstance:
         self.in_initialization = False
         self._solver: Optional[Cvode] = None
         self._next_time_event: Optional[float] = None
+        self._restart_solver = False  # an event handled in FMI 3.0 CS event mode changed the model
         self._real_inputs = np.array([s.value_reference for s in layout.scalars
                                       if s.causality == "input" and s.fmi_type == "Real"], dtype=np.intp)
         self._inputs_at_last_step = np.full(len(self._real_inputs), np.nan)
@@ -130,13 +132,23 @@ class FmuInstance:
 
     # --- what the native layer needs to know ------------------------------------------------
     def native_layout(self) -> tuple:
-        """Addresses and sizes of the buffers the native layer reads and writes directly."""
+        """Addresses and sizes of the buffers the native layer reads and writes directly.
+
+        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|Kn``): real
+        buffer, n_real, int buffer, n_int, flags (uint8 per real and int scalar), n_str, nx,
+        x_offset, dx_offset, event indicators (double[nz]), nz, nominals (double[nx]), watches
+        drift, steps itself, evaluates after a step, control (double[3]: terminated, time reached,
+        event pending); then, for FMI 3.0: sizes3 (uint32[n_real + n_int + n_str], the element
+        count of the variable whose value reference is the index, 0 inside an array) and n_clocks.
+        FMI 3.0 value references after the scalars: ``time`` = n_real + n_int + n_str, then the
+        n_clocks Clocks, then one Float64 per event indicator (Layout.first_indicator_vr)."""
         comp, layout = self.component, self.component_class._layout
         return (comp._real.ctypes.data, layout.n_real, comp._int.ctypes.data, layout.n_int,
                 layout.flags.ctypes.data, layout.n_str, layout.nx, layout.x_offset,
                 layout.dx_offset, self.event_indicators.ctypes.data, self.nz,
                 layout.nominals.ctypes.data, self.component_class.watches_drift(), self._steps_itself,
-                bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data)
+                bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data,
+                layout.sizes3.ctypes.data, layout.n_clocks)
 
     # --- initialization ---------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:
@@ -147,11 +159,14 @@ class FmuInstance:
         self.in_initialization = True
         return OK
 
-    def exit_initialization(self) -> int:
-        """Leave initialization mode with consistent outputs; prepare the Co-Simulation solver."""
+    def exit_initialization(self, event_mode_used: float = 0.0) -> int:
+        """Leave initialization mode with consistent outputs; prepare the Co-Simulation solver.
+
+        In FMI 3.0 Co-Simulation with ``event_mode_used`` the FMU goes to Event Mode instead, and
+        the importer's fmi3UpdateDiscreteStates calls do the event iteration (as in ME)."""
         self.evaluate(self.time)
         self.in_initialization = False
-        if self.fmu_type == CO_SIMULATION:
+        if self.fmu_type == CO_SIMULATION and not event_mode_used:
             self._event_iteration()
         return OK
 
@@ -195,13 +210,21 @@ class FmuInstance:
         """
         comp = self.component
         self.partials.invalidate()
+        self._restart_solver = self.fmu_type == CO_SIMULATION
         states_before = comp._real[: self.nx].copy()
         if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
             comp.project(t)
         self.evaluate(t)
+        nx = self.nx
+        derivatives_before = comp._real[nx: 2 * nx].copy()
         again = bool(comp.update(t))
-        changed = not np.array_equal(states_before, comp._real[: self.nx])
+        changed = not np.array_equal(states_before, comp._real[:nx])
         self.evaluate(t)
+        # A mode switch that leaves the states but changes their derivatives (a ball that starts
+        # touching) is reported as changed states too: an importer that restarts its integrator
+        # only on that flag (the Reference FMUs' fmusim) would otherwise go on with the solver's
+        # pre-event history and miss the switch. Restarting where nothing moved costs one restart.
+        changed = changed or not np.array_equal(derivatives_before, comp._real[nx: 2 * nx])
         nte = comp.next_time_event(t)
         self._next_time_event = nte
         if self.log_mask & _LOG_EVENTS:
@@ -222,8 +245,13 @@ class FmuInstance:
         return bool(self.component.needs_projection(t))
 
     # --- co-simulation ----------------------------------------------------------------------
-    def do_step(self, t: float, h: float) -> int:
+    def do_step(self, t: float, h: float, event_mode_used: float = 0.0) -> int:
         """``fmi2DoStep`` from ``t`` to ``t + h``: integrate with CVODE, handle events inside.
+
+        With ``event_mode_used`` (FMI 3.0 Co-Simulation in event mode) it stops at the first
+        state or time event in (t, t + h] without handling it: control[2] = 1 (event pending),
+        control[1] = the time reached; the importer's Event Mode handles it (:meth:`event_update`)
+        and the next step restarts the solver there.
 
         The native layer has checked that ``t`` is the FMU's time. A component that steps itself
         never comes here: the native layer calls its ``do_step``, sets ``time`` before anything
@@ -231,9 +259,12 @@ class FmuInstance:
         step_itself; ``native_layout`` tells it which components)."""
         comp = self.component
         t_end = t + h
-        if self._solver is not None and self._inputs_changed():
-            # a zero-order-hold input jumped: the right-hand side is discontinuous at t
+        self.control[2] = 0.0
+        if self._solver is not None and (self._inputs_changed() or self._restart_solver):
+            # a zero-order-hold input jumped (the right-hand side is discontinuous at t), or the
+            # importer handled an event here
             self._solver.reinit(self.time, comp._real[: self.nx])
+        self._restart_solver = False
         while self.time < t_end and not self.terminate_requested:
             nte = self._next_time_event
             t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
@@ -245,6 +276,10 @@ class FmuInstance:
             else:
                 self.time = t_stop
             time_event = nte is not None and self.time >= nte - _TINY * max(1.0, abs(nte))
+            if (root or time_event) and event_mode_used:
+                self.control[1:] = self.time, 1.0  # fmi3DoStep: eventHandlingNeeded here
+                self.evaluate(self.time)
+                return OK
             if root or time_event:
                 self._event_iteration()
         if self.terminate_requested:
@@ -316,6 +351,7 @@ class FmuInstance:
                     # unlike an ME importer, our own solver restarts after every event: the
                     # right-hand side may jump even when no state does
                     self._solver.reinit(self.time, self.component._real[: self.nx])
+                    self._restart_solver = False
                 return
         raise RuntimeError(f"event iteration at t = {self.time} did not converge in "
                            f"{_MAX_EVENT_ITERATIONS} iterations")

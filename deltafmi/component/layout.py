@@ -3,6 +3,10 @@
 The real buffer is ordered ``[states | derivatives | other reals]`` so that the native layer can
 copy continuous states and derivatives as contiguous blocks. Value references are global:
 reals ``0 .. n_real-1``, then integers/booleans, then strings.
+
+FMI 3.0 builds name each declaration (scalar or 1-D array) ONE variable whose value reference is
+that of its first scalar, so the buffers and the scalar value references are the same for both
+versions (:attr:`Layout.sizes3` gives the element counts the native layer needs).
 """
 from __future__ import annotations
 
@@ -12,14 +16,15 @@ from typing import Any, Optional
 
 import numpy as np
 
-from .variables import Parameter, Input, State, Variable
+from .variables import Parameter, Input, State, Variable, is_enumeration
 
-# Bits of the per-scalar flag byte read by the native layer (keep in sync with loader.c).
+# Bits of the per-scalar flag byte read by the native layer (keep in sync with native/core.h).
 SET_INSTANTIATED = 1
 SET_INITIALIZATION = 2
 SET_EVENT = 4  # event mode (ME) and step complete (CS)
 SET_CONTINUOUS = 8
 IS_BOOLEAN = 16
+IS_ENUMERATION = 32  # an Enumeration in the int buffer (FMI 3.0 reads it with fmi3GetInt64)
 
 
 @dataclass
@@ -58,6 +63,27 @@ class Layout:
     str_start: list[str] = field(default_factory=list)
     flags: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8))
     nominals: np.ndarray = field(default_factory=lambda: np.ones(0))
+    #: FMI 3.0: ``sizes3[v]`` is the element count of the variable whose value reference is ``v``
+    #: (the first scalar of a declaration, or of a derivative array), 0 for every other scalar
+    sizes3: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint32))
+    #: FMI 3.0 Clocks: value references ``time_vr + 1 .. time_vr + n_clocks``
+    n_clocks: int = 0
+
+    @property
+    def n_total(self) -> int:
+        """Number of scalars (value references ``0 .. n_total-1``)."""
+        return self.n_real + self.n_int + self.n_str
+
+    @property
+    def time_vr(self) -> int:
+        """FMI 3.0: value reference of the independent variable ``time`` (after all scalars)."""
+        return self.n_total
+
+    @property
+    def first_indicator_vr(self) -> int:
+        """FMI 3.0: value reference of the first event-indicator variable (after the Clocks);
+        event indicator ``i`` (0-based) is ``first_indicator_vr + i``."""
+        return self.n_total + 1 + self.n_clocks
 
     @property
     def x_offset(self) -> int:
@@ -72,6 +98,25 @@ class Layout:
     def by_name(self) -> dict[str, ScalarVariable]:
         """Scalars keyed by FMI name."""
         return {s.name: s for s in self.scalars}
+
+    def variables3(self) -> list[list[ScalarVariable]]:
+        """The FMI 3.0 variables in value-reference order, each as the scalars it stands for: a
+        declaration's scalars, or the derivatives of one array state (``der(q)``)."""
+        groups: list[list[ScalarVariable]] = []
+        previous = None
+        for s in self.scalars:
+            key = _group_key(self, s)
+            if key == previous:
+                groups[-1].append(s)
+            else:
+                groups.append([s])
+            previous = key
+        return groups
+
+
+def _group_key(layout: Layout, s: ScalarVariable) -> tuple[int, bool]:
+    owner = layout.scalars[s.derivative_of - 1].declaration if s.derivative_of else s.declaration
+    return id(owner), s.derivative_of is not None
 
 
 def collect_declarations(cls: type) -> list[Variable]:
@@ -169,11 +214,15 @@ def build_layout(cls: type) -> Layout:
     layout.str_start = [r.start for r in str_rows]
     layout.flags = np.array([r.flags for r in real_rows + int_rows], dtype=np.uint8)
     layout.nominals = np.array([r.nominal or 1.0 for r in real_rows[:layout.nx]], dtype=float)
+    layout.sizes3 = np.zeros(layout.n_total, dtype=np.uint32)
+    for group in layout.variables3():
+        layout.sizes3[group[0].value_reference] = len(group)
     return layout
 
 
 def _scalar(decl: Variable, name: str, vr: int, start: Any) -> ScalarVariable:
-    flags = _setter_flags(decl) | (IS_BOOLEAN if decl.type is bool else 0)
+    flags = (_setter_flags(decl) | (IS_BOOLEAN if decl.type is bool else 0)
+             | (IS_ENUMERATION if is_enumeration(decl.type) else 0))
     initial = _initial(decl)
     return ScalarVariable(
         name=name, value_reference=vr, fmi_type=decl.fmi_type, causality=decl.causality,

@@ -4,9 +4,12 @@ A declaration is a class attribute of a :class:`~deltafmi.component.Component`. 
 descriptor: on an instance it reads and writes the component's FMI value buffers, so a model works
 with ``self.q`` while the native FMI layer reads the very same memory without calling Python.
 Array declarations become Modelica-style scalar FMI variables ``q[1]``, ``q[2]``, ...
+(in FMI 3.0 builds one array variable ``q``). A declaration with ``type=`` an :class:`enum.IntEnum`
+subclass is an FMI Enumeration, stored as an integer; the model reads a scalar as the member.
 """
 from __future__ import annotations
 
+import enum
 import struct
 from dataclasses import dataclass
 from operator import methodcaller
@@ -18,7 +21,12 @@ from .native_values import ValueDescriptor
 
 _TYPES = {float: "Real", int: "Integer", bool: "Boolean", str: "String"}
 # what a declaration's descriptor does (Variable._kind; the first four as in _values.c)
-_REAL_SCALAR, _REAL_ARRAY, _INT_SCALAR, _BOOL_SCALAR, _INT_ARRAY, _STR_SCALAR, _STR_ARRAY = range(7)
+_REAL_SCALAR, _REAL_ARRAY, _INT_SCALAR, _BOOL_SCALAR, _INT_ARRAY, _STR_SCALAR, _STR_ARRAY, _ENUM_SCALAR = range(8)
+
+
+def is_enumeration(kind: Any) -> bool:
+    """Whether ``kind`` (a declaration's ``type``) is an :class:`enum.IntEnum` subclass."""
+    return isinstance(kind, enum.EnumMeta) and issubclass(kind, enum.IntEnum)
 
 
 @dataclass(frozen=True)
@@ -67,13 +75,16 @@ class Variable(ValueDescriptor):
             start_list = None if start is None else [start]
         if type is None:
             sample = start_list[0] if start_list else 0.0
-            type = bool if isinstance(sample, bool) else str if isinstance(sample, str) else float
-        if type not in _TYPES:
-            raise TypeError(f"unsupported variable type {type!r}; use float, int, bool or str")
+            type = (bool if isinstance(sample, bool) else str if isinstance(sample, str)
+                    else sample.__class__ if isinstance(sample, enum.IntEnum) else float)
+        if type not in _TYPES and not is_enumeration(type):
+            raise TypeError(f"unsupported variable type {type!r}; use float, int, bool, str or an enum.IntEnum")
+        if is_enumeration(type) and not len(type):
+            raise TypeError(f"enumeration {type.__qualname__} has no members")
         self.type = type
         self.shape = shape
         size = 1 if shape is None else shape
-        default = {float: 0.0, int: 0, bool: False, str: ""}[type]
+        default = next(iter(type)) if is_enumeration(type) else {float: 0.0, int: 0, bool: False, str: ""}[type]
         self.start = [type(v) for v in start_list] if start_list else [default] * size
         self.unit = unit
         self.description = description
@@ -112,6 +123,8 @@ class Variable(ValueDescriptor):
             self._kind = _REAL_SCALAR if self.shape is None else _REAL_ARRAY
         elif self.type is bool:
             self._kind = _BOOL_SCALAR if self.shape is None else _INT_ARRAY
+        elif self.shape is None and is_enumeration(self.type):
+            self._kind = _ENUM_SCALAR
         else:
             self._kind = _INT_SCALAR if self.shape is None else _INT_ARRAY
         self._pack = struct.Struct(f"={self.size}d") if self._kind == _REAL_ARRAY else None
@@ -119,7 +132,7 @@ class Variable(ValueDescriptor):
         getter = {_REAL_SCALAR: methodcaller("_real_item", value), _REAL_ARRAY: methodcaller("_real_items", span),
                   _INT_SCALAR: methodcaller("_int_item", value), _INT_ARRAY: methodcaller("_int_items", span),
                   _STR_SCALAR: methodcaller("_str_items", value), _STR_ARRAY: methodcaller("_str_items", span),
-                  _BOOL_SCALAR: self._get_bool}[self._kind]
+                  _BOOL_SCALAR: self._get_bool, _ENUM_SCALAR: self._get_enum}[self._kind]
         self._install(self._kind, value, span, getter, self._set)
 
     def __copy__(self) -> "Variable":
@@ -149,13 +162,13 @@ class Variable(ValueDescriptor):
 
     @property
     def fmi_type(self) -> str:
-        """``Real``, ``Integer``, ``Boolean`` or ``String``."""
-        return _TYPES[self.type]
+        """``Real``, ``Integer``, ``Boolean``, ``String`` or ``Enumeration``."""
+        return "Enumeration" if is_enumeration(self.type) else _TYPES[self.type]
 
     @property
     def buffer(self) -> str:
         """Which value buffer holds the scalars: ``real``, ``int`` or ``str``."""
-        return {float: "real", int: "int", bool: "int", str: "str"}[self.type]
+        return "int" if is_enumeration(self.type) else {float: "real", int: "int", bool: "int", str: "str"}[self.type]
 
     def _default_variability(self) -> str:
         return "continuous" if self.type is float else "discrete"
@@ -163,6 +176,9 @@ class Variable(ValueDescriptor):
     # --- descriptor -------------------------------------------------------------------------
     def _get_bool(self, obj: Any) -> bool:
         return bool(obj._int_item(self._offset))
+
+    def _get_enum(self, obj: Any) -> enum.IntEnum:
+        return self.type(obj._int_item(self._offset))
 
     def _set(self, obj: Any, value: Any) -> None:
         kind = self._kind

@@ -44,6 +44,18 @@ def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = Non
     return system
 
 
+#: ``--fmi-version`` of the commands that build a scenario's source: components
+_FMI_VERSION = click.option("--fmi-version", type=click.Choice(["2", "3"]),
+                            help="Build the scenario's source: components as FMI 2.0 or FMI 3.0 FMUs (overriding "
+                                 "its fmi_version; a component's own fmi_version stays).")
+
+
+def _built_as(fmi_version: Optional[str]) -> Callable[[Scenario], Scenario]:
+    """The scenario override of ``--fmi-version`` (none when not given)."""
+    from .scenario.overrides import with_overrides
+    return lambda loaded: with_overrides(loaded, fmi_version=int(fmi_version) if fmi_version else None, cli=True)
+
+
 @click.command()
 @click.argument("scenario")
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
@@ -64,19 +76,20 @@ def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = Non
 @click.option("--record", "record", multiple=True, metavar="PATTERN",
               help="Record the variables matching PATTERN instead of the scenario's outputs: list "
                    "(repeatable), e.g. --record 'plant.z[*]' or, for one FMU, --record 'Oscillator.*'.")
+@_FMI_VERSION
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary, no messages from the FMUs.")
 @click.option("-v", "--verbose", is_flag=True,
               help="Every message of the FMUs (their debug log categories too), not only warnings and errors.")
 def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop: Optional[float],
         step: Optional[float], tolerance: Optional[float], allow_nan: Optional[bool], algorithm: Optional[str],
-        record: Tuple[str, ...], quiet: bool, verbose: bool) -> None:
+        record: Tuple[str, ...], fmi_version: Optional[str], quiet: bool, verbose: bool) -> None:
     """Run the co-simulation SCENARIO (a YAML file, an SSP archive, or one .fmu) and write its results.
 
     SCENARIO without a suffix is NAME.yaml in the current folder when there is one, else the
     shipped example NAME. A single FMU runs on its default experiment as fmpy's simulate does
     (Co-Simulation when it offers it), its inputs at their start values, every output recorded
-    (--record: others). --set, --stop, --step, --tolerance, --algorithm and --record change the
-    run, not the file. A NaN or infinite value stops the run with exit code 1, naming the
+    (--record: others). --set, --stop, --step, --tolerance, --algorithm, --record and
+    --fmi-version (build the source: components as FMI 3.0 FMUs) change the run, not the file. A NaN or infinite value stops the run with exit code 1, naming the
     variable and the time (--allow-nan: go on). A run that fails before its first row leaves an
     earlier result file as it was.
 
@@ -91,6 +104,7 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
       deltafmi run delta_tracking -o tracking.csv --stop 2
       deltafmi run system.ssp
       deltafmi run delta_tracking -o tracking.parquet
+      deltafmi run delta_tracking --fmi-version 3
       deltafmi run delta_tracking --set controller.pole=10 --step 0.0005 --tolerance 1e-6
       deltafmi run Oscillator.fmu --set Oscillator.k=100 --stop 2
       deltafmi run Oscillator.fmu --record 'Oscillator.*'
@@ -107,7 +121,8 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
 
     def overrides(loaded: Scenario) -> Scenario:
         return with_overrides(loaded, values, stop=stop, step=step, tolerance=tolerance, allow_nan=allow_nan,
-                              algorithm=algorithm, record=record or None, cli=True)
+                              algorithm=algorithm, record=record or None,
+                              fmi_version=int(fmi_version) if fmi_version else None, cli=True)
 
     from deltafmi.console import progress_shown
 
@@ -171,7 +186,8 @@ class _FmuMessagePrinter:
 
 @click.command()
 @click.argument("scenario")
-def validate(scenario: str) -> None:
+@_FMI_VERSION
+def validate(scenario: str, fmi_version: Optional[str]) -> None:
     """Check SCENARIO (a YAML file or an SSP archive) and its FMUs without simulating, or one FMU.
 
     Checks the YAML against the schema, every component, variable, connection (causality, type,
@@ -192,7 +208,7 @@ def validate(scenario: str) -> None:
         return
     from .scenario.resolve import describe
 
-    system = load_system(scenario, check_fmus=True)
+    system = load_system(scenario, check_fmus=True, overrides=_built_as(fmi_version))
     for line in describe(system):
         click.echo(line)
     click.echo(f"{scenario}: OK")
@@ -202,7 +218,8 @@ def validate(scenario: str) -> None:
 @click.argument("scenario")
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="SSP archive to write (default: <scenario name>.ssp here).")
-def export_ssp(scenario: str, output: Optional[str]) -> None:
+@_FMI_VERSION
+def export_ssp(scenario: str, output: Optional[str], fmi_version: Optional[str]) -> None:
     """Pack SCENARIO and its FMUs into an SSP 1.0 archive that other tools load.
 
     The archive holds SystemStructure.ssd (components, connectors, connections with
@@ -215,13 +232,14 @@ def export_ssp(scenario: str, output: Optional[str]) -> None:
     \b
     Example:
       deltafmi export-ssp bouncing_ball -o bouncing_ball.ssp
+      deltafmi export-ssp delta_tracking --fmi-version 3 -o delta_tracking_fmi3.ssp
     """
     from .ssp.write import export_ssp as write
 
     target = Path(output) if output else Path(Path(scenario).stem + ".ssp")
     if target.resolve() == Path(scenario).resolve():
         raise BadInput(f"{target}: that is the scenario itself; write the archive elsewhere with -o")
-    system = load_system(scenario)
+    system = load_system(scenario, overrides=_built_as(fmi_version))
     path = write(system, target)
     click.echo(f"wrote {path} ({len(system.components)} components, {len(system.links)} connections)")
 

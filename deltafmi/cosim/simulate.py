@@ -37,7 +37,8 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
              parameters: Optional[Mapping[str, Any]] = None, start_values: Optional[Mapping[str, Any]] = None,
              step: Optional[float] = None, tolerance: Optional[float] = None,
              output: Optional[str | Path] = None, algorithm: Optional[str] = None,
-             record: Optional[Sequence[str]] = None, allow_nan: Optional[bool] = None, verbose: bool = False,
+             record: Optional[Sequence[str]] = None, allow_nan: Optional[bool] = None,
+             fmi_version: Optional[int] = None, verbose: bool = False,
              on_message: Optional[Callable[[str, int, str, str], None]] = None) -> Result:
     """Run ``scenario`` and return its :class:`~deltafmi.cosim.results.result.Result`.
 
@@ -52,9 +53,10 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
     relative tolerance) replace the scenario's; ``algorithm``: ``"gauss-seidel"`` or
     ``"jacobi"``; ``record``: patterns of the variables to record (``["plant.z[*]",
     "controller.*"]``), replacing the scenario's ``outputs:``; ``allow_nan``: let Reals become
-    NaN without stopping the run. The options are those of ``deltafmi run``: ``--set``,
-    ``--stop``, ``--step``, ``--tolerance``, ``--algorithm``, ``--record``, ``--allow-nan``,
-    ``-o``, ``-v``.
+    NaN without stopping the run; ``fmi_version``: build the components given by ``source:`` as
+    FMI 2.0 or 3.0 FMUs. The options are those of ``deltafmi run``: ``--set``, ``--stop``,
+    ``--step``, ``--tolerance``, ``--algorithm``, ``--record``, ``--allow-nan``,
+    ``--fmi-version``, ``-o``, ``-v``.
 
     ``output``: also write the results to this file (``.csv``, ``.parquet``, ``.mat``) as the
     run goes. ``verbose``: the FMUs send their debug messages too. ``on_message(component,
@@ -80,7 +82,8 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
         _check_given_once(loaded, parameters or {}, start_values or {})
         loaded = with_overrides(loaded, parameters or {}, origin="parameters")
         loaded = with_overrides(loaded, start_values or {}, stop=stop, step=step, tolerance=tolerance,
-                                allow_nan=allow_nan, algorithm=algorithm, record=record, origin="start_values")
+                                allow_nan=allow_nan, algorithm=algorithm, record=record, fmi_version=fmi_version,
+                                origin="start_values")
         system = resolve_system(loaded)
         scenario_log = logging.getLogger(SCENARIO_LOGGER)
         for diagnostic in system.warnings:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import click
 
@@ -25,7 +25,10 @@ from .requirements import runtime_requirement
 @click.option("--portable", is_flag=True,
               help="Bundle the interpreter, standard library and packages the model imports, so that the FMU "
                    "runs on a Linux x86_64 machine with no Python (glibc no older than this one's).")
-def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, validate: bool, portable: bool) -> None:
+@click.option("--fmi-version", type=click.Choice(["2", "3"]), default="2", show_default=True,
+              help="FMI version of the FMUs: 2 (FMI 2.0) or 3 (FMI 3.0, array variables).")
+def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, validate: bool, portable: bool,
+          fmi_version: str) -> None:
     """Build FMUs (Model Exchange + Co-Simulation) from components.
 
     Each of SOURCES is a packaged model's class name (DeltaRobot), a component source file
@@ -37,6 +40,7 @@ def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, vali
       deltafmi build DeltaRobot -o DeltaRobot.fmu
       deltafmi build my_plant.py -o build/fmus/
       deltafmi build --all -o build/fmus
+      deltafmi build --all --fmi-version 3 -o build/fmus3/
       deltafmi build DeltaRobot --portable -o DeltaRobot.fmu
     """
     from .sources import find_component, packaged_model_names
@@ -53,7 +57,8 @@ def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, vali
         try:
             source = find_component(text)
             target = folder / f"{source.path.stem}.fmu.tmp" if folder else (Path(output) if output else None)
-            path = build_fmu(source.path, target, portable=portable, class_name=source.class_name)
+            path = build_fmu(source.path, target, portable=portable, class_name=source.class_name,
+                             fmi_version=int(fmi_version))
         except ComponentSourceError as exc:
             raise BadInput(str(exc)) from None
         except BuildError as exc:
@@ -106,9 +111,13 @@ def info(target: str) -> None:
     if exp:
         click.echo(f"  default experiment: start {exp.startTime}, stop {exp.stopTime}, "
                    f"step {exp.stepSize}, tolerance {exp.tolerance}")
-    rows = [(v.name, v.causality, v.variability, v.type, "" if v.start is None else str(v.start),
+    clocks = _clocks(fmu)
+    if clocks:
+        click.echo(f"  clocks: {', '.join(clocks)}")
+    rows = [(v.name, v.causality, v.variability, _type_text(v), "" if v.start is None else str(v.start),
              v.unit or (v.declaredType.unit if v.declaredType else "") or "", v.description or "")
-            for v in md.modelVariables if v.causality in ("parameter", "input", "output") or v.derivative is None]
+            for v in md.modelVariables
+            if v.type != "Clock" and (v.causality in ("parameter", "input", "output") or v.derivative is None)]
     header = ("name", "causality", "variability", "type", "start", "unit", "description")
     widths = [max(len(header[i]), *(len(r[i]) for r in rows)) if rows else len(header[i]) for i in range(6)]
     click.echo("")
@@ -116,6 +125,30 @@ def info(target: str) -> None:
     click.echo("  ".join("-" * w for w in widths) + "  " + "-" * 11)
     for row in rows:
         click.echo("  ".join(c.ljust(w) for c, w in zip(row[:6], widths)) + "  " + row[6])
+
+
+def _type_text(variable: Any) -> str:
+    """A variable's type, with its shape if it is an FMI 3.0 array: ``Float64[3]``, ``Float64[2,3]``."""
+    if not variable.dimensions:
+        return variable.type
+    return f"{variable.type}[{','.join(str(n) for n in variable.shape)}]"
+
+
+def _clocks(fmu: Path) -> list:
+    """The FMI 3.0 Clocks of ``fmu``, each as ``name (causality, intervalVariability, interval ...)``
+    (read from the XML: fmpy keeps no interval)."""
+    import xml.etree.ElementTree as ET
+    import zipfile
+    with zipfile.ZipFile(fmu) as archive:
+        root = ET.fromstring(archive.read("modelDescription.xml"))
+    found = []
+    for clock in root.iterfind("ModelVariables/Clock"):
+        details = [clock.get("causality", "local"), clock.get("intervalVariability", "")]
+        for attribute, label in (("intervalDecimal", "interval"), ("shiftDecimal", "shift")):
+            if clock.get(attribute) is not None:
+                details.append(f"{label} {float(clock.get(attribute)):g} s")
+        found.append(f"{clock.get('name')} ({', '.join(d for d in details if d)})")
+    return found
 
 
 def _fmu_of(target: str) -> Path:
@@ -159,7 +192,7 @@ def validate_fmu_file(fmu: Path) -> None:
     if problems:
         raise click.ClickException(f"{fmu}: fmpy validate found problems:\n" + "\n".join(problems))
     identifiers = [i.modelIdentifier for i in (md.coSimulation, md.modelExchange) if i is not None]
-    problem = binary_problem(fmu, identifiers) or guid_problem(fmu, md.guid)
+    problem = binary_problem(fmu, identifiers, md.fmiVersion.startswith("3")) or guid_problem(fmu, md.guid)
     if problem:
         raise click.ClickException(f"{fmu}: {problem}")
     if not requirement.runs_here:

@@ -1,10 +1,11 @@
 """Compile deltafmi's native pieces with the system C compiler, once, cached; or take them prebuilt.
 
-The FMU binary (FMI loader + Python bridge) is the same for every FMU (FMI 2.0 binaries export
-un-prefixed fmi2 names) and binds the Python C API at run time (``native/pyapi.h``), so it needs
-no Python headers and is built once per source version, then reused for every FMU and every
-CPython >= 3.10. It exports the fmi2 functions and nothing else (hidden visibility, see
-``exported_symbols``).
+The FMU binary (FMI loader + Python bridge) is the same for every FMU of one FMI version (binaries
+export un-prefixed fmi2 or fmi3 names) and binds the Python C API at run time (``native/pyapi.h``),
+so it needs no Python headers and is built once per source version and FMI version, then reused
+for every FMU and every CPython >= 3.10. The FMI 2.0 and FMI 3.0 binaries share their plumbing
+(``native/core.c``) and differ in their API file (``fmi2.c``, ``fmi3.c``); each exports its
+version's functions and nothing else (hidden visibility, see ``exported_symbols``).
 
 Every native piece is looked up under one relative path (``native/<stem>-<digest>/<file>``, the
 digest taken over its sources, flags and the Python ABI where it has one) in two places: the
@@ -27,8 +28,14 @@ from pathlib import Path
 from typing import Callable, Optional, Sequence
 
 NATIVE_DIR = Path(__file__).parent / "native"
-SOURCES = ("loader.c", "bridge.c", "python_start.c", "process_lock.c")
-HEADERS = ("bridge.h", "python_start.h", "process_lock.h", "glibc_floor.h", "pyapi.h", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+#: what both FMI versions' binaries are made of
+SOURCES = ("core.c", "bridge.c", "python_start.c", "process_lock.c")
+HEADERS = ("core.h", "bridge.h", "python_start.h", "process_lock.h", "glibc_floor.h", "pyapi.h")
+#: each FMI version's API file and the standard's headers it includes
+VERSION_FILES = {
+    2: ("fmi2.c", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+    3: ("fmi3.c", "fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h"),
+}
 
 
 class BuildError(RuntimeError):
@@ -51,9 +58,17 @@ def cache_dir() -> Path:
     return Path(os.environ.get("DELTAFMI_CACHE", Path.home() / ".cache" / "deltafmi"))
 
 
-def native_source_files() -> list[Path]:
-    """Every C source and header that goes into the binary (and into the FMU's sources/)."""
-    return [NATIVE_DIR / name for name in SOURCES + HEADERS]
+def native_source_files(fmi_version: int = 2) -> list[Path]:
+    """Every C source and header that goes into the binary of ``fmi_version`` (2 or 3), and into
+    the FMU's sources/."""
+    return [NATIVE_DIR / name for name in SOURCES + _version_files(fmi_version) + HEADERS]
+
+
+def _version_files(fmi_version: int) -> tuple[str, ...]:
+    try:
+        return VERSION_FILES[fmi_version]
+    except KeyError:
+        raise ValueError(f"FMI version {fmi_version!r} is not one deltafmi builds (2 or 3)") from None
 
 
 def compiler_name() -> str:
@@ -90,21 +105,25 @@ def abi_tag() -> str:
     return sys.implementation.cache_tag or sys.implementation.name
 
 
-def fmu_binary() -> Path:
-    """The compiled FMU binary, from the cache, the prebuilt layer, or freshly built."""
+def fmu_binary(fmi_version: int = 2) -> Path:
+    """The compiled FMU binary of ``fmi_version`` (2 or 3), from the cache, the prebuilt layer, or
+    freshly built."""
+    files = native_source_files(fmi_version)
     digest = hashlib.sha256()
-    for path in native_source_files():
+    for path in files:
         digest.update(path.read_bytes())
-    relative = f"native/{digest.hexdigest()[:16]}/fmu.so"
+    name = "fmu.so" if fmi_version == 2 else f"fmu{fmi_version}.so"
+    relative = f"native/{digest.hexdigest()[:16]}/{name}"
     found = find_built(relative)
     if found is not None:
         return found
-    cc = require_compiler(NATIVE_DIR / SOURCES[0])
+    api = NATIVE_DIR / _version_files(fmi_version)[0]
+    cc = require_compiler(api)
     binary = cache_dir() / relative
     build_into(binary.parent, lambda tmp: _run(
         [*cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}",
-         *[str(NATIVE_DIR / name) for name in SOURCES], "-o", f"{tmp}/{binary.name}",
-         "-ldl", "-lpthread", "-lm"], NATIVE_DIR / SOURCES[0]))
+         *[str(path) for path in files if path.suffix == ".c"], "-o", f"{tmp}/{binary.name}",
+         "-ldl", "-lpthread", "-lm"], api))
     return binary
 
 

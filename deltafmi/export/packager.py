@@ -19,6 +19,7 @@ import deltafmi
 from ..component import Component
 from ..component.checks import definition_problem
 from ..component.model_description import model_description_xml
+from ..component.model_description3 import model_description3_xml
 from ..files import replaced_atomically
 from .compiler import (BuildError, NoCompilerError, cache_dir, fmu_binary, native_source_files, no_compiler_message,
                        python_extension, python_runtime_config)
@@ -29,8 +30,12 @@ from .sources import ComponentSourceError, find_component
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: compiled value access of the variable declarations (see deltafmi/component/native_values.py)
 VALUE_ACCESS_SOURCE = PACKAGE_DIR / "component" / "_values.c"
-#: the module that writes modelDescription.xml at build time (FMUs do not carry it)
-_MODEL_DESCRIPTION = "deltafmi.component.model_description"
+#: the modules that write modelDescription.xml at build time (FMUs do not carry them)
+_MODEL_DESCRIPTIONS = ["deltafmi.component.model_description", "deltafmi.component.model_description3"]
+#: FMI versions deltafmi builds, with where each puts its binary (FMI 3.0 names the platform
+#: <arch>-<os>, FMI 2.0 linux64)
+FMI_VERSIONS = (2, 3)
+_BINARY_DIR = {2: "binaries/linux64", 3: "binaries/x86_64-linux"}
 _GUID_NAMESPACE = uuid.UUID("6f1c8a52-4d0e-4f5e-9a53-0d3c5e2b7a11")
 
 
@@ -112,17 +117,18 @@ def compiled_value_access(modules: Optional[list[str]] = None) -> list[tuple[Pat
     return [(module, f"{folder}/{module.name}"), (VALUE_ACCESS_SOURCE, f"{folder}/{VALUE_ACCESS_SOURCE.name}")]
 
 
-def content_key(source: Path, class_name: Optional[str] = None) -> str:
+def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int = 2) -> str:
     """Hash of everything that determines an FMU built from ``source``: the files it carries
-    (so that editing a module the model does not reach leaves its cached FMU valid), the native
-    sources of its binary, the code that writes its modelDescription.xml, this packager and the
-    Python it was built for."""
-    _fmu_binary_for(source)  # first: without it nothing else matters (no warnings about the rest)
-    digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0".encode())
+    (so that editing a module the model does not reach leaves its cached FMU valid), the FMI
+    version, the native sources of its binary, the code that writes its modelDescription.xml,
+    this packager and the Python it was built for."""
+    _check_version(fmi_version)
+    _fmu_binary_for(source, fmi_version)  # first: without it nothing else matters (no warnings about the rest)
+    digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0fmi{fmi_version}\0".encode())
     for path, arcname in runtime_files(source) + binary_files(source):
         digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
-    writers = [module_source(name) for name in reached_modules(modules=[_MODEL_DESCRIPTION], runtime=False)]
-    for path in native_source_files() + writers + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]:
+    writers = [module_source(name) for name in reached_modules(modules=_MODEL_DESCRIPTIONS, runtime=False)]
+    for path in native_source_files(fmi_version) + writers + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]:
         digest.update(path.read_bytes())
     # the environment, not the interpreter's name in it: bin/python and bin/python3.12 (the console
     # scripts' shebang) of one venv build the same FMU
@@ -136,53 +142,58 @@ BUILD_LOG = logging.getLogger("deltafmi.build")
 
 
 def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool = False,
-              class_name: Optional[str] = None) -> Path:
+              class_name: Optional[str] = None, fmi_version: int = 2) -> Path:
     """Build the FMU for the component in ``source`` (the class ``class_name``, needed only when
     the file defines several; ``source`` may also name a component as ``deltafmi build`` takes
     it: ``"DeltaRobot"``, ``"package.module:Class"``, ``"file.py:Class"``); returns the ``.fmu`` path.
 
-    A ``portable`` FMU also carries the interpreter, standard library and packages its model
-    imports (see :mod:`deltafmi.export.portable`), so that it runs where no Python is installed."""
+    ``fmi_version`` 2 writes an FMI 2.0 FMU, 3 an FMI 3.0 one (both with Model Exchange and
+    Co-Simulation, from the same class). A ``portable`` FMU also carries the interpreter, standard
+    library and packages its model imports (see :mod:`deltafmi.export.portable`), so that it runs
+    where no Python is installed."""
+    _check_version(fmi_version)
     source, class_name = _component(source, class_name)
     if portable:
         from .portable import make_portable
         cls = load_component_class(source, class_name)
         output = Path(output) if output else Path("build") / "fmus" / f"{cls.fmi_model_name()}.fmu"
-        make_portable(build_cached(source, class_name=class_name), output)
+        make_portable(build_cached(source, class_name=class_name, fmi_version=fmi_version), output)
         return output
     cls = load_component_class(source, class_name)
     identifier = cls.fmi_model_name()
     output = Path(output) if output else Path("build") / "fmus" / f"{identifier}.fmu"
-    key = content_key(source, class_name)
+    key = content_key(source, class_name, fmi_version)
     guid = "{" + str(uuid.uuid5(_GUID_NAMESPACE, key)) + "}"
-    binary = _fmu_binary_for(source)
+    binary = _fmu_binary_for(source, fmi_version)
     info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
-            "guid": guid, "deltafmi_version": deltafmi.__version__}
+            "guid": guid, "fmi_version": fmi_version, "deltafmi_version": deltafmi.__version__}
+    writer = model_description_xml if fmi_version == 2 else model_description3_xml
     with replaced_atomically(output) as tmp:
         with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as fmu:
-            fmu.writestr("modelDescription.xml", model_description_xml(cls, guid))
-            fmu.write(binary, f"binaries/linux64/{identifier}.so")
+            fmu.writestr("modelDescription.xml", writer(cls, guid))
+            fmu.write(binary, f"{_BINARY_DIR[fmi_version]}/{identifier}.so")
             fmu.write(source, f"resources/model/{source.name}")
             fmu.write(PACKAGE_DIR / "export" / "boot.py", "resources/deltafmi_boot.py")
             fmu.writestr("resources/deltafmi.json", json.dumps(info, indent=2))
             fmu.writestr("resources/python.cfg", python_runtime_config())
-            fmu.writestr("resources/README.txt", _readme(identifier))
+            fmu.writestr("resources/README.txt", _readme(identifier, fmi_version))
             for path, arcname in runtime_files(source):
                 fmu.write(path, arcname)
                 fmu.writestr(importlib.util.cache_from_source(arcname), unchecked_hash_pyc(path, arcname))
             for path, arcname in binary_files(source):
                 fmu.write(path, arcname)
-            for path in native_source_files():
+            for path in native_source_files(fmi_version):
                 fmu.write(path, f"sources/{path.name}")
-            fmu.writestr("documentation/index.html", _documentation(cls))
+            fmu.writestr("documentation/index.html", _documentation(cls, fmi_version))
     return output
 
 
-def build_cached(source: Path | str, portable: bool = False, class_name: Optional[str] = None) -> Path:
+def build_cached(source: Path | str, portable: bool = False, class_name: Optional[str] = None,
+                 fmi_version: int = 2) -> Path:
     """The FMU for ``source`` (as :func:`build_fmu` takes it) from the per-user build cache, built
     when the source or runtime changed."""
     source, class_name = _component(source, class_name)
-    key = content_key(source, class_name)[:20]
+    key = content_key(source, class_name, fmi_version)[:20]
     if portable:
         from .portable import bundle_key
         key += "-portable-" + bundle_key()[:12]
@@ -192,7 +203,8 @@ def build_cached(source: Path | str, portable: bool = False, class_name: Optiona
         return existing[0]
     cls = load_component_class(source, class_name)
     BUILD_LOG.info("building %s FMU (cached afterwards in %s) ...", cls.__name__, _home_relative(cache_dir() / "fmus"))
-    return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable, class_name=class_name)
+    return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable, class_name=class_name,
+                     fmi_version=fmi_version)
 
 
 def _component(source: Path | str, class_name: Optional[str]) -> tuple[Path, Optional[str]]:
@@ -223,12 +235,17 @@ def unchecked_hash_pyc(path: Path, arcname: str) -> bytes:
     return importlib.util.MAGIC_NUMBER + flags + importlib.util.source_hash(text) + marshal.dumps(code)
 
 
-def _fmu_binary_for(source: Path) -> Path:
+def _fmu_binary_for(source: Path, fmi_version: int) -> Path:
     """The FMU binary; without a compiler to build it, the error names the component ``source``."""
     try:
-        return fmu_binary()
+        return fmu_binary(fmi_version)
     except NoCompilerError:  # name the component, not the C file that would be compiled
         raise NoCompilerError(f"{source}: {no_compiler_message()}") from None
+
+
+def _check_version(fmi_version: int) -> None:
+    if fmi_version not in FMI_VERSIONS:
+        raise ValueError(f"fmi_version must be 2 or 3, not {fmi_version!r}")
 
 
 def _digest(data: bytes) -> str:
@@ -243,15 +260,16 @@ _REQUIREMENTS = ("This FMU runs its model in CPython (3.10 or newer) with numpy,
                  "and DELTAFMI_PYTHON (the interpreter whose site-packages to use).")
 
 
-def _readme(identifier: str) -> str:
-    return (f"{identifier}: an FMI 2.0 FMU (Model Exchange and Co-Simulation) built by deltafmi "
+def _readme(identifier: str, fmi_version: int) -> str:
+    return (f"{identifier}: an FMI {fmi_version}.0 FMU (Model Exchange and Co-Simulation) built by deltafmi "
             f"{deltafmi.__version__}.\n\n{_REQUIREMENTS}\n\nmodel/ holds the component source, python/ the "
             "deltafmi runtime it uses, deltafmi_boot.py the code the native bridge runs to load it.\n")
 
 
-def _documentation(cls: type[Component]) -> str:
+def _documentation(cls: type[Component], fmi_version: int) -> str:
     import html
     doc = html.escape((cls.__doc__ or "").strip())
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{cls.fmi_model_name()}</title></head>"
-            f"<body><h1>{cls.fmi_model_name()}</h1><pre>{doc}</pre><h2>Requirements</h2>"
+            f"<body><h1>{cls.fmi_model_name()}</h1><p>An FMI {fmi_version}.0 FMU (Model Exchange and "
+            f"Co-Simulation) built by deltafmi {deltafmi.__version__}.</p><pre>{doc}</pre><h2>Requirements</h2>"
             f"<p>{html.escape(_REQUIREMENTS)}</p></body></html>\n")

@@ -409,6 +409,7 @@ def make_portable(fmu: Path, output: Path) -> PortableBundle:
     bundle = portable_bundle(modules, needs_sundials=needs_sundials, sundials_dir=sundials)
     replaced = {"resources/python.cfg", "documentation/index.html", "resources/README.txt"}
     with zipfile.ZipFile(fmu) as source, replaced_atomically(output) as tmp:
+        version = _fmi_version(source.read("modelDescription.xml"))
         with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive:
             for item in source.infolist():
                 if item.filename not in replaced:
@@ -420,15 +421,21 @@ def make_portable(fmu: Path, output: Path) -> PortableBundle:
                 archive.writestr(name, data)
             for path, name in bundle.licenses:
                 archive.write(path, f"documentation/licenses/{name}")
-            archive.writestr("resources/README.txt", portable_readme(bundle))
+            archive.writestr("resources/README.txt", portable_readme(bundle, version))
             archive.writestr("documentation/index.html", _with_portable_section(
-                source.read("documentation/index.html").decode(), bundle))
+                source.read("documentation/index.html").decode(), bundle, version))
     return bundle
 
 
-def portable_readme(bundle: PortableBundle) -> str:
+def _fmi_version(model_description: bytes) -> str:
+    """The fmiVersion attribute of a modelDescription.xml ("2.0", "3.0")."""
+    import xml.etree.ElementTree as ET
+    return ET.fromstring(model_description).get("fmiVersion", "2.0")
+
+
+def portable_readme(bundle: PortableBundle, fmi_version: str = "2.0") -> str:
     glibc = ".".join(map(str, bundle.glibc_floor))
-    return (f"A portable deltafmi FMU (FMI 2.0, Model Exchange and Co-Simulation).\n\n"
+    return (f"A portable deltafmi FMU (FMI {fmi_version}, Model Exchange and Co-Simulation).\n\n"
             f"It carries CPython {bundle.python_version} (python/lib), the part of the standard library and "
             f"the packages its model imports, and the shared libraries they need beyond glibc. It runs on "
             f"Linux x86_64 with glibc {glibc} or newer, with no Python installed. In a host that already runs "
@@ -436,7 +443,7 @@ def portable_readme(bundle: PortableBundle) -> str:
             f"Licences of everything bundled: documentation/licenses/.\n")
 
 
-def _with_portable_section(page: str, bundle: PortableBundle) -> str:
+def _with_portable_section(page: str, bundle: PortableBundle, fmi_version: str) -> str:
     import html
-    section = f"<h2>Requirements (portable FMU)</h2><p>{html.escape(portable_readme(bundle))}</p>"
+    section = f"<h2>Requirements (portable FMU)</h2><p>{html.escape(portable_readme(bundle, fmi_version))}</p>"
     return re.sub(r"<h2>Requirements</h2>.*</body>", lambda _: section + "</body>", page, flags=re.S)

@@ -2,7 +2,7 @@
 
 ``python -m deltafmi.export.prebuild DIR`` (run by ``setup.py`` when it builds a wheel, into
 ``build/lib/deltafmi/_prebuilt``) compiles, with the same functions and under the same relative
-paths as the per-user cache (see :mod:`deltafmi.export.compiler`): the FMU binary, the compiled
+paths as the per-user cache (see :mod:`deltafmi.export.compiler`): the FMU binaries (FMI 2.0 and 3.0), the compiled
 value access, the mypyc kernels, the C pieces of the master and the CSV writer, and the starter of
 portable FMUs. An installed wheel finds them there, so that its user needs no C compiler, mypy or
 Python headers to build and run the packaged models, nor their edited copies (their FMUs carry
@@ -37,7 +37,8 @@ def prebuild(target: Path) -> list[Path]:
     if compiler.PREBUILT_DIR.exists():  # an installed wheel's layer would be found, not rebuilt
         raise SystemExit(f"prebuild: run it from a source tree ({compiler.PREBUILT_DIR} exists)")
     package = Path(compiler.__file__).resolve().parent.parent
-    compiler.fmu_binary()
+    for fmi_version in compiler.VERSION_FILES:
+        compiler.fmu_binary(fmi_version)
     if sys.version_info >= (3, 11):  # its stable ABI is 3.11's; FMUs built on 3.10 use the Python stand-ins
         compiler.python_extension(VALUE_ACCESS_SOURCE)
     for relative in PLAIN_C_SOURCES:

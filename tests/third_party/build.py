@@ -1,45 +1,77 @@
 """Build the third-party-style C FMUs of tests/third_party into real .fmu archives.
 
 Each model is a folder with ``model.c`` and ``modelDescription.xml`` (and ``resources/`` when it
-reads files); ``plumbing.c`` supplies every fmi2 function. The binary is compiled with ``cc``
-against the FMI 2.0 headers shipped in deltafmi/export/native, exports only the ``fmi2*``
-functions and does not link anything but libc and libm: no Python anywhere.
+reads files). The binary is compiled with ``cc`` from the model, ``common.c`` and the front end of
+the model's FMI version (its modelDescription's ``fmiVersion``): ``plumbing.c`` supplies every fmi2
+function, ``plumbing3.c`` every fmi3 function. It is compiled against the FMI headers shipped in
+deltafmi/export/native, exports only the ``fmi2*`` (``fmi3*``) functions and links nothing but libc
+and libm: no Python anywhere. FMI 2.0 binaries go to ``binaries/linux64``, FMI 3.0 binaries to
+``binaries/x86_64-linux``.
+
+    build_fmu("BouncingBall3", out_dir)   # -> out_dir/BouncingBall3.fmu (FMI 3.0, ME + CS)
 """
 from __future__ import annotations
 
+import re
 import subprocess
 import zipfile
 from pathlib import Path
-from typing import Dict
+from typing import Dict, Optional, Tuple
 
 HERE = Path(__file__).resolve().parent
 HEADERS = HERE.parents[1] / "deltafmi" / "export" / "native"
 MODELS = ("AllTypes", "Ticker", "LookupTable", "BouncingBall")
+MODELS3 = ("AllTypes3", "StateSpace3", "BouncingBall3", "Stopper3", "Table3")
+FRONT_END = {2: "plumbing.c", 3: "plumbing3.c"}
+PLATFORM = {2: "linux64", 3: "x86_64-linux"}
 
 
-def build_fmu(model: str, out_dir: Path) -> Path:
-    """Compile ``model`` and pack ``out_dir/<model>.fmu`` (both ME and CS, one binary)."""
+def version_of(model: str) -> int:
+    """The major FMI version (2 or 3) of ``model``'s modelDescription.xml."""
+    text = (HERE / model / "modelDescription.xml").read_text()
+    found = re.search(r'fmiVersion="(\d)', text)
+    if found is None or int(found.group(1)) not in FRONT_END:
+        raise ValueError(f"{model}/modelDescription.xml: no fmiVersion 2.0 or 3.0")
+    return int(found.group(1))
+
+
+def build_fmu(model: str, out_dir: Path, fmi_version: Optional[int] = None) -> Path:
+    """Compile ``model`` and pack ``out_dir/<model>.fmu`` (both ME and CS, one binary).
+
+    The FMI version is the model's own; ``fmi_version`` (2 or 3), when given, is checked."""
+    version = version_of(model)
+    if fmi_version is not None and fmi_version != version:
+        raise ValueError(f"{model} is an FMI {version}.0 model, not FMI {fmi_version}.0")
     source = HERE / model
     out_dir.mkdir(parents=True, exist_ok=True)
     binary = out_dir / f"{model}.so"
+    sources = [HERE / "common.c", HERE / FRONT_END[version], source / "model.c"]
     compiled = subprocess.run(["cc", "-shared", "-fPIC", "-O2", "-std=gnu11", "-Wall", "-Wextra", "-Werror",
-                               "-fvisibility=hidden", f"-I{HEADERS}", f"-I{HERE}",
-                               str(HERE / "plumbing.c"), str(source / "model.c"), "-o", str(binary), "-lm"],
-                              capture_output=True, text=True)
+                               "-fvisibility=hidden", f"-I{HEADERS}", f"-I{HERE}", *map(str, sources),
+                               "-o", str(binary), "-lm"], capture_output=True, text=True)
     if compiled.returncode:
         raise RuntimeError(f"compiling {model} failed:\n{compiled.stderr}")
     fmu = out_dir / f"{model}.fmu"
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
         archive.write(source / "modelDescription.xml", "modelDescription.xml")
-        archive.write(binary, f"binaries/linux64/{model}.so")
+        archive.write(binary, f"binaries/{PLATFORM[version]}/{model}.so")
         for path in sorted((source / "resources").rglob("*")) if (source / "resources").is_dir() else []:
             if path.is_file():
                 archive.write(path, f"resources/{path.relative_to(source / 'resources').as_posix()}")
-        for path in (HERE / "plumbing.h", HERE / "plumbing.c", source / "model.c"):
+        for path in (HERE / "plumbing.h", *sources):
             archive.write(path, f"sources/{path.name}")
+        model_c = (source / "model.c").read_text()
+        for path in sorted((HERE / "shared").glob("*.h")):
+            if f'"shared/{path.name}"' in model_c:
+                archive.write(path, f"sources/shared/{path.name}")
     return fmu
 
 
-def build_all(out_dir: Path) -> Dict[str, Path]:
-    """Every model of tests/third_party as ``{model: .fmu path}``."""
-    return {model: build_fmu(model, out_dir) for model in MODELS}
+def build_all(out_dir: Path, models: Tuple[str, ...] = MODELS) -> Dict[str, Path]:
+    """Every FMI 2.0 model of tests/third_party (or ``models``) as ``{model: .fmu path}``."""
+    return {model: build_fmu(model, out_dir) for model in models}
+
+
+def build_all3(out_dir: Path) -> Dict[str, Path]:
+    """Every FMI 3.0 model of tests/third_party as ``{model: .fmu path}``."""
+    return build_all(out_dir, MODELS3)

@@ -86,6 +86,11 @@ def linearize_scenario(path: Path, *, at: Optional[float] = None, inputs: Sequen
     if k < 0 or abs(start + k * h - at) > 1e-9 * max(h, abs(at)):
         raise BadInput(f"--at {at:g}: a linearization instant must be a communication point at or after the "
                        f"start ({start:g} s) on the grid of the step {h:g} s")
+    newer = [c.name for c in system.components if c.info.fmi3]
+    if newer:
+        raise BadInput(f"linearize takes FMI 2.0 components; {', '.join(newer)} "
+                       f"{'is an FMI 3.0 FMU' if len(newer) == 1 else 'are FMI 3.0 FMUs'} (build from source with "
+                       "fmi_version: 2)")
     multi = [c.name for c in system.components if c.spec.step_multiple != 1]
     if multi:
         raise BadInput(f"linearize needs every component on the communication step; step_multiple is set for "

@@ -52,6 +52,8 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
     where = label or str(fmu)
     if info.md.modelExchange is None:
         raise BadInput(f"'{where}' offers no Model Exchange interface: linearizing an FMU needs its equations")
+    if info.fmi3:
+        raise BadInput(f"'{where}' is an FMI 3.0 FMU: linearize takes FMI 2.0 FMUs (deltafmi build --fmi-version 2)")
     missing = binary_problem(fmu, [info.model_identifier("ME")])
     if missing:
         raise BadInput(f"'{where}' cannot run here: {missing}")

@@ -13,10 +13,12 @@ from pathlib import Path
 from typing import Iterable, Optional
 
 
-def binary_problem(fmu: Path, model_identifiers: Iterable[str]) -> Optional[str]:
+def binary_problem(fmu: Path, model_identifiers: Iterable[str], fmi3: bool = False) -> Optional[str]:
     """Why ``fmu`` has no binary to load on this platform (``binaries/linux64/<modelIdentifier>.so``
-    for each of ``model_identifiers``), or None when it has them all."""
-    from fmpy import platform, sharedLibraryExtension
+    for each of ``model_identifiers``; FMI 3.0, ``fmi3``: ``binaries/x86_64-linux/...``), or None
+    when it has them all."""
+    from fmpy import platform as platform2, platform_tuple, sharedLibraryExtension
+    platform = platform_tuple if fmi3 else platform2
 
     with zipfile.ZipFile(fmu) as archive:
         names = archive.namelist()
@@ -31,7 +33,7 @@ def binary_problem(fmu: Path, model_identifiers: Iterable[str]) -> Optional[str]
 
 def guid_problem(fmu: Path, guid: str) -> Optional[str]:
     """For a deltafmi FMU: how the GUID of its modelDescription.xml (``guid``) and the one its
-    binary checks at fmi2Instantiate (``resources/deltafmi.json``) disagree, or None."""
+    binary checks when instantiated (``resources/deltafmi.json``) disagree, or None."""
     with zipfile.ZipFile(fmu) as archive:
         try:
             built = json.loads(archive.read("resources/deltafmi.json")).get("guid", "")
@@ -39,5 +41,5 @@ def guid_problem(fmu: Path, guid: str) -> Optional[str]:
             return None
     if built and built != guid:
         return (f"the GUID of modelDescription.xml, {guid}, is not the one its binary was built with, {built}: "
-                "fmi2Instantiate will refuse it (rebuild the FMU, or restore its modelDescription.xml)")
+                "its instantiation will refuse it (rebuild the FMU, or restore its modelDescription.xml)")
     return None

@@ -57,11 +57,12 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
                    stop: Optional[float] = None, step: Optional[float] = None,
                    tolerance: Optional[float] = None, allow_nan: Optional[bool] = None,
                    algorithm: Optional[str] = None, record: Optional[Sequence[str]] = None,
-                   origin: str = "--set", cli: bool = False) -> Scenario:
+                   fmi_version: Optional[int] = None, origin: str = "--set", cli: bool = False) -> Scenario:
     """``scenario`` with start values (``{"plant.z0": [0.1, 0, -1.0], "controller.pole": 10}``), the
     stop time, the communication step, every component's relative tolerance, the NaN check
-    (``allow_nan``), the master's ``algorithm`` and the recorded variables replaced; None leaves
-    a setting as it is.
+    (``allow_nan``), the master's ``algorithm``, the recorded variables and the scenario's
+    ``fmi_version`` (what its ``source:`` components are built as) replaced; None leaves a
+    setting as it is.
 
     A value replaces the scenario's value of the same name, or is set after it (``plant.z0[3]``
     after the YAML's ``z0``). In a one-component scenario a name may leave out the component.
@@ -105,6 +106,10 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
         component, variable = split_name(scenario, str(name), origin)
         added[component].append(Parameter(variable, _plain(value), None, f"{origin} {name}"))
     components = tuple(_component(spec, added[spec.name], tolerance) for spec in scenario.components)
+    if fmi_version is not None:
+        if fmi_version not in (2, 3):
+            raise BadInput(f"FMI version {fmi_version!r}: use 2 or 3")
+        scenario = replace(scenario, fmi_version=int(fmi_version))
     return replace(scenario, experiment=experiment, master=master, components=components, outputs=outputs)
 
 

@@ -4,6 +4,8 @@ Every finding is a :class:`Diagnostic` at ``file:line``: unknown components and 
 suggestions), connections that do not go output -> input, type and unit mismatches, inputs driven
 twice, unconnected inputs (warning), algebraic loops the master cannot solve (from each FMU's
 direct feedthrough), parameters that cannot be set, record patterns that match nothing.
+FMI 2.0 and FMI 3.0 FMUs resolve alike: an FMI 3.0 array is its elements (:mod:`.modelinfo`),
+connected whole (shapes must agree) or by element; Binary and Clock variables are not connected.
 """
 from __future__ import annotations
 
@@ -28,9 +30,15 @@ class Port:
     component: str
     name: str
     vr: int
-    type: str  # the FMI type its values travel as: Real, Integer (also Enumeration), Boolean, String
+    #: the bus its values travel on: Real (also Float32), Integer (also Enumeration and the FMI 3.0
+    #: integers up to Int32), Int64 (UInt32, Int64), UInt64, Boolean, String
+    type: str
     unit: str = ""
     enumeration: str = ""  # the declared type's name for an Enumeration variable
+    #: the FMI 3.0 type (Float64, Int8, ...); "" for an FMI 2.0 variable
+    fmi_type: str = ""
+    #: the element's place (row-major) in its FMI 3.0 array variable; 0 for a scalar
+    index: int = 0
 
     @property
     def ref(self) -> str:
@@ -39,8 +47,14 @@ class Port:
 
     @property
     def type_name(self) -> str:
-        """The FMI type as a user reads it: ``Real``, ..., ``Enumeration 'Color'``."""
-        return f"Enumeration '{self.enumeration}'" if self.enumeration else self.type
+        """The FMI type as a user reads it: ``Real``, ``Float32``, ..., ``Enumeration 'Color'``."""
+        return f"Enumeration '{self.enumeration}'" if self.enumeration else (self.fmi_type or self.type)
+
+    @property
+    def same_type_as(self) -> str:
+        """What two connected variables must share: FMI 2.0's Real and Integer are FMI 3.0's
+        Float64 and Int32."""
+        return _FMI2_EQUIVALENT.get(self.type_name, self.type_name)
 
 
 @dataclass(frozen=True)
@@ -110,7 +124,17 @@ class System:
 
 _SETTABLE_CAUSALITIES = ("parameter", "input")
 _TYPE_NAMES = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
-               "String": "String"}
+               "String": "String",
+               # FMI 3.0: each type on the bus that holds all its values (see Port.type)
+               "Float64": "Real", "Float32": "Real", "Int8": "Integer", "UInt8": "Integer", "Int16": "Integer",
+               "UInt16": "Integer", "Int32": "Integer", "UInt32": "Int64", "Int64": "Int64", "UInt64": "UInt64"}
+_FMI2_EQUIVALENT = {"Float64": "Real", "Int32": "Integer"}
+#: how a start value of each FMI 3.0 type is checked: as a Real or Integer value
+_VALUE_KINDS = {"Int64": "Integer", "UInt64": "Integer", "UInt32": "Integer"}
+_INTEGER_RANGES = {f"{sign}Int{bits}": ((0, 2 ** bits - 1) if sign else (-2 ** (bits - 1), 2 ** (bits - 1) - 1))
+                   for sign in ("", "U") for bits in (8, 16, 32, 64)}
+#: FMI 3.0 types whose values the master does not exchange
+_NOT_CONNECTABLE = ("Binary", "Clock")
 
 
 def resolve_system(scenario: Scenario, check_fmus: bool = False) -> System:
@@ -219,6 +243,10 @@ class _Checker:
         except Exception as exc:  # noqa: BLE001 - any unreadable FMU is a user error here
             self.error(spec.line, f"component '{spec.name}': cannot read FMU '{path}': {exc}")
             return None
+        if spec.fmi_version is not None and spec.fmu is not None and info.fmi3 != (spec.fmi_version == 3):
+            self.error(spec.line, f"component '{spec.name}': FMU '{path.name}' is an FMI {info.md.fmiVersion} FMU, "
+                                  f"not FMI {spec.fmi_version}.0 as its fmi_version says")
+            return None
         offered = info.interfaces()
         interface = spec.interface or ("CS" if "CS" in offered else "ME")
         if interface not in offered:
@@ -227,7 +255,7 @@ class _Checker:
                                   f"(it has {', '.join(offered) or 'none'})")
             return None
         from .fmu_checks import binary_problem
-        missing = binary_problem(path, [info.model_identifier(interface)])
+        missing = binary_problem(path, [info.model_identifier(interface)], info.fmi3)
         if missing:
             self.error(spec.line, f"component '{spec.name}': FMU '{path.name}' cannot run here: {missing}")
             return None
@@ -273,8 +301,11 @@ class _Checker:
         except ComponentSourceError as exc:
             self.error(spec.line, f"component '{spec.name}': source {exc}")
             return None
+        version = spec.fmi_version or self.scenario.fmi_version or 2
         try:
-            from deltafmi.export import build_cached  # keyed by source + runtime hash
+            from deltafmi.export import build_cached  # keyed by source + runtime hash (+ FMI version)
+            if version == 3:
+                return build_cached(source, class_name=class_name, fmi_version=3)
             return build_cached(source, class_name=class_name)
         except Exception as exc:  # noqa: BLE001 - a build failure is reported, not raised
             self.error(spec.line, f"component '{spec.name}': building '{spec.source}' failed: {exc}")
@@ -299,11 +330,19 @@ class _Checker:
                 continue
             for name, value in zip(names, items):
                 var = info.variables[name]
+                if var.causality == "structuralParameter":
+                    self.error(param.line, f"{where}: '{name}' is a structural parameter, which the master keeps "
+                                           "at its start value (it sizes the FMU's arrays)", at)
+                    break
                 if not _settable(var):
                     self.error(param.line, f"{where}: '{name}' is {_article(var.causality)} "
                                            f"({var.initial or 'calculated'}) and cannot be set", at)
                     break
-                kind = _TYPE_NAMES.get(var.type, var.type)
+                kind = _VALUE_KINDS.get(var.type, _TYPE_NAMES.get(var.type, var.type))
+                if kind in _NOT_CONNECTABLE:
+                    self.error(param.line, f"{where}: '{name}' is a {kind} variable, which the master does not "
+                                           "set", at)
+                    break
                 enumeration = info.enumeration(name)
                 if isinstance(value, Text):
                     try:
@@ -319,7 +358,7 @@ class _Checker:
                     self.error(param.line, f"{where}: type mismatch: '{name}' is {kind} but the value "
                                            f"{value!r} is {type(value).__name__}", at)
                     break
-                outside = _outside_range(var, kind, value)
+                outside = _outside_range(var, kind, value, _INTEGER_RANGES.get(var.type))
                 if outside:
                     self.error(param.line, f"{where}: '{name}' = {value!r} {outside}", at)
                     break
@@ -354,9 +393,15 @@ class _Checker:
                 continue
             if not self._causalities(conn, sources, targets):
                 continue
-            if len(sources) != len(targets):
-                self.error(conn.line, f"connection {conn.source} -> {conn.target}: {len(sources)} source "
-                                      f"variable(s) but {len(targets)} target variable(s)")
+            shapes = self._shape(conn.source), self._shape(conn.target)
+            if len(sources) != len(targets) or (None not in shapes and shapes[0] != shapes[1]):
+                if None not in shapes:
+                    self.error(conn.line, f"connection {conn.source} -> {conn.target}: the arrays differ in "
+                                          f"shape: '{conn.source}' is {_shape_text(shapes[0])} but "
+                                          f"'{conn.target}' is {_shape_text(shapes[1])}")
+                else:
+                    self.error(conn.line, f"connection {conn.source} -> {conn.target}: {len(sources)} source "
+                                          f"variable(s) but {len(targets)} target variable(s)")
                 continue
             for source, target in zip(sources, targets):
                 if not self._compatible(conn, source, target):
@@ -386,6 +431,11 @@ class _Checker:
             return None
         return [_port(component, n) for n in names]
 
+    def _shape(self, reference: str) -> Optional[Tuple[int, ...]]:
+        """The shape of the whole array ``component.variable`` names, else None."""
+        comp_name, var = reference.split(".", 1)
+        return self.components[comp_name].info.shape(var)
+
     def _causalities(self, conn: ConnectionSpec, sources: List[Port], targets: List[Port]) -> bool:
         ok = True
         src = self._causality(sources[0])
@@ -407,7 +457,13 @@ class _Checker:
         return self.components[port.component].info.variables[port.name].causality
 
     def _compatible(self, conn: ConnectionSpec, source: Port, target: Port) -> bool:
-        if source.type_name != target.type_name:
+        for port in (source, target):
+            if port.type in _NOT_CONNECTABLE:
+                self.error(conn.line, f"'{port.ref}' is a {port.type} variable, which the master does not "
+                                      "exchange: only Float, Integer, Boolean, String and Enumeration variables "
+                                      "can be connected")
+                return False
+        if source.same_type_as != target.same_type_as:
             self.error(conn.line, f"type mismatch: '{source.ref}' is {source.type_name} but '{target.ref}' "
                                   f"is {target.type_name}")
             return False
@@ -434,8 +490,8 @@ class _Checker:
         loose = []
         for component in self.components.values():
             given = {port.ref for port, _ in component.start_values}
-            names = [v.name for v in component.info.md.modelVariables if v.causality == "input"
-                     and f"{component.name}.{v.name}" not in driven | given]
+            names = [name for name, v in component.info.variables.items() if v.causality == "input"
+                     and v.type not in _NOT_CONNECTABLE and f"{component.name}.{name}" not in driven | given]
             loose += [f"{component.name}.{name}" for name in _ranges(names)]
         if loose:
             self.warn(None, f"input(s) not connected, kept at their start values: {', '.join(loose)} "
@@ -447,15 +503,16 @@ class _Checker:
         recorded: Dict[str, Port] = {}
         if not patterns:
             for component in self.components.values():
-                for v in component.info.md.modelVariables:
-                    if v.causality == "output":
-                        recorded.setdefault(f"{component.name}.{v.name}", _port(component, v.name))
+                for name, v in component.info.variables.items():
+                    if v.causality == "output" and v.type not in _NOT_CONNECTABLE:
+                        recorded.setdefault(f"{component.name}.{name}", _port(component, name))
             return list(recorded.values())
-        every = [(c, v.name) for c in self.components.values() for v in c.info.md.modelVariables]
+        every = [(c, name) for c in self.components.values() for name, v in c.info.variables.items()
+                 if v.type not in _NOT_CONNECTABLE]
         unresolved = {c.name for c in self.scenario.components} - set(self.components)
         for spec in patterns:
             regex = pattern_regex(spec.pattern)
-            hits = [(c, n) for c, n in every if regex.match(f"{c.name}.{n}")]
+            hits = [(c, n) for c, n in every if regex.match(f"{c.name}.{n}")] or self._array_named(spec.pattern)
             if not hits:
                 if spec.pattern.split(".", 1)[0] in unresolved:
                     continue  # its component's error is reported already
@@ -468,6 +525,15 @@ class _Checker:
                 recorded.setdefault(port.ref, port)
         return list(recorded.values())
 
+    def _array_named(self, pattern: str) -> List[Tuple[Component, str]]:
+        """The elements of the array ``component.array`` that ``pattern`` names (``plant.z`` records
+        ``plant.z[1]``, ... as in a connection), else none."""
+        comp_name, _, var = pattern.partition(".")
+        component = self.components.get(comp_name)
+        if component is None or var not in component.info.arrays:
+            return []
+        return [(component, name) for name in component.info.arrays[var]]
+
     def _settings(self) -> None:
         master = self.scenario.master
         if master.adaptive.enabled:
@@ -477,10 +543,17 @@ class _Checker:
 
 
 def _port(component: Component, name: str) -> Port:
-    var = component.info.variables[name]
-    enumeration = component.info.enumeration(name)
+    info = component.info
+    var = info.variables[name]
+    enumeration = info.enumeration(name)
     return Port(component.name, name, var.valueReference, _TYPE_NAMES.get(var.type, var.type),
-                component.info.unit(name), enumeration[0] if enumeration else "")
+                info.unit(name), enumeration[0] if enumeration else "",
+                var.type if info.fmi3 and var.type != "Enumeration" else "", info.positions.get(name, 0))
+
+
+def _shape_text(shape: Tuple[int, ...]) -> str:
+    """``(3,)`` -> ``[3]``, ``(2, 3)`` -> ``[2, 3]``."""
+    return f"[{', '.join(map(str, shape))}]"
 
 
 def _ranges(names: Sequence[str]) -> List[str]:
@@ -522,15 +595,18 @@ def _value_fits(kind: str, value: Any) -> bool:
     return isinstance(value, str)
 
 
-def _outside_range(var: Any, kind: str, value: Any) -> str:
+def _outside_range(var: Any, kind: str, value: Any, limits: Optional[Tuple[int, int]] = None) -> str:
     """Why a Real or Integer start value is not one the FMU takes (not finite, or outside the
-    min/max its modelDescription declares, declared type included), else ``""``."""
+    min/max its modelDescription declares, declared type included, or outside the range of its
+    FMI 3.0 integer type, ``limits``), else ``""``."""
     if kind not in ("Real", "Integer"):
         return ""
     if kind == "Real" and not math.isfinite(value):
         return "is not a finite number"
     declared = getattr(var, "declaredType", None)
     low, high = (_bound(var, declared, "min", -math.inf), _bound(var, declared, "max", math.inf))
+    if limits is not None and not limits[0] <= value <= limits[1]:
+        return f"is outside the range of {var.type} [{limits[0]}, {limits[1]}]"
     if low <= value <= high:
         return ""
     return f"is outside its declared range [{low:g}, {high:g}]"
@@ -589,7 +665,7 @@ def describe(system: System) -> Sequence[str]:
              f"{len(system.recorded)} recorded variables",
              f"stepping order ({system.scenario.master.algorithm}): {' -> '.join(system.order)}"]
     for c in system.components:
-        lines.append(f"  {c.name}: {c.interface} {c.info.md.modelName} ({c.fmu})")
+        lines.append(f"  {c.name}: {c.interface} {c.info.md.modelName}, FMI {c.info.md.fmiVersion} ({c.fmu})")
     initial = {frozenset(loop.links): loop for loop in system.init_loops}
     solved = [(loop, "at initialization and at every step" if initial.pop(frozenset(loop.links), None)
                else "at every step") for loop in system.loops]

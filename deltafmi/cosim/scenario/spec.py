@@ -85,6 +85,8 @@ class ComponentSpec:
     fmu: Optional[str] = None
     source: Optional[str] = None
     interface: Optional[str] = None
+    #: the FMI version to build ``source`` as (2 or 3); None: the scenario's
+    fmi_version: Optional[int] = None
     parameters: Tuple[Parameter, ...] = ()
     solver: Dict[str, Any] = field(default_factory=dict)
     step_multiple: int = 1
@@ -144,6 +146,9 @@ class Scenario:
     #: one FMU run on its own (``deltafmi run Model.fmu``): its inputs have nothing to connect
     #: to, so they stay at their start values without a warning
     single_fmu: bool = False
+    #: the FMI version (2 or 3) its components given by ``source:`` are built as, unless a
+    #: component says otherwise; None: 2
+    fmi_version: Optional[int] = None
 
     @property
     def directory(self) -> Path:
@@ -246,6 +251,7 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
             fmu=spec.get("fmu"),
             source=spec.get("source"),
             interface=spec.get("interface"),
+            fmi_version=spec.get("fmi_version"),
             parameters=tuple(Parameter(k, v, lines.key_line(("components", name, "parameters", k)))
                              for k, v in (spec.get("parameters") or {}).items()),
             solver={**rtol, **(spec.get("solver") or {})},
@@ -271,4 +277,4 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
         result_file = Path(path.stem + ".csv")
     result = ResultSettings(result_file, result_data.get("format", "csv"), int(result_data.get("every", 1)))
     return Scenario(path, experiment, master, components, connections, outputs, result,
-                    data.get("description", ""))
+                    data.get("description", ""), fmi_version=data.get("fmi_version"))

@@ -7,7 +7,9 @@ connectors, one scalar connection per connected variable (``ssc:LinearTransforma
 the connection has a factor or offset), the start values as an inline ``ssv:ParameterSet``,
 and the start and stop time as ``DefaultExperiment``. Everything else a scenario says goes
 into ``com.deltafmi`` annotations (see :mod:`.format`), so reading the archive back
-(:mod:`.read`) gives a scenario that runs to the same samples.
+(:mod:`.read`) gives a scenario that runs to the same samples. FMI 3.0 components go in as they
+are; SSP 1.0 connectors are scalar, so an FMI 3.0 array's connected elements are connectors
+``q[1]``, ``q[2]``, ... and its 64-bit integers are ``ssc:Integer``.
 """
 from __future__ import annotations
 
@@ -100,7 +102,7 @@ def _component(parent: etree._Element, component: Component, source: str, system
             if port.enumeration:
                 _sub(connector, "ssc", "Enumeration", name=port.enumeration)
             else:
-                _sub(connector, "ssc", port.type)
+                _sub(connector, "ssc", _SSC_TYPES.get(port.type, port.type))
     if component.start_values:
         binding = _sub(_sub(element, "ssd", "ParameterBindings"), "ssd", "ParameterBinding")
         parameter_set = _sub(_sub(binding, "ssd", "ParameterValues"), "ssv", "ParameterSet",
@@ -132,8 +134,12 @@ def _connected_ports(component: Component, system: System) -> List[Tuple[Port, s
             found.setdefault(link.source.name, (link.source, "output"))
         if link.target.component == component.name:
             found.setdefault(link.target.name, (link.target, "input"))
-    order = {v.name: i for i, v in enumerate(component.info.md.modelVariables)}
+    order = {name: i for i, name in enumerate(component.info.variables)}  # FMI 3.0 arrays: their elements
     return sorted(found.values(), key=lambda item: order[item[0].name])
+
+
+#: the SSP 1.0 type of each bus: FMI 3.0's wide integers are SSP Integers (SSP 1.0 knows no others)
+_SSC_TYPES = {"Int64": "Integer", "UInt64": "Integer"}
 
 
 def _parameter_value(component: Component, port: Port, value: Any) -> Tuple[str, str]:
@@ -143,7 +149,7 @@ def _parameter_value(component: Component, port: Port, value: Any) -> Tuple[str,
         return "Enumeration", {number: item for item, number in enumeration[1].items()}[value]
     if port.type == "Real":
         return "Real", _real(value)
-    return port.type, _text(value)
+    return _SSC_TYPES.get(port.type, port.type), _text(value)
 
 
 def _enumerations(system: System) -> Dict[str, Dict[str, int]]:

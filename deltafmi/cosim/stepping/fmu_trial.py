@@ -1,4 +1,5 @@
-"""One trial fmi2Instantiate of an FMU, the check that needs its binary (``deltafmi validate``)."""
+"""One trial instantiation of an FMU (fmi2Instantiate, or FMI 3.0's fmi3Instantiate<Interface>),
+the check that needs its binary (``deltafmi validate``)."""
 from __future__ import annotations
 
 import tempfile
@@ -16,24 +17,35 @@ def instantiation_problem(fmu: Path) -> Optional[str]:
     reads only the XML)."""
     import fmpy
     from fmpy.fmi2 import FMU2Model, FMU2Slave
+    from fmpy.fmi3 import FMU3Model, FMU3Slave
 
     md = fmpy.read_model_description(str(fmu), validate=False)
     interface = md.coSimulation or md.modelExchange
     if interface is None:
         return "it offers neither Co-Simulation nor Model Exchange"
+    fmi3 = md.fmiVersion.startswith("3")
     messages: list = []
-    callbacks = logger_callbacks(lambda status, category, text: messages.append((status, category, text)))
+
+    def record(status: int, category: str, text: str) -> None:
+        messages.append((status, category, text))
+
     with tempfile.TemporaryDirectory(prefix="deltafmi-validate-") as folder:
         unzipped = fmpy.extract(str(fmu), unzipdir=folder)
+        kind = ((FMU3Slave, FMU3Model) if fmi3 else (FMU2Slave, FMU2Model))[0 if md.coSimulation else 1]
         try:
-            instance = (FMU2Slave if md.coSimulation else FMU2Model)(
-                guid=md.guid, unzipDirectory=unzipped, modelIdentifier=interface.modelIdentifier,
-                instanceName="validate")
+            instance = kind(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=interface.modelIdentifier,
+                            instanceName="validate")
         except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions
             return f"its binary does not load: {exc}"
         try:
-            instance.instantiate(callbacks=callbacks)
-        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when fmi2Instantiate returns NULL
-            return f"fmi2Instantiate failed: {instantiation_reason(messages)}"
+            if fmi3:
+                instance.instantiate(logMessage=lambda env, status, category, text: record(
+                    status, (category or b"").decode("utf-8", "replace"), (text or b"").decode("utf-8", "replace")))
+            else:
+                instance.instantiate(callbacks=logger_callbacks(record))
+        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when the instantiation returns NULL
+            call = f"fmi3Instantiate{'CoSimulation' if md.coSimulation else 'ModelExchange'}" if fmi3 \
+                else "fmi2Instantiate"
+            return f"{call} failed: {instantiation_reason(messages)}"
         instance.freeInstance()
     return None

@@ -8,8 +8,11 @@
 * Algebraic loops are solved at initialization and at every step (:mod:`deltafmi.cosim.stepping.loops`):
   the units of a loop step as one block.
 * Optional adaptive communication step with rollback (:mod:`deltafmi.cosim.stepping.adaptive`).
-* Results stream to CSV; events of ME units add rows at the event instant.
-* Fixed steps run in C where :mod:`deltafmi.cosim.stepping.native_loop` can (the same fmi2 calls, 64
+* Results stream to CSV; events of ME units (and of FMI 3.0 CS units in event mode) add rows at
+  the event instant.
+* FMI 2.0 and FMI 3.0 FMUs run side by side (:mod:`.fmi3_units`): an FMI 3.0 array variable is
+  its elements on the buses, each with a slot keyed (bus, unit, value reference, element).
+* Fixed steps run in C where :mod:`deltafmi.cosim.stepping.native_loop` can (the same FMI calls, 64
   steps per foreign call); the step where C stops (an event, a failure) is finished here.
 """
 from __future__ import annotations
@@ -30,12 +33,12 @@ from deltafmi.errors import BadInput, Interrupted, SimulationError
 from ..results.csv_file import RowSampler
 from ..results.writers import write_rows_to, writer_for
 from ..results.progress import Progress, Summary, Termination
-from ..scenario.resolve import Component, System
+from ..scenario.resolve import Component, Port, System
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
 from .loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
-from .native_loop import (FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT, TERMINATED,
-                          NativeLoop)
+from .native_loop import (FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT, STEP_RETURNED,
+                          TERMINATED, NativeLoop)
 from .stop_signals import StopSignals
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
@@ -226,7 +229,7 @@ class Master:
                 target = Path(self._unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
                 extracted[component.fmu] = fmpy.extract(str(component.fmu), unzipdir=str(target))
             unit = unit_for(component, extracted[component.fmu] if fmu is None else fmu.unzipDirectory, fmu)
-            if component.interface == "ME":
+            if hasattr(unit, "on_event"):  # ME units, and FMI 3.0 CS units in event mode
                 unit.on_event = self._on_event
             unit.on_message = self.on_message
             unit.logging_on = self.debug_logging
@@ -240,49 +243,53 @@ class Master:
         """
         slot = self._wire_outputs()
         links = self.system.links
+
+        def at(port: Port) -> int:
+            return slot[(port.type, port.component, port.vr, port.index)]
+
         for unit in self.units:
             for kind in TYPES:
                 mine = [l for l in links if l.target.component == unit.name and l.target.type == kind]
                 if mine:
                     unit.wire_inputs(kind, [l.target.vr for l in mine], self.buses[kind],
-                                     [slot[(kind, l.source.component, l.source.vr)] for l in mine],
-                                     [l.factor for l in mine], [l.offset for l in mine])
+                                     [at(l.source) for l in mine], [l.factor for l in mine],
+                                     [l.offset for l in mine], [l.target.index for l in mine])
         recorded = self.system.recorded
         parts = []
         for kind in TYPES:
             columns = [i for i, p in enumerate(recorded) if p.type == kind]
-            parts.append((self.buses[kind], [slot[(kind, recorded[i].component, recorded[i].vr)] for i in columns],
-                          columns))
+            parts.append((self.buses[kind], [at(recorded[i]) for i in columns], columns))
         self.sampler = RowSampler(parts, len(recorded))
         self._real_columns = np.asarray([i for i, p in enumerate(recorded) if p.type == "Real"], np.intp)
         names = [""] * len(self.buses["Real"])
         for port in [link.source for link in links] + list(recorded):
             if port.type == "Real":
-                names[slot[("Real", port.component, port.vr)]] = port.ref
+                names[at(port)] = port.ref
         self._real_names = names
         self._zeros = np.zeros(len(names))
         self.loops = [LoopBlock(loop, [self._by_name[name] for name in loop.members], self.buses,
-                                [slot[("Real", port.component, port.vr)] for port in loop.tears],
-                                self.system.scenario.master.loops, self)
+                                [at(port) for port in loop.tears], self.system.scenario.master.loops, self)
                       for loop in self.system.loops]
 
-    def _wire_outputs(self) -> Dict[Tuple[str, str, int], int]:
-        """Give every connected or recorded variable a bus slot; returns (type, unit, vr) -> slot."""
+    def _wire_outputs(self) -> Dict[Tuple[str, str, int, int], int]:
+        """Give every connected or recorded variable a bus slot; returns (type, unit, vr, element)
+        -> slot (an FMI 3.0 array is fetched whole: each of its elements has a slot)."""
         fetched: Dict[str, Dict[str, List[int]]] = {kind: {u.name: [] for u in self.units} for kind in TYPES}
         for port in [link.source for link in self.system.links] + list(self.system.recorded):
             vrs = fetched[port.type][port.component]
             if port.vr not in vrs:
                 vrs.append(port.vr)
-        slot: Dict[Tuple[str, str, int], int] = {}
+        slot: Dict[Tuple[str, str, int, int], int] = {}
         for kind in TYPES:
-            bus = self.buses[kind] = new_bus(kind, max(1, sum(map(len, fetched[kind].values()))))
+            layouts = {unit.name: unit.output_slots(kind, fetched[kind][unit.name]) for unit in self.units}
+            bus = self.buses[kind] = new_bus(kind, max(1, sum(map(len, layouts.values()))))
             start = 0
             for unit in self.units:
-                vrs = fetched[kind][unit.name]
+                vrs, layout = fetched[kind][unit.name], layouts[unit.name]
                 if vrs:
                     unit.wire_outputs(kind, vrs, bus, start)
-                    slot.update({(kind, unit.name, vr): start + i for i, vr in enumerate(vrs)})
-                    start += len(vrs)
+                    slot.update({(kind, unit.name, vr, element): start + i for i, (vr, element) in enumerate(layout)})
+                    start += len(layout)
         return slot
 
     def _initialize(self) -> None:
@@ -406,6 +413,13 @@ class Master:
         self.step_end = grid.start + (done + 1) * grid.h if done + 1 < grid.n_steps else grid.stop
         unit, action, index, function = native.stopped_at()
         plan = native.plan
+        if why == STEP_RETURNED:  # an FMI 3.0 fmi3DoStep with an event, an early return or a termination
+            _, _, m = native.actions[index]
+            op = native.stopped_op()
+            unit.finish_step(t, m * grid.h if done + m < grid.last else grid.stop - t, op.step_status, op.flags,
+                             op.last_time)
+            self._step_in_python(native.actions, grid, done, index + 1)
+            return done + 1
         if why in (STEP_EVENT, STATE_EVENT):
             if why == STEP_EVENT:
                 unit.finish_step_event(plan.time)

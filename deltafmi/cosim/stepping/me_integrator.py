@@ -13,7 +13,7 @@ iteration) raises :class:`~.unit_base.Terminated`: the master ends the run at th
 """
 from __future__ import annotations
 
-from ctypes import POINTER, byref, c_double
+from ctypes import POINTER, byref, c_bool, c_double
 from typing import Any, Callable, Dict, Optional, Sequence, Union
 
 import numpy as np
@@ -43,7 +43,8 @@ class ModelExchangeUnit(Unit):
         self.nz = md.numberOfEventIndicators
         self.needs_completed = bool(md.modelExchange.needsCompletedIntegratorStep)
         self.no_prior_state = 1
-        self._step_flags = (fmi2Boolean(), fmi2Boolean())  # enterEventMode, terminateSimulation
+        flag = c_bool if self.fmi3 else fmi2Boolean
+        self._step_flags = (flag(), flag())  # enterEventMode, terminateSimulation
         #: called as ``on_event(unit, time, after)`` just before and just after every event (recording)
         self.on_event: Callable[["ModelExchangeUnit", float, bool], None] = lambda unit, time, after: None
         self.next_event_time: Optional[float] = None
@@ -65,18 +66,21 @@ class ModelExchangeUnit(Unit):
         self._completed_step = bare_function(fmu, "fmi2CompletedIntegratorStep")
 
     def wire_inputs(self, kind: str, vrs: Sequence[int], bus: np.ndarray, index: Sequence[int],
-                    factor: Sequence[float], offset: Sequence[float]) -> None:
+                    factor: Sequence[float], offset: Sequence[float], elements: Sequence[int] = ()) -> None:
         """Continuous inputs are set before every step; discrete ones (Integer, Boolean, String,
         and Real inputs of variability discrete) only in event mode, as FMI 2.0 ME requires:
         a change at a communication point is an event there."""
         discrete_reals = {v.valueReference for v in self.info.md.modelVariables
-                          if v.type == "Real" and v.causality == "input" and v.variability == "discrete"}
+                          if v.type in ("Real", "Float64", "Float32") and v.causality == "input"
+                          and v.variability == "discrete"}
         discrete = [kind != "Real" or vr in discrete_reals for vr in vrs]
+        elements = list(elements) or [0] * len(vrs)
         for in_event_mode in (False, True):
             chosen = [i for i, flag in enumerate(discrete) if flag == in_event_mode]
             if chosen:
                 super().wire_inputs(kind, [vrs[i] for i in chosen], bus, [index[i] for i in chosen],
-                                    [factor[i] for i in chosen], [offset[i] for i in chosen])
+                                    [factor[i] for i in chosen], [offset[i] for i in chosen],
+                                    [elements[i] for i in chosen])
                 if in_event_mode:
                     self._discrete_inputs.append(self.inputs.pop())
 
@@ -108,12 +112,14 @@ class ModelExchangeUnit(Unit):
         else:
             atol = 1.0
         # the Newton matrix from the FMU's directional derivatives, when it provides them
+        # (an FMI 3.0 FMU: CVODE's own difference quotients)
         use = options.get("jacobian", computes_exact_derivatives(self.fmu.unzipDirectory))
-        self._newton = FmuJacobian(self.fmu, self.info.md, exact=bool(use))
+        self._newton = None if self.fmi3 else FmuJacobian(self.fmu, self.info.md, exact=bool(use))
+        exact = self._newton is not None and self._newton.exact
         return Cvode(self._rhs, self._x.copy(), time, roots=self._roots if self.nz else None, n_roots=self.nz,
                      rtol=rtol, atol=atol, max_step=max_step, method=method,
                      max_num_steps=int(options.get("max_num_steps", 100000)),
-                     jacobian=self._jacobian if self.nx and self._newton.exact else None)
+                     jacobian=self._jacobian if self.nx and exact else None)
 
     # --- CVODE callbacks ----------------------------------------------------------------------
     def _pointer(self, view: np.ndarray) -> Any:
@@ -264,13 +270,15 @@ class ModelExchangeUnit(Unit):
     def _derivatives(self) -> np.ndarray:
         dx = np.zeros(max(self.nx, 1))
         if self.nx:
-            self.call(self.fmu.getDerivatives, dx.ctypes.data_as(POINTER(c_double)), self.nx)
+            get = self.fmu.getContinuousStateDerivatives if self.fmi3 else self.fmu.getDerivatives
+            self.call(get, dx.ctypes.data_as(POINTER(c_double)), self.nx)
         return dx
 
     def _event_iteration(self, t: float) -> tuple:
         states_changed = nominals_changed = False
         for _ in range(_MAX_EVENT_ITERATIONS):
-            needed, terminate, nominals, values, defined, next_time = self.call(self.fmu.newDiscreteStates)
+            update = self.fmu.updateDiscreteStates if self.fmi3 else self.fmu.newDiscreteStates
+            needed, terminate, nominals, values, defined, next_time = self.call(update)
             states_changed |= values
             nominals_changed |= nominals
             if terminate:
@@ -283,11 +291,11 @@ class ModelExchangeUnit(Unit):
 
     # --- rollback -----------------------------------------------------------------------------
     def save_state(self) -> Any:
-        return self.call(self.fmu.getFMUstate), self.solver.t, self.next_event_time
+        return super().save_state(), self.solver.t, self.next_event_time
 
     def restore_state(self, state: Any) -> None:
         fmu_state, time, self.next_event_time = state
-        self.call(self.fmu.setFMUstate, fmu_state)
+        super().restore_state(fmu_state)
         for inputs in self._discrete_inputs:
             self.call(inputs.seed)  # the restored values: the redone step sees their change again
         if self.nx:
@@ -295,4 +303,4 @@ class ModelExchangeUnit(Unit):
         self.solver.reinit(time, self._x)
 
     def free_state(self, state: Any) -> None:
-        self.call(self.fmu.freeFMUstate, state[0])
+        super().free_state(state[0])

@@ -11,9 +11,11 @@ arguments are those of the Python loop, bit for bit.
 It covers Co-Simulation units and Model Exchange units on a fixed-step Runge-Kutta method
 without time events or discrete inputs (event indicators are compared after every Runge-Kutta
 step, as :class:`.ExplicitRungeKutta` does), with numeric (not String) values and no algebraic
-loop. Anything else runs in Python; so do the steps after a C run stopped at an event (a state
-event is located by the solver's bisection), a failure or a termination, which the master
-finishes exactly as its Python loop would.
+loop; FMI 3.0 units too where their values are Float64, Int32 or Boolean (an fmi3DoStep that
+returns an event, an early return or a termination hands its step back). Anything else runs in
+Python; so do the steps after a C run stopped at an event (a state event is located by the
+solver's bisection), a failure or a termination, which the master finishes exactly as its
+Python loop would.
 """
 from __future__ import annotations
 
@@ -29,9 +31,11 @@ from deltafmi.export.compiler import plain_c_library
 from .explicit_rk import ExplicitRungeKutta
 from .unit_base import Unit, _Inputs, _Outputs, function_address
 
-SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP = range(6)
+SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP, SET_BOOL3, GET_BOOL3 = range(8)
 #: why a C run stopped
-RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT = range(7)
+RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED = range(8)
+#: the FMI 3.0 type the C loop exchanges on each bus (others: the Python loop)
+_FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 _SET, _GET = {"Real": SET_REAL, "Integer": SET_INT, "Boolean": SET_INT}, \
     {"Real": GET_REAL, "Integer": GET_INT, "Boolean": GET_INT}
 #: the ME_STEP call that failed (Plan.call)
@@ -48,7 +52,9 @@ class _Op(ctypes.Structure):
                 ("x", c_void_p), ("nx", c_size_t), ("t", c_void_p),
                 ("max_step", c_double), ("set_time", c_void_p), ("set_states", c_void_p), ("completed", c_void_p),
                 ("nz", c_size_t), ("get_indicators", c_void_p), ("z", c_void_p), ("z_last", c_void_p),
-                ("z_valid", c_void_p), ("x0", c_void_p)]
+                ("z_valid", c_void_p), ("x0", c_void_p),
+                ("fmi3", c_int), ("positions", c_void_p), ("n_index", c_size_t), ("n_values", c_size_t),
+                ("flags", c_int), ("step_status", c_int), ("last_time", c_double)]
 
 
 class _RowPart(ctypes.Structure):
@@ -81,7 +87,12 @@ def _pointer(array: Optional[np.ndarray]) -> Optional[int]:
 
 
 def _fits(unit: Unit) -> bool:
-    """Whether the C loop can step ``unit`` as the Python loop does (see the module docstring)."""
+    """Whether the C loop can step ``unit`` as the Python loop does (see the module docstring; an
+    FMI 3.0 unit's values must be Float64 on the Real bus, Int32 on the Integer bus or Boolean)."""
+    if unit.fmi3 and not (all(i.values.dtype in (i.bus.dtype, np.bool_) for i in unit.inputs if isinstance(i, _Inputs))
+                          and all(o.staging is None or o.staging.dtype == np.bool_
+                                  for o in unit.outputs if isinstance(o, _Outputs))):
+        return False
     if not all(isinstance(i, _Inputs) and i.kind in _SET for i in unit.inputs):
         return False
     if any(i.factor is not None and i.kind != "Real" for i in unit.inputs):
@@ -91,6 +102,16 @@ def _fits(unit: Unit) -> bool:
     if unit.interface == "CS":
         return True
     return unit.interface == "ME" and not unit._discrete_inputs and isinstance(unit.solver, ExplicitRungeKutta)
+
+
+def _slice_address(outputs: _Outputs) -> int:
+    """The address of the first bus slot of ``outputs``."""
+    return outputs.bus.ctypes.data + outputs.slots.start * outputs.bus.itemsize
+
+
+def _function(unit: Unit, verb: str, kind: str) -> str:
+    """The FMI function that sets or gets (``verb``) values of bus ``kind`` for ``unit``."""
+    return f"fmi3{verb}{_FMI3_TYPES[kind]}" if unit.fmi3 else f"fmi2{verb}{kind}"
 
 
 class _Indicators:
@@ -156,17 +177,23 @@ class NativeLoop:
 
     def _ops(self, unit: Unit, action: str, m: int) -> List[Tuple[_Op, str]]:
         handle = unit.fmu.component
+        booleans = unit.fmi3  # FMI 3.0 Booleans are one byte: converted in C
         if action == PULL:
-            return [(self._value_op(unit, inputs, _SET[inputs.kind], f"fmi2Set{inputs.kind}", m, inputs.values,
-                                    inputs.bus, inputs.index, inputs.factor, inputs.offset), f"fmi2Set{inputs.kind}")
-                    for inputs in unit.inputs]
+            return [(self._value_op(unit, inputs, SET_BOOL3 if booleans and inputs.kind == "Boolean" else
+                                    _SET[inputs.kind], _function(unit, "Set", inputs.kind), m,
+                                    inputs.values, inputs.bus, inputs.index, inputs.factor, inputs.offset),
+                     _function(unit, "Set", inputs.kind)) for inputs in unit.inputs]
         if action == FETCH:
-            return [(self._value_op(unit, outputs, _GET[outputs.kind], f"fmi2Get{outputs.kind}", m, None, None,
-                                    None, None, None, values_address=ctypes.cast(outputs.pointer, c_void_p).value),
-                     f"fmi2Get{outputs.kind}") for outputs in unit.outputs]
+            return [(self._value_op(unit, outputs, GET_BOOL3 if booleans and outputs.kind == "Boolean" else
+                                    _GET[outputs.kind], _function(unit, "Get", outputs.kind), m, None,
+                                    None, None, None, None,
+                                    values_address=ctypes.cast(outputs.pointer, c_void_p).value,
+                                    bus_address=_slice_address(outputs)),
+                     _function(unit, "Get", outputs.kind)) for outputs in unit.outputs]
         if unit.interface == "CS":
-            return [(_Op(kind=DO_STEP, multiple=m, function=function_address(unit.fmu, "fmi2DoStep"), component=handle,
-                         no_prior_state=unit.no_prior_state), "fmi2DoStep")]
+            name = "fmi3DoStep" if unit.fmi3 else "fmi2DoStep"
+            return [(_Op(kind=DO_STEP, multiple=m, function=function_address(unit.fmu, name), component=handle,
+                         no_prior_state=unit.no_prior_state, fmi3=unit.fmi3), name)]
         solver = unit.solver
         erk, erk_plan, erk_current = solver.kernel
         box = np.array([solver.t])
@@ -182,17 +209,22 @@ class NativeLoop:
                      completed=function_address(fmu, "fmi2CompletedIntegratorStep") if unit.needs_completed else None,
                      nz=unit.nz, get_indicators=function_address(fmu, "fmi2GetEventIndicators"), z=_pointer(indicators.z),
                      z_last=_pointer(indicators.z_last), z_valid=_pointer(indicators.valid),
-                     x0=_pointer(indicators.x0)),
+                     x0=_pointer(indicators.x0), fmi3=unit.fmi3),
                  "")]
 
     def _value_op(self, unit: Unit, holder: Any, kind: int, function: str, m: int, values: Optional[np.ndarray],
                   bus: Optional[np.ndarray], index: Optional[np.ndarray], factor: Optional[np.ndarray],
-                  offset: Optional[np.ndarray], values_address: Optional[int] = None) -> _Op:
+                  offset: Optional[np.ndarray], values_address: Optional[int] = None,
+                  bus_address: Optional[int] = None) -> _Op:
         self._keep.append(holder)
+        positions = getattr(holder, "positions", None)
         return _Op(kind=kind, multiple=m, function=function_address(unit.fmu, function), component=unit.fmu.component,
                    vrs=ctypes.cast(holder.vrs, c_void_p).value, n=holder.n,
-                   values=values_address if values is None else _pointer(values), bus=_pointer(bus),
-                   index=_pointer(index), factor=_pointer(factor), offset=_pointer(offset))
+                   values=values_address if values is None else _pointer(values),
+                   bus=bus_address if bus is None else _pointer(bus),
+                   index=_pointer(index), factor=_pointer(factor), offset=_pointer(offset), fmi3=unit.fmi3,
+                   positions=_pointer(positions), n_index=holder.n if index is None else len(index),
+                   n_values=holder.tail[0] if holder.tail else holder.n)
 
     def ready(self) -> bool:
         """Whether the next steps can run in C: no time event pending in a Model Exchange unit
@@ -238,6 +270,10 @@ class NativeLoop:
         """After a STATE_EVENT in ``unit``: bisect the Runge-Kutta step that crossed, as
         :meth:`.ExplicitRungeKutta.advance` does (the solver then stands just past the crossing)."""
         unit.solver.locate(self.plan.rk_time, self._indicators[unit.name].x0.copy(), self.plan.rk_step)
+
+    def stopped_op(self) -> _Op:
+        """The operation the last run stopped at (its outputs: an FMI 3.0 step's flags)."""
+        return self._ops_array[self.plan.op]
 
     def stopped_at(self) -> Tuple[Unit, str, int, str]:
         """Where the last run stopped: the action (unit, PULL | STEP | FETCH, its index in

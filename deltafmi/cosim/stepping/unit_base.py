@@ -3,8 +3,9 @@ exchanges with the master, and the ways a unit stops (:class:`FmuFailure`, :clas
 
 Every unit exchanges values with the master through *buses* (one vector per FMI type that
 holds every fetched variable of every unit: numpy numbers for Real, Integer and Boolean, a
-numpy object array of ``str`` for String). Wiring is precomputed once, so a step costs one
-``fmi2Get<Type>`` per unit and type into its bus slice, and one gather plus one ``fmi2Set<Type>`` for
+numpy object array of ``str`` for String; FMI 3.0's 64-bit integers travel on the Int64 and
+UInt64 buses). Wiring is precomputed once, so a step costs one ``fmi2Get<Type>`` (FMI 3.0:
+``fmi3Get<Type>``) per unit and type into its bus slice, and one gather plus one set call for
 its inputs: no dicts, no per-step allocation (String values excepted: they are Python strings).
 
 The Co-Simulation and Model Exchange units (:mod:`.units`, :mod:`.me_integrator`) both build on
@@ -19,16 +20,20 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
+from fmpy.fmi3 import _FMU3
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Boolean, fmi2Error, fmi2Integer, fmi2Real,
                        fmi2String, fmi2ValueReference)
 
 from ..scenario.resolve import Component, Port
 
-#: FMI type -> (ctypes element type, numpy dtype of its bus); Enumeration values travel as Integer
+#: bus -> (FMI 2.0 ctypes element type, numpy dtype of the bus); Enumeration values travel as
+#: Integer; Int64 and UInt64 carry FMI 3.0 values that do not fit an int32 (UInt32, Int64, UInt64)
 TYPES: Dict[str, Tuple[Any, Any]] = {
     "Real": (fmi2Real, np.float64),
     "Integer": (fmi2Integer, np.int32),
+    "Int64": (ctypes.c_int64, np.int64),
+    "UInt64": (ctypes.c_uint64, np.uint64),
     "Boolean": (fmi2Boolean, np.int32),
     "String": (fmi2String, object),
 }
@@ -54,7 +59,9 @@ class Terminated(Exception):
     """A unit ended the simulation at ``time``, as FMI 2.0 lets an FMU do: Model Exchange sets
     ``terminateSimulation`` (fmi2NewDiscreteStates, fmi2CompletedIntegratorStep); Co-Simulation
     returns fmi2Discard from fmi2DoStep with fmi2GetBooleanStatus(fmi2Terminated) true and
-    fmi2GetRealStatus(fmi2LastSuccessfulTime) the time it reached. The run ends cleanly there."""
+    fmi2GetRealStatus(fmi2LastSuccessfulTime) the time it reached; FMI 3.0 says it with the
+    terminateSimulation outputs of fmi3UpdateDiscreteStates, fmi3CompletedIntegratorStep and
+    fmi3DoStep (with lastSuccessfulTime). The run ends cleanly there."""
 
     def __init__(self, unit: str, time: float) -> None:
         super().__init__(f"{unit} terminated the simulation at t = {time:.9g} s")
@@ -62,15 +69,30 @@ class Terminated(Exception):
         self.time = time
 
 
+#: FMI 2.0 functions whose FMI 3.0 counterpart has another name (and the same C signature)
+_FMI3_NAMES = {"fmi2GetDerivatives": "fmi3GetContinuousStateDerivatives"}
+
+
+def api_name(fmu: Any, name: str) -> str:
+    """The name of the FMI function ``name`` (given in FMI 2.0 terms, or already an ``fmi3`` name)
+    in the FMI version of the loaded fmpy FMU: ``fmi2SetTime`` is ``fmi3SetTime`` in an FMI 3.0
+    FMU, ``fmi2GetDerivatives`` is ``fmi3GetContinuousStateDerivatives``."""
+    if not isinstance(fmu, _FMU3) or not name.startswith("fmi2"):
+        return name
+    return _FMI3_NAMES.get(name, "fmi3" + name[4:])
+
+
 def function_address(fmu: Any, name: str) -> int:
-    """The address of the fmi2 function ``name`` of a loaded fmpy FMU (for C code that calls it)."""
-    return ctypes.cast(getattr(fmu.dll, name), ctypes.c_void_p).value
+    """The address of the FMI function ``name`` (see :func:`api_name`) of a loaded fmpy FMU (for
+    C code that calls it)."""
+    return ctypes.cast(getattr(fmu.dll, api_name(fmu, name)), ctypes.c_void_p).value
 
 
 def bare_function(fmu: Any, name: str) -> Callable[..., None]:
-    """fmpy's ctypes binding of the fmi2 function ``name`` without fmpy's Python wrapper around
-    it (call logging, which the master never enables, costs about 1 us a call); raises
-    ``FMICallException`` on a status above fmi2Warning as fmpy does."""
+    """fmpy's ctypes binding of the FMI function ``name`` (see :func:`api_name`) without fmpy's
+    Python wrapper around it (call logging, which the master never enables, costs about 1 us a
+    call); raises ``FMICallException`` on a status above fmi2Warning as fmpy does."""
+    name = api_name(fmu, name)
     function = getattr(fmu.dll, name)  # argtypes and restype as fmpy declared them
 
     def call(*args: Any) -> None:
@@ -80,15 +102,31 @@ def bare_function(fmu: Any, name: str) -> Callable[..., None]:
     return call
 
 
+class _Layout:
+    """Where one set call's values come from: FMI 2.0 sets ``n`` scalars, one per bus slot; FMI 3.0
+    sets whole variables (an array's every element, ``sizes``), of which the connected elements
+    (``positions`` in the values) come from the bus and the others keep the FMU's values."""
+
+    def __init__(self, n: int, sizes: Optional[Sequence[int]], positions: Optional[Sequence[int]]) -> None:
+        #: FMI 3.0's extra argument of fmi3Get/Set: the number of values
+        self.tail: Tuple[int, ...] = () if sizes is None else (int(sum(sizes)),)
+        self.count = n if sizes is None else int(sum(sizes))
+        self.positions = None if positions is None else np.asarray(positions, dtype=np.intp)
+
+
 class _Inputs:
-    """One unit's inputs of one numeric type: ``values = factor * bus[index] + offset``, set in one call."""
+    """One unit's inputs of one numeric type: ``values = factor * bus[index] + offset``, set in one
+    call (FMI 3.0: whole variables, see :class:`_Layout`)."""
 
     def __init__(self, setter: Callable, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray,
-                 index: Sequence[int], factor: Sequence[float], offset: Sequence[float], ctype: Any) -> None:
+                 index: Sequence[int], factor: Sequence[float], offset: Sequence[float], ctype: Any,
+                 sizes: Optional[Sequence[int]] = None, positions: Optional[Sequence[int]] = None) -> None:
         n = len(vrs)
         self.vrs = (fmi2ValueReference * n)(*vrs)
         self.n = n
-        self.values = np.zeros(n, dtype=bus.dtype)
+        layout = _Layout(n, sizes, positions)
+        self.tail, self.positions = layout.tail, layout.positions
+        self.values = np.zeros(layout.count, dtype=np.dtype(ctype))
         self.pointer = self.values.ctypes.data_as(POINTER(ctype))
         self.bus = bus
         self.index = np.asarray(index, dtype=np.intp)
@@ -98,42 +136,52 @@ class _Inputs:
         self.offset = shift
         self.setter, self.getter, self.handle = setter, getter, handle
 
+    def _gather(self) -> None:
+        if self.positions is None:
+            np.take(self.bus, self.index, out=self.values)
+            if self.factor is not None:
+                self.values *= self.factor
+                self.values += self.offset
+        else:  # FMI 3.0: into the variables' elements, converted to their type
+            fresh = self.bus[self.index]
+            self.values[self.positions] = fresh if self.factor is None else fresh * self.factor + self.offset
+
     def apply(self) -> None:
         """Gather from the bus, transform, and set in the FMU."""
-        np.take(self.bus, self.index, out=self.values)
-        if self.factor is not None:
-            self.values *= self.factor
-            self.values += self.offset
-        self.setter(self.handle, self.vrs, self.n, self.pointer)
+        self._gather()
+        self.setter(self.handle, self.vrs, self.n, self.pointer, *self.tail)
 
     def update(self) -> bool:
         """Gather from the bus and transform without setting; True when the values changed."""
         before = self.values.copy()
-        np.take(self.bus, self.index, out=self.values)
-        if self.factor is not None:
-            self.values *= self.factor
-            self.values += self.offset
+        self._gather()
         return not np.array_equal(before, self.values)
 
     def send(self) -> None:
         """Set the gathered values in the FMU."""
-        self.setter(self.handle, self.vrs, self.n, self.pointer)
+        self.setter(self.handle, self.vrs, self.n, self.pointer, *self.tail)
 
     def seed(self) -> None:
-        """Take the values the FMU has now (so that :meth:`update` sees real changes only)."""
-        self.getter(self.handle, self.vrs, self.n, self.pointer)
+        """Take the values the FMU has now (so that :meth:`update` sees real changes only, and the
+        elements of an FMI 3.0 array that are not connected keep their values)."""
+        self.getter(self.handle, self.vrs, self.n, self.pointer, *self.tail)
 
 
 class _StringInputs:
-    """One unit's String inputs: ``values = bus[index]``, set in one call (no transform)."""
+    """One unit's String inputs: ``values = bus[index]``, set in one call (no transform; FMI 3.0:
+    whole variables, see :class:`_Layout`)."""
 
     def __init__(self, setter: Callable, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray,
-                 index: Sequence[int]) -> None:
+                 index: Sequence[int], sizes: Optional[Sequence[int]] = None,
+                 positions: Optional[Sequence[int]] = None) -> None:
         n = len(vrs)
         self.vrs = (fmi2ValueReference * n)(*vrs)
         self.n = n
-        self.values = new_bus("String", n)
-        self.buffer = (fmi2String * n)()
+        layout = _Layout(n, sizes, positions)
+        self.tail = layout.tail
+        self.positions = np.arange(n, dtype=np.intp) if layout.positions is None else layout.positions
+        self.values = new_bus("String", layout.count)
+        self.buffer = (fmi2String * layout.count)()
         self.bus = bus
         self.index = np.asarray(index, dtype=np.intp)
         self.setter, self.getter, self.handle = setter, getter, handle
@@ -141,14 +189,14 @@ class _StringInputs:
     def update(self) -> bool:
         """Gather from the bus without setting; True when a value changed."""
         fresh = self.bus[self.index]
-        changed = not np.array_equal(fresh, self.values)
-        self.values[:] = fresh
+        changed = not np.array_equal(fresh, self.values[self.positions])
+        self.values[self.positions] = fresh
         return changed
 
     def send(self) -> None:
-        """Set the gathered values in the FMU (UTF-8, as FMI 2.0 strings are)."""
+        """Set the gathered values in the FMU (UTF-8, as FMI strings are)."""
         self.buffer[:] = [text.encode("utf-8") for text in self.values]
-        self.setter(self.handle, self.vrs, self.n, self.buffer)
+        self.setter(self.handle, self.vrs, self.n, self.buffer, *self.tail)
 
     def apply(self) -> None:
         """Gather from the bus and set in the FMU."""
@@ -157,40 +205,55 @@ class _StringInputs:
 
     def seed(self) -> None:
         """Take the values the FMU has now (so that :meth:`update` sees real changes only)."""
-        self.getter(self.handle, self.vrs, self.n, self.buffer)
+        self.getter(self.handle, self.vrs, self.n, self.buffer, *self.tail)
         self.values[:] = decoded(self.buffer)
 
 
 class _Outputs:
-    """One unit's fetched variables of one numeric type, read straight into their bus slice."""
+    """One unit's fetched variables of one numeric type, read straight into their bus slice (an
+    FMI 3.0 variable: all its elements, ``sizes``; a type other than the bus's, e.g. Float32 on the
+    Real bus, through a buffer of its own)."""
 
     def __init__(self, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray, start: int,
-                 ctype: Any) -> None:
+                 ctype: Any, sizes: Optional[Sequence[int]] = None) -> None:
         n = len(vrs)
         self.vrs = (fmi2ValueReference * n)(*vrs)
         self.n = n
-        self.pointer = ctypes.cast(bus.ctypes.data + start * bus.itemsize, POINTER(ctype))
+        layout = _Layout(n, sizes, None)
+        self.tail = layout.tail
+        self.staging: Optional[np.ndarray] = None
+        if np.dtype(ctype) == bus.dtype:
+            self.pointer = ctypes.cast(bus.ctypes.data + start * bus.itemsize, POINTER(ctype))
+        else:
+            self.staging = np.zeros(layout.count, dtype=np.dtype(ctype))
+            self.pointer = self.staging.ctypes.data_as(POINTER(ctype))
+        self.bus, self.slots = bus, slice(start, start + layout.count)
         self.getter, self.handle = getter, handle
 
     def fetch(self) -> None:
         """Read the variables into the bus."""
-        self.getter(self.handle, self.vrs, self.n, self.pointer)
+        self.getter(self.handle, self.vrs, self.n, self.pointer, *self.tail)
+        if self.staging is not None:
+            self.bus[self.slots] = self.staging
 
 
 class _StringOutputs:
     """One unit's fetched String variables, decoded into their bus slice."""
 
-    def __init__(self, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray, start: int) -> None:
+    def __init__(self, getter: Callable, handle: Any, vrs: Sequence[int], bus: np.ndarray, start: int,
+                 sizes: Optional[Sequence[int]] = None) -> None:
         n = len(vrs)
         self.vrs = (fmi2ValueReference * n)(*vrs)
         self.n = n
-        self.buffer = (fmi2String * n)()
-        self.bus, self.slots = bus, slice(start, start + n)
+        layout = _Layout(n, sizes, None)
+        self.tail = layout.tail
+        self.buffer = (fmi2String * layout.count)()
+        self.bus, self.slots = bus, slice(start, start + layout.count)
         self.getter, self.handle = getter, handle
 
     def fetch(self) -> None:
         """Read the variables and store them in the bus as ``str`` (the FMU owns its buffers)."""
-        self.getter(self.handle, self.vrs, self.n, self.buffer)
+        self.getter(self.handle, self.vrs, self.n, self.buffer, *self.tail)
         self.bus[self.slots] = decoded(self.buffer)
 
 
@@ -241,15 +304,23 @@ class Unit:
         self.messages.clear()
         self.initialized = self.failed = False
         try:
-            self.fmu.instantiate(callbacks=self._callbacks, loggingOn=self.logging_on)
+            self._instantiate_fmu()
         except FMICallException as exc:
             raise self.failure(exc) from None
-        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when fmi2Instantiate returns NULL
-            raise FmuFailure(f"{self.name} ({self.component.fmu.name}): fmi2Instantiate failed: "
+        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when the instantiation returns NULL
+            raise FmuFailure(f"{self.name} ({self.component.fmu.name}): {self.instantiate_call} failed: "
                              f"{self.instantiation_reason()}") from None
         self.instantiated = True
-        self.call(self.fmu.setupExperiment, tolerance=self.component.spec.solver.get("rtol"),
-                  startTime=start, stopTime=stop)
+        self._set_up_experiment(self.component.spec.solver.get("rtol"), start, stop)
+
+    #: the FMI function that instantiates the FMU (named when it fails)
+    instantiate_call = "fmi2Instantiate"
+
+    def _instantiate_fmu(self) -> None:
+        self.fmu.instantiate(callbacks=self._callbacks, loggingOn=self.logging_on)
+
+    def _set_up_experiment(self, tolerance: Optional[float], start: float, stop: float) -> None:
+        self.call(self.fmu.setupExperiment, tolerance=tolerance, startTime=start, stopTime=stop)
 
     def apply_start_values(self) -> None:
         """Set the scenario's parameters and start values (before initialization mode)."""
@@ -297,8 +368,9 @@ class Unit:
         self.call(setter, [port.vr], [value])
 
     def wire_inputs(self, kind: str, vrs: Sequence[int], bus: np.ndarray, index: Sequence[int],
-                    factor: Sequence[float], offset: Sequence[float]) -> None:
-        """Take inputs of FMI type ``kind`` from ``bus[index]`` before every step."""
+                    factor: Sequence[float], offset: Sequence[float], elements: Sequence[int] = ()) -> None:
+        """Take inputs of FMI type ``kind`` from ``bus[index]`` before every step (``elements``:
+        each input's place in its FMI 3.0 array variable; FMI 2.0 has none)."""
         setter, getter = bare_function(self.fmu, f"fmi2Set{kind}"), bare_function(self.fmu, f"fmi2Get{kind}")
         handle = self.fmu.component
         if kind == "String":
@@ -306,6 +378,11 @@ class Unit:
         else:
             self.inputs.append(_Inputs(setter, getter, handle, vrs, bus, index, factor, offset, TYPES[kind][0]))
         self.inputs[-1].kind = kind
+
+    def output_slots(self, kind: str, vrs: Sequence[int]) -> List[Tuple[int, int]]:
+        """The (value reference, element) that :meth:`wire_outputs` puts in each slot of its bus
+        slice, in order (FMI 2.0: the variables ``vrs`` themselves)."""
+        return [(vr, 0) for vr in vrs]
 
     def wire_outputs(self, kind: str, vrs: Sequence[int], bus: np.ndarray, start: int) -> None:
         """Read variables of type ``kind`` into ``bus[start:start + len(vrs)]`` after every step."""
@@ -344,15 +421,20 @@ class Unit:
 
     def save_state(self) -> Any:
         """A snapshot to :meth:`restore_state` (release it with :meth:`free_state`)."""
-        return self.call(self.fmu.getFMUstate)
+        return self.call(self.fmu.getFMUState if self.fmi3 else self.fmu.getFMUstate)
 
     def restore_state(self, state: Any) -> None:
         """Go back to a snapshot."""
-        self.call(self.fmu.setFMUstate, state)
+        self.call(self.fmu.setFMUState if self.fmi3 else self.fmu.setFMUstate, state)
 
     def free_state(self, state: Any) -> None:
         """Release a snapshot."""
-        self.call(self.fmu.freeFMUstate, state)
+        self.call(self.fmu.freeFMUState if self.fmi3 else self.fmu.freeFMUstate, state)
+
+    @property
+    def fmi3(self) -> bool:
+        """Whether this unit runs an FMI 3.0 FMU."""
+        return isinstance(self.fmu, _FMU3)
 
     def call(self, function: Callable, *args: Any, **kwargs: Any) -> Any:
         """Call an fmpy function, turning an FMI error status into :class:`FmuFailure`."""

@@ -1,6 +1,7 @@
 """The units a master steps: :func:`unit_for` picks the Co-Simulation :class:`CoSimulationUnit`
 (fmpy ``FMU2Slave``, stepped with fmi2DoStep) or the Model Exchange unit of
-:mod:`.me_integrator` for a component. What both share lives in :mod:`.unit_base`.
+:mod:`.me_integrator` for a component, or their FMI 3.0 counterparts of :mod:`.fmi3_units`.
+What they share lives in :mod:`.unit_base`.
 """
 from __future__ import annotations
 
@@ -62,7 +63,10 @@ class CoSimulationUnit(Unit):
 
 
 def unit_for(component: Component, unzip_dir: str, fmu: Any = None) -> Unit:
-    """The right unit class for the component's interface (``fmu``: see :class:`Unit`)."""
+    """The right unit class for the component's interface and FMI version (``fmu``: see :class:`Unit`)."""
+    if component.info.fmi3:
+        from .fmi3_units import CoSimulationUnit3, ModelExchangeUnit3  # late: it loads SUNDIALS
+        return (CoSimulationUnit3 if component.interface == "CS" else ModelExchangeUnit3)(component, unzip_dir, fmu)
     if component.interface == "CS":
         return CoSimulationUnit(component, unzip_dir, fmu)
     from .me_integrator import ModelExchangeUnit  # late: it loads SUNDIALS

@@ -392,17 +392,19 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
     if (!told) goto python_error;
     Py_DECREF(told);
     spec = py.PyObject_CallMethod(b->instance, "native_layout", NULL);
-    unsigned long long real, ints, flags, indicators, nominals, control;
-    Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz;
+    unsigned long long real, ints, flags, indicators, nominals, control, sizes3 = 0;
+    Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz, n_clocks = 0;
     int watches_drift;
-    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
+    /* the FMI 3.0 fields trail: a runtime without them still serves an FMI 2.0 binary */
+    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK|Kn", &real, &n_real, &ints, &n_int, &flags, &n_str, &nx,
                                    &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift,
-                                   &b->steps_itself, &b->evaluates_after_step, &control))
+                                   &b->steps_itself, &b->evaluates_after_step, &control, &sizes3, &n_clocks))
         goto python_error;
     *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
                            (const unsigned char *)(uintptr_t)flags, (size_t)n_str, (size_t)nx,
                            (size_t)x_offset, (size_t)dx_offset, (double *)(uintptr_t)indicators, (size_t)nz,
-                           (const double *)(uintptr_t)nominals, watches_drift, (const double *)(uintptr_t)control};
+                           (const double *)(uintptr_t)nominals, watches_drift, (const double *)(uintptr_t)control,
+                           (const uint32_t *)(uintptr_t)sizes3, (size_t)n_clocks};
     for (int i = 0; i < DFMI_N_OPS; i++)
         if (!(b->ops[i] = py.PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;
     if (!(b->event_update = py.PyObject_GetAttrString(b->instance, "event_update")) ||

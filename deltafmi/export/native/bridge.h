@@ -1,12 +1,13 @@
 /* The interface between the FMI loader and the Python bridge, two parts of one binary.
  *
- * The loader (loader.c) implements the fmi2 functions and never touches Python. Once libpython is
- * in the process it starts the bridge (bridge.c), which reaches Python only through the API table
- * bound at run time (pyapi.h). Status codes are fmi2Status values (0 OK .. 3 error). */
+ * The loader (core.c with fmi2.c or fmi3.c) implements the FMI functions and never touches
+ * Python. Once libpython is in the process it starts the bridge (bridge.c), which reaches Python
+ * only through the API table bound at run time (pyapi.h). Status codes are FMI status values (0 OK .. 3 error). */
 #ifndef DELTAFMI_BRIDGE_H
 #define DELTAFMI_BRIDGE_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 typedef void (*DfmiLogFn)(void *env, int status, const char *category, const char *message);
 
@@ -21,14 +22,22 @@ typedef struct {
     const double *nominals;
     int watches_drift;            /* fmi2CompletedIntegratorStep asks the model (else: no event) */
     const double *control;        /* [0] nonzero: the component ended the simulation; [1] the time
-                                   * it reached (NaN: the end of the step) */
+                                   * it reached (NaN: the end of the step); [2] (FMI 3.0 event mode
+                                   * only) nonzero: the step stopped at an event it did not handle */
+    /* FMI 3.0 only (trailing fields of native_layout; NULL / 0 from a runtime without them): */
+    const uint32_t *sizes3;       /* n_real + n_int + n_str entries: sizes3[v] = element count of the
+                                   * FMI 3.0 variable whose value reference is v, 0 where v is not
+                                   * the first scalar of a declaration */
+    size_t n_clocks;              /* value references: n_total = time, then the clocks, then one
+                                   * Float64 variable per event indicator */
 } DfmiLayout;
 
 typedef enum {
     DFMI_ENTER_INITIALIZATION = 0, /* args: start, stop (NaN: undefined), tolerance (NaN: undefined) */
-    DFMI_EXIT_INITIALIZATION,
+    DFMI_EXIT_INITIALIZATION,      /* args: none, or 1 (FMI 3.0 Co-Simulation with event mode used) */
     DFMI_EVALUATE,                 /* args: time; derivatives, event indicators and outputs */
-    DFMI_DO_STEP,                  /* args: current communication point, step size */
+    DFMI_DO_STEP,                  /* args: current communication point, step size[, event mode
+                                    * used (1: stop at the first event, leave it pending)] */
     DFMI_TERMINATE,
     DFMI_RESET,
     DFMI_EVALUATE_DERIVATIVES,     /* args: time; derivatives and event indicators only */
@@ -42,7 +51,7 @@ typedef enum {
  * the interpreter; python_executable names it for sys.prefix. 0 on success. */
 int bridge_start(void *python, const char *python_executable, char *error, size_t error_size);
 /* Load the FMU's Python model and create one instance; NULL on failure (logged). log_mask: the
- * log categories enabled (bits in the order of loader.c's CATEGORY_NAMES). */
+ * log categories enabled (bits in the order of core.c's CATEGORY_NAMES). */
 void *bridge_instantiate(const char *resources_dir, const char *instance_name, const char *guid,
                          int fmu_type, unsigned log_mask, DfmiLogFn log, void *log_env, DfmiLayout *layout);
 /* Tell the instance which log categories are enabled (fmi2SetDebugLogging). */

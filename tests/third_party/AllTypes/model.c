@@ -36,7 +36,7 @@ const size_t NUMBER_OF_EVENT_INDICATORS = 0;
 
 #define M(v) (comp->data->v)
 
-void setStartValues(ModelInstance *comp) {
+Status setStartValues(ModelInstance *comp) {
     M(gain) = 2.0;
     M(u) = 0.0;
     M(x) = 0.0;
@@ -49,132 +49,133 @@ void setStartValues(ModelInstance *comp) {
     strcpy(M(u_str), "");
     M(tint) = 1;
     M(u_color) = 1;
+    return OK;
 }
 
-fmi2Status initialize(ModelInstance *comp) {
+Status initialize(ModelInstance *comp) {
     (void)comp;
-    return fmi2OK;
+    return OK;
 }
 
 static int turn(int color, int tint) { return (color - 1 + tint - 1) % 3 + 1; }
 
-fmi2Status getReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real *value) {
+Status getReal(ModelInstance *comp, ValueReference vr, double *value) {
     switch (vr) {
-        case vr_gain: *value = M(gain); return fmi2OK;
-        case vr_u: *value = M(u); return fmi2OK;
+        case vr_gain: *value = M(gain); return OK;
+        case vr_u: *value = M(u); return OK;
         case vr_y:
-        case vr_der_x: *value = M(gain) * M(u); return fmi2OK;
-        case vr_x: *value = M(x); return fmi2OK;
-        case vr_u_discrete: *value = M(u_discrete); return fmi2OK;
-        case vr_y_discrete: *value = M(gain) * M(u_discrete); return fmi2OK;
-        default: return fmi2Error;
+        case vr_der_x: *value = M(gain) * M(u); return OK;
+        case vr_x: *value = M(x); return OK;
+        case vr_u_discrete: *value = M(u_discrete); return OK;
+        case vr_y_discrete: *value = M(gain) * M(u_discrete); return OK;
+        default: return Error;
     }
 }
 
-fmi2Status setReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real value) {
+Status setReal(ModelInstance *comp, ValueReference vr, double value) {
     switch (vr) {
         case vr_gain:
-            if (checkSettable(comp, "gain", Tunable)) return fmi2Error;
+            if (checkSettable(comp, "gain", Tunable)) return Error;
             M(gain) = value;
-            return fmi2OK;
+            return OK;
         case vr_u:
-            if (checkSettable(comp, "u", ContinuousInput)) return fmi2Error;
+            if (checkSettable(comp, "u", ContinuousInput)) return Error;
             M(u) = value;
-            return fmi2OK;
+            return OK;
         case vr_x:
-            if (checkSettable(comp, "x", Fixed)) return fmi2Error;
+            if (checkSettable(comp, "x", Fixed)) return Error;
             M(x) = value;
-            return fmi2OK;
+            return OK;
         case vr_u_discrete:
-            if (checkSettable(comp, "u_discrete", DiscreteInput)) return fmi2Error;
+            if (checkSettable(comp, "u_discrete", DiscreteInput)) return Error;
             M(u_discrete) = value;
-            return fmi2OK;
-        default: return fmi2Error;
+            return OK;
+        default: return Error;
     }
 }
 
-fmi2Status getInteger(ModelInstance *comp, fmi2ValueReference vr, fmi2Integer *value) {
+Status getInteger(ModelInstance *comp, ValueReference vr, int *value) {
     switch (vr) {
-        case vr_offset: *value = M(offset); return fmi2OK;
-        case vr_u_int: *value = M(u_int); return fmi2OK;
-        case vr_y_int: *value = M(u_int) + M(offset); return fmi2OK;
-        case vr_tint: *value = M(tint); return fmi2OK;
-        case vr_u_color: *value = M(u_color); return fmi2OK;
-        case vr_y_color: *value = turn(M(u_color), M(tint)); return fmi2OK;
-        default: return fmi2Error;
+        case vr_offset: *value = M(offset); return OK;
+        case vr_u_int: *value = M(u_int); return OK;
+        case vr_y_int: *value = M(u_int) + M(offset); return OK;
+        case vr_tint: *value = M(tint); return OK;
+        case vr_u_color: *value = M(u_color); return OK;
+        case vr_y_color: *value = turn(M(u_color), M(tint)); return OK;
+        default: return Error;
     }
 }
 
-static fmi2Status setColor(ModelInstance *comp, int *target, const char *name, Settable kind, int value) {
-    if (checkSettable(comp, name, kind)) return fmi2Error;
+static Status setColor(ModelInstance *comp, int *target, const char *name, Settable kind, int value) {
+    if (checkSettable(comp, name, kind)) return Error;
     if (value < 1 || value > 3) {
         logError(comp, "%s = %d is not a Color (1 red, 2 green, 3 blue)", name, value);
-        return fmi2Error;
+        return Error;
     }
     *target = value;
-    return fmi2OK;
+    return OK;
 }
 
-fmi2Status setInteger(ModelInstance *comp, fmi2ValueReference vr, fmi2Integer value) {
+Status setInteger(ModelInstance *comp, ValueReference vr, int value) {
     switch (vr) {
         case vr_offset:
-            if (checkSettable(comp, "offset", Tunable)) return fmi2Error;
+            if (checkSettable(comp, "offset", Tunable)) return Error;
             M(offset) = value;
-            return fmi2OK;
+            return OK;
         case vr_u_int:
-            if (checkSettable(comp, "u_int", DiscreteInput)) return fmi2Error;
+            if (checkSettable(comp, "u_int", DiscreteInput)) return Error;
             M(u_int) = value;
-            return fmi2OK;
+            return OK;
         case vr_tint: return setColor(comp, &M(tint), "tint", Tunable, value);
         case vr_u_color: return setColor(comp, &M(u_color), "u_color", DiscreteInput, value);
-        default: return fmi2Error;
+        default: return Error;
     }
 }
 
-fmi2Status getBoolean(ModelInstance *comp, fmi2ValueReference vr, fmi2Boolean *value) {
+Status getBoolean(ModelInstance *comp, ValueReference vr, bool *value) {
     switch (vr) {
-        case vr_invert: *value = M(invert); return fmi2OK;
-        case vr_u_bool: *value = M(u_bool); return fmi2OK;
-        case vr_y_bool: *value = M(u_bool) != M(invert); return fmi2OK;
-        default: return fmi2Error;
+        case vr_invert: *value = M(invert); return OK;
+        case vr_u_bool: *value = M(u_bool); return OK;
+        case vr_y_bool: *value = M(u_bool) != M(invert); return OK;
+        default: return Error;
     }
 }
 
-fmi2Status setBoolean(ModelInstance *comp, fmi2ValueReference vr, fmi2Boolean value) {
+Status setBoolean(ModelInstance *comp, ValueReference vr, bool value) {
     switch (vr) {
         case vr_invert:
-            if (checkSettable(comp, "invert", Tunable)) return fmi2Error;
-            M(invert) = value != fmi2False;
-            return fmi2OK;
+            if (checkSettable(comp, "invert", Tunable)) return Error;
+            M(invert) = value;
+            return OK;
         case vr_u_bool:
-            if (checkSettable(comp, "u_bool", DiscreteInput)) return fmi2Error;
-            M(u_bool) = value != fmi2False;
-            return fmi2OK;
-        default: return fmi2Error;
+            if (checkSettable(comp, "u_bool", DiscreteInput)) return Error;
+            M(u_bool) = value;
+            return OK;
+        default: return Error;
     }
 }
 
-fmi2Status getString(ModelInstance *comp, fmi2ValueReference vr, fmi2String *value) {
+Status getString(ModelInstance *comp, ValueReference vr, const char **value) {
     switch (vr) {
-        case vr_prefix: *value = M(prefix); return fmi2OK;
-        case vr_u_str: *value = M(u_str); return fmi2OK;
+        case vr_prefix: *value = M(prefix); return OK;
+        case vr_u_str: *value = M(u_str); return OK;
         case vr_y_str:
             snprintf(M(y_str), sizeof(M(y_str)), "%s%s", M(prefix), M(u_str));
             *value = M(y_str);
-            return fmi2OK;
-        default: return fmi2Error;
+            return OK;
+        default: return Error;
     }
 }
 
-fmi2Status setString(ModelInstance *comp, fmi2ValueReference vr, fmi2String value) {
+Status setString(ModelInstance *comp, ValueReference vr, const char *value) {
     switch (vr) {
         case vr_prefix:
-            if (checkSettable(comp, "prefix", Tunable)) return fmi2Error;
+            if (checkSettable(comp, "prefix", Tunable)) return Error;
             return copyString(comp, M(prefix), value);
         case vr_u_str:
-            if (checkSettable(comp, "u_str", DiscreteInput)) return fmi2Error;
+            if (checkSettable(comp, "u_str", DiscreteInput)) return Error;
             return copyString(comp, M(u_str), value);
-        default: return fmi2Error;
+        default: return Error;
     }
 }
 

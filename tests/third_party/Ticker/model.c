@@ -27,85 +27,86 @@ const size_t NUMBER_OF_EVENT_INDICATORS = 0;
 
 #define M(v) (comp->data->v)
 
-void setStartValues(ModelInstance *comp) {
+Status setStartValues(ModelInstance *comp) {
     M(period) = 0.35;
     M(u) = 0.0;
     M(maxTicks) = 5;
+    return OK;
 }
 
-fmi2Status initialize(ModelInstance *comp) {
+Status initialize(ModelInstance *comp) {
     if (M(period) <= 0) {
         logError(comp, "period = %g must be positive", M(period));
-        return fmi2Error;
+        return Error;
     }
     M(ticks) = 0;
     M(held) = M(u);
     M(lastTick) = comp->startTime;
     comp->nextEventTimeDefined = true;
     comp->nextEventTime = comp->startTime + M(period);
-    return fmi2OK;
+    return OK;
 }
 
-fmi2Status getReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real *value) {
+Status getReal(ModelInstance *comp, ValueReference vr, double *value) {
     switch (vr) {
-        case vr_period: *value = M(period); return fmi2OK;
-        case vr_u: *value = M(u); return fmi2OK;
+        case vr_period: *value = M(period); return OK;
+        case vr_u: *value = M(u); return OK;
         case vr_held:  /* initialization computes it from u */
             *value = comp->state == InitializationMode ? M(u) : M(held);
-            return fmi2OK;
-        case vr_phase: *value = comp->time - M(lastTick); return fmi2OK;
-        default: return fmi2Error;
+            return OK;
+        case vr_phase: *value = comp->time - M(lastTick); return OK;
+        default: return Error;
     }
 }
 
-fmi2Status setReal(ModelInstance *comp, fmi2ValueReference vr, fmi2Real value) {
+Status setReal(ModelInstance *comp, ValueReference vr, double value) {
     switch (vr) {
         case vr_period:
-            if (checkSettable(comp, "period", Fixed)) return fmi2Error;
+            if (checkSettable(comp, "period", Fixed)) return Error;
             M(period) = value;
-            return fmi2OK;
+            return OK;
         case vr_u:
-            if (checkSettable(comp, "u", ContinuousInput)) return fmi2Error;
+            if (checkSettable(comp, "u", ContinuousInput)) return Error;
             M(u) = value;
-            return fmi2OK;
-        default: return fmi2Error;
+            return OK;
+        default: return Error;
     }
 }
 
-fmi2Status getInteger(ModelInstance *comp, fmi2ValueReference vr, fmi2Integer *value) {
+Status getInteger(ModelInstance *comp, ValueReference vr, int *value) {
     switch (vr) {
-        case vr_max_ticks: *value = M(maxTicks); return fmi2OK;
-        case vr_ticks: *value = M(ticks); return fmi2OK;
-        default: return fmi2Error;
+        case vr_max_ticks: *value = M(maxTicks); return OK;
+        case vr_ticks: *value = M(ticks); return OK;
+        default: return Error;
     }
 }
 
-fmi2Status setInteger(ModelInstance *comp, fmi2ValueReference vr, fmi2Integer value) {
-    if (vr != vr_max_ticks || checkSettable(comp, "max_ticks", Fixed)) return fmi2Error;
+Status setInteger(ModelInstance *comp, ValueReference vr, int value) {
+    if (vr != vr_max_ticks || checkSettable(comp, "max_ticks", Fixed)) return Error;
     M(maxTicks) = value;
-    return fmi2OK;
+    return OK;
 }
 
-fmi2Status getBoolean(ModelInstance *comp, fmi2ValueReference vr, fmi2Boolean *value) {
+Status getBoolean(ModelInstance *comp, ValueReference vr, bool *value) {
     (void)comp, (void)vr, (void)value;
-    return fmi2Error;
+    return Error;
 }
 
-fmi2Status setBoolean(ModelInstance *comp, fmi2ValueReference vr, fmi2Boolean value) {
+Status setBoolean(ModelInstance *comp, ValueReference vr, bool value) {
     (void)comp, (void)vr, (void)value;
-    return fmi2Error;
+    return Error;
 }
 
-fmi2Status getString(ModelInstance *comp, fmi2ValueReference vr, fmi2String *value) {
-    if (vr != vr_label) return fmi2Error;
+Status getString(ModelInstance *comp, ValueReference vr, const char **value) {
+    if (vr != vr_label) return Error;
     snprintf(M(label), sizeof(M(label)), "tick %d", M(ticks));
     *value = M(label);
-    return fmi2OK;
+    return OK;
 }
 
-fmi2Status setString(ModelInstance *comp, fmi2ValueReference vr, fmi2String value) {
+Status setString(ModelInstance *comp, ValueReference vr, const char *value) {
     (void)comp, (void)vr, (void)value;
-    return fmi2Error;
+    return Error;
 }
 
 void getContinuousStates(ModelInstance *comp, double x[]) { (void)comp, (void)x; }

@@ -5,8 +5,12 @@
  * fmi2SetContinuousStates and fmi2CompletedIntegratorStep), for a run of steps at once, with
  * the recorded rows gathered into a block. Anything else (a failure, an event, a termination)
  * stops the run and hands back to Python, which carries on exactly where this stopped.
- * Plain C, no Python.
+ * FMI 3.0 units (Op.fmi3) make the FMI 3.0 calls instead: fmi3Set/GetFloat64, Int32 and Boolean
+ * with nValues (whole arrays, the connected elements scattered to their positions), fmi3DoStep with
+ * its outputs (any event, early return or termination hands back), fmi3CompletedIntegratorStep
+ * with fmi3Boolean flags. Plain C, no Python.
  */
+#include <stdbool.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -22,13 +26,26 @@ typedef int (*SetTime)(void *, double);
 typedef int (*SetStates)(void *, const double *, size_t);
 typedef int (*Completed)(void *, int, int *, int *);
 typedef int (*GetIndicators)(void *, double *, size_t);
+/* FMI 3.0 */
+typedef int (*SetReal3)(void *, const fmi2ValueReference *, size_t, const double *, size_t);
+typedef int (*GetReal3)(void *, const fmi2ValueReference *, size_t, double *, size_t);
+typedef int (*SetInt3)(void *, const fmi2ValueReference *, size_t, const int *, size_t);
+typedef int (*GetInt3)(void *, const fmi2ValueReference *, size_t, int *, size_t);
+typedef int (*DoStep3)(void *, double, double, bool, bool *, bool *, bool *, double *);
+typedef int (*Completed3)(void *, bool, bool *, bool *);
+typedef int (*SetBool3)(void *, const fmi2ValueReference *, size_t, const bool *, size_t);
+typedef int (*GetBool3)(void *, const fmi2ValueReference *, size_t, bool *, size_t);
 typedef int (*ErkSteps)(const void *plan, double t, double h, int steps, double *x);
 
 enum { FMI2_WARNING = 1 };
 /* operations */
-enum { SET_REAL = 0, GET_REAL = 1, SET_INT = 2, GET_INT = 3, DO_STEP = 4, ME_STEP = 5 };
+enum { SET_REAL = 0, GET_REAL = 1, SET_INT = 2, GET_INT = 3, DO_STEP = 4, ME_STEP = 5,
+       SET_BOOL3 = 6, GET_BOOL3 = 7 /* FMI 3.0 Booleans (one byte) to and from the int bus */ };
 /* why a run stopped */
-enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_FULL = 5, STATE_EVENT = 6 };
+enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_FULL = 5, STATE_EVENT = 6,
+       STEP_RETURNED = 7 /* fmi3DoStep: an event, an early return or a termination (Op.flags) */ };
+/* Op.flags after fmi3DoStep */
+enum { EVENT_HANDLING_NEEDED = 1, TERMINATE_SIMULATION = 2, EARLY_RETURN = 4 };
 
 typedef struct {
     int kind;
@@ -38,7 +55,7 @@ typedef struct {
     const fmi2ValueReference *vrs;
     size_t n;
     void *values;            /* SET_*: the gathered values; GET_*: the bus slice read into */
-    const void *bus;         /* SET_*: the bus gathered from */
+    const void *bus;         /* SET_*: the bus gathered from; GET_BOOL3: the bus slice the values go to */
     const intptr_t *index;
     const double *factor;    /* SET_REAL: NULL when untransformed */
     const double *offset;
@@ -62,6 +79,14 @@ typedef struct {
     double *z_last;          /* nz: at the last step's end, valid when *z_valid */
     int *z_valid;
     double *x0;              /* nx: the states at the start of the step that crossed */
+    /* FMI 3.0 */
+    int fmi3;
+    const intptr_t *positions; /* SET_*: where each gathered bus value goes in values */
+    size_t n_index;          /* SET_*: the bus values gathered (n: the value references) */
+    size_t n_values;         /* SET_*, GET_*: nValues, every element of the variables */
+    int flags;               /* DO_STEP out: EVENT_HANDLING_NEEDED | TERMINATE_SIMULATION | EARLY_RETURN */
+    int step_status;         /* DO_STEP out: the status of fmi3DoStep */
+    double last_time;        /* DO_STEP out: lastSuccessfulTime */
 } Op;
 
 typedef struct {
@@ -184,7 +209,14 @@ static int me_step(Plan *p, Op *o, double t, double step)
     if (o->completed) {
         int enter = 0, terminate = 0;
         p->call = 2;
-        if ((status = o->completed(o->component, o->no_prior_state, &enter, &terminate)) > FMI2_WARNING)
+        if (o->fmi3) {
+            bool enter3 = false, terminate3 = false;
+            status = ((Completed3)(void *)o->completed)(o->component, o->no_prior_state != 0, &enter3, &terminate3);
+            enter = enter3, terminate = terminate3;
+        } else {
+            status = o->completed(o->component, o->no_prior_state, &enter, &terminate);
+        }
+        if (status > FMI2_WARNING)
             goto failed;
         if (terminate) return TERMINATED;
         if (enter) return STEP_EVENT;
@@ -202,6 +234,12 @@ static int run_op(Plan *p, Op *o, long k, double t)
     case SET_REAL: {
         double *v = (double *)o->values;
         const double *bus = (const double *)o->bus;
+        if (o->positions) {
+            for (size_t i = 0; i < o->n_index; i++)
+                v[o->positions[i]] = o->factor ? o->factor[i] * bus[o->index[i]] + o->offset[i] : bus[o->index[i]];
+            status = ((SetReal3)o->function)(o->component, o->vrs, o->n, v, o->n_values);
+            break;
+        }
         for (size_t i = 0; i < o->n; i++) v[i] = bus[o->index[i]];
         if (o->factor) {
             for (size_t i = 0; i < o->n; i++) v[i] *= o->factor[i];
@@ -211,23 +249,55 @@ static int run_op(Plan *p, Op *o, long k, double t)
         break;
     }
     case GET_REAL:
-        status = ((GetReal)o->function)(o->component, o->vrs, o->n, (double *)o->values);
+        status = o->fmi3 ? ((GetReal3)o->function)(o->component, o->vrs, o->n, (double *)o->values, o->n_values)
+                         : ((GetReal)o->function)(o->component, o->vrs, o->n, (double *)o->values);
         break;
     case SET_INT: {
         int *v = (int *)o->values;
         const int *bus = (const int *)o->bus;
+        if (o->positions) {
+            for (size_t i = 0; i < o->n_index; i++) v[o->positions[i]] = bus[o->index[i]];
+            status = ((SetInt3)o->function)(o->component, o->vrs, o->n, v, o->n_values);
+            break;
+        }
         for (size_t i = 0; i < o->n; i++) v[i] = bus[o->index[i]];
         status = ((SetInt)o->function)(o->component, o->vrs, o->n, v);
         break;
     }
     case GET_INT:
-        status = ((GetInt)o->function)(o->component, o->vrs, o->n, (int *)o->values);
+        status = o->fmi3 ? ((GetInt3)o->function)(o->component, o->vrs, o->n, (int *)o->values, o->n_values)
+                         : ((GetInt)o->function)(o->component, o->vrs, o->n, (int *)o->values);
         break;
+    case SET_BOOL3: {
+        bool *v = (bool *)o->values;
+        const int *bus = (const int *)o->bus;
+        for (size_t i = 0; i < o->n_index; i++) v[o->positions[i]] = bus[o->index[i]] != 0;
+        status = ((SetBool3)o->function)(o->component, o->vrs, o->n, v, o->n_values);
+        break;
+    }
+    case GET_BOOL3: {
+        const bool *v = (const bool *)o->values;
+        status = ((GetBool3)o->function)(o->component, o->vrs, o->n, (bool *)o->values, o->n_values);
+        for (size_t i = 0; i < o->n_values; i++) ((int *)o->bus)[i] = v[i];
+        break;
+    }
     case DO_STEP:
     case ME_STEP: {
         long m = o->multiple;
         double step = k + m < p->last ? (double)m * p->h : p->stop - t;
         if (o->kind == ME_STEP) return me_step(p, o, t, step);
+        if (o->fmi3) {
+            bool event = false, terminate = false, early = false;
+            double last = t + step;
+            status = ((DoStep3)o->function)(o->component, t, step, o->no_prior_state != 0, &event, &terminate, &early,
+                                            &last);
+            o->flags = (event ? EVENT_HANDLING_NEEDED : 0) | (terminate ? TERMINATE_SIMULATION : 0) |
+                       (early ? EARLY_RETURN : 0);
+            o->step_status = status;
+            o->last_time = last;
+            if (o->flags || status > FMI2_WARNING) return STEP_RETURNED; /* Python carries on */
+            break;
+        }
         status = ((DoStep)o->function)(o->component, t, step, o->no_prior_state);
         break;
     }

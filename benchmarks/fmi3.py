@@ -1,0 +1,108 @@
+"""Cost per communication step of the same component built as FMI 3.0 and as FMI 2.0.
+
+Three paths, each measured for both builds in interleaved rounds of this one run (medians):
+fmpy's own FMU2Slave/FMU3Slave loop (doStep + get of every output), fmpy.simulate_fmu, and our
+master (the Oscillator alone, and the flagship delta_tracking with its three FMUs). The issue's
+target: FMI 3.0 <= 1.1x FMI 2.0 on every path.
+Usage: python benchmarks/fmi3.py [--steps N] [--rounds R]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable
+
+import fmpy
+from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
+
+from deltafmi.cosim.scenario.fmu_scenario import fmu_scenario
+from deltafmi.cosim.scenario.overrides import with_overrides
+from deltafmi.cosim.scenario.resolve import resolve_system
+from deltafmi.cosim.scenario.spec import load_scenario
+from deltafmi.cosim.stepping.master import Master
+from deltafmi.export.packager import build_cached
+
+STEP = 1e-3
+
+
+def fmpy_loop(fmu: Path, steps: int) -> float:
+    """Microseconds per doStep + get of the outputs through fmpy's low-level slave classes."""
+    md = fmpy.read_model_description(str(fmu))
+    outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+    unzipped = fmpy.extract(str(fmu))
+    if md.fmiVersion.startswith("3"):
+        slave = FMU3Slave(guid=md.instantiationToken, unzipDirectory=unzipped,
+                          modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+        slave.instantiate()
+        slave.enterInitializationMode(startTime=0.0)
+        slave.exitInitializationMode()
+        get = slave.getFloat64
+    else:
+        slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                          modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        get = slave.getReal
+    t = 0.0
+    start = time.perf_counter()
+    for _ in range(steps):
+        slave.doStep(t, STEP)
+        t += STEP
+        get(outputs)
+    elapsed = time.perf_counter() - start
+    slave.terminate()
+    slave.freeInstance()
+    return elapsed / steps * 1e6
+
+
+def simulate_fmu(fmu: Path, steps: int) -> float:
+    """Microseconds per output step of fmpy.simulate_fmu (Co-Simulation)."""
+    start = time.perf_counter()
+    fmpy.simulate_fmu(str(fmu), stop_time=steps * STEP, output_interval=STEP, fmi_type="CoSimulation")
+    return (time.perf_counter() - start) / steps * 1e6
+
+
+def master_run(scenario, steps: int, result: Path) -> float:
+    """Microseconds per communication step of our master (set-up and close excluded)."""
+    system = resolve_system(with_overrides(scenario, stop=steps * STEP, step=STEP))
+    summary = Master(system, result=str(result)).run()
+    return (summary.wall_time - summary.setup_time - summary.close_time) / summary.steps * 1e6
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--rounds", type=int, default=7)
+    args = parser.parse_args()
+    fmus = {v: build_cached("Oscillator", fmi_version=v) for v in (2, 3)}
+    flagship = load_scenario("delta_tracking")
+    with tempfile.TemporaryDirectory() as tmp:
+        result = Path(tmp) / "result.csv"
+        paths: dict[str, Callable[[int], float]] = {}
+        for v in (2, 3):
+            paths[f"fmpy FMU{v}Slave loop, Oscillator|{v}"] = lambda n, f=fmus[v]: fmpy_loop(f, n)
+            paths[f"fmpy.simulate_fmu, Oscillator|{v}"] = lambda n, f=fmus[v]: simulate_fmu(f, n)
+            paths[f"our master, Oscillator|{v}"] = lambda n, f=fmus[v]: master_run(fmu_scenario(f), n, result)
+            paths[f"our master, flagship (3 FMUs)|{v}"] = (
+                lambda n, v=v: master_run(with_overrides(flagship, fmi_version=v), n, result))
+        for run in paths.values():  # warm up: builds, unpacking, first imports
+            run(50)
+        times: dict[str, list[float]] = {key: [] for key in paths}
+        for _ in range(args.rounds):
+            for key, run in paths.items():
+                times[key].append(run(args.steps))
+    print(f"{args.steps} steps of {STEP:g} s, medians of {args.rounds} interleaved rounds (us per step)")
+    print(f"{'path':36s} {'FMI 2.0':>9s} {'FMI 3.0':>9s} {'3.0/2.0':>8s}")
+    for name in dict.fromkeys(key.split("|")[0] for key in times):
+        two, three = (statistics.median(times[f"{name}|{v}"]) for v in (2, 3))
+        print(f"{name:36s} {two:9.2f} {three:9.2f} {three / two:7.3f}x")
+
+
+if __name__ == "__main__":
+    main()
