@@ -9,6 +9,8 @@ Usage: python benchmarks/fmi3.py [--steps N] [--rounds R]
 from __future__ import annotations
 
 import argparse
+import ctypes
+import functools
 import statistics
 import tempfile
 import time
@@ -29,10 +31,13 @@ from deltafmi.export.packager import build_cached
 STEP = 1e-3
 
 
-def fmpy_loop(fmu: Path, steps: int) -> float:
-    """Microseconds per doStep + get of the outputs through fmpy's low-level slave classes."""
+def fmpy_loop(fmu: Path, steps: int, bare: bool = False) -> float:
+    """Microseconds per doStep + get of the real outputs through fmpy's low-level slave classes;
+    ``bare``: through the same ctypes functions of fmpy's loaded binary without fmpy's Python
+    wrappers (which for FMI 3.0 build four output objects per doStep), the FMU's own cost."""
     md = fmpy.read_model_description(str(fmu))
-    outputs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+    outputs = [v.valueReference for v in md.modelVariables
+               if v.causality == "output" and v.type in ("Real", "Float64")]
     unzipped = fmpy.extract(str(fmu))
     if md.fmiVersion.startswith("3"):
         slave = FMU3Slave(guid=md.instantiationToken, unzipDirectory=unzipped,
@@ -50,15 +55,34 @@ def fmpy_loop(fmu: Path, steps: int) -> float:
         slave.exitInitializationMode()
         get = slave.getReal
     t = 0.0
+    if bare:
+        do_step, get = _bare_calls(slave, md.fmiVersion.startswith("3"), outputs)
+    else:
+        do_step = slave.doStep
+        get = functools.partial(get, outputs)
     start = time.perf_counter()
     for _ in range(steps):
-        slave.doStep(t, STEP)
+        do_step(t, STEP)
         t += STEP
-        get(outputs)
+        get()
     elapsed = time.perf_counter() - start
     slave.terminate()
     slave.freeInstance()
     return elapsed / steps * 1e6
+
+
+def _bare_calls(slave, fmi3: bool, outputs: list[int]):
+    """doStep(t, h) and get() calling the binary's functions with arguments made once."""
+    handle, n = slave.component, len(outputs)
+    vrs, values = (ctypes.c_uint32 * n)(*outputs), (ctypes.c_double * n)()
+    if fmi3:
+        flags = [ctypes.c_bool() for _ in range(3)]
+        last = ctypes.c_double()
+        refs = [ctypes.byref(x) for x in (*flags, last)]
+        step, get = slave.dll.fmi3DoStep, slave.dll.fmi3GetFloat64
+        return (lambda t, h: step(handle, t, h, True, *refs)), (lambda: get(handle, vrs, n, values, n))
+    step, get = slave.dll.fmi2DoStep, slave.dll.fmi2GetReal
+    return (lambda t, h: step(handle, t, h, 1)), (lambda: get(handle, vrs, n, values))
 
 
 def simulate_fmu(fmu: Path, steps: int) -> float:
@@ -86,7 +110,8 @@ def main() -> None:
         result = Path(tmp) / "result.csv"
         paths: dict[str, Callable[[int], float]] = {}
         for v in (2, 3):
-            paths[f"fmpy FMU{v}Slave loop, Oscillator|{v}"] = lambda n, f=fmus[v]: fmpy_loop(f, n)
+            paths[f"fmpy FMU2Slave/FMU3Slave, Oscillator|{v}"] = lambda n, f=fmus[v]: fmpy_loop(f, n)
+            paths[f"  same, bare ctypes calls|{v}"] = lambda n, f=fmus[v]: fmpy_loop(f, n, bare=True)
             paths[f"fmpy.simulate_fmu, Oscillator|{v}"] = lambda n, f=fmus[v]: simulate_fmu(f, n)
             paths[f"our master, Oscillator|{v}"] = lambda n, f=fmus[v]: master_run(fmu_scenario(f), n, result)
             paths[f"our master, flagship (3 FMUs)|{v}"] = (

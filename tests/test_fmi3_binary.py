@@ -401,3 +401,34 @@ def test_the_portable_fmi3_fmu_runs_where_no_python_exists(no_python, opened, ho
         assert len(rows) > 200 and np.allclose(np.array([r for r in rows if r[0] != "event"], dtype=float),
                                                np.array([r for r in here if r[0] != "event"], dtype=float),
                                                rtol=0, atol=1e-9)
+
+
+def test_enumerations_are_got_and_set_as_int64_only(opened):
+    """Gearbox's gear (an Enumeration parameter) and engaged (an Enumeration output) through
+    fmi3Get/SetInt64, as FMI 3.0 defines Enumerations: gear REVERSE (3) makes y = -1 * u and engaged
+    3. fmi3GetInt32 refuses them, naming what they are; fmi3SetInt64 refuses a value beyond the
+    stored int32, names it, and changes nothing."""
+    box = opened(COMPONENTS / "gearbox" / "model.py", 3)
+    assert {v.name: v.type for v in box.md.modelVariables}["gear"] == "Enumeration"
+    messages: list = []
+    fmu = box.slave(logMessage=_collecting_logger(messages))
+    gear, engaged, u, y = (box.vr[n] for n in ("gear", "engaged", "u", "y"))
+    fmu.setInt64([gear], [3])
+    with pytest.raises(Exception, match="status 3"):
+        fmu.setInt64([gear], [2 ** 40])
+    assert messages[-1] == (3, f"fmi3SetInt64: 1099511627776 (value 0, the Enumeration at value reference {gear}) "
+                               "is out of this FMU's range of Enumeration values [-2147483648, 2147483647]")
+    assert fmu.getInt64([gear]) == [3]  # the error state still reads: the value is the one set before
+    fmu.freeInstance()
+    fmu = box.slave(logMessage=_collecting_logger(messages))
+    fmu.setInt64([gear], [3])
+    fmu.enterInitializationMode(startTime=0.0)
+    fmu.exitInitializationMode()
+    fmu.setFloat64([u], [2.5])
+    fmu.doStep(0.0, 0.1)
+    assert fmu.getInt64([gear, engaged]) == [3, 3] and fmu.getFloat64([y]) == [-2.5]
+    with pytest.raises(Exception, match="status 3"):
+        fmu.getInt32([engaged])
+    assert messages[-1] == (3, f"fmi3GetInt32: {engaged} is not the value reference of an Int32 variable (it names "
+                               "an Enumeration (Int64) variable)")
+    fmu.freeInstance()

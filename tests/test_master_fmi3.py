@@ -295,6 +295,51 @@ outputs: [ball.h, osc.F, osc.x, osc.v]
     assert ball_drives_oscillator(c, h) <= 1e-9
 
 
+FOLLOWER = '''"""Follows a gear given as an Enumeration input."""
+import enum
+
+from deltafmi.component import Component, Experiment, Input, Output
+
+
+class Gear(enum.IntEnum):
+    LOW = 1
+    HIGH = 2
+    REVERSE = 3
+
+
+class Follower(Component):
+    default_experiment = Experiment(stop=0.3, step=0.1)
+    gear = Input(Gear.LOW, description="The gear to follow")
+    ratio = Output(unit="1")
+    seen = Output(type=Gear)
+    direct_feedthrough = {"ratio": ["gear"], "seen": ["gear"]}
+
+    def outputs(self, t):
+        self.ratio = {Gear.LOW: 1.0, Gear.HIGH: 3.0, Gear.REVERSE: -1.0}[Gear(self.gear)]
+        self.seen = self.gear
+'''
+
+
+@pytest.mark.parametrize("interface", ["CS", "ME"])
+def test_enumerations_travel_as_int64_between_our_fmi3_fmus(tmp_path, interface):
+    """Gearbox (FMI 3.0) in gear REVERSE from the scenario's parameters: y = -1 * u; its
+    Enumeration output engaged drives the Enumeration input of a follower (FMI 3.0), which sees
+    REVERSE (3) and its ratio -1: set and got with fmi3Set/GetInt64, as FMI 3.0 defines them."""
+    (tmp_path / "follower.py").write_text(FOLLOWER)
+    gearbox = Path(__file__).parent / "components" / "gearbox" / "model.py"
+    _, c = run(tmp_path, f"""experiment: {{stop: 0.3, step: 0.1}}
+components:
+  box: {{source: {gearbox}, fmi_version: 3, interface: {interface}, parameters: {{gear: REVERSE, u: 2.5}}}}
+  f: {{source: {tmp_path / 'follower.py'}, fmi_version: 3, interface: {interface}}}
+connections:
+  - {{from: box.engaged, to: f.gear}}
+outputs: [box.y, box.engaged, f.gear, f.seen, f.ratio]
+""")
+    assert len(c["time"]) == 4
+    for name, value in {"box.y": -2.5, "box.engaged": 3, "f.gear": 3, "f.seen": 3, "f.ratio": -1.0}.items():
+        assert list(c[name]) == [value] * 4, name
+
+
 # --- the flagship built as FMI 3.0 ---------------------------------------------------------------
 
 def flagship_of(scenario, **options) -> dict:

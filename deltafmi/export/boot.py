@@ -185,7 +185,8 @@ def _missing_module(error: ImportError, resources_dir: str) -> FmuStartError:
     if error.name is None:  # not a module lookup (the solver's libraries not found): its message says it all
         return FmuStartError(str(error))
     with open(os.path.join(resources_dir, "deltafmi.json"), encoding="utf-8") as f:
-        source = json.load(f)["source"]
+        info = json.load(f)
+    source, version_option = info["source"], _version_option(info)
     version = _running_version()
     bundled = _python_config(resources_dir)
     if bundled.get("portable") == "1" and bundled.get("version") != version:
@@ -195,12 +196,30 @@ def _missing_module(error: ImportError, resources_dir: str) -> FmuStartError:
         f"this FMU's model needs the Python module '{error.name}', which the Python it runs in "
         f"({sys.executable or 'embedded'}, CPython {version}) does not have ({error}). Install it there "
         f"(pip install {(error.name or '').split('.')[0]}), or point DELTAFMI_PYTHON and DELTAFMI_LIBPYTHON at a "
-        f"Python that has it, or rebuild the FMU with `deltafmi build {source} --portable`, which makes an FMU "
-        "that carries its own Python and packages.")
+        f"Python that has it, or rebuild the FMU with `deltafmi build {source}{version_option} --portable`, which "
+        "makes an FMU that carries its own Python and packages.")
+
+
+def _version_option(info: dict) -> str:
+    """The ``deltafmi build`` option that makes an FMU of the recorded FMI version again."""
+    return " --fmi-version 3" if info.get("fmi_version") == 3 else ""
+
+
+def _token_mismatch(info: dict, token: str, fmu_type: int, resources_dir: str) -> RuntimeError:
+    """The importer's GUID (FMI 2.0) or instantiationToken (FMI 3.0) is not this FMU's."""
+    if info.get("fmi_version") == 3:
+        function = ("fmi3InstantiateModelExchange", "fmi3InstantiateCoSimulation",
+                    "fmi3InstantiateScheduledExecution")[fmu_type] if 0 <= fmu_type <= 2 else "fmi3Instantiate"
+        what = "instantiationToken"
+    else:
+        function, what = "fmi2Instantiate", "GUID"
+    return RuntimeError(f"{function}: {what} {token} does not match this FMU's {info['guid']} "
+                        f"({resources_dir}); the modelDescription.xml and the binary disagree")
 
 
 def load(resources_dir: str, instance_name: str, guid: str, fmu_type: int):
-    """Create the Python side of one FMU instance (called by the bridge from fmi2Instantiate)."""
+    """Create the Python side of one FMU instance (called by the bridge from fmi2Instantiate or
+    fmi3Instantiate*); ``guid`` is the FMI 2.0 GUID or the FMI 3.0 instantiationToken."""
     resources_dir = os.path.realpath(resources_dir)
     with _LOCK:  # a second thread waits for the first one's import instead of importing again
         if resources_dir not in _LOADED:
@@ -212,8 +231,7 @@ def load(resources_dir: str, instance_name: str, guid: str, fmu_type: int):
                 raise _missing_module(exc, resources_dir) from None
     info, component_class, instance_class, context = _LOADED[resources_dir]
     if guid and guid != info["guid"]:
-        raise RuntimeError(f"fmi2Instantiate: GUID {guid} does not match this FMU's {info['guid']} "
-                           f"({resources_dir}); the modelDescription.xml and the binary disagree")
+        raise _token_mismatch(info, guid, fmu_type, resources_dir)
     try:
         return instance_class(component_class, instance_name, fmu_type, resources_dir, context)
     except ImportError as exc:  # what an instance loads when created (the CVODE solver)

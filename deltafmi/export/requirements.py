@@ -28,6 +28,7 @@ class RuntimeRequirement:
     executable: str = ""
     source: str = ""
     missing: list[str] = field(default_factory=list)
+    fmi_version: int = 2
 
     @property
     def foreign(self) -> bool:
@@ -42,6 +43,7 @@ class RuntimeRequirement:
         """Lines for the CLI."""
         if self.foreign:
             return ["not built by deltafmi: runs its own binary, no Python needed"]
+        version_option = " --fmi-version 3" if self.fmi_version == 3 else ""
         if self.portable:
             lines = [f"portable: carries CPython {self.python_version} and its packages; needs Linux x86_64 "
                      f"with glibc {self.glibc_floor} or newer, no Python"]
@@ -49,7 +51,8 @@ class RuntimeRequirement:
             lines = [f"not portable: in a host that runs no Python it starts CPython {self.python_version} "
                      f"({self.library}) with the packages of {self.executable}, or what DELTAFMI_LIBPYTHON and "
                      f"DELTAFMI_PYTHON name; a Python host lends its own interpreter, which needs numpy. "
-                     f"`deltafmi build {self.source or 'SOURCE'} --portable` makes one that carries its own Python"]
+                     f"`deltafmi build {self.source or 'SOURCE'}{version_option} --portable` makes one that "
+                     f"carries its own Python"]
         if self.missing:
             lines += [f"this machine: cannot start it: {problem}" for problem in self.missing]
         else:
@@ -67,24 +70,26 @@ def read_config(fmu: Path) -> dict[str, str]:
     return dict(line.split("=", 1) for line in text.splitlines() if "=" in line)
 
 
-def _source(fmu: Path) -> str:
+def _source(fmu: Path) -> tuple[str, int]:
     """What ``deltafmi build`` takes to build the FMU again: a packaged model's class name when the
-    FMU carries that model's source unchanged, else the name of the source file it was built from."""
+    FMU carries that model's source unchanged, else the name of the source file it was built from;
+    and the FMI version it was built for."""
     with zipfile.ZipFile(fmu) as archive:
         try:
             recorded = json.loads(archive.read("resources/deltafmi.json"))
             source = recorded.get("source", "")
             text = archive.read(f"resources/model/{source}") if source else b""
         except (KeyError, ValueError):
-            return ""
+            return "", 2
+    fmi_version = 3 if recorded.get("fmi_version") == 3 else 2
     from deltafmi import models
 
     class_name = recorded.get("class_name", "")
     if models.MODELS.get(class_name, "") + ".py" == source:
         packaged = Path(models.__file__).parent / source
         if packaged.is_file() and packaged.read_bytes() == text:
-            return class_name
-    return source
+            return class_name, fmi_version
+    return source, fmi_version
 
 
 def _version_tuple(text: str) -> tuple[int, ...]:
@@ -107,7 +112,9 @@ def runtime_requirement(fmu: Path) -> RuntimeRequirement:
         return requirement
     library = os.environ.get("DELTAFMI_LIBPYTHON") or cfg.get("library", "")
     executable = os.environ.get("DELTAFMI_PYTHON") or cfg.get("executable", "")
-    requirement = RuntimeRequirement(False, version, library=library, executable=executable, source=_source(fmu))
+    source, fmi_version = _source(fmu)
+    requirement = RuntimeRequirement(False, version, library=library, executable=executable, source=source,
+                                     fmi_version=fmi_version)
     if not library or not Path(library).is_file():
         requirement.missing.append(f"no Python library {library or '(none recorded)'}")
     if not executable or not Path(executable).is_file():

@@ -44,7 +44,20 @@ typedef struct {
     PyObject *serialized;   /* bytes of the last serialize_state */
     DfmiLogFn log;
     void *log_env;
+    int fmi3;               /* the importer speaks FMI 3.0: messages name its functions */
 } Bridged;
+
+/* The function the importer called, in its FMI version's words. */
+static const char *called(const Bridged *b, const char *fmi2_name, const char *fmi3_name) {
+    return b->fmi3 ? fmi3_name : fmi2_name;
+}
+
+/* fmiXInstantiate... by version and fmu_type (0 ME, 1 CS, 2 ScheduledExecution). */
+static const char *instantiate_name(int fmi_version, int fmu_type) {
+    static const char *const FMI3[] = {"fmi3InstantiateModelExchange", "fmi3InstantiateCoSimulation",
+                                       "fmi3InstantiateScheduledExecution"};
+    return fmi_version == 3 && fmu_type >= 0 && fmu_type <= 2 ? FMI3[fmu_type] : "fmi2Instantiate";
+}
 
 static pthread_mutex_t g_start_lock = PTHREAD_MUTEX_INITIALIZER;
 static PyObject *g_load; /* load() of the FMU boot module, per resources directory */
@@ -285,7 +298,7 @@ int bridge_start(void *python, const char *python_executable, char *error, size_
 /* load() of resources/deltafmi_boot.py. A host may unload this binary and load it again (fmpy's
  * freeInstance does), which forgets g_load: the boot file keeps its load() in a process-wide
  * registry module, so the file runs once per process, not once per load of the binary. */
-static PyObject *run_boot(const char *resources_dir, DfmiLogFn log, void *env) {
+static PyObject *run_boot(const char *resources_dir, const char *function, DfmiLogFn log, void *env) {
     char path[4352];
     snprintf(path, sizeof path, "%s/deltafmi_boot.py", resources_dir);
     PyObject *registry = py.PyImport_ImportModule("_deltafmi_fmu_registry");
@@ -302,7 +315,11 @@ static PyObject *run_boot(const char *resources_dir, DfmiLogFn log, void *env) {
         g_load = py.PyDict_GetItemString(globals, "load");
         Py_XINCREF(g_load);
     }
-    if (!g_load) report_exception(log, env, "fmi2Instantiate: loading resources/deltafmi_boot.py");
+    if (!g_load) {
+        char context[128];
+        snprintf(context, sizeof context, "%s: loading resources/deltafmi_boot.py", function);
+        report_exception(log, env, context);
+    }
     Py_XDECREF(globals);
     Py_XDECREF(runpy);
     return g_load;
@@ -310,13 +327,13 @@ static PyObject *run_boot(const char *resources_dir, DfmiLogFn log, void *env) {
 
 /* The boot code's load(), found or run once per binary. Two threads instantiating this FMU at once:
  * the second waits for the first without holding the GIL, which the first needs to run the boot. */
-static PyObject *boot_loader(const char *resources_dir, DfmiLogFn log, void *env) {
+static PyObject *boot_loader(const char *resources_dir, const char *function, DfmiLogFn log, void *env) {
     static pthread_mutex_t boot_lock = PTHREAD_MUTEX_INITIALIZER;
     if (g_load) return g_load;
     PyThreadState *state = py.PyEval_SaveThread();
     pthread_mutex_lock(&boot_lock);
     py.PyEval_RestoreThread(state);
-    if (!g_load) run_boot(resources_dir, log, env);
+    if (!g_load) run_boot(resources_dir, function, log, env);
     pthread_mutex_unlock(&boot_lock);
     return g_load;
 }
@@ -372,13 +389,16 @@ static int fetch_component(Bridged *b) {
 }
 
 void *bridge_instantiate(const char *resources_dir, const char *instance_name, const char *guid,
-                         int fmu_type, unsigned log_mask, DfmiLogFn log, void *log_env, DfmiLayout *layout) {
+                         int fmi_version, int fmu_type, unsigned log_mask, DfmiLogFn log, void *log_env,
+                         DfmiLayout *layout) {
     ENTER;
+    const char *function = instantiate_name(fmi_version, fmu_type);
     Bridged *b = py.PyMem_Calloc(1, sizeof *b);
-    PyObject *load = boot_loader(resources_dir, log, log_env), *spec = NULL, *early = NULL;
+    PyObject *load = boot_loader(resources_dir, function, log, log_env), *spec = NULL, *early = NULL;
     if (!b || !load) goto fail;
     b->log = log;
     b->log_env = log_env;
+    b->fmi3 = fmi_version == 3;
     /* what the model logs while it is imported and its setup() runs */
     early = py.PyList_New(0);
     PyObject *previous = listen(early);
@@ -435,7 +455,7 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
     LEAVE;
     return b;
 python_error:
-    report_exception(log, log_env, "fmi2Instantiate");
+    report_exception(log, log_env, function);
 fail:
     Py_XDECREF(spec);
     if (b) release(b);
@@ -498,7 +518,7 @@ int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
         for (int i = 0; i < nargs; i++) py.PyTuple_SetItem(tuple, i, py.PyFloat_FromDouble(args[i]));
         status = finish(b, py.PyObject_Call(b->ops[op], tuple, NULL), OP_NAMES[op]);
         Py_DECREF(tuple);
-        if (op == DFMI_RESET && fetch_component(b) < 0) status = finish(b, NULL, "fmi2Reset");
+        if (op == DFMI_RESET && fetch_component(b) < 0) status = finish(b, NULL, called(b, "fmi2Reset", "fmi3Reset"));
     }
     unlisten(previous);
     LEAVE;
@@ -508,7 +528,8 @@ int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
 int bridge_set_log_mask(void *handle, unsigned log_mask) {
     Bridged *b = handle;
     ENTER_INSTANCE(b);
-    int status = finish(b, py.PyObject_CallFunction(b->set_log_categories, "I", log_mask), "fmi2SetDebugLogging");
+    int status = finish(b, py.PyObject_CallFunction(b->set_log_categories, "I", log_mask),
+                        called(b, "fmi2SetDebugLogging", "fmi3SetDebugLogging"));
     LEAVE_INSTANCE;
     return status;
 }
@@ -593,7 +614,8 @@ int bridge_completed_step(void *handle, double time, int *enter_event_mode) {
     PyObject *result = py.PyObject_CallFunction(b->completed_step, "d", time);
     int truth = result ? py.PyObject_IsTrue(result) : -1;
     *enter_event_mode = truth > 0;
-    int status = unpacked(b, result, truth >= 0, "fmi2CompletedIntegratorStep");
+    int status = unpacked(b, result, truth >= 0,
+                          called(b, "fmi2CompletedIntegratorStep", "fmi3CompletedIntegratorStep"));
     LEAVE_INSTANCE;
     return status;
 }
@@ -604,7 +626,7 @@ int bridge_event_update(void *handle, double time, int flags[5], double *next_ev
     PyObject *result = py.PyObject_CallFunction(b->event_update, "d", time);
     int ok = result && py.PyArg_ParseTuple(result, "pppppd", &flags[0], &flags[1], &flags[2], &flags[3],
                                         &flags[4], next_event_time);
-    int status = unpacked(b, result, ok, "fmi2NewDiscreteStates");
+    int status = unpacked(b, result, ok, called(b, "fmi2NewDiscreteStates", "fmi3UpdateDiscreteStates"));
     LEAVE_INSTANCE;
     return status;
 }
@@ -620,7 +642,7 @@ int bridge_get_string(void *handle, size_t index, const char **value) {
         *value = py.PyBytes_AsString(bytes);
         py.PyList_SetItem(b->strings, (Py_ssize_t)index, bytes); /* steals; keeps the bytes alive */
     } else {
-        status = finish(b, NULL, "fmi2GetString");
+        status = finish(b, NULL, called(b, "fmi2GetString", "fmi3GetString"));
     }
     LEAVE_INSTANCE;
     return status;
@@ -629,7 +651,8 @@ int bridge_get_string(void *handle, size_t index, const char **value) {
 int bridge_set_string(void *handle, size_t index, const char *value) {
     Bridged *b = handle;
     ENTER_INSTANCE(b);
-    int status = finish(b, py.PyObject_CallFunction(b->set_string, "ns", (Py_ssize_t)index, value), "fmi2SetString");
+    int status = finish(b, py.PyObject_CallFunction(b->set_string, "ns", (Py_ssize_t)index, value),
+                        called(b, "fmi2SetString", "fmi3SetString"));
     LEAVE_INSTANCE;
     return status;
 }
@@ -639,7 +662,7 @@ int bridge_get_state(void *handle, void **state) {
     ENTER_INSTANCE(b);
     PyObject *snapshot = py.PyObject_CallNoArgs(b->get_state);
     *state = snapshot;
-    int status = snapshot ? 0 : finish(b, NULL, "fmi2GetFMUstate");
+    int status = snapshot ? 0 : finish(b, NULL, called(b, "fmi2GetFMUstate", "fmi3GetFMUState"));
     LEAVE_INSTANCE;
     return status;
 }
@@ -647,7 +670,8 @@ int bridge_get_state(void *handle, void **state) {
 int bridge_set_state(void *handle, void *state) {
     Bridged *b = handle;
     ENTER_INSTANCE(b);
-    int status = finish(b, py.PyObject_CallFunctionObjArgs(b->set_state, (PyObject *)state, NULL), "fmi2SetFMUstate");
+    int status = finish(b, py.PyObject_CallFunctionObjArgs(b->set_state, (PyObject *)state, NULL),
+                        called(b, "fmi2SetFMUstate", "fmi3SetFMUState"));
     LEAVE_INSTANCE;
     return status;
 }
@@ -673,7 +697,7 @@ int bridge_serialize_state(void *handle, void *state, const char **bytes, size_t
         *size = (size_t)n;
     } else {
         Py_XDECREF(data);
-        status = finish(b, NULL, "fmi2SerializeFMUstate");
+        status = finish(b, NULL, called(b, "fmi2SerializeFMUstate", "fmi3SerializeFMUState"));
     }
     LEAVE_INSTANCE;
     return status;
@@ -686,15 +710,16 @@ int bridge_deserialize_state(void *handle, const char *bytes, size_t size, void 
     PyObject *snapshot = data ? py.PyObject_CallFunctionObjArgs(b->deserialize, data, NULL) : NULL;
     Py_XDECREF(data);
     *state = snapshot;
-    int status = snapshot ? 0 : finish(b, NULL, "fmi2DeSerializeFMUstate");
+    int status = snapshot ? 0 : finish(b, NULL, called(b, "fmi2DeSerializeFMUstate", "fmi3DeserializeFMUState"));
     LEAVE_INSTANCE;
     return status;
 }
 
 /* The value references and the seed travel as bytes (uint32 and float64 arrays), the result
  * comes back as float64 bytes: no Python API beyond bytes is needed. */
-int bridge_directional_derivative(void *handle, double time, const unsigned int *unknowns, size_t n_unknown,
-                                  const unsigned int *knowns, size_t n_known, const double *seed, double *out) {
+int bridge_directional_derivative(void *handle, const char *function, double time, const unsigned int *unknowns,
+                                  size_t n_unknown, const unsigned int *knowns, size_t n_known, const double *seed,
+                                  double *out) {
     Bridged *b = handle;
     ENTER_INSTANCE(b);
     PyObject *t = py.PyFloat_FromDouble(time);
@@ -710,7 +735,7 @@ int bridge_directional_derivative(void *handle, double time, const unsigned int 
     Py_XDECREF(u);
     Py_XDECREF(k);
     Py_XDECREF(s);
-    int status = unpacked(b, result, ok, "fmi2GetDirectionalDerivative");
+    int status = unpacked(b, result, ok, function);
     LEAVE_INSTANCE;
     return status;
 }

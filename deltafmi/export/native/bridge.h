@@ -50,10 +50,12 @@ typedef enum {
 /* Bind the Python API in `python` (RTLD_DEFAULT or a libpython handle) and start (or attach to)
  * the interpreter; python_executable names it for sys.prefix. 0 on success. */
 int bridge_start(void *python, const char *python_executable, char *error, size_t error_size);
-/* Load the FMU's Python model and create one instance; NULL on failure (logged). log_mask: the
- * log categories enabled (bits in the order of core.c's CATEGORY_NAMES). */
+/* Load the FMU's Python model and create one instance; NULL on failure (logged). fmi_version (2
+ * or 3): the standard whose function names the instance's messages use. log_mask: the log
+ * categories enabled (bits in the order of core.c's CATEGORY_NAMES). */
 void *bridge_instantiate(const char *resources_dir, const char *instance_name, const char *guid,
-                         int fmu_type, unsigned log_mask, DfmiLogFn log, void *log_env, DfmiLayout *layout);
+                         int fmi_version, int fmu_type, unsigned log_mask, DfmiLogFn log, void *log_env,
+                         DfmiLayout *layout);
 /* Tell the instance which log categories are enabled (fmi2SetDebugLogging). */
 int bridge_set_log_mask(void *instance, unsigned log_mask);
 void bridge_free_instance(void *instance);
@@ -75,8 +77,10 @@ void bridge_free_state(void *state);
 /* Serialize into a bridge-owned buffer valid until the next call on this instance. */
 int bridge_serialize_state(void *instance, void *state, const char **bytes, size_t *size);
 int bridge_deserialize_state(void *instance, const char *bytes, size_t size, void **state);
-/* fmi2GetDirectionalDerivative at `time`: out[i] = sum_j d unknown_i / d known_j seed[j]. */
-int bridge_directional_derivative(void *instance, double time, const unsigned int *unknowns, size_t n_unknown,
-                                  const unsigned int *knowns, size_t n_known, const double *seed, double *out);
+/* A directional derivative at `time`: out[i] = sum_j d unknown_i / d known_j seed[j]; function:
+ * the FMI function called, for messages. */
+int bridge_directional_derivative(void *instance, const char *function, double time, const unsigned int *unknowns,
+                                  size_t n_unknown, const unsigned int *knowns, size_t n_known, const double *seed,
+                                  double *out);
 
 #endif

@@ -209,8 +209,8 @@ int dfmi_connect(Instance *c, const char *resources, const char *token) {
         c->emit(c, DFMI_ERROR, "logStatusError", error[0] ? error : "out of memory");
         return -1;
     }
-    c->py = bridge_instantiate(resources, c->name, token ? token : "", c->interface, c->log_mask, bridge_log, c,
-                               &c->L);
+    c->py = bridge_instantiate(resources, c->name, token ? token : "", c->fmi_version, c->interface, c->log_mask,
+                               bridge_log, c, &c->L);
     if (!c->py) return -1;
     c->state = Instantiated;
     c->dirty = c->outputs_dirty = 1;

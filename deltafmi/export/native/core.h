@@ -19,6 +19,7 @@
 #define SET_EVENT 4
 #define SET_CONTINUOUS 8
 #define IS_BOOLEAN 16
+#define IS_ENUMERATION 32 /* an Enumeration: FMI 3.0 reads and sets it as Int64 */
 
 enum { DFMI_OK = 0, DFMI_WARNING = 1, DFMI_DISCARD = 2, DFMI_ERROR = 3, DFMI_FATAL = 4 };
 enum { DFMI_MODEL_EXCHANGE = 0, DFMI_CO_SIMULATION = 1 };

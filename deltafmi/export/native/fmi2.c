@@ -308,8 +308,9 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component component, const fmi2Value
     if (!nUnknown) return fmi2OK;
     /* the model reads the states and inputs straight from its buffers; the values it computes on
      * the way are restored, so the dirty flags stay true */
-    return (fmi2Status)dfmi_settle(c, bridge_directional_derivative(c->py, c->time, vUnknown_ref, nUnknown,
-                                                                    vKnown_ref, nKnown, dvKnown, dvUnknown));
+    return (fmi2Status)dfmi_settle(c, bridge_directional_derivative(c->py, "fmi2GetDirectionalDerivative", c->time,
+                                                                    vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown,
+                                                                    dvUnknown));
 }
 
 /* ---------------------------------------------------------------------------------------- */

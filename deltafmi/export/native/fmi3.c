@@ -6,8 +6,9 @@
  * variable at v is the scalar v + k of the value buffers; sizes3[v] is its element count (0: v is
  * not the first scalar of a declaration). After the n_total = n_real + n_int + n_str scalars come
  * `time` (n_total), one value reference per Clock, then one Float64 variable per event indicator.
- * Types: the real buffer is Float64, the int buffer Int32 or Boolean (flag IS_BOOLEAN), strings
- * String; getters and setters of the other types fail, naming the reason.
+ * Types: the real buffer is Float64, the int buffer Int32, Boolean (flag IS_BOOLEAN) or
+ * Enumeration (flag IS_ENUMERATION: fmi3Get/SetInt64, as the standard has it, stored as int32),
+ * strings String; getters and setters of the other types fail, naming the reason.
  *
  * Built with hidden visibility: the binary exports the fmi3 functions and nothing else. */
 #include <math.h>
@@ -41,7 +42,7 @@ static void emit_instance(const Instance *c, int status, const char *category, c
 /* ---------------------------------------------------------------------------------------- */
 /* value references                                                                          */
 
-typedef enum { V_NONE, V_FLOAT64, V_INT32, V_BOOLEAN, V_STRING, V_TIME, V_CLOCK, V_INDICATOR } Kind;
+typedef enum { V_NONE, V_FLOAT64, V_INT32, V_BOOLEAN, V_ENUMERATION, V_STRING, V_TIME, V_CLOCK, V_INDICATOR } Kind;
 
 static size_t n_total(const Instance *c) { return c->L.n_real + c->L.n_int + c->L.n_str; }
 
@@ -53,7 +54,8 @@ static Kind kind_of(const Instance *c, fmi3ValueReference vr, size_t *n) {
         *n = c->L.sizes3[vr];
         if (!*n) return V_NONE;
         if (vr < c->L.n_real) return V_FLOAT64;
-        if (vr < c->L.n_real + c->L.n_int) return c->L.flags[vr] & IS_BOOLEAN ? V_BOOLEAN : V_INT32;
+        if (vr < c->L.n_real + c->L.n_int)
+            return c->L.flags[vr] & IS_BOOLEAN ? V_BOOLEAN : c->L.flags[vr] & IS_ENUMERATION ? V_ENUMERATION : V_INT32;
         return V_STRING;
     }
     if (vr == total) return V_TIME;
@@ -67,6 +69,7 @@ static const char *kind_name(Kind kind) {
     case V_FLOAT64: case V_TIME: case V_INDICATOR: return "a Float64";
     case V_INT32: return "an Int32";
     case V_BOOLEAN: return "a Boolean";
+    case V_ENUMERATION: return "an Enumeration (Int64)";
     case V_STRING: return "a String";
     case V_CLOCK: return "a Clock";
     default: return "no";
@@ -290,60 +293,81 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     return fmi3OK;
 }
 
-/* Int32 and Boolean share the int buffer (value references continue after the reals). */
+/* Int32, Boolean and Enumeration (Int64) share the int buffer (value references continue after
+ * the reals): one getter and one setter for the three, converting element by element. */
+static fmi3Status get_ints(Instance *c, const char *function, Kind kind, const fmi3ValueReference vr[], size_t nvr,
+                           void *values, size_t nValues) {
+    int derivatives, indicators;
+    CHECK(function, MASK_GET);
+    if (!measure(c, function, vr, nvr, values, nValues, kind, 1, &derivatives, &indicators)) return fmi3Error;
+    if (nvr && dfmi_ensure_values(c, 0) >= fmi3Error) return fmi3Error;
+    size_t k = 0;
+    for (size_t i = 0; i < nvr; i++)
+        for (size_t e = 0; e < c->L.sizes3[vr[i]]; e++, k++) {
+            int v = c->L.ints[vr[i] - c->L.n_real + e];
+            if (kind == V_INT32) ((fmi3Int32 *)values)[k] = v;
+            else if (kind == V_ENUMERATION) ((fmi3Int64 *)values)[k] = v;
+            else ((fmi3Boolean *)values)[k] = v != 0;
+        }
+    return fmi3OK;
+}
+
+static int64_t int_value(Kind kind, const void *values, size_t k) {
+    if (kind == V_INT32) return ((const fmi3Int32 *)values)[k];
+    if (kind == V_ENUMERATION) return ((const fmi3Int64 *)values)[k];
+    return ((const fmi3Boolean *)values)[k] ? 1 : 0;
+}
+
+static fmi3Status set_ints(Instance *c, const char *function, Kind kind, const fmi3ValueReference vr[], size_t nvr,
+                           const void *values, size_t nValues) {
+    int derivatives, indicators;
+    CHECK(function, MASK_SET_DISCRETE);
+    if (!measure(c, function, vr, nvr, values, nValues, kind, 0, &derivatives, &indicators) ||
+        !settable(c, function, vr, nvr))
+        return fmi3Error;
+    /* every value checked before any is stored: a failed call changes nothing */
+    for (size_t i = 0, k = 0; i < nvr; i++)
+        for (size_t e = 0; e < c->L.sizes3[vr[i]]; e++, k++) {
+            int64_t v = int_value(kind, values, k);
+            if (v < INT32_MIN || v > INT32_MAX)
+                FAIL("%s: %lld (value %zu, the Enumeration at value reference %u) is out of this FMU's range "
+                     "of Enumeration values [%d, %d]", function, (long long)v, k, vr[i], INT32_MIN, INT32_MAX);
+        }
+    for (size_t i = 0, k = 0; i < nvr; i++)
+        for (size_t e = 0; e < c->L.sizes3[vr[i]]; e++, k++)
+            c->L.ints[vr[i] - c->L.n_real + e] = (int)int_value(kind, values, k);
+    if (nvr) dfmi_values_changed(c);
+    return fmi3OK;
+}
+
 fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Int32 values[],
                         size_t nValues) {
-    Instance *c = instance;
-    int derivatives, indicators;
-    CHECK("fmi3GetInt32", MASK_GET);
-    if (!measure(c, "fmi3GetInt32", vr, nvr, values, nValues, V_INT32, 1, &derivatives, &indicators)) return fmi3Error;
-    if (nvr && dfmi_ensure_values(c, 0) >= fmi3Error) return fmi3Error;
-    for (size_t i = 0, k = 0; i < nvr; k += c->L.sizes3[vr[i]], i++)
-        memcpy(values + k, c->L.ints + (vr[i] - c->L.n_real), c->L.sizes3[vr[i]] * sizeof(int));
-    return fmi3OK;
+    return get_ints(instance, "fmi3GetInt32", V_INT32, vr, nvr, values, nValues);
 }
 
 fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Int32 values[],
                         size_t nValues) {
-    Instance *c = instance;
-    int derivatives, indicators;
-    CHECK("fmi3SetInt32", MASK_SET_DISCRETE);
-    if (!measure(c, "fmi3SetInt32", vr, nvr, values, nValues, V_INT32, 0, &derivatives, &indicators) ||
-        !settable(c, "fmi3SetInt32", vr, nvr))
-        return fmi3Error;
-    for (size_t i = 0, k = 0; i < nvr; k += c->L.sizes3[vr[i]], i++)
-        memcpy(c->L.ints + (vr[i] - c->L.n_real), values + k, c->L.sizes3[vr[i]] * sizeof(int));
-    if (nvr) dfmi_values_changed(c);
-    return fmi3OK;
+    return set_ints(instance, "fmi3SetInt32", V_INT32, vr, nvr, values, nValues);
+}
+
+fmi3Status fmi3GetInt64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Int64 values[],
+                        size_t nValues) {
+    return get_ints(instance, "fmi3GetInt64", V_ENUMERATION, vr, nvr, values, nValues);
+}
+
+fmi3Status fmi3SetInt64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Int64 values[],
+                        size_t nValues) {
+    return set_ints(instance, "fmi3SetInt64", V_ENUMERATION, vr, nvr, values, nValues);
 }
 
 fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Boolean values[],
                           size_t nValues) {
-    Instance *c = instance;
-    int derivatives, indicators;
-    CHECK("fmi3GetBoolean", MASK_GET);
-    if (!measure(c, "fmi3GetBoolean", vr, nvr, values, nValues, V_BOOLEAN, 1, &derivatives, &indicators))
-        return fmi3Error;
-    if (nvr && dfmi_ensure_values(c, 0) >= fmi3Error) return fmi3Error;
-    size_t k = 0;
-    for (size_t i = 0; i < nvr; i++)
-        for (size_t e = 0; e < c->L.sizes3[vr[i]]; e++) values[k++] = c->L.ints[vr[i] - c->L.n_real + e] != 0;
-    return fmi3OK;
+    return get_ints(instance, "fmi3GetBoolean", V_BOOLEAN, vr, nvr, values, nValues);
 }
 
 fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                           const fmi3Boolean values[], size_t nValues) {
-    Instance *c = instance;
-    int derivatives, indicators;
-    CHECK("fmi3SetBoolean", MASK_SET_DISCRETE);
-    if (!measure(c, "fmi3SetBoolean", vr, nvr, values, nValues, V_BOOLEAN, 0, &derivatives, &indicators) ||
-        !settable(c, "fmi3SetBoolean", vr, nvr))
-        return fmi3Error;
-    size_t k = 0;
-    for (size_t i = 0; i < nvr; i++)
-        for (size_t e = 0; e < c->L.sizes3[vr[i]]; e++) c->L.ints[vr[i] - c->L.n_real + e] = values[k++] ? 1 : 0;
-    if (nvr) dfmi_values_changed(c);
-    return fmi3OK;
+    return set_ints(instance, "fmi3SetBoolean", V_BOOLEAN, vr, nvr, values, nValues);
 }
 
 fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3String values[],
@@ -382,7 +406,7 @@ static fmi3Status no_such_type(Instance *c, const char *function, const char *ty
     if (!vr) FAIL("%s: NULL array argument", function);
     size_t n;
     FAIL("%s: %u is not the value reference of %s variable (it names %s variable; this FMU's variables are "
-         "Float64, Int32, Boolean and String)", function, vr[0], type, kind_name(kind_of(c, vr[0], &n)));
+         "Float64, Int32, Boolean, Enumeration (Int64) and String)", function, vr[0], type, kind_name(kind_of(c, vr[0], &n)));
 }
 
 #define UNSUPPORTED_TYPE(Type, article)                                                                        \
@@ -403,7 +427,6 @@ UNSUPPORTED_TYPE(UInt8, "a")
 UNSUPPORTED_TYPE(Int16, "an")
 UNSUPPORTED_TYPE(UInt16, "a")
 UNSUPPORTED_TYPE(UInt32, "a")
-UNSUPPORTED_TYPE(Int64, "an")
 UNSUPPORTED_TYPE(UInt64, "a")
 
 fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, size_t valueSizes[],
@@ -627,7 +650,8 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
         status = dfmi_fail(c, "%s: nSeed %zu and nSensitivity %zu, the knowns have %zu values and the unknowns %zu",
                            function, nSeed, nSensitivity, nk, nu);
     else if (nu) /* the values the model computes on the way are restored: the dirty flags stay */
-        status = dfmi_settle(c, bridge_directional_derivative(c->py, c->time, u, nu, k, nk, seed, sensitivity));
+        status = dfmi_settle(c, bridge_directional_derivative(c->py, function, c->time, u, nu, k, nk, seed,
+                                                              sensitivity));
     free(u);
     free(k);
     return (fmi3Status)status;
@@ -654,7 +678,7 @@ fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueRefere
         status = dfmi_fail(c, "%s: out of memory", function);
     for (size_t j = 0; j < nk && status < DFMI_ERROR; j++) {
         unit[j] = 1.0;
-        status = dfmi_settle(c, bridge_directional_derivative(c->py, c->time, u, nu, k, nk, unit, column));
+        status = dfmi_settle(c, bridge_directional_derivative(c->py, function, c->time, u, nu, k, nk, unit, column));
         unit[j] = 0.0;
         double sum = 0.0;
         for (size_t i = 0; i < nu; i++) sum += seed[i] * column[i];
