@@ -197,17 +197,22 @@ def _fmu_python(unzip_dir: str):
 
 
 class Floor:
-    """The flagship's physics in one Python loop, no FMI: the kernels shipped in its DeltaRobot FMU."""
+    """The flagship's physics in one Python loop, no FMI: each component's kernels as shipped in
+    its own FMU (an FMU carries only the modules its component reaches: the plant's has no
+    controller)."""
 
     def __init__(self, system: System, unzip_dir: Path) -> None:
         by_name = {c.name: c for c in system.components}
-        with _fmu_python(extract(str(by_name["plant"].fmu), unzipdir=str(unzip_dir))):
-            delta = importlib.import_module("deltafmi.mechanics.delta")
-            control = importlib.import_module("deltafmi.mechanics.delta.control")
-            trajectory = importlib.import_module("deltafmi.mechanics.delta.trajectory")
-            #: the shipped dynamics module: a mypyc extension (.so) unless the FMU fell back to source
-            self.kernels = importlib.import_module("deltafmi.mechanics.delta.dynamics").__file__
-        self.delta, self.control, self.trajectory = delta, control, trajectory
+
+        def shipped(component: str, module: str):
+            with _fmu_python(extract(str(by_name[component].fmu), unzipdir=str(Path(unzip_dir) / component))):
+                return importlib.import_module(module)
+
+        self.delta = shipped("plant", "deltafmi.mechanics.delta")
+        #: the shipped dynamics module: a mypyc extension (.so) unless the FMU fell back to source
+        self.kernels = self.delta.dynamics.__file__
+        self.control = shipped("controller", "deltafmi.mechanics.delta.control")
+        self.trajectory = shipped("trajectory", "deltafmi.mechanics.delta.trajectory")
         self.system = system
         given = {c.name: {p.name: p.value for p in c.spec.parameters} for c in system.components}
         self.given = given

@@ -3,7 +3,10 @@
 Three paths, each measured for both builds in interleaved rounds of this one run (medians):
 fmpy's own FMU2Slave/FMU3Slave loop (doStep + get of every output), fmpy.simulate_fmu, and our
 master (the Oscillator alone, and the flagship delta_tracking with its three FMUs). The issue's
-target: FMI 3.0 <= 1.1x FMI 2.0 on every path.
+target: FMI 3.0 <= 1.1x FMI 2.0 on every path. To tell fmpy's share from ours, the fmpy loop also
+runs the plain-C BouncingBall of tests/third_party (FMI 2.0 and 3.0 front ends on one model, a
+step costs next to nothing there): the difference is what fmpy's FMI 3.0 wrappers add per step,
+and with bare ctypes calls what ctypes takes to pass fmi3DoStep's four more arguments.
 Usage: python benchmarks/fmi3.py [--steps N] [--rounds R]
 """
 from __future__ import annotations
@@ -29,6 +32,7 @@ from deltafmi.cosim.stepping.master import Master
 from deltafmi.export.packager import build_cached
 
 STEP = 1e-3
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def fmpy_loop(fmu: Path, steps: int, bare: bool = False) -> float:
@@ -108,10 +112,13 @@ def main() -> None:
     flagship = load_scenario("delta_tracking")
     with tempfile.TemporaryDirectory() as tmp:
         result = Path(tmp) / "result.csv"
+        plain_c = _plain_c_balls(Path(tmp))
         paths: dict[str, Callable[[int], float]] = {}
         for v in (2, 3):
+            paths[f"fmpy loop, plain-C BouncingBall|{v}"] = lambda n, f=plain_c[v]: fmpy_loop(f, n)
+            paths[f"  same, bare ctypes calls (ball)|{v}"] = lambda n, f=plain_c[v]: fmpy_loop(f, n, bare=True)
             paths[f"fmpy FMU2Slave/FMU3Slave, Oscillator|{v}"] = lambda n, f=fmus[v]: fmpy_loop(f, n)
-            paths[f"  same, bare ctypes calls|{v}"] = lambda n, f=fmus[v]: fmpy_loop(f, n, bare=True)
+            paths[f"  same, bare ctypes calls (Oscillator)|{v}"] = lambda n, f=fmus[v]: fmpy_loop(f, n, bare=True)
             paths[f"fmpy.simulate_fmu, Oscillator|{v}"] = lambda n, f=fmus[v]: simulate_fmu(f, n)
             paths[f"our master, Oscillator|{v}"] = lambda n, f=fmus[v]: master_run(fmu_scenario(f), n, result)
             paths[f"our master, flagship (3 FMUs)|{v}"] = (
@@ -123,10 +130,18 @@ def main() -> None:
             for key, run in paths.items():
                 times[key].append(run(args.steps))
     print(f"{args.steps} steps of {STEP:g} s, medians of {args.rounds} interleaved rounds (us per step)")
-    print(f"{'path':36s} {'FMI 2.0':>9s} {'FMI 3.0':>9s} {'3.0/2.0':>8s}")
+    print(f"{'path':36s} {'FMI 2.0':>9s} {'FMI 3.0':>9s} {'3.0/2.0':>8s} {'3.0-2.0':>8s}")
     for name in dict.fromkeys(key.split("|")[0] for key in times):
         two, three = (statistics.median(times[f"{name}|{v}"]) for v in (2, 3))
-        print(f"{name:36s} {two:9.2f} {three:9.2f} {three / two:7.3f}x")
+        print(f"{name:36s} {two:9.2f} {three:9.2f} {three / two:7.3f}x {three - two:+8.2f}")
+
+
+def _plain_c_balls(folder: Path) -> dict[int, Path]:
+    """The third-party-style BouncingBall (plain C) with its FMI 2.0 and FMI 3.0 front ends."""
+    import sys
+    sys.path.insert(0, str(ROOT / "tests" / "third_party"))
+    from build import build_fmu as build_third_party
+    return {2: build_third_party("BouncingBall", folder), 3: build_third_party("BouncingBall3", folder)}
 
 
 if __name__ == "__main__":

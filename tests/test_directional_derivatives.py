@@ -13,7 +13,7 @@ import pytest
 from fmpy.fmi2 import FMU2Model
 from fmpy.validation import validate_fmu
 
-from conftest import MODEL_FILES
+from conftest import FMU_SRC, MODEL_FILES
 from deltafmi.mechanics import delta as d
 from deltafmi.mechanics.delta.jacobian import plant_jacobian
 
@@ -234,3 +234,31 @@ outputs: ['plant.z[*]']
     error = {k: np.max(np.abs(runs[k] - runs["reference"])) for k in ("exact", "quotients")}
     assert error["exact"] < 1e-4 and error["quotients"] < 1e-4
     assert np.max(np.abs(runs["exact"] - runs["quotients"])) > 0  # a different Newton matrix was used
+
+
+def test_fmi3_build_gives_the_master_the_same_newton_matrix(build_fmu_from_src, tmp_path):
+    """The robot built as FMI 3.0 (q, v as arrays): the master's CVODE takes its Newton matrix
+    from fmi3GetDirectionalDerivative, one seed per array element, and follows the FMI 2.0 build's
+    run bit for bit; with CVODE's own difference quotients it does not."""
+    from deltafmi.export import build_fmu
+    from deltafmi.cosim.stepping.master import Master
+    from deltafmi.cosim.scenario.resolve import resolve_system
+    from deltafmi.cosim.results.csv_file import columns
+    from deltafmi.cosim.scenario.spec import load_scenario
+
+    robots = {2: build_fmu_from_src("delta_robot.py"),
+              3: build_fmu(FMU_SRC / "delta_robot.py", tmp_path / "robot3.fmu", fmi_version=3)}
+    runs = {}
+    for version, jacobian in ((2, "true"), (3, "true"), (3, "false")):
+        path = tmp_path / f"{version}{jacobian}.yaml"
+        path.write_text(f"""experiment: {{start: 0.0, stop: 0.3, step: 1.0e-2}}
+components:
+  plant: {{fmu: {robots[version]}, interface: ME, parameters: {{z0: [0.1, -0.1, -0.9]}},
+           solver: {{rtol: 1.0e-6, jacobian: {jacobian}}}}}
+outputs: ['plant.z', 'plant.q']
+""")
+        Master(resolve_system(load_scenario(path)), result=tmp_path / f"{version}{jacobian}.csv").run()
+        found = columns(tmp_path / f"{version}{jacobian}.csv")
+        runs[version, jacobian] = np.column_stack([found[n] for n in sorted(found)])
+    assert np.array_equal(runs[3, "true"], runs[2, "true"])
+    assert not np.array_equal(runs[3, "false"], runs[3, "true"])

@@ -411,6 +411,41 @@ outputs: [osc.energy, stop.held, stop.samples, stop.stopped]
 
 
 @pytest.mark.parametrize("interface", ["CS", "ME"])
+def test_an_event_an_ulp_after_a_grid_point_is_recorded_at_it(more_fmus, tmp_path, interface):
+    """Stopper3 samples every 0.07 s: its third sample time 3 * 0.07 = 0.21000000000000002 is one
+    ulp after the grid point 0.21 (and the step from 0.2 ends at 0.2 + 0.01, that same ulp
+    late). The rows never go back in time: the sample's rows (before, after) are at 0.21."""
+    _, c = run(tmp_path, f"""experiment: {{stop: 0.3, step: 0.01}}
+components:
+  stop: {{fmu: {more_fmus['Stopper3']}, interface: {interface}, parameters: {{period: 0.07, stop_time: 10.0}}}}
+outputs: [stop.samples]
+""")
+    assert 3 * 0.07 == np.nextafter(0.21, 1.0)
+    assert np.all(np.diff(c["time"]) >= 0)
+    rows = np.flatnonzero(np.abs(c["time"] - 0.21) < 1e-12)
+    assert list(c["time"][rows]) == [0.21, 0.21] and list(c["stop.samples"][rows]) == [2, 3]
+
+
+@pytest.mark.parametrize("interface", ["CS", "ME"])
+def test_event_rows_of_units_in_one_step_come_in_time_order(fmus, tmp_path, interface):
+    """Two balls dropped from 1 m and 0.98 m hit the ground at 0.4515 s and 0.4470 s, in one
+    0.1 s step; the ball stepped first bounces later. The rows come in time order, each ball's
+    impact rows (before, after) at its closed-form time. (The other ball's column in an event
+    row shows it as it is then in the step: a unit steps whole, one after the other.)"""
+    _, c = run(tmp_path, f"""experiment: {{stop: 0.6, step: 0.1}}
+master: {{algorithm: jacobi}}
+components:
+  a: {{fmu: {fmus['BouncingBall3']}, interface: {interface}, solver: {{rtol: 1.0e-12}}}}
+  b: {{fmu: {fmus['BouncingBall3']}, interface: {interface}, solver: {{rtol: 1.0e-12}}, parameters: {{h: 0.98}}}}
+outputs: [a.bounces, b.bounces]
+""")
+    assert np.all(np.diff(c["time"]) >= 0)
+    for ball, height in (("a", 1.0), ("b", 0.98)):
+        rows = np.flatnonzero(np.abs(c["time"] - np.sqrt(2 * height / 9.81)) < 1e-9)
+        assert list(c[f"{ball}.bounces"][rows]) == [0, 1]
+
+
+@pytest.mark.parametrize("interface", ["CS", "ME"])
 def test_table_reads_its_resources_driven_by_ours(more_fmus, tmp_path, interface):
     """Table3 interpolates the table it read from its resources at instantiation; our oscillator
     (FMI 2.0 build) drives it: y = table(energy / 2) at every communication point."""

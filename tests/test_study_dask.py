@@ -7,7 +7,9 @@
 * a case that kills its worker process is retried once on the restarted worker; one that kills it
   every time is recorded as failed (KilledWorker) and the study goes on;
 * ``deltafmi sweep`` interrupted with Ctrl-C keeps what finished, and running it again does only
-  the rest.
+  the rest;
+* the flagship study with its FMUs built as FMI 3.0 (reset with fmi3Reset between cases) gives the
+  metrics of the FMI 2.0 study (the two builds step bit for bit alike).
 """
 from __future__ import annotations
 
@@ -127,6 +129,32 @@ def test_metrics_equal_plain_runs_and_a_failing_case_is_recorded(cluster, tmp_pa
         mine = series.filter(ds.field("case") == row["case"])
         for name, column in columns.items():
             assert np.array_equal(mine.column(name).to_numpy(), column), (row["case"], name)
+
+
+def test_fmi3_study_equals_the_fmi2_study(cluster, tmp_path):
+    flagship = (ROOT / "deltafmi" / "examples" / "delta_tracking.yaml").read_text()
+    metrics = {}
+    for version in (2, 3):
+        (tmp_path / f"flagship{version}.yaml").write_text(f"fmi_version: {version}\n{flagship}")
+        study = tmp_path / f"study{version}.yaml"
+        study.write_text(textwrap.dedent(f"""\
+            scenario: flagship{version}.yaml
+            vary:
+              zip:
+                controller.pole: [5, 9, 7, 12]
+                plant.payload: [0.0, 2.0, 1.0, 0.5]
+                experiment.stop: [0.3, 0.3, 0.3, 0.3]
+            metrics:
+              max_error: {{signal: plant.z - trajectory.r, statistic: max}}
+              peak_torque: {{signal: controller.u, norm: inf, statistic: max}}
+              worst_status: {{signal: controller.status, statistic: max}}
+            """))
+        result = sweep(study, cluster)
+        assert "4/4 cases done, 4 ok, 0 failed" in result.output
+        metrics[version] = pq.read_table(study.with_suffix(".parquet")).select(
+            ["case", "max_error", "peak_torque", "worst_status"]).to_pylist()
+    assert metrics[3] == metrics[2]
+    assert len({row["max_error"] for row in metrics[3]}) == 4  # the cases differ
 
 
 def _workers(address: str, wait_for: int = 0):

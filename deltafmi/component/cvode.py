@@ -12,8 +12,9 @@ printed.
 from __future__ import annotations
 
 import ctypes
+import math
 from ctypes import byref, c_double, c_int, c_void_p
-from typing import Callable, Optional
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 import numpy.ctypeslib  # noqa: F401  (numpy loads it lazily on first use, which raced between threads)
@@ -53,12 +54,16 @@ class Cvode:
         # SUNDIALS' errors are kept for the exception, not printed (see :mod:`.sundials`)
         self.last_message = ""
         self.callback_error: Optional[BaseException] = None
+        #: False while a failure would be recovered from (the caller retries): errors are kept, not logged
+        self.log_errors = True
         self._ctx, self._err_handler = _sun.new_context(self._on_error)
         self._y = _sun.N_VNew_Serial(n, self._ctx)
         self.x = np.ctypeslib.as_array(_sun.N_VGetArrayPointer(self._y), (n,))
         self.x[:] = x0
         self._atol = _sun.N_VNew_Serial(n, self._ctx)
         np.ctypeslib.as_array(_sun.N_VGetArrayPointer(self._atol), (n,))[:] = atol
+        #: the tolerances, for :meth:`error_norm`
+        self.rtol, self.atol = rtol, np.broadcast_to(np.asarray(atol, dtype=float), (n,)).tolist()
         lmm = _sun.CV_ADAMS if method == "adams" else _sun.CV_BDF
         self._mem = _sun.CVodeCreate(lmm, self._ctx)
         # keep the ctypes callbacks referenced: CVODE only holds raw pointers (which are cheaper
@@ -98,7 +103,8 @@ class Cvode:
                   message: Optional[bytes], _code: int) -> None:
         try:
             self.last_message = (message or b"").decode(errors="replace")
-            if self.callback_error is None:  # else the callback's own exception says it all
+            # a callback's own exception says it all; a failure the caller recovers from is no error
+            if self.callback_error is None and self.log_errors:
                 _sun.LOGGER.error("%s: %s", (function or b"CVODE").decode(errors="replace"), self.last_message)
         except Exception:  # noqa: BLE001  (nothing may cross into C)
             pass
@@ -169,6 +175,15 @@ class Cvode:
         self.x[:] = x
         _check(_sun.CVodeReInit(self._mem, t, self._y), "CVodeReInit")
         self.t = t
+
+    def error_norm(self, v: Sequence[float]) -> float:
+        """``v`` in CVODE's error norm at the current state: the root mean square of
+        ``v_i / (rtol |x_i| + atol_i)``; CVODE's error test accepts a step whose local error
+        estimate has a norm <= 1."""
+        total = 0.0
+        for vi, xi, ai in zip(v, self.x.tolist(), self.atol):
+            total += (vi / (self.rtol * abs(xi) + ai)) ** 2
+        return math.sqrt(total / self.n) if self.n else 0.0
 
     def free(self) -> None:
         """Release every SUNDIALS object of this solver (also done on garbage collection).

@@ -18,16 +18,19 @@ import numpy as np
 
 from . import fmu_logging
 from .base import Component
+from .clocks import clock_driven
 from .partials import DirectionalDerivatives
 
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
     from .cvode import Cvode
 
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
-MODEL_EXCHANGE, CO_SIMULATION = 0, 1
+MODEL_EXCHANGE, CO_SIMULATION, SCHEDULED_EXECUTION = 0, 1, 2
 _MAX_EVENT_ITERATIONS = 100
 _LOG_EVENTS, _LOG_SOLVER = fmu_logging.BITS["logEvents"], fmu_logging.BITS["logSolver"]
 _TINY = 1e-12  # relative time below which intervals are round-off, not integration
+#: default ``cs_options["input_jump_tolerance"]``: see FmuInstance._restart_for_inputs
+_INPUT_JUMP_TOLERANCE = 10.0
 _RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
                                  "_int_items", "_str", "_str_items", "_log_sink", "_control",
                                  "resources_dir"})
@@ -40,8 +43,9 @@ def _cvode_class(module_context: Callable[[], ContextManager]) -> type[Cvode]:
     cached = _CVODE.get("class")
     if cached is None:
         with module_context():
-            from .cvode import Cvode
+            from .cvode import Cvode, CvodeError
         cached = _CVODE["class"] = Cvode
+        _CVODE["error"] = CvodeError
     return cached
 
 
@@ -61,6 +65,8 @@ class FmuInstance:
         self._module_context = module_context
         layout = component_class._layout
         self.nx, self.nz = layout.nx, component_class.n_event_indicators
+        #: samples only at its input Clocks' ticks (no states, no event indicators): see clock_driven
+        self._clock_driven = clock_driven(component_class)
         if fmu_type == CO_SIMULATION and self.nx and not component_class.overrides_do_step():
             _cvode_class(module_context)  # a missing SUNDIALS fails fmi2Instantiate, not a later step
         self.pending_logs: list = []
@@ -85,7 +91,16 @@ class FmuInstance:
         self._restart_solver = False  # an event handled in FMI 3.0 CS event mode changed the model
         self._real_inputs = np.array([s.value_reference for s in layout.scalars
                                       if s.causality == "input" and s.fmi_type == "Real"], dtype=np.intp)
-        self._inputs_at_last_step = np.full(len(self._real_inputs), np.nan)
+        self._int_inputs = np.array([s.value_reference - layout.n_real for s in layout.scalars
+                                     if s.causality == "input" and s.fmi_type not in ("Real", "String")],
+                                    dtype=np.intp)
+        self._inputs_at_last_step: Optional[tuple] = None  # (reals, integers) as lists
+        # the communication grid: where it starts, its step (see _communication_point)
+        self.start_time, self._grid_step = 0.0, 0.0
+        # CS: the derivatives at the end of the last step, with the inputs CVODE integrated with
+        self._derivatives_after_step: Optional[list] = None
+        self._jump_tolerance = _INPUT_JUMP_TOLERANCE
+        self._jump_kept = False  # CVODE goes on over an input jump: restart if it fails there
         self.partials = DirectionalDerivatives(component_class)
         self._steps_itself = component_class.overrides_do_step()
         self._has_outputs = component_class.outputs is not Component.outputs  # else nothing to call
@@ -139,7 +154,9 @@ class FmuInstance:
         x_offset, dx_offset, event indicators (double[nz]), nz, nominals (double[nx]), watches
         drift, steps itself, evaluates after a step, control (double[3]: terminated, time reached,
         event pending); then, for FMI 3.0: sizes3 (uint32[n_real + n_int + n_str], the element
-        count of the variable whose value reference is the index, 0 inside an array) and n_clocks.
+        count of the variable whose value reference is the index, 0 inside an array), n_clocks,
+        and per Clock the real-buffer index of its period Parameter (int64, -1: constant) and its
+        constant interval (double, NaN where a Parameter gives it).
         FMI 3.0 value references after the scalars: ``time`` = n_real + n_int + n_str, then the
         n_clocks Clocks, then one Float64 per event indicator (Layout.first_indicator_vr)."""
         comp, layout = self.component, self.component_class._layout
@@ -148,12 +165,14 @@ class FmuInstance:
                 layout.dx_offset, self.event_indicators.ctypes.data, self.nz,
                 layout.nominals.ctypes.data, self.component_class.watches_drift(), self._steps_itself,
                 bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data,
-                layout.sizes3.ctypes.data, layout.n_clocks)
+                layout.sizes3.ctypes.data, layout.n_clocks, layout.clock_period_index.ctypes.data,
+                layout.clock_interval.ctypes.data)
 
     # --- initialization ---------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:
         """``fmi2SetupExperiment`` values (stop/tolerance NaN when undefined), then init mode."""
-        self.time = start
+        self.time = self.start_time = start
+        self._grid_step = 0.0
         self.stop_time = stop if not math.isnan(stop) else math.inf
         self.tolerance = tolerance if not math.isnan(tolerance) else None
         self.in_initialization = True
@@ -208,23 +227,28 @@ class FmuInstance:
         Returns (newDiscreteStatesNeeded, terminateSimulation, nominalsChanged,
         valuesOfContinuousStatesChanged, nextEventTimeDefined, nextEventTime).
         """
-        comp = self.component
+        comp, nx = self.component, self.nx
         self.partials.invalidate()
         self._restart_solver = self.fmu_type == CO_SIMULATION
-        states_before = comp._real[: self.nx].copy()
-        if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
-            comp.project(t)
-        self.evaluate(t)
-        nx = self.nx
-        derivatives_before = comp._real[nx: 2 * nx].copy()
-        again = bool(comp.update(t))
-        changed = not np.array_equal(states_before, comp._real[:nx])
-        self.evaluate(t)
-        # A mode switch that leaves the states but changes their derivatives (a ball that starts
-        # touching) is reported as changed states too: an importer that restarts its integrator
-        # only on that flag (the Reference FMUs' fmusim) would otherwise go on with the solver's
-        # pre-event history and miss the switch. Restarting where nothing moved costs one restart.
-        changed = changed or not np.array_equal(derivatives_before, comp._real[nx: 2 * nx])
+        if not nx:  # a sampled component at its tick: no states to watch
+            self.evaluate(t)
+            again, changed = bool(comp.update(t)), False
+            self.evaluate(t)
+        else:
+            states_before = comp._real[:nx].copy()
+            if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
+                comp.project(t)
+            self.evaluate(t)
+            derivatives_before = comp._real[nx: 2 * nx].copy()
+            again = bool(comp.update(t))
+            changed = not np.array_equal(states_before, comp._real[:nx])
+            self.evaluate(t)
+            # A mode switch that leaves the states but changes their derivatives (a ball that
+            # starts touching) is reported as changed states too: an importer that restarts its
+            # integrator only on that flag (the Reference FMUs' fmusim) would otherwise go on
+            # with the solver's pre-event history and miss the switch. Restarting where nothing
+            # moved costs one restart.
+            changed = changed or not np.array_equal(derivatives_before, comp._real[nx: 2 * nx])
         nte = comp.next_time_event(t)
         self._next_time_event = nte
         if self.log_mask & _LOG_EVENTS:
@@ -232,6 +256,18 @@ class FmuInstance:
                      f"{changed}, next time event {nte}, terminate {self.terminate_requested}")
         return (again, self.terminate_requested, False, changed, nte is not None,
                 float(nte) if nte is not None else 0.0)
+
+    def activate_model_partition(self, clock: float, t: float) -> int:
+        """``fmi3ActivateModelPartition`` (Scheduled Execution): the partition of Clock ``clock``
+        (0-based) at its tick ``t``, with the inputs set before: the component's discrete update
+        at ``t`` (its samples due there), iterated as an event iteration would, outputs evaluated."""
+        self.time = t
+        for _ in range(_MAX_EVENT_ITERATIONS):
+            again, terminate, _, _, _, _ = self.event_update(t)
+            if terminate or not again:
+                return OK
+        raise RuntimeError(f"the partition of Clock {int(clock) + 1} at t = {t} did not settle in "
+                           f"{_MAX_EVENT_ITERATIONS} updates")
 
     def directional_derivative(self, t: float, unknowns: bytes, knowns: bytes, seed: bytes) -> bytes:
         """``fmi2GetDirectionalDerivative`` at ``t``: value references as uint32 bytes, the seed
@@ -258,15 +294,17 @@ class FmuInstance:
         reads it and calls :meth:`evaluate` when there is something to evaluate (bridge.c,
         step_itself; ``native_layout`` tells it which components)."""
         comp = self.component
-        t_end = t + h
+        t_end = self._communication_point(t, h)
         self.control[2] = 0.0
-        if self._solver is not None and (self._inputs_changed() or self._restart_solver):
-            # a zero-order-hold input jumped (the right-hand side is discontinuous at t), or the
-            # importer handled an event here
+        if self._solver is not None and (self._restart_for_inputs(t_end) or self._restart_solver):
+            # a zero-order-hold input jumped too far for CVODE's history (the right-hand side is
+            # discontinuous at t), or the importer handled an event here
             self._solver.reinit(self.time, comp._real[: self.nx])
         self._restart_solver = False
         while self.time < t_end and not self.terminate_requested:
-            nte = self._next_time_event
+            # in event mode a clock-driven component's events are its Clocks' ticks, which the
+            # importer activates in Event Mode: none to report from the step
+            nte = None if event_mode_used and self._clock_driven else self._next_time_event
             t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
             root = False
             if t_stop - self.time <= _TINY * max(1.0, abs(t_stop)):
@@ -279,6 +317,7 @@ class FmuInstance:
             if (root or time_event) and event_mode_used:
                 self.control[1:] = self.time, 1.0  # fmi3DoStep: eventHandlingNeeded here
                 self.evaluate(self.time)
+                self._derivatives_after_step = None  # the event restarts the solver
                 return OK
             if root or time_event:
                 self._event_iteration()
@@ -287,28 +326,96 @@ class FmuInstance:
         else:
             self.time = t_end  # remove round-off so the next doStep matches exactly
         self.evaluate(self.time)
+        if self.nx:
+            self._derivatives_after_step = comp._real[self.nx: 2 * self.nx].tolist()
         return DISCARD if self.terminate_requested else OK
+
+    def _communication_point(self, t: float, h: float) -> float:
+        """``t + h``, or the grid point ``start + k H`` where it differs from that by round-off.
+
+        Importers add up time differently (fmpy: ``t += h``; the Reference FMUs' fmusim:
+        ``t = start + k h``), so the same step can end an ulp or a few apart. CVODE's steps are
+        sensitive to that: where its proposed step and the rest of the interval to the stop time
+        agree to round-off, an ulp decides between clipping a step and taking it whole, and the
+        step sequences (and results, at the tolerance's level) part. On a grid every importer
+        gives CVODE the same stop times, bit for bit. The grid's step H is the one the steps
+        so far ended on (a step cut short at an event, in FMI 3.0 event mode, and the rest of it
+        end on the grid of the full steps), else this step's ``h``."""
+        t_end = t + h
+        for step in (self._grid_step, h):
+            if step > 0.0:
+                on_grid = self.start_time + round((t_end - self.start_time) / step) * step
+                if abs(on_grid - t_end) <= _TINY * max(1.0, abs(t_end)):
+                    self._grid_step = step
+                    return on_grid
+        return t_end
 
     def _integrate_to(self, t_stop: float) -> bool:
         if self._solver is None:
             self._solver = self._make_solver()
         solver, comp = self._solver, self.component
-        root = solver.advance(t_stop)
+        root = self._advance_over_jump(t_stop) if self._jump_kept else solver.advance(t_stop)
         comp._real[: self.nx] = solver.x
         self.time = solver.t if root else t_stop
         return root
 
+    def _advance_over_jump(self, t_stop: float) -> bool:
+        # the first advance on a history kept over an input jump: should CVODE's error test still
+        # fail down to the minimum step there (the jump was larger for its steps than judged),
+        # a restart from where this call began gets through, and a second failure is real
+        solver = self._solver
+        t0, x0 = solver.t, solver.x.copy()
+        self._jump_kept = False
+        solver.log_errors = False  # recovered from below: no error for the importer's log
+        try:
+            return solver.advance(t_stop)
+        except _CVODE["error"]:
+            solver.log_errors = True
+            solver.reinit(t0, x0)
+            return solver.advance(t_stop)
+        finally:
+            solver.log_errors = True
+
     def _inputs_changed(self) -> bool:
-        current = self.component._real[self._real_inputs]
-        changed = not np.array_equal(current, self._inputs_at_last_step)
+        comp = self.component  # lists: cheaper to compare than arrays, at a handful of inputs
+        current = comp._real.take(self._real_inputs).tolist(), comp._int.take(self._int_inputs).tolist()
+        changed = current != self._inputs_at_last_step
         self._inputs_at_last_step = current
         return changed
+
+    def _restart_for_inputs(self, t_end: float) -> bool:
+        """Whether CVODE must restart because the held inputs changed since the last step.
+
+        A zero-order-hold input that jumps makes the right-hand side f discontinuous at the
+        communication point, and CVODE's history (order, step size, Nordsieck array) describes
+        the solution before it. A restart (order 1, a tiny first step) at every change made a
+        chain of CS units, each driven by the last one's output, 4-6x as costly as the same
+        units unconnected. So the history is kept where the jump is small: its first-order
+        effect over the step, ``h (f_new - f_old)`` at the current state in CVODE's error norm
+        (1 = the tolerance), is at most ``cs_options["input_jump_tolerance"]``
+        (default 10; 0 restarts at every change). CVODE's error test then takes the kink in its
+        stride (at worst it retries with a smaller step); a larger jump (a step input, a
+        switching controller's torque) restarts as before. docs/components.md has the figures.
+        """
+        if not self._inputs_changed():
+            return False
+        before = self._derivatives_after_step
+        if self._jump_tolerance <= 0 or before is None or self._restart_solver:
+            restart = True
+        else:
+            # over the whole step, not CVODE's next one: that one shrinks after a kink, which made
+            # the next jump look small: the decision depends on inputs and states, not on that history
+            jump = [new - old for new, old in zip(self.component.derivatives(self.time), before)]
+            restart = (t_end - self.time) * self._solver.error_norm(jump) > self._jump_tolerance
+        self._jump_kept = not restart
+        return restart
 
     def _make_solver(self) -> Cvode:
         Cvode = _cvode_class(self._module_context)
         options = dict(self.component_class.cs_options)
         rtol = options.pop("rtol", self.tolerance or self.component_class.default_experiment.tolerance)
         rtol *= options.pop("rtol_factor", 1.0)
+        self._jump_tolerance = float(options.pop("input_jump_tolerance", _INPUT_JUMP_TOLERANCE))
         # as ME importers do: absolute tolerance from the states' nominal values
         atol = options.pop("atol", rtol * self.component_class._layout.nominals)
         comp, nx = self.component, self.nx

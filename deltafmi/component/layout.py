@@ -16,6 +16,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from .clocks import Clock, check_clock
 from .variables import Parameter, Input, State, Variable, is_enumeration
 
 # Bits of the per-scalar flag byte read by the native layer (keep in sync with native/core.h).
@@ -68,6 +69,11 @@ class Layout:
     sizes3: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint32))
     #: FMI 3.0 Clocks: value references ``time_vr + 1 .. time_vr + n_clocks``
     n_clocks: int = 0
+    clocks: list[Clock] = field(default_factory=list)
+    #: per Clock: the real-buffer index of its period Parameter, -1 for a constant interval ...
+    clock_period_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    #: ... and the constant interval (NaN where a Parameter gives it)
+    clock_interval: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n_total(self) -> int:
@@ -125,19 +131,25 @@ def collect_declarations(cls: type) -> list[Variable]:
     Inherited declarations are copied onto ``cls`` because a descriptor stores its buffer offset,
     and a subclass with more variables has a different layout than its base.
     """
-    seen: dict[str, Variable] = {}
-    for klass in reversed(cls.__mro__):
-        for name, value in vars(klass).items():
-            if isinstance(value, Variable):
-                seen.pop(name, None)
-                seen[name] = value
     declarations = []
-    for name, value in seen.items():
+    for name, value in _declared(cls, Variable).items():
         if name not in vars(cls):
             value = copy.copy(value)
             setattr(cls, name, value)
         declarations.append(value)
     return declarations
+
+
+def _declared(cls: type, kind: type) -> dict[str, Any]:
+    """The class attributes of ``cls`` that are ``kind`` instances, by name, in declaration order
+    (base classes first; a redefinition takes the place of the last definition)."""
+    seen: dict[str, Any] = {}
+    for klass in reversed(cls.__mro__):
+        for name, value in vars(klass).items():
+            if isinstance(value, kind):
+                seen.pop(name, None)
+                seen[name] = value
+    return seen
 
 
 def _setter_flags(decl: Variable) -> int:
@@ -217,7 +229,25 @@ def build_layout(cls: type) -> Layout:
     layout.sizes3 = np.zeros(layout.n_total, dtype=np.uint32)
     for group in layout.variables3():
         layout.sizes3[group[0].value_reference] = len(group)
+    _lay_out_clocks(cls, layout)
     return layout
+
+
+#: the native layer keeps the Clocks' activation in one 64-bit mask
+MAX_CLOCKS = 64
+
+
+def _lay_out_clocks(cls: type, layout: Layout) -> None:
+    layout.clocks = list(_declared(cls, Clock).values())
+    layout.n_clocks = len(layout.clocks)
+    if layout.n_clocks > MAX_CLOCKS:
+        raise ValueError(f"{cls.__qualname__}: {layout.n_clocks} Clocks; at most {MAX_CLOCKS} are supported")
+    by_name = {d.name: d for d in layout.declarations}
+    for clock in layout.clocks:
+        check_clock(cls, clock, by_name)
+    layout.clock_period_index = np.array([-1 if c.constant else by_name[c.period].offset for c in layout.clocks],
+                                         dtype=np.int64)
+    layout.clock_interval = np.array([c.period if c.constant else np.nan for c in layout.clocks], dtype=float)
 
 
 def _scalar(decl: Variable, name: str, vr: int, start: Any) -> ScalarVariable:

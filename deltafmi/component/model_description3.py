@@ -14,6 +14,7 @@ import xml.etree.ElementTree as ET
 from typing import Iterable
 
 from .base import Component
+from .clocks import Clock, clock_driven
 from .layout import Layout, ScalarVariable
 from .model_description import (add_derivatives_annotation, add_enumeration_items, add_log_categories_and_experiment,
                                 add_unit_definitions, dependency_attributes, derivative_dependencies, enumeration_name,
@@ -45,11 +46,14 @@ def model_description3_xml(cls: type[Component], token: str) -> bytes:
                   providesDirectionalDerivatives="true", providesAdjointDerivatives="true")
     ET.SubElement(root, "ModelExchange", xml_attributes(
         **common, needsCompletedIntegratorStep=_bool(cls.watches_drift())))
-    # a component that steps itself handles its events inside its own do_step
-    event_mode = has_events(cls) and not cls.overrides_do_step()
+    event_mode = cs_event_mode(cls)
     ET.SubElement(root, "CoSimulation", xml_attributes(
         **common, canHandleVariableCommunicationStepSize="true", maxOutputDerivativeOrder="0",
-        mightReturnEarlyFromDoStep=_bool(event_mode), hasEventMode=_bool(event_mode)))
+        mightReturnEarlyFromDoStep=_bool(event_mode and not clock_driven(cls)), hasEventMode=_bool(event_mode)))
+    if clock_driven(cls):
+        ET.SubElement(root, "ScheduledExecution", xml_attributes(
+            modelIdentifier=common["modelIdentifier"], needsExecutionTool="false", canGetAndSetFMUState="true",
+            canSerializeFMUState="true", providesDirectionalDerivatives="true", providesAdjointDerivatives="true"))
     add_unit_definitions(root, cls)
     enumerations = enumeration_types(cls)
     if enumerations:
@@ -61,6 +65,8 @@ def model_description3_xml(cls: type[Component], token: str) -> bytes:
     variables = ET.SubElement(root, "ModelVariables")
     ET.SubElement(variables, "Float64", name="time", valueReference=str(layout.time_vr),
                   causality="independent", variability="continuous", description="Simulation time")
+    for i, clock in enumerate(layout.clocks):  # priority: mandatory in Scheduled Execution, ignored otherwise
+        _clock(variables, layout.time_vr + 1 + i, clock, priority=i if clock_driven(cls) else None)
     reinit = _states_reinitialized(cls)
     for group in layout.variables3():
         _variable(variables, layout, group, reinit)
@@ -74,6 +80,31 @@ def model_description3_xml(cls: type[Component], token: str) -> bytes:
     add_derivatives_annotation(tool, cls)
     ET.indent(root, space="  ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def cs_event_mode(cls: type[Component]) -> bool:
+    """Whether the FMI 3.0 Co-Simulation interface has Event Mode (``hasEventMode``). A component
+    that steps itself handles its events inside its own do_step, except a clocked one without
+    continuous states: an importer can activate a Clock only in Event Mode, and in Event Mode such a
+    component takes its samples there (its update at the Clock's ticks, which are time events)."""
+    layout = cls._layout
+    if not has_events(cls):
+        return False
+    return not cls.overrides_do_step() or bool(layout.n_clocks and not layout.nx)
+
+
+def _clock(parent: ET.Element, vr: int, clock: Clock, priority: int | None) -> None:
+    # a Parameter's period: a fixed Clock whose interval the importer asks for in Initialization
+    # Mode (fmi3GetIntervalDecimal; no intervalDecimal, which would let the importer set it)
+    if clock.constant:
+        kind = dict(intervalVariability="constant", intervalDecimal=xml_value(clock.period))
+        text = f"sampled every {xml_value(clock.period)} s from the start time"
+    else:
+        kind = dict(intervalVariability="fixed")
+        text = f"sampled every {clock.period} s from the start time"
+    ET.SubElement(parent, "Clock", xml_attributes(
+        name=clock.fmi_name, valueReference=str(vr), description=clock.description or f"The component is {text}",
+        causality="input", variability="discrete", **kind, priority=None if priority is None else str(priority)))
 
 
 def variable_of(layout: Layout) -> dict[int, int]:
@@ -152,6 +183,10 @@ def _deps(vr: int, deps: Iterable[int]) -> dict:
 def _check_names(cls: type[Component]) -> None:
     """The names FMI 3.0 builds add must not be taken by the component's own variables."""
     reserved = {"time"} | {EVENT_INDICATOR_NAME.format(i + 1) for i in range(cls.n_event_indicators)}
+    for clock in cls._layout.clocks:
+        if clock.fmi_name in reserved | {d.fmi_name for d in cls._layout.declarations}:
+            raise ValueError(f"{cls.__qualname__}: the Clock '{clock.fmi_name}' has the name of another variable; "
+                             "rename it (name=...)")
     for decl in cls._layout.declarations:
         if decl.fmi_name in reserved:
             raise ValueError(f"{cls.__qualname__}: a variable named '{decl.fmi_name}' clashes with the "

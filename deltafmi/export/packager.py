@@ -19,6 +19,7 @@ import deltafmi
 from ..component import Component
 from ..component.checks import definition_problem
 from ..component.model_description import model_description_xml
+from ..component.clocks import clock_driven
 from ..component.model_description3 import model_description3_xml
 from ..files import replaced_atomically
 from .compiler import (BuildError, NoCompilerError, cache_dir, fmu_binary, native_source_files, no_compiler_message,
@@ -176,7 +177,7 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
             fmu.write(PACKAGE_DIR / "export" / "boot.py", "resources/deltafmi_boot.py")
             fmu.writestr("resources/deltafmi.json", json.dumps(info, indent=2))
             fmu.writestr("resources/python.cfg", python_runtime_config())
-            fmu.writestr("resources/README.txt", _readme(identifier, fmi_version))
+            fmu.writestr("resources/README.txt", _readme(identifier, fmi_version, _interfaces(cls, fmi_version)))
             for path, arcname in runtime_files(source):
                 fmu.write(path, arcname)
                 fmu.writestr(importlib.util.cache_from_source(arcname), unchecked_hash_pyc(path, arcname))
@@ -260,8 +261,15 @@ _REQUIREMENTS = ("This FMU runs its model in CPython (3.10 or newer) with numpy,
                  "and DELTAFMI_PYTHON (the interpreter whose site-packages to use).")
 
 
-def _readme(identifier: str, fmi_version: int) -> str:
-    return (f"{identifier}: an FMI {fmi_version}.0 FMU (Model Exchange and Co-Simulation) built by deltafmi "
+def _interfaces(cls: type[Component], fmi_version: int) -> str:
+    """The interfaces the FMU provides, in words."""
+    if fmi_version == 3 and clock_driven(cls):
+        return "Model Exchange, Co-Simulation and Scheduled Execution"
+    return "Model Exchange and Co-Simulation"
+
+
+def _readme(identifier: str, fmi_version: int, interfaces: str) -> str:
+    return (f"{identifier}: an FMI {fmi_version}.0 FMU ({interfaces}) built by deltafmi "
             f"{deltafmi.__version__}.\n\n{_REQUIREMENTS}\n\nmodel/ holds the component source, python/ the "
             "deltafmi runtime it uses, deltafmi_boot.py the code the native bridge runs to load it.\n")
 
@@ -270,6 +278,6 @@ def _documentation(cls: type[Component], fmi_version: int) -> str:
     import html
     doc = html.escape((cls.__doc__ or "").strip())
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{cls.fmi_model_name()}</title></head>"
-            f"<body><h1>{cls.fmi_model_name()}</h1><p>An FMI {fmi_version}.0 FMU (Model Exchange and "
-            f"Co-Simulation) built by deltafmi {deltafmi.__version__}.</p><pre>{doc}</pre><h2>Requirements</h2>"
+            f"<body><h1>{cls.fmi_model_name()}</h1><p>An FMI {fmi_version}.0 FMU ({_interfaces(cls, fmi_version)}) "
+            f"built by deltafmi {deltafmi.__version__}.</p><pre>{doc}</pre><h2>Requirements</h2>"
             f"<p>{html.escape(_REQUIREMENTS)}</p></body></html>\n")

@@ -1,5 +1,5 @@
 """Delta robot controller FMU: a thin sampled component over deltafmi.mechanics.delta.control."""
-from deltafmi.component import Component, Experiment, Input, Output, Parameter
+from deltafmi.component import Clock, Component, Experiment, Input, Output, Parameter
 from deltafmi.mechanics.delta import control as delta_control
 from deltafmi.models.robot_parameters import robot_parameters
 
@@ -45,6 +45,8 @@ class DeltaController(ControllerRobotModel, Component):
     cond_limit = Parameter(100.0, min=1.0,
                            description="Status bit 4 (ill-conditioned) above this cond(Jc)")
     sample_period = Parameter(1e-3, unit="s", min=0.0, description="Controller sample period")
+    #: FMI 3.0: the sample instants t_start + k * sample_period as a periodic input Clock
+    sample = Clock(period="sample_period", description="Sample instants: t_start + k * sample_period")
     impedance = Parameter(False, description="Impedance (soft-contact) mode instead of the PID position loop")
     stiffness = Parameter([5000.0, 5000.0, 1000.0], unit="N/m", min=0.0,
                           description="Impedance mode: commanded stiffness per world axis x, y, z")

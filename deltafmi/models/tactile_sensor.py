@@ -1,7 +1,7 @@
 """Two-pad tactile sensor under the tool: a thin component over deltafmi.mechanics.delta.tactile."""
 import math
 
-from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
+from deltafmi.component import Clock, Component, Experiment, Input, Output, Parameter, State
 from deltafmi.mechanics.delta.tactile import Readout, TactilePads
 
 
@@ -32,6 +32,8 @@ class TactileSensor(Component):
     seed = Parameter(1, type=int, min=0, description="Seed of the noise")
     quantization = Parameter(0.01, unit="N", min=0.0, description="Resolution of a reading (0: none)")
     sample_period = Parameter(1e-3, unit="s", min=0.0, description="Time between readings")
+    #: FMI 3.0: the reading instants t_start + k * sample_period as a periodic input Clock
+    sample = Clock(period="sample_period", description="Reading instants: t_start + k * sample_period")
 
     filtered = State([0.0, 0.0], unit="N", description="Pad forces after the sensor's lag")
 

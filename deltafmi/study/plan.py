@@ -18,14 +18,14 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 from deltafmi.cosim.scenario.modelinfo import UnknownVariable
-from deltafmi.cosim.scenario.resolve import System, resolve_system
+from deltafmi.cosim.scenario.resolve import System, bus_type, resolve_system
 from deltafmi.cosim.scenario.spec import ComponentSpec, OutputSpec, Parameter, Scenario, load_scenario
 
 from .cases import Case, generate_cases
 from .metrics import Metric
 from .spec import Study, Target
 
-_NUMERIC = ("Real", "Integer", "Boolean")
+_NUMERIC = ("Real", "Integer", "Int64", "UInt64", "Boolean")
 
 
 @dataclass(frozen=True)
@@ -254,7 +254,7 @@ class _Checker:
             self.error(line, f"metric '{metric}': component '{component_name}' has no variable "
                              f"'{exc.reference}'{did_you_mean(exc.reference, exc.names)}")
             return None
-        kinds = {component.info.variables[n].type for n in names}
+        kinds = {bus_type(component.info.variables[n].type) for n in names}
         if not kinds <= set(_NUMERIC):
             self.error(line, f"metric '{metric}': '{reference}' is {', '.join(sorted(kinds))}, not a number")
             return None

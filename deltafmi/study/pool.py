@@ -2,12 +2,12 @@
 instead of loading, extracting and instantiating them again.
 
 A :class:`FmuPool` lends fmpy FMU objects to the master (``Master(fmus=pool.lend)``). A pooled
-object is an ordinary ``FMU2Slave`` / ``FMU2Model`` whose ``instantiate`` calls ``fmi2Instantiate``
-the first time and ``fmi2Reset`` afterwards (FMI 2.0: the FMU is then as if just instantiated),
-and whose ``freeInstance`` gives it back to the pool instead of freeing it. The FMU keeps the
-callback functions it got from the first ``fmi2Instantiate`` until it is freed, so the pool
-hands it a logger of its own that forwards every message to the callbacks of whoever holds the
-FMU now. Instances of a run that failed are freed (:meth:`FmuPool.discard`): a case that went
+object is an ordinary ``FMU2Slave`` / ``FMU2Model`` (FMI 3.0: ``FMU3Slave`` / ``FMU3Model``) whose
+``instantiate`` instantiates the first time and calls ``fmi2Reset`` / ``fmi3Reset`` afterwards (the
+FMU is then as if just instantiated), and whose ``freeInstance`` gives it back to the pool instead
+of freeing it. The FMU keeps the logger it got when instantiated until it is freed, so the pool
+hands it a logger of its own that forwards every message to the logger of whoever holds the FMU
+now. Instances of a run that failed are freed (:meth:`FmuPool.discard`): a case that went
 wrong leaves nothing behind.
 """
 from __future__ import annotations
@@ -16,11 +16,12 @@ import shutil
 import tempfile
 import threading
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import fmpy
 from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from deltafmi.cosim.scenario.resolve import Component
 
@@ -28,21 +29,24 @@ Key = Tuple[str, str, str]  # FMU file, interface, instance name
 
 
 class _Pooled:
-    """What the pooled FMU2Slave and FMU2Model add to fmpy's classes."""
+    """What the pooled FMU classes add to fmpy's: instantiate once, reset afterwards."""
+
+    #: the ``instantiate`` argument that carries the holder's logger
+    logger_argument = "callbacks"
 
     def __init__(self, pool: "FmuPool", key: Key, **kwargs: Any) -> None:
         super().__init__(**kwargs)  # type: ignore[call-arg]
         self.pool, self.key = pool, key
         self.resets = 0
-        self._holder: Optional[fmi2CallbackFunctions] = None
-        self._own: Optional[fmi2CallbackFunctions] = None
+        self._holder: Any = None
+        self._own: Any = None
 
-    def instantiate(self, visible: bool = False, callbacks: Any = None, loggingOn: bool = False) -> None:
-        """fmi2Instantiate the first time, fmi2Reset afterwards; messages go to ``callbacks``."""
-        self._holder = callbacks
+    def instantiate(self, **kwargs: Any) -> None:
+        """Instantiate the first time, reset afterwards; messages go to the holder's logger."""
+        self._holder = kwargs.pop(self.logger_argument, None)
         if self.component is None:  # type: ignore[attr-defined,has-type]
-            self._own = _forwarding_callbacks(self)
-            super().instantiate(visible=visible, callbacks=self._own, loggingOn=loggingOn)  # type: ignore[misc]
+            self._own = kwargs[self.logger_argument] = self._forwarder()
+            super().instantiate(**kwargs)  # type: ignore[misc]
         else:
             self.reset()  # type: ignore[attr-defined]
             self.resets += 1
@@ -53,7 +57,7 @@ class _Pooled:
         self.pool.give_back(self)
 
     def free(self) -> None:
-        """fmi2FreeInstance for real (and unload the library, as fmpy does)."""
+        """Free the instance for real (and unload the library, as fmpy does)."""
         self._holder = None
         if self.component is not None:  # type: ignore[attr-defined,has-type]
             try:
@@ -61,29 +65,57 @@ class _Pooled:
             finally:
                 self.component = None
 
-    def forward(self, env: Any, instance: Any, status: int, category: Any, message: Any) -> None:
+    def _forwarder(self) -> Any:
+        raise NotImplementedError
+
+
+class _Pooled2(_Pooled):
+    def _forwarder(self) -> fmi2CallbackFunctions:
+        from fmpy import calloc, free
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(self._forward)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        return callbacks
+
+    def _forward(self, env: Any, instance: Any, status: int, category: Any, message: Any) -> None:
         holder = self._holder
         if holder is not None and holder.logger:
             holder.logger(env, instance, status, category, message)
 
 
+class _Pooled3(_Pooled):
+    logger_argument = "logMessage"
+
+    def _forwarder(self) -> Callable[..., None]:
+        return self._forward  # fmpy wraps it in an fmi3LogMessageCallback and keeps that
+
+    def _forward(self, env: Any, status: int, category: Any, message: Any) -> None:
+        holder = self._holder
+        if holder is not None:
+            holder(env, status, category, message)
+
+
 # fmpy binds the fmi2 functions of classes whose name starts with "FMU2"
-class FMU2PooledSlave(_Pooled, FMU2Slave):
+class FMU2PooledSlave(_Pooled2, FMU2Slave):
     """A Co-Simulation FMU that resets instead of re-instantiating."""
 
 
-class FMU2PooledModel(_Pooled, FMU2Model):
+class FMU2PooledModel(_Pooled2, FMU2Model):
     """A Model Exchange FMU that resets instead of re-instantiating."""
 
 
-def _forwarding_callbacks(fmu: _Pooled) -> fmi2CallbackFunctions:
-    from fmpy import calloc, free
+class FMU3PooledSlave(_Pooled3, FMU3Slave):
+    """An FMI 3.0 Co-Simulation FMU that resets instead of re-instantiating."""
 
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(fmu.forward)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    return callbacks
+
+class FMU3PooledModel(_Pooled3, FMU3Model):
+    """An FMI 3.0 Model Exchange FMU that resets instead of re-instantiating."""
+
+
+_CLASSES = {(False, "CS"): FMU2PooledSlave, (False, "ME"): FMU2PooledModel,
+            (True, "CS"): FMU3PooledSlave, (True, "ME"): FMU3PooledModel}
 
 
 class FmuPool:
@@ -122,7 +154,7 @@ class FmuPool:
                 target = self.root / f"{self._extractions}-{Path(key[0]).stem}"
                 self._extractions += 1
                 directory = self._extracted[key[0]] = fmpy.extract(key[0], unzipdir=str(target))
-            cls = FMU2PooledSlave if component.interface == "CS" else FMU2PooledModel
+            cls = _CLASSES[component.info.fmi3, component.interface]
             self.created += 1
             return cls(self, key, guid=component.info.md.guid, unzipDirectory=directory,
                        modelIdentifier=component.info.model_identifier(component.interface),

@@ -3,12 +3,21 @@
  *   host3 <unzipdir> <identifier> <token> cs        <stop> <step> <var>...  Co-Simulation, prints t,values
  *   host3 <unzipdir> <identifier> <token> cs-events <stop> <step> <var>...  with eventModeUsed and early return
  *   host3 <unzipdir> <identifier> <token> me        <stop> <step> <var>...  explicit Euler + event handling
+ *   host3 <unzipdir> <identifier> <token> se <clock vr> <ticks> <inputs.txt> <in var>... -- <out var>...
+ *                                                                       Scheduled Execution (below)
  *
  * <var> is a Float64 value reference, or vr:n for an array variable of n elements. Rows are
  * "t,v1,v2,..." on the output grid; cs-events also prints "event,<t>" where fmi3DoStep asked
  * for event handling, me "event,<t>" at each state or time event. A component that ends the
  * simulation gets its last row printed and "terminated,<time>". HOST_NULL_RESOURCES=1 passes
  * resourcePath = NULL (the FMU finds its resources from its binary).
+ *
+ * se: as a scheduler would, the host asks in Initialization Mode for the Clock's interval and shift
+ * (printed "interval,<s>,<qualifier>" and "shift,<s>"), then at each of <ticks> ticks
+ * t_k = shift + k * interval sets the Float64 inputs from line k of <inputs.txt> (all their values,
+ * whitespace-separated, in the order of the <in> variables), calls fmi3ActivateModelPartition(clock,
+ * t_k) and prints "t_k,outputs...", finally "clock_updates,<n>" (calls of the FMU's clockUpdate).
+ * HOST_PARAM=vr=value sets one Float64 parameter before initialization.
  */
 #include <dlfcn.h>
 #include <math.h>
@@ -34,9 +43,87 @@ static void print_row(double t, const double *values, size_t n) {
     printf("\n");
 }
 
+/* "vr:n" or "vr" arguments from argv[first] up to "--" or the end: their number, *total values */
+static int parse_variables(char **argv, int first, int argc, fmi3ValueReference *vrs, size_t *total) {
+    int n = 0;
+    *total = 0;
+    for (int i = first; i < argc && strcmp(argv[i], "--") != 0; i++, n++) {
+        char *colon = strchr(argv[i], ':');
+        vrs[n] = (fmi3ValueReference)atol(argv[i]);
+        *total += colon ? (size_t)atol(colon + 1) : 1;
+    }
+    return n;
+}
+
+static int clock_updates; /* the FMU asks for none: it has no countdown or output Clocks */
+static void clock_update(fmi3InstanceEnvironment env) { (void)env; clock_updates++; }
+static void lock_preemption(void) {}
+static void unlock_preemption(void) {}
+
+static int scheduled(void *lib, const char *resources, const char *token, int argc, char **argv) {
+    LOAD(fmi3InstantiateScheduledExecution) LOAD(fmi3EnterInitializationMode) LOAD(fmi3ExitInitializationMode)
+    LOAD(fmi3GetFloat64) LOAD(fmi3SetFloat64) LOAD(fmi3GetIntervalDecimal) LOAD(fmi3GetShiftDecimal)
+    LOAD(fmi3ActivateModelPartition) LOAD(fmi3Terminate) LOAD(fmi3FreeInstance)
+    if (argc < 8) {
+        fprintf(stderr, "usage: host3 <unzipdir> <identifier> <token> se <clock vr> <ticks> <inputs.txt> ...\n");
+        return 2;
+    }
+    fmi3ValueReference clock = (fmi3ValueReference)atol(argv[5]), in[256], out[256];
+    long ticks = atol(argv[6]);
+    FILE *inputs = fopen(argv[7], "r");
+    if (!inputs || argc - 8 > 256) {
+        fprintf(stderr, "cannot open %s, or too many variables\n", argv[7]);
+        return 2;
+    }
+    size_t n_in_values, n_out_values = 0;
+    int n_in = parse_variables(argv, 8, argc, in, &n_in_values), separator = 8 + n_in;
+    int n_out = separator < argc ? parse_variables(argv, separator + 1, argc, out, &n_out_values) : 0;
+    double *in_values = calloc(n_in_values + 1, sizeof(double)), *out_values = calloc(n_out_values + 1, sizeof(double));
+    fmi3Instance c = fmi3InstantiateScheduledExecution("host3", token, resources, fmi3False, fmi3False, NULL,
+                                                       log_message, clock_update, lock_preemption, unlock_preemption);
+    if (!c) {
+        fprintf(stderr, "fmi3InstantiateScheduledExecution failed\n");
+        return 4;
+    }
+    const char *param = getenv("HOST_PARAM");
+    if (param && strchr(param, '=')) {
+        fmi3ValueReference vr = (fmi3ValueReference)atol(param);
+        double value = atof(strchr(param, '=') + 1);
+        OK(fmi3SetFloat64(c, &vr, 1, &value, 1));
+    }
+    OK(fmi3EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0));
+    fmi3Float64 interval, shift;
+    fmi3IntervalQualifier qualifier;
+    OK(fmi3GetIntervalDecimal(c, &clock, 1, &interval, &qualifier));
+    OK(fmi3GetShiftDecimal(c, &clock, 1, &shift));
+    printf("interval,%.17g,%d\nshift,%.17g\n", interval, (int)qualifier, shift);
+    OK(fmi3ExitInitializationMode(c));
+    for (long k = 0; k < ticks; k++) {
+        for (size_t i = 0; i < n_in_values; i++)
+            if (fscanf(inputs, "%lf", &in_values[i]) != 1) {
+                fprintf(stderr, "%s: too few input values for tick %ld\n", argv[7], k);
+                return 5;
+            }
+        double t = shift + (double)k * interval;
+        if (n_in) OK(fmi3SetFloat64(c, in, (size_t)n_in, in_values, n_in_values));
+        OK(fmi3ActivateModelPartition(c, clock, t));
+        if (n_out) OK(fmi3GetFloat64(c, out, (size_t)n_out, out_values, n_out_values));
+        print_row(t, out_values, n_out_values);
+    }
+    OK(fmi3Terminate(c));
+    fmi3FreeInstance(c);
+    printf("clock_updates,%d\n", clock_updates);
+    fclose(inputs);
+    free(in_values);
+    free(out_values);
+    return 0;
+}
+
 int main(int argc, char **argv) {
     if (argc < 7) {
-        fprintf(stderr, "usage: host3 <unzipdir> <identifier> <token> cs|cs-events|me <stop> <step> <var>...\n");
+        fprintf(stderr, "usage: host3 <unzipdir> <identifier> <token> cs|cs-events|me <stop> <step> <var>...\n"
+                        "       host3 <unzipdir> <identifier> <token> se <clock vr> <ticks> <inputs.txt> <in var>... "
+                        "-- <out var>...\n");
         return 2;
     }
     const char *dir = argv[1], *identifier = argv[2], *token = argv[3], *mode = argv[4];
@@ -50,6 +137,7 @@ int main(int argc, char **argv) {
         fprintf(stderr, "dlopen: %s\n", dlerror());
         return 2;
     }
+    if (!strcmp(mode, "se")) return scheduled(lib, resource_path, token, argc, argv);
     LOAD(fmi3InstantiateModelExchange) LOAD(fmi3InstantiateCoSimulation) LOAD(fmi3EnterInitializationMode)
     LOAD(fmi3ExitInitializationMode) LOAD(fmi3GetFloat64) LOAD(fmi3DoStep) LOAD(fmi3Terminate)
     LOAD(fmi3FreeInstance) LOAD(fmi3UpdateDiscreteStates) LOAD(fmi3EnterContinuousTimeMode)

@@ -129,6 +129,7 @@ Status resetInstance(ModelInstance *comp) {
     comp->startTime = comp->time = 0.0;
     comp->nextEventTimeDefined = comp->terminateSimulation = false;
     comp->maxStepSize = 0.0;
+    comp->activeClocks = comp->intervalsGiven = 0;
     return setStartValues(comp);
 }
 

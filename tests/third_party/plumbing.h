@@ -83,6 +83,11 @@ struct ModelInstance {
     bool valuesOfContinuousStatesChanged;
     bool nextEventTimeDefined;
     double nextEventTime;
+    /* FMI 3.0 input Clocks: bit i set while clockVariables()[i] is active (fmi3SetClock in Event
+     * Mode, until the round of fmi3UpdateDiscreteStates that sees it); bit i of intervalsGiven once
+     * fmi3GetIntervalDecimal has answered fmi3IntervalChanged for it */
+    unsigned activeClocks;
+    unsigned intervalsGiven;
     ModelData *data;
 };
 
@@ -159,6 +164,24 @@ void getContinuousStates(ModelInstance *comp, double x[]);
 void setContinuousStates(ModelInstance *comp, const double x[]);
 void getDerivatives(ModelInstance *comp, double dx[]);
 void getEventIndicators(ModelInstance *comp, double z[]);
+
+/* FMI 3.0 models with Clocks (optional: plumbing3.c's defaults say a model has none).
+ * clockVariables() lists them. Periodic input Clocks: eventUpdate() sees which are active in
+ * comp->activeClocks (bit i: the i-th listed); clockTiming() gives the i-th clock's interval and
+ * shift as the FMU knows them after initialization (fmi3GetIntervalDecimal, fmi3GetShiftDecimal);
+ * a clock whose interval is constant in the XML answers fmi3IntervalUnchanged, the others
+ * fmi3IntervalChanged at the first query in Initialization Mode and fmi3IntervalUnchanged after.
+ * Output Clocks: outputClockTicks() says whether the i-th ticks in the current Event Mode
+ * (fmi3GetClock, before fmi3UpdateDiscreteStates runs the partitions of the active input Clocks). */
+typedef struct {
+    ValueReference vr;
+    const char *name;
+    bool constantInterval;
+    bool output;
+} ClockVariable;
+const ClockVariable *clockVariables(size_t *n);
+Status clockTiming(ModelInstance *comp, size_t i, double *interval, double *shift);
+bool outputClockTicks(ModelInstance *comp, size_t i);
 
 /* One round of the event iteration at comp->time (the flags are reset before each round). */
 void eventUpdate(ModelInstance *comp);

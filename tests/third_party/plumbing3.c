@@ -1,8 +1,10 @@
 /* Every fmi3 function for the FMI 3.0 models of tests/third_party (see plumbing.h): the FMI 3.0
  * front end of common.c. Model Exchange and Co-Simulation (with and without Event Mode, with
- * early return at events); Scheduled Execution, clocks, configuration mode and partial
- * derivatives are not offered, and their functions return fmi3Error. Variable values are read
- * and written through the model's VARIABLES table, arrays serialized row-major. */
+ * early return at events), with the Clocks a model lists (clockVariables(): fmi3SetClock and
+ * fmi3GetClock in Event Mode, fmi3GetIntervalDecimal/fmi3GetShiftDecimal of periodic ones);
+ * Scheduled Execution, other clock functions, configuration mode and partial derivatives are not
+ * offered, and their functions return fmi3Error. Variable values are read and written through
+ * the model's VARIABLES table, arrays serialized row-major. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -345,14 +347,95 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference vr[], s
     return finishSet(comp, former, setBinaries(comp, vr, nvr, valueSizes, values, nValues));
 }
 
-fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Clock values[]) {
-    (void)vr, (void)nvr, (void)values;
-    UNSUPPORTED("fmi3GetClock (this FMU has no clocks)");
+/* --- clocks (a model's periodic input Clocks, see plumbing.h) ----------------------------------- */
+
+/* The model's default: no clocks (a model with clocks defines its own). */
+__attribute__((weak)) const ClockVariable *clockVariables(size_t *n) {
+    *n = 0;
+    return NULL;
+}
+
+__attribute__((weak)) Status clockTiming(ModelInstance *comp, size_t i, double *interval, double *shift) {
+    (void)comp, (void)i, (void)interval, (void)shift;
+    return Error;
+}
+
+__attribute__((weak)) bool outputClockTicks(ModelInstance *comp, size_t i) {
+    (void)comp, (void)i;
+    return false;
+}
+
+/* The index of Clock `vr` in clockVariables(), or -1 (logged). */
+static long clockIndex(ModelInstance *comp, const char *function, ValueReference vr) {
+    size_t n;
+    const ClockVariable *clocks = clockVariables(&n);
+    for (size_t i = 0; i < n; i++) {
+        if (clocks[i].vr == vr) return (long)i;
+    }
+    logError(comp, "%s: value reference %u is not a Clock of this FMU", function, vr);
+    return -1;
 }
 
 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Clock values[]) {
-    (void)vr, (void)nvr, (void)values;
-    UNSUPPORTED("fmi3SetClock (this FMU has no clocks)");
+    CHECK("fmi3SetClock", STATE(EventMode))
+    size_t n;
+    const ClockVariable *clocks = clockVariables(&n);
+    for (size_t i = 0; i < nvr; i++) {
+        long k = clockIndex(comp, "fmi3SetClock", vr[i]);
+        if (k < 0) return fmi3Error;
+        if (clocks[k].output) {
+            logError(comp, "fmi3SetClock: %s is an output Clock (the FMU activates it)", clocks[k].name);
+            return fmi3Error;
+        }
+        if (values[i]) {
+            comp->activeClocks |= 1u << k;
+        } else {
+            comp->activeClocks &= ~(1u << k);
+        }
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Clock values[]) {
+    CHECK("fmi3GetClock", STATE(EventMode))
+    size_t n;
+    const ClockVariable *clocks = clockVariables(&n);
+    for (size_t i = 0; i < nvr; i++) {
+        long k = clockIndex(comp, "fmi3GetClock", vr[i]);
+        if (k < 0) return fmi3Error;
+        values[i] = clocks[k].output ? outputClockTicks(comp, (size_t)k) : (comp->activeClocks >> k) & 1u;
+    }
+    return fmi3OK;
+}
+
+#define TIMING_STATES (STATE(InitializationMode) | STATE(EventMode))
+
+fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                                  fmi3Float64 intervals[], fmi3IntervalQualifier qualifiers[]) {
+    CHECK("fmi3GetIntervalDecimal", TIMING_STATES)
+    size_t n;
+    const ClockVariable *clocks = clockVariables(&n);
+    for (size_t i = 0; i < nvr; i++) {
+        long k = clockIndex(comp, "fmi3GetIntervalDecimal", vr[i]);
+        double shift;
+        if (k < 0 || clockTiming(comp, (size_t)k, &intervals[i], &shift) > Warning) return fmi3Error;
+        bool first = !clocks[k].constantInterval && comp->state == InitializationMode &&
+                     !(comp->intervalsGiven & (1u << k));
+        qualifiers[i] = first ? fmi3IntervalChanged : fmi3IntervalUnchanged;
+        if (first) comp->intervalsGiven |= 1u << k;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                               fmi3Float64 shifts[]) {
+    CHECK("fmi3GetShiftDecimal", TIMING_STATES)
+    for (size_t i = 0; i < nvr; i++) {
+        long k = clockIndex(comp, "fmi3GetShiftDecimal", vr[i]);
+        double interval;
+        if (k < 0 || clockTiming(comp, (size_t)k, &interval, &shifts[i]) > Warning) return fmi3Error;
+    }
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueReference vr, size_t *n) {
@@ -439,16 +522,13 @@ fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) {
     UNSUPPORTED("fmi3ExitConfigurationMode (this FMU has no structural parameters)");
 }
 
-#define NO_CLOCKS(function, ...)                                \
-    fmi3Status function(fmi3Instance instance, __VA_ARGS__) {   \
-        UNSUPPORTED(#function " (this FMU has no clocks)");     \
+#define NO_CLOCKS(function, ...)                                                           \
+    fmi3Status function(fmi3Instance instance, __VA_ARGS__) {                              \
+        UNSUPPORTED(#function " (clocks: periodic input Clocks with the FMU's own intervals)"); \
     }
 
-NO_CLOCKS(fmi3GetIntervalDecimal, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 intervals[],
-          fmi3IntervalQualifier qualifiers[])
 NO_CLOCKS(fmi3GetIntervalFraction, const fmi3ValueReference vr[], size_t nvr, fmi3UInt64 counters[],
           fmi3UInt64 resolutions[], fmi3IntervalQualifier qualifiers[])
-NO_CLOCKS(fmi3GetShiftDecimal, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 shifts[])
 NO_CLOCKS(fmi3GetShiftFraction, const fmi3ValueReference vr[], size_t nvr, fmi3UInt64 counters[],
           fmi3UInt64 resolutions[])
 NO_CLOCKS(fmi3SetIntervalDecimal, const fmi3ValueReference vr[], size_t nvr, const fmi3Float64 intervals[])
@@ -460,7 +540,7 @@ NO_CLOCKS(fmi3SetShiftFraction, const fmi3ValueReference vr[], size_t nvr, const
 NO_CLOCKS(fmi3ActivateModelPartition, fmi3ValueReference clockReference, fmi3Float64 activationTime)
 
 fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) {
-    UNSUPPORTED("fmi3EvaluateDiscreteStates (this FMU has no clocks)");
+    UNSUPPORTED("fmi3EvaluateDiscreteStates (Scheduled Execution is not offered)");
 }
 
 fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
@@ -478,6 +558,7 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
                                     fmi3Float64 *nextEventTime) {
     CHECK("fmi3UpdateDiscreteStates", STATE(EventMode))
     eventRound(comp);
+    comp->activeClocks = 0;  /* the clocks set active are deactivated by this round */
     *discreteStatesNeedUpdate = comp->newDiscreteStatesNeeded;
     *terminateSimulation = comp->terminateSimulation;
     *nominalsOfContinuousStatesChanged = fmi3False;

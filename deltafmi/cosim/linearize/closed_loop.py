@@ -33,11 +33,11 @@ import scipy.linalg
 from deltafmi.errors import BadInput, did_you_mean
 
 from ..scenario.modelinfo import UnknownVariable
-from ..stepping.jacobians import FD_STEP, FmuJacobian
+from ..stepping.jacobians import FD_STEP, REAL_TYPES, FmuJacobian, Key, RealValues, real_nominals, scalar_key
 from .linear_model import LinearModel
 from .realization import era
 
-Signal = Tuple[str, int]  # (component, value reference)
+Signal = Tuple[str, Key]  # (component, scalar key: value reference and element)
 
 
 @dataclass
@@ -45,8 +45,8 @@ class _Block:
     """One unit as a linear one-step map: s' = F s + G w, y(after the step) = C s + D w."""
 
     name: str
-    inputs: List[int]  # value references of the tracked inputs (w)
-    outputs: List[int]  # value references of the tracked outputs (y)
+    inputs: List[Key]  # the tracked inputs (w)
+    outputs: List[Key]  # the tracked outputs (y)
     F: np.ndarray
     G: np.ndarray
     C: np.ndarray
@@ -86,11 +86,6 @@ def linearize_scenario(path: Path, *, at: Optional[float] = None, inputs: Sequen
     if k < 0 or abs(start + k * h - at) > 1e-9 * max(h, abs(at)):
         raise BadInput(f"--at {at:g}: a linearization instant must be a communication point at or after the "
                        f"start ({start:g} s) on the grid of the step {h:g} s")
-    newer = [c.name for c in system.components if c.info.fmi3]
-    if newer:
-        raise BadInput(f"linearize takes FMI 2.0 components; {', '.join(newer)} "
-                       f"{'is an FMI 3.0 FMU' if len(newer) == 1 else 'are FMI 3.0 FMUs'} (build from source with "
-                       "fmi_version: 2)")
     multi = [c.name for c in system.components if c.spec.step_multiple != 1]
     if multi:
         raise BadInput(f"linearize needs every component on the communication step; step_multiple is set for "
@@ -109,6 +104,9 @@ def linearize_scenario(path: Path, *, at: Optional[float] = None, inputs: Sequen
             master.step_all(ordered, start + step * h, h)
         units = {u.name: u for u in master.units}
         links = [l for l in system.links if l.source.type == "Real"]
+        single = [l.source for l in links if l.source.fmi_type not in ("", "Float64")]
+        if single:
+            raise BadInput(f"linearize follows Float64 signals; '{single[0].ref}' is {single[0].fmi_type}")
         tracked_in, tracked_out = _tracked(system, links, perturbed, observed)
         blocks: Dict[str, _Block] = {}
         for unit in master.units:
@@ -139,17 +137,17 @@ def _tracked(system: Any, links: list, perturbed: list, observed: list) -> Tuple
             if link.source.component in dynamic and link.target.component not in dynamic:
                 dynamic.add(link.target.component)
                 changed = True
-    tracked_in: Dict[str, List[int]] = {n: [] for n in names if n in dynamic}
-    tracked_out: Dict[str, List[int]] = {}
+    tracked_in: Dict[str, List[Key]] = {n: [] for n in names if n in dynamic}
+    tracked_out: Dict[str, List[Key]] = {}
     for link in links:
         if link.source.component in dynamic and link.target.component in dynamic:
-            _add(tracked_in[link.target.component], link.target.vr)
-            _add(tracked_out.setdefault(link.source.component, []), link.source.vr)
+            _add(tracked_in[link.target.component], _key(link.target))
+            _add(tracked_out.setdefault(link.source.component, []), _key(link.source))
     for port in perturbed:
-        _add(tracked_in[port.component], port.vr)
+        _add(tracked_in[port.component], _key(port))
     for port in observed:
         if port.component in dynamic:
-            _add(tracked_out.setdefault(port.component, []), port.vr)
+            _add(tracked_out.setdefault(port.component, []), _key(port))
     return tracked_in, tracked_out
 
 
@@ -158,10 +156,13 @@ def _add(values: list, value: Any) -> None:
         values.append(value)
 
 
-def _model_exchange_block(unit: Any, w: List[int], y: List[int], h: float) -> _Block:
+def _key(port: Any) -> Key:
+    return port.vr, port.index
+
+
+def _model_exchange_block(unit: Any, w: List[Key], y: List[Key], h: float) -> _Block:
     """A, B, C, D at the unit's current point, discretized over h with held inputs."""
-    md = unit.info.md
-    jac = FmuJacobian(unit.fmu, md)
+    jac = FmuJacobian(unit.fmu, unit.info)
     nx = jac.nx
     J = jac.block(jac.derivatives + y, jac.states + w)
     A, B, Cc, Dc = J[:nx, :nx], J[:nx, nx:], J[nx:, :nx], J[nx:, nx:]
@@ -170,11 +171,11 @@ def _model_exchange_block(unit: Any, w: List[int], y: List[int], h: float) -> _B
     augmented[:n, :n], augmented[:n, n:] = A * h, B * h
     E = scipy.linalg.expm(augmented)
     Phi, Gamma = E[:n, :n], E[:n, n:]
-    names = [f"{unit.name}.{d.variable.derivative.name}" for d in md.derivatives]
+    names = [f"{unit.name}.{name}" for name in jac.state_names]
     return _Block(unit.name, w, y, Phi, Gamma, Cc @ Phi, Cc @ Gamma + Dc, names, jac.get_states(), Cc, Dc)
 
 
-def _co_simulation_block(unit: Any, w: List[int], y: List[int], at: float, h: float, steps: int,
+def _co_simulation_block(unit: Any, w: List[Key], y: List[Key], at: float, h: float, steps: int,
                          rank_tolerance: float) -> _Block:
     """A minimal realization of the unit's step map from its pulse responses (module docstring)."""
     if not y:  # nothing it outputs is followed: its state plays no part
@@ -183,27 +184,26 @@ def _co_simulation_block(unit: Any, w: List[int], y: List[int], at: float, h: fl
     if not unit.can_save_state:
         raise BadInput(f"component '{unit.name}' cannot save and restore its state (canGetAndSetFMUstate is "
                        "false): linearize needs that to take its pulse responses")
-    fmu = unit.fmu
-    nominal = {v.valueReference: abs(float(v.nominal)) for v in unit.info.md.modelVariables
-               if v.type == "Real" and getattr(v, "nominal", None)}
-    w0 = np.array(fmu.getReal(w), dtype=float)
+    values = RealValues(unit.fmu, unit.info)
+    nominal = real_nominals(unit.info)
+    w0 = values.get(w)
     saved = unit.save_state()
     markov = np.zeros((steps + 1, len(y), len(w)))
     try:
-        for j, vr in enumerate(w):
-            delta = FD_STEP * max(abs(w0[j]), nominal.get(vr, 1.0))
+        for j, key in enumerate(w):
+            delta = FD_STEP * max(abs(w0[j]), nominal.get(key, 1.0))
             runs = []
             for sign in (1.0, -1.0):
                 unit.restore_state(saved)
                 pulse = w0.copy()
                 pulse[j] += sign * delta
-                fmu.setReal(w, list(pulse))
+                values.set(w, pulse)
                 response = []
                 for step in range(steps + 1):
                     unit.do_step(at + step * h, h)
-                    response.append(fmu.getReal(y) if y else [])
+                    response.append(values.get(y))
                     if step == 0:
-                        fmu.setReal(w, list(w0))
+                        values.set(w, w0)
                 runs.append(np.array(response, dtype=float).reshape(steps + 1, len(y)))
             markov[:, :, j] = (runs[0] - runs[1]) / (2.0 * delta)
         unit.restore_state(saved)
@@ -237,8 +237,8 @@ def _compose(system: Any, algorithm: str, order: List[str], blocks: Dict[str, _B
     feeds: Dict[Signal, List[Tuple[Signal, float]]] = {}  # tracked input -> (source signal, factor)
     for link in links:
         if link.target.component in blocks and link.source.component in blocks:
-            feeds.setdefault((link.target.component, link.target.vr), []).append(
-                ((link.source.component, link.source.vr), link.factor))
+            feeds.setdefault((link.target.component, _key(link.target)), []).append(
+                ((link.source.component, _key(link.source)), link.factor))
     # values read before their producer steps are held from the previous step: they are states
     held: List[Signal] = []
     for target, sources in feeds.items():
@@ -247,10 +247,11 @@ def _compose(system: Any, algorithm: str, order: List[str], blocks: Dict[str, _B
                 _add(held, source)
     for port in observed:
         block = blocks.get(port.component)
-        signal = (port.component, port.vr)
+        signal = (port.component, _key(port))
         if block is None or signal in held:
             continue
-        if block.Cc is None or any(units[port.component].info.variables[n].valueReference in block.inputs
+        info = units[port.component].info
+        if block.Cc is None or any(scalar_key(info, n) in block.inputs
                                    for n in _feedthrough(units[port.component], port.name)):
             _add(held, signal)  # not a function of the states at the communication point
     names = [b for b in (c.name for c in system.components) if b in blocks]
@@ -263,17 +264,17 @@ def _compose(system: Any, algorithm: str, order: List[str], blocks: Dict[str, _B
     bus: Dict[Signal, Tuple[np.ndarray, np.ndarray]] = {}
     for signal, index in slot.items():
         bus[signal] = (np.eye(nX)[index], np.zeros(m))
-    perturbation = {(p.component, p.vr): i for i, p in enumerate(perturbed)}
+    perturbation = {(p.component, _key(p)): i for i, p in enumerate(perturbed)}
 
     def inputs_of(block: _Block) -> Tuple[np.ndarray, np.ndarray]:
         Pw, Qw = np.zeros((len(block.inputs), nX)), np.zeros((len(block.inputs), m))
-        for i, vr in enumerate(block.inputs):
-            for source, factor in feeds.get((block.name, vr), []):
+        for i, key in enumerate(block.inputs):
+            for source, factor in feeds.get((block.name, key), []):
                 P, Q = bus[source]
                 Pw[i] += factor * P
                 Qw[i] += factor * Q
-            if (block.name, vr) in perturbation:
-                Qw[i, perturbation[(block.name, vr)]] += 1.0
+            if (block.name, key) in perturbation:
+                Qw[i, perturbation[(block.name, key)]] += 1.0
         return Pw, Qw
 
     new_states: Dict[str, Tuple[np.ndarray, np.ndarray]] = {}
@@ -282,8 +283,8 @@ def _compose(system: Any, algorithm: str, order: List[str], blocks: Dict[str, _B
         S = np.eye(nX)[offsets[block.name]:offsets[block.name] + block.F.shape[0]]
         new_states[block.name] = (block.F @ S + block.G @ Pw, block.G @ Qw)
         Py, Qy = block.C @ S + block.D @ Pw, block.D @ Qw
-        for i, vr in enumerate(block.outputs):
-            bus[(block.name, vr)] = (Py[i], Qy[i])
+        for i, key in enumerate(block.outputs):
+            bus[(block.name, key)] = (Py[i], Qy[i])
 
     stepping = [name for name in order if name in blocks]
     if algorithm == "gauss-seidel":
@@ -301,35 +302,35 @@ def _compose(system: Any, algorithm: str, order: List[str], blocks: Dict[str, _B
         Phi[index], Gamma[index] = bus[signal]
     C = np.zeros((len(observed), nX))
     for i, port in enumerate(observed):
-        signal, block = (port.component, port.vr), blocks.get(port.component)
+        signal, block = (port.component, _key(port)), blocks.get(port.component)
         if signal in slot:
             C[i, slot[signal]] = 1.0
         elif block is not None and block.Cc is not None:
-            row = block.outputs.index(port.vr)
+            row = block.outputs.index(_key(port))
             C[i, offsets[port.component]:offsets[port.component] + block.F.shape[0]] = block.Cc[row]
     state_names = [s for name in names for s in blocks[name].state_names]
-    state_names += [f"{c}.{_name(units[c], vr)} (held)" for c, vr in held]
+    state_names += [f"{c}.{_name(units[c], key)} (held)" for c, key in held]
     x0 = np.concatenate([blocks[name].x0 for name in names] +
-                        [np.array([_value(units[c], vr) for c, vr in held])])
+                        [np.array([_value(units[c], key) for c, key in held])])
     notes = [f"{name}: {blocks[name].F.shape[0]} states realized from its pulse responses"
              for name in names if blocks[name].Cc is None]
     notes += [f"{name}: discretized exactly over the step (inputs held)" for name in names if blocks[name].Cc is not None]
     return LinearModel(Phi, Gamma, C, np.zeros((len(observed), m)), state_names, [p.ref for p in perturbed],
                        [p.ref for p in observed], h, at, x0,
-                       np.array([_value(units[p.component], p.vr) for p in perturbed]),
-                       np.array([_value(units[p.component], p.vr) for p in observed]), str(path), notes)
+                       np.array([_value(units[p.component], _key(p)) for p in perturbed]),
+                       np.array([_value(units[p.component], _key(p)) for p in observed]), str(path), notes)
 
 
 def _feedthrough(unit: Any, output: str) -> set:
     return unit.info.feedthrough.get(output, set())
 
 
-def _name(unit: Any, vr: int) -> str:
-    return next(v.name for v in unit.info.md.modelVariables if v.valueReference == vr and v.type == "Real")
+def _name(unit: Any, key: Key) -> str:
+    return next(name for name in unit.info.variables if scalar_key(unit.info, name) == key)
 
 
-def _value(unit: Any, vr: int) -> float:
-    return float(unit.fmu.getReal([vr])[0])
+def _value(unit: Any, key: Key) -> float:
+    return float(RealValues(unit.fmu, unit.info).get([key])[0])
 
 
 def _port(components: Mapping[str, Any], reference: str, causality: str) -> Any:
@@ -338,10 +339,12 @@ def _port(components: Mapping[str, Any], reference: str, causality: str) -> Any:
     comp_name, component, names = _expanded(components, reference)
     if len(names) != 1:
         raise BadInput(f"'{reference}' names {len(names)} variables; name one (arrays are expanded by the command)")
-    variable = component.info.variables[names[0]]
-    if variable.causality != causality or variable.type != "Real":
+    info = component.info
+    variable = info.variables[names[0]]
+    if variable.causality != causality or variable.type not in REAL_TYPES:
         raise BadInput(f"'{reference}' is a {variable.type} {variable.causality}; linearize takes Real {causality}s here")
-    return Port(comp_name, names[0], variable.valueReference, "Real", component.info.unit(names[0]))
+    return Port(comp_name, names[0], variable.valueReference, "Real", info.unit(names[0]),
+                fmi_type=variable.type if info.fmi3 else "", index=info.positions.get(names[0], 0))
 
 
 def expand_references(components: Mapping[str, Any], references: Sequence[str]) -> List[str]:

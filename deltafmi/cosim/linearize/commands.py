@@ -61,9 +61,10 @@ def linearize(target: str, save: Optional[str], at: Optional[float], inputs: Seq
     """Linearize TARGET: an FMU (.fmu, or a component source .py) or a scenario (.yaml, .ssp).
 
     \b
-    An FMU gives the continuous A, B, C, D at an operating point (its Model Exchange equations,
-    differentiated by fmi2GetDirectionalDerivative). A scenario gives its closed loop at a
-    communication point as the discrete map over one step: Phi, Gamma, C, D with Ts the step.
+    An FMU (FMI 2.0 or 3.0) gives the continuous A, B, C, D at an operating point (its Model
+    Exchange equations, differentiated by its directional derivatives). A scenario gives its
+    closed loop at a communication point as the discrete map over one step: Phi, Gamma, C, D
+    with Ts the step.
     Writes both as .npz and .mat with the state, input and output names, and prints the poles
     with their damping.
 

@@ -9,13 +9,12 @@ gravity balanced through the closed loops.
 """
 from __future__ import annotations
 
-from ctypes import POINTER, c_double
 from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..stepping.jacobians import FmuJacobian
+from ..stepping.jacobians import FmuJacobian, Key
 
 
 class Equilibrium(NamedTuple):
@@ -26,18 +25,18 @@ class Equilibrium(NamedTuple):
     residual: float
 
 
-def find_equilibrium(jacobian: FmuJacobian, free_inputs: Sequence[int], targets: Mapping[int, float],
+def find_equilibrium(jacobian: FmuJacobian, free_inputs: Sequence[Key], targets: Mapping[Key, float],
                      tolerance: float = 1e-10) -> Equilibrium:
-    """Drive the FMU (in continuous-time mode) to der(x) = 0 with outputs ``targets`` (value
-    reference -> value), solving for ``free_inputs`` (value references) and, when there are
+    """Drive the FMU (in continuous-time mode) to der(x) = 0 with outputs ``targets`` (scalar key,
+    see :mod:`.jacobians` -> value), solving for ``free_inputs`` (keys) and, when there are
     targets, the states. The FMU is left at the solution. Raises ValueError when none is found:
     largest |der(x)| or target miss above ``tolerance`` times its scale."""
-    fmu, nx = jacobian.fmu, jacobian.nx
+    values, nx = jacobian.values, jacobian.nx
     free_inputs, outputs = list(free_inputs), list(targets)
     move_states = bool(outputs)
-    goal = np.array([targets[vr] for vr in outputs], dtype=float)
+    goal = np.array([targets[key] for key in outputs], dtype=float)
     x0 = jacobian.get_states()
-    u0 = np.array(fmu.getReal(free_inputs), dtype=float) if free_inputs else np.zeros(0)
+    u0 = values.get(free_inputs)
     n_states = nx if move_states else 0
     if n_states + len(free_inputs) == 0:
         raise ValueError("nothing to solve for: name inputs to free (or outputs to hold)")
@@ -46,21 +45,21 @@ def find_equilibrium(jacobian: FmuJacobian, free_inputs: Sequence[int], targets:
         if move_states:
             jacobian.set_states(z[:nx])
         if free_inputs:
-            fmu.setReal(free_inputs, list(z[n_states:]))
+            values.set(free_inputs, z[n_states:])
 
     def residual(z: np.ndarray) -> np.ndarray:
         apply(z)
-        dx = np.zeros(nx)
-        if nx:
-            fmu.getDerivatives(dx.ctypes.data_as(POINTER(c_double)), nx)
-        miss = np.array(fmu.getReal(outputs)) - goal if outputs else np.zeros(0)
-        return np.concatenate([dx, miss])
+        return np.concatenate([jacobian.state_derivatives(), values.get(outputs) - goal])
 
     def derivative(z: np.ndarray) -> np.ndarray:
         apply(z)
         knowns = (jacobian.states if move_states else []) + free_inputs
         return jacobian.block(jacobian.derivatives + outputs, knowns)
 
+    if n_states + len(free_inputs) > nx + len(outputs):
+        raise ValueError(f"{n_states + len(free_inputs)} unknowns ({n_states} states, {len(free_inputs)} free inputs) "
+                         f"but {nx + len(outputs)} equations ({nx} derivatives, {len(outputs)} held outputs): "
+                         "free fewer inputs (--free) or hold more outputs (--hold)")
     start = np.concatenate([x0 if move_states else np.zeros(0), u0])
     scale = max(1.0, float(np.max(np.abs(residual(start)))) if nx + len(outputs) else 1.0)
     solution = least_squares(residual, start, jac=derivative, method="lm", x_scale="jac",

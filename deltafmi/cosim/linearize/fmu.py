@@ -10,17 +10,18 @@ import shutil
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any, List, Mapping, Optional, Sequence
+from typing import Any, Dict, List, Mapping, Optional, Sequence
 
 import fmpy
 import numpy as np
 from fmpy.fmi2 import FMU2Model
+from fmpy.fmi3 import FMU3Model
 
 from deltafmi.errors import BadInput, did_you_mean
 
 from ..scenario.fmu_checks import binary_problem
 from ..scenario.modelinfo import ModelInfo, UnknownVariable, model_info
-from ..stepping.jacobians import FmuJacobian
+from ..stepping.jacobians import REAL_TYPES, FmuJacobian, Key, scalar_key
 from ..stepping.unit_base import instantiation_reason, logger_callbacks
 from .equilibrium import find_equilibrium
 from .linear_model import LinearModel
@@ -52,34 +53,43 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
     where = label or str(fmu)
     if info.md.modelExchange is None:
         raise BadInput(f"'{where}' offers no Model Exchange interface: linearizing an FMU needs its equations")
-    if info.fmi3:
-        raise BadInput(f"'{where}' is an FMI 3.0 FMU: linearize takes FMI 2.0 FMUs (deltafmi build --fmi-version 2)")
-    missing = binary_problem(fmu, [info.model_identifier("ME")])
+    missing = binary_problem(fmu, [info.model_identifier("ME")], info.fmi3)
     if missing:
         raise BadInput(f"'{where}' cannot run here: {missing}")
     directory = tempfile.mkdtemp(prefix="deltafmi-linearize-")
     model = None
     errors: List[str] = []
-    callbacks = logger_callbacks(lambda status, category, text: _said(where, status, text, errors))
+    said = lambda status, category, text: _said(where, status, text, errors)  # noqa: E731
     try:
-        model = FMU2Model(guid=info.md.guid, unzipDirectory=fmpy.extract(str(fmu), directory),
-                          modelIdentifier=info.model_identifier("ME"), instanceName="linearize")
+        model = (FMU3Model if info.fmi3 else FMU2Model)(
+            guid=info.md.guid, unzipDirectory=fmpy.extract(str(fmu), directory),
+            modelIdentifier=info.model_identifier("ME"), instanceName="linearize")
         try:
-            model.instantiate(callbacks=callbacks, loggingOn=False)
-        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when fmi2Instantiate returns NULL
+            if info.fmi3:
+                model.instantiate(logMessage=lambda env, status, category, text: said(status, category, _text(text)))
+            else:
+                model.instantiate(callbacks=logger_callbacks(said), loggingOn=False)
+        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when instantiation returns NULL
             model = None  # nothing to free
-            raise BadInput(f"'{where}': fmi2Instantiate failed: "
+            call = "fmi3InstantiateModelExchange" if info.fmi3 else "fmi2Instantiate"
+            raise BadInput(f"'{where}': {call} failed: "
                            f"{instantiation_reason([(3, '', text) for text in errors])}") from None
-        model.setupExperiment(startTime=time)
-        for name, value in (start_values or {}).items():
-            _set(model, info, name, value, where)
-        model.enterInitializationMode()
-        model.exitInitializationMode()
-        while model.newDiscreteStates()[0]:
-            pass
+        if info.fmi3:
+            _set_all(model, info, start_values or {}, where)
+            model.enterInitializationMode(startTime=time)
+            model.exitInitializationMode()
+            while model.updateDiscreteStates()[0]:
+                pass
+        else:
+            model.setupExperiment(startTime=time)
+            _set_all(model, info, start_values or {}, where)
+            model.enterInitializationMode()
+            model.exitInitializationMode()
+            while model.newDiscreteStates()[0]:
+                pass
         model.enterContinuousTimeMode()
-        jac = FmuJacobian(model, info.md)
-        state_names = [d.variable.derivative.name for d in info.md.derivatives]
+        jac = FmuJacobian(model, info)
+        state_names = jac.state_names
         if states:
             x = jac.get_states()
             for name, value in states.items():
@@ -91,34 +101,33 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
                                        f"{did_you_mean(n, state_names)}")
                     x[state_names.index(n)] = float(v)
             jac.set_states(x)
-        real_inputs = [v.name for v in info.md.modelVariables
-                       if v.causality == "input" and v.type == "Real" and v.variability == "continuous"]
-        real_outputs = [v.name for v in info.md.modelVariables
-                        if v.causality == "output" and v.type == "Real" and v.variability == "continuous"]
+        real_inputs = [n for n, v in info.variables.items()
+                       if v.causality == "input" and v.type in REAL_TYPES and v.variability == "continuous"]
+        real_outputs = [n for n, v in info.variables.items()
+                        if v.causality == "output" and v.type in REAL_TYPES and v.variability == "continuous"]
         notes = []
         if rest or hold:
             free_names = _expand_all(info, free, where) if free else real_inputs
             targets = {}
             for name, value in (hold or {}).items():
                 names = _expand(info, name, where)
-                targets.update({info.variables[n].valueReference: float(v)
+                targets.update({scalar_key(info, n): float(v)
                                 for n, v in zip(names, _values(name, value, len(names)))})
             try:
-                found = find_equilibrium(jac, [info.variables[n].valueReference for n in free_names], targets)
+                found = find_equilibrium(jac, [scalar_key(info, n) for n in free_names], targets)
             except ValueError as exc:
                 raise BadInput(f"'{where}': {exc}") from None
             notes.append(f"equilibrium: largest |der(x)| {found.residual:.3g}; "
                          + ", ".join(f"{n} = {v:.9g}" for n, v in zip(free_names, found.inputs)))
         input_names = _expand_all(info, inputs, where) if inputs else real_inputs
         output_names = _expand_all(info, outputs, where) if outputs else real_outputs
-        u_vrs = [_real_vr(info, n, "input", where) for n in input_names]
-        y_vrs = [_real_vr(info, n, "output", where) for n in output_names]
+        u_keys = [_real_key(info, n, "input", where) for n in input_names]
+        y_keys = [_real_key(info, n, "output", where) for n in output_names]
         nx = jac.nx
-        J = jac.block(jac.derivatives + y_vrs, jac.states + u_vrs)
+        J = jac.block(jac.derivatives + y_keys, jac.states + u_keys)
         return LinearModel(J[:nx, :nx], J[:nx, nx:], J[nx:, :nx], J[nx:, nx:], state_names, input_names,
-                           output_names, None, time, jac.get_states(),
-                           np.array(model.getReal(u_vrs)) if u_vrs else np.zeros(0),
-                           np.array(model.getReal(y_vrs)) if y_vrs else np.zeros(0), str(fmu), notes)
+                           output_names, None, time, jac.get_states(), jac.values.get(u_keys),
+                           jac.values.get(y_keys), str(fmu), notes)
     except fmpy.fmi1.FMICallException as exc:
         last = errors[-1].strip().splitlines()[-1] if errors and errors[-1].strip() else ""
         raise BadInput(f"'{where}': {exc}" + (f": {last}" if last else "")) from None
@@ -171,29 +180,62 @@ def _values(name: str, value: Any, count: int) -> list:
     return values
 
 
-def _real_vr(info: ModelInfo, name: str, causality: str, where: str) -> int:
+def _real_key(info: ModelInfo, name: str, causality: str, where: str) -> Key:
     variable = info.variables[name]
-    if variable.type != "Real" or variable.causality != causality:
+    if variable.type not in REAL_TYPES or variable.causality != causality:
         raise BadInput(f"'{name}' of '{where}' is {_describe(variable)}; linearize takes Real {causality}s")
-    return variable.valueReference
+    return scalar_key(info, name)
 
 
-def _set(model: FMU2Model, info: ModelInfo, name: str, value: Any, where: str) -> None:
-    names = _expand(info, name, where)
-    for n, v in zip(names, _values(name, value, len(names))):
-        variable = info.variables[n]
-        kind = variable.type
-        try:
-            if kind == "Real":
-                model.setReal([variable.valueReference], [float(v)])
-            elif kind in ("Integer", "Enumeration"):
-                model.setInteger([variable.valueReference], [int(v)])
-            elif kind == "Boolean":
-                model.setBoolean([variable.valueReference], [bool(v)])
-            else:
-                model.setString([variable.valueReference], [str(v)])
-        except (TypeError, ValueError):
-            raise BadInput(f"'{n}' of '{where}' is {kind}: cannot take {v!r}") from None
-        except fmpy.fmi1.FMICallException:
-            raise BadInput(f"'{n}' of '{where}' ({variable.causality}, {variable.variability}) cannot be set "
-                           "before initialization") from None
+def _set_all(model: Any, info: ModelInfo, start_values: Mapping[str, Any], where: str) -> None:
+    """Set parameters and start values before initialization. FMI 3.0 sets an array whole: its
+    elements not given keep their start values from the modelDescription."""
+    given: Dict[str, Any] = {}
+    for name, value in start_values.items():
+        names = _expand(info, name, where)
+        given.update(zip(names, _values(name, value, len(names))))
+    by_variable: Dict[int, List[str]] = {}
+    for name in given:
+        by_variable.setdefault(info.variables[name].valueReference, []).append(name)
+    for vr, names in by_variable.items():
+        if info.fmi3 and info.sizes[vr] > 1:
+            elements = [n for n, v in info.variables.items() if v.valueReference == vr]
+            values = [given.get(n, info.variables[n].start) for n in elements]
+            _set(model, info, elements[0], [vr], values, where)
+        else:
+            for name in names:
+                _set(model, info, name, [info.variables[name].valueReference], [given[name]], where)
+
+
+def _set(model: Any, info: ModelInfo, name: str, vrs: List[int], values: List[Any], where: str) -> None:
+    variable = info.variables[name]
+    kind = variable.type
+    try:
+        if kind in REAL_TYPES or kind == "Float32":
+            converted, setter = [float(v) for v in values], kind if info.fmi3 else "Real"
+        elif kind == "Boolean":
+            converted, setter = [_boolean(v) for v in values], "Boolean"
+        elif kind == "String":
+            converted, setter = [str(v) for v in values], "String"
+        else:  # Integer, Enumeration, the FMI 3.0 integers
+            converted = [int(v) for v in values]
+            setter = ("Int64" if kind == "Enumeration" else kind) if info.fmi3 else "Integer"
+        getattr(model, f"set{setter}")(vrs, converted)
+    except (TypeError, ValueError):
+        raise BadInput(f"'{name}' of '{where}' is {kind}: cannot take {values[0] if len(values) == 1 else values!r}") \
+            from None
+    except fmpy.fmi1.FMICallException:
+        raise BadInput(f"'{name}' of '{where}' ({variable.causality}, {variable.variability}) cannot be set "
+                       "before initialization") from None
+
+
+def _boolean(value: Any) -> bool:
+    if isinstance(value, str):
+        if value.strip().lower() not in ("true", "false", "1", "0"):
+            raise ValueError(value)
+        return value.strip().lower() in ("true", "1")
+    return bool(value)
+
+
+def _text(message: Any) -> str:
+    return message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message or "")

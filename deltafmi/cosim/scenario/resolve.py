@@ -137,6 +137,12 @@ _INTEGER_RANGES = {f"{sign}Int{bits}": ((0, 2 ** bits - 1) if sign else (-2 ** (
 _NOT_CONNECTABLE = ("Binary", "Clock")
 
 
+def bus_type(fmi_type: str) -> str:
+    """The bus an FMI 2.0 or 3.0 variable type travels on: Real, Integer, Int64, UInt64, Boolean,
+    String; other types (Binary, Clock) by their own name."""
+    return _TYPE_NAMES.get(fmi_type, fmi_type)
+
+
 def resolve_system(scenario: Scenario, check_fmus: bool = False) -> System:
     """Locate/build the FMUs and check everything; raises :class:`ScenarioError` on any error.
 
@@ -259,6 +265,11 @@ class _Checker:
         if missing:
             self.error(spec.line, f"component '{spec.name}': FMU '{path.name}' cannot run here: {missing}")
             return None
+        if info.fmi3:
+            from .fmu_checks import clock_problem
+            refused = clock_problem(path, interface)
+            if refused:
+                self.error(spec.line, f"component '{spec.name}': FMU '{path.name}': {refused}")
         if check_fmus:
             from fmpy.validation import validate_fmu
             for problem in validate_fmu(str(path)):
@@ -338,7 +349,7 @@ class _Checker:
                     self.error(param.line, f"{where}: '{name}' is {_article(var.causality)} "
                                            f"({var.initial or 'calculated'}) and cannot be set", at)
                     break
-                kind = _VALUE_KINDS.get(var.type, _TYPE_NAMES.get(var.type, var.type))
+                kind = _VALUE_KINDS.get(var.type, bus_type(var.type))
                 if kind in _NOT_CONNECTABLE:
                     self.error(param.line, f"{where}: '{name}' is a {kind} variable, which the master does not "
                                            "set", at)
@@ -546,7 +557,7 @@ def _port(component: Component, name: str) -> Port:
     info = component.info
     var = info.variables[name]
     enumeration = info.enumeration(name)
-    return Port(component.name, name, var.valueReference, _TYPE_NAMES.get(var.type, var.type),
+    return Port(component.name, name, var.valueReference, bus_type(var.type),
                 info.unit(name), enumeration[0] if enumeration else "",
                 var.type if info.fmi3 and var.type != "Enumeration" else "", info.positions.get(name, 0))
 

@@ -18,6 +18,15 @@ have the same C signatures, see :func:`.unit_base.api_name`).
   master's communication point, so the master's grid stays what it was; the master records a
   row just before and after each such event, as for Model Exchange. ``terminateSimulation``
   raises :class:`.Terminated` at ``lastSuccessfulTime``.
+* Clocks (:mod:`.clocks`): the periodic input Clocks of a unit are activated at their ticks
+  (``fmi3SetClock`` in Event Mode, then ``fmi3UpdateDiscreteStates``). Model Exchange: each tick
+  is a time event of the unit (the tick at the start in the initial Event Mode). Co-Simulation
+  (instantiated with ``eventModeUsed``, which FMI 3.0 requires of an FMU with clocks): the ticks
+  in ``[t, t + h)`` are taken inside the step from ``t`` (a tick at ``t`` with the inputs given
+  at ``t``, as FMI 2.0 Co-Simulation FMUs sample in fmi2DoStep; one inside the step after an
+  fmi3DoStep to it, with a row before and after it). Clocks ticking at one instant are
+  activated together. Output Clocks are read (fmi3GetClock) in every Event Mode before the
+  update. Units with clocks run in the Python loop.
 """
 from __future__ import annotations
 
@@ -32,6 +41,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Model, FMU3Slave, fmi3Discard
 
 from ..scenario.resolve import Port
+from .clocks import UnitClocks, unit_clocks
 from .me_integrator import ModelExchangeUnit
 from .unit_base import (FmuFailure, Terminated, Unit, _Inputs, _Outputs, _StringInputs, _StringOutputs, bare_function,
                         decoded)
@@ -52,6 +62,9 @@ def _api_type(variable_type: str) -> str:
 
 class Fmi3Values(Unit):
     """What an FMI 3.0 unit does differently from an FMI 2.0 :class:`.Unit`."""
+
+    #: the unit's Clocks (None: it has none), see :mod:`.clocks`
+    clocks: Optional[UnitClocks] = None
 
     # --- life cycle ---------------------------------------------------------------------------
     def _set_up_experiment(self, tolerance: Optional[float], start: float, stop: float) -> None:
@@ -75,11 +88,26 @@ class Fmi3Values(Unit):
 
     def exit_initialization(self, time: float) -> None:
         """fmi3ExitInitializationMode; then the inputs' current values, so that the elements of an
-        array no connection drives keep them."""
+        array no connection drives keep them. The clocks' intervals and shifts are asked for
+        before (in Initialization Mode, as FMI 3.0 says)."""
+        if self.clocks is not None:
+            self.clocks.schedule(self, time)
         self.call(self.fmu.exitInitializationMode)
         self.initialized = True
         for inputs in self.inputs:
             self.call(inputs.seed)
+
+    # --- FMU state: the clocks' ticks go back with it ------------------------------------------
+    def save_state(self) -> Any:
+        return super().save_state(), self.clocks.state() if self.clocks is not None else None
+
+    def restore_state(self, state: Any) -> None:
+        super().restore_state(state[0])
+        if self.clocks is not None:
+            self.clocks.restore(state[1])
+
+    def free_state(self, state: Any) -> None:
+        super().free_state(state[0])
 
     # --- values -------------------------------------------------------------------------------
     @cached_property
@@ -189,6 +217,7 @@ class CoSimulationUnit3(Fmi3Values):
 
     def __init__(self, component: Any, unzip_dir: str, fmu: Any = None) -> None:
         super().__init__(component, unzip_dir, fmu)
+        self.clocks = unit_clocks(self.name, unzip_dir, self.interface)
         self.event_mode = bool(component.info.md.coSimulation.hasEventMode)
         self.no_prior_state = True
         self._flags = (c_bool(), c_bool(), c_bool(), c_double())  # eventHandlingNeeded, terminate, early, last
@@ -210,8 +239,29 @@ class CoSimulationUnit3(Fmi3Values):
             self.call(self.fmu.enterStepMode)
 
     def do_step(self, time: float, step: float) -> None:
-        """fmi3DoStep to ``time + step``, through every event and early return on the way."""
-        self._carry_on(time, time + step)
+        """fmi3DoStep to ``time + step``, through every event and early return on the way, and
+        every clock tick in ``[time, time + step)`` (see the module)."""
+        end = time + step
+        clocks = self.clocks
+        if clocks is None:
+            self._carry_on(time, end)
+            return
+        now = time
+        while clocks.next_tick() < end - 1e-12 * max(1.0, abs(end)):
+            tick = clocks.next_tick()
+            inside = tick > now + 1e-12 * max(1.0, abs(now))
+            if inside:
+                self._carry_on(now, tick)
+                now = tick
+                self.on_event(self, now, False)
+            self.call(self.fmu.enterEventMode)
+            clocks.activate(self, now)
+            self._event_iteration(now)
+            clocks.refresh(self, now)
+            self.call(self.fmu.enterStepMode)
+            if inside:
+                self.on_event(self, now, True)
+        self._carry_on(now, end)
 
     def finish_step(self, time: float, step: float, status: int, flags: int, last: float) -> None:
         """The rest of :meth:`do_step` from ``time`` after an fmi3DoStep (made in C, see
@@ -250,6 +300,8 @@ class CoSimulationUnit3(Fmi3Values):
         return reached
 
     def _event_iteration(self, time: float) -> None:
+        if self.clocks is not None:
+            self.clocks.read_outputs(self)
         for _ in range(_MAX_EVENT_ITERATIONS):
             needed, terminate, _, _, _, _ = self.call(self.fmu.updateDiscreteStates)
             if terminate:
@@ -266,7 +318,24 @@ class ModelExchangeUnit3(ModelExchangeUnit, Fmi3Values):
     interface = "ME"
     fmu_class = FMU3Model
 
+    def __init__(self, component: Any, unzip_dir: str, fmu: Any = None) -> None:
+        super().__init__(component, unzip_dir, fmu)
+        self.clocks = unit_clocks(self.name, unzip_dir, self.interface)
+
     instantiate_call = "fmi3InstantiateModelExchange"
 
     def _instantiate_fmu(self) -> None:
         self.fmu.instantiate(loggingOn=self.logging_on, logMessage=self._log_message)
+
+    def _event_iteration(self, t: float) -> tuple:
+        """The clocks ticking at ``t`` first, then the event iteration; the next tick is a time
+        event of the unit."""
+        clocks = self.clocks
+        if clocks is None:
+            return super()._event_iteration(t)
+        clocks.activate(self, t)
+        clocks.read_outputs(self)
+        changed = super()._event_iteration(t)
+        clocks.refresh(self, t)
+        self.next_event_time = clocks.earliest(self.next_event_time)
+        return changed

@@ -37,8 +37,8 @@ from ..scenario.resolve import Component, Port, System
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
 from .loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
-from .native_loop import (FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT, STEP_RETURNED,
-                          TERMINATED, NativeLoop)
+from .native_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
+                          STEP_RETURNED, TERMINATED, NativeLoop)
 from .stop_signals import StopSignals
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
@@ -211,6 +211,11 @@ class Master:
     def _partial_note(self) -> str:
         if self.writer is None:
             return f" ({self._nothing_kept()})" if self.result_path.exists() else ""
+        if self._deferred is not None:
+            try:
+                self.commit_events()  # the failing step's events came before the failure
+            except SimulationError:  # a NaN in one of them: the failure at hand is the one to tell
+                pass
         self.writer.flush()
         return f" (results up to the failure in {self.result_path})"
 
@@ -377,8 +382,12 @@ class Master:
                 k += 1
 
     def _step_in_python(self, actions: Sequence[Tuple[Any, str, int]], grid: "_FixedGrid", k: int,
-                        first: int = 0) -> None:
-        """Step ``k`` of the fixed grid from action ``first`` on (earlier ones done), and its row."""
+                        first: int = 0, held: Optional[Tuple[bool, int]] = None) -> None:
+        """Step ``k`` of the fixed grid from action ``first`` on (earlier ones done), and its row;
+        the step's event rows are held (from ``held``, a :meth:`hold_events` mark, when the step
+        began elsewhere) and written in time order before it: units step one after the other,
+        and a later one's event may come earlier in the step."""
+        held = self.hold_events() if held is None else held
         t = self.time = grid.start + k * grid.h
         n_steps, last, h = grid.n_steps, grid.last, grid.h
         self.step_end = grid.start + (k + 1) * h if k + 1 < n_steps else grid.stop
@@ -391,6 +400,7 @@ class Master:
                 unit.pull()
             else:
                 unit.fetch()
+        self.release_events(held)
         self.steps = k + 1
         t_next = self.time = self.step_end
         if (k + 1) % self.every == 0 or k + 1 == n_steps:
@@ -413,14 +423,19 @@ class Master:
         self.step_end = grid.start + (done + 1) * grid.h if done + 1 < grid.n_steps else grid.stop
         unit, action, index, function = native.stopped_at()
         plan = native.plan
+        if why == CLOCK_INSIDE:  # a Clock ticks inside the unit's step: Python takes the step from there
+            self._step_in_python(native.actions, grid, done, index, self.hold_events())
+            return done + 1
         if why == STEP_RETURNED:  # an FMI 3.0 fmi3DoStep with an event, an early return or a termination
             _, _, m = native.actions[index]
             op = native.stopped_op()
+            held = self.hold_events()
             unit.finish_step(t, m * grid.h if done + m < grid.last else grid.stop - t, op.step_status, op.flags,
                              op.last_time)
-            self._step_in_python(native.actions, grid, done, index + 1)
+            self._step_in_python(native.actions, grid, done, index + 1, held)
             return done + 1
         if why in (STEP_EVENT, STATE_EVENT):
+            held = self.hold_events()
             if why == STEP_EVENT:
                 unit.finish_step_event(plan.time)
             else:
@@ -432,7 +447,7 @@ class Master:
                     raise unit.failure(exc) from None
                 _, _, m = native.actions[index]
                 unit.finish_state_event(t, m * grid.h if done + m < grid.last else grid.stop - t)
-            self._step_in_python(native.actions, grid, done, index + 1)
+            self._step_in_python(native.actions, grid, done, index + 1, held)
             return done + 1
         if why == TERMINATED:
             raise Terminated(unit.name, plan.time)
@@ -509,7 +524,12 @@ class Master:
             raise KeyboardInterrupt
 
     def _on_event(self, unit: Unit, t: float, after: bool) -> None:
-        if after and abs(t - self.step_end) <= 1e-12 * max(1.0, abs(t)):
+        # an event within round-off of the step's start or end (a unit's own t + h, or an FMU's
+        # accumulated event time, can be an ulp off the grid's start + k h) is recorded there
+        for grid_time in (self.time, self.step_end):
+            if abs(t - grid_time) <= 1e-12 * max(1.0, abs(t)):
+                t = grid_time
+        if after and t == self.step_end:
             # an event at the end of the step: the step's own row shows the values after it
             self.events += self._deferred is None
             if self._deferred is not None:
@@ -527,8 +547,8 @@ class Master:
         self._deferred = []
 
     def commit_events(self) -> None:
-        """Write the held event rows."""
-        for t, row, after in self._deferred or ():
+        """Write the held event rows, in time order (a unit's rows stay in their order)."""
+        for t, row, after in sorted(self._deferred or (), key=lambda held: held[0]):
             self.events += after
             if row is not None:
                 self.writer.write(t, row)

@@ -112,10 +112,9 @@ class ModelExchangeUnit(Unit):
         else:
             atol = 1.0
         # the Newton matrix from the FMU's directional derivatives, when it provides them
-        # (an FMI 3.0 FMU: CVODE's own difference quotients)
         use = options.get("jacobian", computes_exact_derivatives(self.fmu.unzipDirectory))
-        self._newton = None if self.fmi3 else FmuJacobian(self.fmu, self.info.md, exact=bool(use))
-        exact = self._newton is not None and self._newton.exact
+        self._newton = FmuJacobian(self.fmu, self.info, exact=bool(use))
+        exact = self._newton.exact
         return Cvode(self._rhs, self._x.copy(), time, roots=self._roots if self.nz else None, n_roots=self.nz,
                      rtol=rtol, atol=atol, max_step=max_step, method=method,
                      max_num_steps=int(options.get("max_num_steps", 100000)),

@@ -12,7 +12,9 @@ It covers Co-Simulation units and Model Exchange units on a fixed-step Runge-Kut
 without time events or discrete inputs (event indicators are compared after every Runge-Kutta
 step, as :class:`.ExplicitRungeKutta` does), with numeric (not String) values and no algebraic
 loop; FMI 3.0 units too where their values are Float64, Int32 or Boolean (an fmi3DoStep that
-returns an event, an early return or a termination hands its step back). Anything else runs in
+returns an event, an early return or a termination hands its step back), and the ticks of a
+Co-Simulation unit's periodic input Clocks at communication points (a tick inside a step hands
+the step back; :mod:`.clocks`). Anything else runs in
 Python; so do the steps after a C run stopped at an event (a state event is located by the
 solver's bisection), a failure or a termination, which the master finishes exactly as its
 Python loop would.
@@ -31,15 +33,17 @@ from deltafmi.export.compiler import plain_c_library
 from .explicit_rk import ExplicitRungeKutta
 from .unit_base import Unit, _Inputs, _Outputs, function_address
 
-SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP, SET_BOOL3, GET_BOOL3 = range(8)
+SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP, SET_BOOL3, GET_BOOL3, CLOCK_TICK = range(9)
 #: why a C run stopped
-RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED = range(8)
+RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED, CLOCK_INSIDE = range(9)
 #: the FMI 3.0 type the C loop exchanges on each bus (others: the Python loop)
 _FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 _SET, _GET = {"Real": SET_REAL, "Integer": SET_INT, "Boolean": SET_INT}, \
     {"Real": GET_REAL, "Integer": GET_INT, "Boolean": GET_INT}
 #: the ME_STEP call that failed (Plan.call)
 ME_CALLS = ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2CompletedIntegratorStep", "fmi2GetEventIndicators")
+#: the CLOCK_TICK call that failed (Plan.call)
+CLOCK_CALLS = ("fmi3EnterEventMode", "fmi3SetClock", "fmi3UpdateDiscreteStates", "fmi3EnterStepMode")
 #: the actions of a unit in a step, in the Python loop's terms
 PULL, STEP, FETCH = "pull", "do_step", "fetch"
 
@@ -54,7 +58,10 @@ class _Op(ctypes.Structure):
                 ("nz", c_size_t), ("get_indicators", c_void_p), ("z", c_void_p), ("z_last", c_void_p),
                 ("z_valid", c_void_p), ("x0", c_void_p),
                 ("fmi3", c_int), ("positions", c_void_p), ("n_index", c_size_t), ("n_values", c_size_t),
-                ("flags", c_int), ("step_status", c_int), ("last_time", c_double)]
+                ("flags", c_int), ("step_status", c_int), ("last_time", c_double),
+                ("clock_first", c_void_p), ("clock_count", c_void_p), ("clock_interval", c_void_p),
+                ("clock_activated", c_void_p), ("due_vrs", c_void_p), ("on", c_void_p),
+                ("enter_event_mode", c_void_p), ("update_discrete_states", c_void_p), ("enter_step_mode", c_void_p)]
 
 
 class _RowPart(ctypes.Structure):
@@ -99,8 +106,9 @@ def _fits(unit: Unit) -> bool:
         return False
     if not all(isinstance(o, _Outputs) and o.kind in _GET for o in unit.outputs):
         return False
+    clocks = getattr(unit, "clocks", None)
     if unit.interface == "CS":
-        return True
+        return clocks is None or clocks.steps_in_c
     return unit.interface == "ME" and not unit._discrete_inputs and isinstance(unit.solver, ExplicitRungeKutta)
 
 
@@ -192,8 +200,9 @@ class NativeLoop:
                      _function(unit, "Get", outputs.kind)) for outputs in unit.outputs]
         if unit.interface == "CS":
             name = "fmi3DoStep" if unit.fmi3 else "fmi2DoStep"
-            return [(_Op(kind=DO_STEP, multiple=m, function=function_address(unit.fmu, name), component=handle,
-                         no_prior_state=unit.no_prior_state, fmi3=unit.fmi3), name)]
+            step = (_Op(kind=DO_STEP, multiple=m, function=function_address(unit.fmu, name), component=handle,
+                        no_prior_state=unit.no_prior_state, fmi3=unit.fmi3), name)
+            return [step] if getattr(unit, "clocks", None) is None else [self._clock_op(unit, m), step]
         solver = unit.solver
         erk, erk_plan, erk_current = solver.kernel
         box = np.array([solver.t])
@@ -211,6 +220,23 @@ class NativeLoop:
                      z_last=_pointer(indicators.z_last), z_valid=_pointer(indicators.valid),
                      x0=_pointer(indicators.x0), fmi3=unit.fmi3),
                  "")]
+
+    def _clock_op(self, unit: Unit, m: int) -> Tuple[_Op, str]:
+        """The CLOCK_TICK before a Co-Simulation unit's fmi3DoStep: its input Clocks' ticks due at
+        the step's start, on the unit's own schedule arrays (:class:`.clocks.UnitClocks`)."""
+        clocks, fmu = unit.clocks, unit.fmu
+        vrs = np.array(clocks.vrs, dtype=np.uint32)
+        scratch = (np.zeros(len(vrs), dtype=np.uint32), np.ones(len(vrs), dtype=np.bool_))
+        self._keep += [clocks, vrs, scratch]
+        op = _Op(kind=CLOCK_TICK, multiple=m, function=function_address(fmu, "fmi3SetClock"),
+                 component=fmu.component, vrs=_pointer(vrs), n=len(vrs), fmi3=1,
+                 clock_first=_pointer(clocks.first), clock_count=_pointer(clocks.count),
+                 clock_interval=_pointer(clocks.interval), clock_activated=_pointer(clocks.activated),
+                 due_vrs=_pointer(scratch[0]), on=_pointer(scratch[1]),
+                 enter_event_mode=function_address(fmu, "fmi3EnterEventMode"),
+                 update_discrete_states=function_address(fmu, "fmi3UpdateDiscreteStates"),
+                 enter_step_mode=function_address(fmu, "fmi3EnterStepMode"))
+        return op, ""
 
     def _value_op(self, unit: Unit, holder: Any, kind: int, function: str, m: int, values: Optional[np.ndarray],
                   bus: Optional[np.ndarray], index: Optional[np.ndarray], factor: Optional[np.ndarray],
@@ -281,4 +307,5 @@ class NativeLoop:
         plan = self.plan
         a = self.op_action[plan.op]
         unit, action, _ = self.actions[a]
-        return unit, action, a, self.op_function[plan.op] or ME_CALLS[plan.call]
+        calls = CLOCK_CALLS if self._ops_array[plan.op].kind == CLOCK_TICK else ME_CALLS
+        return unit, action, a, self.op_function[plan.op] or calls[plan.call]

@@ -30,6 +30,9 @@ typedef struct {
                                    * the first scalar of a declaration */
     size_t n_clocks;              /* value references: n_total = time, then the clocks, then one
                                    * Float64 variable per event indicator */
+    const int64_t *clock_period_index; /* n_clocks: index in `real` of the Clock's period Parameter,
+                                        * -1 where the interval is a constant ... */
+    const double *clock_interval;      /* ... given here (NaN otherwise) */
 } DfmiLayout;
 
 typedef enum {
@@ -37,11 +40,13 @@ typedef enum {
     DFMI_EXIT_INITIALIZATION,      /* args: none, or 1 (FMI 3.0 Co-Simulation with event mode used) */
     DFMI_EVALUATE,                 /* args: time; derivatives, event indicators and outputs */
     DFMI_DO_STEP,                  /* args: current communication point, step size[, event mode
-                                    * used (1: stop at the first event, leave it pending)] */
+                                    * used (1: stop at the first event, leave it pending; a
+                                    * component that steps itself then steps as one that does not)] */
     DFMI_TERMINATE,
     DFMI_RESET,
     DFMI_EVALUATE_DERIVATIVES,     /* args: time; derivatives and event indicators only */
     DFMI_EVALUATE_OUTPUTS,         /* args: time; outputs only (everything in initialization) */
+    DFMI_ACTIVATE_MODEL_PARTITION, /* args: Clock index (0-based), activation time (Scheduled Execution) */
     DFMI_N_OPS
 } DfmiOp;
 

@@ -127,6 +127,7 @@ const char *dfmi_state_name(const Instance *c, int state) {
     case StepCanceled: return "step canceled";
     case Terminated: return "terminated";
     case ConfigurationMode: return "configuration mode";
+    case ClockActivationMode: return "clock activation mode";
     case Error: return "error";
     default: return "fatal";
     }
@@ -164,6 +165,7 @@ Instance *dfmi_new_instance(const char *name, int fmi_version, int interface, Df
     c->log_mask = logging_on ? DFMI_ALL_CATEGORIES : DFMI_STATUS_CATEGORIES;
     c->stop_time = NAN;
     c->tolerance = NAN;
+    dfmi_reset_clocks(c);
     return c;
 }
 
@@ -261,6 +263,7 @@ int dfmi_reset(Instance *c) {
         c->stop_defined = c->tolerance_defined = 0;
         c->terminated_by_model = 0;
         c->dirty = c->outputs_dirty = 1;
+        dfmi_reset_clocks(c);
     }
     return dfmi_settle(c, status);
 }
@@ -268,7 +271,7 @@ int dfmi_reset(Instance *c) {
 /* ---------------------------------------------------------------------------------------- */
 /* values                                                                                    */
 
-#define MASK_EVALUATE (InitializationMode | EventMode | ContinuousTimeMode | StepComplete)
+#define MASK_EVALUATE (InitializationMode | EventMode | ContinuousTimeMode | StepComplete | ClockActivationMode)
 
 int dfmi_ensure_evaluated(Instance *c) {
     if (!(c->dirty || c->outputs_dirty) || !(c->state & MASK_EVALUATE)) return DFMI_OK;
@@ -308,7 +311,7 @@ int dfmi_setter_bit(const Instance *c) {
     switch (c->state) {
     case Instantiated: return SET_INSTANTIATED;
     case InitializationMode: return SET_INITIALIZATION;
-    case EventMode: case StepComplete: return SET_EVENT;
+    case EventMode: case StepComplete: case ClockActivationMode: return SET_EVENT;
     case ContinuousTimeMode: return SET_CONTINUOUS;
     default: return 0;
     }
@@ -516,6 +519,33 @@ int dfmi_get_nominals(Instance *c, const char *function, double *nominals, size_
 
 /* ---------------------------------------------------------------------------------------- */
 /* Co-Simulation                                                                             */
+
+/* ---------------------------------------------------------------------------------------- */
+/* Clocks (FMI 3.0)                                                                          */
+
+void dfmi_reset_clocks(Instance *c) {
+    c->clocks_active = 0;
+    for (size_t i = 0; i < 64; i++) c->clock_reported[i] = c->clock_activated[i] = NAN;
+}
+
+double dfmi_clock_interval(const Instance *c, size_t i) {
+    int64_t index = c->L.clock_period_index[i];
+    return index >= 0 && (size_t)index < c->L.n_real ? c->L.real[index] : c->L.clock_interval[i];
+}
+
+int dfmi_activate_model_partition(Instance *c, const char *function, size_t i, double activation_time) {
+    if (!isnan(c->clock_activated[i]) && !(activation_time > c->clock_activated[i]))
+        return dfmi_fail(c, "%s: activationTime %.17g of Clock %u is not after its previous activation at %.17g "
+                         "(activation times of a Clock must increase strictly)", function, activation_time,
+                         (unsigned)(c->L.n_real + c->L.n_int + c->L.n_str + 1 + i), c->clock_activated[i]);
+    double args[2] = {(double)i, activation_time};
+    int status = bridge_call(c->py, DFMI_ACTIVATE_MODEL_PARTITION, args, 2);
+    if (status < DFMI_ERROR) {
+        c->clock_activated[i] = c->time = activation_time;
+        c->dirty = c->outputs_dirty = 0; /* the partition evaluated what it computes */
+    }
+    return dfmi_settle(c, status);
+}
 
 int dfmi_terminated(const Instance *c) { return c->L.control && c->L.control[0] != 0.0; }
 

@@ -22,7 +22,7 @@
 #define IS_ENUMERATION 32 /* an Enumeration: FMI 3.0 reads and sets it as Int64 */
 
 enum { DFMI_OK = 0, DFMI_WARNING = 1, DFMI_DISCARD = 2, DFMI_ERROR = 3, DFMI_FATAL = 4 };
-enum { DFMI_MODEL_EXCHANGE = 0, DFMI_CO_SIMULATION = 1 };
+enum { DFMI_MODEL_EXCHANGE = 0, DFMI_CO_SIMULATION = 1, DFMI_SCHEDULED_EXECUTION = 2 };
 
 /* One bit per state of either standard. FMI 3.0's Step Mode is FMI 2.0's step complete and its
  * Step Discarded FMI 2.0's step failed: the same rules hold for values and evaluation. */
@@ -30,13 +30,13 @@ typedef enum {
     StartAndEnd = 1 << 0, Instantiated = 1 << 1, InitializationMode = 1 << 2, EventMode = 1 << 3,
     ContinuousTimeMode = 1 << 4, StepComplete = 1 << 5, StepInProgress = 1 << 6,
     StepFailed = 1 << 7, StepCanceled = 1 << 8, Terminated = 1 << 9, Error = 1 << 10, Fatal = 1 << 11,
-    ConfigurationMode = 1 << 12
+    ConfigurationMode = 1 << 12, ClockActivationMode = 1 << 13 /* FMI 3.0 Scheduled Execution */
 } ModelState;
 #define StepMode StepComplete
 #define StepDiscarded StepFailed
 
 #define ANY_INSTANCE (Instantiated | InitializationMode | EventMode | ContinuousTimeMode | StepComplete | \
-                      StepFailed | StepCanceled | Terminated | Error | ConfigurationMode)
+                      StepFailed | StepCanceled | Terminated | Error | ConfigurationMode | ClockActivationMode)
 
 typedef struct Instance Instance;
 /* Hand one message to the host's logger (each API knows its logger's signature). */
@@ -58,6 +58,12 @@ struct Instance {
     int dirty;         /* inputs, states or time changed: derivatives and indicators are stale */
     int outputs_dirty; /* outputs are stale (a solver asking for derivatives does not need them) */
     int event_mode_used, early_return_allowed; /* FMI 3.0 Co-Simulation */
+    /* FMI 3.0 Clocks (L.n_clocks <= 64): bit i set while input Clock i is active (from fmi3SetClock
+     * in Event Mode to fmi3UpdateDiscreteStates); the interval last reported per Clock by
+     * fmi3GetIntervalDecimal (NaN: none yet); Scheduled Execution: the last activation time per Clock */
+    uint64_t clocks_active;
+    double clock_reported[64];
+    double clock_activated[64];
     DfmiLayout L;
     void *py;
 };
@@ -128,6 +134,14 @@ int dfmi_get_derivatives(Instance *c, const char *function, double *dx, size_t n
 int dfmi_get_event_indicators(Instance *c, const char *function, double *z, size_t nz);
 int dfmi_get_continuous_states(Instance *c, const char *function, double *x, size_t nx);
 int dfmi_get_nominals(Instance *c, const char *function, double *nominals, size_t nx);
+
+/* ---- Clocks (FMI 3.0) ---- */
+/* Forget the Clocks' history (a new instance, fmi3Reset). */
+void dfmi_reset_clocks(Instance *c);
+/* The current interval of Clock i (0-based): its period Parameter's value, or its constant. */
+double dfmi_clock_interval(const Instance *c, size_t i);
+/* Scheduled Execution: the partition of Clock i at activation_time (strictly after the last one). */
+int dfmi_activate_model_partition(Instance *c, const char *function, size_t i, double activation_time);
 
 /* ---- Co-Simulation ---- */
 /* Whether the component ended the simulation (Component.terminate_simulation). */

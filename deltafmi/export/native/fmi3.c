@@ -18,20 +18,28 @@
 #include "fmi3Functions.h"
 #include "core.h"
 
-#define MASK_GET (InitializationMode | EventMode | ContinuousTimeMode | StepMode | StepDiscarded | Terminated | Error)
-#define MASK_SET_FLOAT (Instantiated | InitializationMode | EventMode | ContinuousTimeMode | StepMode)
-#define MASK_SET_DISCRETE (Instantiated | InitializationMode | EventMode | StepMode)
+#define MASK_GET (InitializationMode | EventMode | ContinuousTimeMode | StepMode | StepDiscarded | \
+                  ClockActivationMode | Terminated | Error)
+#define MASK_SET_FLOAT (Instantiated | InitializationMode | EventMode | ContinuousTimeMode | StepMode | \
+                        ClockActivationMode)
+#define MASK_SET_DISCRETE (Instantiated | InitializationMode | EventMode | StepMode | ClockActivationMode)
 #define MASK_ME_GET (InitializationMode | EventMode | ContinuousTimeMode | Terminated | Error)
-#define MASK_TERMINATE (EventMode | ContinuousTimeMode | StepMode | StepDiscarded)
+#define MASK_TERMINATE (EventMode | ContinuousTimeMode | StepMode | StepDiscarded | ClockActivationMode)
+/* where the importer may ask for a time-based Clock's interval and shift */
+#define MASK_CLOCK_TIMING (InitializationMode | EventMode | ClockActivationMode)
 
 #define CHECK(function, mask) \
     do { if (!dfmi_allowed(c, function, mask)) return fmi3Error; } while (0)
 /* a function of one interface called on an instance of the other */
 #define CHECK_INTERFACE(function, kind) \
     do { if (c->interface != (kind)) return (fmi3Status)dfmi_fail(c, "%s: not a function of %s (this instance is %s)", \
-         function, (kind) == DFMI_MODEL_EXCHANGE ? "Model Exchange" : "Co-Simulation", \
-         c->interface == DFMI_MODEL_EXCHANGE ? "Model Exchange" : "Co-Simulation"); } while (0)
+         function, interface_name(kind), interface_name(c->interface)); } while (0)
 #define FAIL(...) return (fmi3Status)dfmi_fail(c, __VA_ARGS__)
+
+static const char *interface_name(int kind) {
+    return kind == DFMI_MODEL_EXCHANGE ? "Model Exchange" : kind == DFMI_CO_SIMULATION ? "Co-Simulation"
+                                                                                       : "Scheduled Execution";
+}
 
 static void emit_instance(const Instance *c, int status, const char *category, const char *message) {
     fmi3LogMessageCallback logger;
@@ -124,8 +132,9 @@ static Instance *instantiate(fmi3String name, fmi3String token, fmi3String resou
                              int interface, fmi3InstanceEnvironment env, fmi3LogMessageCallback log) {
     void (*logger)(void);
     memcpy(&logger, &log, sizeof logger);
-    const char *function = interface == DFMI_MODEL_EXCHANGE ? "fmi3InstantiateModelExchange"
-                                                            : "fmi3InstantiateCoSimulation";
+    const char *function = interface == DFMI_MODEL_EXCHANGE  ? "fmi3InstantiateModelExchange"
+                           : interface == DFMI_CO_SIMULATION ? "fmi3InstantiateCoSimulation"
+                                                             : "fmi3InstantiateScheduledExecution";
     if (!name || !name[0]) {
         if (log) log(env, fmi3Error, "logStatusError", "fmi3Instantiate: missing instance name");
         return NULL;
@@ -191,12 +200,19 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
                                                fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
                                                fmi3LockPreemptionCallback lockPreemption,
                                                fmi3UnlockPreemptionCallback unlockPreemption) {
-    (void)instanceName; (void)instantiationToken; (void)resourcePath; (void)visible; (void)loggingOn;
-    (void)clockUpdate; (void)lockPreemption; (void)unlockPreemption;
-    if (logMessage)
-        logMessage(instanceEnvironment, fmi3Error, "logStatusError", "fmi3InstantiateScheduledExecution: this FMU "
-                   "provides Model Exchange and Co-Simulation, not Scheduled Execution");
-    return NULL;
+    /* the model partitions neither tick output Clocks nor preempt one another: the callbacks are
+     * not needed (the standard makes clockUpdate mandatory for FMUs that have such Clocks only) */
+    (void)visible; (void)clockUpdate; (void)lockPreemption; (void)unlockPreemption;
+    Instance *c = instantiate(instanceName, instantiationToken, resourcePath, loggingOn, DFMI_SCHEDULED_EXECUTION,
+                              instanceEnvironment, logMessage);
+    if (c && (!c->L.n_clocks || c->L.nx || c->L.nz || !c->L.clock_period_index)) {
+        dfmi_logf(c, fmi3Error, "logStatusError", "fmi3InstantiateScheduledExecution: this FMU provides Model "
+                  "Exchange and Co-Simulation, not Scheduled Execution (which needs a component with Clocks "
+                  "and neither continuous states nor event indicators)");
+        dfmi_free_instance(c);
+        return NULL;
+    }
+    return c;
 }
 
 void fmi3FreeInstance(fmi3Instance instance) { dfmi_free_instance(instance); }
@@ -223,8 +239,11 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
     Instance *c = instance;
     CHECK("fmi3ExitInitializationMode", InitializationMode);
-    /* Model Exchange, and Co-Simulation with event mode, go on in Event Mode */
-    int next = c->interface == DFMI_MODEL_EXCHANGE || c->event_mode_used ? EventMode : StepMode;
+    /* Model Exchange, and Co-Simulation with event mode, go on in Event Mode; Scheduled Execution
+     * waits for its partitions' activations */
+    int next = c->interface == DFMI_SCHEDULED_EXECUTION                        ? ClockActivationMode
+               : c->interface == DFMI_MODEL_EXCHANGE || c->event_mode_used ? EventMode
+                                                                           : StepMode;
     return (fmi3Status)dfmi_exit_initialization(c, next);
 }
 
@@ -442,78 +461,184 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference vr[], s
 }
 
 /* ---------------------------------------------------------------------------------------- */
-/* clocks: this binary serves none yet (ScheduledExecution and clocked components come later) */
+/* clocks: periodic time-based input Clocks (Clock i at value reference time + 1 + i), each a
+ * `fixed` Clock whose interval is a Parameter or a `constant` one; shift 0; supportsFraction false */
 
-static fmi3Status no_clock(Instance *c, const char *function, const fmi3ValueReference vr[], size_t nvr) {
-    CHECK(function, ANY_INSTANCE);
-    if (!nvr) return fmi3OK;
-    FAIL("%s: %u is not a Clock this FMU serves through the clock functions", function, vr ? vr[0] : 0u);
+/* Whether vr is a Clock; its 0-based index in *i. */
+/* The index (0-based) of the Clock vr names into *i: 1, else 0 (and *i 0). */
+static int clock_of(const Instance *c, fmi3ValueReference vr, size_t *i) {
+    size_t n;
+    *i = 0;
+    if (kind_of(c, vr, &n) != V_CLOCK) return 0;
+    *i = vr - n_total(c) - 1;
+    return 1;
 }
 
+/* Every vr a Clock of this FMU (else an error naming the first that is not): 1, or 0 after an error. */
+static int clocks_named(Instance *c, const char *function, const fmi3ValueReference vr[], size_t nvr,
+                        const void *values) {
+    if (nvr && (!vr || !values)) return dfmi_fail(c, "%s: NULL array argument", function), 0;
+    for (size_t k = 0, i; k < nvr; k++)
+        if (!clock_of(c, vr[k], &i)) {
+            size_t n;
+            if (!c->L.n_clocks || !c->L.clock_period_index)
+                return dfmi_fail(c, "%s: %u is not a Clock (this FMU has no Clocks)", function, vr[k]), 0;
+            return dfmi_fail(c, "%s: %u is not a Clock (it names %s variable; this FMU's Clocks are the value "
+                             "references %zu to %zu)", function, vr[k], kind_name(kind_of(c, vr[k], &n)),
+                             n_total(c) + 1, n_total(c) + c->L.n_clocks), 0;
+        }
+    return 1;
+}
+
+static int is_constant_clock(const Instance *c, size_t i) { return c->L.clock_period_index[i] < 0; }
+
+/* The standard has fmi3GetClock for triggered output and local Clocks; ours are input Clocks,
+ * whose activation is the importer's own (fmi3SetClock). */
 fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Clock values[]) {
-    (void)values;
-    return no_clock(instance, "fmi3GetClock", vr, nvr);
+    Instance *c = instance;
+    CHECK("fmi3GetClock", ANY_INSTANCE);
+    if (!clocks_named(c, "fmi3GetClock", vr, nvr, values)) return fmi3Error;
+    if (!nvr) return fmi3OK;
+    FAIL("fmi3GetClock: Clock %u is an input Clock, activated by the importer (fmi3SetClock); fmi3GetClock is for "
+         "output and local Clocks", vr[0]);
 }
 
+/* The importer activates the Clock at its ticks; the component samples at the same instants,
+ * which stay time events (fmi3UpdateDiscreteStates samples once, whether the Clock, the time
+ * event or both brought the importer here, and deactivates the Clocks). canBeDeactivated is
+ * false: an active Clock cannot be set inactive again. */
 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Clock values[]) {
-    (void)values;
-    return no_clock(instance, "fmi3SetClock", vr, nvr);
+    Instance *c = instance;
+    if (c && c->interface == DFMI_SCHEDULED_EXECUTION)
+        FAIL("fmi3SetClock: must not be called in Scheduled Execution; activate the Clock's model partition "
+             "with fmi3ActivateModelPartition");
+    CHECK("fmi3SetClock", EventMode);
+    if (!clocks_named(c, "fmi3SetClock", vr, nvr, values)) return fmi3Error;
+    fmi3Status status = fmi3OK;
+    for (size_t k = 0, i; k < nvr; k++) {
+        clock_of(c, vr[k], &i);
+        if (!values[k]) {
+            if ((c->clocks_active >> i) & 1u)
+                FAIL("fmi3SetClock: Clock %u is active and cannot be deactivated (canBeDeactivated = false)", vr[k]);
+            continue;
+        }
+        c->clocks_active |= UINT64_C(1) << i;
+        double interval = dfmi_clock_interval(c, i), ticks = (c->time - c->start_time) / interval;
+        if (fabs(ticks - nearbyint(ticks)) > 1e-6) { /* the component samples at its ticks only */
+            dfmi_logf(c, DFMI_WARNING, "logStatusWarning", "fmi3SetClock: Clock %u activated at t = %.17g, "
+                      "between its ticks (every %g s from %g): no sample is due", vr[k], c->time, interval,
+                      c->start_time);
+            status = fmi3Warning;
+        }
+    }
+    return status;
 }
 
 fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                   fmi3Float64 intervals[], fmi3IntervalQualifier qualifiers[]) {
-    (void)intervals; (void)qualifiers;
-    return no_clock(instance, "fmi3GetIntervalDecimal", vr, nvr);
+    Instance *c = instance;
+    const char *function = "fmi3GetIntervalDecimal";
+    CHECK(function, MASK_CLOCK_TIMING);
+    if (!clocks_named(c, function, vr, nvr, intervals) || (nvr && !qualifiers)) {
+        if (c->state != Error) FAIL("%s: NULL array argument", function);
+        return fmi3Error;
+    }
+    for (size_t k = 0, i; k < nvr; k++) {
+        clock_of(c, vr[k], &i);
+        double interval = dfmi_clock_interval(c, i);
+        if (!(interval > 0.0))
+            FAIL("%s: the interval of Clock %u is %g s, its period Parameter (value reference %lld) must be > 0",
+                 function, vr[k], interval, (long long)c->L.clock_period_index[i]);
+        intervals[k] = interval;
+        /* a fixed Clock's interval comes from the FMU: new in Initialization Mode when it differs
+         * from the one last reported; a constant Clock's is in modelDescription.xml */
+        int changed = !is_constant_clock(c, i) && c->state == InitializationMode && interval != c->clock_reported[i];
+        qualifiers[k] = changed ? fmi3IntervalChanged : fmi3IntervalUnchanged;
+        c->clock_reported[i] = interval;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 shifts[]) {
+    Instance *c = instance;
+    CHECK("fmi3GetShiftDecimal", MASK_CLOCK_TIMING);
+    if (!clocks_named(c, "fmi3GetShiftDecimal", vr, nvr, shifts)) return fmi3Error;
+    for (size_t k = 0; k < nvr; k++) shifts[k] = 0.0; /* the first tick is at the start time */
+    return fmi3OK;
+}
+
+/* The fraction variants: supportsFraction is false (a period Parameter is a floating-point number). */
+static fmi3Status no_fraction(Instance *c, const char *function, const fmi3ValueReference vr[], size_t nvr,
+                              const void *values, int mask) {
+    CHECK(function, mask);
+    if (!clocks_named(c, function, vr, nvr, values)) return fmi3Error;
+    if (!nvr) return fmi3OK;
+    FAIL("%s: Clock %u has supportsFraction = false; use the Decimal variant", function, vr[0]);
 }
 
 fmi3Status fmi3GetIntervalFraction(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                    fmi3UInt64 counters[], fmi3UInt64 resolutions[],
                                    fmi3IntervalQualifier qualifiers[]) {
-    (void)counters; (void)resolutions; (void)qualifiers;
-    return no_clock(instance, "fmi3GetIntervalFraction", vr, nvr);
-}
-
-fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 shifts[]) {
-    (void)shifts;
-    return no_clock(instance, "fmi3GetShiftDecimal", vr, nvr);
+    (void)resolutions; (void)qualifiers;
+    return no_fraction(instance, "fmi3GetIntervalFraction", vr, nvr, counters, MASK_CLOCK_TIMING);
 }
 
 fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                 fmi3UInt64 counters[], fmi3UInt64 resolutions[]) {
-    (void)counters; (void)resolutions;
-    return no_clock(instance, "fmi3GetShiftFraction", vr, nvr);
+    (void)resolutions;
+    return no_fraction(instance, "fmi3GetShiftFraction", vr, nvr, counters, MASK_CLOCK_TIMING);
+}
+
+/* Setting an interval or a shift is for Clocks that declare intervalDecimal (or are tunable);
+ * ours give theirs (a fixed Clock: its period Parameter; a constant one: modelDescription.xml). */
+static fmi3Status not_settable(Instance *c, const char *function, const fmi3ValueReference vr[], size_t nvr,
+                               const void *values, const char *what) {
+    CHECK(function, ANY_INSTANCE);
+    if (!clocks_named(c, function, vr, nvr, values)) return fmi3Error;
+    if (!nvr) return fmi3OK;
+    size_t i;
+    clock_of(c, vr[0], &i);
+    if (is_constant_clock(c, i))
+        FAIL("%s: Clock %u is a constant Clock: its %s is given in modelDescription.xml and cannot be set",
+             function, vr[0], what);
+    FAIL("%s: Clock %u is a fixed Clock without intervalDecimal: the FMU gives its %s (%s); set its period "
+         "Parameter (value reference %lld) before fmi3ExitInitializationMode instead", function, vr[0], what,
+         what[0] == 'i' ? "fmi3GetIntervalDecimal" : "0, fmi3GetShiftDecimal", (long long)c->L.clock_period_index[i]);
 }
 
 fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                   const fmi3Float64 intervals[]) {
-    (void)intervals;
-    return no_clock(instance, "fmi3SetIntervalDecimal", vr, nvr);
+    return not_settable(instance, "fmi3SetIntervalDecimal", vr, nvr, intervals, "interval");
 }
 
 fmi3Status fmi3SetIntervalFraction(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                    const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]) {
-    (void)counters; (void)resolutions;
-    return no_clock(instance, "fmi3SetIntervalFraction", vr, nvr);
+    (void)resolutions;
+    return not_settable(instance, "fmi3SetIntervalFraction", vr, nvr, counters, "interval");
 }
 
 fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                const fmi3Float64 shifts[]) {
-    (void)shifts;
-    return no_clock(instance, "fmi3SetShiftDecimal", vr, nvr);
+    return not_settable(instance, "fmi3SetShiftDecimal", vr, nvr, shifts, "shift");
 }
 
 fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                 const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]) {
-    (void)counters; (void)resolutions;
-    return no_clock(instance, "fmi3SetShiftFraction", vr, nvr);
+    (void)resolutions;
+    return not_settable(instance, "fmi3SetShiftFraction", vr, nvr, counters, "shift");
 }
 
 fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
                                       fmi3Float64 activationTime) {
     Instance *c = instance;
-    (void)clockReference; (void)activationTime;
-    CHECK("fmi3ActivateModelPartition", ANY_INSTANCE);
-    FAIL("fmi3ActivateModelPartition: a function of Scheduled Execution, which this FMU does not provide");
+    const char *function = "fmi3ActivateModelPartition";
+    if (c && c->interface != DFMI_SCHEDULED_EXECUTION)
+        FAIL("%s: a function of Scheduled Execution (this instance is %s)", function, interface_name(c->interface));
+    CHECK(function, ClockActivationMode);
+    if (!clocks_named(c, function, &clockReference, 1, &activationTime)) return fmi3Error;
+    size_t i;
+    clock_of(c, clockReference, &i);
+    return (fmi3Status)dfmi_activate_model_partition(c, function, i, activationTime);
 }
 
 /* ---------------------------------------------------------------------------------------- */
@@ -564,7 +689,11 @@ fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
     Instance *c = instance;
     CHECK("fmi3SetFMUState", ANY_INSTANCE);
-    return (fmi3Status)dfmi_set_fmu_state(c, "fmi3SetFMUState", FMUState);
+    int status = dfmi_set_fmu_state(c, "fmi3SetFMUState", FMUState);
+    /* back in time: the next activations of a Clock follow the restored state, not the last ones */
+    if (status < DFMI_ERROR)
+        for (size_t i = 0; i < 64; i++) c->clock_activated[i] = NAN;
+    return (fmi3Status)status;
 }
 
 fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
@@ -723,6 +852,7 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
     int flags[5];
     double next;
     int status = dfmi_update_discrete_states(c, flags, &next);
+    c->clocks_active = 0; /* the Clocks' partitions ran: the next activation is the next tick's */
     /* every output is written, whatever happened */
     *discreteStatesNeedUpdate = flags[0];
     *terminateSimulation = flags[1];
@@ -742,6 +872,7 @@ fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
     CHECK("fmi3EnterContinuousTimeMode", EventMode);
     CHECK_INTERFACE("fmi3EnterContinuousTimeMode", DFMI_MODEL_EXCHANGE);
     c->state = ContinuousTimeMode;
+    c->clocks_active = 0; /* a Clock ticks for its event instant only */
     return fmi3OK;
 }
 
@@ -827,6 +958,7 @@ fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
     CHECK("fmi3EnterStepMode", EventMode);
     CHECK_INTERFACE("fmi3EnterStepMode", DFMI_CO_SIMULATION);
     c->state = StepMode;
+    c->clocks_active = 0; /* a Clock ticks for its event instant only */
     return fmi3OK;
 }
 

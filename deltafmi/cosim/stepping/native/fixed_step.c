@@ -8,7 +8,9 @@
  * FMI 3.0 units (Op.fmi3) make the FMI 3.0 calls instead: fmi3Set/GetFloat64, Int32 and Boolean
  * with nValues (whole arrays, the connected elements scattered to their positions), fmi3DoStep with
  * its outputs (any event, early return or termination hands back), fmi3CompletedIntegratorStep
- * with fmi3Boolean flags. Plain C, no Python.
+ * with fmi3Boolean flags; before the fmi3DoStep of a unit with periodic input Clocks, their ticks
+ * due at the step's start (CLOCK_TICK: fmi3EnterEventMode, fmi3SetClock, fmi3UpdateDiscreteStates
+ * until done, fmi3EnterStepMode; a tick inside the step hands the step back). Plain C, no Python.
  */
 #include <stdbool.h>
 #include <math.h>
@@ -36,14 +38,20 @@ typedef int (*Completed3)(void *, bool, bool *, bool *);
 typedef int (*SetBool3)(void *, const fmi2ValueReference *, size_t, const bool *, size_t);
 typedef int (*GetBool3)(void *, const fmi2ValueReference *, size_t, bool *, size_t);
 typedef int (*ErkSteps)(const void *plan, double t, double h, int steps, double *x);
+typedef int (*Instance3)(void *);
+typedef int (*SetClock3)(void *, const fmi2ValueReference *, size_t, const bool *);
+typedef int (*UpdateDiscrete3)(void *, bool *, bool *, bool *, bool *, bool *, double *);
 
 enum { FMI2_WARNING = 1 };
 /* operations */
 enum { SET_REAL = 0, GET_REAL = 1, SET_INT = 2, GET_INT = 3, DO_STEP = 4, ME_STEP = 5,
-       SET_BOOL3 = 6, GET_BOOL3 = 7 /* FMI 3.0 Booleans (one byte) to and from the int bus */ };
+       SET_BOOL3 = 6, GET_BOOL3 = 7, /* FMI 3.0 Booleans (one byte) to and from the int bus */
+       CLOCK_TICK = 8 /* FMI 3.0 Co-Simulation: the input Clocks due at the step's start */ };
 /* why a run stopped */
 enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_FULL = 5, STATE_EVENT = 6,
-       STEP_RETURNED = 7 /* fmi3DoStep: an event, an early return or a termination (Op.flags) */ };
+       STEP_RETURNED = 7, /* fmi3DoStep: an event, an early return or a termination (Op.flags) */
+       CLOCK_INSIDE = 8 /* CLOCK_TICK: a tick inside the step; nothing done, Python takes the step */ };
+enum { MAX_EVENT_ITERATIONS = 1000 };
 /* Op.flags after fmi3DoStep */
 enum { EVENT_HANDLING_NEEDED = 1, TERMINATE_SIMULATION = 2, EARLY_RETURN = 4 };
 
@@ -87,6 +95,18 @@ typedef struct {
     int flags;               /* DO_STEP out: EVENT_HANDLING_NEEDED | TERMINATE_SIMULATION | EARLY_RETURN */
     int step_status;         /* DO_STEP out: the status of fmi3DoStep */
     double last_time;        /* DO_STEP out: lastSuccessfulTime */
+    /* CLOCK_TICK: the n Clocks' value references in vrs, their ticks first + count * interval
+     * (count advanced here: the arrays are the master's, see clocks.UnitClocks), fmi3SetClock in
+     * function, the other calls below; due_vrs and on: room for n */
+    const double *clock_first;
+    int64_t *clock_count;
+    const double *clock_interval;
+    int64_t *clock_activated;
+    fmi2ValueReference *due_vrs;
+    bool *on;
+    Instance3 enter_event_mode;
+    UpdateDiscrete3 update_discrete_states;
+    Instance3 enter_step_mode;
 } Op;
 
 typedef struct {
@@ -109,7 +129,9 @@ typedef struct {
     long op;                 /* the operation that stopped it */
     int status;              /* its fmi2Status */
     int call;                /* ME_STEP FAILED: 0 fmi2SetTime, 1 fmi2SetContinuousStates,
-                              * 2 fmi2CompletedIntegratorStep, 3 fmi2GetEventIndicators */
+                              * 2 fmi2CompletedIntegratorStep, 3 fmi2GetEventIndicators;
+                              * CLOCK_TICK FAILED: 0 fmi3EnterEventMode, 1 fmi3SetClock,
+                              * 2 fmi3UpdateDiscreteStates, 3 fmi3EnterStepMode */
     double time;             /* ME_STEP: the time reached */
     double rk_time;          /* RK_FAILED, STATE_EVENT: the time its Runge-Kutta step started from */
     double rk_step;          /* STATE_EVENT: that step's size (the states it started from in op->x0) */
@@ -227,6 +249,56 @@ failed:
     return FAILED;
 }
 
+static double tick_of(const Op *o, size_t i)
+{
+    return o->clock_first[i] + (double)o->clock_count[i] * o->clock_interval[i];
+}
+
+/* The unit's Clocks ticking at t (within round-off) activated in one Event Mode, as
+ * CoSimulationUnit3.do_step does; a tick later inside the step [t, t + step) hands back first. */
+static int clock_tick(Plan *p, Op *o, double t, double step)
+{
+    double end = t + step, now_eps = 1e-12 * fmax(1.0, fabs(t)), end_eps = 1e-12 * fmax(1.0, fabs(end));
+    size_t n_due = 0;
+    for (size_t i = 0; i < o->n; i++) {
+        double tick = tick_of(o, i);
+        if (tick > t + now_eps && tick < end - end_eps) return CLOCK_INSIDE;
+    }
+    for (size_t i = 0; i < o->n; i++) {
+        if (!(tick_of(o, i) <= t + now_eps)) continue;
+        while (tick_of(o, i) <= t + now_eps) o->clock_count[i]++; /* more than one: missed ticks */
+        o->clock_activated[i]++;
+        o->due_vrs[n_due] = o->vrs[i];
+        o->on[n_due++] = true;
+    }
+    if (!n_due) return RAN;
+    int status;
+    p->time = t;
+    p->call = 0;
+    if ((status = o->enter_event_mode(o->component)) > FMI2_WARNING) goto failed;
+    p->call = 1;
+    if ((status = ((SetClock3)o->function)(o->component, o->due_vrs, n_due, o->on)) > FMI2_WARNING) goto failed;
+    p->call = 2;
+    for (int round = 0;; round++) {
+        bool update = false, terminate = false, nominals = false, values = false, defined = false;
+        double next = 0.0;
+        status = o->update_discrete_states(o->component, &update, &terminate, &nominals, &values, &defined, &next);
+        if (status > FMI2_WARNING) goto failed;
+        if (terminate) return TERMINATED;
+        if (!update) break;
+        if (round + 1 == MAX_EVENT_ITERATIONS) {
+            status = 3; /* fmi3Error: the iteration does not settle */
+            goto failed;
+        }
+    }
+    p->call = 3;
+    if ((status = o->enter_step_mode(o->component)) > FMI2_WARNING) goto failed;
+    return RAN;
+failed:
+    p->status = status;
+    return FAILED;
+}
+
 static int run_op(Plan *p, Op *o, long k, double t)
 {
     int status = 0;
@@ -282,10 +354,12 @@ static int run_op(Plan *p, Op *o, long k, double t)
         break;
     }
     case DO_STEP:
-    case ME_STEP: {
+    case ME_STEP:
+    case CLOCK_TICK: {
         long m = o->multiple;
         double step = k + m < p->last ? (double)m * p->h : p->stop - t;
         if (o->kind == ME_STEP) return me_step(p, o, t, step);
+        if (o->kind == CLOCK_TICK) return clock_tick(p, o, t, step);
         if (o->fmi3) {
             bool event = false, terminate = false, early = false;
             double last = t + step;
