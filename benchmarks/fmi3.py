@@ -2,7 +2,8 @@
 
 Three paths, each measured for both builds in interleaved rounds of this one run (medians):
 fmpy's own FMU2Slave/FMU3Slave loop (doStep + get of every output), fmpy.simulate_fmu, and our
-master (the Oscillator alone, and the flagship delta_tracking with its three FMUs). The issue's
+master (the Oscillator alone, and the flagship delta_tracking with its three FMUs); the fmpy loop
+also for the DeltaRobot, a component whose step costs more than fmpy's wrappers. The issue's
 target: FMI 3.0 <= 1.1x FMI 2.0 on every path. To tell fmpy's share from ours, the fmpy loop also
 runs the plain-C BouncingBall of tests/third_party (FMI 2.0 and 3.0 front ends on one model, a
 step costs next to nothing there): the difference is what fmpy's FMI 3.0 wrappers add per step,
@@ -14,6 +15,7 @@ from __future__ import annotations
 import argparse
 import ctypes
 import functools
+import math
 import statistics
 import tempfile
 import time
@@ -40,8 +42,9 @@ def fmpy_loop(fmu: Path, steps: int, bare: bool = False) -> float:
     ``bare``: through the same ctypes functions of fmpy's loaded binary without fmpy's Python
     wrappers (which for FMI 3.0 build four output objects per doStep), the FMU's own cost."""
     md = fmpy.read_model_description(str(fmu))
-    outputs = [v.valueReference for v in md.modelVariables
-               if v.causality == "output" and v.type in ("Real", "Float64")]
+    real_outputs = [v for v in md.modelVariables if v.causality == "output" and v.type in ("Real", "Float64")]
+    outputs = [v.valueReference for v in real_outputs]
+    n_values = sum(math.prod(v.shape) if v.dimensions else 1 for v in real_outputs)  # FMI 3.0 arrays whole
     unzipped = fmpy.extract(str(fmu))
     if md.fmiVersion.startswith("3"):
         slave = FMU3Slave(guid=md.instantiationToken, unzipDirectory=unzipped,
@@ -60,10 +63,11 @@ def fmpy_loop(fmu: Path, steps: int, bare: bool = False) -> float:
         get = slave.getReal
     t = 0.0
     if bare:
-        do_step, get = _bare_calls(slave, md.fmiVersion.startswith("3"), outputs)
+        do_step, get = _bare_calls(slave, md.fmiVersion.startswith("3"), outputs, n_values)
     else:
         do_step = slave.doStep
-        get = functools.partial(get, outputs)
+        get = functools.partial(get, outputs, n_values) if md.fmiVersion.startswith("3") else \
+            functools.partial(get, outputs)
     start = time.perf_counter()
     for _ in range(steps):
         do_step(t, STEP)
@@ -75,16 +79,16 @@ def fmpy_loop(fmu: Path, steps: int, bare: bool = False) -> float:
     return elapsed / steps * 1e6
 
 
-def _bare_calls(slave, fmi3: bool, outputs: list[int]):
+def _bare_calls(slave, fmi3: bool, outputs: list[int], n_values: int):
     """doStep(t, h) and get() calling the binary's functions with arguments made once."""
     handle, n = slave.component, len(outputs)
-    vrs, values = (ctypes.c_uint32 * n)(*outputs), (ctypes.c_double * n)()
+    vrs, values = (ctypes.c_uint32 * n)(*outputs), (ctypes.c_double * n_values)()
     if fmi3:
         flags = [ctypes.c_bool() for _ in range(3)]
         last = ctypes.c_double()
         refs = [ctypes.byref(x) for x in (*flags, last)]
         step, get = slave.dll.fmi3DoStep, slave.dll.fmi3GetFloat64
-        return (lambda t, h: step(handle, t, h, True, *refs)), (lambda: get(handle, vrs, n, values, n))
+        return (lambda t, h: step(handle, t, h, True, *refs)), (lambda: get(handle, vrs, n, values, n_values))
     step, get = slave.dll.fmi2DoStep, slave.dll.fmi2GetReal
     return (lambda t, h: step(handle, t, h, 1)), (lambda: get(handle, vrs, n, values))
 
@@ -109,6 +113,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=7)
     args = parser.parse_args()
     fmus = {v: build_cached("Oscillator", fmi_version=v) for v in (2, 3)}
+    robots = {v: build_cached("DeltaRobot", fmi_version=v) for v in (2, 3)}
     flagship = load_scenario("delta_tracking")
     with tempfile.TemporaryDirectory() as tmp:
         result = Path(tmp) / "result.csv"
@@ -119,6 +124,7 @@ def main() -> None:
             paths[f"  same, bare ctypes calls (ball)|{v}"] = lambda n, f=plain_c[v]: fmpy_loop(f, n, bare=True)
             paths[f"fmpy FMU2Slave/FMU3Slave, Oscillator|{v}"] = lambda n, f=fmus[v]: fmpy_loop(f, n)
             paths[f"  same, bare ctypes calls (Oscillator)|{v}"] = lambda n, f=fmus[v]: fmpy_loop(f, n, bare=True)
+            paths[f"fmpy FMU2Slave/FMU3Slave, DeltaRobot|{v}"] = lambda n, f=robots[v]: fmpy_loop(f, n)
             paths[f"fmpy.simulate_fmu, Oscillator|{v}"] = lambda n, f=fmus[v]: simulate_fmu(f, n)
             paths[f"our master, Oscillator|{v}"] = lambda n, f=fmus[v]: master_run(fmu_scenario(f), n, result)
             paths[f"our master, flagship (3 FMUs)|{v}"] = (
