@@ -231,6 +231,7 @@ class ModelExchangeUnit(Unit):
         """
         solver = self.solver
         t0, x0 = solver.t, solver.x.copy()
+        solver.log_errors = False  # a failure here is retried: only the retry's is an error
         try:
             return solver.advance(t_stop)
         except CvodeError:
@@ -239,7 +240,10 @@ class ModelExchangeUnit(Unit):
                 self._set_states(self._handle, self._pointer(x0), self.nx)
             solver.reinit(t0, x0)
             self.restarts += 1
+            solver.log_errors = True
             return solver.advance(t_stop)
+        finally:
+            solver.log_errors = True
 
     def _event(self, t: float, discrete_inputs: list = (), root: bool = False) -> None:
         """Event mode at ``t``: set discrete inputs, iterate, restart CVODE where needed.
