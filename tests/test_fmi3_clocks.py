@@ -397,3 +397,12 @@ def test_portable_scheduled_execution_runs_where_no_python_exists(no_python, hos
     assert interval == f"interval,0.001,{fmi3IntervalChanged}"
     reference = _co_simulation_torques(md, unzipped, vr, recorded[:100])
     assert np.max(np.abs(rows[:, 1:] - reference)) == 0.0
+
+
+def test_info_names_the_scheduled_execution_interface_and_the_clock(fmu3):
+    from click.testing import CliRunner
+
+    from deltafmi.cli import main
+    shown = CliRunner().invoke(main, ["info", str(fmu3)]).output
+    assert "(FMI 3.0, Model Exchange, Co-Simulation, Scheduled Execution)" in shown
+    assert "clocks: sample (input, fixed)" in shown

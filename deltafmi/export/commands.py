@@ -99,7 +99,9 @@ def info(target: str) -> None:
         md = read_model_description(str(fmu), validate=False)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for broken archives
         raise click.ClickException(f"{fmu}: not a readable FMU: {exc}") from exc
-    interfaces = [name for name, present in (("Model Exchange", md.modelExchange), ("Co-Simulation", md.coSimulation)) if present]
+    interfaces = [name for name, present in (("Model Exchange", md.modelExchange), ("Co-Simulation", md.coSimulation),
+                                             ("Scheduled Execution", getattr(md, "scheduledExecution", None)))
+                  if present]
     click.echo(f"{md.modelName}  (FMI {md.fmiVersion}, {', '.join(interfaces)})")
     if md.description:
         click.echo(f"  {md.description}")
