@@ -26,6 +26,9 @@ relative difference). Times: ns per call, the median over instants and rounds of
 ratios against the C transcription measured in the same round. A candidate whose package is
 missing is skipped with the reason.
 
+The generated controller, path and closed loop against the hand C (issue 26 item 2):
+benchmarks/kernel_codegen_flagship.py.
+
 Usage: python benchmarks/kernel_compilers.py [--repeats 5] [--calls 20000]
 """
 from __future__ import annotations
@@ -372,14 +375,14 @@ import math
 
 def probe(x: float, y: float) -> float:
     s = math.sin(x) * y
-    norm = math.sqrt(sum(t * t for t in (s, x, y)))  # a generator: outside the float subset
+    norm = math.sqrt(sum(tuple(t * t for t in (s, x, y))))  # a generator made a tuple: outside the subsets
     return s + norm
 """
 
 
 def unsupported_errors(tmp: Path) -> dict[str, str]:
     """What each compiler says about a kernel with a construct outside its subset (PROBE, line 6,
-    the generator expression as in dynamics.evaluate_plant): the first line of its message."""
+    a generator expression turned into a tuple): the first line of its message."""
     work = tmp / "probe"
     work.mkdir()
     (work / "probe_kernel.py").write_text(PROBE)
