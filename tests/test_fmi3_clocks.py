@@ -165,6 +165,12 @@ def test_a_clock_period_must_be_a_fixed_parameter_in_seconds(period, message):
         Clock(period=0.0)
 
 
+def test_two_clocks_of_one_name_are_refused():
+    twins = type("Twins", (Component,), {"a": Clock(period=1e-3, name="tick"), "b": Clock(period=2e-3, name="tick")})
+    with pytest.raises(ValueError, match="the Clock 'tick' has the name of another variable"):
+        model_description3_xml(twins, "{token}")
+
+
 @pytest.mark.parametrize("before_initialization", [False, True])
 def test_the_interval_is_the_sample_period_changed_once_in_initialization(md, unzipped, vr, before_initialization):
     clock = vr["sample"]
@@ -406,3 +412,48 @@ def test_info_names_the_scheduled_execution_interface_and_the_clock(fmu3):
     shown = CliRunner().invoke(main, ["info", str(fmu3)]).output
     assert "(FMI 3.0, Model Exchange, Co-Simulation, Scheduled Execution)" in shown
     assert "clocks: sample (input, fixed)" in shown
+
+
+TICKER = '''\
+"""Test component: a sampled counter that does not step itself (no do_step), no states."""
+from deltafmi.component import Clock, Component, Experiment, Output, Parameter
+
+
+class Ticker(Component):
+    default_experiment = Experiment(stop=0.006, step=1e-3)
+    sample_period = Parameter(1e-3, unit="s")
+    {clock}
+    n = Output(0, type=int, variability="discrete", description="Samples taken")
+
+    def setup(self):
+        self._t0, self._k = 0.0, 0
+
+    def initialize(self, t):
+        self._t0, self._k = t, 0
+
+    def next_time_event(self, t):
+        return self._t0 + self._k * self.sample_period
+
+    def update(self, t):
+        if t >= self.next_time_event(t) - 1e-9 * self.sample_period:
+            self.n = self.n + 1
+            self._k += 1
+'''
+
+
+@pytest.mark.parametrize("fmi_version", [2, 3])
+@pytest.mark.parametrize("fmi_type", ["CoSimulation", "ModelExchange"])
+def test_a_clock_changes_nothing_for_importers_without_event_mode(tmp_path, fmi_version, fmi_type):
+    """A clock-driven component that does not step itself, in fmpy (no event mode, no clocks):
+    the same samples with and without its Clock declared, FMI 2.0 and 3.0 builds."""
+    from deltafmi.export import build_fmu
+    counts = {}
+    for clocked in (False, True):
+        source = tmp_path / f"ticker{clocked}" / "ticker.py"
+        source.parent.mkdir()
+        source.write_text(TICKER.format(clock='sample = Clock(period="sample_period")' if clocked else ""))
+        fmu = build_fmu(source, tmp_path / f"ticker{clocked}.fmu", fmi_version=fmi_version)
+        result = fmpy.simulate_fmu(str(fmu), fmi_type=fmi_type, stop_time=0.006, output_interval=1e-3,
+                                   output=["n"])
+        counts[clocked] = result["n"].tolist()
+    assert counts[True] == counts[False] and counts[False][-1] >= 6

@@ -267,20 +267,22 @@ def test_flagship_built_as_fmi3_with_the_controllers_clock_equals_fmi2(tmp_path)
     assert np.array_equal(c["controller.status"], np.asarray(fmi2["controller.status"]))
 
 
-def test_ticks_inside_steps_hand_the_step_from_c_to_python(tmp_path):
-    """The controller alone (FMI 3.0, Co-Simulation) sampled every 1.5 ms on a 1 ms grid: ticks at
-    every other communication point are taken in C (CLOCK_TICK), the ones between in Python (the
-    step is split at them, a row before and after). Both loops: the same activations (one per
-    tick: 0, 1.5, ..., 48 ms) and the same rows, bit for bit."""
+@pytest.mark.parametrize("period, ticks, inside, some_in_c", [(1.5e-3, 33, 16, True), (0.6e-3, 83, 66, False)])
+def test_ticks_inside_steps_hand_the_step_from_c_to_python(tmp_path, period, ticks, inside, some_in_c):
+    """The controller alone (FMI 3.0, Co-Simulation) sampled every 1.5 ms (0.6 ms) on a 1 ms grid:
+    ticks at communication points are taken in C (CLOCK_TICK) unless another tick follows inside
+    the step, and steps with a tick inside go to Python (the step is split at it, a row before and
+    after); at 0.6 ms every step has one, also those whose start is a tick. Both loops: the same
+    activations (one per tick before the stop) and the same rows, bit for bit."""
     from deltafmi.cosim.stepping import native_loop
     path = tmp_path / "controller.yaml"
-    path.write_text("""fmi_version: 3
-experiment: {stop: 0.0495, step: 1.0e-3}
+    path.write_text(f"""fmi_version: 3
+experiment: {{stop: 0.0495, step: 1.0e-3}}
 components:
   controller:
     source: deltafmi.models:DeltaController
     interface: CS
-    parameters: {sample_period: 1.5e-3, y: [0.1, 0.2, 0.3], yd: [0.5, 0.0, -0.5], r: [0.01, 0.0, -0.95]}
+    parameters: {{sample_period: {period}, y: [0.1, 0.2, 0.3], yd: [0.5, 0.0, -0.5], r: [0.01, 0.0, -0.95]}}
 outputs: ['controller.u', controller.status]
 """)
     text, in_c = {}, []
@@ -298,11 +300,62 @@ outputs: ['controller.u', controller.status]
             master.run()
         finally:
             native_loop.NativeLoop.run = original
-        assert master.units[0].clocks.activations == {"sample": 33}
+        assert master.units[0].clocks.activations == {"sample": ticks}
         text[native] = master.result_path.read_text()
     assert text[True] == text[False]
-    assert 0 < sum(in_c) < 50
+    assert (0 < sum(in_c) < 50) if some_in_c else sum(in_c) == 0
     c = columns(tmp_path / "True.csv")
     times = c["time"]
-    assert np.all(np.diff(times) >= 0) and len(times) == 51 + 2 * 16  # 16 ticks inside steps
+    assert np.all(np.diff(times) >= 0) and len(times) == 51 + 2 * inside
     assert np.ptp(c["controller.u[1]"]) > 0.1
+
+
+FAILING = '''\
+"""Test component: a clock-driven counter whose sample raises after 3.5 ms."""
+from deltafmi.component import Clock, Component, Experiment, Output, Parameter
+
+
+class Failing(Component):
+    default_experiment = Experiment(stop=0.01, step=1e-3)
+    sample_period = Parameter(1e-3, unit="s")
+    sample = Clock(period="sample_period")
+    n = Output(0, type=int, variability="discrete", description="Samples taken")
+
+    def setup(self):
+        self._t0, self._k = 0.0, 0
+
+    def initialize(self, t):
+        self._t0, self._k = t, 0
+
+    def next_time_event(self, t):
+        return self._t0 + self._k * self.sample_period
+
+    def update(self, t):
+        if t >= self.next_time_event(t) - 1e-9 * self.sample_period:
+            if t > 3.5e-3:
+                raise RuntimeError(f"the sample at t = {t:g} failed")
+            self.n = self.n + 1
+            self._k += 1
+'''
+
+
+def test_a_sample_that_fails_at_a_tick_taken_in_c_is_one_line(tmp_path):
+    """A clock-driven component's sample raises at a tick the C loop takes (fmi3UpdateDiscreteStates
+    fails): the run ends with the failure the Python loop reports, naming the unit and the
+    component's message, no traceback."""
+    from deltafmi.errors import SimulationError
+    (tmp_path / "failing.py").write_text(FAILING)
+    path = tmp_path / "failing.yaml"
+    path.write_text("""fmi_version: 3
+experiment: {stop: 0.01, step: 1.0e-3}
+components:
+  f: {source: failing.py, interface: CS}
+outputs: [f.n]
+""")
+    messages = {}
+    for native in (True, False):
+        with pytest.raises(SimulationError) as failed:
+            Master(resolve_system(load_scenario(path)), result=tmp_path / f"{native}.csv", native=native).run()
+        messages[native] = str(failed.value).replace(f"{native}.csv", "result.csv")
+    assert "the sample at t = 0.004 failed" in messages[True] and "Traceback" not in messages[True]
+    assert messages[True] == messages[False]

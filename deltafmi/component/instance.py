@@ -44,8 +44,8 @@ def _cvode_class(module_context: Callable[[], ContextManager]) -> type[Cvode]:
     if cached is None:
         with module_context():
             from .cvode import Cvode, CvodeError
+        _CVODE["error"] = CvodeError  # before the class: another thread may take the class at once
         cached = _CVODE["class"] = Cvode
-        _CVODE["error"] = CvodeError
     return cached
 
 
@@ -149,14 +149,15 @@ class FmuInstance:
     def native_layout(self) -> tuple:
         """Addresses and sizes of the buffers the native layer reads and writes directly.
 
-        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|Kn``): real
+        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|KnKKp``): real
         buffer, n_real, int buffer, n_int, flags (uint8 per real and int scalar), n_str, nx,
         x_offset, dx_offset, event indicators (double[nz]), nz, nominals (double[nx]), watches
         drift, steps itself, evaluates after a step, control (double[3]: terminated, time reached,
         event pending); then, for FMI 3.0: sizes3 (uint32[n_real + n_int + n_str], the element
         count of the variable whose value reference is the index, 0 inside an array), n_clocks,
         and per Clock the real-buffer index of its period Parameter (int64, -1: constant) and its
-        constant interval (double, NaN where a Parameter gives it).
+        constant interval (double, NaN where a Parameter gives it), and whether the component is
+        clock-driven (:func:`.clocks.clock_driven`).
         FMI 3.0 value references after the scalars: ``time`` = n_real + n_int + n_str, then the
         n_clocks Clocks, then one Float64 per event indicator (Layout.first_indicator_vr)."""
         comp, layout = self.component, self.component_class._layout
@@ -166,7 +167,7 @@ class FmuInstance:
                 layout.nominals.ctypes.data, self.component_class.watches_drift(), self._steps_itself,
                 bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data,
                 layout.sizes3.ctypes.data, layout.n_clocks, layout.clock_period_index.ctypes.data,
-                layout.clock_interval.ctypes.data)
+                layout.clock_interval.ctypes.data, self._clock_driven)
 
     # --- initialization ---------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:
@@ -296,10 +297,13 @@ class FmuInstance:
         comp = self.component
         t_end = self._communication_point(t, h)
         self.control[2] = 0.0
-        if self._solver is not None and (self._restart_for_inputs(t_end) or self._restart_solver):
-            # a zero-order-hold input jumped too far for CVODE's history (the right-hand side is
-            # discontinuous at t), or the importer handled an event here
-            self._solver.reinit(self.time, comp._real[: self.nx])
+        if self._solver is not None:
+            if self._restart_for_inputs(t_end) or self._restart_solver:
+                # a zero-order-hold input jumped too far for CVODE's history (the right-hand side
+                # is discontinuous at t), or the importer handled an event here
+                self._solver.reinit(self.time, comp._real[: self.nx])
+        elif self.nx:
+            self._inputs_changed()  # a fresh solver: the next step compares with these inputs
         self._restart_solver = False
         while self.time < t_end and not self.terminate_requested:
             # in event mode a clock-driven component's events are its Clocks' ticks, which the
@@ -543,6 +547,7 @@ class FmuInstance:
         if self._solver is not None:
             self._solver.free()
             self._solver = None
+        self._derivatives_after_step, self._jump_kept = None, False
 
     def log(self, status: int, category: str, message: str) -> None:
         """Queue a message for the importer's logger."""

@@ -84,13 +84,11 @@ def model_description3_xml(cls: type[Component], token: str) -> bytes:
 
 def cs_event_mode(cls: type[Component]) -> bool:
     """Whether the FMI 3.0 Co-Simulation interface has Event Mode (``hasEventMode``). A component
-    that steps itself handles its events inside its own do_step, except a clocked one without
-    continuous states: an importer can activate a Clock only in Event Mode, and in Event Mode such a
-    component takes its samples there (its update at the Clock's ticks, which are time events)."""
-    layout = cls._layout
+    that steps itself handles its events inside its own do_step, except a clock-driven one: an
+    importer can activate a Clock only in Event Mode (see :func:`.clocks.clock_driven`)."""
     if not has_events(cls):
         return False
-    return not cls.overrides_do_step() or bool(layout.n_clocks and not layout.nx)
+    return not cls.overrides_do_step() or clock_driven(cls)
 
 
 def _clock(parent: ET.Element, vr: int, clock: Clock, priority: int | None) -> None:
@@ -183,10 +181,12 @@ def _deps(vr: int, deps: Iterable[int]) -> dict:
 def _check_names(cls: type[Component]) -> None:
     """The names FMI 3.0 builds add must not be taken by the component's own variables."""
     reserved = {"time"} | {EVENT_INDICATOR_NAME.format(i + 1) for i in range(cls.n_event_indicators)}
+    taken = reserved | {d.fmi_name for d in cls._layout.declarations}
     for clock in cls._layout.clocks:
-        if clock.fmi_name in reserved | {d.fmi_name for d in cls._layout.declarations}:
+        if clock.fmi_name in taken:
             raise ValueError(f"{cls.__qualname__}: the Clock '{clock.fmi_name}' has the name of another variable; "
                              "rename it (name=...)")
+        taken.add(clock.fmi_name)
     for decl in cls._layout.declarations:
         if decl.fmi_name in reserved:
             raise ValueError(f"{cls.__qualname__}: a variable named '{decl.fmi_name}' clashes with the "

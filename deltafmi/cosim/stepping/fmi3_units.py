@@ -25,8 +25,9 @@ have the same C signatures, see :func:`.unit_base.api_name`).
   in ``[t, t + h)`` are taken inside the step from ``t`` (a tick at ``t`` with the inputs given
   at ``t``, as FMI 2.0 Co-Simulation FMUs sample in fmi2DoStep; one inside the step after an
   fmi3DoStep to it, with a row before and after it). Clocks ticking at one instant are
-  activated together. Output Clocks are read (fmi3GetClock) in every Event Mode before the
-  update. Units with clocks run in the Python loop.
+  activated together, also at an event the FMU itself reports there. Output Clocks are read
+  (fmi3GetClock) in every Event Mode before the update. Co-Simulation ticks at communication
+  points are taken by the C loop too (:mod:`.native_loop`).
 """
 from __future__ import annotations
 
@@ -52,7 +53,12 @@ CTYPES: Dict[str, Any] = {
     "Int16": ctypes.c_int16, "UInt16": ctypes.c_uint16, "Int32": ctypes.c_int32, "UInt32": ctypes.c_uint32,
     "Int64": ctypes.c_int64, "UInt64": ctypes.c_uint64, "Boolean": ctypes.c_bool, "String": ctypes.c_char_p,
 }
-_MAX_EVENT_ITERATIONS = 1000
+_MAX_EVENT_ITERATIONS = 1000  # native/fixed_step.c MAX_EVENT_ITERATIONS
+
+
+def unsettled(unit: str, time: float) -> str:
+    """The failure of an event iteration that does not settle."""
+    return f"{unit}: event iteration at t = {time:.9g} s did not converge in {_MAX_EVENT_ITERATIONS} rounds"
 
 
 def _api_type(variable_type: str) -> str:
@@ -236,6 +242,8 @@ class CoSimulationUnit3(Fmi3Values):
         super().exit_initialization(time)
         if self.event_mode:
             self._event_iteration(time)
+            if self.clocks is not None:
+                self.clocks.refresh(self, time)
             self.call(self.fmu.enterStepMode)
 
     def do_step(self, time: float, step: float) -> None:
@@ -290,7 +298,12 @@ class CoSimulationUnit3(Fmi3Values):
         if event and self.event_mode:
             self.on_event(self, reached, False)
             self.call(self.fmu.enterEventMode)
+            clocks = self.clocks
+            if clocks is not None:  # a tick at the FMU's own event: in this Event Mode, not another
+                clocks.activate(self, reached)
             self._event_iteration(reached)
+            if clocks is not None:
+                clocks.refresh(self, reached)
             self.call(self.fmu.enterStepMode)
             self.on_event(self, reached, True)
         if not early or reached >= end - 1e-12 * max(1.0, abs(end)):
@@ -308,8 +321,7 @@ class CoSimulationUnit3(Fmi3Values):
                 raise Terminated(self.name, time)
             if not needed:
                 return
-        raise FmuFailure(f"{self.name}: event iteration at t = {time:.9g} s did not converge "
-                         f"in {_MAX_EVENT_ITERATIONS} rounds")
+        raise FmuFailure(unsettled(self.name, time))
 
 
 class ModelExchangeUnit3(ModelExchangeUnit, Fmi3Values):

@@ -242,7 +242,6 @@ class FmuJacobian:
             self.fmu.setContinuousStates(x.ctypes.data_as(POINTER(c_double)), self.nx)
 
 
-
 def _element_names(variable: Any) -> List[str]:
     return element_names(variable.name, variable.shape) if variable.dimensions else [variable.name]
 

@@ -36,9 +36,10 @@ from ..results.progress import Progress, Summary, Termination
 from ..scenario.resolve import Component, Port, System
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
+from .fmi3_units import unsettled
 from .loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from .native_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
-                          STEP_RETURNED, TERMINATED, NativeLoop)
+                          STEP_RETURNED, TERMINATED, UNSETTLED, NativeLoop)
 from .stop_signals import StopSignals
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
@@ -451,10 +452,12 @@ class Master:
             return done + 1
         if why == TERMINATED:
             raise Terminated(unit.name, plan.time)
+        if why == UNSETTLED:
+            raise FmuFailure(unsettled(unit.name, plan.time))
         if why == RK_FAILED:
             raise FmuFailure(f"{unit.name}: {step_failure(plan.rk_time, plan.status)}")
         exc = fmpy.fmi1.FMICallException(function=function, status=plan.status)
-        if action == STEP and unit.interface == "CS":
+        if function == "fmi2DoStep":  # fmi2Discard may mean the FMU ended the run
             unit.step_failed(exc, t)
         raise unit.failure(exc)
 

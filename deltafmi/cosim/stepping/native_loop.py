@@ -35,7 +35,7 @@ from .unit_base import Unit, _Inputs, _Outputs, function_address
 
 SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP, SET_BOOL3, GET_BOOL3, CLOCK_TICK = range(9)
 #: why a C run stopped
-RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED, CLOCK_INSIDE = range(9)
+RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED, CLOCK_INSIDE, UNSETTLED = range(10)
 #: the FMI 3.0 type the C loop exchanges on each bus (others: the Python loop)
 _FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 _SET, _GET = {"Real": SET_REAL, "Integer": SET_INT, "Boolean": SET_INT}, \

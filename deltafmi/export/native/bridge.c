@@ -31,8 +31,9 @@ typedef struct {
     PyObject *name_component, *name_derivatives, *name_indicators, *name_do_step, *name_time; /* interned */
     int steps_itself;        /* the component's own do_step is the whole of fmi2DoStep ... */
     int evaluates_after_step; /* ... followed by FmuInstance.evaluate (derivatives, indicators, outputs) */
-    int clocked_without_states; /* ... except in FMI 3.0 event mode, for a clocked component without
-                                 * continuous states (hasEventMode: model_description3.cs_event_mode) */
+    int clock_driven;        /* ... except in FMI 3.0 event mode, for a clock-driven component (Clocks, no
+                              * states, no event indicators: clocks.clock_driven), whose ticks the importer
+                              * activates: its step only moves time */
     PyObject *do_step;       /* component.do_step, bound (again after fmi2Reset) ... */
     PyObject *step_function; /* ... or its function, called with the component first (no method object) */
     PyObject *step_size;     /* the float of the last communication step size, passed again while the
@@ -419,10 +420,10 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
     Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz, n_clocks = 0;
     int watches_drift;
     /* the FMI 3.0 fields trail: a runtime without them still serves an FMI 2.0 binary */
-    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK|KnKK", &real, &n_real, &ints, &n_int, &flags, &n_str,
+    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK|KnKKp", &real, &n_real, &ints, &n_int, &flags, &n_str,
                                    &nx, &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift,
                                    &b->steps_itself, &b->evaluates_after_step, &control, &sizes3, &n_clocks,
-                                   &clock_index, &clock_interval))
+                                   &clock_index, &clock_interval, &b->clock_driven))
         goto python_error;
     *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
                            (const unsigned char *)(uintptr_t)flags, (size_t)n_str, (size_t)nx,
@@ -430,7 +431,6 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
                            (const double *)(uintptr_t)nominals, watches_drift, (const double *)(uintptr_t)control,
                            (const uint32_t *)(uintptr_t)sizes3, (size_t)n_clocks,
                            (const int64_t *)(uintptr_t)clock_index, (const double *)(uintptr_t)clock_interval};
-    b->clocked_without_states = n_clocks > 0 && nx == 0;
     for (int i = 0; i < DFMI_N_OPS; i++)
         if (!(b->ops[i] = py.PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;
     if (!(b->event_update = py.PyObject_GetAttrString(b->instance, "event_update")) ||
@@ -517,9 +517,10 @@ int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
     PyObject *previous = listen(b->pending_logs);
     int status;
     /* in FMI 3.0 event mode the importer handles the events: FmuInstance.do_step stops at them */
-    if (op == DFMI_DO_STEP && b->steps_itself && (nargs < 3 || !b->clocked_without_states)) {
+    int event_mode = op == DFMI_DO_STEP && nargs >= 3;
+    if (op == DFMI_DO_STEP && b->steps_itself && !(event_mode && b->clock_driven)) {
         status = finish(b, step_itself(b, args[0], args[1]), OP_NAMES[op]);
-    } else if (op == DFMI_DO_STEP && b->clocked_without_states && !b->evaluates_after_step) {
+    } else if (event_mode && b->clock_driven && !b->evaluates_after_step) {
         /* ... and all a clock-driven component does happens at its ticks, in Event Mode: its step
          * only moves time (FmuInstance.do_step would find no event and nothing to evaluate) */
         b->time = args[0] + args[1];

@@ -525,7 +525,7 @@ int dfmi_get_nominals(Instance *c, const char *function, double *nominals, size_
 
 void dfmi_reset_clocks(Instance *c) {
     c->clocks_active = 0;
-    for (size_t i = 0; i < 64; i++) c->clock_reported[i] = c->clock_activated[i] = NAN;
+    for (size_t i = 0; i < DFMI_MAX_CLOCKS; i++) c->clock_reported[i] = c->clock_activated[i] = NAN;
 }
 
 double dfmi_clock_interval(const Instance *c, size_t i) {

@@ -20,6 +20,8 @@
 #define SET_CONTINUOUS 8
 #define IS_BOOLEAN 16
 #define IS_ENUMERATION 32 /* an Enumeration: FMI 3.0 reads and sets it as Int64 */
+/* Clocks an FMU may have: their activation is one 64-bit mask (layout.MAX_CLOCKS) */
+#define DFMI_MAX_CLOCKS 64
 
 enum { DFMI_OK = 0, DFMI_WARNING = 1, DFMI_DISCARD = 2, DFMI_ERROR = 3, DFMI_FATAL = 4 };
 enum { DFMI_MODEL_EXCHANGE = 0, DFMI_CO_SIMULATION = 1, DFMI_SCHEDULED_EXECUTION = 2 };
@@ -58,12 +60,12 @@ struct Instance {
     int dirty;         /* inputs, states or time changed: derivatives and indicators are stale */
     int outputs_dirty; /* outputs are stale (a solver asking for derivatives does not need them) */
     int event_mode_used, early_return_allowed; /* FMI 3.0 Co-Simulation */
-    /* FMI 3.0 Clocks (L.n_clocks <= 64): bit i set while input Clock i is active (from fmi3SetClock
+    /* FMI 3.0 Clocks (L.n_clocks <= DFMI_MAX_CLOCKS): bit i set while input Clock i is active (from fmi3SetClock
      * in Event Mode to fmi3UpdateDiscreteStates); the interval last reported per Clock by
      * fmi3GetIntervalDecimal (NaN: none yet); Scheduled Execution: the last activation time per Clock */
     uint64_t clocks_active;
-    double clock_reported[64];
-    double clock_activated[64];
+    double clock_reported[DFMI_MAX_CLOCKS];
+    double clock_activated[DFMI_MAX_CLOCKS];
     DfmiLayout L;
     void *py;
 };

@@ -464,7 +464,6 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference vr[], s
 /* clocks: periodic time-based input Clocks (Clock i at value reference time + 1 + i), each a
  * `fixed` Clock whose interval is a Parameter or a `constant` one; shift 0; supportsFraction false */
 
-/* Whether vr is a Clock; its 0-based index in *i. */
 /* The index (0-based) of the Clock vr names into *i: 1, else 0 (and *i 0). */
 static int clock_of(const Instance *c, fmi3ValueReference vr, size_t *i) {
     size_t n;
@@ -539,10 +538,8 @@ fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReferenc
     Instance *c = instance;
     const char *function = "fmi3GetIntervalDecimal";
     CHECK(function, MASK_CLOCK_TIMING);
-    if (!clocks_named(c, function, vr, nvr, intervals) || (nvr && !qualifiers)) {
-        if (c->state != Error) FAIL("%s: NULL array argument", function);
-        return fmi3Error;
-    }
+    if (nvr && !qualifiers) FAIL("%s: NULL array argument", function);
+    if (!clocks_named(c, function, vr, nvr, intervals)) return fmi3Error;
     for (size_t k = 0, i; k < nvr; k++) {
         clock_of(c, vr[k], &i);
         double interval = dfmi_clock_interval(c, i);
@@ -692,7 +689,7 @@ fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
     int status = dfmi_set_fmu_state(c, "fmi3SetFMUState", FMUState);
     /* back in time: the next activations of a Clock follow the restored state, not the last ones */
     if (status < DFMI_ERROR)
-        for (size_t i = 0; i < 64; i++) c->clock_activated[i] = NAN;
+        for (size_t i = 0; i < DFMI_MAX_CLOCKS; i++) c->clock_activated[i] = NAN;
     return (fmi3Status)status;
 }
 

@@ -50,8 +50,9 @@ enum { SET_REAL = 0, GET_REAL = 1, SET_INT = 2, GET_INT = 3, DO_STEP = 4, ME_STE
 /* why a run stopped */
 enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_FULL = 5, STATE_EVENT = 6,
        STEP_RETURNED = 7, /* fmi3DoStep: an event, an early return or a termination (Op.flags) */
-       CLOCK_INSIDE = 8 /* CLOCK_TICK: a tick inside the step; nothing done, Python takes the step */ };
-enum { MAX_EVENT_ITERATIONS = 1000 };
+       CLOCK_INSIDE = 8, /* CLOCK_TICK: a tick inside the step; nothing done, Python takes the step */
+       UNSETTLED = 9 /* CLOCK_TICK: fmi3UpdateDiscreteStates still asked for more after MAX_EVENT_ITERATIONS */ };
+enum { MAX_EVENT_ITERATIONS = 1000 }; /* fmi3_units._MAX_EVENT_ITERATIONS */
 /* Op.flags after fmi3DoStep */
 enum { EVENT_HANDLING_NEEDED = 1, TERMINATE_SIMULATION = 2, EARLY_RETURN = 4 };
 
@@ -260,9 +261,10 @@ static int clock_tick(Plan *p, Op *o, double t, double step)
 {
     double end = t + step, now_eps = 1e-12 * fmax(1.0, fabs(t)), end_eps = 1e-12 * fmax(1.0, fabs(end));
     size_t n_due = 0;
-    for (size_t i = 0; i < o->n; i++) {
-        double tick = tick_of(o, i);
-        if (tick > t + now_eps && tick < end - end_eps) return CLOCK_INSIDE;
+    for (size_t i = 0; i < o->n; i++) { /* the first tick after those due now: inside the step? */
+        int64_t count = o->clock_count[i];
+        while (o->clock_first[i] + (double)count * o->clock_interval[i] <= t + now_eps) count++;
+        if (o->clock_first[i] + (double)count * o->clock_interval[i] < end - end_eps) return CLOCK_INSIDE;
     }
     for (size_t i = 0; i < o->n; i++) {
         if (!(tick_of(o, i) <= t + now_eps)) continue;
@@ -286,10 +288,7 @@ static int clock_tick(Plan *p, Op *o, double t, double step)
         if (status > FMI2_WARNING) goto failed;
         if (terminate) return TERMINATED;
         if (!update) break;
-        if (round + 1 == MAX_EVENT_ITERATIONS) {
-            status = 3; /* fmi3Error: the iteration does not settle */
-            goto failed;
-        }
+        if (round + 1 == MAX_EVENT_ITERATIONS) return UNSETTLED;
     }
     p->call = 3;
     if ((status = o->enter_step_mode(o->component)) > FMI2_WARNING) goto failed;
