@@ -32,6 +32,16 @@
 #define OK(call) do { fmi3Status s_ = (call); if (s_ > fmi3Warning) { \
     fprintf(stderr, "%s failed with status %d\n", #call, s_); exit(3); } } while (0)
 
+/* The event iteration: fmi3UpdateDiscreteStates until no update is needed or the FMU ends the run. */
+static void update_discrete_states(fmi3UpdateDiscreteStatesTYPE *fmi3UpdateDiscreteStates, fmi3Instance c,
+                                   fmi3Boolean *terminate, fmi3Boolean *values_changed, fmi3Boolean *next_defined,
+                                   fmi3Float64 *next_time) {
+    fmi3Boolean need_update = fmi3True, nominals_changed;
+    while (need_update && !*terminate)
+        OK(fmi3UpdateDiscreteStates(c, &need_update, terminate, &nominals_changed, values_changed, next_defined,
+                                    next_time));
+}
+
 static void log_message(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message) {
     (void)env;
     fprintf(stderr, "[%d|%s] %s\n", status, category, message);
@@ -169,13 +179,10 @@ int main(int argc, char **argv) {
 
     OK(fmi3EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3True, stop));
     OK(fmi3ExitInitializationMode(c));
-    fmi3Boolean need_update = fmi3True, terminate = fmi3False, nominals_changed, values_changed,
-                next_defined = fmi3False;
+    fmi3Boolean terminate = fmi3False, values_changed = fmi3False, next_defined = fmi3False;
     double next_time = 0.0;
     if (me || events) { /* both start in Event Mode */
-        while (need_update && !terminate)
-            OK(fmi3UpdateDiscreteStates(c, &need_update, &terminate, &nominals_changed, &values_changed,
-                                        &next_defined, &next_time));
+        update_discrete_states(fmi3UpdateDiscreteStates, c, &terminate, &values_changed, &next_defined, &next_time);
         OK(me ? fmi3EnterContinuousTimeMode(c) : fmi3EnterStepMode(c));
     }
     OK(fmi3GetFloat64(c, vrs, nv, values, n_values));
@@ -200,10 +207,8 @@ int main(int argc, char **argv) {
             if (event) {
                 printf("event,%.17g\n", t);
                 OK(fmi3EnterEventMode(c));
-                need_update = fmi3True;
-                while (need_update && !terminate)
-                    OK(fmi3UpdateDiscreteStates(c, &need_update, &terminate, &nominals_changed, &values_changed,
-                                                &next_defined, &next_time));
+                update_discrete_states(fmi3UpdateDiscreteStates, c, &terminate, &values_changed, &next_defined,
+                                       &next_time);
                 if (terminate) {
                     OK(fmi3GetFloat64(c, vrs, nv, values, n_values));
                     print_row(t, values, n_values);
@@ -244,10 +249,8 @@ int main(int argc, char **argv) {
             if (!terminate && (state_event || time_event || enter)) {
                 printf("event,%.17g\n", t);
                 OK(fmi3EnterEventMode(c));
-                need_update = fmi3True;
-                while (need_update && !terminate)
-                    OK(fmi3UpdateDiscreteStates(c, &need_update, &terminate, &nominals_changed, &values_changed,
-                                                &next_defined, &next_time));
+                update_discrete_states(fmi3UpdateDiscreteStates, c, &terminate, &values_changed, &next_defined,
+                                       &next_time);
                 if (!terminate) OK(fmi3EnterContinuousTimeMode(c));
                 if (values_changed) OK(fmi3GetContinuousStates(c, x, nx));
                 OK(fmi3GetEventIndicators(c, z, nz));
