@@ -23,7 +23,7 @@ from fmpy.fmi3 import (FMU3Model, FMU3ScheduledExecution, FMU3Slave, fmi3Float64
                        fmi3IntervalQualifier, fmi3IntervalUnchanged, fmi3ValueReference)
 from fmpy.validation import validate_fmu
 
-from conftest import clean_env
+from conftest import ROOT, clean_env
 from deltafmi import simulate
 from deltafmi.component import Clock, Component, Input, Output, Parameter
 from deltafmi.component.model_description import model_description_xml
@@ -250,7 +250,7 @@ def test_an_importer_that_activates_the_clock_samples_once_per_tick(md, unzipped
     the torques are the CS build's exactly (a second sample at an instant would advance the
     controller's integral and its sample counter, and every later torque would differ). Without
     early return the FMU steps itself as in FMI 2.0 and finds each sample taken already."""
-    clock, h = vr["sample"], 1e-3
+    clock = vr["sample"]
     fmu = _instance(FMU3Model if interface == "ME" else FMU3Slave, md, unzipped)
     if interface == "ME":
         fmu.instantiate()
@@ -414,31 +414,7 @@ def test_info_names_the_scheduled_execution_interface_and_the_clock(fmu3):
     assert "clocks: sample (input, fixed)" in shown
 
 
-TICKER = '''\
-"""Test component: a sampled counter that does not step itself (no do_step), no states."""
-from deltafmi.component import Clock, Component, Experiment, Output, Parameter
-
-
-class Ticker(Component):
-    default_experiment = Experiment(stop=0.006, step=1e-3)
-    sample_period = Parameter(1e-3, unit="s")
-    {clock}
-    n = Output(0, type=int, variability="discrete", description="Samples taken")
-
-    def setup(self):
-        self._t0, self._k = 0.0, 0
-
-    def initialize(self, t):
-        self._t0, self._k = t, 0
-
-    def next_time_event(self, t):
-        return self._t0 + self._k * self.sample_period
-
-    def update(self, t):
-        if t >= self.next_time_event(t) - 1e-9 * self.sample_period:
-            self.n = self.n + 1
-            self._k += 1
-'''
+TICKER = ROOT / "tests" / "components" / "ticker" / "model.py"
 
 
 @pytest.mark.parametrize("fmi_version", [2, 3])
@@ -449,10 +425,8 @@ def test_a_clock_changes_nothing_for_importers_without_event_mode(tmp_path, fmi_
     from deltafmi.export import build_fmu
     counts = {}
     for clocked in (False, True):
-        source = tmp_path / f"ticker{clocked}" / "ticker.py"
-        source.parent.mkdir()
-        source.write_text(TICKER.format(clock='sample = Clock(period="sample_period")' if clocked else ""))
-        fmu = build_fmu(source, tmp_path / f"ticker{clocked}.fmu", fmi_version=fmi_version)
+        fmu = build_fmu(TICKER, tmp_path / f"ticker{clocked}.fmu", class_name="ClockedTicker" if clocked else "Ticker",
+                        fmi_version=fmi_version)
         result = fmpy.simulate_fmu(str(fmu), fmi_type=fmi_type, stop_time=0.006, output_interval=1e-3,
                                    output=["n"])
         counts[clocked] = result["n"].tolist()

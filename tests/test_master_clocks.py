@@ -27,6 +27,7 @@ from deltafmi.cosim.scenario.resolve import resolve_system
 from deltafmi.cosim.scenario.spec import load_scenario
 from deltafmi.cosim.stepping.master import Master
 from deltafmi.errors import ScenarioError, SimulationError
+from conftest import ROOT
 from test_master_loops import _with_attribute as with_attribute
 from third_party.build import build_fmu
 
@@ -310,46 +311,17 @@ outputs: ['controller.u', controller.status]
     assert np.ptp(c["controller.u[1]"]) > 0.1
 
 
-FAILING = '''\
-"""Test component: a clock-driven counter whose sample raises after 3.5 ms."""
-from deltafmi.component import Clock, Component, Experiment, Output, Parameter
-
-
-class Failing(Component):
-    default_experiment = Experiment(stop=0.01, step=1e-3)
-    sample_period = Parameter(1e-3, unit="s")
-    sample = Clock(period="sample_period")
-    n = Output(0, type=int, variability="discrete", description="Samples taken")
-
-    def setup(self):
-        self._t0, self._k = 0.0, 0
-
-    def initialize(self, t):
-        self._t0, self._k = t, 0
-
-    def next_time_event(self, t):
-        return self._t0 + self._k * self.sample_period
-
-    def update(self, t):
-        if t >= self.next_time_event(t) - 1e-9 * self.sample_period:
-            if t > 3.5e-3:
-                raise RuntimeError(f"the sample at t = {t:g} failed")
-            self.n = self.n + 1
-            self._k += 1
-'''
-
-
 def test_a_sample_that_fails_at_a_tick_taken_in_c_is_one_line(tmp_path):
     """A clock-driven component's sample raises at a tick the C loop takes (fmi3UpdateDiscreteStates
     fails): the run ends with the failure the Python loop reports, naming the unit and the
     component's message, no traceback."""
     from deltafmi.errors import SimulationError
-    (tmp_path / "failing.py").write_text(FAILING)
     path = tmp_path / "failing.yaml"
-    path.write_text("""fmi_version: 3
-experiment: {stop: 0.01, step: 1.0e-3}
+    path.write_text(f"""fmi_version: 3
+experiment: {{stop: 0.01, step: 1.0e-3}}
 components:
-  f: {source: failing.py, interface: CS}
+  f: {{source: '{ROOT / "tests" / "components" / "ticker" / "model.py"}:ClockedTicker', interface: CS,
+      parameters: {{fail_after: 3.5e-3}}}}
 outputs: [f.n]
 """)
     messages = {}
