@@ -23,7 +23,7 @@ import numpy as np
 
 from ..scenario.spec import Adaptive
 from .loops import Stepper
-from .unit_base import Unit
+from .unit_base import Unit, instant_margin
 
 _SAFETY, _SHRINK, _GROW = 0.9, 0.2, 2.0
 
@@ -76,7 +76,7 @@ def run_adaptive(master: SteppedSystem, settings: Adaptive) -> None:
     order = 2.0 if double else 1.0
     t, stop = master.start, master.stop
     warned = False
-    while t < stop - 1e-12 * max(1.0, abs(stop)):
+    while t < stop - instant_margin(stop):
         step = min(h, stop - t)
         master.step_end = t + step
         snapshot = master.save()

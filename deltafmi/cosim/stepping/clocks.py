@@ -33,12 +33,7 @@ import numpy as np
 from fmpy.fmi3 import fmi3IntervalChanged, fmi3IntervalNotYetKnown, fmi3ValueReference
 
 from ..scenario.fmu_checks import clocks_refused
-from .unit_base import FmuFailure
-
-
-def _eps(t: float) -> float:
-    """Two times within this are one instant (as the master's event handling takes them)."""
-    return 1e-12 * max(1.0, abs(t))
+from .unit_base import FmuFailure, instant_margin
 
 
 def _xml_timing(element: Any) -> Tuple[Optional[float], float]:
@@ -150,12 +145,12 @@ class UnitClocks:
     def activate(self, unit: Any, t: float) -> bool:
         """In Event Mode at ``t``, before fmi3UpdateDiscreteStates: fmi3SetClock on every Clock
         ticking at ``t`` (together, in one call); True when one did."""
-        due = [self.tick(i) <= t + _eps(t) for i in range(len(self.vrs))]
+        due = [self.tick(i) <= t + instant_margin(t) for i in range(len(self.vrs))]
         if not any(due):
             return False
         for i, on in enumerate(due):
             if on:
-                while self.tick(i) <= t + _eps(t):  # the ticks due now (more than one: missed ones)
+                while self.tick(i) <= t + instant_margin(t):  # the ticks due now (more than one: missed ones)
                     self.count[i] += 1
                 self.activated[i] += 1
         refs = [self.vrs[i] for i, on in enumerate(due) if on]

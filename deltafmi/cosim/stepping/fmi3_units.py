@@ -45,7 +45,7 @@ from ..scenario.resolve import Port
 from .clocks import UnitClocks, unit_clocks
 from .me_integrator import ModelExchangeUnit
 from .unit_base import (FmuFailure, Terminated, Unit, _Inputs, _Outputs, _StringInputs, _StringOutputs, bare_function,
-                        decoded)
+                        decoded, instant_margin)
 
 #: FMI 3.0 type -> ctypes type of its values; Enumeration values are Int64
 CTYPES: Dict[str, Any] = {
@@ -255,9 +255,9 @@ class CoSimulationUnit3(Fmi3Values):
             self._carry_on(time, end)
             return
         now = time
-        while clocks.next_tick() < end - 1e-12 * max(1.0, abs(end)):
+        while clocks.next_tick() < end - instant_margin(end):
             tick = clocks.next_tick()
-            inside = tick > now + 1e-12 * max(1.0, abs(now))
+            inside = tick > now + instant_margin(now)
             if inside:
                 self._carry_on(now, tick)
                 now = tick
@@ -306,7 +306,7 @@ class CoSimulationUnit3(Fmi3Values):
                 clocks.refresh(self, reached)
             self.call(self.fmu.enterStepMode)
             self.on_event(self, reached, True)
-        if not early or reached >= end - 1e-12 * max(1.0, abs(end)):
+        if not early or reached >= end - instant_margin(end):
             return None
         if reached <= now:
             raise FmuFailure(f"{self.name}: fmi3DoStep returned early at t = {reached:.9g} s without advancing")

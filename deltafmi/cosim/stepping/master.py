@@ -41,6 +41,7 @@ from .loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from .native_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
                           STEP_RETURNED, TERMINATED, UNSETTLED, NativeLoop)
 from .stop_signals import StopSignals
+from .unit_base import instant_margin
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 #: steps per call of the C loop (stop signals and progress are looked at in between)
@@ -530,7 +531,7 @@ class Master:
         # an event within round-off of the step's start or end (a unit's own t + h, or an FMU's
         # accumulated event time, can be an ulp off the grid's start + k h) is recorded there
         for grid_time in (self.time, self.step_end):
-            if abs(t - grid_time) <= 1e-12 * max(1.0, abs(t)):
+            if abs(t - grid_time) <= instant_margin(t):
                 t = grid_time
         if after and t == self.step_end:
             # an event at the end of the step: the step's own row shows the values after it

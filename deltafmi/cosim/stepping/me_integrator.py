@@ -25,7 +25,7 @@ from deltafmi.component.cvode import Cvode, CvodeError
 from ..scenario.resolve import Component
 from .explicit_rk import TABLEAUS, ExplicitRungeKutta, FmuEvaluations, RungeKuttaError
 from .jacobians import FmuJacobian, computes_exact_derivatives
-from .unit_base import FmuFailure, Terminated, Unit, bare_function
+from .unit_base import FmuFailure, Terminated, Unit, bare_function, instant_margin
 
 _MAX_EVENT_ITERATIONS = 1000
 
@@ -175,7 +175,7 @@ class ModelExchangeUnit(Unit):
 
     def _step(self, time: float, step: float, located: bool = False) -> None:
         t_end = time + step
-        eps = 1e-12 * max(1.0, abs(t_end))
+        eps = instant_margin(t_end)
         stuck, t_previous = 0, time  # events in a row without time advancing
         try:
             while True:

@@ -39,6 +39,12 @@ TYPES: Dict[str, Tuple[Any, Any]] = {
 }
 
 
+def instant_margin(t: float) -> float:
+    """Two times within this of ``t`` are one instant: their difference is round-off (a unit's
+    own ``t + h``, an FMU's accumulated event time against the grid's ``start + k h``)."""
+    return 1e-12 * max(1.0, abs(t))
+
+
 def new_bus(kind: str, size: int) -> np.ndarray:
     """A bus of ``size`` slots for FMI type ``kind`` (zeros, or empty strings)."""
     if kind == "String":
