@@ -231,25 +231,19 @@ class FmuInstance:
         comp, nx = self.component, self.nx
         self.partials.invalidate()
         self._restart_solver = self.fmu_type == CO_SIMULATION
-        if not nx:  # a sampled component at its tick: no states to watch
-            self.evaluate(t)
-            again, changed = bool(comp.update(t)), False
-            self.evaluate(t)
-        else:
-            states_before = comp._real[:nx].copy()
-            if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
-                comp.project(t)
-            self.evaluate(t)
-            derivatives_before = comp._real[nx: 2 * nx].copy()
-            again = bool(comp.update(t))
-            changed = not np.array_equal(states_before, comp._real[:nx])
-            self.evaluate(t)
-            # A mode switch that leaves the states but changes their derivatives (a ball that
-            # starts touching) is reported as changed states too: an importer that restarts its
-            # integrator only on that flag (the Reference FMUs' fmusim) would otherwise go on
-            # with the solver's pre-event history and miss the switch. Restarting where nothing
-            # moved costs one restart.
-            changed = changed or not np.array_equal(derivatives_before, comp._real[nx: 2 * nx])
+        states_before = comp._real[:nx].copy() if nx else None  # none: a sampled component's tick
+        if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
+            comp.project(t)
+        self.evaluate(t)
+        derivatives_before = comp._real[nx: 2 * nx].copy() if nx else None
+        again = bool(comp.update(t))
+        self.evaluate(t)
+        # A mode switch that leaves the states but changes their derivatives (a ball that starts
+        # touching) is reported as changed states too: an importer that restarts its integrator
+        # only on that flag (the Reference FMUs' fmusim) would otherwise go on with the solver's
+        # pre-event history and miss the switch. Restarting where nothing moved costs one restart.
+        changed = nx > 0 and not (np.array_equal(states_before, comp._real[:nx])
+                                  and np.array_equal(derivatives_before, comp._real[nx: 2 * nx]))
         nte = comp.next_time_event(t)
         self._next_time_event = nte
         if self.log_mask & _LOG_EVENTS:
