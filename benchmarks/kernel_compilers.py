@@ -11,7 +11,7 @@ and one C timing loop (compiled here) calls it through the function pointer, as 
 callback would, with no Python between calls. Candidates:
 
 - C transcription: benchmarks/native/flagship.c (the reference of speed);
-- codegen: benchmarks/kernel_codegen, our translator over the kernels' AST (unchanged source);
+- codegen: deltafmi/export/codegen, our translator over the kernels' AST (unchanged source);
 - Cython 3, pure-Python mode: the kernel functions' unchanged source in a module with an
   augmenting .pxd (C signatures, ctuples, ``noexcept nogil``) and a C entry written for it
   (``cdef api``; its address from the module's ``__pyx_capi__`` capsule);
@@ -58,8 +58,8 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
 import native  # noqa: E402  (benchmarks/native.py: the C transcription and the flagship's data)
-from kernel_codegen import Entry, Obj, Vec, generate  # noqa: E402
-from kernel_codegen.codegen import D  # noqa: E402
+from deltafmi.export.codegen import Entry, Obj, Vec, generate  # noqa: E402
+from deltafmi.export.codegen import D  # noqa: E402
 
 from deltafmi.mechanics.delta import dynamics  # noqa: E402
 from deltafmi.mechanics.delta.params import DeltaParams  # noqa: E402
@@ -164,7 +164,7 @@ int kernel_abi(const DeltaParams *p, double pole, const double *x, const double 
 
 
 def codegen_source() -> str:
-    """dynamics.state_derivative as C (the prototype under benchmarks/kernel_codegen)."""
+    """dynamics.state_derivative as C (deltafmi/export/codegen)."""
     entry = Entry("dfk_state_derivative", dynamics.state_derivative, [Obj(DeltaParams), Vec(18), Vec(3), Vec(3), D])
     # _as_list converts a numpy array or sequence to a list: fixed-length C arrays need none
     return generate([entry], identities={"_as_list"})
@@ -564,7 +564,7 @@ def run(tmp: Path, repeats: int, calls: int) -> None:
 def coverage() -> None:
     """The codegen prototype over every function of the robot's kernel modules, typed from its
     annotations alone (kernel_codegen.signature_of): what translates, the first error of the rest."""
-    from kernel_codegen.codegen import CodegenError, signature_of
+    from deltafmi.export.codegen import CodegenError, signature_of
 
     modules = [importlib.import_module(f"deltafmi.mechanics.delta.{name}")
                for name in ("dynamics", "kinematics", "jacobian", "control_law", "trajectory")]

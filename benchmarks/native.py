@@ -19,15 +19,18 @@ microseconds):
 - C plant derivative: one state derivative on the flagship's state at a few instants, called in
   bursts by a C loop; C controller sample: the flagship's samples replayed (its recorded inputs)
   through a fresh C controller;
-- deltafmi: the flagship stepping through FMI (the master, as benchmarks/cosim.py times it); the
-  plant derivative through FMI (fmi2SetTime + fmi2SetContinuousStates + fmi2GetDerivatives in C,
-  cosim.py's rhs_pair) and in-process (``state_derivative`` of the FMU's compiled kernels); the
-  controller sample through FMI (inputs set + fmi2DoStep + outputs read, timed by the master's C
-  loop) and in-process (``DeltaController.step`` of the controller FMU's compiled kernels,
-  replaying the same samples as the C controller);
+- deltafmi: the flagship stepping through FMI (the master, as benchmarks/cosim.py times it), with
+  the FMUs' compiled kernels (C generated from the Python, deltafmi/export/codegen) and, for the
+  before/after, on their Python methods (``DELTAFMI_NATIVE=0``: the mypyc-compiled Python, what
+  every step ran before the kernels; the two runs' CSVs are compared bit for bit); the plant
+  derivative through FMI (fmi2SetTime + fmi2SetContinuousStates + fmi2GetDerivatives in C,
+  cosim.py's rhs_pair) and the Python path's (``state_derivative`` of the FMU's mypyc kernels,
+  in-process); the controller sample through FMI (inputs set + fmi2DoStep + outputs read, timed
+  by the master's C loop) and the Python path's (``DeltaController.step``, in-process, replaying
+  the same samples as the C controller);
 - the ratios against issue 26's targets (medians of the rounds' ratios): flagship <= 5x the C
-  closed-loop step, plant derivative <= 2x, controller sample <= 3x; the derivative and the
-  sample both through FMI (what a solver and the master pay) and in-process (the issue's table).
+  closed-loop step, plant derivative <= 2x, controller sample <= 3x, through FMI (what a solver
+  and the master pay); the Python paths' ratios for reference (the issue's "today" column).
 
 Usage: python benchmarks/native.py [--repeats 5] [--stop 3.5]
 """
@@ -35,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import ctypes
+import os
 import statistics
 import subprocess
 import sys
@@ -369,6 +373,12 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
         fig.setdefault("c step", []).append(1e6 * wall / steps)
         run = cosim.master_run(system, stop, out / "flagship.csv")
         fig.setdefault("fmi step", []).append(1e6 * run.stepping_time / run.steps)
+        os.environ["DELTAFMI_NATIVE"] = "0"  # read when the FMUs are instantiated
+        try:
+            run = cosim.master_run(system, stop, out / "python.csv")
+        finally:
+            del os.environ["DELTAFMI_NATIVE"]
+        fig.setdefault("py step", []).append(1e6 * run.stepping_time / run.steps)
         fig.setdefault("c rhs", []).append(c_derivative(baseline, spec, rows, states, instants, 2000))
         fmi, direct = cosim.rhs_pair(system, floor, out / "rhs.csv")
         fig.setdefault("fmi rhs", []).append(fmi)
@@ -389,21 +399,31 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
     print(f"medians of {repeats} rounds (range), both sides measured in each round on this machine:")
     print(line("C closed-loop step (plant rk4 + controller + path + row, 1 ms)", "c step"))
     print(line("deltafmi: flagship stepping through FMI (master, stepping time / steps)", "fmi step"))
+    same = (out / "flagship.csv").read_bytes() == (out / "python.csv").read_bytes()
+    print(line(f"deltafmi: the same, FMUs on their Python methods (DELTAFMI_NATIVE=0; CSV "
+               f"{'the same bits' if same else 'DIFFERENT'})", "py step"))
     print(line(f"C plant derivative (one call, median over {len(instants)} instants of the run)", "c rhs"))
     print(line("deltafmi: plant derivative through FMI (SetTime + SetContinuousStates + GetDerivatives)",
                "fmi rhs"))
-    print(line("deltafmi: plant derivative in-process (state_derivative, the FMU's kernels)", "py rhs"))
+    print(line("deltafmi: plant derivative, Python path (state_derivative, mypyc, in-process)", "py rhs"))
     print(line("C controller sample (the run's samples replayed)", "c ctl"))
     print(line("deltafmi: controller through FMI (SetReal + DoStep + GetReal, master's C loop)", "fmi ctl"))
-    print(line("deltafmi: controller sample in-process (DeltaController.step, the FMU's kernels)", "py ctl"))
+    print(line("deltafmi: controller sample, Python path (DeltaController.step, mypyc, in-process)", "py ctl"))
     print("ratios deltafmi / C, medians of the rounds' ratios (issue 26's targets):")
     for label, fmi, c, target in (("flagship step through FMI", "fmi step", "c step", "step"),
                                   ("plant derivative through FMI", "fmi rhs", "c rhs", "derivative"),
-                                  ("plant derivative in-process", "py rhs", "c rhs", "derivative"),
-                                  ("controller sample through FMI", "fmi ctl", "c ctl", "controller"),
-                                  ("controller sample in-process", "py ctl", "c ctl", "controller")):
+                                  ("controller sample through FMI", "fmi ctl", "c ctl", "controller")):
         ratio = statistics.median(a / b for a, b in zip(fig[fmi], fig[c]))
         print(f"  {label:36s} {verdict(ratio, TARGETS[target])}")
+    print("the Python paths (before the compiled kernels), deltafmi / C:")
+    for label, py, c in (("flagship step, Python kernels", "py step", "c step"),
+                         ("plant derivative, Python path", "py rhs", "c rhs"),
+                         ("controller sample, Python path", "py ctl", "c ctl")):
+        print(f"  {label:36s} {statistics.median(a / b for a, b in zip(fig[py], fig[c])):6.1f}x")
+    speedup = statistics.median(a / b for a, b in zip(fig["py step"], fig["fmi step"]))
+    print(f"flagship through FMI, compiled kernels against Python kernels: {speedup:.1f}x faster; real-time "
+          f"factor {1e6 * spec.h / med['fmi step']:.0f}x against {1e6 * spec.h / med['py step']:.0f}x "
+          f"(stepping only, 1 ms steps)")
 
 if __name__ == "__main__":
     main()

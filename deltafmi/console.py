@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from typing import Iterator
+import warnings
+from typing import Iterator, Optional
 
 import click
 
@@ -24,7 +25,9 @@ class _Stderr(logging.Handler):
 
 
 def show_progress() -> None:
-    """Show the library's progress messages on stderr (once per process)."""
+    """Show the library's progress messages on stderr (once per process), and its warnings as
+    one ``Warning: ...`` line each (not Python's file, line and source of the warn() call)."""
+    warnings.formatwarning = _one_line_warning
     for name in PROGRESS_LOGGERS:
         logger = logging.getLogger(name)
         if not any(isinstance(h, _Stderr) for h in logger.handlers):
@@ -45,3 +48,8 @@ def progress_shown(show: bool) -> Iterator[None]:
     finally:
         for logger, disabled in zip(loggers, before):
             logger.disabled = disabled
+
+
+def _one_line_warning(message: Warning | str, category: type, filename: str, lineno: int,
+                      line: Optional[str] = None) -> str:
+    return f"Warning: {message}\n"

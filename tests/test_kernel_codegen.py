@@ -1,4 +1,4 @@
-"""Issue 26 items 1-2: C generated from the delta robot's Python kernels (benchmarks/kernel_codegen)
+"""Issue 26 items 1-2: C generated from the delta robot's Python kernels (deltafmi/export/codegen)
 computes what the Python computes, bit for bit.
 
 The generator translates every Python float operation into the same C double operation in the
@@ -29,9 +29,9 @@ from deltafmi.mechanics.delta.params import DeltaParams
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from kernel_codegen import CodegenError, Entry, generate  # noqa: E402
-from kernel_codegen.build import compile_unit  # noqa: E402
-from kernel_codegen.codegen import D, I  # noqa: E402
+from deltafmi.export.codegen import CodegenError, Entry, generate  # noqa: E402
+from deltafmi.export.codegen.build import compile_unit  # noqa: E402
+from deltafmi.export.codegen.translate import D, I  # noqa: E402
 from kernel_codegen.flagship import IDENTITIES, GeneratedFlagship, entries  # noqa: E402
 
 
@@ -135,7 +135,7 @@ def test_hold_and_warm_start_bit_for_bit(generated):
 def test_flagship_inputs_bit_for_bit(native, system, generated, tmp_path):
     """On the flagship's first 0.5 s (its states and samples, from the hand C transcription that
     tests/test_native_baseline.py holds to the flagship): the plant derivative, and the
-    controller (generated law + the C driver's state between samples) against the Python
+    controller (the generated sample, its state between samples included) against the Python
     DeltaController stepped through the same samples."""
     baseline = native.Baseline(native.compile_baseline(tmp_path))
     spec = native.flagship_spec(system)
@@ -251,7 +251,57 @@ def test_user_kernel_with_loops_known_at_run_time(tmp_path):
 def test_the_entries_cover_the_flagship(generated):
     """What the generated loop runs comes from these Python functions (no hand C kernels)."""
     names = {e.func.__qualname__ for e in entries(generated.path)}
-    assert names == {"state_derivative", "evaluate_plant", "evaluate", "hold", "warm_start",
+    assert names == {"state_derivative", "evaluate_plant", "sample", "evaluate", "hold", "warm_start",
                      "MinimumJerkPath.evaluate_flat"}
     assert IDENTITIES == {"_as_list", "_f3"}
     assert DeltaParams in {t.cls for e in entries(generated.path) for t in e.args if hasattr(t, "cls")}
+
+
+RAISING_KERNELS = """\
+import math
+
+
+def ratio(a: float, b: float) -> float:
+    return a / b
+
+
+def root(x: float) -> float:
+    return math.sqrt(x) + math.log(x)
+
+
+def grow(x: float, y: float) -> float:
+    return math.exp(x) + x ** y
+
+
+def branch(x: float) -> float:
+    return 1.0 / x if x != 0.0 else math.sin(x)
+"""
+
+
+def test_where_python_raises_the_kernel_returns_the_line(tmp_path):
+    """Division by zero, math outside its domain or overflowing: Python raises where C would give
+    inf or nan; the generated C records the line as a raise's (the FMU then runs the Python,
+    which raises with its message), and computes the same bits everywhere else."""
+    source = tmp_path / "user_raising.py"
+    source.write_text(RAISING_KERNELS)
+    spec = importlib.util.spec_from_file_location("user_raising", source)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    try:
+        lib = compile_unit([Entry("ratio", module.ratio, [D, D]), Entry("root", module.root, [D]),
+                            Entry("grow", module.grow, [D, D]), Entry("branch", module.branch, [D])], tmp_path)
+    except NoCompilerError as exc:
+        pytest.skip(f"no C compiler: {exc}")
+    cases = [("ratio", (1.0, 0.0), 5), ("ratio", (0.0, 0.0), 5), ("root", (-1.0,), 9), ("root", (0.0,), 9),
+             ("grow", (710.0, 1.0), 13), ("grow", (-2.0, 0.5), 13), ("grow", (0.0, -1.0), 13),
+             ("grow", (10.0, 400.0), 13)]
+    for name, args, line in cases:
+        with pytest.raises(ArithmeticError, match=f"at line {line}$"):
+            lib.call(name, *args)
+        with pytest.raises((ArithmeticError, ValueError, TypeError)):
+            value = getattr(module, name)(*args)
+            if isinstance(value, complex):  # (-2.0) ** 0.5: Python's value is complex, no float
+                raise TypeError(value)
+    for name, args in [("ratio", (1.0, 3.0)), ("ratio", (1.0, math.inf)), ("root", (math.inf,)), ("root", (2.0,)),
+                       ("grow", (1.0, 2.5)), ("grow", (math.inf, 1.0)), ("branch", (0.0,)), ("branch", (4.0,))]:
+        assert bits(lib.call(name, *args)) == bits(getattr(module, name)(*args)), (name, args)

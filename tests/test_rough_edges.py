@@ -205,7 +205,8 @@ def test_an_fmu_without_its_linux64_binary_is_named_by_validate_and_run(osc, tmp
             new.writestr(item.filename.replace("linux64/Oscillator.so", "linux64/Other.so"), old.read(item))
     result = CliRunner().invoke(main, ["validate", str(renamed)])
     assert result.exit_code == 1
-    assert "binaries/linux64/Oscillator.so is missing (its binaries: binaries/linux64/Other.so)" in result.output
+    assert ("binaries/linux64/Oscillator.so is missing (its binaries: binaries/linux64/Other.so, "
+            "binaries/linux64/Oscillator_kernels.so)") in result.output  # the kernels: no FMI binary
 
 
 # --- a full disk --------------------------------------------------------------------------------

@@ -2,7 +2,9 @@
 quantization, and the tactile loop centring the robot's tool on a hole."""
 from __future__ import annotations
 
+import json
 import math
+import zipfile
 from pathlib import Path
 
 import fmpy
@@ -87,6 +89,24 @@ def test_sensor_lags_with_its_bandwidth(sensor, fmi_type):
     lag = 1.0 - np.exp(-2 * math.pi * 50.0 * np.clip(t - 0.01, 0.0, None))
     np.testing.assert_allclose(r["difference"], (f1 - f2) * lag, rtol=1e-6, atol=1e-7)
     assert r["offset"][-1] == pytest.approx(5e-4)
+
+
+@pytest.mark.parametrize("fmi_type", ["ModelExchange", "CoSimulation"])
+def test_compiled_kernels_give_the_python_bits_under_load(sensor, fmi_type, monkeypatch):
+    """The FMU's derivatives and outputs run as C generated from the kernels its methods call
+    (deltafmi.mechanics.delta.tactile): the same bits as the Python (DELTAFMI_NATIVE=0) while the
+    load steps and the lag moves, not only at the default experiment's unloaded rest."""
+    with zipfile.ZipFile(sensor) as archive:
+        assert json.loads(archive.read("resources/native_kernels.json"))["kernels"] == ["derivatives", "outputs"]
+    runs = {}
+    for native in ("1", "0"):
+        monkeypatch.setenv("DELTAFMI_NATIVE", native)
+        runs[native] = _step_run(sensor, fmi_type)
+    # the lagged pad force rose from 0 to the loaded pad's 7.5 N
+    assert runs["1"]["filtered[1]"][0] == 0.0
+    assert runs["1"]["filtered[1]"][-1] == pytest.approx(PADS.forces(20.0, 5e-4, HOLE)[0], rel=1e-9)
+    for name in runs["1"].dtype.names:
+        assert np.array_equal(runs["1"][name], runs["0"][name]), name
 
 
 def test_sensor_noise_is_the_same_in_both_interfaces(sensor):

@@ -1,10 +1,11 @@
 """The flagship's kernels generated from deltafmi/mechanics/delta/*.py, closed in a C loop.
 
 :func:`entries` lists what is generated: the plant's ``state_derivative`` and ``evaluate_plant``
-(dynamics.py), the controller's ``evaluate``, ``hold`` and ``warm_start`` (control_law.py) and
-the path's ``MinimumJerkPath.evaluate_flat`` (trajectory.py, specialized on the path's number of
-waypoints). :func:`build` compiles them with the hand-written driver flagship_loop.c (the
-controller's state between samples, the master's RK4, the closed loop) into one library;
+(dynamics.py), the controller's whole ``sample`` (sampling.py: DeltaController.step, its state
+between samples included) and its pieces ``evaluate``, ``hold`` and ``warm_start``
+(control_law.py, for the tests) and the path's ``MinimumJerkPath.evaluate_flat`` (trajectory.py,
+specialized on the path's number of waypoints). :func:`build` compiles them with the
+hand-written driver flagship_loop.c (the master's RK4 and the closed loop) into one library;
 :class:`GeneratedFlagship` runs it on the flagship's data (benchmarks/native.py's
 ``flagship_models``).
 """
@@ -17,12 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from deltafmi.mechanics.delta import control_law, dynamics, kinematics
+from deltafmi.mechanics.delta import control_law, dynamics, kinematics, sampling
 from deltafmi.mechanics.delta.params import DeltaParams
 from deltafmi.mechanics.delta.trajectory import MinimumJerkPath
 
-from .build import Library, compile_unit, ctypes_type, to_c
-from .kernel_types import D, Entry, Obj, Opt, Vec, named, record
+from deltafmi.export.codegen.build import Library, compile_unit, ctypes_type, to_c
+from deltafmi.export.codegen.kernel_types import D, Entry, Obj, Opt, Vec, named, record
 
 LOOP = Path(__file__).resolve().parent / "flagship_loop.c"
 #: helpers the fixed-length C data make the identity (list / 3-float conversions)
@@ -36,6 +37,8 @@ def entries(path: MinimumJerkPath) -> list[Entry]:
     return [
         Entry("dfk_state_derivative", dynamics.state_derivative, [Obj(DeltaParams), Vec(18), Vec(3), Vec(3), D]),
         Entry("dfk_evaluate_plant", dynamics.evaluate_plant, [Obj(DeltaParams), Vec(9), Vec(9), Vec(3), Vec(3), D]),
+        Entry("dfk_sample", sampling.sample, [law, named(sampling.SampleSettings), named(sampling.SampleState),
+                                              Vec(3), Vec(3), Vec(3), Vec(3), Vec(3), Vec(3), D]),
         Entry("dfk_evaluate", control_law.evaluate,
               [law, Vec(3), Vec(3), Vec(3), Vec(3), Vec(3), Vec(3), D, Opt(Vec(6)), Vec(3)]),
         Entry("dfk_hold", control_law.hold, [Vec(3), Opt(Vec(3)), D]),

@@ -3,6 +3,8 @@ runtime and the modelDescription.xml writer. Nothing here knows about any partic
 from .base import Component
 from .clocks import Clock
 from .hybrid import HybridSystemComponent
+from .native import Kernel, NativeKernels
 from .variables import Experiment, Input, Output, Parameter, State
 
-__all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Input", "Output", "Parameter", "State"]
+__all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Input", "Kernel", "NativeKernels", "Output",
+           "Parameter", "State"]

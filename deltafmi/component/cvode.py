@@ -25,6 +25,11 @@ Rhs = Callable[[float, np.ndarray, np.ndarray], None]
 Roots = Callable[[float, np.ndarray, np.ndarray], None]
 Project = Callable[[float, np.ndarray, np.ndarray], None]
 Jacobian = Callable[[float, np.ndarray, np.ndarray], None]
+#: (addresses of the Python right-hand side and root functions, of N_VGetArrayPointer) ->
+#: (addresses of a C right-hand side and of C root functions (0: the Python ones) with CVODE's
+#: signatures, their user data): compiled callbacks that call the Python ones themselves when
+#: they cannot compute (see deltafmi/component/native_kernels.py)
+NativeCallbacks = Callable[[int, int, int], tuple[int, int, int]]
 
 
 class CvodeError(RuntimeError):
@@ -40,14 +45,15 @@ class Cvode:
     step (its own projection method: no restart, BDF only): the callback writes the correction
     that moves ``x`` onto the manifold. With ``jacobian(t, x, J)`` the Newton iteration uses
     that dense ``d rhs / d x`` (``J`` an (n, n) view of SUNDIALS' matrix, to fill) instead of
-    CVODE's difference quotients.
+    CVODE's difference quotients. With ``native`` (:data:`NativeCallbacks`) CVODE calls a compiled
+    right-hand side (and root functions), which fall back on ``rhs`` (``roots``).
     """
 
     def __init__(self, rhs: Rhs, x0: np.ndarray, t0: float, *, roots: Optional[Roots] = None,
                  n_roots: int = 0, rtol: float = 1e-6, atol: float | np.ndarray = 1e-8,
                  max_step: float = 0.0, method: str = "bdf", max_num_steps: int = 100000,
                  project: Optional[Project] = None, project_every: int = 1,
-                 jacobian: Optional[Jacobian] = None) -> None:
+                 jacobian: Optional[Jacobian] = None, native: Optional[NativeCallbacks] = None) -> None:
         self.n = n = len(x0)
         self.n_roots = n_roots if roots is not None else 0
         self._rhs, self._roots = rhs, roots
@@ -70,7 +76,14 @@ class Cvode:
         # than typed arguments, and hashable)
         self._f = _sun.RhsFn(self._f_callback)
         self._g = _sun.RhsFn(self._g_callback)
+        if native is not None:
+            self._fallbacks = self._f, self._g  # the compiled callbacks call these: keep them alive
+            rhs, roots, user_data = native(ctypes.cast(self._f, c_void_p).value, ctypes.cast(self._g, c_void_p).value,
+                                           ctypes.cast(_sun.N_VGetArrayPointer, c_void_p).value)
+            self._f, self._g = _sun.RhsFn(rhs), _sun.RhsFn(roots) if roots else self._g
         _check(_sun.CVodeInit(self._mem, self._f, t0, self._y), "CVodeInit")
+        if native is not None:
+            _check(_sun.CVodeSetUserData(self._mem, user_data), "CVodeSetUserData")
         _check(_sun.CVodeSVtolerances(self._mem, rtol, self._atol), "CVodeSVtolerances")
         if self.n_roots:
             _check(_sun.CVodeRootInit(self._mem, self.n_roots, self._g), "CVodeRootInit")

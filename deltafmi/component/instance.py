@@ -19,6 +19,7 @@ import numpy as np
 from . import fmu_logging
 from .base import Component
 from .clocks import clock_driven
+from .native_kernels import NativeKernelsRuntime
 from .partials import DirectionalDerivatives
 
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
@@ -106,6 +107,42 @@ class FmuInstance:
         self._has_outputs = component_class.outputs is not Component.outputs  # else nothing to call
         # derivatives returned as a list or tuple are packed straight into the real buffer
         self._pack_derivatives = struct.Struct(f"={self.nx}d")
+        #: the component's kernels compiled to C, when its FMU carries them (see native_kernels.py)
+        self.native = self._load_kernels() if getattr(component_class, "native", None) is not None else None
+        if self.native is not None:
+            self.native.attach(self.component._real, self.component._int, self.event_indicators)
+
+    def _load_kernels(self) -> Optional[NativeKernelsRuntime]:
+        try:
+            return NativeKernelsRuntime.load(self.resources_dir)
+        except (OSError, ImportError, KeyError, AttributeError, ValueError) as exc:
+            self.pending_logs.append((WARNING, "logStatusWarning",
+                                      f"the compiled kernels cannot be loaded, the model runs in Python: {exc}"))
+            return None
+
+    def _pack_kernels(self) -> None:
+        """The attributes the compiled kernels read, copied after the model may have changed them."""
+        if self.native is not None:
+            self.native.pack(self.component)
+
+    def _pull_kernels(self) -> None:
+        """The attributes compiled steps changed, copied back before the model reads them."""
+        if self.native is not None:
+            self.native.pull(self.component)
+
+    def step_callable(self) -> Callable[[float, float], object]:
+        """What the native layer calls for the step of a component that steps itself, when its
+        compiled step does not take it: the component's ``do_step``, between copies of the
+        attributes from and to the compiled step's struct when it has one."""
+        if self.native is None or not self.native.has("step"):
+            return self.component.do_step
+
+        def synced(t: float, h: float) -> None:
+            self.native.pull(self.component)
+            self.component.do_step(t, h)
+            self.native.pack(self.component)
+
+        return synced
 
     def _new_component(self, buffers: Optional[tuple] = None) -> None:
         comp = self.component = self.component_class.__new__(self.component_class)
@@ -149,7 +186,7 @@ class FmuInstance:
     def native_layout(self) -> tuple:
         """Addresses and sizes of the buffers the native layer reads and writes directly.
 
-        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|KnKKp``): real
+        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|KnKKpKKKKKK``): real
         buffer, n_real, int buffer, n_int, flags (uint8 per real and int scalar), n_str, nx,
         x_offset, dx_offset, event indicators (double[nz]), nz, nominals (double[nx]), watches
         drift, steps itself, evaluates after a step, control (double[3]: terminated, time reached,
@@ -157,7 +194,10 @@ class FmuInstance:
         count of the variable whose value reference is the index, 0 inside an array), n_clocks,
         and per Clock the real-buffer index of its period Parameter (int64, -1: constant) and its
         constant interval (double, NaN where a Parameter gives it), and whether the component is
-        clock-driven (:func:`.clocks.clock_driven`).
+        clock-driven (:func:`.clocks.clock_driven`); then the compiled kernels' addresses
+        (derivatives, event indicators, outputs, step; 0 for none), their attributes' struct and
+        its ready flag (int[1]), all 0 without compiled kernels
+        (:class:`.native_kernels.NativeKernelsRuntime`).
         FMI 3.0 value references after the scalars: ``time`` = n_real + n_int + n_str, then the
         n_clocks Clocks, then one Float64 per event indicator (Layout.first_indicator_vr)."""
         comp, layout = self.component, self.component_class._layout
@@ -167,7 +207,8 @@ class FmuInstance:
                 layout.nominals.ctypes.data, self.component_class.watches_drift(), self._steps_itself,
                 bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data,
                 layout.sizes3.ctypes.data, layout.n_clocks, layout.clock_period_index.ctypes.data,
-                layout.clock_interval.ctypes.data, self._clock_driven)
+                layout.clock_interval.ctypes.data, self._clock_driven,
+                *(self.native.layout() if self.native is not None else (0,) * 6))
 
     # --- initialization ---------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:
@@ -188,11 +229,15 @@ class FmuInstance:
         self.in_initialization = False
         if self.fmu_type == CO_SIMULATION and not event_mode_used:
             self._event_iteration()
+        self._pack_kernels()
         return OK
 
     # --- evaluation -------------------------------------------------------------------------
     def evaluate(self, t: float) -> int:
         """Compute derivatives, event indicators and outputs at ``t`` into the buffers."""
+        self._pull_kernels()
+        if self.native is not None and not self.in_initialization and self.native.evaluate(t, self.nx, self.nz):
+            return OK
         self.evaluate_derivatives(t)
         if self._has_outputs:
             self.component.outputs(t)
@@ -216,6 +261,7 @@ class FmuInstance:
 
     def evaluate_outputs(self, t: float) -> int:
         """Outputs only, for getters (in initialization everything: the model initializes)."""
+        self._pull_kernels()
         if self.in_initialization:
             return self.evaluate(t)
         if self._has_outputs:
@@ -230,6 +276,7 @@ class FmuInstance:
         """
         comp, nx = self.component, self.nx
         self.partials.invalidate()
+        self._pull_kernels()
         self._restart_solver = self.fmu_type == CO_SIMULATION
         states_before = comp._real[:nx].copy() if nx else None  # none: a sampled component's tick
         if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
@@ -237,6 +284,7 @@ class FmuInstance:
         self.evaluate(t)
         derivatives_before = comp._real[nx: 2 * nx].copy() if nx else None
         again = bool(comp.update(t))
+        self._pack_kernels()  # the compiled kernels evaluate after the update with its attributes
         self.evaluate(t)
         # A mode switch that leaves the states but changes their derivatives (a ball that starts
         # touching) is reported as changed states too: an importer that restarts its integrator
@@ -246,6 +294,7 @@ class FmuInstance:
                                   and np.array_equal(derivatives_before, comp._real[nx: 2 * nx]))
         nte = comp.next_time_event(t)
         self._next_time_event = nte
+        self._pack_kernels()
         if self.log_mask & _LOG_EVENTS:
             self.log(OK, "logEvents", f"event at t = {t}: another iteration {again}, states changed "
                      f"{changed}, next time event {nte}, terminate {self.terminate_requested}")
@@ -267,6 +316,7 @@ class FmuInstance:
     def directional_derivative(self, t: float, unknowns: bytes, knowns: bytes, seed: bytes) -> bytes:
         """``fmi2GetDirectionalDerivative`` at ``t``: value references as uint32 bytes, the seed
         and the result as float64 bytes (see :mod:`.partials`)."""
+        self._pull_kernels()
         if self.in_initialization:
             self.component.initialize(t)
         return self.partials.directional(self.component, t, unknowns, knowns, seed)
@@ -403,10 +453,16 @@ class FmuInstance:
         else:
             # over the whole step, not CVODE's next one: that one shrinks after a kink, which made
             # the next jump look small: the decision depends on inputs and states, not on that history
-            jump = [new - old for new, old in zip(self.component.derivatives(self.time), before)]
+            jump = [new - old for new, old in zip(self._derivatives_now(), before)]
             restart = (t_end - self.time) * self._solver.error_norm(jump) > self._jump_tolerance
         self._jump_kept = not restart
         return restart
+
+    def _derivatives_now(self) -> Sequence[float]:
+        """The derivatives at the current time and states (by the compiled kernel where there is one)."""
+        if self.native is not None and self.native.derivatives(self.time):
+            return self.component._real[self.nx: 2 * self.nx].tolist()
+        return self.component.derivatives(self.time)
 
     def _make_solver(self) -> Cvode:
         Cvode = _cvode_class(self._module_context)
@@ -441,6 +497,9 @@ class FmuInstance:
                 J[:, :] = partials.state_jacobian(comp, t)
 
             options["jacobian"] = jacobian
+        if self.native is not None and self.native.has("derivatives"):
+            layout = self.component_class._layout
+            options["native"] = self.native.cvode_callbacks(layout.x_offset, layout.dx_offset, nx, self.nz)
         if self.log_mask & _LOG_SOLVER:
             self.log(OK, "logSolver", f"CVODE ({options.get('method', 'bdf')}) from t = {self.time}: "
                      f"{nx} states, {self.nz} event indicators, rtol = {rtol:g}, "
@@ -481,6 +540,7 @@ class FmuInstance:
         """
         comp = self.component
         self._drop_solver()
+        self._pull_kernels()
         internal = {k: v for k, v in vars(comp).items() if k not in _RUNTIME_ATTRIBUTES}
         return {
             "real": comp._real.copy(), "int": comp._int.copy(), "str": list(comp._str),
@@ -504,6 +564,7 @@ class FmuInstance:
         self.in_initialization = state["in_initialization"]
         self.terminate_requested = state["terminate_requested"]
         self._drop_solver()  # a fresh solver, as in get_state()
+        self._pack_kernels()
         return OK
 
     def serialize_state(self, state: dict) -> bytes:
@@ -529,6 +590,7 @@ class FmuInstance:
         self.in_initialization = self.terminate_requested = False
         self._drop_solver()
         self._next_time_event = None
+        self._pack_kernels()  # the fresh component's (C runs the kernels only after initialization)
         return OK
 
     def free(self) -> None:

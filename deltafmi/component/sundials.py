@@ -138,6 +138,7 @@ CVodeReInit = _function("sundials_cvode", "CVodeReInit", [c_void_p, c_double, c_
 CVodeSVtolerances = _function("sundials_cvode", "CVodeSVtolerances", [c_void_p, c_double, c_void_p])
 CVodeRootInit = _function("sundials_cvode", "CVodeRootInit", [c_void_p, c_int, RhsFn])
 CVodeSetNoInactiveRootWarn = _function("sundials_cvode", "CVodeSetNoInactiveRootWarn", [c_void_p])
+CVodeSetUserData = _function("sundials_cvode", "CVodeSetUserData", [c_void_p, c_void_p])
 CVodeSetLinearSolver = _function("sundials_cvode", "CVodeSetLinearSolver", [c_void_p, c_void_p, c_void_p])
 CVodeSetJacFn = _function("sundials_cvode", "CVodeSetJacFn", [c_void_p, JacFn])
 CVodeSetMaxStep = _function("sundials_cvode", "CVodeSetMaxStep", [c_void_p, c_double])

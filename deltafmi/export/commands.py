@@ -116,6 +116,9 @@ def info(target: str) -> None:
     clocks = _clocks(fmu)
     if clocks:
         click.echo(f"  clocks: {', '.join(clocks)}")
+    kernels = _compiled_kernels(fmu)
+    if kernels:
+        click.echo(f"  compiled kernels (C, no Python between events): {', '.join(kernels)}")
     rows = [(v.name, v.causality, v.variability, _type_text(v), "" if v.start is None else str(v.start),
              v.unit or (v.declaredType.unit if v.declaredType else "") or "", v.description or "")
             for v in md.modelVariables
@@ -151,6 +154,18 @@ def _clocks(fmu: Path) -> list:
                 details.append(f"{label} {float(clock.get(attribute)):g} s")
         found.append(f"{clock.get('name')} ({', '.join(d for d in details if d)})")
     return found
+
+
+def _compiled_kernels(fmu: Path) -> list:
+    """The roles of the compiled kernels ``fmu`` carries (deltafmi.component.native_kernels)."""
+    import json
+    import zipfile
+
+    from ..component.native_kernels import DESCRIPTION
+    with zipfile.ZipFile(fmu) as archive:
+        if f"resources/{DESCRIPTION}" not in archive.namelist():
+            return []
+        return [role.replace("_", " ") for role in json.loads(archive.read(f"resources/{DESCRIPTION}"))["kernels"]]
 
 
 def _fmu_of(target: str) -> Path:

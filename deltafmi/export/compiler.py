@@ -156,20 +156,23 @@ def python_include() -> str:
 
 
 def single_file_library(source: Path, name: str, includes: Sequence[Callable[[], str]] = (),
-                        abi: str = "") -> Path:
-    """``source`` compiled into the shared library ``name``, keyed by the source and ``abi`` (the
-    Python ABI it is built for, empty for none); ``includes`` give its include directories, asked
-    for only when it must be compiled (a Python's headers are needed only then)."""
-    digest = hashlib.sha256(source.read_bytes() + f"\0{name}\0{abi}".encode()).hexdigest()[:16]
+                        abi: str = "", flags: Sequence[str] = (), libraries: Sequence[str] = ()) -> Path:
+    """``source`` compiled into the shared library ``name``, keyed by the source, ``abi`` (the
+    Python ABI it is built for, empty for none), the extra compiler ``flags`` and ``libraries``
+    (``-lm``); ``includes`` give its include directories, asked for only when it must be compiled
+    (a Python's headers are needed only then)."""
+    key = f"\0{name}\0{abi}\0{' '.join(flags)}\0{' '.join(libraries)}"
+    digest = hashlib.sha256(source.read_bytes() + key.encode()).hexdigest()[:16]
     relative = f"native/{source.stem}-{digest}/{name}"
     found = find_built(relative)
     if found is not None:
         return found
     cc = require_compiler(source)
-    flags = [f"-I{include()}" for include in includes]
+    options = [f"-I{include()}" for include in includes] + list(flags)
     library = cache_dir() / relative
     build_into(library.parent, lambda tmp: _run([*cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
-                                                  *flags, str(source), "-o", f"{tmp}/{name}"], source))
+                                                  *options, str(source), "-o", f"{tmp}/{name}", *libraries],
+                                                 source))
     return library
 
 

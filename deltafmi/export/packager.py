@@ -8,6 +8,7 @@ import keyword
 import logging
 import marshal
 import re
+import shutil
 import sys
 import uuid
 import warnings
@@ -21,9 +22,12 @@ from ..component.checks import definition_problem
 from ..component.model_description import model_description_xml
 from ..component.clocks import clock_driven
 from ..component.model_description3 import model_description3_xml
+from ..component.native_kernels import DESCRIPTION as NATIVE_KERNELS
 from ..files import replaced_atomically
-from .compiler import (BuildError, NoCompilerError, cache_dir, fmu_binary, native_source_files, no_compiler_message,
+from .compiler import (BuildError, NoCompilerError, cache_dir, compiler_name, fmu_binary, native_source_files,
+                       no_compiler_message,
                        python_extension, python_runtime_config)
+from .codegen.component_kernels import component_library
 from .kernels import compiled_kernels
 from .reach import module_source, reached_modules
 from .sources import ComponentSourceError, find_component
@@ -129,8 +133,13 @@ def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int
     for path, arcname in runtime_files(source) + binary_files(source):
         digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
     writers = [module_source(name) for name in reached_modules(modules=_MODEL_DESCRIPTIONS, runtime=False)]
-    for path in native_source_files(fmi_version) + writers + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]:
+    codegen = PACKAGE_DIR / "export" / "codegen"
+    generator = sorted([*codegen.glob("*.py"), *codegen.glob("*.c")])  # writes the compiled kernels' C
+    for path in (native_source_files(fmi_version) + writers + generator
+                 + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]):
         digest.update(path.read_bytes())
+    # an FMU built where its compiled kernels could not be (no compiler) is not the one built where they can
+    digest.update(f"\0compiler={bool(shutil.which(compiler_name().split()[0]))}".encode())
     # the environment, not the interpreter's name in it: bin/python and bin/python3.12 (the console
     # scripts' shebang) of one venv build the same FMU
     digest.update(re.sub(r"(?m)^executable=.*$", f"prefix={sys.prefix}", python_runtime_config()).encode())
@@ -169,6 +178,7 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
     info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
             "guid": guid, "fmi_version": fmi_version, "deltafmi_version": deltafmi.__version__}
     writer = model_description_xml if fmi_version == 2 else model_description3_xml
+    kernels = component_library(cls)
     with replaced_atomically(output) as tmp:
         with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as fmu:
             fmu.writestr("modelDescription.xml", writer(cls, guid))
@@ -185,6 +195,12 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
                 fmu.write(path, arcname)
             for path in native_source_files(fmi_version):
                 fmu.write(path, f"sources/{path.name}")
+            if kernels is not None:
+                library = f"{_BINARY_DIR[fmi_version]}/{identifier}_kernels.so"
+                fmu.write(kernels.library, library)
+                fmu.write(kernels.source, f"sources/{kernels.source.name}")
+                fmu.writestr(f"resources/{NATIVE_KERNELS}",
+                             json.dumps({**kernels.description, "library": library}, indent=1))
             fmu.writestr("documentation/index.html", _documentation(cls, fmi_version))
     return output
 

@@ -3,8 +3,8 @@
 ``python -m deltafmi.export.prebuild DIR`` (run by ``setup.py`` when it builds a wheel, into
 ``build/lib/deltafmi/_prebuilt``) compiles, with the same functions and under the same relative
 paths as the per-user cache (see :mod:`deltafmi.export.compiler`): the FMU binaries (FMI 2.0 and 3.0), the compiled
-value access, the mypyc kernels, the C pieces of the master and the CSV writer, and the starter of
-portable FMUs. An installed wheel finds them there, so that its user needs no C compiler, mypy or
+value access, the mypyc kernels, the packaged models' compiled kernels (C generated from their
+Python), the C pieces of the master and the CSV writer, and the starter of portable FMUs. An installed wheel finds them there, so that its user needs no C compiler, mypy or
 Python headers to build and run the packaged models, nor their edited copies (their FMUs carry
 the same binary and kernels). Anything that cannot be built is an error: a wheel without a piece
 would compile it on the user's machine, the thing the layer is there to avoid.
@@ -44,6 +44,11 @@ def prebuild(target: Path) -> list[Path]:
     for relative in PLAIN_C_SOURCES:
         compiler.plain_c_library(package / relative)
     starter_library()
+    from .. import models
+    from .codegen.component_kernels import component_library
+    for name in models.MODELS:  # the packaged models' compiled kernels (C generated from their Python)
+        if component_library(getattr(models, name)) is None:
+            raise SystemExit(f"prebuild: {name}'s kernels were not compiled")
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)  # a kernel build that falls back to Python is a failure here
         if not kernels.compiled_kernels():

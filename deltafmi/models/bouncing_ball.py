@@ -1,7 +1,9 @@
 """The talk's Modelica bouncing ball (``myBouncingBall``) as an FMU, statement for statement."""
 import numpy as np
 
-from deltafmi.component import Component, Experiment, Output, Parameter, State
+from deltafmi.component import Component, Experiment, Kernel, NativeKernels, Output, Parameter, State
+from deltafmi.mechanics.examples.ball_kernels import (ModelicaBall, modelica_derivatives, modelica_indicators,
+                                                      modelica_outputs)
 from deltafmi.mechanics.examples.bouncing_ball import ModelicaBouncingBall
 
 
@@ -31,12 +33,22 @@ class BouncingBall(Component):
     lam = Output(unit="N", description="Multiplier lambda of the contact equation")
     energy = Output(unit="J", description="Mechanical energy m v^2/2 + m g q")
 
+    #: the continuous part runs as generated C in the FMU; the algorithm (events) stays in Python
+    #: and sets ``contact``, which the kernels read
+    native = NativeKernels(
+        derivatives=Kernel(modelica_derivatives, "_params", "contact", "states"),
+        event_indicators=Kernel(modelica_indicators, "_params", "contact", "states"),
+        outputs=Kernel(modelica_outputs, "_params", "contact", "states", returns=("lam", "f", "energy")),
+        attributes={"_params": ModelicaBall})
+
     def setup(self) -> None:
         self.ball = None
+        self._params = None
 
     def initialize(self, t: float) -> None:
         self.ball = ModelicaBouncingBall(g=self.g, m=self.m, a0=self.a0, a1=self.a1, a2=self.a2,
                                          lin_flag=self.linFlag)
+        self._params = self.ball.params
         self.ball.initialize(t, np.array(self.states))
         self.contact = self.ball.contact
 
@@ -45,11 +57,13 @@ class BouncingBall(Component):
             self.initialize(0.0)
         return self.ball
 
-    def derivatives(self, t: float):
-        return self._model().derivatives(t, self.states)
+    def derivatives(self, t: float) -> list:
+        self._model()
+        return modelica_derivatives(self._params, int(self.contact), self.states.tolist())
 
-    def event_indicators(self, t: float):
-        return self._model().event_indicators(t, self.states)
+    def event_indicators(self, t: float) -> list:
+        self._model()
+        return modelica_indicators(self._params, int(self.contact), self.states.tolist())
 
     def update(self, t: float) -> bool:
         self._model().update(t, np.array(self.states))
@@ -57,8 +71,5 @@ class BouncingBall(Component):
         return False
 
     def outputs(self, t: float) -> None:
-        x = self.states
-        ball = self._model()
-        self.lam = ball.lam(x)
-        self.f = ball.force(x)
-        self.energy = ball.energy(x)
+        self._model()
+        self.lam, self.f, self.energy = modelica_outputs(self._params, int(self.contact), self.states.tolist())

@@ -1,10 +1,10 @@
 """Bouncing ball on the FREE / COLLISION / CONTACT framework, with a coefficient of restitution."""
-import numpy as np
-
-from deltafmi.component import Experiment, HybridSystemComponent, Input, Output, Parameter, State
+from deltafmi.component import Experiment, HybridSystemComponent, Input, Kernel, NativeKernels, Output, Parameter, State
+from deltafmi.mechanics.examples.restitution_kernels import (BallModes, RestitutionBall, ball_derivatives,
+                                                             ball_evaluate, ball_indicators, ball_outputs)
 from deltafmi.mechanics.examples.bouncing_ball import BallModel
+from deltafmi.mechanics.examples.contact_kernels import KernelContactSystem, law_constants
 from deltafmi.mechanics.contact.collision_law import CollisionLaw
-from deltafmi.mechanics.contact.system import ContactSystem
 
 
 class BouncingBallRestitution(HybridSystemComponent):
@@ -37,20 +37,41 @@ class BouncingBallRestitution(HybridSystemComponent):
     lam = Output(unit="N", description="Contact force of the floor")
     energy = Output(unit="J", description="Kinetic + potential + elastic energy")
 
-    def build_system(self, t: float) -> ContactSystem:
+    #: the continuous part runs as generated C in the FMU; the mode machine (events) stays in
+    #: Python and hands the mode over in ``_modes``
+    native = NativeKernels(
+        derivatives=Kernel(ball_derivatives, "_params", "_modes", "states", "F"),
+        event_indicators=Kernel(ball_indicators, "_params", "_modes", "states", "F"),
+        outputs=Kernel(ball_outputs, "_params", "_modes", "states", "F", returns=("lam", "energy")),
+        attributes={"_params": RestitutionBall, "_modes": BallModes})
+
+    def setup(self) -> None:
+        super().setup()
+        self._params = self._modes = None
+
+    def build_system(self, t: float) -> KernelContactSystem:
         law = CollisionLaw(restitution=self.e, duration=self.duration,
                            reference_speed=self.reference_speed, exponent=self.exponent)
-        return ContactSystem(BallModel(self.m, self.g), law, alpha0=self.alpha0,
-                             alpha1=self.alpha1, capture_speed=self.capture_speed)
+        self._params = RestitutionBall(self.m, self.g, law_constants(law), self.alpha0, self.alpha1)
+        return KernelContactSystem(BallModel(self.m, self.g), law, ball_evaluate, self._params,
+                                   alpha0=self.alpha0, alpha1=self.alpha1, capture_speed=self.capture_speed)
 
-    def apply_inputs(self, system: ContactSystem) -> None:
+    def apply_inputs(self, system: KernelContactSystem) -> None:
         system.model.force = self.F
+        system.inputs = (float(self.F),)
 
     def publish_modes(self, modes) -> None:
         self.mode = int(modes[0])
+        self._modes = BallModes(*self.system.discrete())
+
+    def derivatives(self, t: float) -> list:
+        self.current_system()
+        return ball_derivatives(self._params, self._modes, self.states.tolist(), float(self.F))
+
+    def event_indicators(self, t: float) -> list:
+        self.current_system()
+        return ball_indicators(self._params, self._modes, self.states.tolist(), float(self.F))
 
     def outputs(self, t: float) -> None:
-        x = np.array(self.states)
-        system = self.current_system()
-        self.lam = float(system.contact_forces(x, t)[0])
-        self.energy = system.energy(x)
+        self.current_system()
+        self.lam, self.energy = ball_outputs(self._params, self._modes, self.states.tolist(), float(self.F))

@@ -1,10 +1,15 @@
 """A planar box dropped on a frictionless table: bounces, rocks and rests on two corners."""
 import numpy as np
 
-from deltafmi.component import Experiment, HybridSystemComponent, Input, Output, Parameter, State
+from deltafmi.component import Experiment, HybridSystemComponent, Input, Kernel, NativeKernels, Output, Parameter, State
+from deltafmi.mechanics.examples.box_kernels import (BoxModes, BoxParams, box_derivatives, box_evaluate,
+                                                     box_indicators, box_outputs)
 from deltafmi.mechanics.examples.box_on_table import BoxModel
+from deltafmi.mechanics.examples.contact_kernels import KernelContactSystem, law_constants
 from deltafmi.mechanics.contact.collision_law import CollisionLaw
-from deltafmi.mechanics.contact.system import ContactSystem
+
+#: the outputs, in the order box_outputs returns them
+_OUTPUTS = ("lam", "gap", "total_force", "energy")
 
 
 class BoxOnTable(HybridSystemComponent):
@@ -46,21 +51,46 @@ class BoxOnTable(HybridSystemComponent):
     total_force = Output(unit="N", description="Sum of the corner forces")
     energy = Output(unit="J", description="Kinetic + potential + elastic energy")
 
-    def build_system(self, t: float) -> ContactSystem:
+    #: the continuous part runs as generated C in the FMU; the mode machine (events) stays in
+    #: Python and hands the modes over in ``_modes``
+    native = NativeKernels(
+        derivatives=Kernel(box_derivatives, "_params", "_modes", "states", "push", "torque"),
+        event_indicators=Kernel(box_indicators, "_params", "_modes", "states", "push", "torque"),
+        outputs=Kernel(box_outputs, "_params", "_modes", "states", "push", "torque", returns=_OUTPUTS),
+        attributes={"_params": BoxParams, "_modes": BoxModes})
+
+    def setup(self) -> None:
+        super().setup()
+        self._params = self._modes = None
+
+    def build_system(self, t: float) -> KernelContactSystem:
         model = BoxModel(self.mass, self.width, self.height, self.inertia if self.inertia > 0.0 else None,
                          tuple(self.com_offset), self.g)
         law = CollisionLaw(restitution=self.e, duration=self.duration,
                            reference_speed=self.reference_speed, exponent=self.exponent)
-        return ContactSystem(model, law, alpha0=self.alpha0, alpha1=self.alpha1,
-                             capture_speed=self.capture_speed)
+        self._params = BoxParams(model.mass, model.inertia, model.g,
+                                 tuple((float(cx), float(cy)) for cx, cy in model.corners), law_constants(law),
+                                 self.alpha0, self.alpha1)
+        return KernelContactSystem(model, law, box_evaluate, self._params, alpha0=self.alpha0,
+                                   alpha1=self.alpha1, capture_speed=self.capture_speed)
 
-    def apply_inputs(self, system: ContactSystem) -> None:
+    def apply_inputs(self, system: KernelContactSystem) -> None:
         system.model.force = np.array([self.push[0], self.push[1], self.torque])
+        system.inputs = (self.push.tolist(), float(self.torque))
+
+    def publish_modes(self, modes) -> None:
+        self.mode = modes
+        self._modes = BoxModes(*self.system.discrete())
+
+    def derivatives(self, t: float) -> list:
+        self.current_system()
+        return box_derivatives(self._params, self._modes, self.states.tolist(), self.push.tolist(), float(self.torque))
+
+    def event_indicators(self, t: float) -> list:
+        self.current_system()
+        return box_indicators(self._params, self._modes, self.states.tolist(), self.push.tolist(), float(self.torque))
 
     def outputs(self, t: float) -> None:
-        state = np.array(self.states)
-        system = self.current_system()
-        self.lam = system.contact_forces(state, t)
-        self.gap = system.model.gaps(state[:3])
-        self.total_force = float(np.sum(self.lam))
-        self.energy = system.energy(state)
+        self.current_system()
+        self.write_reals(box_outputs(self._params, self._modes, self.states.tolist(), self.push.tolist(),
+                                     float(self.torque)), *_OUTPUTS)

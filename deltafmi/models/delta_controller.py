@@ -1,10 +1,30 @@
 """Delta robot controller FMU: a thin sampled component over deltafmi.mechanics.delta.control."""
-from deltafmi.component import Clock, Component, Experiment, Input, Output, Parameter
+from deltafmi.component import Clock, Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter
 from deltafmi.mechanics.delta import control as delta_control
+from deltafmi.mechanics.delta.control_law import ControlLaw
+from deltafmi.mechanics.delta.sampling import F3, SampleSettings, SampleState, sample
 from deltafmi.models.robot_parameters import robot_parameters
 
 #: the robot's parameters, as the controller models them (they may differ from the plant's)
 ControllerRobotModel = robot_parameters("as the controller models it")
+
+
+def controller_step(law: ControlLaw, settings: SampleSettings, state: SampleState, longest_step: float, t0: float,
+                    k: int, t: float, h: float, y: F3, yd: F3, r: F3, rd: F3, rdd: F3, force: F3, tactile: float,
+                    z_est: F3) -> tuple[SampleState, int, int, F3, float, F3, float, int]:
+    """The Co-Simulation step from ``t`` over ``h`` as DeltaController.do_step takes it: the samples
+    due in [t, t + h) with the inputs at t (the FMU's compiled step). Returns the new state, the
+    next sample's index, a flag for Python (a sample raised a warning, or the step is longer than
+    the sample period: both are logged), and the outputs u, cond_Jc, z_est, shift, status."""
+    period = settings.sample_period
+    defer = 1 if h > longest_step else 0
+    end = t + h - 1e-9 * period
+    while t0 + k * period < end:
+        state = sample(law, settings, state, y, yd, r, rd, rdd, force, tactile)
+        defer = defer | state.new_warnings
+        k += 1
+    z = z_est if state.z is None else state.z
+    return state, k, defer, state.u, state.cond, z, state.shift, state.status
 
 
 class DeltaController(ControllerRobotModel, Component):
@@ -75,6 +95,14 @@ class DeltaController(ControllerRobotModel, Component):
     shift = Output(unit="m", variability="discrete",
                    description="Tactile loop: shift of the reference along tactile_axis")
 
+    #: Co-Simulation steps in C (generated from controller_step), with no Python
+    native = NativeKernels(
+        step=Kernel(controller_step, "_ctl.law", "_ctl.settings", "_ctl.state", "_longest_step", "_t0", "_k", "t", "h",
+                    "y", "yd", "r", "rd", "rdd", "force", "tactile", "z_est", updates=("_ctl.state", "_k"),
+                    defer=True, returns=("u", "cond_Jc", "z_est", "shift", "status")),
+        attributes={"_ctl.law": ControlLaw, "_ctl.settings": SampleSettings, "_ctl.state": SampleState,
+                    "_longest_step": float, "_t0": float, "_k": int})
+
     def setup(self) -> None:
         self._ctl = None
         self._t0 = 0.0
@@ -104,12 +132,14 @@ class DeltaController(ControllerRobotModel, Component):
         # faster than a numpy array, and one read_reals is cheaper than seven attribute reads
         v = self.read_reals("y", "yd", "r", "rd", "rdd", "force", "tactile")
         ctl.step(v[0:3], v[3:6], v[6:9], v[9:12], v[12:15], v[15:18], v[18])
-        # the real outputs u, cond_Jc, z_est, shift in one write (ctl.u: the torque step() returned)
-        if ctl.last is not None and not ctl.status & delta_control.STATUS_SINGULAR:
-            self.write_reals((*ctl.u, ctl.cond, *ctl.last.z, ctl.shift), "u", "cond_Jc", "z_est", "shift")
-        else:  # singular: the estimate is kept
-            self.write_reals((*ctl.u, ctl.cond, ctl.shift), "u", "cond_Jc", "shift")
-        self.status = ctl.status
+        # the real outputs u, cond_Jc, z_est, shift in one write; z_est: the estimate of the last
+        # sample that was not singular (kept while there is none)
+        state = ctl.state
+        if state.z is not None:
+            self.write_reals((*state.u, state.cond, *state.z, state.shift), "u", "cond_Jc", "z_est", "shift")
+        else:
+            self.write_reals((*state.u, state.cond, state.shift), "u", "cond_Jc", "shift")
+        self.status = state.status
         warning = ctl.pending_warning()
         if warning:
             self.log(warning, level="warning")

@@ -1,10 +1,16 @@
 """Delta robot plant FMU: a thin component over deltafmi.mechanics.delta (RL5 defaults)."""
 import numpy as np
 
-from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
+from deltafmi.component import Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter, State
 from deltafmi.mechanics import delta
+from deltafmi.mechanics.delta import dynamics
 from deltafmi.mechanics.delta.jacobian import plant_jacobian
+from deltafmi.mechanics.delta.params import DeltaParams
 from deltafmi.models.robot_parameters import RobotParameters
+
+
+#: the outputs, in the order dynamics.plant_outputs returns them
+_OUTPUTS = ("y", "yd", "z", "zd", "lam", "residual", "energy")
 
 
 class DeltaRobot(RobotParameters, Component):
@@ -51,6 +57,12 @@ class DeltaRobot(RobotParameters, Component):
     residual = Output(unit="m", description="Loop-closure residual |h(q)| (Euclidean norm)")
     energy = Output(unit="J", description="Kinetic plus potential energy (zero at z = 0)")
 
+    #: what the FMU's C layer computes itself (generated from the same kernels as the methods below)
+    native = NativeKernels(
+        derivatives=Kernel(dynamics.state_derivative, "_plant", "states", "u", "f", "pole"),
+        outputs=Kernel(dynamics.plant_outputs, "_plant", "q", "v", "u", "f", "pole", returns=_OUTPUTS),
+        attributes={"_plant": DeltaParams})
+
     def setup(self) -> None:
         self._plant = None  # DeltaParams, built from the parameters at initialization
 
@@ -81,12 +93,6 @@ class DeltaRobot(RobotParameters, Component):
                 "lam": pj.dlam, "energy": pj.denergy[None, :]}
 
     def outputs(self, t: float) -> None:
-        ev = delta.evaluate_plant(self._plant, self.q, self.v, self.u, self.f, self.pole)
-        q, v = self.q, self.v
-        self.y = q[0::3]
-        self.yd = v[0::3]
-        self.z = ev.z
-        self.zd = ev.zd
-        self.lam = ev.lam
-        self.residual = ev.residual
-        self.energy = ev.energy
+        y, yd, z, zd, lam, residual, energy = dynamics.plant_outputs(self._plant, self.q, self.v, self.u, self.f,
+                                                                     self.pole)
+        self.write_reals((*y, *yd, *z, *zd, *lam, residual, energy), *_OUTPUTS)

@@ -1,16 +1,16 @@
 """Delta robot pressing a movable box on a table: a thin component over deltafmi.mechanics.delta.box."""
 import numpy as np
 
-from deltafmi.component import Experiment, HybridSystemComponent, Input, Output, Parameter, State
-from deltafmi.mechanics import delta
-from deltafmi.mechanics.contact import CompliantMaterial, ContactSystem
-from deltafmi.mechanics.delta.box import make_robot_box_contact
+from deltafmi.component import Experiment, Input, Output, Parameter, State
+from deltafmi.mechanics.contact import CompliantMaterial
+from deltafmi.mechanics.delta.box import BoxTableSystem, make_robot_box_contact
 from deltafmi.mechanics.delta.contact import robot_start_state
+from deltafmi.mechanics.delta.contact_kernels import BoxTable, box_derivatives, box_indicators, box_outputs
 from deltafmi.mechanics.examples.box_on_table import BoxModel
-from deltafmi.models.robot_parameters import RobotParameters
+from deltafmi.models.contact_plant import RobotContactPlant, contact_kernels
 
 
-class DeltaRobotBox(RobotParameters, HybridSystemComponent):
+class DeltaRobotBox(RobotContactPlant):
     """RL5 delta robot, a movable box and a table: the talk's cartoon with the robot's tool.
 
     The DeltaRobotContact plant plus a rigid box lying on the horizontal table (planar in the
@@ -83,7 +83,12 @@ class DeltaRobotBox(RobotParameters, HybridSystemComponent):
     penetration = Output(shape=6, unit="m", description="Penetrations (0 when apart), same order")
     normal_force = Output(shape=3, unit="N", description="Force of the table and the box on the tool, world frame")
 
-    def build_system(self, t: float) -> ContactSystem:
+    #: what the FMU's C layer computes itself between events, and the methods too (contact_plant)
+    native = contact_kernels(box_derivatives, box_indicators, box_outputs, BoxTable,
+                             returns=("y", "yd", "z", "zd", "tip", "lam", "residual", "energy", "fn", "gap",
+                                      "penetration", "normal_force"))
+
+    def build_system(self, t: float) -> BoxTableSystem:
         params = self.robot_params()
         box = BoxModel(self.box_mass, self.box_width, self.box_height,
                        self.box_inertia if self.box_inertia > 0.0 else None, g=self.g)
@@ -103,31 +108,3 @@ class DeltaRobotBox(RobotParameters, HybridSystemComponent):
         self.q, self.box, self.v, self.box_rate = robot[:9], x[9:], robot[9:], [0.0, 0.0, 0.0]
         return system
 
-    def apply_inputs(self, system: ContactSystem) -> None:
-        system.model.u = self.u.tolist()
-        system.model.f = self.f.tolist()
-
-    def project(self, t: float) -> None:
-        """Close the loops (CS after every solver step, ME at a step event past loop_tolerance)."""
-        self.q, self.v = delta.project_to_constraints(self.current_system().model.robot.params, self.q, self.v)
-
-    def needs_projection(self, t: float) -> bool:
-        tolerance = self.loop_tolerance
-        return tolerance > 0.0 and delta.loop_residual(self.current_system().model.robot.params, self.q) > tolerance
-
-    def outputs(self, t: float) -> None:
-        system = self.current_system()
-        model, x = system.model, np.array(self.states)  # [q, box, v, box_rate]: the system's order
-        q, v = x[:9], x[12:21]
-        fn = system.contact_forces(x, t)
-        nx, nz = model._face(x[:12])[:2]
-        wrist_force = model.wrist_force(fn, nx, nz)
-        ev = delta.evaluate_plant(model.robot.params, q, v, model.robot.u, wrist_force, model.robot.pole)
-        self.y, self.yd, self.z, self.zd = q[0::3], v[0::3], ev.z, ev.zd
-        self.tip = ev.z + np.array(model.robot.tool)
-        self.lam, self.residual = ev.lam, ev.residual
-        self.energy = system.energy(x)
-        self.fn = fn
-        gaps = model.gaps(x[:12])
-        self.gap, self.penetration = gaps, np.maximum(-gaps, 0.0)
-        self.normal_force = [wrist_force[k] - model.robot.f[k] for k in range(3)]

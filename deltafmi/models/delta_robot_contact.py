@@ -1,14 +1,12 @@
 """Delta robot with a tool touching a plane: a thin component over deltafmi.mechanics.delta.contact."""
-import numpy as np
-
-from deltafmi.component import Experiment, HybridSystemComponent, Input, Output, Parameter, State
-from deltafmi.mechanics import delta
-from deltafmi.mechanics.contact import CompliantMaterial, ContactSystem
-from deltafmi.mechanics.delta.contact import Plane, make_robot_contact, robot_start_state
-from deltafmi.models.robot_parameters import RobotParameters
+from deltafmi.component import Experiment, Input, Output, Parameter, State
+from deltafmi.mechanics.contact import CompliantMaterial
+from deltafmi.mechanics.delta.contact import Plane, ToolPlaneSystem, make_robot_contact, robot_start_state
+from deltafmi.mechanics.delta.contact_kernels import ToolPlane, plane_derivatives, plane_indicators, plane_outputs
+from deltafmi.models.contact_plant import RobotContactPlant, contact_kernels
 
 
-class DeltaRobotContact(RobotParameters, HybridSystemComponent):
+class DeltaRobotContact(RobotContactPlant):
     """RL5 delta robot whose tool touches a rigid plane: the robot's DAE plus a unilateral contact.
 
     The DeltaRobot plant (nine joint angles, loop closures solved at every evaluation) with a tool
@@ -68,7 +66,12 @@ class DeltaRobotContact(RobotParameters, HybridSystemComponent):
     gap = Output(unit="m", description="Signed distance of the tool tip from the plane")
     penetration = Output(unit="m", description="Depth of the tool tip below the plane (0 when apart)")
 
-    def build_system(self, t: float) -> ContactSystem:
+    #: what the FMU's C layer computes itself between events, and the methods too (contact_plant)
+    native = contact_kernels(plane_derivatives, plane_indicators, plane_outputs, ToolPlane,
+                             returns=("y", "yd", "z", "zd", "tip", "lam", "residual", "energy", "normal_force", "fn",
+                                      "gap", "penetration"))
+
+    def build_system(self, t: float) -> ToolPlaneSystem:
         params = self.robot_params()
         plane = Plane(self.surface_height, tuple(self.surface_normal))
         material = CompliantMaterial(self.contact_stiffness, self.contact_damping, self.restitution)
@@ -83,32 +86,6 @@ class DeltaRobotContact(RobotParameters, HybridSystemComponent):
         self.q, self.v = x0[:9], x0[9:]
         return system
 
-    def apply_inputs(self, system: ContactSystem) -> None:
-        system.model.u = self.u.tolist()
-        system.model.f = self.f.tolist()
-
     def publish_modes(self, modes) -> None:
-        self.mode = int(modes[0])
-
-    def project(self, t: float) -> None:
-        """Close the loops (CS after every solver step, ME at a step event past loop_tolerance)."""
-        self.q, self.v = delta.project_to_constraints(self.current_system().model.params, self.q, self.v)
-
-    def needs_projection(self, t: float) -> bool:
-        tolerance = self.loop_tolerance
-        return tolerance > 0.0 and delta.loop_residual(self.current_system().model.params, self.q) > tolerance
-
-    def outputs(self, t: float) -> None:
-        system = self.current_system()
-        model, x = system.model, np.array(self.states)
-        q, v = x[:9], x[9:]
-        fn = float(system.contact_forces(x, t)[0])
-        ev = delta.evaluate_plant(model.params, q, v, model.u, model.wrist_force(fn), model.pole)
-        self.y, self.yd, self.z, self.zd = q[0::3], v[0::3], ev.z, ev.zd
-        self.tip = ev.z + np.array(model.tool)
-        self.lam, self.residual = ev.lam, ev.residual
-        self.energy = system.energy(x)
-        self.fn = fn
-        self.normal_force = fn * np.array(model.plane.normal)
-        self.gap = float(model.gaps(q)[0])
-        self.penetration = max(-self.gap, 0.0)
+        """The one contact's mode as the scalar ``mode`` (and the kernels' state, as the base)."""
+        super().publish_modes(int(modes[0]))

@@ -1,9 +1,9 @@
 """Newton's cradle: up to 7 balls, as pendulums or a free chain, with compliant two-body impacts."""
-import numpy as np
-
-from deltafmi.component import Experiment, HybridSystemComponent, Output, Parameter, State
+from deltafmi.component import Experiment, HybridSystemComponent, Kernel, NativeKernels, Output, Parameter, State
 from deltafmi.mechanics.contact.collision_law import CollisionLaw
-from deltafmi.mechanics.examples.newtons_cradle import make_cradle, momentum
+from deltafmi.mechanics.examples.cradle_kernels import (CradleModes, CradleParams, cradle_derivatives,
+                                                       cradle_indicators, cradle_outputs)
+from deltafmi.mechanics.examples.newtons_cradle import make_cradle
 
 N_MAX = 7
 
@@ -46,6 +46,19 @@ class NewtonsCradle(HybridSystemComponent):
     energy = Output(unit="J", description="Kinetic + potential + elastic energy")
     momentum = Output(unit="N.s", description="Horizontal momentum of the balls")
 
+    #: the continuous part (derivatives, indicators, outputs) runs as generated C in the FMU; the
+    #: mode machine (events) stays in Python and hands the modes over in ``_modes``
+    native = NativeKernels(
+        derivatives=Kernel(cradle_derivatives, "_params", "_modes", "states"),
+        event_indicators=Kernel(cradle_indicators, "_params", "_modes", "states"),
+        outputs=Kernel(cradle_outputs, "_params", "_modes", "states",
+                       returns=("x", "vx", "lam", "energy", "momentum")),
+        attributes={"_params": CradleParams, "_modes": CradleModes})
+
+    def setup(self) -> None:
+        super().setup()
+        self._params = self._modes = None
+
     def build_system(self, t: float):
         if not 2 <= self.n <= N_MAX:
             raise ValueError(f"n must be in 2..{N_MAX}, got {self.n}")
@@ -54,20 +67,26 @@ class NewtonsCradle(HybridSystemComponent):
         system, x0 = make_cradle(
             self.n, pendulum=self.pendulum, mass=self.mass, radius=self.radius, length=self.length,
             gap=self.gap, striker_speed=self.striker_speed,
-            striker_angle=self.striker_angle if self.pendulum else 0.0, law=law, n_max=N_MAX, g=self.g)
+            striker_angle=self.striker_angle if self.pendulum else 0.0, law=law, n_max=N_MAX, g=self.g,
+            kernels=True)
+        self._params = system.params
         self.q = x0[:N_MAX]
         self.v = x0[N_MAX:]
         return system
 
+    def publish_modes(self, modes) -> None:
+        self.mode = modes
+        self._modes = CradleModes(*self.system.discrete())
+
+    def derivatives(self, t: float) -> list:
+        self.current_system()
+        return cradle_derivatives(self._params, self._modes, self.states.tolist())
+
+    def event_indicators(self, t: float) -> list:
+        self.current_system()
+        return cradle_indicators(self._params, self._modes, self.states.tolist())
+
     def outputs(self, t: float) -> None:
-        state = np.array(self.states)
-        system = self.current_system()
-        model = system.model
-        if self.pendulum:
-            self.x = model.centres(state[:N_MAX])[:, 0]
-        else:
-            self.x = state[:N_MAX]
-        self.vx = model.ball_velocities(state)
-        self.lam = system.contact_forces(state, t)
-        self.energy = system.energy(state)
-        self.momentum = momentum(model, state, self.n)
+        self.current_system()
+        self.write_reals(cradle_outputs(self._params, self._modes, self.states.tolist()),
+                         "x", "vx", "lam", "energy", "momentum")

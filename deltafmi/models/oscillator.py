@@ -1,5 +1,27 @@
 """Damped oscillator bouncing on a wall: the smallest model with state events and a time event."""
-from deltafmi.component import Component, Experiment, Input, Output, Parameter, State
+from deltafmi.component import Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter, State
+
+
+# The kernels: plain float Python that ``deltafmi build`` also compiles to C for the FMU (its
+# derivatives, CVODE's right-hand side and root function, the energy output); the methods below
+# call them, so both paths give the same numbers. The wall impact and the force step stay in
+# update() (Python, at events): the kernels take force_on as an argument.
+
+def oscillator_derivatives(x: float, v: float, F: float, F_step: float, force_on: bool, m: float, k: float,
+                           c: float) -> tuple[float, float]:
+    """(x', v') of m x'' + c x' + k x = F + F_step [force_on]."""
+    force = F + (F_step if force_on else 0.0)
+    return v, (force - k * x - c * v) / m
+
+
+def oscillator_energy(x: float, v: float, m: float, k: float) -> float:
+    """Kinetic plus spring energy."""
+    return 0.5 * m * v ** 2 + 0.5 * k * x ** 2
+
+
+def wall_gap(x: float, wall: float) -> float:
+    """The event indicator: the mass's height above the wall."""
+    return x - wall
 
 
 class Oscillator(Component):
@@ -26,15 +48,19 @@ class Oscillator(Component):
     impacts = Output(0, type=int, description="Number of wall impacts so far")
     force_on = Output(False, type=bool, description="Force step applied")
 
+    native = NativeKernels(
+        derivatives=Kernel(oscillator_derivatives, "x", "v", "F", "F_step", "force_on", "m", "k", "c"),
+        event_indicators=Kernel(wall_gap, "x", "wall"),
+        outputs=Kernel(oscillator_energy, "x", "v", "m", "k", returns=("energy",)))
+
     def derivatives(self, t: float) -> list:
-        force = self.F + (self.F_step if self.force_on else 0.0)
-        return [self.v, (force - self.k * self.x - self.c * self.v) / self.m]
+        return list(oscillator_derivatives(self.x, self.v, self.F, self.F_step, self.force_on, self.m, self.k, self.c))
 
     def outputs(self, t: float) -> None:
-        self.energy = 0.5 * self.m * self.v ** 2 + 0.5 * self.k * self.x ** 2
+        self.energy = oscillator_energy(self.x, self.v, self.m, self.k)
 
     def event_indicators(self, t: float) -> list:
-        return [self.x - self.wall]
+        return [wall_gap(self.x, self.wall)]
 
     def update(self, t: float) -> None:
         if not self.force_on and t >= self.t_step:

@@ -1,8 +1,12 @@
 """Two-pad tactile sensor under the tool: a thin component over deltafmi.mechanics.delta.tactile."""
 import math
 
-from deltafmi.component import Clock, Component, Experiment, Input, Output, Parameter, State
-from deltafmi.mechanics.delta.tactile import Readout, TactilePads
+from deltafmi.component import Clock, Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter, State
+from deltafmi.mechanics.delta.tactile import (Axis, Readout, TactilePads, sensor_derivatives, sensor_forces,
+                                             sensor_outputs)
+
+#: the kernels' arguments before the states: the pads, the axis, the geometry and the load
+_GEOMETRY = ("_pads", "_axis", "tip", "hole_centre", "fn", "hole_width")
 
 
 class TactileSensor(Component):
@@ -46,6 +50,13 @@ class TactileSensor(Component):
     offset = Output(unit="m", description="True offset of the tool from the hole centre along the axis")
     compression = Output(unit="m", description="True pad compression")
 
+    #: what the FMU's C layer computes itself (generated from the kernels the methods below call);
+    #: the sampled readings (seeded noise, quantization) stay Python, in update()
+    native = NativeKernels(
+        derivatives=Kernel(sensor_derivatives, *_GEOMETRY, "bandwidth", "filtered"),
+        outputs=Kernel(sensor_outputs, *_GEOMETRY, returns=("offset", "compression")),
+        attributes={"_pads": TactilePads, "_axis": Axis})
+
     def setup(self) -> None:
         self._pads = None
         self._k = 0
@@ -57,26 +68,22 @@ class TactileSensor(Component):
         norm = math.hypot(ax, ay)
         if not norm > 0.0:
             raise ValueError(f"axis must have a horizontal component, got {list(self.axis)}")
-        self._axis = (ax / norm, ay / norm)
+        self._axis = Axis(ax / norm, ay / norm)
         self._pads = TactilePads(self.pad_spacing, self.pad_width, self.pad_stiffness)
         self._readout = Readout(self.noise, self.quantization, self.seed)
         self._t0, self._k = t, 0
-        self.filtered = self._true_forces()[:2]
+        self.filtered = sensor_forces(*self._geometry())[:2]
 
-    def _true_forces(self) -> tuple:
+    def _geometry(self) -> tuple:
         if self._pads is None:
             self.initialize(0.0)
-        ax, ay = self._axis
-        offset = ax * (self.tip[0] - self.hole_centre[0]) + ay * (self.tip[1] - self.hole_centre[1])
-        return self._pads.forces(self.fn, offset, self.hole_width) + (offset,)
+        return self._pads, self._axis, self.tip, self.hole_centre, self.fn, self.hole_width
 
     def derivatives(self, t: float) -> list:
-        f1, f2, _, _ = self._true_forces()
-        rate = 2.0 * math.pi * self.bandwidth
-        return [rate * (f1 - self.filtered[0]), rate * (f2 - self.filtered[1])]
+        return list(sensor_derivatives(*self._geometry(), self.bandwidth, self.filtered))
 
     def outputs(self, t: float) -> None:
-        _, _, self.compression, self.offset = self._true_forces()
+        self.offset, self.compression = sensor_outputs(*self._geometry())
 
     def next_time_event(self, t: float) -> float:
         return self._t0 + self._k * self.sample_period

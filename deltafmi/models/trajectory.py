@@ -1,10 +1,28 @@
 """Wrist reference trajectory FMU: a thin component over deltafmi.mechanics.delta.trajectory."""
 import os
+from typing import Optional
 
-from deltafmi.component import Component, Experiment, Output, Parameter
-from deltafmi.mechanics.delta.trajectory import CirclePath, ConstantSpeedPath, MinimumJerkPath, RecordedPath
+from deltafmi.component import Component, Experiment, Kernel, NativeKernels, Output, Parameter
+from deltafmi.mechanics.delta.trajectory import (CirclePath, ConstantSpeedPath, ConstantSpeedTable, Flat9,
+                                                 MinimumJerkPath, MinimumJerkTable, RecordedPath, evaluate_speed_table,
+                                                 evaluate_table)
 
 MAX_WAYPOINTS = 8
+
+
+def reference(jerk: Optional[MinimumJerkTable], speed: Optional[ConstantSpeedTable], t: float) -> Flat9:
+    """r, rd, rdd at ``t`` from the waypoint path's table (modes 0 and 3; the compiled kernel)."""
+    if jerk is not None:
+        return evaluate_table(jerk, t)
+    if speed is not None:
+        return evaluate_speed_table(speed, t)
+    raise ValueError("only the waypoint paths (modes 0 and 3) have a table")
+
+
+def reference_after_step(jerk: Optional[MinimumJerkTable], speed: Optional[ConstantSpeedTable], t: float,
+                         h: float) -> Flat9:
+    """The Co-Simulation step from ``t`` over ``h``: the reference at its end (the compiled step)."""
+    return reference(jerk, speed, t + h)
 
 
 class Trajectory(Component):
@@ -53,8 +71,14 @@ class Trajectory(Component):
     rd = Output(shape=3, unit="m/s", description="Reference wrist velocity")
     rdd = Output(shape=3, unit="m/s2", description="Reference wrist acceleration")
 
+    #: the waypoint paths (modes 0 and 3) in C; the circle and the CSV playback stay Python
+    native = NativeKernels(
+        outputs=Kernel(reference, "_jerk", "_speed", "t", returns=("r", "rd", "rdd")),
+        step=Kernel(reference_after_step, "_jerk", "_speed", "t", "h", returns=("r", "rd", "rdd")),
+        attributes={"_jerk": Optional[MinimumJerkTable], "_speed": Optional[ConstantSpeedTable]})
+
     def setup(self) -> None:
-        self._path = None
+        self._path = self._jerk = self._speed = None
 
     def initialize(self, t: float) -> None:
         try:
@@ -64,6 +88,13 @@ class Trajectory(Component):
                 raise
             raise ValueError(f"{exc} (waypoints count from 0 here: waypoint k is "
                              f"wp_x[k+1], wp_y[k+1], wp_z[k+1])") from None
+        self._tables()
+
+    def _tables(self) -> None:
+        """The waypoint path's table (the kernels' data), None for the other paths."""
+        path = self._path
+        self._jerk = path.table() if isinstance(path, MinimumJerkPath) else None
+        self._speed = path.table() if isinstance(path, ConstantSpeedPath) else None
 
     def _make_path(self):
         if self.mode in (0, 3):
@@ -94,9 +125,9 @@ class Trajectory(Component):
     def outputs(self, t: float) -> None:
         if self._path is None:
             self._path = self._make_path()
-        flat = getattr(self._path, "evaluate_flat", None)  # the waypoint paths: nine floats
-        if flat is not None:
-            self.write_reals(flat(t), "r", "rd", "rdd")
+            self._tables()
+        if self._jerk is not None or self._speed is not None:
+            self.write_reals(reference(self._jerk, self._speed, t), "r", "rd", "rdd")
         else:
             self.r, self.rd, self.rdd = self._path.evaluate(t)
 

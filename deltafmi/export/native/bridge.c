@@ -28,7 +28,7 @@ typedef struct {
     PyObject *serialize, *deserialize;
     PyObject *directional; /* directional_derivative(time, unknowns, knowns, seed) -> bytes */
     PyObject *store_derivatives, *store_indicators; /* for results that are not lists or tuples */
-    PyObject *name_component, *name_derivatives, *name_indicators, *name_do_step, *name_time; /* interned */
+    PyObject *name_component, *name_derivatives, *name_indicators, *name_time; /* interned */
     int steps_itself;        /* the component's own do_step is the whole of fmi2DoStep ... */
     int evaluates_after_step; /* ... followed by FmuInstance.evaluate (derivatives, indicators, outputs) */
     int clock_driven;        /* ... except in FMI 3.0 event mode, for a clock-driven component (Clocks, no
@@ -357,7 +357,6 @@ static void release(Bridged *b) {
     Py_XDECREF(b->name_component);
     Py_XDECREF(b->name_derivatives);
     Py_XDECREF(b->name_indicators);
-    Py_XDECREF(b->name_do_step);
     Py_XDECREF(b->name_time);
     Py_XDECREF(b->pending_logs);
     Py_XDECREF(b->set_log_categories);
@@ -371,15 +370,16 @@ static void release(Bridged *b) {
     py.PyMem_Free(b);
 }
 
-/* instance.component and its bound do_step: at instantiation and after fmi2Reset, which replaces
- * the component. 0, or -1 raised. */
+/* instance.component and what fmi2DoStep of a component that steps itself calls (its bound do_step,
+ * FmuInstance.step_callable): at instantiation and after fmi2Reset, which replaces the component.
+ * 0, or -1 raised. */
 static int fetch_component(Bridged *b) {
     Py_XDECREF(b->component);
     Py_XDECREF(b->do_step);
     Py_XDECREF(b->step_function);
     b->do_step = b->step_function = NULL;
     b->component = py.PyObject_GetAttr(b->instance, b->name_component);
-    if (b->component && b->steps_itself) b->do_step = py.PyObject_GetAttr(b->component, b->name_do_step);
+    if (b->component && b->steps_itself) b->do_step = py.PyObject_CallMethod(b->instance, "step_callable", NULL);
     if (b->do_step && py.PyObject_Vectorcall) { /* a method defined in Python: call its function */
         PyObject *function = py.PyObject_GetAttrString(b->do_step, "__func__");
         PyObject *self = function ? py.PyObject_GetAttrString(b->do_step, "__self__") : NULL;
@@ -417,20 +417,29 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
     spec = py.PyObject_CallMethod(b->instance, "native_layout", NULL);
     unsigned long long real, ints, flags, indicators, nominals, control, sizes3 = 0;
     unsigned long long clock_index = 0, clock_interval = 0;
+    unsigned long long kernel_derivatives = 0, kernel_indicators = 0, kernel_outputs = 0, kernel_step = 0;
+    unsigned long long kernel_attributes = 0;
+    unsigned long long kernels_ready = 0;
     Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz, n_clocks = 0;
     int watches_drift;
     /* the FMI 3.0 fields trail: a runtime without them still serves an FMI 2.0 binary */
-    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK|KnKKp", &real, &n_real, &ints, &n_int, &flags, &n_str,
-                                   &nx, &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift,
+    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK|KnKKpKKKKKK", &real, &n_real, &ints, &n_int, &flags,
+                                   &n_str, &nx, &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift,
                                    &b->steps_itself, &b->evaluates_after_step, &control, &sizes3, &n_clocks,
-                                   &clock_index, &clock_interval, &b->clock_driven))
+                                   &clock_index, &clock_interval, &b->clock_driven, &kernel_derivatives,
+                                   &kernel_indicators, &kernel_outputs, &kernel_step, &kernel_attributes,
+                                   &kernels_ready))
         goto python_error;
     *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
                            (const unsigned char *)(uintptr_t)flags, (size_t)n_str, (size_t)nx,
                            (size_t)x_offset, (size_t)dx_offset, (double *)(uintptr_t)indicators, (size_t)nz,
                            (const double *)(uintptr_t)nominals, watches_drift, (const double *)(uintptr_t)control,
                            (const uint32_t *)(uintptr_t)sizes3, (size_t)n_clocks,
-                           (const int64_t *)(uintptr_t)clock_index, (const double *)(uintptr_t)clock_interval};
+                           (const int64_t *)(uintptr_t)clock_index, (const double *)(uintptr_t)clock_interval,
+                           (DfmiKernelFn)(uintptr_t)kernel_derivatives, (DfmiKernelFn)(uintptr_t)kernel_indicators,
+                           (DfmiKernelFn)(uintptr_t)kernel_outputs,
+                           (DfmiStepFn)(uintptr_t)kernel_step, (void *)(uintptr_t)kernel_attributes,
+                           (const int *)(uintptr_t)kernels_ready};
     for (int i = 0; i < DFMI_N_OPS; i++)
         if (!(b->ops[i] = py.PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;
     if (!(b->event_update = py.PyObject_GetAttrString(b->instance, "event_update")) ||
@@ -447,7 +456,7 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
         !(b->name_component = py.PyUnicode_InternFromString("component")) ||
         !(b->name_derivatives = py.PyUnicode_InternFromString("derivatives")) ||
         !(b->name_indicators = py.PyUnicode_InternFromString("event_indicators")) ||
-        !(b->name_do_step = py.PyUnicode_InternFromString("do_step")) || fetch_component(b) < 0 ||
+        fetch_component(b) < 0 ||
         !(b->name_time = py.PyUnicode_InternFromString("time")) ||
         !(b->pending_logs = py.PyObject_GetAttrString(b->instance, "pending_logs")) ||
         !(b->strings = py.PyList_New(n_str)))
@@ -537,6 +546,12 @@ int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
     unlisten(previous);
     LEAVE;
     return status;
+}
+
+void bridge_time_moved(void *handle, double time) {
+    Bridged *b = handle;
+    b->time = time; /* no Python here: catch_up_time writes it before the next call */
+    b->time_behind = 1;
 }
 
 int bridge_set_log_mask(void *handle, unsigned log_mask) {

@@ -10,6 +10,8 @@
 #include <stdint.h>
 
 typedef void (*DfmiLogFn)(void *env, int status, const char *category, const char *message);
+typedef int (*DfmiKernelFn)(const void *attributes, double time, double *real, int *ints, double *indicators);
+typedef int (*DfmiStepFn)(void *attributes, double time, double h, double *real, int *ints);
 
 /* Buffers owned by the Python instance and read/written in place by the loader. */
 typedef struct {
@@ -33,6 +35,16 @@ typedef struct {
     const int64_t *clock_period_index; /* n_clocks: index in `real` of the Clock's period Parameter,
                                         * -1 where the interval is a constant ... */
     const double *clock_interval;      /* ... given here (NaN otherwise) */
+    /* The component's kernels compiled to C (deltafmi/export/codegen/component_kernels.py; NULL:
+     * none): derivatives into the derivative scalars, event indicators into theirs, outputs into
+     * the outputs, a step from time
+     * over h (a component that steps itself: its outputs, and attributes in the struct), from the
+     * buffers and the attributes' struct, which holds the model's current attributes while
+     * *kernels_ready. 0 on success; else nothing was written (the Python method then runs). */
+    DfmiKernelFn kernel_derivatives, kernel_indicators, kernel_outputs;
+    DfmiStepFn kernel_step;
+    void *kernel_attributes;
+    const int *kernels_ready;
 } DfmiLayout;
 
 typedef enum {
@@ -65,6 +77,9 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
 int bridge_set_log_mask(void *instance, unsigned log_mask);
 void bridge_free_instance(void *instance);
 int bridge_call(void *instance, DfmiOp op, const double *args, int nargs);
+/* A compiled step moved the instance to `time` without Python: the bridge tells Python before its
+ * next call. */
+void bridge_time_moved(void *instance, double time);
 /* Model Exchange out of initialization: the component's derivatives (nx) and event indicators
  * (nz) at `time`, written into dx and z (the buffers of the layout). */
 int bridge_derivatives(void *instance, double time, double *dx, size_t nx, double *z, size_t nz);

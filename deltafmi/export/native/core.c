@@ -273,8 +273,27 @@ int dfmi_reset(Instance *c) {
 
 #define MASK_EVALUATE (InitializationMode | EventMode | ContinuousTimeMode | StepComplete | ClockActivationMode)
 
+/* What the component's compiled kernels can do now (outside initialization, where the model
+ * initializes itself, and while its attributes are in their struct): 1 when they computed all that
+ * was asked (derivatives: with the event indicators), 0 to leave it to Python. */
+static int native_evaluate(Instance *c, int derivatives, int outputs) {
+    const DfmiLayout *L = &c->L;
+    if (!L->kernels_ready || !*L->kernels_ready || c->state == InitializationMode) return 0;
+    int states = derivatives && L->nx, indicators = derivatives && L->nz;
+    if ((states && !L->kernel_derivatives) || (indicators && !L->kernel_indicators) || (outputs && !L->kernel_outputs))
+        return 0;
+    const void *a = L->kernel_attributes;
+    return (!states || L->kernel_derivatives(a, c->time, L->real, L->ints, L->event_indicators) == 0) &&
+           (!indicators || L->kernel_indicators(a, c->time, L->real, L->ints, L->event_indicators) == 0) &&
+           (!outputs || L->kernel_outputs(a, c->time, L->real, L->ints, L->event_indicators) == 0);
+}
+
 int dfmi_ensure_evaluated(Instance *c) {
     if (!(c->dirty || c->outputs_dirty) || !(c->state & MASK_EVALUATE)) return DFMI_OK;
+    if (native_evaluate(c, c->dirty, c->outputs_dirty)) {
+        c->dirty = c->outputs_dirty = 0;
+        return DFMI_OK;
+    }
     int status = bridge_call(c->py, DFMI_EVALUATE, &c->time, 1);
     if (status < DFMI_ERROR) c->dirty = c->outputs_dirty = 0;
     return dfmi_settle(c, status);
@@ -283,6 +302,10 @@ int dfmi_ensure_evaluated(Instance *c) {
 /* the integrator's hot path */
 int dfmi_ensure_derivatives(Instance *c) {
     if (!c->dirty || !(c->state & MASK_EVALUATE)) return DFMI_OK;
+    if (native_evaluate(c, 1, 0)) {
+        c->dirty = 0;
+        return DFMI_OK;
+    }
     int status = c->state & (EventMode | ContinuousTimeMode)
                      ? bridge_derivatives(c->py, c->time, c->L.real + c->L.dx_offset, c->L.nx,
                                           c->L.event_indicators, c->L.nz)
@@ -298,6 +321,10 @@ int dfmi_ensure_values(Instance *c, int derivatives) {
     if (!(c->state & MASK_EVALUATE)) return DFMI_OK;
     if (c->dirty && (derivatives || c->state == InitializationMode)) return dfmi_ensure_evaluated(c);
     if (!c->outputs_dirty) return DFMI_OK;
+    if (native_evaluate(c, 0, 1)) {
+        c->outputs_dirty = 0;
+        return DFMI_OK;
+    }
     int status = bridge_call(c->py, DFMI_EVALUATE_OUTPUTS, &c->time, 1);
     if (status < DFMI_ERROR) c->outputs_dirty = 0; /* the derivatives may stay stale */
     return dfmi_settle(c, status);
@@ -554,6 +581,12 @@ int dfmi_do_step(Instance *c, const char *function, double t, double h, int even
     if (fabs(t - c->time) > 1e-9 * fmax(1.0, fabs(t)))
         return dfmi_fail(c, "%s: currentCommunicationPoint %.16g differs from the FMU time %.16g", function, t,
                          c->time);
+    const DfmiLayout *L = &c->L;
+    if (!event_mode && L->kernel_step && *L->kernels_ready &&
+        L->kernel_step(L->kernel_attributes, t, h, L->real, L->ints) == 0) {
+        bridge_time_moved(c->py, t + h); /* the compiled step took it: no Python */
+        return DFMI_OK;
+    }
     double args[3] = {t, h, 1.0};
     return bridge_call(c->py, DFMI_DO_STEP, args, event_mode ? 3 : 2);
 }

@@ -9,7 +9,7 @@ a movable box on a table (:mod:`.box`), and a two-pad tactile sensor (:mod:`.tac
 Joint vectors are arm-major: q = [q11, q12, q13, q21, q22, q23, q31, q32, q33].
 """
 
-from .dynamics import (PlantEvaluation, accelerations, coriolis, energy, evaluate_plant, gravity,
+from .dynamics import (PlantEvaluation, accelerations, coriolis, energy, evaluate_plant, gravity, plant_outputs,
                        holding_torque, loop_residual, mass_matrix, project_to_constraints,
                        state_derivative)
 from .kinematics import (arm_bias, arm_jacobian, arm_psi, constraint, constraint_bias,
@@ -23,5 +23,5 @@ __all__ = [
     "inverse_kinematics", "joint_rates", "forward_kinematics", "wrist_position", "wrist_velocity",
     "constraint", "constraint_jacobian", "constraint_bias", "virtual_jacobian",
     "mass_matrix", "coriolis", "gravity", "accelerations", "state_derivative", "energy", "holding_torque",
-    "PlantEvaluation", "evaluate_plant", "loop_residual", "project_to_constraints",
+    "PlantEvaluation", "evaluate_plant", "plant_outputs", "loop_residual", "project_to_constraints",
 ]

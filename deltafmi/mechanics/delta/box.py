@@ -24,14 +24,15 @@ from typing import Sequence
 import numpy as np
 
 from ..contact.material import CompliantMaterial
-from ..contact.system import ContactSystem, LagrangianModel
+from ..contact.system import LagrangianModel
 from ..examples.box_on_table import BoxModel
-from .contact import DeltaToolModel, Plane
+from .contact import DeltaToolModel, Plane, RobotContactSystem
+from .contact_kernels import BoxTable, box_evaluation, box_outputs, contact_law
 from .dynamics import accelerations, mass_matrix
 from .kinematics import wrist_along
 from .params import DeltaParams
 
-__all__ = ["DeltaBoxModel", "make_robot_box_contact", "BOX_CONTACTS"]
+__all__ = ["DeltaBoxModel", "BoxTableSystem", "make_robot_box_contact", "BOX_CONTACTS"]
 
 #: names of the six contacts, in order
 BOX_CONTACTS = ("tool-table", "tool-box", "corner 1-table", "corner 2-table", "corner 3-table",
@@ -153,12 +154,39 @@ class DeltaBoxModel(LagrangianModel):
         return (*self.robot.u, *self.robot.f, *np.asarray(self.box.force, float).tolist())
 
 
+class BoxTableSystem(RobotContactSystem):
+    """The robot's tool, the box and the table (:class:`DeltaBoxModel`), evaluated by the kernels."""
+
+    model: DeltaBoxModel
+
+    @property
+    def params(self) -> DeltaParams:
+        return self.model.robot.params
+
+    def kernel_state(self, modes: Sequence[int] | None = None) -> BoxTable:
+        model, modes = self.model, self.modes if modes is None else modes
+        robot, box = model.robot, model.box
+        return BoxTable(robot.tool, model.table, robot.pole, model._top, box.mass, box.inertia, box.g,
+                        tuple(float(c) for c in box.corners.reshape(-1)),
+                        tuple(float(c) for c in np.asarray(box.force, float)),
+                        tuple(contact_law(self, i, modes[i]) for i in range(6)))
+
+    def kernel_evaluation(self, x: np.ndarray, state: BoxTable) -> tuple:
+        model = self.model
+        h, hdot, lam, vdot, box, _, _, _ = box_evaluation(self.params, state, x, model.u, model.f)
+        return h, hdot, lam, [*vdot, *box]
+
+    def energy(self, x: np.ndarray) -> float:
+        """Kinetic + potential + elastic energy (J), as the kernels' outputs."""
+        return box_outputs(self.params, self.kernel_state(), x, self.model.u, self.model.f)[7]
+
+
 def make_robot_box_contact(params: DeltaParams, table_height: float, box: BoxModel,
                            tool_material: CompliantMaterial, box_material: CompliantMaterial,
                            tool: Sequence[float] = (0.0, 0.0, -0.1), pole: float = 5.0,
-                           capture_speed: float = 0.05) -> ContactSystem:
+                           capture_speed: float = 0.05) -> BoxTableSystem:
     """The robot, the box and the table as one contact system (state 24 values, six gaps): the
     tool's two contacts with ``tool_material``, the box's corners with ``box_material``."""
     model = DeltaBoxModel(params, table_height, box, tool, pole)
-    return ContactSystem(model, [tool_material, tool_material] + [box_material] * 4,
-                         capture_speed=capture_speed)
+    return BoxTableSystem(model, [tool_material, tool_material] + [box_material] * 4,
+                          capture_speed=capture_speed)

@@ -24,12 +24,14 @@ from typing import Sequence
 import numpy as np
 
 from ..contact.material import CompliantMaterial
-from ..contact.system import ContactSystem, LagrangianModel
+from ..contact.system import ContactSystem, LagrangianModel, _Evaluation
+from .contact_kernels import ToolPlane, contact_law, indicator_pair, plane_evaluation, plane_outputs
 from .dynamics import accelerations, energy, mass_matrix
 from .kinematics import arm_bias, inverse_kinematics, joint_rates, wrist_along
 from .params import ARM_ROTATIONS, DeltaParams
 
-__all__ = ["Plane", "DeltaToolModel", "make_robot_contact", "robot_start_state"]
+__all__ = ["Plane", "DeltaToolModel", "RobotContactSystem", "ToolPlaneSystem", "make_robot_contact",
+           "robot_start_state"]
 
 
 @dataclass(frozen=True)
@@ -137,11 +139,70 @@ class DeltaToolModel(LagrangianModel):
         return 1.0 / float(H[0] @ self.contact_mobility(0.0, q, np.zeros(9), H, [0])[:, 0])
 
 
+class RobotContactSystem(ContactSystem):
+    """A :class:`ContactSystem` of compliant contacts that evaluates between events with the float
+    kernels of :mod:`.contact_kernels` (what the contact FMUs compile to C): the event iteration,
+    the effective masses and the capture decisions stay the machine's, made on exactly the
+    numbers of the kernels. The capture decision's load estimate (a rigid CONTACT) keeps the
+    machine's own solve."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        if any(material is None for material in self.materials):
+            raise ValueError(f"{type(self).__name__}: every contact needs a compliant material")
+
+    @property
+    def params(self) -> DeltaParams:
+        """The robot's parameters (the kernels' first argument)."""
+        raise NotImplementedError
+
+    def kernel_state(self, modes: Sequence[int] | None = None) -> tuple:
+        """The kernels' description of the contacts in ``modes`` (default: the current ones)."""
+        raise NotImplementedError
+
+    def kernel_evaluation(self, x: np.ndarray, state: tuple) -> tuple:
+        """(gaps, their rates, contact forces, v') of the kernels at ``x``."""
+        raise NotImplementedError
+
+    def _solve_unguarded(self, t: float, x: np.ndarray, modes: np.ndarray, rigid: int | None) -> _Evaluation:
+        if rigid is not None:
+            return super()._solve_unguarded(t, x, modes, rigid)
+        h, hdot, lam, vdot = self.kernel_evaluation(x, self.kernel_state(modes))
+        q, _ = self.split(np.asarray(x, float))
+        return _Evaluation(np.array(h), np.array(hdot), self.model.gap_jacobian(q), np.array(lam), np.array(vdot))
+
+    def _indicator_pair(self, i: int, ev: _Evaluation) -> tuple[float, float]:
+        return indicator_pair(contact_law(self, i, self.modes[i]), float(ev.h[i]), float(ev.hdot[i]))
+
+
+class ToolPlaneSystem(RobotContactSystem):
+    """The robot's tool against a plane (:class:`DeltaToolModel`), evaluated by the kernels."""
+
+    model: DeltaToolModel
+
+    @property
+    def params(self) -> DeltaParams:
+        return self.model.params
+
+    def kernel_state(self, modes: Sequence[int] | None = None) -> ToolPlane:
+        model = self.model
+        return ToolPlane(model.plane.normal, model._offset, model.tool, model.pole,
+                         contact_law(self, 0, (self.modes if modes is None else modes)[0]))
+
+    def kernel_evaluation(self, x: np.ndarray, state: ToolPlane) -> tuple:
+        h, hdot, lam, vdot, _, _ = plane_evaluation(self.params, state, x, self.model.u, self.model.f)
+        return [h], [hdot], [lam], vdot
+
+    def energy(self, x: np.ndarray) -> float:
+        """Kinetic + potential + elastic energy (J), as the kernels' outputs."""
+        return plane_outputs(self.params, self.kernel_state(), x, self.model.u, self.model.f)[7]
+
+
 def make_robot_contact(params: DeltaParams, plane: Plane, material: CompliantMaterial,
                        tool: Sequence[float] = (0.0, 0.0, -0.1), pole: float = 5.0,
-                       capture_speed: float = 0.05) -> ContactSystem:
+                       capture_speed: float = 0.05) -> ToolPlaneSystem:
     """The robot-on-a-plane contact system (state ``[q, v]``, 18 values, one gap)."""
-    return ContactSystem(DeltaToolModel(params, plane, tool, pole), material, capture_speed=capture_speed)
+    return ToolPlaneSystem(DeltaToolModel(params, plane, tool, pole), material, capture_speed=capture_speed)
 
 
 def robot_start_state(params: DeltaParams, z0: Sequence[float],

@@ -15,12 +15,13 @@ from .control_law import (_ROT, STATUS_ILL_CONDITIONED, STATUS_INTEGRAL_CLAMPED,
                                 STATUS_OK, STATUS_SINGULAR, STATUS_TORQUE_SATURATED, ControlLaw,
                                 ControlOutput, _angles, _closed_fk, _directions, _elbows, _f3,
                                 _forearms_from_z, _model, _newton_fk, describe_status, evaluate,
-                                hold, make_law, warm_start)
+                                make_law)
+from .sampling import SampleSettings, SampleState, initial_state, sample, warning_text
 
 __all__ = [
     "ControlLaw", "ControlOutput", "DeltaController", "evaluate", "make_law", "describe_status",
     "STATUS_OK", "STATUS_TORQUE_SATURATED", "STATUS_INTEGRAL_CLAMPED", "STATUS_ILL_CONDITIONED",
-    "STATUS_SINGULAR",
+    "STATUS_SINGULAR", "SampleSettings", "SampleState", "sample",
     "forward_kinematics_closed", "forward_kinematics_newton", "inverse_kinematics_servo",
     "control_jacobian", "gravity_torque", "reduced_inertia", "inverse_dynamics",
 ]
@@ -124,12 +125,18 @@ def reduced_inertia(params, y: Sequence[float]) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # the stateful sampled controller
 # --------------------------------------------------------------------------------------------
+def _of_state(name: str, doc: str) -> property:
+    """A read-only attribute of the controller: its state's field ``name``."""
+    return property(lambda self: getattr(self.state, name), doc=doc)
+
+
 @dataclass
 class DeltaController:
     """Sampled feedback-linearising controller: call :meth:`step` once per sample period.
 
-    Keeps the integral state, the last Newton solution (warm start), the last valid torque
-    (held when a sample is singular) and ``status``/``cond`` of the last sample. Gains default
+    Keeps ``state`` (:class:`.sampling.SampleState`: the integral, the warm start, the held
+    torque, ``status``/``cond`` of the last sample, the warning latch) and advances it with
+    :func:`.sampling.sample`, the function the FMU's C layer runs translated to C. Gains default
     to a triple pole at ``-pole``; negative or None kI/kP/kD mean "from pole".
 
     Impedance mode (``impedance=True``, see :mod:`.control_law`): per-axis ``stiffness`` (N/m)
@@ -178,22 +185,29 @@ class DeltaController:
         norm = float(np.linalg.norm(axis))
         if self.tactile_gain != 0.0 and not norm > 0.0:
             raise ValueError(f"tactile_axis must have a horizontal component, got {tuple(self.tactile_axis)}")
-        self._axis = tuple((axis / norm).tolist()) if norm > 0.0 else (1.0, 0.0, 0.0)
+        ax, ay, az = (axis / norm).tolist() if norm > 0.0 else (1.0, 0.0, 0.0)
+        self.settings = SampleSettings(float(self.sample_period), bool(self.zoh_lead), float(self.tactile_gain),
+                                       (ax, ay, az))
         self.reset()
 
     def reset(self) -> None:
         """Clear the integral, the warm start, the held torque and the warning latch."""
-        self.integral = (0.0, 0.0, 0.0)
-        self.u = (0.0, 0.0, 0.0)
-        self.status = STATUS_OK
-        self.cond = math.nan
-        self.last: Optional[ControlOutput] = None
-        self._u_law: Optional[tuple] = None
-        self._x_next: Optional[list] = None
-        self._xd: Optional[tuple] = None
-        self._warned = 0
-        #: the tactile loop's shift of the reference along the tactile axis (m)
-        self.shift = 0.0
+        #: everything kept between samples (:class:`.sampling.SampleState`)
+        self.state = initial_state()
+        self._sampled = False
+        self._unreported = 0
+
+    integral = _of_state("integral", "The integral state int(r - z) dt (m s).")
+    u = _of_state("u", "The torque held until the next sample (N m).")
+    status = _of_state("status", "STATUS_* bits of the last sample.")
+    cond = _of_state("cond", "Frobenius condition number of Jc at the last sample (nan before the first).")
+    shift = _of_state("shift", "The tactile loop's shift of the reference along the tactile axis (m).")
+
+    @property
+    def last(self) -> Optional[SampleState]:
+        """The state after the last sample (None before the first): its ``z`` is the wrist
+        estimate of the last non-singular sample and ``iterations`` the last Newton count."""
+        return self.state if self._sampled else None
 
     def step(self, y: Sequence[float], yd: Sequence[float], r: Sequence[float],
              rd: Sequence[float], rdd: Sequence[float], force: Sequence[float] = (0.0, 0.0, 0.0),
@@ -205,36 +219,16 @@ class DeltaController:
         commanded contact force (impedance mode) and ``tactile`` the sensor's pad-force
         difference (N), which moves the reference (see the class docstring).
         """
-        rate = self.tactile_gain * float(tactile)
-        if self.shift != 0.0 or rate != 0.0:
-            ax, ay, _ = self._axis
-            r = (r[0] + self.shift * ax, r[1] + self.shift * ay, r[2])
-            rd = (rd[0] + rate * ax, rd[1] + rate * ay, rd[2])
-        self.shift += rate * self.sample_period
-        dt = 0.0 if self.status & STATUS_TORQUE_SATURATED else self.sample_period
-        out = evaluate(self.law, y, yd, r, rd, rdd, self.integral, dt, self._x_next, force)
-        self.last, self.status, self.cond = out, out.status, out.cond
-        lim = self.law.torque_limit
-        if out.status & STATUS_SINGULAR:
-            self._x_next = self._xd = self._u_law = None
-            self.u = tuple(min(max(ui, -lim), lim) for ui in self.u)
-            return np.array(self.u)
-        self.integral = out.integral
-        u, clipped = hold(out.u, self._u_law if self.zoh_lead else None, lim)
-        if clipped:
-            self.status |= STATUS_TORQUE_SATURATED
-        self._u_law, self.u = out.u, u
-        # warm start one sample ahead, so one Newton step usually reaches the tolerance
-        self._x_next = warm_start(out.x, out.xd, self._xd, self.sample_period)
-        self._xd = out.xd
-        return np.array(u)
+        self.state = state = sample(self.law, self.settings, self.state, y, yd, r, rd, rdd, force, tactile)
+        self._sampled = True
+        self._unreported = state.new_warnings
+        return np.array(state.u)
 
     def pending_warning(self) -> Optional[str]:
         """A warning text the first time the singular / ill-conditioned bits appear since the
-        last :meth:`reset` (each bit warns once), else None."""
-        new = self.status & (STATUS_ILL_CONDITIONED | STATUS_SINGULAR) & ~self._warned
-        if not new:
+        last :meth:`reset` (each bit warns once; the text once, after the sample that raised it),
+        else None."""
+        if not self._unreported:
             return None
-        self._warned |= new
-        return (f"delta controller: {describe_status(new)} (cond(Jc) = {self.cond:.3g}); "
-                f"torques saturate at +-{self.law.torque_limit:g} N m")
+        self._unreported = 0
+        return warning_text(self.state, self.law.torque_limit)

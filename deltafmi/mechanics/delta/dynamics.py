@@ -392,13 +392,28 @@ def evaluate_plant(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: 
     1 us more than accelerations() alone instead of separate numpy calls for each output.
     """
     vdot, lam, arms = _evaluate(p, q, v, u, f, pole)
+    z, zd, residual, energy = _wrist(arms)
+    return PlantEvaluation(np.array(vdot), np.array(lam), np.array(z), np.array(zd), residual, energy)
+
+
+def plant_outputs(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,
+                  pole: float = 5.0) -> tuple[F3, F3, F3, F3, F6, float, float]:
+    """The DeltaRobot component's outputs from one evaluation: servo angles q[0::3], servo rates
+    v[0::3], wrist position and velocity, constraint multipliers, loop residual |h| and energy
+    (as evaluate_plant, without arrays: the kernel the FMU's C layer runs)."""
+    ql, vl = _as_list(q), _as_list(v)
+    _, lam, arms = _evaluate(p, ql, vl, u, f, pole)
+    z, zd, residual, energy = _wrist(arms)
+    return (ql[0], ql[3], ql[6]), (vl[0], vl[3], vl[6]), z, zd, lam, residual, energy
+
+
+def _wrist(arms: tuple[tuple[F3, F3, float], ...]) -> tuple[F3, F3, float, float]:
+    """Wrist position and velocity (the arms' mean), loop residual |h| and energy from the arms."""
     (P1, D1, e1), (P2, D2, e2), (P3, D3, e3) = arms
     h = [P1[k] - P2[k] for k in range(3)] + [P1[k] - P3[k] for k in range(3)]
-    return PlantEvaluation(
-        np.array(vdot), np.array(lam),
-        np.array([(P1[k] + P2[k] + P3[k]) / 3.0 for k in range(3)]),
-        np.array([(D1[k] + D2[k] + D3[k]) / 3.0 for k in range(3)]),
-        math.sqrt(sum(t * t for t in h)), e1 + e2 + e3)
+    z = ((P1[0] + P2[0] + P3[0]) / 3.0, (P1[1] + P2[1] + P3[1]) / 3.0, (P1[2] + P2[2] + P3[2]) / 3.0)
+    zd = ((D1[0] + D2[0] + D3[0]) / 3.0, (D1[1] + D2[1] + D3[1]) / 3.0, (D1[2] + D2[2] + D3[2]) / 3.0)
+    return z, zd, math.sqrt(sum(t * t for t in h)), e1 + e2 + e3
 
 
 # -------------------------------------------------------------- projection onto the closed loops

@@ -24,15 +24,14 @@ on solid surface: the capture range of a loop that centres the tool.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
-__all__ = ["TactilePads", "Readout"]
-
-
-def _overlap(a0: float, a1: float, b0: float, b1: float) -> float:
-    return max(0.0, min(a1, b1) - max(a0, b0))
+__all__ = ["TactilePads", "Axis", "Readout", "supported_fractions", "pad_forces", "sensor_forces", "sensor_derivatives",
+           "sensor_outputs"]
 
 
 @dataclass(frozen=True)
@@ -50,27 +49,75 @@ class TactilePads:
 
     def supported(self, offset: float, hole_width: float) -> tuple[float, float]:
         """Fractions of pads 1 and 2 over the solid surface, tool at ``offset`` from the hole centre."""
-        half, w = 0.5 * self.width, 0.5 * hole_width
-        out = []
-        for centre in (offset - 0.5 * self.spacing, offset + 0.5 * self.spacing):
-            out.append(1.0 - _overlap(centre - half, centre + half, -w, w) / self.width)
-        return out[0], out[1]
+        return supported_fractions(self, offset, hole_width)
 
     def forces(self, load: float, offset: float, hole_width: float) -> tuple[float, float, float]:
         """Pad forces ``(F_1, F_2)`` under the normal ``load`` (N) and the pads' compression (m).
 
         Both zero when nothing presses or when both pads hang over the hole (the tool would
         drop in: outside this model)."""
-        phi1, phi2 = self.supported(offset, hole_width)
-        support = phi1 + phi2
-        if load <= 0.0 or support <= 0.0:
-            return 0.0, 0.0, 0.0
-        return load * phi1 / support, load * phi2 / support, load / (self.stiffness * support)
+        return pad_forces(self, load, offset, hole_width)
 
     def slope(self, load: float, hole_width: float) -> float:
         """``d(F_1 - F_2)/d offset`` at the centre, ``-load / (width phi_0)`` (N/m)."""
         phi0 = self.supported(0.0, hole_width)[0]
         return -load / (self.width * phi0) if phi0 > 0.0 else 0.0
+
+
+class Axis(NamedTuple):
+    """The sensor axis: a horizontal unit vector (pad 1 -> pad 2)."""
+
+    x: float
+    y: float
+
+
+# The kernels below are plain float Python that deltafmi's code generator also compiles to C (the
+# TactileSensor FMU's derivatives and outputs): the methods above and the component call them.
+
+def _overlap(a0: float, a1: float, b0: float, b1: float) -> float:
+    return max(0.0, min(a1, b1) - max(a0, b0))
+
+
+def supported_fractions(pads: TactilePads, offset: float, hole_width: float) -> tuple[float, float]:
+    """Fractions of pads 1 and 2 over the solid surface, tool at ``offset`` from the hole centre."""
+    half, w = 0.5 * pads.width, 0.5 * hole_width
+    c1, c2 = offset - 0.5 * pads.spacing, offset + 0.5 * pads.spacing
+    return (1.0 - _overlap(c1 - half, c1 + half, -w, w) / pads.width,
+            1.0 - _overlap(c2 - half, c2 + half, -w, w) / pads.width)
+
+
+def pad_forces(pads: TactilePads, load: float, offset: float, hole_width: float) -> tuple[float, float, float]:
+    """Pad forces ``(F_1, F_2)`` under the normal ``load`` (N) and the pads' compression (m)."""
+    phi1, phi2 = supported_fractions(pads, offset, hole_width)
+    support = phi1 + phi2
+    if load <= 0.0 or support <= 0.0:
+        return 0.0, 0.0, 0.0
+    return load * phi1 / support, load * phi2 / support, load / (pads.stiffness * support)
+
+
+def sensor_forces(pads: TactilePads, axis: Axis, tip: Sequence[float], hole_centre: Sequence[float],
+                  load: float, hole_width: float) -> tuple[float, float, float, float]:
+    """``(F_1, F_2, compression, offset)``: the tool tip's offset from the hole centre along the
+    sensor ``axis`` and the pads' forces and compression there."""
+    offset = axis.x * (tip[0] - hole_centre[0]) + axis.y * (tip[1] - hole_centre[1])
+    f1, f2, compression = pad_forces(pads, load, offset, hole_width)
+    return f1, f2, compression, offset
+
+
+def sensor_derivatives(pads: TactilePads, axis: Axis, tip: Sequence[float],
+                       hole_centre: Sequence[float], load: float, hole_width: float, bandwidth: float,
+                       filtered: Sequence[float]) -> tuple[float, float]:
+    """Rates of the lagged pad forces ``filtered``: a first-order lag of ``bandwidth`` Hz."""
+    f1, f2, compression, offset = sensor_forces(pads, axis, tip, hole_centre, load, hole_width)
+    rate = 2.0 * math.pi * bandwidth
+    return rate * (f1 - filtered[0]), rate * (f2 - filtered[1])
+
+
+def sensor_outputs(pads: TactilePads, axis: Axis, tip: Sequence[float], hole_centre: Sequence[float],
+                   load: float, hole_width: float) -> tuple[float, float]:
+    """The true ``(offset, compression)``."""
+    f1, f2, compression, offset = sensor_forces(pads, axis, tip, hole_centre, load, hole_width)
+    return offset, compression
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,11 @@ Four generators share one interface, ``evaluate(t) -> (r, rd, rdd)`` (three leng
 - :class:`RecordedPath`: playback of a CSV ``time, x, y, z`` through a cubic (optionally
   smoothing) spline, whose first and second derivatives give rd and rdd.
 
+The two waypoint paths are also fixed-length tables (:class:`MinimumJerkTable`,
+:class:`ConstantSpeedTable`, up to :data:`MAX_MOVES` moves, from ``path.table()``): their
+evaluation (:func:`evaluate_table`, :func:`evaluate_speed_table`, the paths' own ``evaluate_flat``)
+translates to C of one type whatever the number of waypoints (deltafmi.export.codegen).
+
 Waypoints and circles are checked against the nominal workspace (a convex cylinder, so every
 straight segment between admissible waypoints is admissible) and, when a ``DeltaParams``-like
 object is given, against inverse-kinematic reachability along the sampled path.
@@ -20,7 +25,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -124,6 +129,77 @@ def _reachable(params, point: np.ndarray) -> bool:
     return True
 
 
+#: moves a path's table holds (the C layout of the generated kernels is fixed at build time;
+#: the Trajectory component needs MAX_WAYPOINTS - 1 = 7)
+MAX_MOVES = 15
+Point3 = tuple[float, float, float]
+
+
+#: one minimum-jerk move: duration (s), start point, displacement (m) (plain tuples: unpacking
+#: a NamedTuple is slower)
+MinimumJerkMove = tuple[float, Point3, Point3]
+#: one constant-speed move: duration (s), cruise speed (m/s), length (m), start point, unit direction
+ConstantSpeedMove = tuple[float, float, float, Point3, Point3]
+
+_Starts = tuple[(float,) * MAX_MOVES]
+_MinimumJerkMoves = tuple[(MinimumJerkMove,) * MAX_MOVES]
+_ConstantSpeedMoves = tuple[(ConstantSpeedMove,) * MAX_MOVES]
+_NO_MOVE = (1.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))  # padding (never read)
+_NO_SPEED_MOVE = (1.0, 1.0, 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+
+class MinimumJerkTable(NamedTuple):
+    """A :class:`MinimumJerkPath` as fixed-length data (a C struct whatever the waypoint count).
+
+    Moves ``n_moves`` and beyond are padding, never read: the search for the move under way
+    stops at ``n_moves`` (and their starts are +inf, so ``starts`` stays sorted).
+    :func:`evaluate_table` evaluates it; :meth:`MinimumJerkPath.table` builds it.
+    """
+
+    n_moves: int
+    starts: _Starts  #: start time of each move (s), after the dwell at its first waypoint
+    moves: _MinimumJerkMoves
+    at_rest: Flat9  #: r, rd, rdd before the first move
+
+
+class ConstantSpeedTable(NamedTuple):
+    """A :class:`ConstantSpeedPath` as fixed-length data, padded as :class:`MinimumJerkTable`;
+    :func:`evaluate_speed_table` evaluates it."""
+
+    n_moves: int
+    starts: _Starts
+    moves: _ConstantSpeedMoves
+    blend: float  #: time to reach a move's speed, and to stop (s)
+    at_rest: Flat9
+
+
+def _along(tau: float, T: float, V: float, length: float, Tb: float) -> tuple[float, float, float]:
+    """Distance, speed and acceleration at time ``tau`` into a move of duration ``T``, speed ``V``
+    and ``length`` with blends of ``Tb``."""
+    if tau <= Tb:
+        x = tau / Tb
+        s, ds, _ = minimum_jerk(x)
+        return V * Tb * x ** 4 * (2.5 + x * (-3.0 + x)), V * s, V * ds / Tb
+    if tau >= T - Tb:
+        x = min((T - tau) / Tb, 1.0)
+        s, ds, _ = minimum_jerk(x)
+        return length - V * Tb * x ** 4 * (2.5 + x * (-3.0 + x)), V * s, -V * ds / Tb
+    return V * (tau - 0.5 * Tb), V, 0.0
+
+
+def _padded(items: list, pad, size: int) -> tuple:
+    """``items`` then ``pad`` up to ``size`` elements."""
+    return tuple(items) + (pad,) * (size - len(items))
+
+
+def _fixed(table, what: str):
+    """``table`` when it fits the C layout (MAX_MOVES moves), else a ValueError saying so."""
+    if table.n_moves > MAX_MOVES:
+        raise ValueError(f"a {what} path of {table.n_moves} moves does not fit the generated C, "
+                         f"which holds at most MAX_MOVES = {MAX_MOVES}")
+    return table
+
+
 class _WaypointPath:
     """Moves between waypoints, evaluated as nine plain floats by the subclass's ``evaluate_flat``."""
 
@@ -158,20 +234,37 @@ class MinimumJerkPath(_WaypointPath):
         self.duration = float(D.sum() + T.sum())
         # plain floats for evaluate(): sampled every step, where numpy's per-call cost dominates
         self._starts = _move_starts(self.t0, T, D)
-        self._moves = [(float(T[k]), tuple(pts[k].tolist()), tuple((pts[k + 1] - pts[k]).tolist()))
-                       for k in range(len(T))]
-        self._at_rest = _resting(pts[0])
+        moves = [(float(T[k]), tuple(pts[k].tolist()), tuple((pts[k + 1] - pts[k]).tolist()))
+                 for k in range(len(T))]
+        # the fields of its MinimumJerkTable (padded; beyond MAX_MOVES for Python's use only)
+        size = max(MAX_MOVES, len(moves))
+        self.n_moves, self.starts = len(moves), _padded(self._starts, math.inf, size)
+        self.moves, self.at_rest = _padded(moves, _NO_MOVE, size), _resting(pts[0])
+
+    def table(self) -> MinimumJerkTable:
+        """The path as a :class:`MinimumJerkTable` for :func:`evaluate_table` (and its generated
+        C); ValueError when it has more than :data:`MAX_MOVES` moves."""
+        return _fixed(MinimumJerkTable(self.n_moves, self.starts, self.moves, self.at_rest), "minimum-jerk")
 
     def evaluate_flat(self, t: float) -> Flat9:
-        """:meth:`evaluate` as nine plain floats r, rd, rdd (no arrays: for writing into buffers)."""
-        k = bisect.bisect_right(self._starts, t) - 1
+        """:meth:`evaluate` as nine plain floats r, rd, rdd (no arrays: for writing into buffers).
+
+        It reads only the fields a :class:`MinimumJerkTable` has, so it is also
+        :func:`evaluate_table`, the kernel translated to C: one source, and no second Python call
+        (which would cost ~15 % here)."""
+        starts = self.starts
+        k = bisect.bisect_right(starts, t, 0, self.n_moves) - 1
         if k < 0:
-            return self._at_rest
-        T, p, d = self._moves[k]
-        s, ds, dds = minimum_jerk((t - self._starts[k]) / T)
+            return self.at_rest
+        T, p, d = self.moves[k]
+        s, ds, dds = minimum_jerk((t - starts[k]) / T)
         ds, dds = ds / T, dds / (T * T)
         return (p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2], ds * d[0], ds * d[1], ds * d[2],
                 dds * d[0], dds * d[1], dds * d[2])
+
+
+#: ``evaluate_table(table: MinimumJerkTable, t) -> Flat9``: r, rd, rdd of the path at ``t``
+evaluate_table = MinimumJerkPath.evaluate_flat
 
 
 class ConstantSpeedPath(_WaypointPath):
@@ -206,31 +299,32 @@ class ConstantSpeedPath(_WaypointPath):
         self.durations = np.array(T)
         self.duration = float(D.sum() + self.durations.sum())
         self._starts = _move_starts(self.t0, self.durations, D)
-        self._moves = moves
-        self._at_rest = _resting(pts[0])
+        # the fields of its ConstantSpeedTable (padded; beyond MAX_MOVES for Python's use only)
+        size = max(MAX_MOVES, len(moves))
+        self.n_moves, self.starts = len(moves), _padded(self._starts, math.inf, size)
+        self.moves, self.at_rest = _padded(moves, _NO_SPEED_MOVE, size), _resting(pts[0])
 
-    def _along(self, tau: float, T: float, V: float, length: float) -> tuple[float, float, float]:
-        """Distance, speed and acceleration along a move at time ``tau`` into it."""
-        Tb = self.blend
-        if tau <= Tb:
-            x = tau / Tb
-            s, ds, _ = minimum_jerk(x)
-            return V * Tb * x ** 4 * (2.5 + x * (-3.0 + x)), V * s, V * ds / Tb
-        if tau >= T - Tb:
-            x = min((T - tau) / Tb, 1.0)
-            s, ds, _ = minimum_jerk(x)
-            return length - V * Tb * x ** 4 * (2.5 + x * (-3.0 + x)), V * s, -V * ds / Tb
-        return V * (tau - 0.5 * Tb), V, 0.0
+    def table(self) -> ConstantSpeedTable:
+        """The path as a :class:`ConstantSpeedTable` for :func:`evaluate_speed_table` (and its
+        generated C); ValueError when it has more than :data:`MAX_MOVES` moves."""
+        return _fixed(ConstantSpeedTable(self.n_moves, self.starts, self.moves, self.blend, self.at_rest),
+                      "constant-speed")
 
     def evaluate_flat(self, t: float) -> Flat9:
-        """:meth:`evaluate` as nine plain floats r, rd, rdd (no arrays: for writing into buffers)."""
-        k = bisect.bisect_right(self._starts, t) - 1
+        """:meth:`evaluate` as nine plain floats r, rd, rdd (no arrays: for writing into buffers);
+        also :func:`evaluate_speed_table`, as :meth:`MinimumJerkPath.evaluate_flat`."""
+        starts = self.starts
+        k = bisect.bisect_right(starts, t, 0, self.n_moves) - 1
         if k < 0:
-            return self._at_rest
-        T, V, length, p, u = self._moves[k]
-        s, v, a = self._along(min(t - self._starts[k], T), T, V, length)
+            return self.at_rest
+        T, V, length, p, u = self.moves[k]
+        s, v, a = _along(min(t - starts[k], T), T, V, length, self.blend)
         return (p[0] + s * u[0], p[1] + s * u[1], p[2] + s * u[2], v * u[0], v * u[1], v * u[2],
                 a * u[0], a * u[1], a * u[2])
+
+
+#: ``evaluate_speed_table(table: ConstantSpeedTable, t) -> Flat9``: r, rd, rdd of the path at ``t``
+evaluate_speed_table = ConstantSpeedPath.evaluate_flat
 
 
 class CirclePath:

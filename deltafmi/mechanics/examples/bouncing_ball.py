@@ -34,6 +34,12 @@ import numpy as np
 
 from ..contact.collision_law import CollisionLaw
 from ..contact.system import ContactSystem, LagrangianModel
+from .ball_kernels import (ModelicaBall, modelica_derivatives, modelica_energy, modelica_force, modelica_indicators,
+                           modelica_lam)
+
+
+def _floats(x) -> list[float]:
+    return [float(v) for v in x[:2]]
 
 
 class ModelicaBouncingBall:
@@ -46,6 +52,8 @@ class ModelicaBouncingBall:
                  a2: float = 1e6, lin_flag: bool = False) -> None:
         self.g, self.m, self.a0, self.a1, self.a2 = float(g), float(m), float(a0), float(a1), float(a2)
         self.lin_flag = bool(lin_flag)
+        #: the parameters as the kernels (.ball_kernels, compiled into its FMU) take them
+        self.params = ModelicaBall(self.g, self.m, self.a0, self.a1, self.a2, self.lin_flag)
         self.contact = 0
         self.pre_b = [False, False, False, False]
 
@@ -60,24 +68,19 @@ class ModelicaBouncingBall:
     def lam(self, x: np.ndarray, contact: Optional[int] = None) -> float:
         """Multiplier: from the contact equation when it is active, else 0."""
         contact = self.contact if contact is None else contact
-        if not self._constrained(contact):
-            return 0.0
-        q, v = float(x[0]), float(x[1])
-        return self.m * (self.g - self.a1 * v - self.a0 * q - self.a2 * q ** 3)
+        return modelica_lam(self.params, contact, _floats(x))
 
     def force(self, x: np.ndarray) -> float:
         """``f = if linFlag then lambda else contact*lambda``."""
-        lam = self.lam(x)
-        return lam if self.lin_flag else self.contact * lam
+        return modelica_force(self.params, self.contact, _floats(x))
 
     def derivatives(self, t: float, x: np.ndarray) -> np.ndarray:
         """``der(q) = v``, ``m der(v) = -m g + f``."""
-        return np.array([x[1], -self.g + self.force(x) / self.m])
+        return np.array(modelica_derivatives(self.params, self.contact, _floats(x)))
 
     def event_indicators(self, t: float, x: np.ndarray) -> np.ndarray:
         """Zero-crossing functions of the relations: h, hDot, and lambda (1 while lambda = 0)."""
-        lam_z = self.lam(x) if self._constrained(self.contact) else 1.0
-        return np.array([x[0], x[1], lam_z])
+        return np.array(modelica_indicators(self.params, self.contact, _floats(x)))
 
     def relations(self, x: np.ndarray, contact: int) -> list[bool]:
         """``[b1, b2, b3, b4]`` for ``contact``, each read on its indicator's FMI domain."""
@@ -118,7 +121,7 @@ class ModelicaBouncingBall:
 
     def energy(self, x: np.ndarray) -> float:
         """Mechanical energy ``m v^2 / 2 + m g q``."""
-        return 0.5 * self.m * float(x[1]) ** 2 + self.m * self.g * float(x[0])
+        return modelica_energy(self.params, _floats(x))
 
     def contact_forces(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
         """``[f]``, the force the floor applies."""

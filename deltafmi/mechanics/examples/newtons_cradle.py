@@ -12,6 +12,8 @@ import numpy as np
 
 from ..contact.collision_law import CollisionLaw
 from ..contact.system import ContactSystem, LagrangianModel
+from .contact_kernels import KernelContactSystem, law_constants
+from .cradle_kernels import N_BALLS, CradleParams, cradle_evaluate
 
 
 class ChainModel(LagrangianModel):
@@ -131,13 +133,15 @@ def make_cradle(n: int = 3, *, pendulum: bool = False, mass: float = 1.0, radius
                 length: float = 0.3, gap: float = 0.0, striker_speed: float = 1.0,
                 striker_angle: float = 0.0, law: Optional[CollisionLaw] = None,
                 n_max: Optional[int] = None, g: float = 9.81,
-                capture_speed: float = 0.0) -> tuple[ContactSystem, np.ndarray]:
+                capture_speed: float = 0.0, kernels: bool = False) -> tuple[ContactSystem, np.ndarray]:
     """A cradle of ``n`` equal balls and its initial state.
 
     Balls hang (or lie) in a row with surface gaps ``gap``. The striker, ball 1, starts in its
     row position moving at ``striker_speed`` towards +x, or (pendulum only, ``striker_angle`` > 0)
     is released at rest from that angle. ``n_max`` balls are allocated; the extra ones are frozen.
     ``capture_speed`` defaults to 0: a cradle has no resting loads, so CONTACT is never entered.
+    ``kernels``: evaluate with :mod:`.cradle_kernels` (what its FMU compiles; needs ``n_max`` = 7),
+    whose parameter record is then ``system.params``.
     """
     n_max = n if n_max is None else n_max
     if not 2 <= n <= n_max:
@@ -151,8 +155,16 @@ def make_cradle(n: int = 3, *, pendulum: bool = False, mass: float = 1.0, radius
     else:
         model = ChainModel(masses, radii)
     active = np.arange(n_max) < n
-    system = ContactSystem(model, law, capture_speed=capture_speed, active_dofs=active,
-                           active_constraints=active[1:])
+    options = dict(capture_speed=capture_speed, active_dofs=active, active_constraints=active[1:])
+    if kernels:
+        if n_max != N_BALLS:
+            raise ValueError(f"the cradle's kernels are for n_max = {N_BALLS} balls, got {n_max}")
+        system: ContactSystem = KernelContactSystem(model, law, cradle_evaluate, None, **options)
+        system.params = CradleParams(n, bool(pendulum), float(mass), float(radius), float(length), float(g),
+                                     tuple(float(p) for p in spacing * np.arange(n_max)), law_constants(law),
+                                     system.alpha0, system.alpha1)
+    else:
+        system = ContactSystem(model, law, **options)
     x0 = np.zeros(2 * n_max)
     if pendulum:
         if striker_angle > 0.0:

@@ -10,83 +10,47 @@ from __future__ import annotations
 import ctypes
 import subprocess
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Optional
 
-from .codegen import generate
-from .kernel_types import NONE, B, D, I, S, Entry, Obj, Opt, Tup
+from .translate import generate
+from ...component.native_kernels import c_type, pack, unpack
+from .kernel_types import NONE, B, D, I, Entry, Obj, Opt, Tup, describe
 
 #: no fused multiply-add; pow(x, 2.0) stays libm's pow, as in Python
 CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-fno-builtin-pow"]
 
-_CTYPES: dict = {}
-
-
 def ctypes_type(t: Any) -> Any:
-    """The ctypes type laid out as the generated C type of ``t``."""
-    if t == D:
-        return ctypes.c_double
-    if t in (I, B):
-        return ctypes.c_int
-    if t == S:
-        return ctypes.c_char_p
-    if t in _CTYPES:
-        return _CTYPES[t]
-    if isinstance(t, Obj):
-        import dataclasses
-
-        fields = [(f.name, ctypes.c_double) for f in dataclasses.fields(t.cls)]
-    elif isinstance(t, Opt):
-        fields = [("some", ctypes.c_int), ("v", ctypes_type(t.inner))]
-    elif t.uniform:
-        fields = [("v", ctypes_type(t.items[0]) * len(t.items))]
-    else:
-        names = t.names or tuple(f"f{k}" for k in range(len(t.items)))
-        fields = [(n, ctypes_type(item)) for n, item in zip(names, t.items)]
-    cls = type(getattr(t, "cname", None) or "T", (ctypes.Structure,), {"_fields_": fields})
-    _CTYPES[t] = cls
-    return cls
+    """The ctypes type laid out as the generated C type of ``t`` (the FMU runtime's own, from the
+    type's layout description)."""
+    return c_type(describe(t))
 
 
 def to_c(t: Any, value: Any) -> Any:
     """``value`` (a Python float, tuple, NamedTuple, object, ...) as a ctypes value of type ``t``."""
-    if t == D:
-        return float(value)
-    if t in (I, B):
-        return int(value)
-    if t == S:
-        return value.encode()
-    out = ctypes_type(t)()
-    if isinstance(t, Obj):
-        for name, _ in out._fields_:
-            setattr(out, name, float(getattr(value, name)))
-    elif isinstance(t, Opt):
-        out.some = value is not None
-        if value is not None:
-            out.v = to_c(t.inner, value)
-    elif t.uniform:
-        items = list(value.tolist() if hasattr(value, "tolist") else value)
-        for k, item in enumerate(items):
-            out.v[k] = to_c(t.items[0], item)
-    else:
-        names = t.names or tuple(f"f{k}" for k in range(len(t.items)))
-        for k, (name, item) in enumerate(zip(names, t.items)):
-            raw = getattr(value, name) if t.names else value[k]
-            setattr(out, name, to_c(item, raw))
-    return out
+    return pack(describe(t), value)
 
 
 def from_c(t: Any, value: Any) -> Any:
-    """A ctypes value of type ``t`` as Python values (tuples for structs, None for an empty Optional)."""
-    if t == D:
-        return float(value)
-    if t in (I, B):
-        return int(value) if t == I else bool(value)
+    """A ctypes value of type ``t`` as Python values (tuples for structs, the NamedTuple for a
+    :func:`~.kernel_types.named` type, None for an empty Optional)."""
+    return unpack(describe(t), value, _classes(t))
+
+
+def _classes(t: Any, path: str = "", found: Optional[dict] = None) -> dict:
+    """What :func:`unpack` builds each record of ``t`` with, by its path (as :func:`pack` records)."""
+    found = {} if found is None else found
     if isinstance(t, Opt):
-        return from_c(t.inner, value.v) if value.some else None
-    if t.uniform:
-        return tuple(from_c(t.items[0], v) for v in value.v)
-    names = t.names or tuple(f"f{k}" for k in range(len(t.items)))
-    return tuple(from_c(item, getattr(value, n)) for n, item in zip(names, t.items))
+        _classes(t.inner, f"{path}?", found)
+    elif isinstance(t, Tup) and t.uniform:
+        _classes(t.items[0], f"{path}[]", found)
+    elif isinstance(t, Tup) and t.names:
+        found[path] = t.cls if t.cls is not None else (lambda *values: values)
+        for name, item in zip(t.names, t.items):
+            _classes(item, f"{path}.{name}", found)
+    elif isinstance(t, Tup):
+        for k, item in enumerate(t.items):
+            _classes(item, f"{path}[{k}]", found)
+    return found
 
 
 class Library:
@@ -128,7 +92,7 @@ class Library:
         err = getattr(self.lib, name)(*cargs, ctypes.byref(out))
         if err:
             raise ArithmeticError(f"{name}: the kernel raised at line {err}")
-        return from_c(ret, out.value if ret == D else out)
+        return from_c(ret, out.value if ret in (D, I, B) else out)
 
 
 def compile_unit(entries: list[Entry], directory: Path, extra_c: str = "", identities: Iterable[str] = (),

@@ -1,4 +1,4 @@
-"""The types of the kernel code generator (benchmarks/kernel_codegen): what a value is in C.
+"""The types of the kernel code generator (deltafmi.export.codegen): what a value is in C.
 
 Scalars (``D`` double, ``I`` int, ``B`` bool as int, ``S`` string, ``NONE``), fixed-length
 sequences and NamedTuples/records (:class:`Tup`, a C struct), Optional values (:class:`Opt`, a
@@ -8,8 +8,10 @@ argument types.
 """
 from __future__ import annotations
 
+import dataclasses
+import types
 import typing
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
 
@@ -31,6 +33,8 @@ class Tup:
     items: tuple  #: element types
     names: Optional[tuple] = None  #: field names (a NamedTuple or a record)
     cname: Optional[str] = None  #: the class name, for the C struct's name
+    #: the NamedTuple class, to build its values back from C (not part of the type's identity)
+    cls: Optional[type] = field(default=None, compare=False)
 
     @property
     def uniform(self) -> bool:
@@ -70,10 +74,10 @@ def Vec(n: int) -> Tup:
 
 def named(cls: type) -> Tup:
     """The type of a NamedTuple class from its annotations (float, int, bool, str, fixed-length
-    tuples, other NamedTuples)."""
+    tuples, other NamedTuples, Optional[...] of these)."""
     hints = typing.get_type_hints(cls)
     return Tup(tuple(_type_of_hint(hints[f], f"{cls.__name__}.{f}") for f in cls._fields), tuple(cls._fields),
-               cls.__name__)
+               cls.__name__, cls)
 
 
 def record(obj: Any) -> Tup:
@@ -102,6 +106,9 @@ def _type_of_hint(hint: Any, where: str) -> Any:
         return named(hint)
     if typing.get_origin(hint) is tuple and Ellipsis not in typing.get_args(hint):
         return Tup(tuple(_type_of_hint(h, where) for h in typing.get_args(hint)))
+    args = typing.get_args(hint)
+    if typing.get_origin(hint) in (typing.Union, types.UnionType) and len(args) == 2 and type(None) in args:
+        return Opt(_type_of_hint(args[0] if args[1] is type(None) else args[1], where))  # Optional[X]
     raise CodegenError(f"{where}: type {hint!r} has no fixed C layout")
 
 
@@ -143,3 +150,21 @@ def _unify(a: Any, b: Any) -> Optional[Any]:
         if isinstance(x, Opt) and x.inner == y:
             return x
     return None
+
+
+def describe(t: Any) -> Any:
+    """The layout description of a kernel type (see deltafmi/component/native_kernels.py): what the
+    FMU runtime builds its C structs from."""
+    if t in (D, I, B, S):
+        return {D: "double", I: "int", B: "bool", S: "str"}[t]
+    if isinstance(t, Obj):
+        return {"object": [f.name for f in dataclasses.fields(t.cls)]}
+    if isinstance(t, Opt):
+        return {"optional": describe(t.inner)}
+    if isinstance(t, Tup) and t.uniform:
+        return {"array": describe(t.items[0]), "n": len(t.items)}
+    if isinstance(t, Tup) and t.names:
+        return {"record": [[name, describe(item)] for name, item in zip(t.names, t.items)]}
+    if isinstance(t, Tup):
+        return {"tuple": [describe(item) for item in t.items]}
+    raise CodegenError(f"no run-time layout for {t!r}")

@@ -6,9 +6,9 @@ concatenation, repetition by a constant, unpacking, ``append`` and ``+=`` on lis
 length is known when the C is generated, so a list is a C struct), ``math`` functions and
 constants, ``min``/``max``/``abs``/``float``/``tuple``/``list``/``len``, ``any``/``all``/``sum``
 over generator expressions and list comprehensions over fixed-length sequences (unrolled),
-``bisect.bisect_right`` over a float sequence, ``None`` and Optional values (``x is None``; a C
+``bisect.bisect_right`` over a float sequence (``lo`` and ``hi`` too), ``None`` and Optional values (``x is None``; a C
 struct with a flag), NamedTuples and dataclass-like objects as parameters (their int, bool, str,
-float and tuple fields), NamedTuple construction, reads of a parameter object's float fields
+float, tuple and Optional fields), NamedTuple construction, reads of a parameter object's float fields
 (``p.l1`` -> ``p->l1`` on a C struct generated from the dataclass), module-level int/float/tuple
 constants (their values taken at generation time), calls to other kernels (any module: each is
 specialized on its argument types, as a static C function, inlined), ``for`` over ``range``
@@ -51,6 +51,7 @@ import sys
 import textwrap
 import types
 import typing
+from pathlib import Path
 from typing import Any, Callable, Iterable, Optional
 
 from .kernel_types import (NONE, B, CodegenError, D, Entry, Fn, I, Obj, Opt, Poison, S, Scalar, Tup,
@@ -58,7 +59,7 @@ from .kernel_types import (NONE, B, CodegenError, D, Entry, Fn, I, Obj, Opt, Poi
 
 
 _MATH = {"sin": 1, "cos": 1, "tan": 1, "asin": 1, "acos": 1, "atan": 1, "atan2": 2, "sqrt": 1,
-         "exp": 1, "log": 1, "fabs": 1, "hypot": 2, "tanh": 1, "sinh": 1, "cosh": 1}
+         "exp": 1, "log": 1, "fabs": 1, "tanh": 1, "sinh": 1, "cosh": 1}
 _MATH_BOOL = {"isfinite", "isnan", "isinf"}
 _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
 _INTOPS = {ast.BitOr: "|", ast.BitAnd: "&"}
@@ -258,7 +259,7 @@ class _Function:
         param_vars = {c for c, _ in pnames}
         decls = [f"    {unit.ctype(t)} {c};" for (_, t), c in self.cvars.items() if c not in param_vars]
         decls += [f"    {unit.ctype(t)} {n};" for n, t in self.temps]
-        self.code = (f"/* {func.__module__}.{func.__qualname__} ({self.file}:{node.lineno}) */\n"
+        self.code = (f"/* {func.__qualname__} ({shown_file(self.file)}:{node.lineno}) */\n"
                      f"{self.prototype}\n{{\n" + "\n".join(decls) + ("\n" if decls else "") + text + "\n}\n")
 
     # --- helpers ------------------------------------------------------------------------------
@@ -740,7 +741,7 @@ class _Function:
             return self.literal(t, [c for c, _ in parts]), t
         if isinstance(e.op, ast.Pow) and not {ta, tb} - {D, I} and D in (ta, tb):
             # Python's float ** number is C's pow on doubles (float_pow): the same value
-            return f"pow({a}, (double)({b}))", D
+            return f"py_math2(err, {e.lineno}, pow, {a}, (double)({b}))", D
         if type(e.op) in _INTOPS and {ta, tb} <= {I, B}:
             return f"({a} {_INTOPS[type(e.op)]} {b})", I
         if type(e.op) not in _BINOPS or {ta, tb} - {D, I}:
@@ -748,11 +749,13 @@ class _Function:
                                f"tuples, | & on ints)")
         if ta == I and tb == I:
             if isinstance(e.op, ast.Div):
-                return f"((double)({a}) / (double)({b}))", D
+                return f"py_div(err, {e.lineno}, (double)({a}), (double)({b}))", D
             x, y = _int_of(a), _int_of(b)
             if x is not None and y is not None:
                 return str({ast.Add: x + y, ast.Sub: x - y, ast.Mult: x * y}[type(e.op)]), I
             return f"({a} {_BINOPS[type(e.op)]} {b})", I
+        if isinstance(e.op, ast.Div):
+            return f"py_div(err, {e.lineno}, {a}, {b})", D
         return f"({a} {_BINOPS[type(e.op)]} {b})", D
 
     def subscript(self, e: ast.Subscript, out: list[str], ind: int) -> tuple[str, Any]:
@@ -797,11 +800,18 @@ class _Function:
                 return self.math_call(f.attr, e, out, ind)
             if getattr(module, "__name__", "") == "numpy" and f.attr in ("array", "asarray") and len(e.args) == 1:
                 return self.value(e.args[0], out, ind)  # a fixed-length sequence is already an array
-            if getattr(module, "__name__", "") == "bisect" and f.attr == "bisect_right" and len(e.args) == 2:
+            if getattr(module, "__name__", "") == "bisect" and f.attr == "bisect_right" and len(e.args) in (2, 4) \
+                    and not e.keywords:
                 (a, ta), (x, tx) = self.value(e.args[0], out, ind), self.value(e.args[1], out, ind)
                 if not (isinstance(ta, Tup) and ta.homogeneous and tx in (D, I)):
-                    raise self.fail(e, "bisect_right(a, x) on a float sequence")
-                return f"py_bisect_right({self.simple(a, ta, out, ind)}.v, {len(ta.items)}, {x})", I
+                    raise self.fail(e, "bisect_right(a, x[, lo, hi]) on a float sequence")
+                n = len(ta.items)
+                bounds = [self.value(b, out, ind) for b in e.args[2:]]
+                if any(tb != I for _, tb in bounds):
+                    raise self.fail(e, "bisect_right's lo and hi must be ints")
+                # kept within the sequence, where Python raises (lo < 0) or may index past its end
+                lo, hi = (f"py_maxi({bounds[0][0]}, 0)", f"py_mini({bounds[1][0]}, {n})") if bounds else ("0", str(n))
+                return f"py_bisect_right({self.simple(a, ta, out, ind)}.v, {lo}, {hi}, {x})", I
         if isinstance(f, ast.Name) and f.id in self.aliases and isinstance(self.aliases[f.id][1], Fn):
             return self.math_call(self.aliases[f.id][1].name, e, out, ind)
         if not isinstance(f, ast.Name) or f.id in self.scope or f.id in self.aliases:
@@ -903,36 +913,60 @@ class _Function:
 
     def math_call(self, fname: str, e: ast.Call, out: list[str], ind: int) -> tuple[str, Any]:
         nargs = 1 if fname in _MATH_BOOL else _MATH.get(fname)
+        if fname == "hypot":
+            raise self.fail(e, "math.hypot is CPython's own algorithm, not C's hypot (the last bit may differ): "
+                               "write math.sqrt(x * x + y * y), or keep this function Python")
         if nargs != len(e.args) or e.keywords:
             raise self.fail(e, f"math.{fname} with {len(e.args)} arguments is not supported")
         args = [self.value(a, out, ind) for a in e.args]
         if any(t not in (D, I) for _, t in args):
             raise self.fail(e, f"math.{fname} takes floats")
-        code = f"{fname}({', '.join(c if t == D else f'(double)({c})' for c, t in args)})"
-        return (f"({code} != 0)", B) if fname in _MATH_BOOL else (code, D)
+        values = ", ".join(c if t == D else f"(double)({c})" for c, t in args)
+        if fname in _MATH_BOOL:
+            return f"({fname}({values}) != 0)", B
+        if fname == "fabs":  # never raises
+            return f"fabs({values})", D
+        return f"py_math{len(args)}(err, {e.lineno}, {fname}, {values})", D
 
     def construct(self, cls: type, e: ast.Call, out: list[str], ind: int) -> tuple[str, Any]:
-        """A NamedTuple built from its fields: float, int and bool fields as annotated, the
-        others take their argument's type."""
+        """A NamedTuple built from its fields: float, int and bool fields as annotated, Optional
+        fields as their Optional type (so every return of a state has one C type), the others
+        take their argument's type."""
         if e.keywords or len(e.args) != len(cls._fields):
             raise self.fail(e, f"{cls.__name__}(...) with all {len(cls._fields)} fields positional")
         hints = typing.get_type_hints(cls)
         codes, items = [], []
         for fname, arg in zip(cls._fields, e.args):
-            code, t = self.value(arg, out, ind)
             want = {float: D, int: I, bool: B}.get(hints.get(fname))
+            optional = typing.get_origin(hints.get(fname)) in (typing.Union, types.UnionType)
+            if optional:
+                want = _type_of_hint(hints[fname], self.where(e))
+            code, t = self.expr(arg, out, ind) if optional else self.value(arg, out, ind)
             if want is not None and t != want:
                 if want == D and t == I:
                     code = f"((double)({code}))"
                 elif want == I and t == B:
                     pass
+                elif isinstance(want, Opt) and (t == NONE or t == want.inner):
+                    code = self.convert(code, t, want)
                 else:
-                    raise self.fail(e, f"{cls.__name__}.{fname} is {want.c}, not {t}")
+                    raise self.fail(e, f"{cls.__name__}.{fname} is {getattr(want, 'c', want)}, not {t}")
                 t = want
             codes.append(code)
             items.append(t)
-        t = Tup(tuple(items), tuple(cls._fields), cls.__name__)
+        t = Tup(tuple(items), tuple(cls._fields), cls.__name__, cls)
         return self.literal(t, codes), t
+
+
+def shown_file(path: str) -> str:
+    """A source file as the generated C names it: from ``deltafmi/`` for the package's own, else
+    its name alone, so that the C (and the cache key made from it) does not depend on where the
+    package or the component sits."""
+    package = Path(__file__).resolve().parents[2]
+    try:
+        return Path(path).resolve().relative_to(package.parent).as_posix()
+    except ValueError:
+        return Path(path).name
 
 
 def signature_of(func: Callable) -> list:
@@ -966,6 +1000,27 @@ def _element(code: str, t: Tup, k: int) -> str:
 
 
 HELPERS = """\
+/* Where Python raises and C gives inf or nan (a division by zero; a math function outside its
+ * domain or overflowing, by CPython's rule: nan from arguments that are not nan, inf from finite
+ * ones) the line is recorded as a raise's: the entry returns it, and the FMU hands the call to
+ * Python, which raises with its message. The value is C's, the same as Python's where it exists. */
+static inline double py_div(int *err, int line, double a, double b)
+{
+    if (b == 0.0 && !*err) *err = line;
+    return a / b;
+}
+static inline double py_math1(int *err, int line, double (*f)(double), double x)
+{
+    double r = f(x);
+    if (!*err && ((isnan(r) && !isnan(x)) || (isinf(r) && isfinite(x)))) *err = line;
+    return r;
+}
+static inline double py_math2(int *err, int line, double (*f)(double, double), double x, double y)
+{
+    double r = f(x, y);
+    if (!*err && ((isnan(r) && !isnan(x) && !isnan(y)) || (isinf(r) && isfinite(x) && isfinite(y)))) *err = line;
+    return r;
+}
 /* Python's min/max of two: the first argument on ties (and when the second is NaN) */
 static inline double py_min(double a, double b) { return b < a ? b : a; }
 static inline double py_max(double a, double b) { return b > a ? b : a; }
@@ -983,10 +1038,9 @@ static inline double py_sum_compensated(const double *x, int n)
     }
     return lost != 0.0 && isfinite(lost) ? s + lost : s;
 }
-/* bisect.bisect_right */
-static inline int py_bisect_right(const double *a, int n, double x)
+/* bisect.bisect_right(a, x, lo, hi) */
+static inline int py_bisect_right(const double *a, int lo, int hi, double x)
 {
-    int lo = 0, hi = n;
     while (lo < hi) {
         int mid = (lo + hi) / 2;
         if (x < a[mid]) hi = mid; else lo = mid + 1;
@@ -996,14 +1050,19 @@ static inline int py_bisect_right(const double *a, int n, double x)
 """
 
 
-def generate(entries: list[Entry], identities: Iterable[str] = (), returns: Optional[dict] = None) -> str:
+def generate(entries: list[Entry], identities: Iterable[str] = (), returns: Optional[dict] = None,
+             type_names: Optional[dict] = None) -> str:
     """One C translation unit with ``entries`` exported (see the module docstring).
 
     ``identities``: names of helper functions taken as the identity on their one argument (e.g.
     a list conversion that the fixed-length arrays make unnecessary). ``returns``, when given,
-    receives each entry's result type by its C name.
+    receives each entry's result type by its C name. ``type_names``, when given, maps types
+    (keys) to the C names of their values' types, filled in (an ``Obj``: its struct, not the
+    pointer the kernels take).
     """
     unit = _Unit(identities)
+    for t in type_names or ():
+        type_names[t] = unit.obj_struct(t.cls) if isinstance(t, Obj) else unit.ctype(t)
     wrappers = []
     for entry in entries:
         where = f"{inspect.getsourcefile(entry.func)}:{entry.func.__code__.co_firstlineno}"
@@ -1045,7 +1104,7 @@ def generate(entries: list[Entry], identities: Iterable[str] = (), returns: Opti
                         + "\n    ".join(params)
                         + f"\n    {unit.ctype(ret)} result_ = {name}({', '.join(['&err'] + call)});\n    {store}\n"
                         f"    return err;\n}}\n")
-    head = ("/* Generated by benchmarks/kernel_codegen from the Python kernels named below; do not edit.\n"
+    head = ("/* Generated by deltafmi.export.codegen from the Python kernels named below; do not edit.\n"
             " * Compile with -ffp-contract=off -fno-builtin-pow (no fused multiply-add, pow(x, 2.0) not\n"
             " * folded to x * x): bit for bit with the Python. */\n"
             "#include <math.h>\n#include <stdlib.h>\n#include <string.h>\n\n"

@@ -1,0 +1,42 @@
+/* ---- CVODE's right-hand side and root functions over the kernels (deltafmi/export/codegen/cvode_rhs.c) ----
+ * A Co-Simulation step integrates with CVODE driven from Python (deltafmi/component/cvode.py); its
+ * right-hand side (and root functions, with an event-indicator kernel) are these, so CVODE's many
+ * evaluations per step run no Python. They write the solver's state into the value buffer as the
+ * Python callbacks do, and call those (fallback) while the kernels are off or when a kernel raised:
+ * Python then explains. */
+typedef int (*DfmiCvodeFn)(double t, void *y, void *out, void *user_data);
+typedef struct {
+    const DfmiAttributes *attributes;
+    const int *ready;
+    double *real;
+    int *ints;
+    long nx, x_offset, dx_offset, nz;
+    double *(*array)(void *vector); /* SUNDIALS' N_VGetArrayPointer */
+    DfmiCvodeFn fallback, roots_fallback;
+} DfmiCvodeData;
+
+EXPORT int dfmi_kernel_cvode_rhs(double t, void *y, void *ydot, void *user_data)
+{
+    const DfmiCvodeData *r = user_data;
+    if (*r->ready) {
+        memcpy(r->real + r->x_offset, r->array(y), (size_t)r->nx * sizeof(double));
+        if (dfmi_kernel_derivatives(r->attributes, t, r->real, r->ints, NULL) == 0) {
+            memcpy(r->array(ydot), r->real + r->dx_offset, (size_t)r->nx * sizeof(double));
+            return 0;
+        }
+    }
+    return r->fallback(t, y, ydot, user_data);
+}
+
+/* roots: g is a plain array of nz doubles (CVRootFn) */
+EXPORT int dfmi_kernel_cvode_roots(double t, void *y, void *g, void *user_data)
+{
+    const DfmiCvodeData *r = user_data;
+#if DFMI_KERNEL_INDICATORS
+    if (*r->ready) {
+        memcpy(r->real + r->x_offset, r->array(y), (size_t)r->nx * sizeof(double));
+        if (dfmi_kernel_event_indicators(r->attributes, t, r->real, r->ints, g) == 0) return 0;
+    }
+#endif
+    return r->roots_fallback(t, y, g, user_data);
+}

@@ -1,0 +1,39 @@
+"""Issue 26: every shipped model has compiled kernels, and its FMU gives the same numbers with them
+as with its Python methods (``DELTAFMI_NATIVE=0``), bit for bit, in Model Exchange (fmpy's CVODE)
+and Co-Simulation, over its default experiment."""
+from __future__ import annotations
+
+import zipfile
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+
+import deltafmi.models
+from deltafmi.export import build_cached
+
+MODELS = sorted(deltafmi.models.MODELS)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_the_model_declares_compiled_kernels_and_its_fmu_carries_them(name):
+    cls = getattr(deltafmi.models, name)
+    assert cls.native is not None and cls.native.mode != "off" and cls.native.kernels(), name
+    with zipfile.ZipFile(build_cached(name)) as archive:
+        assert "resources/native_kernels.json" in archive.namelist()
+
+
+@pytest.mark.parametrize("interface", ["ModelExchange", "CoSimulation"])
+@pytest.mark.parametrize("name", MODELS)
+def test_compiled_and_python_kernels_give_the_same_bits(name, interface, monkeypatch):
+    fmu = str(build_cached(name))
+    md = read_model_description(fmu)
+    outputs = [v.name for v in md.modelVariables if v.causality == "output" and v.type != "String"]
+    results = {}
+    for native in ("1", "0"):
+        monkeypatch.setenv("DELTAFMI_NATIVE", native)
+        results[native] = simulate_fmu(fmu, fmi_type=interface, output=outputs)
+    compiled, python = results["1"], results["0"]
+    assert len(compiled) == len(python) > 1
+    for column in ("time", *outputs):
+        assert np.array_equal(compiled[column], python[column], equal_nan=True), column
