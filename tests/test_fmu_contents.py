@@ -94,8 +94,7 @@ def test_oscillator_carries_no_mechanics_and_no_kernels(build_fmu_from_src):
     assert not [n for n in names if "mechanics" in n]
     assert not [n for n in names if "__mypyc" in n or n.endswith(EXT_SUFFIX)]  # (_values.abi3.so is the runtime's)
     assert _archive_modules(fmu) == set(runtime_modules(FMU_SRC / "oscillator.py"))
-    # ~300 kB of runtime and binary, and the model's compiled kernels: their library and C (30-75 kB)
-    assert fmu.stat().st_size <= 400_000, f"{fmu.stat().st_size} bytes"
+    assert fmu.stat().st_size <= 300_000, f"{fmu.stat().st_size} bytes"
 
 
 @pytest.mark.parametrize("source", [s for s in SOURCES if not any(
@@ -103,8 +102,8 @@ def test_oscillator_carries_no_mechanics_and_no_kernels(build_fmu_from_src):
 def test_fmus_of_models_without_delta_robot_code_are_small(build_fmu_from_src, source):
     fmu = build_fmu_from_src(source)
     assert not [n for n in zipfile.ZipFile(fmu).namelist() if "mechanics/delta" in n or "__mypyc" in n]
-    # ~300 kB of runtime and binary, and the model's compiled kernels: their library and C (30-75 kB)
-    assert fmu.stat().st_size <= 400_000, f"{fmu.stat().st_size} bytes"
+    # ~300 kB of runtime and binary, and the model's compiled kernels: their library and C (30-100 kB)
+    assert fmu.stat().st_size <= 450_000, f"{fmu.stat().st_size} bytes"
 
 
 @pytest.mark.parametrize("source, kernels", [

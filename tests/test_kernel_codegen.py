@@ -224,19 +224,23 @@ def cancelling_sum(a: float, b: float) -> float:
 """
 
 
-def test_user_kernel_with_loops_known_at_run_time(tmp_path):
-    """A user's kernel: a while loop with break, a range() loop with continue (C loops), sum()."""
-    source = tmp_path / "user_loops.py"
-    source.write_text(USER_KERNELS)
-    spec = importlib.util.spec_from_file_location("user_loops", source)
+def user_kernels(folder: Path, name: str, text: str, **entries: list):
+    """(module, compiled library) of a user's kernels module ``text``: each entry's argument types."""
+    source = folder / f"{name}.py"
+    source.write_text(text)
+    spec = importlib.util.spec_from_file_location(name, source)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     try:
-        lib = compile_unit([Entry("newton_sqrt", module.newton_sqrt, [D, D]),
-                            Entry("partial_sum", module.partial_sum, [D, I]),
-                            Entry("cancelling_sum", module.cancelling_sum, [D, D])], tmp_path)
+        return module, compile_unit([Entry(f, getattr(module, f), args) for f, args in entries.items()], folder)
     except NoCompilerError as exc:
         pytest.skip(f"no C compiler: {exc}")
+
+
+def test_user_kernel_with_loops_known_at_run_time(tmp_path):
+    """A user's kernel: a while loop with break, a range() loop with continue (C loops), sum()."""
+    module, lib = user_kernels(tmp_path, "user_loops", USER_KERNELS, newton_sqrt=[D, D], partial_sum=[D, I],
+                               cancelling_sum=[D, D])
     rng = np.random.default_rng(11)
     for a in rng.uniform(0.0, 1e4, 50).tolist() + [2.0, 0.25]:
         assert bits(lib.call("newton_sqrt", a, 1e-15)) == bits(module.newton_sqrt(a, 1e-15))
@@ -282,16 +286,8 @@ def test_where_python_raises_the_kernel_returns_the_line(tmp_path):
     """Division by zero, math outside its domain or overflowing: Python raises where C would give
     inf or nan; the generated C records the line as a raise's (the FMU then runs the Python,
     which raises with its message), and computes the same bits everywhere else."""
-    source = tmp_path / "user_raising.py"
-    source.write_text(RAISING_KERNELS)
-    spec = importlib.util.spec_from_file_location("user_raising", source)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    try:
-        lib = compile_unit([Entry("ratio", module.ratio, [D, D]), Entry("root", module.root, [D]),
-                            Entry("grow", module.grow, [D, D]), Entry("branch", module.branch, [D])], tmp_path)
-    except NoCompilerError as exc:
-        pytest.skip(f"no C compiler: {exc}")
+    module, lib = user_kernels(tmp_path, "user_raising", RAISING_KERNELS, ratio=[D, D], root=[D], grow=[D, D],
+                               branch=[D])
     cases = [("ratio", (1.0, 0.0), 5), ("ratio", (0.0, 0.0), 5), ("root", (-1.0,), 9), ("root", (0.0,), 9),
              ("grow", (710.0, 1.0), 13), ("grow", (-2.0, 0.5), 13), ("grow", (0.0, -1.0), 13),
              ("grow", (10.0, 400.0), 13)]

@@ -254,7 +254,8 @@ def test_a_compiled_step_equals_the_python_step_and_defers_its_warning(tally_fmu
     compiled, compiled_log = _tally_run(tally_fmu, True, monkeypatch, _u)
     python, python_log = _tally_run(tally_fmu, False, monkeypatch, _u)
     assert np.array_equal(compiled[:, :2], python[:, :2])
-    expected = np.cumsum([2.0 * _u(k) for k in range(100)])
+    # the first sample is the initial event update's, before any input is set (u = 0)
+    expected = np.cumsum([0.0] + [2.0 * _u(k) for k in range(1, 100)])
     assert np.array_equal(compiled[:, 0], expected) and list(compiled[:, 1]) == list(range(1, 101))
     # C took every step but the one whose sample Python had to warn about
     assert compiled[-1, 2] == 1 and python[-1, 2] == 100
@@ -268,7 +269,7 @@ def test_the_fmu_state_holds_what_compiled_steps_changed(tally_fmu, monkeypatch)
     rows, _ = _tally_run(tally_fmu, True, monkeypatch, _u, state_at=39)
     first, again = rows[40:100], rows[100:]
     assert np.array_equal(first[:, :2], again[:, :2])
-    assert again[-1, 1] == 100 and again[0, 0] == np.sum([2.0 * _u(k) for k in range(41)])
+    assert again[-1, 1] == 100 and again[0, 0] == np.sum([2.0 * _u(k) for k in range(1, 41)])
 
 
 def test_the_guides_example_builds_runs_compiled_and_follows_its_closed_form(tmp_path, monkeypatch):
@@ -335,3 +336,56 @@ class Ramp(Component):
     done = _build(tmp_path, text)
     assert done.returncode != 0 and "Traceback" not in done.stderr
     assert "Ramp.native: its outputs() computes z after a step, which the step kernel does not return" in done.stderr
+
+
+@pytest.mark.parametrize("name", sorted(__import__("deltafmi.models", fromlist=["MODELS"]).MODELS))
+def test_the_fast_attribute_writer_lays_out_what_ctypes_does(name):
+    """The runtime writes attributes with one struct.pack_into (FieldWriter); the bytes must be
+    those of the ctypes struct built field by field (pack), for every shipped model's attributes
+    after initialization, and for an Optional left None."""
+    import deltafmi.models
+    from deltafmi.component.instance import FmuInstance
+    from deltafmi.component.native_kernels import FieldWriter, c_type, pack, record_classes, unpack
+    from deltafmi.export.codegen.component_kernels import generate_component
+
+    cls = getattr(deltafmi.models, name)
+    description = generate_component(cls).description
+    instance = FmuInstance(cls)
+    instance.enter_initialization(0.0, math.nan, math.nan)
+    instance.evaluate(0.0)
+    for attribute, desc in description["attributes"]:
+        value = instance.component
+        for part in attribute.split("."):
+            value = getattr(value, part)
+        target, writer = c_type(desc)(), FieldWriter(desc, 0)
+        writer.write(target, value)
+        reference = pack(desc, value)
+        if isinstance(desc, str):
+            assert target.value == reference, attribute
+            continue
+        classes: dict = {}
+        record_classes(desc, value, classes)
+        if '"object"' not in json.dumps(desc):  # dataclasses are never read back
+            # repr: NaN (a state's cond before the first sample) is equal to itself there
+            assert repr(unpack(desc, target, classes)) == repr(unpack(desc, reference, classes)), attribute
+        if '"str"' not in json.dumps(desc):  # a string field holds a pointer: its bytes differ
+            assert bytes(target) == bytes(reference), attribute
+        if "optional" in desc:
+            writer.write(target, None)
+            assert bytes(target) == bytes(pack(desc, None)), attribute
+
+
+def test_a_compiled_event_update_equals_the_python_update(tally_fmu, monkeypatch, capfd):
+    """Model Exchange: the samples at the time events run in C (the update kernel), but the one
+    Python must log; the same totals at every event as the Python update."""
+    signal = np.array([(0.0, 1.0), (0.5, -1.0)], dtype=[("time", float), ("u", float)])
+    results, logs = {}, {}
+    for native in ("1", "0"):  # (fmpy's logger= keeps a callback process-wide that later calls reach: capfd)
+        monkeypatch.setenv("DELTAFMI_NATIVE", native)
+        results[native] = simulate_fmu(str(tally_fmu), fmi_type="ModelExchange", input=signal,
+                                       output=["total", "count", "python_updates"])
+        logs[native] = [line for line in "".join(capfd.readouterr()).splitlines() if "negative sample" in line]
+    compiled, python = results["1"], results["0"]
+    assert np.array_equal(compiled["total"], python["total"]) and compiled["count"][-1] == 101  # 0 .. 1 s
+    assert compiled["python_updates"][-1] == 1 and python["python_updates"][-1] >= 101
+    assert logs["1"] == logs["0"] and len(logs["1"]) == 1

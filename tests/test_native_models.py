@@ -1,6 +1,6 @@
 """Issue 26: every shipped model has compiled kernels, and its FMU gives the same numbers with them
 as with its Python methods (``DELTAFMI_NATIVE=0``), bit for bit, in Model Exchange (fmpy's CVODE)
-and Co-Simulation, over its default experiment."""
+and Co-Simulation, FMI 2.0 and 3.0 builds, over its default experiment."""
 from __future__ import annotations
 
 import zipfile
@@ -23,10 +23,11 @@ def test_the_model_declares_compiled_kernels_and_its_fmu_carries_them(name):
         assert "resources/native_kernels.json" in archive.namelist()
 
 
+@pytest.mark.parametrize("fmi_version", [2, 3])
 @pytest.mark.parametrize("interface", ["ModelExchange", "CoSimulation"])
 @pytest.mark.parametrize("name", MODELS)
-def test_compiled_and_python_kernels_give_the_same_bits(name, interface, monkeypatch):
-    fmu = str(build_cached(name))
+def test_compiled_and_python_kernels_give_the_same_bits(name, interface, fmi_version, monkeypatch):
+    fmu = str(build_cached(name, fmi_version=fmi_version))
     md = read_model_description(fmu)
     outputs = [v.name for v in md.modelVariables if v.causality == "output" and v.type != "String"]
     results = {}

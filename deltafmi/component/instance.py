@@ -186,7 +186,7 @@ class FmuInstance:
     def native_layout(self) -> tuple:
         """Addresses and sizes of the buffers the native layer reads and writes directly.
 
-        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|KnKKpKKKKKK``): real
+        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|KnKKpKKKKKKK``): real
         buffer, n_real, int buffer, n_int, flags (uint8 per real and int scalar), n_str, nx,
         x_offset, dx_offset, event indicators (double[nz]), nz, nominals (double[nx]), watches
         drift, steps itself, evaluates after a step, control (double[3]: terminated, time reached,
@@ -195,7 +195,7 @@ class FmuInstance:
         and per Clock the real-buffer index of its period Parameter (int64, -1: constant) and its
         constant interval (double, NaN where a Parameter gives it), and whether the component is
         clock-driven (:func:`.clocks.clock_driven`); then the compiled kernels' addresses
-        (derivatives, event indicators, outputs, step; 0 for none), their attributes' struct and
+        (derivatives, event indicators, outputs, step, update; 0 for none), their attributes' struct and
         its ready flag (int[1]), all 0 without compiled kernels
         (:class:`.native_kernels.NativeKernelsRuntime`).
         FMI 3.0 value references after the scalars: ``time`` = n_real + n_int + n_str, then the
@@ -208,7 +208,7 @@ class FmuInstance:
                 bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data,
                 layout.sizes3.ctypes.data, layout.n_clocks, layout.clock_period_index.ctypes.data,
                 layout.clock_interval.ctypes.data, self._clock_driven,
-                *(self.native.layout() if self.native is not None else (0,) * 6))
+                *(self.native.layout() if self.native is not None else (0,) * 7))
 
     # --- initialization ---------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:

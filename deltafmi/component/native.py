@@ -18,7 +18,9 @@ generated code where the Python methods would run: ``derivatives`` for ``fmi2Get
 (Model Exchange, between events) and CVODE's right-hand side (Co-Simulation),
 ``event_indicators`` for ``fmi2GetEventIndicators`` and CVODE's root functions, ``outputs`` for
 the getters, ``step`` for ``fmi2DoStep`` of a component that steps itself (a sampled controller,
-a reference generator; see :class:`Kernel`). The component's Python methods stay, and must
+a reference generator; see :class:`Kernel`), ``update`` for the event update of a component
+without states (``fmi2NewDiscreteStates``, fmi3UpdateDiscreteStates at a Clock's tick,
+fmi3ActivateModelPartition). The component's Python methods stay, and must
 compute the same numbers with the same kernels: they serve initialization, events, whatever the
 C cannot, and the tests that compare the two. Attributes are copied to C after initialization,
 after every event update and after every step Python takes; an attribute that does not fit its
@@ -51,7 +53,10 @@ class Kernel:
     ``"h"``) may also change attributes: its result is ``(*updates, *outputs)``, the new values of
     the attributes named in ``updates`` (dotted paths reach into an attribute: ``"_ctl.state"``)
     and then the outputs' values; with ``defer=True`` an int follows the updates: nonzero discards
-    the whole C result and runs the Python ``do_step`` instead, for what C cannot do (log a warning)."""
+    the whole C result and runs the Python ``do_step`` instead, for what C cannot do (log a warning).
+    An ``update`` kernel (the event update at ``"t"`` of a component without states) returns
+    ``(*updates, [defer flag], next time event (nan: none), *outputs)``, as its ``update()`` and
+    ``next_time_event()`` would."""
 
     func: Callable
     args: tuple
@@ -76,6 +81,7 @@ class NativeKernels:
     event_indicators: Optional[Kernel] = None
     outputs: Optional[Kernel] = None
     step: Optional[Kernel] = None
+    update: Optional[Kernel] = None
     attributes: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "required"
 
@@ -84,6 +90,8 @@ class NativeKernels:
             raise ValueError(f"NativeKernels mode {self.mode!r} must be one of {', '.join(MODES)}")
 
     def kernels(self) -> dict[str, Kernel]:
-        """The declared kernels by role (``derivatives``, ``event_indicators``, ``outputs``, ``step``)."""
+        """The declared kernels by role (``derivatives``, ``event_indicators``, ``outputs``, ``step``,
+        ``update``)."""
         return {role: k for role, k in (("derivatives", self.derivatives), ("event_indicators", self.event_indicators),
-                                        ("outputs", self.outputs), ("step", self.step)) if k is not None}
+                                        ("outputs", self.outputs), ("step", self.step), ("update", self.update))
+                if k is not None}

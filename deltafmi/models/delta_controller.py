@@ -27,6 +27,25 @@ def controller_step(law: ControlLaw, settings: SampleSettings, state: SampleStat
     return state, k, defer, state.u, state.cond, z, state.shift, state.status
 
 
+def controller_update(law: ControlLaw, settings: SampleSettings, state: SampleState, t0: float, k: int, t: float,
+                      y: F3, yd: F3, r: F3, rd: F3, rdd: F3, force: F3, tactile: float,
+                      z_est: F3) -> tuple[SampleState, int, int, float, F3, float, F3, float, int]:
+    """The event update at ``t`` as DeltaController.update and next_time_event take it (Model
+    Exchange's time events, FMI 3.0's Clock ticks; the FMU's compiled update): the sample due at
+    ``t``, if any. Returns the new state, the next sample's index, a flag for Python (a warning to
+    log), the next sample instant, and the outputs u, cond_Jc, z_est, shift, status."""
+    period = settings.sample_period
+    defer = 0
+    if t >= t0 + k * period - 1e-9 * period:
+        state = sample(law, settings, state, y, yd, r, rd, rdd, force, tactile)
+        defer = state.new_warnings
+        k += 1
+        while t0 + k * period <= t:  # never schedule an instant already passed
+            k += 1
+    z = z_est if state.z is None else state.z
+    return state, k, defer, t0 + k * period, state.u, state.cond, z, state.shift, state.status
+
+
 class DeltaController(ControllerRobotModel, Component):
     """Feedback-linearising wrist-position controller of the delta robot, sampled (1 kHz).
 
@@ -95,11 +114,15 @@ class DeltaController(ControllerRobotModel, Component):
     shift = Output(unit="m", variability="discrete",
                    description="Tactile loop: shift of the reference along tactile_axis")
 
-    #: Co-Simulation steps in C (generated from controller_step), with no Python
+    #: Co-Simulation steps and event updates in C (generated from controller_step and
+    #: controller_update), with no Python
     native = NativeKernels(
         step=Kernel(controller_step, "_ctl.law", "_ctl.settings", "_ctl.state", "_longest_step", "_t0", "_k", "t", "h",
                     "y", "yd", "r", "rd", "rdd", "force", "tactile", "z_est", updates=("_ctl.state", "_k"),
                     defer=True, returns=("u", "cond_Jc", "z_est", "shift", "status")),
+        update=Kernel(controller_update, "_ctl.law", "_ctl.settings", "_ctl.state", "_t0", "_k", "t", "y", "yd", "r",
+                      "rd", "rdd", "force", "tactile", "z_est", updates=("_ctl.state", "_k"), defer=True,
+                      returns=("u", "cond_Jc", "z_est", "shift", "status")),
         attributes={"_ctl.law": ControlLaw, "_ctl.settings": SampleSettings, "_ctl.state": SampleState,
                     "_longest_step": float, "_t0": float, "_k": int})
 

@@ -3,7 +3,8 @@
 :func:`generate_component` translates the kernels and writes the glue the FMU's loader calls:
 one function per role with the fixed signature ``int dfmi_kernel_<role>(const void *attributes,
 double time, double *real, int *ints, double *indicators)`` (a step: ``(void *attributes, double
-time, double h, double *real, int *ints)``) that reads the kernel's arguments from the value buffers
+time, double h, double *real, int *ints)``, an update: ``(void *attributes, double time, double
+*real, int *ints, double *next_event_time)``) that reads the kernel's arguments from the value buffers
 (at the layout's offsets, constants in the C) and from the attributes' struct, calls the kernel
 and writes its result into the buffers only when it succeeded (0; else the line of the ``raise``
 it took: the loader then calls the Python method, which raises with its message).
@@ -96,7 +97,7 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
 
 #: the method each role's kernel stands for
 _METHODS = {"derivatives": "derivatives", "event_indicators": "event_indicators", "outputs": "outputs",
-            "step": "do_step"}
+            "step": "do_step", "update": "update"}
 
 
 def _check_inherited(cls: type[Component]) -> None:
@@ -112,21 +113,24 @@ def _check_inherited(cls: type[Component]) -> None:
 
 
 def _check_step(cls: type[Component]) -> None:
-    """A compiled step is the whole of fmi2DoStep: it must leave nothing for an evaluation after
-    it to compute (no states, no event indicators, every output among its returns)."""
-    step = cls.native.step
-    if step is None:
-        return
+    """A compiled step (event update) is the whole of fmi2DoStep (fmi2NewDiscreteStates): it must
+    leave nothing for an evaluation after it to compute (no states, no event indicators, every
+    output among its returns)."""
     layout = cls._layout
-    if layout.nx or cls.n_event_indicators:
-        raise CodegenError(f"{cls.__name__}.native: a step kernel is for components without states or event "
-                           f"indicators (a sampled controller, a reference); this one integrates: declare its "
-                           f"derivatives kernel instead")
-    if cls.outputs is not Component.outputs:
-        missing = [d.name for d in layout.declarations if d.causality == "output" and d.name not in step.returns]
-        if missing:
-            raise CodegenError(f"{cls.__name__}.native: its outputs() computes {', '.join(missing)} after a step, "
-                               f"which the step kernel does not return: add them to its returns")
+    for role in ("step", "update"):
+        kernel = getattr(cls.native, role)
+        if kernel is None:
+            continue
+        if layout.nx or cls.n_event_indicators:
+            raise CodegenError(f"{cls.__name__}.native: a {role} kernel is for components without states or event "
+                               f"indicators (a sampled controller, a reference); this one integrates: declare its "
+                               f"derivatives kernel instead")
+        if cls.outputs is not Component.outputs:
+            missing = [d.name for d in layout.declarations if d.causality == "output" and d.name not in kernel.returns]
+            if missing:
+                raise CodegenError(f"{cls.__name__}.native: its outputs() computes {', '.join(missing)} after "
+                                   f"{'a step' if role == 'step' else 'an event'}, which the {role} kernel does not "
+                                   f"return: add them to its returns")
 
 
 def component_library(cls: type[Component]) -> Optional[ComponentLibrary]:
@@ -238,16 +242,16 @@ def _targets(cls: type[Component], role: str, kernel: Kernel) -> list[tuple[str,
     return targets
 
 
-def _updates(cls: type[Component], kernel: Kernel, result: Any, attributes: dict,
+def _updates(cls: type[Component], role: str, kernel: Kernel, result: Any, attributes: dict,
              where: str) -> tuple[list[str], list[str], Any]:
-    """A step kernel's result: (C statements that check its defer flag, C statements that store
-    its updates, the type of the rest: the outputs)."""
-    n = len(kernel.updates) + kernel.defer
+    """A step or update kernel's result: (C statements that check its defer flag, C statements
+    that store its updates (and an update's next time event), the type of the rest: the outputs)."""
+    n = len(kernel.updates) + kernel.defer + (role == "update")
     if not n:
         return [], [], result
     if not isinstance(result, Tup) or result.uniform or result.names or len(result.items) < n:
-        raise CodegenError(f"{where}: the result must be a tuple (*updates{', defer flag' if kernel.defer else ''}, "
-                           f"*outputs)")
+        raise CodegenError(f"{where}: the result must be a tuple (*updates{', defer flag' if kernel.defer else ''}"
+                           f"{', next time event' if role == 'update' else ''}, *outputs)")
     stores = []
     for k, name in enumerate(kernel.updates):
         if name not in attributes:
@@ -257,24 +261,29 @@ def _updates(cls: type[Component], kernel: Kernel, result: Any, attributes: dict
         stores.append(f"    a->{field_name(name)} = out.f{k};")
     checks = []
     if kernel.defer:
-        if result.items[n - 1] not in (I, B):
-            raise CodegenError(f"{where}: result item {n - 1} (the defer flag) must be an int or a bool")
-        checks.append(f"    if (out.f{n - 1}) return -1; /* to Python: it does what C cannot */")
+        flag = len(kernel.updates)
+        if result.items[flag] not in (I, B):
+            raise CodegenError(f"{where}: result item {flag} (the defer flag) must be an int or a bool")
+        checks.append(f"    if (out.f{flag}) return -1; /* to Python: it does what C cannot */")
+    if role == "update":
+        if result.items[n - 1] not in (D, I):
+            raise CodegenError(f"{where}: result item {n - 1} (the next time event, nan for none) must be a float")
+        stores.append(f"    *next_event_time = out.f{n - 1};")
     rest = Tup(result.items[n:])
-    return checks, stores + ["    a->changed = 1;"], rest
+    return checks, stores + (["    a->changed = 1;"] if kernel.updates else []), rest
 
 
 def _glue(cls: type[Component], role: str, kernel: Kernel, args: list, result: Any, attributes: dict) -> str:
     where = f"{cls.__name__}.native.{role} ({kernel.func.__qualname__})"
     targets = _targets(cls, role, kernel)
-    checks, updates, outputs = _updates(cls, kernel, result, attributes, where)
+    checks, updates, outputs = _updates(cls, role, kernel, result, attributes, where)
     if result == D:
         declare, out, leaves = "double out;", "&out", [("out", D)]
     elif isinstance(result, Tup) and result.homogeneous:
         declare, out = f"double out[{len(result.items)}];", "out"
         leaves = [(f"out[{k}]", D) for k in range(len(result.items))]
     else:
-        first = len(kernel.updates) + kernel.defer
+        first = len(kernel.updates) + kernel.defer + (role == "update")
         declare, out = f"dfk_{role}_result out;", "&out"
         leaves = [leaf for k, item in enumerate(outputs.items) for leaf in _leaves(item, f"out.f{first + k}", where)] \
             if first else _leaves(result, "out", where)
@@ -286,14 +295,15 @@ def _glue(cls: type[Component], role: str, kernel: Kernel, args: list, result: A
             raise CodegenError(f"{where}: a float result goes to the Integer/Boolean scalar {target}")
         stores.append(f"    {target} = {code};")
     call = ", ".join([code for t, code in args if t != NONE] + [out])
-    step = role == "step"
-    results = [*kernel.updates, *(["(defer)"] if kernel.defer else []), *kernel.returns]
+    changes = role in ("step", "update")
+    results = [*kernel.updates, *(["(defer)"] if kernel.defer else []),
+               *(["(next time event)"] if role == "update" else []), *kernel.returns]
+    last = {"step": "double h, double *real, int *ints", "update": "double *real, int *ints, double *next_event_time"}
     return (f"/* {role}: {kernel.func.__qualname__}({', '.join(kernel.args)})"
             + (f" -> {', '.join(results)}" if results else "") + " */\n"
-            f"{EXPORT} int dfmi_kernel_{role}({'' if step else 'const '}void *attributes, double time, "
-            + ("double h, double *real, int *ints" if step else "double *real, int *ints, double *indicators")
-            + ")\n{\n"
-            f"    {'' if step else 'const '}DfmiAttributes *a = attributes;\n    (void)a; (void)time; (void)ints;"
-            + ("" if step else " (void)indicators;") + "\n"
+            f"{EXPORT} int dfmi_kernel_{role}({'' if changes else 'const '}void *attributes, double time, "
+            + last.get(role, "double *real, int *ints, double *indicators") + ")\n{\n"
+            f"    {'' if changes else 'const '}DfmiAttributes *a = attributes;\n    (void)a; (void)time; (void)ints;"
+            + ("" if changes else " (void)indicators;") + "\n"
             f"    {declare}\n    int err = dfk_{role}({call});\n    if (err) return err;\n"
             + "".join(line + "\n" for line in checks + updates + stores) + "    return 0;\n}\n")

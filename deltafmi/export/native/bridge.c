@@ -418,17 +418,17 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
     unsigned long long real, ints, flags, indicators, nominals, control, sizes3 = 0;
     unsigned long long clock_index = 0, clock_interval = 0;
     unsigned long long kernel_derivatives = 0, kernel_indicators = 0, kernel_outputs = 0, kernel_step = 0;
-    unsigned long long kernel_attributes = 0;
+    unsigned long long kernel_update = 0, kernel_attributes = 0;
     unsigned long long kernels_ready = 0;
     Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz, n_clocks = 0;
     int watches_drift;
     /* the FMI 3.0 fields trail: a runtime without them still serves an FMI 2.0 binary */
-    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK|KnKKpKKKKKK", &real, &n_real, &ints, &n_int, &flags,
+    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK|KnKKpKKKKKKK", &real, &n_real, &ints, &n_int, &flags,
                                    &n_str, &nx, &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift,
                                    &b->steps_itself, &b->evaluates_after_step, &control, &sizes3, &n_clocks,
                                    &clock_index, &clock_interval, &b->clock_driven, &kernel_derivatives,
-                                   &kernel_indicators, &kernel_outputs, &kernel_step, &kernel_attributes,
-                                   &kernels_ready))
+                                   &kernel_indicators, &kernel_outputs, &kernel_step, &kernel_update,
+                                   &kernel_attributes, &kernels_ready))
         goto python_error;
     *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
                            (const unsigned char *)(uintptr_t)flags, (size_t)n_str, (size_t)nx,
@@ -438,7 +438,8 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
                            (const int64_t *)(uintptr_t)clock_index, (const double *)(uintptr_t)clock_interval,
                            (DfmiKernelFn)(uintptr_t)kernel_derivatives, (DfmiKernelFn)(uintptr_t)kernel_indicators,
                            (DfmiKernelFn)(uintptr_t)kernel_outputs,
-                           (DfmiStepFn)(uintptr_t)kernel_step, (void *)(uintptr_t)kernel_attributes,
+                           (DfmiStepFn)(uintptr_t)kernel_step, (DfmiUpdateFn)(uintptr_t)kernel_update,
+                           (void *)(uintptr_t)kernel_attributes,
                            (const int *)(uintptr_t)kernels_ready};
     for (int i = 0; i < DFMI_N_OPS; i++)
         if (!(b->ops[i] = py.PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;

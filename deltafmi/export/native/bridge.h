@@ -12,6 +12,7 @@
 typedef void (*DfmiLogFn)(void *env, int status, const char *category, const char *message);
 typedef int (*DfmiKernelFn)(const void *attributes, double time, double *real, int *ints, double *indicators);
 typedef int (*DfmiStepFn)(void *attributes, double time, double h, double *real, int *ints);
+typedef int (*DfmiUpdateFn)(void *attributes, double time, double *real, int *ints, double *next_event_time);
 
 /* Buffers owned by the Python instance and read/written in place by the loader. */
 typedef struct {
@@ -37,12 +38,14 @@ typedef struct {
     const double *clock_interval;      /* ... given here (NaN otherwise) */
     /* The component's kernels compiled to C (deltafmi/export/codegen/component_kernels.py; NULL:
      * none): derivatives into the derivative scalars, event indicators into theirs, outputs into
-     * the outputs, a step from time
+     * the outputs, an event update at time of a component without states (its next time event,
+     * NaN for none; attributes in the struct), a step from time
      * over h (a component that steps itself: its outputs, and attributes in the struct), from the
      * buffers and the attributes' struct, which holds the model's current attributes while
      * *kernels_ready. 0 on success; else nothing was written (the Python method then runs). */
     DfmiKernelFn kernel_derivatives, kernel_indicators, kernel_outputs;
     DfmiStepFn kernel_step;
+    DfmiUpdateFn kernel_update;
     void *kernel_attributes;
     const int *kernels_ready;
 } DfmiLayout;

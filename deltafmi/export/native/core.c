@@ -491,9 +491,26 @@ int dfmi_deserialize(Instance *c, const char *function, const unsigned char *byt
 /* ---------------------------------------------------------------------------------------- */
 /* Model Exchange                                                                            */
 
+/* The event update of a component without states by its compiled kernel (1), or 0: Python's. */
+static int native_update(Instance *c, int flags[5], double *next_event_time) {
+    const DfmiLayout *L = &c->L;
+    double next = NAN;
+    if (!L->kernel_update || !*L->kernels_ready || c->state == InitializationMode ||
+        L->kernel_update(L->kernel_attributes, c->time, L->real, L->ints, &next) != 0)
+        return 0;
+    flags[4] = !isnan(next);
+    *next_event_time = flags[4] ? next : 0.0;
+    bridge_time_moved(c->py, c->time);
+    return 1;
+}
+
 int dfmi_update_discrete_states(Instance *c, int flags[5], double *next_event_time) {
     for (int i = 0; i < 5; i++) flags[i] = 0;
     *next_event_time = 0.0;
+    if (native_update(c, flags, next_event_time)) {
+        c->dirty = c->outputs_dirty = 0;
+        return DFMI_OK;
+    }
     int status = bridge_event_update(c->py, c->time, flags, next_event_time);
     if (status < DFMI_ERROR) c->dirty = c->outputs_dirty = 0;
     return dfmi_settle(c, status);
@@ -565,11 +582,16 @@ int dfmi_activate_model_partition(Instance *c, const char *function, size_t i, d
         return dfmi_fail(c, "%s: activationTime %.17g of Clock %u is not after its previous activation at %.17g "
                          "(activation times of a Clock must increase strictly)", function, activation_time,
                          (unsigned)(c->L.n_real + c->L.n_int + c->L.n_str + 1 + i), c->clock_activated[i]);
-    double args[2] = {(double)i, activation_time};
-    int status = bridge_call(c->py, DFMI_ACTIVATE_MODEL_PARTITION, args, 2);
+    double args[2] = {(double)i, activation_time}, previous = c->time, next;
+    int flags[5] = {0};
+    c->time = activation_time; /* the partition is the update at its tick: compiled where it can be */
+    int status = native_update(c, flags, &next) ? DFMI_OK
+                                                : bridge_call(c->py, DFMI_ACTIVATE_MODEL_PARTITION, args, 2);
     if (status < DFMI_ERROR) {
-        c->clock_activated[i] = c->time = activation_time;
+        c->clock_activated[i] = activation_time;
         c->dirty = c->outputs_dirty = 0; /* the partition evaluated what it computes */
+    } else {
+        c->time = previous;
     }
     return dfmi_settle(c, status);
 }
