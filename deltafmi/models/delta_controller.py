@@ -2,7 +2,7 @@
 from deltafmi.component import Clock, Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter
 from deltafmi.mechanics.delta import control as delta_control
 from deltafmi.mechanics.delta.control_law import ControlLaw
-from deltafmi.mechanics.delta.sampling import F3, SampleSettings, SampleState, sample
+from deltafmi.mechanics.delta.sampling import F3, SampleSettings, SampleState, sample, warning_text
 from deltafmi.models.robot_parameters import robot_parameters
 
 #: the robot's parameters, as the controller models them (they may differ from the plant's)
@@ -12,8 +12,8 @@ ControllerRobotModel = robot_parameters("as the controller models it")
 def controller_step(law: ControlLaw, settings: SampleSettings, state: SampleState, longest_step: float, t0: float,
                     k: int, t: float, h: float, y: F3, yd: F3, r: F3, rd: F3, rdd: F3, force: F3, tactile: float,
                     z_est: F3) -> tuple[SampleState, int, int, F3, float, F3, float, int]:
-    """The Co-Simulation step from ``t`` over ``h`` as DeltaController.do_step takes it: the samples
-    due in [t, t + h) with the inputs at t (the FMU's compiled step). Returns the new state, the
+    """The Co-Simulation step from ``t`` over ``h`` (DeltaController.do_step, and the FMU's compiled
+    step): the samples due in [t, t + h) with the inputs at t. Returns the new state, the
     next sample's index, a flag for Python (a sample raised a warning, or the step is longer than
     the sample period: both are logged), and the outputs u, cond_Jc, z_est, shift, status."""
     period = settings.sample_period
@@ -30,9 +30,8 @@ def controller_step(law: ControlLaw, settings: SampleSettings, state: SampleStat
 def controller_update(law: ControlLaw, settings: SampleSettings, state: SampleState, t0: float, k: int, t: float,
                       y: F3, yd: F3, r: F3, rd: F3, rdd: F3, force: F3, tactile: float,
                       z_est: F3) -> tuple[SampleState, int, int, float, F3, float, F3, float, int]:
-    """The event update at ``t`` as DeltaController.update and next_time_event take it (Model
-    Exchange's time events, FMI 3.0's Clock ticks; the FMU's compiled update): the sample due at
-    ``t``, if any. Returns the new state, the next sample's index, a flag for Python (a warning to
+    """The event update at ``t`` (DeltaController.update, and the FMU's compiled update: Model
+    Exchange's time events, FMI 3.0's Clock ticks): the sample due at ``t``, if any. Returns the new state, the next sample's index, a flag for Python (a warning to
     log), the next sample instant, and the outputs u, cond_Jc, z_est, shift, status."""
     period = settings.sample_period
     defer = 0
@@ -146,44 +145,40 @@ class DeltaController(ControllerRobotModel, Component):
         self._t0, self._k = t, 0
         self._longest_step = self.sample_period * (1.0 + 1e-9)  # longer: warn once (do_step)
 
-    def _next_sample(self) -> float:
-        return self._t0 + self._k * self.sample_period
+    def _inputs(self) -> tuple:
+        """y, yd, r, rd, rdd, force, tactile and the estimate held, as the kernels take them (lists:
+        one read_reals is cheaper than eight attribute reads)."""
+        v = self.read_reals("y", "yd", "r", "rd", "rdd", "force", "tactile", "z_est")
+        return v[0:3], v[3:6], v[6:9], v[9:12], v[12:15], v[15:18], v[18], v[19:22]
 
-    def _sample(self) -> None:
-        ctl = self._ctl
-        # lists, not the buffer views: the compiled control law indexes a list several times
-        # faster than a numpy array, and one read_reals is cheaper than seven attribute reads
-        v = self.read_reals("y", "yd", "r", "rd", "rdd", "force", "tactile")
-        ctl.step(v[0:3], v[3:6], v[6:9], v[9:12], v[12:15], v[15:18], v[18])
-        # the real outputs u, cond_Jc, z_est, shift in one write; z_est: the estimate of the last
-        # sample that was not singular (kept while there is none)
-        state = ctl.state
-        if state.z is not None:
-            self.write_reals((*state.u, state.cond, *state.z, state.shift), "u", "cond_Jc", "z_est", "shift")
-        else:
-            self.write_reals((*state.u, state.cond, state.shift), "u", "cond_Jc", "shift")
-        self.status = state.status
-        warning = ctl.pending_warning()
-        if warning:
-            self.log(warning, level="warning")
-        self._k += 1
+    def _publish(self, before: SampleState, state: SampleState, u: F3, cond: float, z: F3, shift: float,
+                 status: int) -> None:
+        """The state and the outputs after samples; a warning for each status bit they raised first."""
+        self._ctl.state = state
+        self.write_reals((*u, cond, *z, shift), "u", "cond_Jc", "z_est", "shift")
+        self.status = status
+        new = state.warned & ~before.warned
+        if new:
+            self.log(warning_text(state._replace(new_warnings=new), self._ctl.law.torque_limit), level="warning")
 
     def update(self, t: float) -> None:
-        if t >= self._next_sample() - 1e-9 * self.sample_period:
-            self._sample()
-            while self._next_sample() <= t:      # never schedule an instant already passed
-                self._k += 1
+        ctl = self._ctl
+        before = ctl.state
+        state, self._k, _, _, *outputs = controller_update(ctl.law, ctl.settings, before, self._t0, self._k, t,
+                                                           *self._inputs())
+        self._publish(before, state, *outputs)
 
     def next_time_event(self, t: float) -> float:
-        return self._next_sample()
+        return self._t0 + self._k * self.sample_period
 
     def do_step(self, t: float, h: float) -> None:
-        period = self.sample_period
         if h > self._longest_step:
             self._warn_long_step(h)
-        end = t + h - 1e-9 * period
-        while self._t0 + self._k * period < end:  # _next_sample(), inlined: once per step
-            self._sample()
+        ctl = self._ctl
+        before = ctl.state
+        state, self._k, _, *outputs = controller_step(ctl.law, ctl.settings, before, self._longest_step, self._t0,
+                                                      self._k, t, h, *self._inputs())
+        self._publish(before, state, *outputs)
 
     def _warn_long_step(self, h: float) -> None:
         """Once per run: a communication step longer than the sample period changes the loop."""
