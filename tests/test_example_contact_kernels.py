@@ -13,7 +13,8 @@ from deltafmi.mechanics.examples.restitution_kernels import RestitutionBall, bal
 from deltafmi.mechanics.examples.bouncing_ball import BallModel
 from deltafmi.mechanics.examples.box_kernels import BoxModes, BoxParams, box_evaluate, box_outputs
 from deltafmi.mechanics.examples.box_on_table import BoxModel
-from deltafmi.mechanics.examples.contact_kernels import KernelContactSystem, _solve_masked, law_constants
+from deltafmi.mechanics.contact.law_kernels import law_constants
+from deltafmi.mechanics.examples.contact_kernels import KernelContactSystem, _solve_masked
 from deltafmi.mechanics.examples.cradle_kernels import CradleModes, cradle_outputs
 from deltafmi.mechanics.examples.newtons_cradle import make_cradle
 

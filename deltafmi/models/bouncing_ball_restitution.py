@@ -3,7 +3,8 @@ from deltafmi.component import Experiment, HybridSystemComponent, Input, Kernel,
 from deltafmi.mechanics.examples.restitution_kernels import (BallModes, RestitutionBall, ball_derivatives,
                                                              ball_evaluate, ball_indicators, ball_outputs)
 from deltafmi.mechanics.examples.bouncing_ball import BallModel
-from deltafmi.mechanics.examples.contact_kernels import KernelContactSystem, law_constants
+from deltafmi.mechanics.contact.law_kernels import law_constants
+from deltafmi.mechanics.examples.contact_kernels import KernelContactSystem
 from deltafmi.mechanics.contact.collision_law import CollisionLaw
 
 

@@ -5,7 +5,8 @@ from deltafmi.component import Experiment, HybridSystemComponent, Input, Kernel,
 from deltafmi.mechanics.examples.box_kernels import (BoxModes, BoxParams, box_derivatives, box_evaluate,
                                                      box_indicators, box_outputs)
 from deltafmi.mechanics.examples.box_on_table import BoxModel
-from deltafmi.mechanics.examples.contact_kernels import KernelContactSystem, law_constants
+from deltafmi.mechanics.contact.law_kernels import law_constants
+from deltafmi.mechanics.examples.contact_kernels import KernelContactSystem
 from deltafmi.mechanics.contact.collision_law import CollisionLaw
 
 #: the outputs, in the order box_outputs returns them

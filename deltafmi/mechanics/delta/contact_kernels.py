@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple, Sequence
 
+from ..contact.law_kernels import LawConstants, law_acceleration, law_constants, law_end_indicator, law_potential
 from ..contact.system import COLLISION, CONTACT, EPS, FREE
 from .dynamics import F3, _as_list, _evaluate, _wrist
 from .kinematics import wrist_along
@@ -42,27 +43,16 @@ class ContactLaw(NamedTuple):
 
     mode: int  #: 0 FREE, 1 COLLISION, 2 CONTACT
     m_eff: float  #: effective mass frozen at the last impact (kg)
-    kappa: float  #: collision stiffness per unit effective mass
-    gamma: float  #: collision damping per unit effective mass
-    exponent: float  #: collision law exponent p
-    q: float  #: its damping exponent (p - 1) / 2
-    length: float  #: its length scale (m)
-    reference_speed: float  #: its reference speed (m/s)
-    chi: float  #: its dimensionless damping
+    law: LawConstants  #: the collision law, per unit effective mass
     stiffness: float  #: material spring (N/m)
     damping: float  #: material damper (N s/m)
 
 
 def contact_law(system: Any, i: int, mode: int) -> ContactLaw:
     """Contact ``i`` of a :class:`~deltafmi.mechanics.contact.ContactSystem` (compliant) in ``mode``."""
-    law, material = system.laws[i], system.materials[i]
-    return ContactLaw(int(mode), float(system.m_eff[i]), law.kappa, law.gamma, law.exponent, law.q, law.length,
-                      law.reference_speed, law.calibration.chi, material.stiffness, material.damping)
-
-
-def _sgnpow(x: float, m: float) -> float:
-    r = abs(x) ** m
-    return -r if x < 0.0 else r
+    material = system.materials[i]
+    return ContactLaw(int(mode), float(system.m_eff[i]), law_constants(system.laws[i]), material.stiffness,
+                      material.damping)
 
 
 def contact_force(c: ContactLaw, h: float, hdot: float) -> float:
@@ -70,10 +60,7 @@ def contact_force(c: ContactLaw, h: float, hdot: float) -> float:
     collision law in COLLISION, the material's ``(k delta + c delta')_+`` in CONTACT."""
     delta, ddot = -h, -hdot
     if c.mode == COLLISION:
-        if delta <= 0.0:
-            return 0.0
-        a = c.kappa * delta ** c.exponent + c.gamma * delta ** c.q * ddot
-        return c.m_eff * (a if a > 0.0 else 0.0)
+        return c.m_eff * law_acceleration(c.law, delta, ddot)
     if c.mode == CONTACT:
         if delta <= 0.0:
             return 0.0
@@ -83,12 +70,11 @@ def contact_force(c: ContactLaw, h: float, hdot: float) -> float:
 
 def indicator_pair(c: ContactLaw, h: float, hdot: float) -> tuple[float, float]:
     """The contact's two event indicators (see ``ContactSystem.event_indicators``)."""
+    law = c.law
     if c.mode == FREE:
-        return max(h / c.length, hdot / c.reference_speed + EPS), 1.0
+        return max(h / law.length, hdot / law.reference_speed + EPS), 1.0
     if c.mode == COLLISION:
-        m = c.exponent - c.q
-        inner = _sgnpow(-h / c.length, m) + c.chi * (-hdot / c.reference_speed)
-        return _sgnpow(inner, 1.0 / m) + EPS, -hdot / c.reference_speed + EPS
+        return law_end_indicator(law, -h, -hdot) + EPS, -hdot / law.reference_speed + EPS
     return c.stiffness * -h + c.damping * -hdot, 1.0
 
 
@@ -98,7 +84,7 @@ def _elastic(c: ContactLaw, h: float) -> float:
     if delta <= 0.0 or c.mode == FREE:
         return 0.0
     if c.mode == COLLISION:
-        return c.m_eff * (c.kappa * delta ** (c.exponent + 1.0) / (c.exponent + 1.0))
+        return c.m_eff * law_potential(c.law, delta)
     return 0.5 * c.stiffness * delta * delta
 
 

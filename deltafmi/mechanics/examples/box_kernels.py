@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple, Sequence
 
-from .contact_kernels import (LawConstants, contact_response, elastic_energy, free_rates, indicator_pairs,
+from ..contact.law_kernels import LawConstants
+from .contact_kernels import (contact_response, elastic_energy, free_rates, indicator_pairs,
                               kinetic_energy)
 
 Pair = tuple[float, float]

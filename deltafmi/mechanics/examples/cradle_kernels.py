@@ -6,7 +6,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple, Sequence
 
-from .contact_kernels import (LawConstants, contact_response, elastic_energy, free_rates, indicator_pairs,
+from ..contact.law_kernels import LawConstants
+from .contact_kernels import (contact_response, elastic_energy, free_rates, indicator_pairs,
                               kinetic_energy)
 
 N_BALLS = 7  #: balls the kernels are generated for (the FMU's allocation)

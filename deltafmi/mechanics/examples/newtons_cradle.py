@@ -12,7 +12,8 @@ import numpy as np
 
 from ..contact.collision_law import CollisionLaw
 from ..contact.system import ContactSystem, LagrangianModel
-from .contact_kernels import KernelContactSystem, law_constants
+from ..contact.law_kernels import law_constants
+from .contact_kernels import KernelContactSystem
 from .cradle_kernels import N_BALLS, CradleParams, cradle_evaluate
 
 
