@@ -53,9 +53,10 @@ def c_type(desc: Any) -> Any:
     return _TYPES[key]
 
 
-def pack(desc: Any, value: Any, classes: Optional[dict] = None, path: str = "") -> Any:
-    """``value`` as a ctypes value of the described type; TypeError/ValueError when it does not fit.
-    ``classes`` (when given) receives the class of every record by its path, for :func:`unpack`."""
+def pack(desc: Any, value: Any) -> Any:
+    """``value`` as a ctypes value of the described type, built field by field (the reference the
+    runtime's :class:`FieldWriter` is tested against, and codegen/build.py's marshalling);
+    TypeError/ValueError when it does not fit."""
     if isinstance(desc, str):
         if desc == "double":
             return float(value)
@@ -70,24 +71,22 @@ def pack(desc: Any, value: Any, classes: Optional[dict] = None, path: str = "") 
         for name in desc["object"]:
             setattr(out, name, float(getattr(value, name)))
     elif "record" in desc:
-        if classes is not None:
-            classes[path] = type(value)
         for name, item in desc["record"]:
-            setattr(out, name, pack(item, getattr(value, name), classes, f"{path}.{name}"))
+            setattr(out, name, pack(item, getattr(value, name)))
     elif "tuple" in desc:
         if len(value) != len(desc["tuple"]):
             raise ValueError(f"{len(value)} items where the kernel takes {len(desc['tuple'])}")
         for k, item in enumerate(desc["tuple"]):
-            setattr(out, f"f{k}", pack(item, value[k], classes, f"{path}[{k}]"))
+            setattr(out, f"f{k}", pack(item, value[k]))
     elif "array" in desc:
         if len(value) != desc["n"]:
             raise ValueError(f"{len(value)} items where the kernel takes {desc['n']}")
         for k in range(desc["n"]):
-            out.v[k] = pack(desc["array"], value[k], classes, f"{path}[]")
+            out.v[k] = pack(desc["array"], value[k])
     else:
         out.some = value is not None
         if value is not None:
-            out.v = pack(desc["optional"], value, classes, f"{path}?")
+            out.v = pack(desc["optional"], value)
     return out
 
 
@@ -102,7 +101,7 @@ def _has_records(desc: Any) -> bool:
 
 def record_classes(desc: Any, value: Any, classes: dict, path: str = "") -> None:
     """The class of every record in ``value`` by its path, into ``classes`` (what :func:`unpack`
-    builds them back with; :func:`pack` records the same)."""
+    builds them back with)."""
     if value is None or not _has_records(desc):
         return
     if "record" in desc:
