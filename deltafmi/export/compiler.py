@@ -82,10 +82,19 @@ def no_compiler_message(cc: Optional[str] = None) -> str:
             "the packaged models need none when deltafmi is installed from its wheel, which carries them prebuilt")
 
 
+def _compiler_command() -> list[str]:
+    return shlex.split(compiler_name()) or ["cc"]  # $CC may carry words, e.g. ``ccache gcc``
+
+
+def compiler_available() -> bool:
+    """Whether the C compiler deltafmi would run is there."""
+    return bool(shutil.which(_compiler_command()[0]))
+
+
 def require_compiler(what: Path) -> list[str]:
-    """The compiler's command to build ``what`` (``$CC`` may carry words, e.g. ``ccache gcc``);
-    :class:`NoCompilerError` naming ``what`` when there is none."""
-    cc = shlex.split(compiler_name()) or ["cc"]
+    """The compiler's command to build ``what``; :class:`NoCompilerError` naming ``what`` when
+    there is none."""
+    cc = _compiler_command()
     if not shutil.which(cc[0]):
         raise NoCompilerError(f"{_shown(what)}: {no_compiler_message(cc[0])}")
     return cc

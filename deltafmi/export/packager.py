@@ -8,7 +8,6 @@ import keyword
 import logging
 import marshal
 import re
-import shutil
 import sys
 import uuid
 import warnings
@@ -24,9 +23,8 @@ from ..component.clocks import clock_driven
 from ..component.model_description3 import model_description3_xml
 from ..component.native_kernels import DESCRIPTION as NATIVE_KERNELS
 from ..files import replaced_atomically
-from .compiler import (BuildError, NoCompilerError, cache_dir, compiler_name, fmu_binary, native_source_files,
-                       no_compiler_message,
-                       python_extension, python_runtime_config)
+from .compiler import (BuildError, NoCompilerError, cache_dir, compiler_available, fmu_binary, native_source_files,
+                       no_compiler_message, python_extension, python_runtime_config)
 from .codegen.component_kernels import component_library
 from .kernels import compiled_kernels
 from .reach import module_source, reached_modules
@@ -139,7 +137,7 @@ def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int
                  + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]):
         digest.update(path.read_bytes())
     # an FMU built where its compiled kernels could not be (no compiler) is not the one built where they can
-    digest.update(f"\0compiler={bool(shutil.which(compiler_name().split()[0]))}".encode())
+    digest.update(f"\0compiler={compiler_available()}".encode())
     # the environment, not the interpreter's name in it: bin/python and bin/python3.12 (the console
     # scripts' shebang) of one venv build the same FMU
     digest.update(re.sub(r"(?m)^executable=.*$", f"prefix={sys.prefix}", python_runtime_config()).encode())
