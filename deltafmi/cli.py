@@ -9,6 +9,7 @@ from deltafmi.compat.commands import compat
 from deltafmi.console import show_progress
 from deltafmi.cosim.commands import export_ssp, plot, run, validate
 from deltafmi.cosim.linearize.commands import linearize
+from deltafmi.cosim.live.scope_commands import scope
 from deltafmi.examples.commands import examples
 from deltafmi.export.commands import build, info
 from deltafmi.guides import guides_command
@@ -23,7 +24,8 @@ def main() -> None:
     show_progress()
 
 
-for command in (examples, guides_command, build, info, run, validate, export_ssp, plot, animate, linearize, compat):
+for command in (examples, guides_command, build, info, run, validate, export_ssp, plot, animate, linearize, compat,
+                scope):
     main.add_command(command)
 for command in (sweep, plot_study_command, study_case):  # parameter studies on Dask
     main.add_command(command)

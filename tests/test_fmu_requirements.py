@@ -68,7 +68,7 @@ def test_info_takes_a_packaged_model_or_a_component_source(tmp_path, monkeypatch
     (["linearize", "DeltaRobt"], "Error: 'DeltaRobt' is neither a file, a packaged model nor an example scenario "
                                  "(did you mean 'DeltaRobot' or 'DeltaRobotBox' or 'DeltaRobotContact'?)"),
     (["linearize", "delta_trackin"], "Error: 'delta_trackin' is neither a file, a packaged model nor an example "
-                                     "scenario (did you mean 'delta_tracking' or 'delta_circle'?)")])
+                                     "scenario (did you mean 'delta_tracking' or 'delta_circle' or 'joystick_tracking'?)")])
 def test_a_wrong_name_for_info_or_linearize_suggests_models_and_examples(tmp_path, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)
     result = CliRunner().invoke(main, args)

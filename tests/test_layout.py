@@ -19,9 +19,10 @@ COSIM = Path(deltafmi.cosim.__file__).parent
 
 #: sub-package -> the sub-packages it must not import (its job does not need them)
 INDEPENDENT = {
-    "scenario": {"stepping", "ssp", "linearize", "results", "commands"},
+    "scenario": {"stepping", "ssp", "linearize", "results", "commands", "live"},
     "ssp": {"stepping", "linearize", "results", "commands"},
-    "results": {"stepping", "ssp", "linearize", "commands"},
+    "results": {"stepping", "ssp", "linearize", "commands", "live"},
+    "live": {"stepping", "ssp", "linearize", "commands"},
     "stepping": {"ssp", "linearize", "commands"},
     "linearize": {"ssp"},
 }

@@ -172,6 +172,29 @@ def test_the_unconnected_input_warning(folder: Path) -> None:
         "scenario\\.yaml", "scenario_loose\\.yaml"), output), output
 
 
+def test_the_live_run_messages(folder: Path) -> None:
+    """A run paced far beyond what it can do falls behind; a UDP source nobody sends to goes
+    silent; a second run on the same port cannot listen."""
+    import socket
+
+    code, output = cli(folder, "run", "loop.yaml", "--stop", "0.05", "--speed", "100000", "-o", "fast.csv")
+    assert code == 0 and re.search(quoted("warning: fell behind real time"), output), output
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        (folder / "live.yaml").write_text(LOOP.replace("connections:", f"""\
+live:
+  cmd:
+    udp: {{port: {port}}}
+    timeout: 0.05
+    signals: {{v: {{unit: V}}}}
+connections:"""))
+        code, output = cli(folder, "run", "live.yaml", "-o", "live.csv")
+        assert code == 2 and re.search(quoted("Error: live input '"), output), output
+    code, output = cli(folder, "run", "live.yaml", "--stop", "0.3", "--realtime", "-o", "live.csv")
+    assert code == 0 and re.search(quoted("warning: live input '"), output), output
+
+
 def test_no_compiler(tmp_path: Path) -> None:
     (tmp_path / "my_plant.py").write_text(doc_files()["dc_motor.py"])
     env = {k: v for k, v in os.environ.items() if k != "CC"}

@@ -74,6 +74,8 @@ CASES: Dict[str, Case] = {
                        lambda t: {"F": _sine(2.0, 0.5)(t)}),
     "TactileSensor": Case(0.5, 1e-3, 1e-6, ("pad", "difference", "total", "offset", "compression"),
                           lambda t: {"fn": 10.0 + _sine(5.0, 4.0)(t)}),
+    "TargetFollower": Case(2.0, 1e-3, 1e-6, ("r", "rd", "rdd", "status"),
+                           lambda t: {"target": _columns(t, _sine(0.2, 0.5), 0.0, -1.0)}),
     "Trajectory": Case(3.0, 0.005, 1e-6, ("r", "rd", "rdd")),
 }
 

@@ -106,8 +106,9 @@ def _fmi_names(md: Any, base: str) -> List[str]:
 
 
 def _input_table(case: Case, md: Any) -> Optional[Table]:
-    """``X_in.csv``'s content: every input of the FMU, on the communication grid."""
-    inputs = [v for v in md.modelVariables if v.causality == "input"]
+    """``X_in.csv``'s content: every input of the FMU, on the communication grid (but Clocks and
+    Binaries, which no CSV value stands for: an FMI 3.0 model's periodic Clock ticks by itself)."""
+    inputs = [v for v in md.modelVariables if v.causality == "input" and v.type not in ("Clock", "Binary")]
     if not inputs:
         return None
     n = int(round((case.stop - case.start) / case.step))

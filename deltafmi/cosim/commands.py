@@ -77,12 +77,23 @@ def _built_as(fmi_version: Optional[str]) -> Callable[[Scenario], Scenario]:
               help="Record the variables matching PATTERN instead of the scenario's outputs: list "
                    "(repeatable), e.g. --record 'plant.z[*]' or, for one FMU, --record 'Oscillator.*'.")
 @_FMI_VERSION
+@click.option("--realtime/--no-realtime", default=None,
+              help="Pace the run to the wall clock (master.realtime): each communication point is released at "
+                   "its time; the summary and the columns realtime.lateness, realtime.busy say how well it kept up.")
+@click.option("--speed", type=float, help="Simulated seconds per wall-clock second when paced (2: twice as "
+                                          "fast as real time); implies --realtime.")
+@click.option("--behind", type=click.Choice(["warn", "error"]),
+              help="When a paced run falls a whole step behind the wall clock: warn and go on (default) or stop.")
+@click.option("--replay", type=click.Path(exists=True, dir_okay=False),
+              help="Take the live inputs from the results file of an earlier run of this scenario instead of "
+                   "the network or the joystick: the run repeats bit for bit (not paced unless --realtime).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary, no messages from the FMUs.")
 @click.option("-v", "--verbose", is_flag=True,
               help="Every message of the FMUs (their debug log categories too), not only warnings and errors.")
 def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop: Optional[float],
         step: Optional[float], tolerance: Optional[float], allow_nan: Optional[bool], algorithm: Optional[str],
-        record: Tuple[str, ...], fmi_version: Optional[str], quiet: bool, verbose: bool) -> None:
+        record: Tuple[str, ...], fmi_version: Optional[str], realtime: Optional[bool], speed: Optional[float],
+        behind: Optional[str], replay: Optional[str], quiet: bool, verbose: bool) -> None:
     """Run the co-simulation SCENARIO (a YAML file, an SSP archive, or one .fmu) and write its results.
 
     SCENARIO without a suffix is NAME.yaml in the current folder when there is one, else the
@@ -99,6 +110,10 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
     rows so far stay in the result file (exit code 130). The result format follows the file's
     extension: .csv, .parquet or .mat.
 
+    Live runs (docs/realtime.md): --realtime paces the run to the wall clock (--speed: faster or
+    slower); a scenario's live: sources take inputs from UDP datagrams or a joystick while it
+    runs, its streams: send signals out; --replay RESULTS repeats such a run from its results.
+
     \b
     Example:
       deltafmi run delta_tracking -o tracking.csv --stop 2
@@ -108,6 +123,8 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
       deltafmi run delta_tracking --set controller.pole=10 --step 0.0005 --tolerance 1e-6
       deltafmi run Oscillator.fmu --set Oscillator.k=100 --stop 2
       deltafmi run Oscillator.fmu --record 'Oscillator.*'
+      deltafmi run joystick_tracking --realtime -o live.csv
+      deltafmi run joystick_tracking --replay live.csv -o again.csv
     """
     from .results.writers import writer_for
     from .scenario.overrides import parse_assignment, with_overrides
@@ -122,7 +139,9 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
     def overrides(loaded: Scenario) -> Scenario:
         return with_overrides(loaded, values, stop=stop, step=step, tolerance=tolerance, allow_nan=allow_nan,
                               algorithm=algorithm, record=record or None,
-                              fmi_version=int(fmi_version) if fmi_version else None, cli=True)
+                              fmi_version=int(fmi_version) if fmi_version else None,
+                              realtime=False if replay and realtime is None and speed is None else realtime,
+                              speed=speed, behind=behind, cli=True)
 
     from deltafmi.console import progress_shown
 
@@ -132,7 +151,7 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
     master = Master(system, result=Path(output) if output else None,
                     progress=not quiet and sys.stdout.isatty(),
                     warn=(lambda message: None) if quiet else lambda message: click.echo(f"warning: {message}", err=True),
-                    on_message=printer, debug_logging=verbose)
+                    on_message=printer, debug_logging=verbose, replay=Path(replay) if replay else None)
     reason = ""
     try:
         summary = master.run()

@@ -39,7 +39,9 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
              output: Optional[str | Path] = None, algorithm: Optional[str] = None,
              record: Optional[Sequence[str]] = None, allow_nan: Optional[bool] = None,
              fmi_version: Optional[int] = None, verbose: bool = False,
-             on_message: Optional[Callable[[str, int, str, str], None]] = None) -> Result:
+             on_message: Optional[Callable[[str, int, str, str], None]] = None,
+             realtime: Optional[bool] = None, speed: Optional[float] = None, behind: Optional[str] = None,
+             replay: Optional[str | Path] = None) -> Result:
     """Run ``scenario`` and return its :class:`~deltafmi.cosim.results.result.Result`.
 
     ``scenario``: a shipped example's name (``"delta_tracking"``), a scenario file (``.yaml``),
@@ -56,7 +58,11 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
     NaN without stopping the run; ``fmi_version``: build the components given by ``source:`` as
     FMI 2.0 or 3.0 FMUs. The options are those of ``deltafmi run``: ``--set``, ``--stop``,
     ``--step``, ``--tolerance``, ``--algorithm``, ``--record``, ``--allow-nan``,
-    ``--fmi-version``, ``-o``, ``-v``.
+    ``--fmi-version``, ``-o``, ``-v``. ``realtime``/``speed`` pace the run to the wall clock
+    (``--realtime``, ``--speed``; the summary's ``live`` says how well it kept up; ``behind``:
+    "warn" or "error" when it falls a whole step behind); ``replay``: the
+    results file of an earlier run of this scenario whose live inputs stand in for its live
+    sources (``--replay``; not paced unless ``realtime`` or ``speed`` says so).
 
     ``output``: also write the results to this file (``.csv``, ``.parquet``, ``.mat``) as the
     run goes. ``verbose``: the FMUs send their debug messages too. ``on_message(component,
@@ -83,7 +89,8 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
         loaded = with_overrides(loaded, parameters or {}, origin="parameters")
         loaded = with_overrides(loaded, start_values or {}, stop=stop, step=step, tolerance=tolerance,
                                 allow_nan=allow_nan, algorithm=algorithm, record=record, fmi_version=fmi_version,
-                                origin="start_values")
+                                realtime=False if replay is not None and realtime is None and speed is None
+                                else realtime, speed=speed, behind=behind, origin="start_values")
         system = resolve_system(loaded)
         scenario_log = logging.getLogger(SCENARIO_LOGGER)
         for diagnostic in system.warnings:
@@ -101,7 +108,8 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
 
         master = Master(system, result=Path(output) if output is not None else _IN_MEMORY, progress=False,
                         warn=scenario_log.warning, writer_class=recorder,
-                        on_message=messages.add, debug_logging=verbose)
+                        on_message=messages.add, debug_logging=verbose,
+                        replay=Path(replay) if replay is not None else None)
         try:
             summary = master.run()
         except (SimulationError, Interrupted, ResultWriteError) as exc:

@@ -17,6 +17,8 @@ from deltafmi.errors import BadInput, did_you_mean
 EXAMPLES_DIR = Path(__file__).parent
 STUDIES_DIR = EXAMPLES_DIR / "studies"
 _PACKAGED_SOURCE = re.compile(r"^(?P<head>\s*source:\s*)deltafmi\.models:(?P<name>\w+)(?P<tail>.*)$", re.M)
+#: a file a scenario reads from its own folder: a live joystick's recorded session
+_DATA_FILE = re.compile(r"^\s*session:\s*['\"]?([\w.-]+)['\"]?\s*(?:#.*)?$", re.M)
 _STUDY_SCENARIO = re.compile(r"^(?P<head>scenario:\s*)\.\./(?P<file>[\w.-]+\.yaml)(?P<tail>.*)$", re.M)
 
 
@@ -91,8 +93,9 @@ def find_input(text: Union[str, Path], kind: str) -> Path:
 
 def copy_example(name: str, directory: Union[str, Path]) -> List[Path]:
     """Write the example ``name`` into ``directory`` ready to edit: its YAML, for a study the
-    scenario it varies, and the source of every packaged component it uses (``models/*.py``, the
-    YAML's ``source:`` pointed at them). Returns the files written; refuses to overwrite any."""
+    scenario it varies, the source of every packaged component it uses (``models/*.py``, the
+    YAML's ``source:`` pointed at them) and the data files it reads (a joystick's ``session:``).
+    Returns the files written; refuses to overwrite any."""
     from deltafmi.models import MODELS
 
     chosen = example(name)
@@ -110,6 +113,9 @@ def copy_example(name: str, directory: Union[str, Path]) -> List[Path]:
     models = Path(__file__).parents[1] / "models"
     files = {directory / file: text for file, text in texts.items()}
     files.update({directory / "models" / f"{module}.py": (models / f"{module}.py").read_text() for module in modules})
+    # data a scenario reads next to itself (a live joystick's recorded session)
+    files.update({directory / m[1]: (EXAMPLES_DIR / m[1]).read_text() for text in texts.values()
+                  for m in _DATA_FILE.finditer(text) if (EXAMPLES_DIR / m[1]).is_file()})
     existing = [str(path) for path in files if path.exists()]
     if existing:
         raise BadInput(f"{', '.join(existing)}: already there; copy into an empty folder or remove them")

@@ -21,6 +21,7 @@ MODELS = {
     "NewtonsCradle": "newtons_cradle",
     "Oscillator": "oscillator",
     "TactileSensor": "tactile_sensor",
+    "TargetFollower": "target_follower",
     "Trajectory": "trajectory",
 }
 

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
+from deltafmi.cosim.live.components import refuse_live
 from deltafmi.cosim.scenario.modelinfo import UnknownVariable
 from deltafmi.cosim.scenario.resolve import System, bus_type, resolve_system
 from deltafmi.cosim.scenario.spec import ComponentSpec, OutputSpec, Parameter, Scenario, load_scenario
@@ -79,6 +80,7 @@ def plan_study(study: Study) -> PlannedStudy:
         raise ScenarioError([Diagnostic(file, study.scenario_line, f"scenario '{study.scenario}' not found{hint}")])
     scenario = load_scenario(study.scenario)
     system = resolve_system(scenario)
+    refuse_live(system, "a study")
     checker = _Checker(study, system)
     units = checker.targets()
     metrics = checker.metrics()

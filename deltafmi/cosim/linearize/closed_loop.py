@@ -79,6 +79,8 @@ def linearize_scenario(path: Path, *, at: Optional[float] = None, inputs: Sequen
     from ..scenario.spec import load_scenario
 
     system = system or resolve_system(load_scenario(str(path)))
+    from ..live.components import refuse_live
+    refuse_live(system, "linearize")
     experiment = system.scenario.experiment
     start, h = experiment.start, experiment.step
     at = start if at is None else float(at)

@@ -74,6 +74,9 @@ class Summary:
     loops: Any = None
     #: wall seconds spent after the last step (last results written, units freed, files removed)
     close_time: float = 0.0
+    #: a live run's pacing figures and sources' counters (a
+    #: :class:`~deltafmi.cosim.live.run.LiveReport`; None: no live source, not paced)
+    live: Any = None
 
     @property
     def stepping_time(self) -> float:
@@ -93,4 +96,6 @@ class Summary:
             text += f"; {self.terminated}"
         if self.loops is not None and self.loops.solves:
             text += f"; algebraic loops: {self.loops}"
+        if self.live is not None:
+            text += f"\n{self.live}"
         return text

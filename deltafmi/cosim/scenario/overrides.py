@@ -57,7 +57,9 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
                    stop: Optional[float] = None, step: Optional[float] = None,
                    tolerance: Optional[float] = None, allow_nan: Optional[bool] = None,
                    algorithm: Optional[str] = None, record: Optional[Sequence[str]] = None,
-                   fmi_version: Optional[int] = None, origin: str = "--set", cli: bool = False) -> Scenario:
+                   fmi_version: Optional[int] = None, realtime: Optional[bool] = None,
+                   speed: Optional[float] = None, behind: Optional[str] = None,
+                   origin: str = "--set", cli: bool = False) -> Scenario:
     """``scenario`` with start values (``{"plant.z0": [0.1, 0, -1.0], "controller.pole": 10}``), the
     stop time, the communication step, every component's relative tolerance, the NaN check
     (``allow_nan``), the master's ``algorithm``, the recorded variables and the scenario's
@@ -67,7 +69,9 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
     A value replaces the scenario's value of the same name, or is set after it (``plant.z0[3]``
     after the YAML's ``z0``). In a one-component scenario a name may leave out the component.
     ``record``: patterns of the variables to record (``"plant.z[*]"``, ``"Oscillator.*"``),
-    replacing the scenario's ``outputs:``. ``origin`` names the values in diagnostics (``"--set
+    replacing the scenario's ``outputs:``. ``realtime`` paces the run to the wall clock (or not),
+    ``speed`` (simulated seconds per wall second; given alone, it paces the run) and ``behind``
+    ("warn" or "error") replace ``master.realtime``'s. ``origin`` names the values in diagnostics (``"--set
     plant.z0"``); ``cli``: messages name the command-line options (``--stop``, ``--record``).
     Raises :class:`BadInput` (exit code 2) for a stop, step or tolerance that is not a finite
     positive number, an unknown algorithm, or a name of no component; variables, types and
@@ -95,6 +99,7 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
             raise BadInput(f"algorithm {algorithm!r}: use {' or '.join(map(repr, ALGORITHMS))}"
                            f"{did_you_mean(str(algorithm), ALGORITHMS)}")
         master = replace(master, algorithm=algorithm)
+    master = _paced(master, realtime, speed, behind, cli)
     outputs = scenario.outputs
     if record is not None:
         if isinstance(record, str):
@@ -111,6 +116,23 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
             raise BadInput(f"FMI version {fmi_version!r}: use 2 or 3")
         scenario = replace(scenario, fmi_version=int(fmi_version))
     return replace(scenario, experiment=experiment, master=master, components=components, outputs=outputs)
+
+
+def _paced(master: Any, realtime: Optional[bool], speed: Optional[float], behind: Optional[str], cli: bool) -> Any:
+    """``master`` with its real-time settings replaced (see :func:`with_overrides`)."""
+    paced = master.realtime
+    if speed is not None:
+        speed = _finite(speed, "real-time speed", "--speed" if cli else "")
+        if speed <= 0:
+            raise BadInput(f"real-time speed {speed:g}: must be greater than 0 (1: real time, 2: twice as fast)")
+        paced = replace(paced, speed=speed, enabled=True if realtime is None else bool(realtime))
+    if realtime is not None:
+        paced = replace(paced, enabled=bool(realtime))
+    if behind is not None:
+        if behind not in ("warn", "error"):
+            raise BadInput(f"behind {behind!r}: use 'warn' or 'error'")
+        paced = replace(paced, behind=behind)
+    return master if paced == master.realtime else replace(master, realtime=paced)
 
 
 def value_items(value: Any, count: int) -> List[Any]:

@@ -120,6 +120,10 @@ class System:
     #: algebraic loops solved at every step, and those solved during initialization
     loops: List[AlgebraicLoop] = field(default_factory=list)
     init_loops: List[AlgebraicLoop] = field(default_factory=list)
+    #: live input sources (and the pacing measurements of a paced run): components with no FMU
+    live: List[Component] = field(default_factory=list)
+    #: each ``streams:`` entry's signals, resolved (in the order of :attr:`Scenario.streams`)
+    streamed: List[List[Port]] = field(default_factory=list)
 
 
 _SETTABLE_CAUSALITIES = ("parameter", "input")
@@ -176,6 +180,7 @@ class _Checker:
             component = self._component(spec, check_fmus)
             if component is not None:
                 self.components[spec.name] = component
+        live = self._live_components()
         links = self._links()
         if not self.scenario.single_fmu:
             self._unconnected(links)
@@ -185,15 +190,33 @@ class _Checker:
         loops = self._loops(links, feedthrough, initial=False)
         init_loops = self._loops(links, initial_feedthrough, initial=True)
         recorded = self._recorded()
+        streamed = [self._matches(stream.signals, stream.line, "stream") for stream in self.scenario.streams]
+        recorded = _with(recorded, [port for c in live for port in _outputs(c)] + [p for s in streamed for p in s])
         self._settings()
         if any(d.severity == "error" for d in self.found):
             return None
         names = [c.name for c in self.scenario.components]
         by_pair = dict(zip(pairs, links))
         return System(self.scenario, [self.components[n] for n in names], links, recorded,
-                      block_stepping_order(names, pairs, feedthrough, [loop.members for loop in loops]),
+                      block_stepping_order(names + [c.name for c in live], pairs, feedthrough,
+                                           [loop.members for loop in loops]),
                       [by_pair[p] for p in initialization_order(pairs, initial_feedthrough)],
-                      [d for d in self.found if d.severity == "warning"], loops, init_loops)
+                      [d for d in self.found if d.severity == "warning"], loops, init_loops, live, streamed)
+
+    def _live_components(self) -> List[Component]:
+        """The live sources' components (and the pacing measurements' of a paced run), added to
+        :attr:`components` for connections and patterns to find."""
+        from deltafmi.cosim.live.components import REALTIME, live_component, realtime_component
+
+        live = [live_component(spec) for spec in self.scenario.live]
+        if self.scenario.master.realtime.enabled:
+            if REALTIME in self.components or any(c.name == REALTIME for c in live):
+                self.error(None, f"a paced run records its lateness as '{REALTIME}.*': rename the component "
+                                 f"'{REALTIME}'")
+            live.append(realtime_component())
+        for component in live:
+            self.components.setdefault(component.name, component)
+        return live
 
     def _loops(self, links: List[Link], feedthrough: Dict[str, Any], initial: bool) -> List[AlgebraicLoop]:
         """The algebraic loops of ``links`` under ``feedthrough``, torn; errors for those the
@@ -518,23 +541,33 @@ class _Checker:
                     if v.causality == "output" and v.type not in _NOT_CONNECTABLE:
                         recorded.setdefault(f"{component.name}.{name}", _port(component, name))
             return list(recorded.values())
+        for spec in patterns:
+            for port in self._matches([spec.pattern], spec.line, "output", spec.origin):
+                recorded.setdefault(port.ref, port)
+        return list(recorded.values())
+
+    def _matches(self, patterns: Sequence[str], line: Optional[int], what: str,
+                 origin: Optional[str] = None) -> List[Port]:
+        """The variables ``patterns`` name (``plant.z[*]``, ``*.u``), in order, each once; an
+        error at ``line`` (or ``origin``) for a pattern that names none."""
         every = [(c, name) for c in self.components.values() for name, v in c.info.variables.items()
                  if v.type not in _NOT_CONNECTABLE]
         unresolved = {c.name for c in self.scenario.components} - set(self.components)
-        for spec in patterns:
-            regex = pattern_regex(spec.pattern)
-            hits = [(c, n) for c, n in every if regex.match(f"{c.name}.{n}")] or self._array_named(spec.pattern)
+        found: Dict[str, Port] = {}
+        for pattern in patterns:
+            regex = pattern_regex(pattern)
+            hits = [(c, n) for c, n in every if regex.match(f"{c.name}.{n}")] or self._array_named(pattern)
             if not hits:
-                if spec.pattern.split(".", 1)[0] in unresolved:
+                if pattern.split(".", 1)[0] in unresolved:
                     continue  # its component's error is reported already
                 candidates = [f"{c.name}.{n}" for c, n in every]
-                self.error(spec.line, f"output pattern '{spec.pattern}' matches no variable"
-                                      f"{did_you_mean(spec.pattern, candidates)}", spec.origin)
+                self.error(line, f"{what} pattern '{pattern}' matches no variable"
+                                 f"{did_you_mean(pattern, candidates)}", origin)
                 continue
             for component, name in hits:
                 port = _port(component, name)
-                recorded.setdefault(port.ref, port)
-        return list(recorded.values())
+                found.setdefault(port.ref, port)
+        return list(found.values())
 
     def _array_named(self, pattern: str) -> List[Tuple[Component, str]]:
         """The elements of the array ``component.array`` that ``pattern`` names (``plant.z`` records
@@ -551,6 +584,22 @@ class _Checker:
             multiples = [c.name for c in self.scenario.components if c.step_multiple != 1]
             if multiples:
                 self.warn(None, f"step_multiple of {', '.join(multiples)} is ignored with an adaptive step")
+
+
+def _outputs(component: Component) -> List[Port]:
+    """Every output of ``component``, as ports."""
+    return [_port(component, name) for name, v in component.info.variables.items() if v.causality == "output"]
+
+
+def _with(recorded: List[Port], more: Sequence[Port]) -> List[Port]:
+    """``recorded`` and then those of ``more`` not in it yet."""
+    refs = {port.ref for port in recorded}
+    added = []
+    for port in more:
+        if port.ref not in refs:
+            refs.add(port.ref)
+            added.append(port)
+    return recorded + added
 
 
 def _port(component: Component, name: str) -> Port:
@@ -677,6 +726,14 @@ def describe(system: System) -> Sequence[str]:
              f"stepping order ({system.scenario.master.algorithm}): {' -> '.join(system.order)}"]
     for c in system.components:
         lines.append(f"  {c.name}: {c.interface} {c.info.md.modelName}, FMI {c.info.md.fmiVersion} ({c.fmu})")
+    for c in system.live:
+        lines.append(f"  {c.name}: {c.info.md.modelName[1:-1]}: {', '.join(c.info.variables)}")
+    realtime = system.scenario.master.realtime
+    if realtime.enabled:
+        lines.append(f"paced to the wall clock at {realtime.speed:g}x (falling behind: {realtime.behind})")
+    for stream, ports in zip(system.scenario.streams, system.streamed):
+        where = stream.target if stream.kind == "udp" else "a plot window"
+        lines.append(f"  stream to {where}: {', '.join(p.ref for p in ports)}")
     initial = {frozenset(loop.links): loop for loop in system.init_loops}
     solved = [(loop, "at initialization and at every step" if initial.pop(frozenset(loop.links), None)
                else "at every step") for loop in system.loops]

@@ -6,6 +6,7 @@ against each FMU's modelDescription.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
@@ -29,6 +30,13 @@ class Experiment:
     stop: float
     step: float
     tolerance: Optional[float] = None
+
+
+def grid_steps(start: float, stop: float, step: float) -> int:
+    """How many communication steps a fixed-step run from ``start`` to ``stop`` takes: point k is
+    ``start + k * step`` for k < the count, the last one ``stop`` (a shorter last step when the
+    span is not a whole number of steps)."""
+    return max(1, math.ceil((stop - start) / step - 1e-9))
 
 
 @dataclass(frozen=True)
@@ -55,6 +63,21 @@ class Loops:
 
 
 @dataclass(frozen=True)
+class Realtime:
+    """Pacing to the wall clock (see :mod:`deltafmi.cosim.live.pacing`)."""
+
+    enabled: bool = False
+    #: simulated seconds per wall-clock second
+    speed: float = 1.0
+    #: "warn" or "error" when the run falls a whole communication step behind
+    behind: str = "warn"
+    #: lateness [s] counted as an overrun; None: a quarter of the paced step
+    tolerance: Optional[float] = None
+    #: wall seconds before a deadline spent polling the clock rather than sleeping
+    spin: float = 2e-4
+
+
+@dataclass(frozen=True)
 class MasterSettings:
     """How the master steps the components."""
 
@@ -63,6 +86,7 @@ class MasterSettings:
     loops: Loops = field(default_factory=Loops)
     #: False: a recorded or connected Real that becomes NaN or infinite stops the run (exit 1)
     allow_nan: bool = False
+    realtime: Realtime = field(default_factory=Realtime)
 
 
 @dataclass(frozen=True)
@@ -123,6 +147,47 @@ class OutputSpec:
 
 
 @dataclass(frozen=True)
+class LiveSignal:
+    """One signal of a live source: a Real output of the scenario's ``live:`` component."""
+
+    name: str
+    line: Optional[int]
+    start: float = 0.0
+    unit: str = ""
+    description: str = ""
+    #: the source's own settings of the signal (a joystick's axis, scale, ...)
+    options: Dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class LiveSpec:
+    """A live input source (``live:`` entry): ``kind`` "udp" or "joystick" and its settings."""
+
+    name: str
+    line: Optional[int]
+    kind: str
+    settings: Dict[str, Any]
+    signals: Tuple[LiveSignal, ...]
+    #: wall seconds without new data before the source is reported silent; None: never
+    timeout: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class StreamSpec:
+    """A live output (``streams:`` entry): ``kind`` "udp" (to ``target``, host:port) or "plot"."""
+
+    line: Optional[int]
+    kind: str
+    signals: Tuple[str, ...]
+    target: str = ""
+    #: datagrams per simulated second; None: the kind's default
+    rate: Optional[float] = None
+    format: str = "dfmi"
+    byte_order: str = "little"
+    window: float = 10.0
+
+
+@dataclass(frozen=True)
 class ResultSettings:
     """Where and how often results are written."""
 
@@ -149,6 +214,9 @@ class Scenario:
     #: the FMI version (2 or 3) its components given by ``source:`` are built as, unless a
     #: component says otherwise; None: 2
     fmi_version: Optional[int] = None
+    #: live input sources and live output streams (see :mod:`deltafmi.cosim.live`)
+    live: Tuple[LiveSpec, ...] = ()
+    streams: Tuple[StreamSpec, ...] = ()
 
     @property
     def directory(self) -> Path:
@@ -227,7 +295,49 @@ def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Di
         if adaptive["min_step"] > adaptive["max_step"]:
             found.append(Diagnostic(file, lines.line(("master", "adaptive", "min_step")),
                                     "master.adaptive.min_step must not exceed max_step"))
+    return found + _live_errors(data, lines, file)
+
+
+def _live_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Diagnostic]:
+    """What live sources need that the schema cannot say: a joystick signal names its axis, a
+    UDP signal has no joystick settings, the results keep every step (for ``--replay``), and
+    a source's name is not a component's."""
+    found = []
+    live = data.get("live") or {}
+    components = data.get("components") or {}
+    for name, source in live.items() if isinstance(live, dict) else ():
+        if not isinstance(source, dict) or not isinstance(source.get("signals"), dict):
+            continue
+        if name in components:
+            found.append(Diagnostic(file, lines.key_line(("live", name)),
+                                    f"live source '{name}': a component has that name; give the source another"))
+        joystick = "joystick" in source
+        for signal, options in source["signals"].items():
+            options = options or {}
+            where = ("live", name, "signals", signal)
+            if joystick and "start" in options:
+                found.append(Diagnostic(file, lines.line(where + ("start",)),
+                                        f"live source '{name}': signal '{signal}': a joystick signal has no start "
+                                        "value: it starts where the stick is when the device opens (centred, "
+                                        "for a session that does not say)"))
+            if joystick and "axis" not in options:
+                found.append(Diagnostic(file, lines.key_line(where),
+                                        f"live source '{name}': signal '{signal}' needs the joystick axis it "
+                                        "reads (axis: ABS_X, ABS_Y, ...)"))
+            extra = sorted(set(options) & set(_JOYSTICK_ONLY)) if not joystick else []
+            if extra:
+                found.append(Diagnostic(file, lines.key_line(where),
+                                        f"live source '{name}': signal '{signal}': {', '.join(extra)}: settings of "
+                                        "a joystick's axes, not of a UDP source"))
+    result = data.get("result") or {}
+    if live and isinstance(result, dict) and _number(result.get("every")) and result["every"] > 1:
+        found.append(Diagnostic(file, lines.line(("result", "every")),
+                                "result.every must be 1 with live sources: every communication step is "
+                                "recorded so that --replay can repeat the run"))
     return found
+
+
+_JOYSTICK_ONLY = ("axis", "scale", "offset", "dead_band", "rate_limit", "invert")
 
 
 def _number(value: Any) -> bool:
@@ -243,7 +353,8 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
     master_data = data.get("master") or {}
     adaptive = Adaptive(**master_data.get("adaptive", {}))
     master = MasterSettings(master_data.get("algorithm", "gauss-seidel"), adaptive,
-                            Loops(**master_data.get("loops", {})), bool(master_data.get("allow_nan", False)))
+                            Loops(**master_data.get("loops", {})), bool(master_data.get("allow_nan", False)),
+                            _realtime(master_data.get("realtime", False)))
     components = tuple(
         ComponentSpec(
             name=name,
@@ -277,4 +388,35 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
         result_file = Path(path.stem + ".csv")
     result = ResultSettings(result_file, result_data.get("format", "csv"), int(result_data.get("every", 1)))
     return Scenario(path, experiment, master, components, connections, outputs, result,
-                    data.get("description", ""), fmi_version=data.get("fmi_version"))
+                    data.get("description", ""), fmi_version=data.get("fmi_version"),
+                    live=tuple(_live(name, source, lines) for name, source in (data.get("live") or {}).items()),
+                    streams=tuple(_stream(i, stream, lines) for i, stream in enumerate(data.get("streams") or [])))
+
+
+def _realtime(value: Any) -> Realtime:
+    """``master.realtime``: true/false or its settings."""
+    if isinstance(value, bool):
+        return Realtime(enabled=value)
+    return Realtime(**{"enabled": True, **value})
+
+
+def _live(name: str, source: Dict[str, Any], lines: LineMap) -> LiveSpec:
+    kind = "udp" if "udp" in source else "joystick"
+    signals = []
+    for signal, options in source["signals"].items():
+        options = dict(options or {})
+        signals.append(LiveSignal(signal, lines.key_line(("live", name, "signals", signal)),
+                                  float(options.pop("start", 0.0)), options.pop("unit", ""),
+                                  options.pop("description", ""), options))
+    timeout = source.get("timeout", 1.0 if kind == "udp" else None)
+    return LiveSpec(name, lines.key_line(("live", name)), kind, dict(source[kind]), tuple(signals),
+                    None if timeout is None else float(timeout))
+
+
+def _stream(index: int, stream: Dict[str, Any], lines: LineMap) -> StreamSpec:
+    kind = "udp" if "udp" in stream else "plot"
+    signals = stream["signals"] if kind == "udp" else stream["plot"]
+    rate = stream.get("rate")
+    return StreamSpec(lines.line(("streams", index)), kind, tuple(signals), stream.get("udp", ""),
+                      None if rate is None else float(rate), stream.get("format", "dfmi"),
+                      stream.get("byte_order", "little"), float(stream.get("window", 10.0)))

@@ -38,6 +38,9 @@ PARAMETER_SET_NAME = "start values"
 
 def export_ssp(system: System, output: Path) -> Path:
     """Write ``system`` as the SSP archive ``output`` (replaced atomically); returns its path."""
+    from ..live.components import refuse_live
+
+    refuse_live(system, "an SSP archive")
     output = Path(output)
     sources = _archive_names(system.components)
     ssd = etree.tostring(ssd_tree(system, sources), xml_declaration=True, encoding="UTF-8",

@@ -30,10 +30,12 @@ import numpy as np
 
 from deltafmi.errors import BadInput, Interrupted, SimulationError
 
+from ..live.pacing import FellBehind
 from ..results.csv_file import RowSampler
 from ..results.writers import write_rows_to, writer_for
 from ..results.progress import Progress, Summary, Termination
 from ..scenario.resolve import Component, Port, System
+from ..scenario.spec import grid_steps
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
 from .fmi3_units import unsettled
@@ -65,7 +67,7 @@ class Master:
                  fmus: Optional[Callable[[Component], Any]] = None,
                  writer_class: Optional[Callable[..., Any]] = None, native: bool = True,
                  on_message: Optional[Callable[[str, int, str, str], None]] = None,
-                 debug_logging: bool = False) -> None:
+                 debug_logging: bool = False, replay: Optional[Path] = None) -> None:
         """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
         FMU for this run; deltafmi.study keeps them loaded across runs and resets them);
         ``on_message(component, status, category, text)`` gets every message the FMUs log
@@ -74,7 +76,9 @@ class Master:
         ``writer_class(path, names, kinds=...)`` makes the result writer (default: chosen by the
         result file's extension, :func:`~deltafmi.cosim.results.writers.writer_for`, which also
         gets ``units=``; an unknown extension is a :class:`BadInput` here, before anything runs);
-        ``native``: run fixed steps in C where :mod:`.native_loop` can (same calls, same results)."""
+        ``native``: run fixed steps in C where :mod:`.native_loop` can (same calls, same results);
+        ``replay``: a results file of an earlier run of this scenario whose recorded live inputs
+        stand in for the live sources (:mod:`deltafmi.cosim.live.replay`)."""
         scenario = system.scenario
         self.system = system
         self.start = scenario.experiment.start
@@ -117,6 +121,17 @@ class Master:
         self._real_names: List[str] = []  # the variable in each slot of the Real bus
         self._real_columns = np.zeros(0, np.intp)  # the Real columns of a recorded row
         self._zeros = np.zeros(1)
+        #: live sources, pacing and streams (:mod:`deltafmi.cosim.live`); None for a plain run
+        self.live: Optional[Any] = None
+        if system.live:
+            from ..live.run import LiveRun
+            if scenario.master.adaptive.enabled:
+                raise BadInput("live sources and real-time pacing need a fixed communication step: "
+                               "master.adaptive is enabled")
+            self.live = LiveRun(system, self.start, self.stop, self.step, replay=replay, warn=warn,
+                                stopped=lambda: bool(self.stop_signals.received))
+        elif replay is not None:
+            raise BadInput(f"--replay {replay}: the scenario has no live source to take from it")
 
     # --- public -------------------------------------------------------------------------------
     def run(self) -> Summary:
@@ -128,6 +143,7 @@ class Master:
         wall = _time.perf_counter()
         terminated = None
         setup = closing = 0.0
+        finished = False
         try:
             with self.stop_signals:
                 try:
@@ -139,6 +155,9 @@ class Master:
                         self._run_fixed()
                 except Terminated as exc:
                     terminated = self._end_early(exc)
+        except FellBehind as exc:
+            raise SimulationError(f"{exc.message}{self._partial_note()} (master.realtime.behind: warn goes on)") \
+                from None
         except (FmuFailure, fmpy.fmi1.FMICallException, RuntimeError, OSError, ValueError, KeyboardInterrupt) as exc:
             # a stop signal may come back from inside an FMU as its failure
             if self.stop_signals.received is None and not isinstance(exc, KeyboardInterrupt):
@@ -146,13 +165,17 @@ class Master:
                                       f"{self._partial_note()}") from exc
             self.close()
             raise self._interrupted() from None
+        else:
+            finished = True
         finally:
             closing = _time.perf_counter()
             self.close()
+            if not finished and self.live is not None and self.live.started:
+                self.warn(f"live run up to t = {self.time:.9g} s: {self.live.report()}")  # what the summary says
         end = _time.perf_counter()
         return Summary(self.steps, self.rejected, self.events, end - wall, self.time - self.start,
                        self.writer.rows_written, self.result_path, terminated, setup, self.loop_statistics(),
-                       end - closing)
+                       end - closing, self.live.report() if self.live is not None else None)
 
     def open(self) -> None:
         """Load, instantiate, wire and initialize every unit; record the first row.
@@ -168,6 +191,8 @@ class Master:
         self._initialize()
         # the result file is opened only now, with a first row to write: a run that fails
         # before leaves an earlier result file as it was
+        if self.live is not None:
+            self.live.open_streams()
         recorded = self.system.recorded
         names, kinds = [p.ref for p in recorded], [p.type for p in recorded]
         if self.writer_class is not None:
@@ -176,10 +201,14 @@ class Master:
             self.writer = self._writer_for_file(self.result_path, names, kinds=kinds,
                                                 units=[p.unit for p in recorded])
         self._record(self.start)
+        if self.live is not None:
+            self.live.begin(self.start, self.sampler.sample)
 
     def close(self) -> None:
         """Flush the results and free every unit (safe after a failure, and twice)."""
         self.progress.close(self.time)
+        if self.live is not None:
+            self.live.close()
         try:
             if self.writer is not None:
                 self.writer.close()  # may raise ResultWriteError (the last rows did not fit)
@@ -240,6 +269,9 @@ class Master:
                 unit.on_event = self._on_event
             unit.on_message = self.on_message
             unit.logging_on = self.debug_logging
+            self.units.append(unit)
+            self._by_name[unit.name] = unit
+        for unit in self.live.units if self.live is not None else ():
             self.units.append(unit)
             self._by_name[unit.name] = unit
 
@@ -357,7 +389,7 @@ class Master:
 
     def _run_fixed(self) -> None:
         start, stop, h = self.start, self.stop, self.step
-        n_steps = max(1, math.ceil((stop - start) / h - 1e-9))
+        n_steps = grid_steps(start, stop, h)
         ordered = self.stepping_blocks()
         # on an exact grid every step is m * h (bit for bit what a plain loop passes to doStep)
         last = n_steps + 1 if abs(start + n_steps * h - stop) <= 1e-9 * h else n_steps
@@ -366,7 +398,7 @@ class Master:
         else:
             actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
         native = None
-        if self.native and NativeLoop.fits(ordered, self.sampler):
+        if self.native and self.live is None and NativeLoop.fits(ordered, self.sampler):
             native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
         fixed = _FixedGrid(start, stop, h, n_steps, last)
         stop_signals, progress = self.stop_signals, self.progress
@@ -405,7 +437,10 @@ class Master:
         self.release_events(held)
         self.steps = k + 1
         t_next = self.time = self.step_end
-        if (k + 1) % self.every == 0 or k + 1 == n_steps:
+        recorded = (k + 1) % self.every == 0 or k + 1 == n_steps
+        if self.live is not None:
+            self.live.at_point(t_next, self._record if recorded else None)
+        elif recorded:
             self._record(t_next)
 
     def _steps_in_c(self, native: NativeLoop, grid: "_FixedGrid", k: int, k_end: int) -> int:

@@ -1,0 +1,178 @@
+"""Pacing a run to the wall clock, and the report of how well it kept up.
+
+Communication point ``t`` is due at wall time ``wall0 + (t - t0) / speed``. :meth:`Pacer.wait`
+sleeps until shortly before (``spin`` seconds) and polls the clock for the rest: ``time.sleep``
+alone wakes 50-100 us late on Linux (the thread's timer slack, the scheduler), which at 1 kHz is
+a tenth of the step. Where the C library allows it the thread's timer slack is set to 1 us
+(``prctl(PR_SET_TIMERSLACK)``), so the sleep itself lands closer and the polling stays short.
+
+A point released after its time is late by the difference; the schedule is absolute, so a late
+run catches up when it can (no point is skipped, no time is stretched). A point later than
+``tolerance`` is an overrun; one later than a whole paced step means the run fell behind: a
+warning at the start of each such episode (or an error with ``behind="error"``) and an entry of
+:attr:`RealtimeReport.behind`.
+"""
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, List, Optional, Tuple
+
+import numpy as np
+
+from deltafmi.errors import SimulationError
+
+__all__ = ["Pacer", "RealtimeReport", "FellBehind"]
+
+_PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30
+#: longest single sleep: a stop signal is looked at between sleeps
+_SLEEP_CHUNK = 0.05
+
+
+class FellBehind(SimulationError):
+    """The run fell a whole communication step behind the wall clock and ``behind`` is "error"."""
+
+
+@dataclass
+class RealtimeReport:
+    """How a paced run kept up: lateness of every communication point after the first [s]."""
+
+    speed: float
+    step: float
+    tolerance: float
+    lateness: np.ndarray
+    #: (simulation time it began, end or None, largest lateness) of each time the run fell behind
+    behind: List[Tuple[float, Optional[float], float]] = field(default_factory=list)
+
+    @property
+    def overruns(self) -> int:
+        """Communication points released later than :attr:`tolerance`."""
+        return int(np.count_nonzero(self.lateness > self.tolerance))
+
+    def percentile(self, q: float) -> float:
+        """The ``q``-th percentile of the lateness [s] (0 for a run of one point)."""
+        return float(np.percentile(self.lateness, q)) if len(self.lateness) else 0.0
+
+    def __str__(self) -> str:
+        lat = self.lateness
+        if not len(lat):
+            return f"real time at {self.speed:g}x: no step taken"
+        text = (f"real time at {self.speed:g}x: lateness median {_us(self.percentile(50))}, "
+                f"99th percentile {_us(self.percentile(99))}, max {_us(float(lat.max()))}; "
+                f"{self.overruns} overrun{'s' * (self.overruns != 1)} (> {_us(self.tolerance)})")
+        if not self.behind:
+            return text + "; kept up"
+        first = self.behind[0]
+        return (text + f"; fell behind {len(self.behind)} time{'s' * (len(self.behind) != 1)}, first at "
+                f"t = {first[0]:.6g} s (by up to {_us(first[2])})")
+
+
+def _us(seconds: float) -> str:
+    return f"{seconds * 1e6:.1f} us" if seconds < 1e-2 else f"{seconds * 1e3:.1f} ms"
+
+
+def _timer_slack(nanoseconds: Optional[int]) -> Optional[int]:
+    """Set this thread's timer slack (Linux; elsewhere nothing happens) and return the one it
+    had; None leaves it as it is."""
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        before = int(libc.prctl(_PR_GET_TIMERSLACK, 0, 0, 0, 0))
+        if nanoseconds is not None:
+            libc.prctl(_PR_SET_TIMERSLACK, nanoseconds, 0, 0, 0)
+        return before if before > 0 else None
+    except (OSError, AttributeError):
+        return None
+
+
+class Pacer:
+    """Releases communication points at their wall-clock times and measures how late they were."""
+
+    def __init__(self, speed: float, step: float, n_points: int, *, tolerance: Optional[float] = None,
+                 spin: float = 2e-4, behind: str = "warn", warn: Callable[[str], None] = lambda text: None,
+                 stopped: Callable[[], bool] = lambda: False, clock: Callable[[], float] = time.perf_counter) -> None:
+        """``step``: the communication step [s of simulated time]; ``n_points``: how many points
+        :meth:`wait` will be asked for (sizes the lateness record); ``stopped()``: True when a stop
+        signal came (the wait then returns early)."""
+        if not (speed > 0 and math.isfinite(speed)):
+            raise ValueError(f"real-time speed {speed!r} must be a positive number")
+        self.speed = float(speed)
+        self.period = step / self.speed  # wall seconds per communication step
+        self.tolerance = self.period / 4 if tolerance is None else float(tolerance)
+        self.spin = float(spin)
+        self.behind_is_error = behind == "error"
+        self.warn = warn
+        self.stopped = stopped
+        self.clock = clock
+        self.step = step
+        self._lateness = np.zeros(max(n_points, 1))
+        self._count = 0
+        self._behind: List[Tuple[float, Optional[float], float]] = []
+        self._t0 = 0.0
+        self._wall0 = 0.0
+        self._slack: Optional[int] = None
+        self.released = 0.0  # wall time the last point was released
+        self.late = 0.0  # how late it was
+        #: behind = "error" and the run fell behind: what the caller raises once the point is recorded
+        self.failure: Optional[FellBehind] = None
+        #: wall seconds from the release of the last point to the call of the next wait
+        self.busy = 0.0
+
+    def start(self, t0: float) -> None:
+        """Simulation time ``t0`` is now (call :meth:`close` when the run ends)."""
+        self._slack = _timer_slack(1000)
+        self._t0 = t0
+        self._wall0 = self.released = self.clock()
+
+    def wait(self, t: float) -> float:
+        """Return at the wall-clock time of simulation time ``t``; returns how late [s]."""
+        clock = self.clock
+        now = clock()
+        self.busy = now - self.released
+        deadline = self._wall0 + (t - self._t0) / self.speed
+        while deadline - now > self.spin + 1e-6:
+            if self.stopped():  # the run ends at this point: no use waiting for its time
+                self.released = now
+                return 0.0
+            time.sleep(min(deadline - now - self.spin, _SLEEP_CHUNK))
+            now = clock()
+        while now < deadline:
+            now = clock()
+        late = self.late = now - deadline
+        self.released = now
+        self._note(t, late)
+        return late
+
+    def _note(self, t: float, late: float) -> None:
+        if self._count < len(self._lateness):
+            self._lateness[self._count] = late
+            self._count += 1
+        episodes = self._behind
+        if late > self.period:
+            if episodes and episodes[-1][1] is None:
+                begun, _, worst = episodes[-1]
+                episodes[-1] = (begun, None, max(worst, late))
+                return
+            episodes.append((t, None, late))
+            message = (f"fell behind real time at t = {t:.6g} s: released {_us(late)} late, more than a "
+                       f"whole step ({_us(self.period)} of wall time)")
+            if self.behind_is_error:
+                self.failure = FellBehind(message)
+            else:
+                self.warn(message + "; going on")
+        elif episodes and episodes[-1][1] is None:
+            begun, _, worst = episodes[-1]
+            episodes[-1] = (begun, t, worst)
+
+    def close(self) -> None:
+        """Give the thread its timer slack back (a notebook's thread outlives the run)."""
+        if self._slack is not None:
+            _timer_slack(self._slack)
+            self._slack = None
+
+    def report(self) -> RealtimeReport:
+        """The lateness of every point so far."""
+        return RealtimeReport(self.speed, self.step, self.tolerance, self._lateness[:self._count].copy(),
+                              list(self._behind))

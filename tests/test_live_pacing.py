@@ -1,0 +1,144 @@
+"""Pacing to the wall clock (``deltafmi run --realtime``, ``simulate(realtime=True)``).
+
+The lower bounds are the pacing's promise (a point is never released before its time), so they
+are asserted exactly; the upper bounds only have to hold on a loaded two-core machine: the tight
+figures are in benchmarks/realtime.py.
+"""
+from __future__ import annotations
+
+import logging
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import deltafmi
+from deltafmi.cosim.results.csv_file import columns
+from deltafmi.errors import BadInput, SimulationError
+
+
+def test_paced_run_takes_its_simulated_time_and_changes_no_number():
+    """0.3 s of the flagship at real time takes at least 0.3 s of stepping, and at 3x at least
+    0.1 s; every value is bit for bit the unpaced run's (the paced run steps in Python, the
+    unpaced one in the C loop: the same FMI calls)."""
+    plain = deltafmi.simulate("delta_tracking", stop=0.3)
+    paced = deltafmi.simulate("delta_tracking", stop=0.3, realtime=True)
+    fast = deltafmi.simulate("delta_tracking", stop=0.3, speed=3.0)
+    for result, least in ((paced, 0.3), (fast, 0.1)):
+        assert result.summary.stepping_time >= least
+        assert result.summary.stepping_time < least + 5.0  # generous: a loaded machine
+        for name in plain.names:
+            assert np.array_equal(result[name], plain[name]), name
+        lateness = result["realtime.lateness"]
+        assert lateness[0] == 0 and (lateness >= 0).all()
+        assert len(lateness) == len(plain.time) == 301
+        report = result.summary.live.realtime
+        assert len(report.lateness) == 300 and np.array_equal(report.lateness, lateness[1:])
+    assert paced.summary.live.realtime.speed == 1.0 and fast.summary.live.realtime.speed == 3.0
+    assert "realtime.lateness" not in plain.names and plain.summary.live is None
+    text = str(paced.summary)
+    assert re.search(r"real time at 1x: lateness median [\d.]+ us, 99th percentile [\d.]+ (us|ms), max", text), text
+
+
+def test_falling_behind_warns_and_goes_on_or_stops_with_the_rows_kept(tmp_path, caplog):
+    """At 1000x the flagship's 1 ms step has 1 us of wall time: the run falls behind at once.
+    behind=warn: one warning per episode, the episodes in the summary, realtime.behind = 1 where
+    the run was a step late; behind=error: a SimulationError, and the rows up to there on disk."""
+    with caplog.at_level(logging.WARNING, logger="deltafmi.scenario"):
+        result = deltafmi.simulate("delta_tracking", stop=0.05, speed=1000.0)
+    warnings = [r.getMessage() for r in caplog.records if "fell behind real time" in r.getMessage()]
+    report = result.summary.live.realtime
+    assert len(warnings) == len(report.behind) >= 1
+    assert warnings[0].startswith("fell behind real time at t = ") and warnings[0].endswith("; going on")
+    behind = result["realtime.behind"]
+    late = result["realtime.lateness"] > 1e-3 / 1000
+    assert np.array_equal(behind == 1.0, late) and behind.sum() > 0
+    assert "fell behind" in str(result.summary)
+
+
+
+def test_falling_behind_as_an_error_stops_the_run_with_its_rows(tmp_path):
+    """--behind error: exit 1 with a one-line reason, and the rows up to there on disk."""
+    from click.testing import CliRunner
+    from deltafmi.cli import main
+
+    out = tmp_path / "behind.csv"
+    outcome = CliRunner().invoke(main, ["run", "delta_tracking", "--stop", "0.05", "--speed", "1000",
+                                        "--behind", "error", "-o", str(out), "-q"])
+    assert outcome.exit_code == 1, outcome.output
+    assert "Traceback" not in outcome.output
+    message = outcome.output.strip().splitlines()[-1]
+    assert message.startswith("Error: fell behind real time at t = "), message
+    assert f"results up to the failure in {out}" in message
+    kept = columns(out)
+    assert len(kept["time"]) >= 2 and kept["time"][0] == 0.0
+
+
+def test_sigterm_stops_a_paced_run_between_points_with_its_rows(tmp_path):
+    """A paced run sleeps most of the time: SIGTERM there ends it as it ends an unpaced one
+    (exit 143, every row up to there in the file)."""
+    out = tmp_path / "paced.csv"
+    process = subprocess.Popen([sys.executable, "-c", "from deltafmi.cli import main; main()", "run",
+                                "delta_tracking", "--realtime", "--speed", "0.5", "-o", str(out)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out.exists() and out.read_text().count("\n") > 20):
+            assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+            time.sleep(0.05)
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 143, stderr
+    assert "Traceback" not in stderr
+    assert re.fullmatch(r"interrupted at t = \S+ s \(results up to \S+ in .+\)", stderr.strip().splitlines()[-1])
+    kept = columns(out)
+    assert kept["time"][-1] < 3.5 and len(kept["time"]) > 20
+    assert np.array_equal(kept["time"], np.arange(len(kept["time"])) * 1e-3)
+
+
+def test_a_stop_signal_ends_a_long_wait_at_once(tmp_path):
+    """At 1e-5x a point is due every 100 s: SIGTERM during that wait ends the run then, not at
+    the deadline (the bound is a thousand times what it takes, yet 3 % of one wait). The run
+    streams its first row once the clock starts: the signal comes in the wait."""
+    import socket
+
+    from deltafmi.examples import EXAMPLES_DIR
+
+    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("127.0.0.1", 0))
+    listener.settimeout(120)
+    scenario = tmp_path / "slow.yaml"
+    scenario.write_text((EXAMPLES_DIR / "delta_tracking.yaml").read_text()
+                        + f"streams:\n  - {{udp: '127.0.0.1:{listener.getsockname()[1]}', signals: [plant.residual]}}\n")
+    process = subprocess.Popen([sys.executable, "-c", "from deltafmi.cli import main; main()", "run",
+                                str(scenario), "--speed", "1e-5", "-o", str(tmp_path / "slow.csv")],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        listener.recv(65535)  # the first row: the clock has started
+        time.sleep(0.2)
+        sent = time.monotonic()
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=60)
+        took = time.monotonic() - sent
+    finally:
+        listener.close()
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 143, stderr
+    assert took < 3.0, took
+    assert "warning: live run up to t = 0.001 s: real time at 1e-05x" in stderr, stderr
+
+
+def test_pacing_options_are_checked():
+    with pytest.raises(BadInput, match=r"real-time speed -1: must be greater than 0"):
+        deltafmi.simulate("delta_tracking", stop=0.01, speed=-1)
+    with pytest.raises(BadInput, match="no live source to take from it"):
+        deltafmi.simulate("delta_tracking", stop=0.01, replay=Path(__file__))

@@ -1,0 +1,303 @@
+"""A live run over UDP on 127.0.0.1: inputs sent by another thread while the run goes, outputs
+streamed back, malformed, stale and missing datagrams, and ``--replay`` repeating the run.
+
+The Oscillator (tests/oscillator_analytic.py, wall and force step out of the way) is driven by
+the force it receives: its recorded motion must be the closed-form motion under the recorded
+force held over each step, and the streamed datagrams must carry the recorded values bit for bit.
+"""
+from __future__ import annotations
+
+import logging
+import socket
+import struct
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import deltafmi
+from deltafmi.cli import main
+from deltafmi.cosim.live.datagram import decode, encode
+from deltafmi.cosim.results.result import read_result
+from oscillator_analytic import P, _free
+
+STOP, STEP = 0.6, 1e-3
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def _scenario(tmp_path: Path, fmu: Path, port: int, out_port: int, slow_port: int) -> Path:
+    path = tmp_path / "udp_live.yaml"
+    path.write_text(f"""\
+experiment: {{stop: {STOP}, step: {STEP}, tolerance: 1.0e-10}}
+master: {{realtime: true}}
+live:
+  cmd:
+    udp: {{port: {port}}}
+    timeout: 0.15
+    signals:
+      F: {{unit: N, start: 0.5}}
+      G: {{}}
+components:
+  osc: {{fmu: {fmu}, interface: CS, parameters: {{wall: -10.0, t_step: 100.0}}}}
+connections:
+  - {{from: cmd.F, to: osc.F}}
+outputs: [osc.x, osc.v]
+streams:
+  - {{udp: '127.0.0.1:{out_port}', signals: [osc.x, cmd.F]}}
+  - {{udp: '127.0.0.1:{slow_port}', signals: [osc.x], rate: 30}}
+""")
+    return path
+
+
+class _Sender(threading.Thread):
+    """Sends the force F = 1 + n / 10 (datagram n) every 10 ms for 0.25 s, with garbage, a
+    stale datagram and an undeclared name in between, then nothing."""
+
+    def __init__(self, port: int) -> None:
+        super().__init__(daemon=True)
+        self.port = port
+
+    def run(self) -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            begin = time.monotonic()
+            n = 0
+            while time.monotonic() - begin < 0.25:
+                sock.sendto(encode({"F": 1.0 + n / 10}, t=n * 0.01, seq=n), ("127.0.0.1", self.port))
+                if n == 5:
+                    sock.sendto(b"DFMI\x02\x01" + bytes(14), ("127.0.0.1", self.port))
+                    sock.sendto(encode({"F": -99.0}, t=0.0, seq=99), ("127.0.0.1", self.port))  # stale
+                    sock.sendto(encode({"F": 1.55, "nope": 1.0}, t=0.055, seq=100), ("127.0.0.1", self.port))
+                n += 1
+                time.sleep(0.01)
+
+
+class _Listener(threading.Thread):
+    """Collects the streamed datagrams; starts ``then`` on the first (the run listens by then)."""
+
+    def __init__(self, then: threading.Thread) -> None:
+        super().__init__(daemon=True)
+        self.then = then
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.5)
+        self.port = self.sock.getsockname()[1]
+        self.received: list = []
+        self.done = threading.Event()
+
+    def run(self) -> None:
+        while not self.done.is_set():
+            try:
+                self.received.append(decode(self.sock.recv(65535)))
+                if len(self.received) == 1:
+                    self.then.start()
+            except socket.timeout:
+                pass
+        self.sock.close()
+
+
+@pytest.fixture(scope="module")
+def live_run(build_fmu_from_src, tmp_path_factory):
+    """The live run: its scenario, its results file and what it streamed out."""
+    tmp_path = tmp_path_factory.mktemp("udp_live")
+    port = _free_port()
+    listener = _Listener(_Sender(port))
+    slow = _Listener(threading.Thread())
+    listener.start()
+    slow.start()
+    scenario = _scenario(tmp_path, build_fmu_from_src("oscillator.py"), port, listener.port, slow.port)
+    out = tmp_path / "live.csv"
+    records: list = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record.getMessage())
+
+    handler = Keep()
+    logging.getLogger("deltafmi.scenario").addHandler(handler)
+    try:
+        result = deltafmi.simulate(scenario, output=out)
+    finally:
+        logging.getLogger("deltafmi.scenario").removeHandler(handler)
+        time.sleep(0.1)
+        listener.done.set()
+        slow.done.set()
+        listener.join()
+        slow.join()
+    return scenario, out, result, listener.received, records, slow.received
+
+
+def test_the_received_force_drives_the_physics(live_run):
+    """x, v follow the closed form under the recorded force held over each step (CVODE at rtol
+    1e-10); the force took the values sent, and the first value is the start value."""
+    _, _, result, _, _, _ = live_run
+    force = result["cmd.F"]
+    assert force[0] == 0.5
+    sent = {1.0 + n / 10 for n in range(40)} | {1.55}
+    taken = set(np.unique(force[1:]).tolist()) - {0.5}
+    assert taken and taken <= sent and -99.0 not in taken
+    assert len(taken) >= 10  # about 25 datagrams over 0.25 s; most reach a step of their own
+    x, v = 1.0, 0.0
+    xs, vs = [x], [v]
+    for k in range(len(result.time) - 1):
+        x, v = _free(x, v, float(force[k]), STEP, {**P, "wall": -10.0})
+        xs.append(x)
+        vs.append(v)
+    assert np.max(np.abs(np.array(xs) - result["osc.x"])) < 1e-7
+    assert np.max(np.abs(np.array(vs) - result["osc.v"])) < 1e-6
+
+
+def test_bad_and_missing_datagrams_are_counted_and_reported(live_run):
+    """The garbage is malformed, the old datagram stale, the undeclared name unknown (its
+    datagram's F used); the silence after the sender stops is reported and F holds."""
+    _, _, result, _, messages, _ = live_run
+    counts = result.summary.live.sources[0]
+    assert counts.startswith("cmd: ") and "1 malformed" in counts and "1 stale" in counts and "1 unknown" in counts
+    assert "silent 1 time" in counts
+    assert any("version 2 (this deltafmi reads 1)" in m for m in messages), messages
+    assert any(m.startswith("live input 'cmd': nothing received for ") and "holding F = " in m for m in messages)
+    last_change = np.flatnonzero(np.diff(result["cmd.F"]))[-1] + 1
+    assert result.time[last_change] < 0.45 and result["cmd.F"][-1] == result["cmd.F"][last_change]
+    assert 1.55 in result["cmd.F"]
+
+
+def test_the_stream_carries_the_recorded_values(live_run):
+    """One datagram per communication point, in order, each the row of its time bit for bit."""
+    _, _, result, received, _, _ = live_run
+    assert len(received) == len(result.time)
+    times = np.array([d.t for d in received])
+    assert np.array_equal(times, result.time)
+    assert [d.seq for d in received] == list(range(len(received)))
+    assert np.array_equal([d.values["osc.x"] for d in received], result["osc.x"])
+    assert np.array_equal([d.values["cmd.F"] for d in received], result["cmd.F"])
+
+
+def test_a_stream_at_a_rate_sends_at_its_times_without_drift(live_run):
+    """rate: 30 on a 1 ms grid: the first point at or after each n / 30 s (never two in one
+    period, none skipped: no interval added up), and the run's last point."""
+    _, _, result, _, _, slow = live_run
+    times = np.array([d.t for d in slow])
+    grid = result.time
+    expected = [grid[0]] + [grid[np.searchsorted(grid, n / 30 - 1e-12)] for n in range(1, int(0.6 * 30) + 1)]
+    expected = sorted(set(expected) | {grid[-1]})
+    assert times.tolist() == expected
+    assert np.array_equal([d.values["osc.x"] for d in slow], result["osc.x"][np.searchsorted(grid, times)])
+
+
+def test_a_stream_that_cannot_start_leaves_the_earlier_results(build_fmu_from_src, tmp_path):
+    """The streams connect before the result file is opened: a bad target fails the run with
+    the earlier file as it was."""
+    out = tmp_path / "earlier.csv"
+    out.write_text("time,x\n0,1\n1,2\n")
+    path = tmp_path / "bad_stream.yaml"
+    path.write_text(f"""\
+experiment: {{stop: 0.01, step: 1.0e-3}}
+live:
+  cmd: {{udp: {{port: {_free_port()}}}, signals: {{F: {{}}}}}}
+components:
+  osc: {{fmu: {build_fmu_from_src('oscillator.py')}, interface: CS}}
+connections:
+  - {{from: cmd.F, to: osc.F}}
+streams:
+  - {{udp: 'no-such-host.invalid:9', signals: [osc.x]}}
+""")
+    outcome = CliRunner().invoke(main, ["run", str(path), "-o", str(out)])
+    assert outcome.exit_code == 2 and "Traceback" not in outcome.output
+    assert "no-such-host.invalid" in outcome.output
+    assert out.read_text() == "time,x\n0,1\n1,2\n"
+
+
+def test_replay_repeats_the_run_bit_for_bit(live_run, tmp_path):
+    """--replay takes the inputs from the results: no datagram, no clock, the same numbers."""
+    scenario, out, result, _, _, _ = live_run
+    again = tmp_path / "again.csv"
+    outcome = CliRunner().invoke(main, ["run", str(scenario), "--replay", str(out), "-o", str(again)])
+    assert outcome.exit_code == 0, outcome.output
+    assert "cmd: " in outcome.output and "replayed" in outcome.output
+    replayed = read_result(again)
+    original = read_result(out)
+    kept = [n for n in original.names if not n.startswith("realtime.")]
+    assert replayed.names == kept
+    for name in kept:
+        assert np.array_equal(replayed[name], original[name]), name
+    assert np.array_equal(replayed.time, original.time)
+
+
+def test_replay_refuses_a_file_of_another_grid(live_run, tmp_path):
+    scenario, out, _, _, _, _ = live_run
+    outcome = CliRunner().invoke(main, ["run", str(scenario), "--replay", str(out), "--step", "3e-4"])
+    assert outcome.exit_code == 2
+    assert "no row at t = 0.0003 s" in outcome.output and "Traceback" not in outcome.output
+    outcome = CliRunner().invoke(main, ["run", str(scenario), "--replay", str(out), "--stop", "0.7",
+                                        "-o", str(tmp_path / "long.csv")])
+    assert outcome.exit_code == 2 and "no row at t = 0.601 s" in outcome.output
+
+
+@pytest.mark.parametrize("stop", [0.3, 0.009, 0.0095])
+def test_replay_of_a_shorter_run_takes_the_rows_up_to_its_stop(live_run, tmp_path, stop):
+    """A run stopped early (as Ctrl-C stops a live session) is replayed to where it stopped: its
+    last row's time is 9 * 0.001 = 0.009000000000000001 where the replay stops at 0.009; a stop
+    between two points replays the rows up to it."""
+    scenario, out, result, _, _, _ = live_run
+    short = tmp_path / "short.csv"
+    first = deltafmi.simulate(scenario, replay=out, stop=stop, output=short)
+    again = deltafmi.simulate(scenario, replay=short, stop=stop)
+    n = len(first.time)
+    assert n == len(again.time) == (int(round(stop / STEP)) + 1 if stop != 0.0095 else 11)
+    assert np.array_equal(first["cmd.F"][:10], result["cmd.F"][:10])
+    for name in first.names:
+        assert np.array_equal(first[name], again[name]), name
+
+
+def test_a_replay_sends_no_stream_unless_paced(live_run, tmp_path, caplog):
+    """A replay at the desk must not drive the live run's device again: its streams stay quiet
+    unless the replay is paced."""
+    scenario, out, _, _, _, _ = live_run
+    with caplog.at_level(logging.WARNING, logger="deltafmi.scenario"):
+        replayed = deltafmi.simulate(scenario, replay=out, stop=0.05)
+    assert replayed.summary.live.streams == []
+    assert any("the streams are not sent in a replay" in r.getMessage() for r in caplog.records)
+
+
+def test_packed_doubles_from_a_simulink_style_sender(build_fmu_from_src, tmp_path):
+    """format: doubles, big-endian: two values per datagram in the order of signals, no header;
+    a datagram of the wrong length is malformed. Unpaced (as fast as it goes) the run still
+    takes what has arrived at each point."""
+    port = _free_port()
+    path = tmp_path / "doubles.yaml"
+    path.write_text(f"""\
+experiment: {{stop: 0.05, step: 1.0e-3}}
+live:
+  cmd:
+    udp: {{port: {port}, format: doubles, byte_order: big}}
+    signals: {{F: {{}}, G: {{}}}}
+components:
+  osc: {{fmu: {build_fmu_from_src('oscillator.py')}, interface: CS}}
+connections:
+  - {{from: cmd.F, to: osc.F}}
+""")
+    scenario = deltafmi.load_scenario(path)
+    from deltafmi.cosim.scenario.resolve import resolve_system
+    from deltafmi.cosim.stepping.master import Master
+
+    master = Master(resolve_system(scenario), result=tmp_path / "d.csv")
+    master.open()
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            sock.sendto(struct.pack(">dd", 3.25, -1.5), ("127.0.0.1", port))
+            sock.sendto(struct.pack(">d", 7.0), ("127.0.0.1", port))  # one value short
+        time.sleep(0.05)
+        master.step_all(master.stepping_blocks(), 0.0, 1e-3)
+        master.live.at_point(1e-3, None)
+        unit = master._by_name["cmd"]
+        assert unit.values.tolist() == [3.25, -1.5]
+        assert unit.source.counters()["malformed"] == 1
+    finally:
+        master.close()
