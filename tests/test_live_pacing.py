@@ -19,7 +19,7 @@ import pytest
 
 import deltafmi
 from deltafmi.cosim.results.csv_file import columns
-from deltafmi.errors import BadInput, SimulationError
+from deltafmi.errors import BadInput
 
 
 def test_paced_run_takes_its_simulated_time_and_changes_no_number():
