@@ -5,9 +5,6 @@ from __future__ import annotations
 import io
 import re
 import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +15,7 @@ from deltafmi.cli import main
 from deltafmi.cosim.results.csv_file import columns
 from deltafmi.cosim.results.progress import Progress
 from deltafmi.files import USER_FILE_MODE
+from signal_runs import DELTAFMI, interrupt_when
 
 
 @pytest.fixture(scope="module")
@@ -157,19 +155,10 @@ def test_interrupted_run_keeps_its_rows_and_says_where(build_fmu_from_src, tmp_p
                     f"components:\n  osc: {{fmu: {build_fmu_from_src('oscillator.py')}, interface: CS}}\n"
                     "outputs: [osc.x, osc.v]\n")
     out = tmp_path / "long.csv"
-    process = subprocess.Popen([sys.executable, "-c", "from deltafmi.cli import main; main()", "run", str(path),
-                                "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 60
-        while not (out.exists() and out.read_text().count("\n") > 2):  # header and two rows
-            assert process.poll() is None and time.monotonic() < deadline, process.communicate()
-            time.sleep(0.05)
-        process.send_signal(signum)
-        stdout, stderr = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == code, stderr
+    returncode, stdout, stderr = interrupt_when(
+        [*DELTAFMI, "run", str(path), "-o", str(out)],
+        lambda: out.exists() and out.read_text().count("\n") > 2, signum, timeout=60)  # header and two rows
+    assert returncode == code, stderr
     assert "Traceback" not in stderr and stdout == ""
     last = stderr.strip().splitlines()[-1]
     match = re.fullmatch(r"interrupted at t = (\S+) s \(results up to (\S+) in (.+)\)", last)

@@ -20,6 +20,7 @@ import pytest
 import deltafmi
 from deltafmi.cosim.results.csv_file import columns
 from deltafmi.errors import BadInput
+from signal_runs import DELTAFMI, interrupt_when
 
 
 def test_paced_run_takes_its_simulated_time_and_changes_no_number():
@@ -83,20 +84,9 @@ def test_sigterm_stops_a_paced_run_between_points_with_its_rows(tmp_path):
     """A paced run sleeps most of the time: SIGTERM there ends it as it ends an unpaced one
     (exit 143, every row up to there in the file)."""
     out = tmp_path / "paced.csv"
-    process = subprocess.Popen([sys.executable, "-c", "from deltafmi.cli import main; main()", "run",
-                                "delta_tracking", "--realtime", "--speed", "0.5", "-o", str(out)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120
-        while not (out.exists() and out.read_text().count("\n") > 20):
-            assert process.poll() is None and time.monotonic() < deadline, process.communicate()
-            time.sleep(0.05)
-        process.send_signal(signal.SIGTERM)
-        _, stderr = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 143, stderr
+    code, _, stderr = interrupt_when([*DELTAFMI, "run", "delta_tracking", "--realtime", "--speed", "0.5", "-o", str(out)],
+                                     lambda: out.exists() and out.read_text().count("\n") > 20, signal.SIGTERM)
+    assert code == 143, stderr
     assert "Traceback" not in stderr
     assert re.fullmatch(r"interrupted at t = \S+ s \(results up to \S+ in .+\)", stderr.strip().splitlines()[-1])
     kept = columns(out)

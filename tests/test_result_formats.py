@@ -5,9 +5,6 @@ from __future__ import annotations
 
 import re
 import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import fmpy
@@ -20,6 +17,7 @@ from click.testing import CliRunner
 from deltafmi.cli import main
 from deltafmi.cosim.results.csv_file import columns
 from deltafmi.cosim.results.writers import matlab_names
+from signal_runs import DELTAFMI, interrupt_when
 
 OUTPUTS = ["osc.x", "osc.v", "osc.energy", "osc.F"]
 
@@ -186,19 +184,10 @@ def test_interrupted_run_leaves_a_readable_parquet(oscillator, tmp_path):
                     f"components:\n  osc: {{fmu: {oscillator}, interface: CS}}\n"
                     "outputs: [osc.x, osc.v]\n")
     out = tmp_path / "long.parquet"
-    process = subprocess.Popen([sys.executable, "-c", "from deltafmi.cli import main; main()", "run", str(path),
-                                "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 60
-        while not (out.exists() and out.stat().st_size > 4):  # more than Parquet's leading magic
-            assert process.poll() is None and time.monotonic() < deadline, process.communicate()
-            time.sleep(0.05)
-        process.send_signal(signal.SIGINT)
-        stdout, stderr = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 130, stderr
+    code, _, stderr = interrupt_when([*DELTAFMI, "run", str(path), "-o", str(out)],
+                                     lambda: out.exists() and out.stat().st_size > 4,  # more than Parquet's magic
+                                     signal.SIGINT, timeout=60)
+    assert code == 130, stderr
     assert "Traceback" not in stderr
     match = re.fullmatch(r"interrupted at t = (\S+) s \(results up to (\S+) in (.+)\)", stderr.strip().splitlines()[-1])
     assert match and match[3] == str(out)

@@ -20,7 +20,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +33,7 @@ from deltafmi.cosim.results.csv_file import columns as read_columns
 from deltafmi.study.driver import dask_client
 from deltafmi.study.plan import plan_study
 from deltafmi.study.spec import load_study
+from signal_runs import interrupt_when
 
 ROOT = Path(__file__).resolve().parents[1]
 FLAGSHIP_STUDY = f"""\
@@ -222,19 +222,10 @@ def test_interrupted_sweep_resumes_without_redoing_cases(cluster, tmp_path):
     deltafmi = Path(sys.executable).parent / "deltafmi"
     temporary = tmp_path / "tmp"  # the sweep's and its workers' temporary folder
     temporary.mkdir()
-    process = subprocess.Popen([str(deltafmi), "sweep", str(study), "--workers", "2", "-q"], cwd=tmp_path,
-                               env={**os.environ, "TMPDIR": str(temporary)},
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and _journal_rows(journal) < 2:
-            time.sleep(0.05)
-        process.send_signal(signal.SIGINT)
-        output, _ = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 130, output
+    code, output, _ = interrupt_when([str(deltafmi), "sweep", str(study), "--workers", "2", "-q"],
+                                     lambda: _journal_rows(journal) >= 2, signal.SIGINT, cwd=tmp_path,
+                                     env={**os.environ, "TMPDIR": str(temporary)}, stderr=subprocess.STDOUT)
+    assert code == 130, output
     first = _journal(journal)
     assert 2 <= len(first) < 12, output
     assert pq.read_table(tmp_path / "osc_study.parquet").num_rows == len(first)  # written on the way out
