@@ -67,3 +67,23 @@ def test_wrong_names_are_reported_with_suggestions(tmp_path):
     (tmp_path / "junk.parquet").write_text("not parquet")
     result = plot(tmp_path / "junk.parquet", "-o", tmp_path / "x.png")
     assert result.exit_code == 2 and "cannot read" in result.output and "Traceback" not in result.output
+
+
+def test_heat_map_cells_show_the_median_or_the_mean_of_their_cases():
+    """Two samples per grid point: the median and mean of (1, 0) and (1, 1); a failed (NaN) case
+    is left out of its cell; --cell mean of a 0/1 metric is the success rate."""
+    from deltafmi.study.plot import heatmap_cells
+
+    xs, ys = [0.0, 0.0, 1.0, 1.0, 0.0, 0.0], ["a", "a", "a", "a", "b", "b"]
+    values = np.array([1.0, 0.0, 1.0, 1.0, 0.0, math.nan])
+    x_values, y_values, grid, several = heatmap_cells(xs, ys, values, "mean")
+    assert x_values == [0.0, 1.0] and y_values == ["a", "b"] and several
+    assert grid[0].tolist() == [0.5, 1.0] and grid[1, 0] == 0.0 and math.isnan(grid[1, 1])
+    assert heatmap_cells(xs, ys, values)[2][0].tolist() == [0.5, 1.0]  # median of two is their mean too
+    assert heatmap_cells(xs, ys, np.array([1.0, 0.0, 0.0, 0.0, 1.0, 1.0]), "median")[2][0, 1] == 0.0
+
+
+def test_success_map_from_the_command_line(tmp_path):
+    result = plot(results(tmp_path), "-o", tmp_path / "rate.png", "--cell", "mean", "-m", "y")
+    assert result.exit_code == 0, result.output
+    assert plot(results(tmp_path), "-o", tmp_path / "x.png", "--cell", "mode").exit_code == 2

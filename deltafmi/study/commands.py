@@ -144,18 +144,22 @@ def _announce(link: str) -> None:
 @click.option("--log", is_flag=True,
               help="Logarithmic scale (axis, or colours of a heat map) for metrics spanning more than a decade.")
 @click.option("--title", default="", help="Figure title.")
+@click.option("--cell", type=click.Choice(["median", "mean"]), default="median", show_default=True,
+              help="Heat map: what a cell shows of the cases that share it (Monte Carlo samples at a grid point); "
+              "mean of a 0/1 metric is a success rate.")
 def plot_study_command(results: str, output: str, metrics: Sequence[str], x: Optional[str], y: Optional[str],
-                       kind: Optional[str], log: bool, title: str) -> None:
+                       kind: Optional[str], log: bool, title: str, cell: str) -> None:
     """Plot the metrics of a study's RESULTS table (.parquet from deltafmi sweep).
 
     \b
     Examples:
       deltafmi plot-study gain_payload.parquet -o gain.png --log
       deltafmi plot-study mass_uncertainty.parquet -m steady_state_error -o mc.png
+      deltafmi plot-study peg_robustness.parquet -m success --cell mean -o success_map.png
     """
     from .plot import plot_study
 
-    path = plot_study(results, output, metrics, x, y, kind, log, title)
+    path = plot_study(results, output, metrics, x, y, kind, log, title, cell)
     click.echo(f"wrote {path}")
 
 

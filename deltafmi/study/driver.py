@@ -388,7 +388,8 @@ def _results(future: Any, batch: Batch, batcher: Batcher) -> List[CaseResult]:
 
 
 def summary_lines(planned: PlannedStudy, store: ResultStore, report: SweepReport) -> List[str]:
-    """The end-of-sweep summary: counts, rate, and min / median / max of every metric."""
+    """The end-of-sweep summary: counts, rate, and min / median / mean / max of every metric (the
+    mean of a 0/1 metric is a success rate)."""
     import numpy as np
 
     done = [(c, store.rows[c.key]) for c in planned.cases if c.key in store.rows]
@@ -402,12 +403,12 @@ def summary_lines(planned: PlannedStudy, store: ResultStore, report: SweepReport
         lines.append("interrupted: run the same command again to continue where it stopped")
     names = [m.name for m in planned.plan.metrics]
     width = max(len(n) for n in names + ["metric"])
-    lines.append(f"{'metric':<{width}}  {'min':>12} {'median':>12} {'max':>12}  unit")
+    lines.append(f"{'metric':<{width}}  {'min':>12} {'median':>12} {'mean':>12} {'max':>12}  unit")
     for name in names:
         values = np.array([r["metrics"].get(name, np.nan) for r in ok], dtype=float)
         values = values[np.isfinite(values)]
-        stats = [f"{v:12.5g}" for v in (np.min(values), np.median(values), np.max(values))] if len(values) else \
-            [f"{'-':>12}"] * 3
+        stats = [f"{v:12.5g}" for v in (np.min(values), np.median(values), np.mean(values), np.max(values))] \
+            if len(values) else [f"{'-':>12}"] * 4
         lines.append(f"{name:<{width}}  {' '.join(stats)}  {planned.units.get(name, '')}")
     failures = [(c, r) for c, r in done if r["status"] == FAILED]
     for case, row in failures[:5]:

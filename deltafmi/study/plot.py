@@ -18,11 +18,16 @@ from deltafmi.errors import BadInput, did_you_mean
 from .store import read_results, study_metadata
 
 KINDS = ("line", "heatmap", "histogram")
+#: what a heat map's cell shows when several cases share it (Monte Carlo samples at a grid point):
+#: their median, or their mean (of a 0/1 metric: the success rate)
+CELL_STATISTICS = {"median": np.median, "mean": np.mean}
 
 
 def plot_study(results: str | Path, output: str | Path, metrics: Sequence[str] = (), x: Optional[str] = None,
-               y: Optional[str] = None, kind: Optional[str] = None, log: bool = False, title: str = "") -> Path:
-    """Draw ``metrics`` (default: all) of the results table ``results`` into ``output``."""
+               y: Optional[str] = None, kind: Optional[str] = None, log: bool = False, title: str = "",
+               cell: str = "median") -> Path:
+    """Draw ``metrics`` (default: all) of the results table ``results`` into ``output``; ``cell``
+    (a key of :data:`CELL_STATISTICS`) is what a heat map's cell shows of the cases that share it."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -66,7 +71,7 @@ def plot_study(results: str | Path, output: str | Path, metrics: Sequence[str] =
             _histogram(ax, values, label, logarithmic)
         elif kind == "heatmap":
             assert x is not None and y is not None
-            _heatmap(fig, ax, table, x, y, values, label, units, logarithmic)
+            _heatmap(fig, ax, table, x, y, values, label, units, logarithmic, cell)
         else:
             assert x is not None
             _lines(ax, table, x, y if y else _other(targets, kinds, x), values, label, units, logarithmic)
@@ -149,20 +154,31 @@ def _histogram(ax: Any, values: np.ndarray, label: str, log: bool) -> None:
                  fontsize="small")
 
 
-def _heatmap(fig: Any, ax: Any, table: pa.Table, x: str, y: str, values: np.ndarray, label: str,
-             units: Dict[str, str], log: bool) -> None:
-    from matplotlib.colors import LogNorm
-
-    xs, ys = table.column(x).to_pylist(), table.column(y).to_pylist()
+def heatmap_cells(xs: Sequence[Any], ys: Sequence[Any], values: np.ndarray,
+                  cell: str = "median") -> tuple[list, list, np.ndarray, bool]:
+    """The heat map of ``values`` over the points (xs, ys): the sorted distinct x and y values,
+    the grid (rows y, columns x) of each cell's statistic ``cell`` over its finite values (NaN where
+    it has none), and whether any cell holds several cases."""
+    if cell not in CELL_STATISTICS:
+        raise BadInput(f"no cell statistic '{cell}'{did_you_mean(cell, list(CELL_STATISTICS))} "
+                       f"(choose {', '.join(CELL_STATISTICS)})")
     x_values, y_values = sorted(set(xs)), sorted(set(ys))
     grid = np.full((len(y_values), len(x_values)), np.nan)
     cells: Dict[tuple, List[float]] = {}
     for xv, yv, v in zip(xs, ys, values):
         cells.setdefault((y_values.index(yv), x_values.index(xv)), []).append(v)
-    several = any(len(v) > 1 for v in cells.values())
     for (i, j), vs in cells.items():
         finite = [v for v in vs if np.isfinite(v)]
-        grid[i, j] = np.median(finite) if finite else np.nan
+        grid[i, j] = CELL_STATISTICS[cell](finite) if finite else np.nan
+    return x_values, y_values, grid, any(len(v) > 1 for v in cells.values())
+
+
+def _heatmap(fig: Any, ax: Any, table: pa.Table, x: str, y: str, values: np.ndarray, label: str,
+             units: Dict[str, str], log: bool, cell: str) -> None:
+    from matplotlib.colors import LogNorm
+
+    x_values, y_values, grid, several = heatmap_cells(table.column(x).to_pylist(), table.column(y).to_pylist(),
+                                                      values, cell)
     masked = np.ma.masked_invalid(grid)
     positive = masked.compressed()
     norm = LogNorm() if log and len(positive) and np.all(positive > 0) else None
@@ -176,7 +192,7 @@ def _heatmap(fig: Any, ax: Any, table: pa.Table, x: str, y: str, values: np.ndar
             tick.set_visible(k % math.ceil(len(x_values) / 12) == 0)
     ax.set_xlabel(_label(x, units))
     ax.set_ylabel(_label(y, units))
-    ax.set_title(label + (" (median per cell)" if several else ""), fontsize="medium")
+    ax.set_title(label + (f" ({cell} per cell)" if several else ""), fontsize="medium")
     fig.colorbar(image, ax=ax)
 
 
