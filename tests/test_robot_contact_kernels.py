@@ -124,3 +124,28 @@ def test_generated_c_gives_the_python_bits(compiled, make, mode):
         for role in ("derivatives", "indicators", "outputs"):
             python = getattr(ck, f"{kind}_{role}")(params, state, xk, u, f)
             assert bits(compiled.call(f"{kind}_{role}", params, state, xk, u, f)) == bits(python), role
+
+
+@pytest.mark.parametrize("friction_mode", ["stick", "slip"])
+def test_generated_c_gives_the_python_bits_with_friction(compiled, friction_mode):
+    """The tool in CONTACT with Coulomb friction (deltafmi/mechanics/delta/tool_friction.py),
+    sticking at an anchor off its position or slipping along an oblique axis: C = Python, bit for bit."""
+    from deltafmi.mechanics.delta.tool_friction import FRICTIONLESS, tangent_basis
+    from deltafmi.mechanics.friction.law import SLIP_POSITIVE, STICK
+
+    rng = np.random.default_rng(20)
+    system, x = plane_system(rng)
+    in_mode(system, 2)
+    _, params, state = kernels_of(system)
+    t1, t2 = tangent_basis(state.normal)
+    mode, axis = (STICK, (1.0, 0.0)) if friction_mode == "stick" else (SLIP_POSITIVE, (0.6, 0.8))
+    state = state._replace(friction=state.friction._replace(mode=mode, mu_s=0.5, mu_k=0.4, viscous=30.0, t1=t1, t2=t2,
+                                                           axis=axis, anchor=(0.0201, -0.0099)))
+    u, f = system.model.u, system.model.f
+    for k in range(5):
+        xk = (x + (rng.normal(scale=1e-5, size=x.size) if k else 0.0)).tolist()
+        for role in ("derivatives", "indicators", "outputs"):
+            python = getattr(ck, f"plane_{role}")(params, state, xk, u, f)
+            assert bits(compiled.call(f"plane_{role}", params, state, xk, u, f)) == bits(python), role
+    frictionless = ck.plane_derivatives(params, state._replace(friction=FRICTIONLESS), x.tolist(), u, f)
+    assert ck.plane_derivatives(params, state, x.tolist(), u, f) != frictionless  # the friction path ran

@@ -59,6 +59,11 @@ def _controller_inputs(t: np.ndarray) -> Dict[str, np.ndarray]:
             "rdd": _columns(t, 0.0, 0.0, lambda s: -a * w * w * np.sin(w * s))}
 
 
+def _wrist_inputs(t: np.ndarray) -> Dict[str, np.ndarray]:
+    # the delta's torque wave and a small wave on each wrist joint: the tool swings as the arms fall
+    return {**_plant_inputs(t), "tau": _columns(t, _sine(0.02, 3.0), _sine(0.02, 2.0), _sine(0.01, 5.0))}
+
+
 CASES: Dict[str, Case] = {
     "BouncingBall": Case(3.0, 0.005, 1e-8, ("q", "v", "f", "energy", "contact")),
     "BouncingBallRestitution": Case(3.0, 0.005, 1e-8, ("q", "v", "lam", "energy", "mode"),
@@ -69,6 +74,9 @@ CASES: Dict[str, Case] = {
     "DeltaRobot": Case(0.2, 1e-3, 1e-6, ("y", "z", "zd", "energy"), _plant_inputs),
     "DeltaRobotBox": Case(0.2, 1e-3, 1e-8, ("y", "z", "zd", "energy"), _plant_inputs),
     "DeltaRobotContact": Case(0.2, 1e-3, 1e-8, ("y", "z", "zd", "energy"), _plant_inputs),
+    "DeltaWrist": Case(0.2, 1e-3, 1e-8, ("y", "qw", "tip", "energy"), _wrist_inputs),
+    # unheld, the robot drops the peg from 20 mm above the (centred) hole into it: contact after 0.09 s
+    "DeltaWristPeg": Case(0.2, 1e-3, 1e-8, ("y", "qw", "tip", "depth", "contact_force"), _wrist_inputs),
     "NewtonsCradle": Case(1.0, 0.002, 1e-8, ("vx", "energy", "momentum")),
     "Oscillator": Case(4.0, 0.005, 1e-8, ("x", "v", "energy", "impacts"),
                        lambda t: {"F": _sine(2.0, 0.5)(t)}),

@@ -4,7 +4,8 @@ from .base import Component
 from .clocks import Clock
 from .hybrid import HybridSystemComponent
 from .native import Kernel, NativeKernels
+from .sampled import SampledComponent
 from .variables import Experiment, Input, Output, Parameter, State
 
 __all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Input", "Kernel", "NativeKernels", "Output",
-           "Parameter", "State"]
+           "Parameter", "SampledComponent", "State"]

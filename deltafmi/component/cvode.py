@@ -25,11 +25,12 @@ Rhs = Callable[[float, np.ndarray, np.ndarray], None]
 Roots = Callable[[float, np.ndarray, np.ndarray], None]
 Project = Callable[[float, np.ndarray, np.ndarray], None]
 Jacobian = Callable[[float, np.ndarray, np.ndarray], None]
-#: (addresses of the Python right-hand side and root functions, of N_VGetArrayPointer) ->
-#: (addresses of a C right-hand side and of C root functions (0: the Python ones) with CVODE's
-#: signatures, their user data): compiled callbacks that call the Python ones themselves when
-#: they cannot compute (see deltafmi/component/native_kernels.py)
-NativeCallbacks = Callable[[int, int, int], tuple[int, int, int]]
+#: (addresses of the Python right-hand side, root and projection functions (0: none), of
+#: N_VGetArrayPointer) -> (addresses of a C right-hand side, of C root functions and of a C
+#: projection function (0: the Python ones) with CVODE's signatures, their user data): compiled
+#: callbacks that call the Python ones themselves when they cannot compute (see
+#: deltafmi/component/native_kernels.py)
+NativeCallbacks = Callable[[int, int, int, int], tuple[int, int, int, int]]
 
 
 class CvodeError(RuntimeError):
@@ -46,7 +47,8 @@ class Cvode:
     that moves ``x`` onto the manifold. With ``jacobian(t, x, J)`` the Newton iteration uses
     that dense ``d rhs / d x`` (``J`` an (n, n) view of SUNDIALS' matrix, to fill) instead of
     CVODE's difference quotients. With ``native`` (:data:`NativeCallbacks`) CVODE calls a compiled
-    right-hand side (and root functions), which fall back on ``rhs`` (``roots``).
+    right-hand side (and root functions, projection), which fall back on ``rhs`` (``roots``,
+    ``project``).
     """
 
     def __init__(self, rhs: Rhs, x0: np.ndarray, t0: float, *, roots: Optional[Roots] = None,
@@ -76,11 +78,15 @@ class Cvode:
         # than typed arguments, and hashable)
         self._f = _sun.RhsFn(self._f_callback)
         self._g = _sun.RhsFn(self._g_callback)
+        self._p = _sun.ProjFn(self._p_callback) if project is not None else None
         if native is not None:
-            self._fallbacks = self._f, self._g  # the compiled callbacks call these: keep them alive
-            rhs, roots, user_data = native(ctypes.cast(self._f, c_void_p).value, ctypes.cast(self._g, c_void_p).value,
-                                           ctypes.cast(_sun.N_VGetArrayPointer, c_void_p).value)
+            self._fallbacks = self._f, self._g, self._p  # the compiled callbacks call these: keep them alive
+            rhs, roots, projection, user_data = native(
+                ctypes.cast(self._f, c_void_p).value, ctypes.cast(self._g, c_void_p).value,
+                ctypes.cast(self._p, c_void_p).value if self._p is not None else 0,
+                ctypes.cast(_sun.N_VGetArrayPointer, c_void_p).value)
             self._f, self._g = _sun.RhsFn(rhs), _sun.RhsFn(roots) if roots else self._g
+            self._p = _sun.ProjFn(projection) if projection else self._p
         _check(_sun.CVodeInit(self._mem, self._f, t0, self._y), "CVodeInit")
         if native is not None:
             _check(_sun.CVodeSetUserData(self._mem, user_data), "CVodeSetUserData")
@@ -104,7 +110,6 @@ class Cvode:
         if project is not None:
             if method != "bdf":
                 raise ValueError("CVODE projects only with BDF")
-            self._p = _sun.ProjFn(self._p_callback)
             _check(_sun.CVodeSetProjFn(self._mem, self._p), "CVodeSetProjFn")
             _check(_sun.CVodeSetProjErrEst(self._mem, 0), "CVodeSetProjErrEst")
             _check(_sun.CVodeSetProjFrequency(self._mem, project_every), "CVodeSetProjFrequency")

@@ -16,10 +16,12 @@ component sets in ``initialize``/``update`` whose type ``attributes`` gives (a d
 floats, a NamedTuple, ``Optional[...]``, float, int, bool, str). The FMU's C layer calls the
 generated code where the Python methods would run: ``derivatives`` for ``fmi2GetDerivatives``
 (Model Exchange, between events) and CVODE's right-hand side (Co-Simulation),
-``event_indicators`` for ``fmi2GetEventIndicators`` and CVODE's root functions, ``outputs`` for
-the getters, ``step`` for ``fmi2DoStep`` of a component that steps itself (a sampled controller,
-a reference generator; see :class:`Kernel`), ``update`` for the event update of a component
-without states (``fmi2NewDiscreteStates``, fmi3UpdateDiscreteStates at a Clock's tick,
+``event_indicators`` for ``fmi2GetEventIndicators`` and CVODE's root functions, ``project`` for
+CVODE's projection after every internal step (Co-Simulation, a component that overrides
+``project``: the projected states; Model Exchange's step-event projection stays Python),
+``outputs`` for the getters, ``step`` for ``fmi2DoStep`` of a component that steps itself (a
+sampled controller, a reference generator; see :class:`Kernel`), ``update`` for the event update
+of a component without states (``fmi2NewDiscreteStates``, fmi3UpdateDiscreteStates at a Clock's tick,
 fmi3ActivateModelPartition). The component's Python methods stay, and must
 compute the same numbers with the same kernels: they serve initialization, events, whatever the
 C cannot, and the tests that compare the two. Attributes are copied to C after initialization,
@@ -47,7 +49,8 @@ class Kernel:
     ``returns``: the variables its result is written to, in order (the result is flattened: a
     flat tuple of all their scalars, or one item per variable); for ``derivatives`` and
     ``event_indicators`` the result is the state derivatives / the indicators, and ``returns``
-    stays empty.
+    stays empty. A ``project`` kernel returns the projected states: all of them in state order
+    with ``returns`` empty, else the state variables ``returns`` names (the others stay).
 
     A ``step`` kernel (``fmi2DoStep`` of a component that steps itself, from ``"t"`` over
     ``"h"``) may also change attributes: its result is ``(*updates, *outputs)``, the new values of
@@ -82,6 +85,7 @@ class NativeKernels:
     outputs: Optional[Kernel] = None
     step: Optional[Kernel] = None
     update: Optional[Kernel] = None
+    project: Optional[Kernel] = None
     attributes: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "required"
 
@@ -91,7 +95,8 @@ class NativeKernels:
 
     def kernels(self) -> dict[str, Kernel]:
         """The declared kernels by role (``derivatives``, ``event_indicators``, ``outputs``, ``step``,
-        ``update``)."""
+        ``update``, ``project``)."""
         return {role: k for role, k in (("derivatives", self.derivatives), ("event_indicators", self.event_indicators),
-                                        ("outputs", self.outputs), ("step", self.step), ("update", self.update))
+                                        ("outputs", self.outputs), ("step", self.step), ("update", self.update),
+                                        ("project", self.project))
                 if k is not None}

@@ -12,7 +12,8 @@ A layout description is JSON: ``"double"``, ``"int"``, ``"bool"`` (an int in C),
 (a NamedTuple or an object's attributes); ``{"tuple": [description, ...]}`` (fields f0, f1, ...);
 ``{"array": description, "n": n}`` (a struct of one array ``v``); ``{"optional": description}``
 (``some`` flag and value ``v``). Set ``DELTAFMI_NATIVE=0`` in the environment to run the Python
-methods instead (for comparisons).
+methods instead (for comparisons), ``DELTAFMI_NATIVE_PROJECT=0`` to keep only CVODE's projection in
+Python (``project``; the other kernels compiled: its cost alone).
 """
 from __future__ import annotations
 
@@ -29,6 +30,8 @@ import numpy as np
 DESCRIPTION = "native_kernels.json"
 #: the kernels' roles, in the order the loader's layout takes their addresses
 ROLES = ("derivatives", "event_indicators", "outputs", "step", "update")
+#: the roles only CVODE calls (through :meth:`NativeKernelsRuntime.cvode_callbacks`), not the loader
+CVODE_ROLES = ("project",)
 _SCALARS = {"double": ctypes.c_double, "int": ctypes.c_int, "bool": ctypes.c_int, "str": ctypes.c_char_p}
 _TYPES: dict[str, Any] = {}
 
@@ -220,12 +223,13 @@ def _set(obj: Any, path: str, value: Any) -> None:
 
 
 class _CvodeData(ctypes.Structure):
-    """The user data of dfmi_kernel_cvode_rhs/_roots (deltafmi/export/codegen/cvode_rhs.c)."""
+    """The user data of dfmi_kernel_cvode_rhs/_roots/_project (deltafmi/export/codegen/cvode_rhs.c)."""
 
     _fields_ = [("attributes", ctypes.c_void_p), ("ready", ctypes.c_void_p), ("real", ctypes.c_void_p),
                 ("ints", ctypes.c_void_p), ("nx", ctypes.c_long), ("x_offset", ctypes.c_long),
                 ("dx_offset", ctypes.c_long), ("nz", ctypes.c_long), ("array", ctypes.c_void_p),
-                ("fallback", ctypes.c_void_p), ("roots_fallback", ctypes.c_void_p)]
+                ("fallback", ctypes.c_void_p), ("roots_fallback", ctypes.c_void_p),
+                ("project_fallback", ctypes.c_void_p)]
 
 
 class NativeKernelsRuntime:
@@ -256,6 +260,7 @@ class NativeKernelsRuntime:
                 function.restype = ctypes.c_int
         self._functions = functions
         self.addresses = [ctypes.cast(f, ctypes.c_void_p).value if f is not None else 0 for f in functions]
+        self._cvode_roles = {role for role in CVODE_ROLES if role in description["kernels"]}
         self._buffers = (None, None, None)
         #: [0] nonzero while the struct holds the component's current attributes
         self.ready = np.zeros(1, dtype=np.intc)
@@ -298,27 +303,34 @@ class NativeKernelsRuntime:
 
     def has(self, role: str) -> bool:
         """Whether the library has the kernel of ``role``."""
+        if role in CVODE_ROLES:
+            return role in self._cvode_roles
         return bool(self.addresses[ROLES.index(role)])
 
     def cvode_callbacks(self, x_offset: int, dx_offset: int, nx: int,
-                        nz: int) -> Callable[[int, int, int], tuple[int, int, int]]:
-        """The compiled derivatives (and event indicators) as CVODE's right-hand side (and root
-        functions) over the value buffers (``Cvode``'s ``native``): they call the Python ones while
-        the kernels are off or when they raise."""
+                        nz: int) -> Callable[[int, int, int, int], tuple[int, int, int, int]]:
+        """The compiled derivatives (event indicators, projection) as CVODE's right-hand side
+        (root functions, projection function) over the value buffers (``Cvode``'s ``native``):
+        they call the Python ones while the kernels are off or when they raise. The projection
+        stays Python without a project kernel or with ``DELTAFMI_NATIVE_PROJECT=0``."""
+        project_native = self.has("project") and os.environ.get("DELTAFMI_NATIVE_PROJECT", "1") != "0"
 
-        def bind(rhs: int, roots: int, array: int) -> tuple[int, int, int]:
+        def bind(rhs: int, roots: int, project: int, array: int) -> tuple[int, int, int, int]:
             real, ints, _ = self._buffers
             data = _CvodeData(ctypes.addressof(self.struct), self.ready.ctypes.data, real, ints, nx, x_offset,
-                              dx_offset, nz, array, rhs, roots)
+                              dx_offset, nz, array, rhs, roots, project)
             # CVODE holds its address; an instance has one solver at a time (a new one only after
             # the old is freed), so only the newest is kept: appending grew ~230 B per fmi2Reset
             self._cvode_data[:] = [data]
-            roots_address = (ctypes.cast(self.library.dfmi_kernel_cvode_roots, ctypes.c_void_p).value
+            roots_address = (self._address("dfmi_kernel_cvode_roots")
                              if nz and self.has("event_indicators") else 0)
-            return (ctypes.cast(self.library.dfmi_kernel_cvode_rhs, ctypes.c_void_p).value, roots_address,
-                    ctypes.addressof(data))
+            project_address = self._address("dfmi_kernel_cvode_project") if project and project_native else 0
+            return (self._address("dfmi_kernel_cvode_rhs"), roots_address, project_address, ctypes.addressof(data))
 
         return bind
+
+    def _address(self, name: str) -> int:
+        return ctypes.cast(getattr(self.library, name), ctypes.c_void_p).value or 0
 
     def pack(self, component: Any) -> None:
         """Copy the component's attributes into the C struct; an attribute that does not fit

@@ -116,10 +116,33 @@ def copy_example(name: str, directory: Union[str, Path]) -> List[Path]:
     # data a scenario reads next to itself (a live joystick's recorded session)
     files.update({directory / m[1]: (EXAMPLES_DIR / m[1]).read_text() for text in texts.values()
                   for m in _DATA_FILE.finditer(text) if (EXAMPLES_DIR / m[1]).is_file()})
-    existing = [str(path) for path in files if path.exists()]
+    blobs = {directory / relative: source for relative, source in _resource_files(chosen.path, chosen.kind)}
+    existing = [str(path) for path in [*files, *blobs] if path.exists()]
     if existing:
         raise BadInput(f"{', '.join(existing)}: already there; copy into an empty folder or remove them")
     for path, text in files.items():
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)
-    return list(files)
+    for path, source in blobs.items():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(source.read_bytes())
+    return [*files, *blobs]
+
+
+def _resource_files(path: Path, kind: str) -> List[tuple[str, Path]]:
+    """(name relative to the scenario, file) of every file the components of the example
+    ``path`` (a ``kind`` "scenario", or a "study" and the scenario it varies) name under
+    ``resources:``; the copy puts each beside its copied scenario. Absolute names stay as they are."""
+    import yaml
+
+    scenarios = [path]
+    if kind == "study":
+        scenarios = [path.parent / yaml.safe_load(path.read_text())["scenario"]]
+    found = []
+    for scenario in scenarios:
+        components = yaml.safe_load(scenario.read_text()).get("components") or {}
+        for spec in components.values():
+            for item in (spec or {}).get("resources") or ():
+                if not Path(item).is_absolute() and ".." not in Path(item).parts:
+                    found.append((item, scenario.parent / item))
+    return found

@@ -46,11 +46,13 @@ def copy(name: str, directory: Path) -> None:
     """Write example NAME and the component sources it uses into DIRECTORY, ready to edit.
 
     The copied YAML names the copied sources (models/*.py), so `deltafmi run DIRECTORY/NAME.yaml`
-    builds and runs your edited components.
+    builds and runs your edited components. The files its components carry in their FMUs
+    (resources:, such as a controller's linear model) are copied beside it.
     """
     from . import copy_example, example
 
+    chosen = example(name)
     written = copy_example(name, directory)
     for path in written:
         click.echo(f"wrote {path}")
-    click.echo(f"run it: deltafmi {'sweep' if example(name).kind == 'study' else 'run'} {written[0]}")
+    click.echo(f"run it: deltafmi {'sweep' if chosen.kind == 'study' else 'run'} {written[0]}")

@@ -27,8 +27,11 @@ from .requirements import runtime_requirement
                    "runs on a Linux x86_64 machine with no Python (glibc no older than this one's).")
 @click.option("--fmi-version", type=click.Choice(["2", "3"]), default="2", show_default=True,
               help="FMI version of the FMUs: 2 (FMI 2.0) or 3 (FMI 3.0, array variables).")
+@click.option("--resource", "resources", multiple=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="A file to copy into the FMU's resources/ folder, where its component reads it "
+                   "(self.resources_dir); repeatable.")
 def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, validate: bool, portable: bool,
-          fmi_version: str) -> None:
+          fmi_version: str, resources: tuple[Path, ...]) -> None:
     """Build FMUs (Model Exchange + Co-Simulation) from components.
 
     Each of SOURCES is a packaged model's class name (DeltaRobot), a component source file
@@ -42,6 +45,7 @@ def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, vali
       deltafmi build --all -o build/fmus
       deltafmi build --all --fmi-version 3 -o build/fmus3/
       deltafmi build DeltaRobot --portable -o DeltaRobot.fmu
+      deltafmi build MpcController --resource mpc_press_model.npz -o MpcController.fmu
     """
     from .sources import find_component, packaged_model_names
 
@@ -58,7 +62,7 @@ def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, vali
             source = find_component(text)
             target = folder / f"{source.path.stem}.fmu.tmp" if folder else (Path(output) if output else None)
             path = build_fmu(source.path, target, portable=portable, class_name=source.class_name,
-                             fmi_version=int(fmi_version))
+                             fmi_version=int(fmi_version), resources=resources)
         except ComponentSourceError as exc:
             raise BadInput(str(exc)) from None
         except BuildError as exc:

@@ -13,7 +13,7 @@ import uuid
 import warnings
 import zipfile
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Sequence
 
 import deltafmi
 from ..component import Component
@@ -40,6 +40,32 @@ _MODEL_DESCRIPTIONS = ["deltafmi.component.model_description", "deltafmi.compone
 FMI_VERSIONS = (2, 3)
 _BINARY_DIR = {2: "binaries/linux64", 3: "binaries/x86_64-linux"}
 _GUID_NAMESPACE = uuid.UUID("6f1c8a52-4d0e-4f5e-9a53-0d3c5e2b7a11")
+#: the names build_fmu itself writes directly under resources/: a resource file may take none of them
+_RESERVED_RESOURCES = ("model", "python", "deltafmi_boot.py", "deltafmi.json", "python.cfg", "README.txt",
+                       NATIVE_KERNELS)
+
+
+class ResourceError(ComponentSourceError):
+    """A file to carry in an FMU's ``resources/`` is missing, or its name is taken."""
+
+
+def resource_files(resources: Sequence[Path | str] = ()) -> list[tuple[Path, str]]:
+    """(file, archive name) of the files an FMU carries for its component in ``resources/``,
+    each under its own name: the FMI importer passes the unpacked folder's location at
+    instantiation, which the component sees as ``self.resources_dir`` (FMI 2.0 section 2.1.7,
+    ``fmuResourceLocation``; FMI 3.0 ``resourcePath``). :class:`ResourceError` for a missing file,
+    two files of one name, or a name the FMU's own files use."""
+    found: dict[str, Path] = {}
+    for item in resources:
+        path = Path(item)
+        if not path.is_file():
+            raise ResourceError(f"resource {item}: no such file")
+        if path.name in _RESERVED_RESOURCES:
+            raise ResourceError(f"resource {item}: the FMU's own resources/{path.name} has that name; rename it")
+        if path.name in found and found[path.name].resolve() != path.resolve():
+            raise ResourceError(f"resources {found[path.name]} and {item}: two files named {path.name}")
+        found[path.name] = path
+    return [(path, f"resources/{name}") for name, path in sorted(found.items())]
 
 
 def load_component_class(source: Path, class_name: Optional[str] = None) -> type[Component]:
@@ -120,15 +146,16 @@ def compiled_value_access(modules: Optional[list[str]] = None) -> list[tuple[Pat
     return [(module, f"{folder}/{module.name}"), (VALUE_ACCESS_SOURCE, f"{folder}/{VALUE_ACCESS_SOURCE.name}")]
 
 
-def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int = 2) -> str:
+def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int = 2,
+                resources: Sequence[Path | str] = ()) -> str:
     """Hash of everything that determines an FMU built from ``source``: the files it carries
-    (so that editing a module the model does not reach leaves its cached FMU valid), the FMI
-    version, the native sources of its binary, the code that writes its modelDescription.xml,
-    this packager and the Python it was built for."""
+    (so that editing a module the model does not reach leaves its cached FMU valid), the
+    ``resources`` by name and content, the FMI version, the native sources of its binary, the
+    code that writes its modelDescription.xml, this packager and the Python it was built for."""
     _check_version(fmi_version)
     _fmu_binary_for(source, fmi_version)  # first: without it nothing else matters (no warnings about the rest)
     digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0fmi{fmi_version}\0".encode())
-    for path, arcname in runtime_files(source) + binary_files(source):
+    for path, arcname in runtime_files(source) + binary_files(source) + resource_files(resources):
         digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
     writers = [module_source(name) for name in reached_modules(modules=_MODEL_DESCRIPTIONS, runtime=False)]
     codegen = PACKAGE_DIR / "export" / "codegen"
@@ -150,27 +177,31 @@ BUILD_LOG = logging.getLogger("deltafmi.build")
 
 
 def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool = False,
-              class_name: Optional[str] = None, fmi_version: int = 2) -> Path:
+              class_name: Optional[str] = None, fmi_version: int = 2, resources: Sequence[Path | str] = ()) -> Path:
     """Build the FMU for the component in ``source`` (the class ``class_name``, needed only when
     the file defines several; ``source`` may also name a component as ``deltafmi build`` takes
     it: ``"DeltaRobot"``, ``"package.module:Class"``, ``"file.py:Class"``); returns the ``.fmu`` path.
 
     ``fmi_version`` 2 writes an FMI 2.0 FMU, 3 an FMI 3.0 one (both with Model Exchange and
-    Co-Simulation, from the same class). A ``portable`` FMU also carries the interpreter, standard
+    Co-Simulation, from the same class). The files ``resources`` are copied into the FMU's
+    ``resources/`` folder, each under its name (:func:`resource_files`): the component reads
+    them from its ``resources_dir``. A ``portable`` FMU also carries the interpreter, standard
     library and packages its model imports (see :mod:`deltafmi.export.portable`), so that it runs
     where no Python is installed."""
     _check_version(fmi_version)
     source, class_name = _component(source, class_name)
+    resources = resources or _shipped_resources(source)
     if portable:
         from .portable import make_portable
         cls = load_component_class(source, class_name)
         output = Path(output) if output else Path("build") / "fmus" / f"{cls.fmi_model_name()}.fmu"
-        make_portable(build_cached(source, class_name=class_name, fmi_version=fmi_version), output)
+        make_portable(build_cached(source, class_name=class_name, fmi_version=fmi_version, resources=resources),
+                      output)
         return output
     cls = load_component_class(source, class_name)
     identifier = cls.fmi_model_name()
     output = Path(output) if output else Path("build") / "fmus" / f"{identifier}.fmu"
-    key = content_key(source, class_name, fmi_version)
+    key = content_key(source, class_name, fmi_version, resources)
     guid = "{" + str(uuid.uuid5(_GUID_NAMESPACE, key)) + "}"
     binary = _fmu_binary_for(source, fmi_version)
     info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
@@ -189,7 +220,7 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
             for path, arcname in runtime_files(source):
                 fmu.write(path, arcname)
                 fmu.writestr(importlib.util.cache_from_source(arcname), unchecked_hash_pyc(path, arcname))
-            for path, arcname in binary_files(source):
+            for path, arcname in binary_files(source) + resource_files(resources):
                 fmu.write(path, arcname)
             for path in native_source_files(fmi_version):
                 fmu.write(path, f"sources/{path.name}")
@@ -204,11 +235,12 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
 
 
 def build_cached(source: Path | str, portable: bool = False, class_name: Optional[str] = None,
-                 fmi_version: int = 2) -> Path:
-    """The FMU for ``source`` (as :func:`build_fmu` takes it) from the per-user build cache, built
-    when the source or runtime changed."""
+                 fmi_version: int = 2, resources: Sequence[Path | str] = ()) -> Path:
+    """The FMU for ``source`` and ``resources`` (as :func:`build_fmu` takes them) from the per-user
+    build cache, built when the source, a resource's content or the runtime changed."""
     source, class_name = _component(source, class_name)
-    key = content_key(source, class_name, fmi_version)[:20]
+    resources = resources or _shipped_resources(source)
+    key = content_key(source, class_name, fmi_version, resources)[:20]
     if portable:
         from .portable import bundle_key
         key += "-portable-" + bundle_key()[:12]
@@ -219,7 +251,18 @@ def build_cached(source: Path | str, portable: bool = False, class_name: Optiona
     cls = load_component_class(source, class_name)
     BUILD_LOG.info("building %s FMU (cached afterwards in %s) ...", cls.__name__, _home_relative(cache_dir() / "fmus"))
     return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable, class_name=class_name,
-                     fmi_version=fmi_version)
+                     fmi_version=fmi_version, resources=resources)
+
+
+def _shipped_resources(source: Path) -> list[Path]:
+    """The data files a packaged model's FMU carries when built with no resources given
+    (:data:`deltafmi.models.RESOURCES`, files of deltafmi/examples/); none for any other source."""
+    from deltafmi import models
+    from deltafmi.examples import EXAMPLES_DIR
+
+    if Path(source).resolve().parent != Path(models.__file__).resolve().parent:
+        return []
+    return [EXAMPLES_DIR / name for name in models.RESOURCES.get(Path(source).stem, ())]
 
 
 def _component(source: Path | str, class_name: Optional[str]) -> tuple[Path, Optional[str]]:

@@ -52,6 +52,9 @@ _UNBUNDLED = ("_hashlib", "_ssl")
 #: never bundled from a package: tests, headers, type stubs, sources of compiled code
 _SKIPPED_FILES = re.compile(r"(\.pyi|\.pxd|\.h|\.c|\.pyx|\.typed|\.a)$")
 _SKIPPED_DIRS = {"tests", "test", "__pycache__", "include", "_pyinstaller"}
+#: development tools that libraries import if they happen to be installed and run without
+#: (scipy's test utilities try Cython): a trace on the builder's machine sees them, no model needs them
+_OPPORTUNISTIC = {"Cython", "cython", "pyximport"}
 _STDLIB_SKIPPED = {"test", "idlelib", "tkinter", "turtledemo", "ensurepip", "lib2to3", "pydoc_data",
                    "site-packages", "lib-dynload", "config-" + sysconfig.get_config_var("LDVERSION") + "-x86_64-linux-gnu"}
 
@@ -110,7 +113,9 @@ def classify(modules: Mapping[str, Optional[str]]) -> tuple[set, set, dict]:
         site = next((s for s in sites if s in path.parents), None)
         if site is not None:
             top = path.relative_to(site).parts[0]
-            third_party.setdefault(site, set()).add(Path(top).stem if path.parent == site else top)
+            top = Path(top).stem if path.parent == site else top
+            if top not in _OPPORTUNISTIC:
+                third_party.setdefault(site, set()).add(top)
         elif path.parent.name == "lib-dynload" and root in path.parents:
             if name not in _UNBUNDLED:
                 dynload.add(path)
@@ -301,9 +306,11 @@ def _package_licenses(site: Path, top: str) -> list[tuple[Path, str]]:
         names = record.read_text().split() if record.exists() else [info.name.split("-")[0]]
         if top not in names and info.name.split("-")[0].lower() != top.lower():
             continue
-        for path in sorted(info.rglob("*")):
-            if path.is_file() and re.match(r"(LICEN[CS]E|COPYING|NOTICE)", path.name, re.I):
-                out.append((path, f"{top}/{path.relative_to(info).as_posix()}"))
+        found = [(path, f"{top}/{path.relative_to(info).as_posix()}") for path in sorted(info.rglob("*"))
+                 if path.is_file() and re.match(r"(LICEN[CS]E|COPYING|NOTICE)", path.name, re.I)]
+        if not found and (info / "METADATA").is_file():  # no licence file: its declared licence, in its metadata
+            found = [(info / "METADATA", f"{top}/METADATA")]
+        out += found
     return out
 
 

@@ -47,6 +47,8 @@ def prebuild(target: Path) -> list[Path]:
     from .. import models
     from .codegen.component_kernels import component_library
     for name in models.MODELS:  # the packaged models' compiled kernels (C generated from their Python)
+        if name in models.PYTHON_ONLY:  # nothing to compile (and an MPC's scipy need not be in the build env)
+            continue
         if component_library(getattr(models, name)) is None:
             raise SystemExit(f"prebuild: {name}'s kernels were not compiled")
     with warnings.catch_warnings():

@@ -11,18 +11,37 @@ free of imports (the table below names modules; nothing is loaded until a name i
 
 #: component class name -> the module of this package that defines it
 MODELS = {
+    "AssemblyController": "assembly_controller",
     "BouncingBall": "bouncing_ball",
     "BouncingBallRestitution": "bouncing_ball_restitution",
     "BoxOnTable": "box_on_table",
+    "ContactEstimator": "contact_estimator",
     "DeltaController": "delta_controller",
     "DeltaRobot": "delta_robot",
     "DeltaRobotBox": "delta_robot_box",
     "DeltaRobotContact": "delta_robot_contact",
+    "DeltaWrist": "delta_wrist",
+    "DeltaWristPeg": "delta_wrist_peg",
+    "InsertionMpc": "insertion_mpc",
+    "MpcController": "mpc_controller",
     "NewtonsCradle": "newtons_cradle",
     "Oscillator": "oscillator",
+    "PegEstimator": "peg_estimator",
     "TactileSensor": "tactile_sensor",
     "TargetFollower": "target_follower",
     "Trajectory": "trajectory",
+}
+
+#: the models that run only in Python, no compiled kernels (their cost per sample is in their
+#: docstrings): an EKF's numpy linear algebra, an MPC's QP (OSQP, which needs scipy)
+PYTHON_ONLY = ("ContactEstimator", "InsertionMpc", "MpcController", "PegEstimator")
+
+#: module -> the shipped data files (deltafmi/examples/) its FMU carries in resources/ when built
+#: with none given: the MPCs' linear models, made by tools/make_mpc_model.py and
+#: ``python -m deltafmi.control.insertion_model``
+RESOURCES = {
+    "insertion_mpc": ("peg_in_hole_mpc_model.npz",),
+    "mpc_controller": ("mpc_press_model.npz",),
 }
 
 __all__ = sorted(MODELS)

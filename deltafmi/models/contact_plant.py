@@ -14,6 +14,7 @@ from typing import Any, Callable
 
 from deltafmi.component import HybridSystemComponent, Kernel, NativeKernels
 from deltafmi.mechanics import delta
+from deltafmi.mechanics.delta.dynamics import project_state
 from deltafmi.mechanics.delta.params import DeltaParams
 from deltafmi.models.robot_parameters import RobotParameters
 
@@ -25,10 +26,11 @@ def contact_kernels(derivatives: Callable, indicators: Callable, outputs: Callab
                     returns: tuple) -> NativeKernels:
     """The ``native`` of a contact plant: its three kernels over :data:`_ARGUMENTS`, ``contacts``
     the NamedTuple of its system's ``kernel_state``, ``returns`` the outputs in the order
-    ``outputs`` gives them."""
+    ``outputs`` gives them; and the projection onto the closed loops (its ``project``)."""
     return NativeKernels(derivatives=Kernel(derivatives, *_ARGUMENTS),
                          event_indicators=Kernel(indicators, *_ARGUMENTS),
                          outputs=Kernel(outputs, *_ARGUMENTS, returns=returns),
+                         project=Kernel(project_state, "_plant", "q", "v", returns=("q", "v")),
                          attributes={"_plant": DeltaParams, "_contact": contacts})
 
 

@@ -61,6 +61,7 @@ class DeltaRobot(RobotParameters, Component):
     native = NativeKernels(
         derivatives=Kernel(dynamics.state_derivative, "_plant", "states", "u", "f", "pole"),
         outputs=Kernel(dynamics.plant_outputs, "_plant", "q", "v", "u", "f", "pole", returns=_OUTPUTS),
+        project=Kernel(dynamics.project_state, "_plant", "q", "v", returns=("q", "v")),
         attributes={"_plant": DeltaParams})
 
     def setup(self) -> None:

@@ -1,6 +1,7 @@
 """Delta robot with a tool touching a plane: a thin component over deltafmi.mechanics.delta.contact."""
 from deltafmi.component import Experiment, Input, Output, Parameter, State
 from deltafmi.mechanics.contact import CompliantMaterial
+from deltafmi.mechanics.friction import FrictionParams
 from deltafmi.mechanics.delta.contact import Plane, ToolPlaneSystem, make_robot_contact, robot_start_state
 from deltafmi.mechanics.delta.contact_kernels import ToolPlane, plane_derivatives, plane_indicators, plane_outputs
 from deltafmi.models.contact_plant import RobotContactPlant, contact_kernels
@@ -18,6 +19,12 @@ class DeltaRobotContact(RobotContactPlant):
     a spring-damper (contact_stiffness, contact_damping) that lets go when its force turns
     negative. The contact force acts on the wrist along n, as the external force f does. The robot
     starts at z0 moving at zd0 (loops closed). Modes: 0 FREE, 1 COLLISION, 2 CONTACT.
+
+    In CONTACT the plane has Coulomb friction (mu_s, mu_k, viscous; all 0: frictionless): the tool
+    sticks (a tangential constraint whose multiplier is the friction force) while that force is
+    inside the static cone mu_s fn, slips with the force mu_k fn + viscous |v_t| against its
+    velocity, and sticks again where its velocity reaches zero with the sticking force inside the
+    cone. friction_mode: 0 no friction force, 1 STICK, 2 SLIP. Collisions are frictionless.
     """
 
     model_name = "DeltaRobotContact"
@@ -43,6 +50,9 @@ class DeltaRobotContact(RobotContactPlant):
     restitution = Parameter(0.5, min=0.01, max=1.0, description="Coefficient of restitution of an impact")
     capture_speed = Parameter(0.05, unit="m/s", min=0.0,
                               description="Rebound speed below which a loaded impact stays in CONTACT")
+    mu_s = Parameter(0.0, min=0.0, description="Static Coulomb friction coefficient of the tool on the plane")
+    mu_k = Parameter(0.0, min=0.0, description="Kinetic Coulomb friction coefficient (<= mu_s)")
+    viscous = Parameter(0.0, unit="N.s/m", min=0.0, description="Viscous friction coefficient while slipping")
 
     q = State([0.0] * 9, unit="rad", initial="calculated", nominal=0.01,
               description="Joint angles per arm: servo q_i1, forearm polar q_i2, azimuth q_i3")
@@ -65,17 +75,22 @@ class DeltaRobotContact(RobotContactPlant):
     fn = Output(unit="N", description="Normal contact force (magnitude, >= 0)")
     gap = Output(unit="m", description="Signed distance of the tool tip from the plane")
     penetration = Output(unit="m", description="Depth of the tool tip below the plane (0 when apart)")
+    friction_force = Output(shape=3, unit="N",
+                            description="Tangential (friction) force of the plane on the tool, world frame")
+    friction_mode = Output(0, type=int, description="Friction: 0 no friction force, 1 STICK, 2 SLIP")
 
     #: what the FMU's C layer computes itself between events, and the methods too (contact_plant)
     native = contact_kernels(plane_derivatives, plane_indicators, plane_outputs, ToolPlane,
                              returns=("y", "yd", "z", "zd", "tip", "lam", "residual", "energy", "normal_force", "fn",
-                                      "gap", "penetration"))
+                                      "gap", "penetration", "friction_force"))
 
     def build_system(self, t: float) -> ToolPlaneSystem:
         params = self.robot_params()
         plane = Plane(self.surface_height, tuple(self.surface_normal))
         material = CompliantMaterial(self.contact_stiffness, self.contact_damping, self.restitution)
-        system = make_robot_contact(params, plane, material, tuple(self.tool), self.pole, self.capture_speed)
+        friction = FrictionParams(self.mu_s, self.mu_k, self.viscous)
+        system = make_robot_contact(params, plane, material, tuple(self.tool), self.pole, self.capture_speed,
+                                    friction if any(c > 0.0 for c in friction) else None)
         x0 = robot_start_state(params, self.z0, self.zd0)
         start_gap = float(system.model.gaps(x0[:9])[0])
         if start_gap < 0.0:
@@ -86,6 +101,21 @@ class DeltaRobotContact(RobotContactPlant):
         self.q, self.v = x0[:9], x0[9:]
         return system
 
+    def needs_projection(self, t: float) -> bool:
+        """Also a step event when the friction mode no longer holds without its indicator having
+        crossed zero: an input jump (the f input, a controller's torques) that put it past its
+        limit at a communication point, which importers that read the indicators after setting
+        the inputs cannot see as a sign change (the event then runs after that integrator step)."""
+        return super().needs_projection(t) or self._friction_overdue(t)
+
+    def _friction_overdue(self, t: float) -> bool:
+        system = self.system
+        if system is None or system.friction is None or self._contact is None or self._contact.friction.mode == 0:
+            return False
+        return float(self.event_indicators(t)[1]) <= 0.0
+
     def publish_modes(self, modes) -> None:
-        """The one contact's mode as the scalar ``mode`` (and the kernels' state, as the base)."""
+        """The one contact's mode as the scalar ``mode``, its friction's as ``friction_mode`` (and
+        the kernels' state, as the base)."""
         super().publish_modes(int(modes[0]))
+        self.friction_mode = self.system.friction_mode

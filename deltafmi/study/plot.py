@@ -187,6 +187,8 @@ def _heatmap(fig: Any, ax: Any, table: pa.Table, x: str, y: str, values: np.ndar
                           norm=norm, shading="flat")
     ax.set_xticks(np.arange(len(x_values)) + 0.5, [f"{v:g}" if isinstance(v, float) else str(v) for v in x_values])
     ax.set_yticks(np.arange(len(y_values)) + 0.5, [f"{v:g}" if isinstance(v, float) else str(v) for v in y_values])
+    if max(len(tick.get_text()) for tick in ax.xaxis.get_ticklabels()) > 4:
+        ax.tick_params(axis="x", labelrotation=45)  # long labels (0.00025) would run together
     if len(x_values) > 12:
         for k, tick in enumerate(ax.xaxis.get_ticklabels()):
             tick.set_visible(k % math.ceil(len(x_values) / 12) == 0)

@@ -1,1 +1,2 @@
-"""Pictures of results beyond time plots: the delta robot drawn from its recorded joint angles."""
+"""Pictures of results beyond time plots: the delta robot drawn from its recorded joint angles, with
+its spherical wrist and peg, and a close-up of a peg-in-hole insertion."""

@@ -8,6 +8,12 @@ offset (``<plant>.tool[1..3]``), the plane (``<plant>.surface_height``,
 ``<plant>.surface_normal[1..3]``), the contact (``<plant>.fn``, ``<plant>.mode``, or the magnitude
 of ``<plant>.normal_force[1..3]``) and a box on the table (``<plant>.box[1..3]``: x, height of its
 centre above the table, rotation; ``<plant>.box_width``, ``<plant>.box_height``).
+
+A robot with a spherical wrist (``<plant>.R[1..9]`` or ``<plant>.qw[1..3]``: DeltaWrist) is drawn
+with its wrist centre and the peg as a cylinder along the tool axis; a result that records a
+peg-in-hole insertion (DeltaWristPeg's ``depth``, ``contact_force`` ..., or ``hole_position``)
+adds a close-up: a side section through the hole axis and a top view (:mod:`.peg_view`). Which
+columns and parameters are read: :mod:`.columns`.
 """
 from __future__ import annotations
 
@@ -24,6 +30,10 @@ from ..cosim.results.result import read_result
 from ..errors import BadInput, did_you_mean
 from ..mechanics.delta.kinematics import forward_kinematics
 from ..mechanics.delta.params import ARM_ROTATIONS, RL5, DeltaParams
+from .columns import Columns
+from .peg_recording import HoleTrack, WristTrack, load_hole, load_wrist
+from .peg_view import HoleSectionView, HoleTopView
+from .wrist_view import WristArtists
 
 _MODES = ("free", "collision", "contact")
 
@@ -41,6 +51,9 @@ class Recording:
     force: Optional[np.ndarray]         #: normal force on the tool, or None
     mode: Optional[np.ndarray]          #: contact mode, or None
     box: Optional[tuple[np.ndarray, float, float]] = None   #: (poses (n, 3), width, height), or None
+    wrist: Optional[WristTrack] = None  #: the spherical wrist's tool, or None
+    hole: Optional[HoleTrack] = None    #: the peg-in-hole insertion, or None
+    defaults: tuple[str, ...] = ()      #: parameters not in the result, drawn with the model's default
 
     def box_outline(self, row: int) -> np.ndarray:
         """The box's corners (x, z), world, closed polygon (5 x 2) at ``row``."""
@@ -63,9 +76,13 @@ def find_plants(names: Sequence[str]) -> list[str]:
     return found
 
 
-def load_recording(result: str | Path, plant: Optional[str] = None) -> Recording:
+def load_recording(result: str | Path, plant: Optional[str] = None, settings: Optional[dict] = None,
+                   wrist: Optional[bool] = None, hole: Optional[bool] = None) -> Recording:
     """The robot ``plant`` (found automatically when the result holds one robot) of ``result``
-    (a ``.csv``, ``.parquet`` or ``.mat`` result file)."""
+    (a ``.csv``, ``.parquet`` or ``.mat`` result file). ``settings``: parameter values the result
+    does not record ({name: values}, :func:`.columns.parse_settings`). ``wrist``, ``hole``: True
+    requires the wrist / the insertion (BadInput naming the missing columns), False ignores it,
+    None takes it when the result has it."""
     recorded = read_result(result)
     if not len(recorded):
         raise BadInput(f"{result} has no rows")
@@ -98,8 +115,17 @@ def load_recording(result: str | Path, plant: Optional[str] = None) -> Recording
     if f"{plant}.box[3]" in column and f"{plant}.box_width" in column:
         box = (np.column_stack([column[f"{plant}.box[{i}]"] for i in (1, 2, 3)]),
                first("box_width", 0.0), first("box_height", 0.0))
-    return Recording(plant, column["time"], servo, params, tool, surface, force,
-                     column.get(f"{plant}.mode"), box)
+    rec = Recording(plant, column["time"], servo, params, tool, surface, force, column.get(f"{plant}.mode"), box)
+    columns, defaults = Columns(plant, column, settings or {}, str(result)), []
+    if hole and wrist is False:
+        raise BadInput("the hole's close-up draws the peg the wrist holds: drop --no-wrist")
+    if wrist is not False:
+        rec.wrist = load_wrist(columns, lambda: np.array([forward_kinematics(params, q) for q in servo]),
+                               bool(wrist) or bool(hole), defaults)
+    if hole is not False and rec.wrist is not None:
+        rec.hole = load_hole(columns, bool(hole), defaults)
+    rec.defaults = tuple(defaults)
+    return rec
 
 
 def robot_points(params: DeltaParams, servo: Sequence[float],
@@ -123,58 +149,97 @@ def frame_rows(time: np.ndarray, fps: float, speed: float) -> np.ndarray:
 
 def animate_result(result: str | Path, output: str | Path, plant: Optional[str] = None,
                    fps: float = 20.0, speed: float = 1.0, size: float = 8.0,
-                   elevation: float = 12.0, azimuth: float = -60.0) -> Path:
+                   elevation: float = 12.0, azimuth: float = -60.0, settings: Optional[dict] = None,
+                   wrist: Optional[bool] = None, hole: Optional[bool] = None) -> Path:
     """Write an animation of the robot in ``result`` to ``output`` (.gif, or .mp4 with ffmpeg).
 
-    Left: the whole robot in 3D. Right, when the result has a surface: a side view (x-z) of the
-    tool tip and the surface, a few centimetres wide, with the contact force as an arrow.
+    Left: the whole robot in 3D (with its wrist and peg when recorded). Right, when the result has
+    a surface: a side view (x-z) of the tool tip and the surface, a few centimetres wide, with the
+    contact force as an arrow; when it has a hole: the section through the hole and the top view.
+    ``settings``, ``wrist``, ``hole``: as :func:`load_recording`.
     """
-    output = Path(output)
-    suffix = output.suffix.lower()
+    check_output(output, fps, speed, size)
+    rec = load_recording(result, plant, settings, wrist, hole)
+    return write_animation(rec, output, fps, speed, size, elevation, azimuth)
+
+
+def check_output(output: str | Path, fps: float, speed: float, size: float) -> None:
+    """BadInput unless ``output`` is a .gif (or an .mp4 with ffmpeg) and the numbers are > 0."""
+    suffix = Path(output).suffix.lower()
     if suffix not in (".gif", ".mp4"):
         raise BadInput(f"{output}: the animation is written as .gif or .mp4")
     if suffix == ".mp4" and shutil.which("ffmpeg") is None:
         raise BadInput(f"{output}: .mp4 needs ffmpeg on the PATH; write a .gif instead")
     if not (fps > 0 and speed > 0 and size > 0):
         raise BadInput(f"fps ({fps}), speed ({speed}) and size ({size}) must be > 0")
-    rec = load_recording(result, plant)
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def write_animation(rec: Recording, output: str | Path, fps: float = 20.0, speed: float = 1.0, size: float = 8.0,
+                    elevation: float = 12.0, azimuth: float = -60.0) -> Path:
+    """Write the animation of ``rec`` to ``output`` (checked by :func:`check_output`)."""
     from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
 
-    rows = frame_rows(rec.time, fps, speed)
-    wrists = np.array([forward_kinematics(rec.params, rec.servo[row]) for row in rows])
-    close_up = rec.surface is not None
-    fig = plt.figure(figsize=(size, size * (0.5 if close_up else 0.9)))
-    grid = fig.add_gridspec(1, 2 if close_up else 1, width_ratios=(1.5, 1) if close_up else None)
-    robot = _RobotView(fig.add_subplot(grid[0, 0], projection="3d"), rec, elevation, azimuth)
-    side = _SideView(fig.add_subplot(grid[0, 1]), rec, wrists + rec.tool) if close_up else None
-    title = fig.suptitle("", fontsize="medium")
+    output = Path(output)
+    scene = Scene(rec, fps, speed, size, elevation, azimuth)
+    animation = FuncAnimation(scene.figure, scene.draw, frames=len(scene.rows), blit=False)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    writer = PillowWriter(fps=fps) if output.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
+    animation.save(str(output), writer=writer, dpi=80)
+    scene.close()
+    return output
 
-    def draw(k: int):
-        row = rows[k]
+
+class Scene:
+    """The figure of one animation: the robot in 3D and the close-ups the recording calls for
+    (``side``: the surface, ``section`` and ``top``: the hole; None where absent); ``draw(k)``
+    shows frame k (row ``rows[k]`` of the recording)."""
+
+    def __init__(self, rec: Recording, fps: float = 20.0, speed: float = 1.0, size: float = 8.0,
+                 elevation: float = 12.0, azimuth: float = -60.0) -> None:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        self.rec, self.rows = rec, frame_rows(rec.time, fps, speed)
+        self.wrists = np.array([forward_kinematics(rec.params, rec.servo[row]) for row in self.rows])
+        ratios = [1.5] + [1.0] * (rec.surface is not None) + [1.0, 0.7] * (rec.hole is not None)
+        self.figure = fig = plt.figure(figsize=(size, size * {1: 0.9, 2: 0.5}.get(len(ratios), 0.4)))
+        grid = fig.add_gridspec(1, len(ratios), width_ratios=ratios)
+        self.robot = _RobotView(fig.add_subplot(grid[0, 0], projection="3d"), rec, elevation, azimuth)
+        self.side = self.section = self.top = None
+        if rec.surface is not None:
+            self.side = _SideView(fig.add_subplot(grid[0, 1]), rec, self.wrists + rec.tool)
+        if rec.hole is not None:
+            self.section = HoleSectionView(fig.add_subplot(grid[0, len(ratios) - 2]), rec.wrist, rec.hole, self.rows)
+            self.top = HoleTopView(fig.add_subplot(grid[0, len(ratios) - 1]), self.section)
+        # with the hole's close-up the title keeps left, clear of the numbers over the section
+        self.title = fig.suptitle("", fontsize="medium", **({"x": 0.02, "ha": "left"} if self.section else {}))
+        fig.tight_layout()
+
+    def draw(self, k: int) -> list:
+        rec, row = self.rec, self.rows[k]
         touching = rec.force[row] > 0.0 if rec.force is not None else rec.mode is not None and rec.mode[row] > 0
-        artists = robot.draw(rec.servo[row], wrists[k], touching, row)
-        if side is not None:
-            artists += side.draw(k, row)
+        if rec.hole is not None and rec.hole.force is not None:
+            touching = bool(np.any(rec.hole.force[row]))
+        artists = self.robot.draw(rec.servo[row], self.wrists[k], touching, row)
+        for view in (self.section, self.top):
+            if view is not None:
+                artists += view.draw(k, row, self.rows[0])
+        if self.side is not None:
+            artists += self.side.draw(k, row)
         text = f"{rec.plant}   t = {rec.time[row]:.2f} s"
         if rec.force is not None:
             text += f"   contact force {rec.force[row]:.1f} N"
         if rec.mode is not None:
             mode = int(rec.mode[row])
             text += f" ({_MODES[mode] if 0 <= mode < len(_MODES) else mode})"
-        title.set_text(text)
-        return artists + [title]
+        self.title.set_text(text)
+        return artists + [self.title]
 
-    fig.tight_layout()
-    animation = FuncAnimation(fig, draw, frames=len(rows), blit=False)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    writer = PillowWriter(fps=fps) if suffix == ".gif" else FFMpegWriter(fps=fps)
-    animation.save(str(output), writer=writer, dpi=80)
-    plt.close(fig)
-    return output
+    def close(self) -> None:
+        import matplotlib.pyplot as plt
+
+        plt.close(self.figure)
 
 
 class _RobotView:
@@ -183,7 +248,11 @@ class _RobotView:
     def __init__(self, ax, rec: Recording, elevation: float, azimuth: float) -> None:
         self.rec, p = rec, rec.params
         reach = p.l0 + p.l1 + 0.05
-        low = -(p.l1 + p.l2) - max(0.0, -rec.tool[2]) - 0.05
+        hang = max(0.0, -rec.tool[2])
+        if rec.wrist is not None:  # the tip's furthest reach from the plate: mount + wrist centre to tip
+            mount = np.linalg.norm(rec.wrist.centre[0] - forward_kinematics(p, rec.servo[0]))
+            hang = max(hang, mount + float(np.max(np.linalg.norm(rec.wrist.tip - rec.wrist.centre, axis=1))))
+        low = -(p.l1 + p.l2) - hang - 0.05
         ax.set(xlim=(-reach, reach), ylim=(-reach, reach), zlim=(low, 0.1))
         ax.set_box_aspect((2 * reach, 2 * reach, 0.1 - low))
         ax.view_init(elev=elevation, azim=azimuth)
@@ -201,6 +270,7 @@ class _RobotView:
         self.lower = [ax.plot([], [], [], color="tab:orange", lw=1.5)[0] for _ in range(3)]
         self.plate, = ax.plot([], [], [], color="0.2", lw=2)
         self.tool, = ax.plot([], [], [], color="k", lw=3)
+        self.wrist = WristArtists(ax, rec.wrist, rec.hole) if rec.wrist is not None else None
 
     def draw(self, servo: np.ndarray, wrist: np.ndarray, touching: bool, row: int) -> list:
         for line, y in zip(self.boxes, (-0.5, 0.5)):
@@ -212,8 +282,10 @@ class _RobotView:
             down.set_data_3d(*np.array([elbow, joint]).T)
             joints.append(joint)
         self.plate.set_data_3d(*np.array(joints + joints[:1]).T)
-        self.tool.set_data_3d(*np.array([wrist, wrist + self.rec.tool]).T)
         self.tool.set_color("tab:red" if touching else "k")
+        if self.wrist is not None:
+            return [*self.boxes, *self.upper, *self.lower, self.plate, *self.wrist.draw(wrist, row, touching)]
+        self.tool.set_data_3d(*np.array([wrist, wrist + self.rec.tool]).T)
         return [*self.boxes, *self.upper, *self.lower, self.plate, self.tool]
 
 

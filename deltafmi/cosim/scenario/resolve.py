@@ -337,10 +337,9 @@ class _Checker:
             return None
         version = spec.fmi_version or self.scenario.fmi_version or 2
         try:
-            from deltafmi.export import build_cached  # keyed by source + runtime hash (+ FMI version)
-            if version == 3:
-                return build_cached(source, class_name=class_name, fmi_version=3)
-            return build_cached(source, class_name=class_name)
+            from deltafmi.export import build_cached  # keyed by source, resources, runtime hash, FMI version
+            return build_cached(source, class_name=class_name, fmi_version=version,
+                                resources=self.scenario.resource_paths(spec))
         except Exception as exc:  # noqa: BLE001 - a build failure is reported, not raised
             self.error(spec.line, f"component '{spec.name}': building '{spec.source}' failed: {exc}")
             return None

@@ -114,6 +114,9 @@ class ComponentSpec:
     parameters: Tuple[Parameter, ...] = ()
     solver: Dict[str, Any] = field(default_factory=dict)
     step_multiple: int = 1
+    #: files the FMU built from ``source`` carries in its resources/ (as written: relative to the
+    #: scenario's folder, see :meth:`Scenario.resource_paths`)
+    resources: Tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -223,6 +226,10 @@ class Scenario:
         """Folder of the scenario file: relative paths in it are relative to this folder."""
         return self.path.parent
 
+    def resource_paths(self, spec: ComponentSpec) -> List[Path]:
+        """The files of ``spec.resources``, relative ones taken from the scenario's folder."""
+        return [self.directory / name for name in spec.resources]
+
     def component(self, name: str) -> ComponentSpec:
         """The component called ``name`` (KeyError if none)."""
         for spec in self.components:
@@ -295,7 +302,28 @@ def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Di
         if adaptive["min_step"] > adaptive["max_step"]:
             found.append(Diagnostic(file, lines.line(("master", "adaptive", "min_step")),
                                     "master.adaptive.min_step must not exceed max_step"))
-    return found + _live_errors(data, lines, file)
+    return found + _live_errors(data, lines, file) + _resource_errors(data, lines, Path(file))
+
+
+def _resource_errors(data: Dict[str, Any], lines: LineMap, path: Path) -> List[Diagnostic]:
+    """A component's ``resources``: files next to the scenario (or absolute) that exist, and only
+    for a component built from ``source`` (an ``fmu`` carries its own resources)."""
+    found = []
+    components = data.get("components")
+    for name, spec in components.items() if isinstance(components, dict) else ():
+        if not isinstance(spec, dict) or not isinstance(spec.get("resources"), list):
+            continue
+        if "fmu" in spec:
+            found.append(Diagnostic(str(path), lines.key_line(("components", name, "resources")),
+                                    f"component '{name}': resources go into an FMU built from 'source'; "
+                                    "an FMU given by 'fmu' carries its own"))
+            continue
+        for i, item in enumerate(spec["resources"]):
+            if isinstance(item, str) and not (path.parent / item).is_file():
+                found.append(Diagnostic(str(path), lines.line(("components", name, "resources", i)),
+                                        f"component '{name}': resource '{item}' not found (looked in "
+                                        f"{path.parent.resolve()})"))
+    return found
 
 
 def _live_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Diagnostic]:
@@ -367,6 +395,7 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
                              for k, v in (spec.get("parameters") or {}).items()),
             solver={**rtol, **(spec.get("solver") or {})},
             step_multiple=int(spec.get("step_multiple", 1)),
+            resources=tuple(spec.get("resources") or ()),
         )
         for name, spec in data["components"].items())
     connections = tuple(

@@ -6,8 +6,9 @@ double time, double *real, int *ints, double *indicators)`` (a step: ``(void *at
 time, double h, double *real, int *ints)``, an update: ``(void *attributes, double time, double
 *real, int *ints, double *next_event_time)``) that reads the kernel's arguments from the value buffers
 (at the layout's offsets, constants in the C) and from the attributes' struct, calls the kernel
-and writes its result into the buffers only when it succeeded (0; else the line of the ``raise``
-it took: the loader then calls the Python method, which raises with its message).
+and writes its result into the buffers (a projection: the states) only when it succeeded (0;
+else the line of the ``raise`` it took: the loader then calls the Python method, which raises
+with its message). CVODE's projection (``project``) is called by CVODE alone (cvode_rhs.c).
 :func:`component_library` compiles it (cached) for ``deltafmi build``.
 """
 from __future__ import annotations
@@ -21,6 +22,7 @@ from typing import Any, NamedTuple, Optional
 from ...component import Component
 from ...component.native import Kernel
 from ...component.native_kernels import field_name
+from ...component.variables import State
 from ..compiler import BuildError, NoCompilerError, build_into, cache_dir, single_file_library
 from .build import CFLAGS
 from .kernel_types import NONE, B, CodegenError, D, Entry, I, Obj, Opt, S, Tup, Vec, _type_of_hint, describe
@@ -38,7 +40,7 @@ GLIBC_FLOOR = "\n".join(["/* glibc: the oldest versions of what the kernels call
                          *[f'__asm__(".symver {name},{name}@GLIBC_2.2.5");'
                            for name in ("memcpy", "pow", "exp", "log", "exp2", "log2")],
                          "#endif"])
-#: CVODE's right-hand side over the derivatives kernel (Co-Simulation)
+#: CVODE's right-hand side, root and projection functions over the kernels (Co-Simulation)
 CVODE_RHS = Path(__file__).with_name("cvode_rhs.c")
 
 
@@ -68,6 +70,9 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
         return None
     _check_inherited(cls)
     _check_step(cls)
+    if native.project is not None and native.derivatives is None:
+        raise CodegenError(f"{cls.__name__}.native: a project kernel is CVODE's projection, which runs with the "
+                           f"compiled right-hand side: declare the derivatives kernel too")
     attributes = {name: _attribute_type(cls, name, spec) for name, spec in native.attributes.items()}
     entries, glue = [], []
     for role, kernel in native.kernels().items():
@@ -87,8 +92,9 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
     for role, kernel, args in glue:
         parts.append(_glue(cls, role, kernel, args, returns[f"dfk_{role}"], attributes))
     if native.derivatives is not None:
-        indicators = int(native.event_indicators is not None)
-        parts.append(f"#define EXPORT {EXPORT}\n#define DFMI_KERNEL_INDICATORS {indicators}\n{CVODE_RHS.read_text()}")
+        indicators, project = int(native.event_indicators is not None), int(native.project is not None)
+        parts.append(f"#define EXPORT {EXPORT}\n#define DFMI_KERNEL_INDICATORS {indicators}\n"
+                     f"#define DFMI_KERNEL_PROJECT {project}\n{CVODE_RHS.read_text()}")
     description = {"kernels": list(native.kernels()),
                    "attributes": [[name, describe(t)] for name, t in attributes.items()],
                    "updates": list(native.step.updates) if native.step is not None else []}
@@ -97,7 +103,7 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
 
 #: the method each role's kernel stands for
 _METHODS = {"derivatives": "derivatives", "event_indicators": "event_indicators", "outputs": "outputs",
-            "step": "do_step", "update": "update"}
+            "step": "do_step", "update": "update", "project": "project"}
 
 
 def _check_inherited(cls: type[Component]) -> None:
@@ -231,6 +237,14 @@ def _targets(cls: type[Component], role: str, kernel: Kernel) -> list[tuple[str,
             return [(f"indicators[{k}]", True) for k in range(cls.n_event_indicators)]
         return [(f"real[{layout.dx_offset + k}]", True) for k in range(layout.nx)]
     declarations = {d.name: d for d in layout.declarations}
+    if role == "project":
+        if not kernel.returns:
+            return [(f"real[{layout.x_offset + k}]", True) for k in range(layout.nx)]
+        others = [name for name in kernel.returns if not isinstance(declarations.get(name), State)]
+        if others:
+            raise CodegenError(f"{cls.__name__}.native: project returns {', '.join(map(repr, others))}, which "
+                               f"{'is not a state' if len(others) == 1 else 'are not states'}: a projection "
+                               f"changes states only")
     targets = []
     for name in kernel.returns:
         decl = declarations.get(name)

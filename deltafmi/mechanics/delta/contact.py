@@ -24,14 +24,18 @@ from typing import Sequence
 import numpy as np
 
 from ..contact.material import CompliantMaterial
-from ..contact.system import ContactSystem, LagrangianModel, _Evaluation
-from .contact_kernels import ToolPlane, contact_law, indicator_pair, plane_evaluation, plane_outputs
+from ..contact.system import CONTACT, ContactSystem, LagrangianModel, _Evaluation
+from ..friction.law import SEPARATED, SLIP_POSITIVE, STICK, FrictionParams, after_stop
+from ..friction.system import STOP, Transition
+from .contact_kernels import (ToolPlane, contact_law, indicator_pair, plane_evaluation, plane_indicators,
+                              plane_outputs)
+from .tool_friction import FRICTIONLESS, V_REF, ToolFriction, friction_indicator, tangent_basis, tangential_state
 from .dynamics import accelerations, energy, mass_matrix
 from .kinematics import arm_bias, inverse_kinematics, joint_rates, wrist_along
 from .params import ARM_ROTATIONS, DeltaParams
 
-__all__ = ["Plane", "DeltaToolModel", "RobotContactSystem", "ToolPlaneSystem", "make_robot_contact",
-           "robot_start_state"]
+__all__ = ["Plane", "DeltaToolModel", "RobotContactSystem", "ToolPlaneSystem", "check_friction",
+           "make_robot_contact", "robot_start_state"]
 
 
 @dataclass(frozen=True)
@@ -176,33 +180,146 @@ class RobotContactSystem(ContactSystem):
 
 
 class ToolPlaneSystem(RobotContactSystem):
-    """The robot's tool against a plane (:class:`DeltaToolModel`), evaluated by the kernels."""
+    """The robot's tool against a plane (:class:`DeltaToolModel`), evaluated by the kernels, with
+    Coulomb friction (``friction``, a :class:`~deltafmi.mechanics.friction.FrictionParams`; None:
+    frictionless) while the contact is in CONTACT.
+
+    Friction has modes of its own (:attr:`friction_mode`: SEPARATED without a friction force,
+    STICK, SLIP_POSITIVE along the anchored :attr:`axis`), changed at the events of the contact's
+    second indicator (:func:`.tool_friction.friction_indicator`; in CONTACT the normal machine
+    does not use it): entering CONTACT the tool slips along ``v_t`` if it moves, else it is
+    stopped; STICK slips along ``-lambda_t`` once ``|lambda_t| > mu_s lambda_n``; SLIP stops when
+    ``v_t . axis`` reaches 0 with ``|v_t|`` ~ 0 (else the axis turns to ``v_t``); a stopped tool
+    sticks where it stands if the multiplier STICK needs lies in the static cone, else slips
+    against it (:func:`deltafmi.mechanics.friction.law.after_stop`); leaving CONTACT ends friction.
+    Collisions are frictionless (see docs/robot_contact.md). Transitions go to :attr:`log`.
+    """
 
     model: DeltaToolModel
+
+    def __init__(self, model: DeltaToolModel, law, *, friction: FrictionParams | None = None, **kwargs) -> None:
+        super().__init__(model, law, **kwargs)
+        if friction is not None:
+            check_friction(friction)
+        self.friction = friction
+        self.tangents = tangent_basis(model.plane.normal)
+        self.friction_mode = SEPARATED
+        self.axis: tuple[float, float] = (1.0, 0.0)
+        self.anchor: tuple[float, float] = (0.0, 0.0)
+        #: every friction mode change, in order
+        self.log: list[Transition] = []
 
     @property
     def params(self) -> DeltaParams:
         return self.model.params
 
+    def friction_state(self, mode: int | None = None) -> ToolFriction:
+        """The kernels' friction: the current mode (or ``mode``), axis and anchor."""
+        fr = self.friction
+        if fr is None:
+            return FRICTIONLESS
+        t1, t2 = self.tangents
+        return ToolFriction(self.friction_mode if mode is None else int(mode), float(fr.mu_s), float(fr.mu_k),
+                            float(fr.c_v), t1, t2, self.axis, self.anchor)
+
     def kernel_state(self, modes: Sequence[int] | None = None) -> ToolPlane:
         model = self.model
         return ToolPlane(model.plane.normal, model._offset, model.tool, model.pole,
-                         contact_law(self, 0, (self.modes if modes is None else modes)[0]))
+                         contact_law(self, 0, (self.modes if modes is None else modes)[0]), self.friction_state())
 
     def kernel_evaluation(self, x: np.ndarray, state: ToolPlane) -> tuple:
-        h, hdot, lam, vdot, _, _ = plane_evaluation(self.params, state, x, self.model.u, self.model.f)
+        h, hdot, lam, vdot, _, _, _ = plane_evaluation(self.params, state, x, self.model.u, self.model.f)
         return [h], [hdot], [lam], vdot
+
+    def event_indicators(self, t: float, x: np.ndarray) -> np.ndarray:
+        """The kernels' two indicators (the second is the friction mode's in CONTACT)."""
+        return np.array(plane_indicators(self.params, self.kernel_state(), x, self.model.u, self.model.f))
 
     def energy(self, x: np.ndarray) -> float:
         """Kinetic + potential + elastic energy (J), as the kernels' outputs."""
         return plane_outputs(self.params, self.kernel_state(), x, self.model.u, self.model.f)[7]
 
+    # --- friction modes ----------------------------------------------------------------------
+    def initialize(self, t: float, x: np.ndarray) -> None:
+        self.friction_mode = SEPARATED
+        super().initialize(t, x)
+
+    def update(self, t: float, x: np.ndarray) -> tuple[None, bool]:
+        """The normal machine's event iteration, then the friction mode's, until both settle."""
+        x = np.asarray(x, float)
+        changed_any = False
+        for _ in range(8):
+            _, changed = super().update(t, x)
+            moved = self._friction_transition(t, x)
+            changed_any = changed_any or changed or moved
+            if not moved:
+                break
+        self._cache_key = None
+        return None, changed_any
+
+    def _tangential(self, x: np.ndarray, mode: int | None = None) -> tuple[float, tuple, ToolFriction]:
+        """(lambda_n, (lambda_t1, lambda_t2, v_t1, v_t2), friction) at ``x`` with the friction ``mode``."""
+        state = self.kernel_state()._replace(friction=self.friction_state(mode))
+        _, _, lam, _, _, _, tangential = plane_evaluation(self.params, state, x, self.model.u, self.model.f)
+        return lam, tangential, state.friction
+
+    def _friction_transition(self, t: float, x: np.ndarray) -> bool:
+        """One friction change due at ``x`` (True), or none (False)."""
+        if self.friction is None or (self.modes[0] != CONTACT and self.friction_mode == SEPARATED):
+            return False
+        if self.modes[0] != CONTACT:
+            return self._set_friction(t, SEPARATED)
+        if self.friction_mode == SEPARATED:  # just captured: moving, or stopped
+            _, tangential, _ = self._tangential(x, SLIP_POSITIVE)
+            v_t = np.array(tangential[2:])
+            speed = float(np.linalg.norm(v_t))
+            return self._set_friction(t, SLIP_POSITIVE, v_t / speed) if speed > STOP * V_REF else self._stop(t, x)
+        lam_n, tangential, state = self._tangential(x)
+        if friction_indicator(state, lam_n, tangential) > 0.0:
+            return False
+        if self.friction_mode == STICK:
+            lam_t = np.array(tangential[:2])
+            return self._set_friction(t, SLIP_POSITIVE, -lam_t / float(np.linalg.norm(lam_t)))
+        v_t = np.array(tangential[2:])
+        speed = float(np.linalg.norm(v_t))
+        if speed > STOP * V_REF:  # the velocity turned past 90 deg from the axis: re-anchor
+            return self._set_friction(t, SLIP_POSITIVE, v_t / speed)
+        return self._stop(t, x)
+
+    def _stop(self, t: float, x: np.ndarray) -> bool:
+        """The tool at ``v_t = 0``: STICK where it stands if the multiplier STICK needs is inside
+        the static cone, else slip against that multiplier."""
+        xl = np.asarray(x, float).tolist()
+        self.anchor = tangential_state(self.params, self.friction_state(), xl[:9], xl[9:])[0]
+        lam_n, tangential, _ = self._tangential(x, STICK)
+        axis = after_stop(np.array(tangential[:2]), lam_n, self.friction)
+        return self._set_friction(t, STICK) if axis is None else self._set_friction(t, SLIP_POSITIVE, axis)
+
+    def _set_friction(self, t: float, mode: int, axis: np.ndarray | None = None) -> bool:
+        if axis is not None:
+            self.axis = (float(axis[0]), float(axis[1]))
+        if mode != self.friction_mode:
+            self.log.append(Transition(t, 0, int(self.friction_mode), int(mode)))
+            self.friction_mode = int(mode)
+        return True
+
+
+def check_friction(friction: FrictionParams) -> None:
+    """Refuse friction coefficients no contact can have (a one-line ValueError naming them)."""
+    mu_s, mu_k, c_v = (float(v) for v in friction)
+    if not (mu_s >= 0.0 and mu_k >= 0.0 and c_v >= 0.0):
+        raise ValueError(f"friction coefficients must be >= 0, got mu_s = {mu_s:g}, mu_k = {mu_k:g}, viscous = {c_v:g}")
+    if mu_k > mu_s:
+        raise ValueError(f"friction: the kinetic coefficient mu_k = {mu_k:g} exceeds the static mu_s = {mu_s:g}")
+
 
 def make_robot_contact(params: DeltaParams, plane: Plane, material: CompliantMaterial,
                        tool: Sequence[float] = (0.0, 0.0, -0.1), pole: float = 5.0,
-                       capture_speed: float = 0.05) -> ToolPlaneSystem:
-    """The robot-on-a-plane contact system (state ``[q, v]``, 18 values, one gap)."""
-    return ToolPlaneSystem(DeltaToolModel(params, plane, tool, pole), material, capture_speed=capture_speed)
+                       capture_speed: float = 0.05, friction: FrictionParams | None = None) -> ToolPlaneSystem:
+    """The robot-on-a-plane contact system (state ``[q, v]``, 18 values, one gap), with Coulomb
+    friction in CONTACT if ``friction`` is given."""
+    return ToolPlaneSystem(DeltaToolModel(params, plane, tool, pole), material, capture_speed=capture_speed,
+                           friction=friction)
 
 
 def robot_start_state(params: DeltaParams, z0: Sequence[float],

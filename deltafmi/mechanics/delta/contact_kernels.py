@@ -8,7 +8,8 @@ deltafmi/export/codegen/translate.py), for the tool against a plane (:class:`Too
 one contact) and the tool, a box and the table (:class:`BoxTable`, 24 states, six contacts):
 
 * ``*_derivatives``: ``x' = [v, v']`` with each contact's force in its mode acting on the wrist
-  (through the robot's closed-loop DAE, :func:`.dynamics._evaluate`) and on the box;
+  (through the robot's closed-loop DAE, :func:`.dynamics._evaluate`) and on the box; the tool on
+  the plane also carries Coulomb friction in CONTACT (STICK / SLIP, :mod:`.tool_friction`);
 * ``*_indicators``: the machine's event indicators (as ``ContactSystem._indicator_pair``);
 * ``*_outputs``: the components' outputs from the same evaluation.
 
@@ -25,9 +26,11 @@ from typing import Any, NamedTuple, Sequence
 
 from ..contact.law_kernels import LawConstants, law_acceleration, law_constants, law_end_indicator, law_potential
 from ..contact.system import COLLISION, CONTACT, EPS, FREE
+from ..friction.law import SEPARATED
 from .dynamics import F3, _as_list, _evaluate, _wrist
 from .kinematics import wrist_along
 from .params import DeltaParams
+from .tool_friction import ToolFriction, friction_evaluation, friction_indicator, world_force
 
 __all__ = ["ContactLaw", "ToolPlane", "BoxTable", "contact_law", "contact_force", "indicator_pair",
            "plane_evaluation", "plane_derivatives", "plane_indicators", "plane_outputs",
@@ -98,11 +101,13 @@ class ToolPlane(NamedTuple):
     tool: F3  #: tool tip relative to the plate centre (m)
     pole: float  #: Baumgarte pole of the loop closures (1/s)
     law: ContactLaw
+    friction: ToolFriction  #: friction in CONTACT (:mod:`.tool_friction`); FRICTIONLESS: none
 
 
 def plane_evaluation(p: DeltaParams, c: ToolPlane, x: Sequence[float], u: Sequence[float],
                      f: Sequence[float]) -> tuple:
-    """One evaluation at ``x = [q, v]``: (gap, its rate, contact force, v', loop forces, arms)."""
+    """One evaluation at ``x = [q, v]``: (gap, its rate, contact force, v', loop forces, arms,
+    (lambda_t1, lambda_t2, v_t1, v_t2) the tangential force and velocity, zero without friction)."""
     xl = _as_list(x)
     ql, vl = xl[:9], xl[9:]
     fl = _as_list(f)
@@ -114,37 +119,46 @@ def plane_evaluation(p: DeltaParams, c: ToolPlane, x: Sequence[float], u: Sequen
     lam = contact_force(c.law, h, hdot)
     n = c.normal
     wrist = (fl[0] + n[0] * lam, fl[1] + n[1] * lam, fl[2] + n[2] * lam)
-    vdot, loops, arms = _evaluate(p, ql, vl, u, wrist, c.pole)
-    return h, hdot, lam, vdot, loops, arms
+    if c.law.mode == CONTACT and c.friction.mode != SEPARATED:
+        vdot, loops, arms, tangential = friction_evaluation(p, c.friction, ql, vl, u, wrist, c.pole, lam)
+    else:
+        vdot, loops, arms = _evaluate(p, ql, vl, u, wrist, c.pole)
+        tangential = (0.0, 0.0, 0.0, 0.0)
+    return h, hdot, lam, vdot, loops, arms, tangential
 
 
 def plane_derivatives(p: DeltaParams, c: ToolPlane, x: Sequence[float], u: Sequence[float],
                       f: Sequence[float]) -> list[float]:
     """``x' = [v, v']`` (18 values)."""
-    _, _, _, vdot, _, _ = plane_evaluation(p, c, x, u, f)
+    _, _, _, vdot, _, _, _ = plane_evaluation(p, c, x, u, f)
     xl = _as_list(x)
     return xl[9:] + vdot
 
 
 def plane_indicators(p: DeltaParams, c: ToolPlane, x: Sequence[float], u: Sequence[float],
                      f: Sequence[float]) -> tuple[float, float]:
-    """The contact's two event indicators."""
-    h, hdot, _, _, _, _ = plane_evaluation(p, c, x, u, f)
-    return indicator_pair(c.law, h, hdot)
+    """The contact's two event indicators; in CONTACT with friction the second (unused by the
+    normal machine there) is the friction mode's (:func:`.tool_friction.friction_indicator`)."""
+    h, hdot, lam, _, _, _, tangential = plane_evaluation(p, c, x, u, f)
+    z = indicator_pair(c.law, h, hdot)
+    if c.law.mode == CONTACT and c.friction.mode != SEPARATED:
+        return z[0], friction_indicator(c.friction, lam, tangential)
+    return z
 
 
 def plane_outputs(p: DeltaParams, c: ToolPlane, x: Sequence[float], u: Sequence[float],
                   f: Sequence[float]) -> tuple:
     """DeltaRobotContact's outputs: servo angles and rates, wrist position and velocity, tool tip,
-    loop forces, loop residual, energy (kinetic + potential + elastic), the plane's force on the
-    tool (world), its magnitude, the gap and the penetration."""
-    h, _, lam, _, loops, arms = plane_evaluation(p, c, x, u, f)
+    loop forces, loop residual, energy (kinetic + potential + elastic), the plane's normal force on
+    the tool (world), its magnitude, the gap, the penetration and the friction force (world)."""
+    h, _, lam, _, loops, arms, tangential = plane_evaluation(p, c, x, u, f)
     xl = _as_list(x)
     z, zd, residual, energy = _wrist(arms)
     tip = (z[0] + c.tool[0], z[1] + c.tool[1], z[2] + c.tool[2])
     n = c.normal
     return ((xl[0], xl[3], xl[6]), (xl[9], xl[12], xl[15]), z, zd, tip, loops, residual,
-            energy + _elastic(c.law, h), (lam * n[0], lam * n[1], lam * n[2]), lam, h, max(-h, 0.0))
+            energy + _elastic(c.law, h), (lam * n[0], lam * n[1], lam * n[2]), lam, h, max(-h, 0.0),
+            world_force(c.friction, tangential))
 
 
 # ------------------------------------------------------------------- the tool, a box and a table

@@ -453,6 +453,15 @@ def _arm_linearization(a: float, b: float, beta: float, cr: float, sr: float, l0
              h20 * v1 + h21 * v2 + h22 * v3), W, Y)
 
 
+def _arms_linearization(a: float, b: float, beta: float, l0l3: float, l1: float, l2: float, ql: list[float],
+                        vl: list[float]) -> tuple[tuple[F6, F6, F9], tuple[F6, F6, F9], tuple[F6, F6, F9]]:
+    """_arm_linearization of the three arms at the joint angles and rates ql, vl (arm-major)."""
+    (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
+    return (_arm_linearization(a, b, beta, cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2], vl[0], vl[1], vl[2]),
+            _arm_linearization(a, b, beta, cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5], vl[3], vl[4], vl[5]),
+            _arm_linearization(a, b, beta, cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8], vl[6], vl[7], vl[8]))
+
+
 def _loop_residuals(arm1: F6, arm2: F6, arm3: F6) -> tuple[F6, F6]:
     """h(q) and H(q) v (6 floats each: arm 1 - arm 2, then arm 1 - arm 3) from the three arms'
     world wrist points and velocities (6 floats each, as _arm_wrist)."""
@@ -495,7 +504,8 @@ def loop_residual(p: DeltaParams, q: ArrayLike) -> float:
 
 def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, *, tol: float = 1e-13,
                            max_iterations: int = 8) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest (q, v) on the constraint manifold h(q) = 0, H(q) v = 0 in the mass-matrix metric.
+    """Nearest (q, v) on the constraint manifold h(q) = 0, H(q) v = 0 in the mass-matrix metric
+    (:func:`project_state` as arrays).
 
     Gauss-Newton steps dq = -M^-1 H^T S^-1 h with S = H M^-1 H^T (the correction of least
     M-norm) until |h(q)| <= tol. Each step also takes dv = -M^-1 H^T S^-1 H v, the velocity
@@ -522,23 +532,32 @@ def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, *, tol: f
     Raises:
         ArithmeticError: H lost rank (a direct-kinematic singularity).
     """
+    ql, vl = _project(p, q, v, tol, max_iterations)
+    return np.array(ql), np.array(vl)
+
+
+def project_state(p: DeltaParams, q: ArrayLike, v: ArrayLike) -> tuple[list[float], list[float]]:
+    """:func:`project_to_constraints` with its default tolerance as a float kernel: (q, v) on the
+    closed loops as two lists of nine floats. The FMUs compile it (their Co-Simulation CVODE's
+    projection, in C)."""
+    return _project(p, q, v, 1e-13, 8)
+
+
+def _project(p: DeltaParams, q: ArrayLike, v: ArrayLike, tol: float,
+             max_iterations: int) -> tuple[list[float], list[float]]:
+    # the iteration ends on sqrt(sum h_k^2), not math.hypot: CPython's own algorithm, which the
+    # C translation cannot reproduce to the bit
     a, b, beta, _, _ = _constants(p)
     l0l3, l1, l2 = p.l0 - p.l3, p.l1, p.l2
-    (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
     ql, vl = _as_list(q), _as_list(v)
     for _ in range(max_iterations):
-        w1, W1, Y1 = _arm_linearization(a, b, beta, cA, sA, l0l3, l1, l2, ql[0], ql[1], ql[2],
-                                        vl[0], vl[1], vl[2])
-        w2, W2, Y2 = _arm_linearization(a, b, beta, cB, sB, l0l3, l1, l2, ql[3], ql[4], ql[5],
-                                        vl[3], vl[4], vl[5])
-        w3, W3, Y3 = _arm_linearization(a, b, beta, cC, sC, l0l3, l1, l2, ql[6], ql[7], ql[8],
-                                        vl[6], vl[7], vl[8])
+        (w1, W1, Y1), (w2, W2, Y2), (w3, W3, Y3) = _arms_linearization(a, b, beta, l0l3, l1, l2, ql, vl)
         h, Hv = _loop_residuals(w1, w2, w3)
         factors = _schur_factor(W1, W2, W3)
         ql = _subtract_response(ql, Y1, Y2, Y3, _schur_solve(factors, h))
         vl = _subtract_response(vl, Y1, Y2, Y3, _schur_solve(factors, Hv))
         h, Hv = _closure(l0l3, l1, l2, ql, vl)
-        if math.hypot(*h) <= tol:
+        if math.sqrt(sum(t * t for t in h)) <= tol:
             break
     vl = _subtract_response(vl, Y1, Y2, Y3, _schur_solve(factors, Hv))
-    return np.array(ql), np.array(vl)
+    return ql, vl

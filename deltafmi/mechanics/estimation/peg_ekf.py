@@ -1,0 +1,230 @@
+"""An extended Kalman filter of the peg's contact wrench and of the hole's position and tilt, for the
+delta robot with its spherical wrist (DeltaWristPeg), from joint angles and motor torques only.
+
+Measured: the servo angles y (3, noise y_std) and the wrist angles qw (3, noise qw_std); known
+inputs: the servo torques u and the wrist torques tau, held over each sample period. Estimated,
+22 states X = [s (12), W (6), h (4)]:
+
+- s = [z, qw, zd, vw]: the plant's six independent coordinates and their rates, process model
+  the plant's DAE (:mod:`.wrist_process`), with white acceleration noise for the model's errors
+  (acceleration_std on the plate, angular_acceleration_std on the wrist joints);
+- W = [F, M]: the contact wrench on the peg, force at the tool tip and moment about it, world
+  frame (the resultant of the contact multipliers; the plant's contact_force, contact_moment),
+  a random walk (force_rate_std, moment_rate_std);
+- h = [x, y, tilt_x, tilt_y]: the hole (:mod:`.peg_contact`), constants with a prior
+  (the nominal hole, hole_std0, tilt_std0).
+
+The hole is tied in by the contact law as a pseudo-measurement, as :mod:`.contact_ekf` ties the
+surface height, applied while the filter believes the peg touches (|F| > contact_threshold for
+contact_samples samples in a row):
+
+    0 = W - c(h, s)   (6 rows, noise contact_force_std, contact_moment_std: the law's errors).
+
+This update corrects h only (a Schmidt-Kalman "consider" update, :func:`.kalman.joseph_update`):
+W and s enter its innovation covariance but keep the values the dynamics gave them. Why: the
+wrench is to come from the joint angles and torques, and a contact law evaluated at a hole
+still wrong (its tilt unknown at first) would otherwise bend it (measured: 3 N of error in the
+bore when the law corrected W too, 0.003 N when it does not).
+
+The law is applied only while it is consistent with the estimate: its normalised innovation
+r^T S^-1 r (chi-square with 6 degrees of freedom for a right model) at most contact_gate
+(22.46: the 0.999 quantile). It is not at an impact, where the wrench's random walk lags the
+truth by newtons, and the hole would be moved to explain a wrench the peg does not feel.
+Where c(h, s) has no contact while the robot feels one and h is still about as uncertain as its
+prior (standard deviation above half of hole_std0), the estimate of h is first moved to where the
+law explains the felt wrench (:func:`.peg_contact.locate_hole`); the updates then refine it.
+A contact constrains h along its normals only: in a bore with clearance, the hole's position
+across the contact normal stays at what the chamfer told (its standard deviation says so).
+
+Cycle per sample t_k (:meth:`PegEKF.step`), as ContactEKF: predict from t_(k-1) with the torques
+held since then, update with y(t_k), qw(t_k), then the gated contact update. Cost (measured on
+the shared 2-core box, plain Python): 3.6 to 5.7 ms a sample over peg_estimation.yaml, of which
+the process Jacobian 2.0 ms (23 evaluations of the plant's accelerations), the Runge-Kutta step
+0.6 ms, a contact update 3 ms (17 contact-law evaluations); with delta_wrist.dynamics and
+wrist.kernels compiled by mypyc the plant's derivative drops from 53 to 15 us and a sample to
+about 3 ms: numpy's small-matrix calls (Jv, D, dq/dz) then dominate.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from ..delta.kinematics import forward_kinematics, inverse_kinematics
+from ..delta.params import DeltaParams
+from ..delta_wrist.params import WristMount
+from ..peg.params import Hole, Peg, PegContact
+from ..wrist.kernels import WristConstants
+from .delta_process import tangent_basis
+from .kalman import joseph_update, transition_matrix, white_acceleration_noise
+from .peg_contact import HOLE_STATES, locate_hole, wrench_jacobian
+from .wrist_process import N_REDUCED, process_jacobian, propagate, tool_pose
+
+__all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES"]
+
+_S, _W, _H = slice(0, 12), slice(12, 18), slice(18, 22)
+N_STATES = N_REDUCED + 6 + HOLE_STATES
+_SERVOS = [0, 3, 6]
+
+
+@dataclass(frozen=True)
+class PegEKFSettings:
+    """Noise levels, priors and the contact gate of :class:`PegEKF` (SI units)."""
+
+    sample_period: float = 1e-3  #: s
+    y_std: float = 1e-6  #: servo-angle noise (rad)
+    qw_std: float = 1e-6  #: wrist-angle noise (rad)
+    acceleration_std: float = 0.01  #: white plate-acceleration noise (m/s^2/sqrt(Hz))
+    angular_acceleration_std: float = 0.5  #: white wrist-joint acceleration noise (rad/s^2/sqrt(Hz))
+    force_rate_std: float = 30.0  #: random walk of the contact force (N/s/sqrt(Hz))
+    moment_rate_std: float = 2.0  #: random walk of the contact moment (N m/s/sqrt(Hz))
+    position_std0: float = 1e-5  #: initial plate position (m) about forward kinematics of y0
+    angle_std0: float = 1e-5  #: initial wrist angles (rad) about qw0
+    velocity_std0: float = 0.01  #: initial plate velocity (m/s) about rest
+    rate_std0: float = 0.01  #: initial wrist rates (rad/s) about rest
+    force_std0: float = 1.0  #: initial contact force (N) about zero
+    moment_std0: float = 0.05  #: initial contact moment (N m) about zero
+    hole_std0: float = 0.002  #: prior hole position x, y (m) about the nominal hole
+    tilt_std0: float = 0.02  #: prior hole tilt (rad) about the nominal tilt
+    contact_force_std: float = 0.05  #: contact-law pseudo-measurement noise, force (N)
+    contact_moment_std: float = 0.005  #: contact-law pseudo-measurement noise, moment (N m)
+    contact_threshold: float = 0.2  #: estimated contact force above which the peg touches (N)
+    contact_samples: int = 5  #: samples in a row above contact_threshold before the law applies
+    contact_gate: float = 22.46  #: largest normalised innovation r^T S^-1 r of an applied contact update
+    pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
+    substeps: int = 1  #: Runge-Kutta steps per sample period
+
+    def __post_init__(self) -> None:
+        for name in ("sample_period", "y_std", "qw_std", "position_std0", "angle_std0", "velocity_std0", "rate_std0",
+                     "force_std0", "moment_std0", "hole_std0", "tilt_std0", "contact_force_std",
+                     "contact_moment_std"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
+        for name in ("acceleration_std", "angular_acceleration_std", "force_rate_std", "moment_rate_std",
+                     "contact_threshold", "contact_gate", "pole"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
+        for name in ("substeps", "contact_samples"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
+
+
+class PegEstimate(NamedTuple):
+    """The filter's estimate with one standard deviation per quantity (SI units, world frame)."""
+
+    tip: np.ndarray  #: tool tip position (3,)
+    force: np.ndarray  #: contact force on the peg at the tip (3,)
+    moment: np.ndarray  #: contact moment about the tip (3,)
+    hole: np.ndarray  #: hole x, y (m), tilt_x, tilt_y (rad)
+    force_std: np.ndarray
+    moment_std: np.ndarray
+    hole_std: np.ndarray
+    in_contact: bool  #: the contact-law pseudo-measurement was applied at the last update
+
+
+class PegEKF:
+    """Extended Kalman filter of the peg's contact wrench and the hole (module docstring).
+
+    Args:
+        p, w, m: the robot, wrist and mount as the estimator models them.
+        hole: the nominal hole (position and tilt: the prior's mean; the rest: the geometry).
+        peg, law: the peg and the contact law as the estimator models them.
+        settings: noise levels, priors, contact gate.
+        y0, qw0: the first servo and wrist angles (rad); the filter starts there, at rest.
+    """
+
+    def __init__(self, p: DeltaParams, w: WristConstants, m: WristMount, hole: Hole, peg: Peg, law: PegContact,
+                 settings: PegEKFSettings, y0: Sequence[float], qw0: Sequence[float]) -> None:
+        self.p, self.w, self.m, self.hole, self.peg, self.law, self.settings = p, w, m, hole, peg, law, settings
+        st = settings
+        self.x = np.zeros(N_STATES)
+        self.x[0:3], self.x[3:6] = forward_kinematics(p, y0), np.asarray(qw0, float)
+        self.x[_H] = hole.x, hole.y, hole.tilt_x, hole.tilt_y
+        std = ([st.position_std0] * 3 + [st.angle_std0] * 3 + [st.velocity_std0] * 3 + [st.rate_std0] * 3
+               + [st.force_std0] * 3 + [st.moment_std0] * 3 + [st.hole_std0] * 2 + [st.tilt_std0] * 2)
+        self.P = np.diag(np.square(std))
+        self.in_contact = False
+        self.consistency = 0.0  #: r^T S^-1 r of the last contact update (module docstring)
+        self._touching = 0  # samples in a row with |F| above contact_threshold
+        self._inputs: tuple[list, list] | None = None  # torques held since the last sample
+        self._R = np.diag([st.y_std ** 2] * 3 + [st.qw_std ** 2] * 3)
+        self._Rc = np.diag([st.contact_force_std ** 2] * 3 + [st.contact_moment_std ** 2] * 3)
+        T = st.sample_period
+        W = white_acceleration_noise(T)
+        Q = np.zeros((N_STATES, N_STATES))
+        for i, a in enumerate([st.acceleration_std] * 3 + [st.angular_acceleration_std] * 3):
+            Q[np.ix_([i, i + 6], [i, i + 6])] = a * a * W
+        Q[_W, _W] = np.diag([st.force_rate_std ** 2] * 3 + [st.moment_rate_std ** 2] * 3) * T
+        self._Q = Q
+
+    # --------------------------------------------------------------------------------- cycle
+    def step(self, y: Sequence[float], qw: Sequence[float], u: Sequence[float], tau: Sequence[float]) -> PegEstimate:
+        """One sample t_k: predict with the torques held since t_(k-1) (none at the first sample),
+        update with y and qw (rad) at t_k; u and tau (N m) are held from now on."""
+        if self._inputs is not None:
+            self.predict(*self._inputs)
+        self.update(y, qw)
+        self._inputs = ([float(v) for v in u], [float(v) for v in tau])
+        return self.estimate()
+
+    def predict(self, u: Sequence[float], tau: Sequence[float]) -> None:
+        """Propagate the state over one sample period with u and tau held, the covariance with it."""
+        st = self.settings
+        s, W = self.x[_S], self.x[_W]
+        A = np.zeros((18, 18))
+        A[:12] = process_jacobian(self.p, self.w, self.m, s, u, tau, W, st.pole)
+        Phi = np.eye(N_STATES)
+        Phi[:18, :18] = transition_matrix(A, st.sample_period)
+        self.x[_S] = propagate(self.p, self.w, self.m, s, u, tau, W, st.sample_period, st.pole, st.substeps)
+        P = Phi @ self.P @ Phi.T + self._Q
+        self.P = 0.5 * (P + P.T)
+
+    def update(self, y: Sequence[float], qw: Sequence[float]) -> None:
+        """Measurement update with the joint angles, then the gated contact-law update."""
+        q = inverse_kinematics(self.p, self.x[0:3])
+        H = np.zeros((6, N_STATES))
+        H[0:3, 0:3] = tangent_basis(self.p, q)[_SERVOS]
+        H[3:6, 3:6] = np.eye(3)
+        residual = np.concatenate([np.asarray(y, float) - q[_SERVOS], np.asarray(qw, float) - self.x[3:6]])
+        self._correct(H, residual, self._R)
+        touching = float(np.linalg.norm(self.x[12:15])) > self.settings.contact_threshold
+        self._touching = self._touching + 1 if touching else 0
+        self.in_contact = self._touching >= self.settings.contact_samples
+        if self.in_contact:
+            self._contact_update()
+
+    # ------------------------------------------------------------------------------ outputs
+    def estimate(self) -> PegEstimate:
+        """The current estimate and its standard deviations."""
+        std = np.sqrt(np.maximum(np.diag(self.P), 0.0))
+        tip = np.array(tool_pose(self.w, self.m, self.x[_S])[0])
+        return PegEstimate(tip, self.x[12:15].copy(), self.x[15:18].copy(), self.x[_H].copy(), std[12:15],
+                           std[15:18], std[_H], self.in_contact)
+
+    # ------------------------------------------------------------------------------ helpers
+    def _contact_update(self) -> None:
+        args = (self.hole, self.peg, self.law, self.w, self.m)
+        c, J, active = wrench_jacobian(*args, self.x[_S], self.x[_H])
+        unplaced = float(np.sqrt(self.P[18:20, 18:20].diagonal()).max()) > 0.5 * self.settings.hole_std0
+        if not active > 0.0 and unplaced:
+            weights = np.sqrt(np.diag(self._Rc))
+            found = locate_hole(*args, self.x[_S], self.x[_H], self.x[_W], weights)
+            if found is None:
+                return
+            self.x[_H] = found
+            c, J, active = wrench_jacobian(*args, self.x[_S], self.x[_H])
+        H = np.zeros((6, N_STATES))
+        H[:, _W] = np.eye(6)
+        H[:, _S] = -J[:, :N_REDUCED]
+        H[:, _H] = -J[:, N_REDUCED:]
+        residual = c - self.x[_W]
+        S = H @ self.P @ H.T + self._Rc
+        self.consistency = float(residual @ np.linalg.solve(S, residual))
+        if self.consistency <= self.settings.contact_gate:
+            self._correct(H, residual, self._Rc, _H)
+
+    def _correct(self, H: np.ndarray, residual: np.ndarray, R: np.ndarray, updated: slice | None = None) -> None:
+        dx, self.P = joseph_update(self.P, H, residual, R, updated)
+        self.x += dx
+

@@ -1,0 +1,158 @@
+"""The peg estimator's mechanics (deltafmi.mechanics.estimation: wrist_process, peg_contact, peg_ekf):
+the reduced process model against the plant's 24-state DAE integrated by solve_ivp (DOP853,
+rtol 1e-11), its wrench columns by linearity, the hole locator against a contact in closed form,
+the Schmidt update against the scalar formulas, and the filter finding a known wrench on the
+moving robot from its simulated joint angles and the torques alone."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from deltafmi.mechanics import delta_wrist as dw
+from deltafmi.mechanics.delta.kinematics import forward_kinematics, wrist_position
+from deltafmi.mechanics.delta.params import RL5
+from deltafmi.mechanics.estimation.kalman import joseph_update
+from deltafmi.mechanics.estimation.peg_contact import contact_wrench, locate_hole
+from deltafmi.mechanics.estimation.peg_ekf import PegEKF, PegEKFSettings
+from deltafmi.mechanics.estimation.wrist_process import derivative, full_state, process_jacobian, propagate, tool_pose
+from deltafmi.mechanics.peg import Hole, Peg, PegContact, peg_wrench
+from deltafmi.mechanics.peg.plant import tool_pose as plant_tool_pose
+from deltafmi.mechanics.wrist.kernels import tip_position, wrist_constants
+
+W_CONST = wrist_constants(dw.wrist_params((3e-4, 2e-4, 1e-4), dw.peg_tool(0.25, 0.1, 0.01, 0.13), 9.81, 0.0))
+MOUNT = dw.MOUNT
+T = 1e-3
+#: a moving state: plate at (0.02, -0.01, -1.0) m, wrist tilted, rates of a typical insertion
+S0 = np.array([0.02, -0.01, -1.0, 0.05, -0.1, 0.08, 0.03, -0.02, 0.05, 0.2, -0.1, 0.3])
+WRENCH = np.array([1.0, -0.5, 2.0, 0.002, -0.001, 0.0005])  # N at the tip, N m about it
+
+
+def inputs(s):
+    """The torques holding the plant still at s's pose, slightly off (N m)."""
+    x, _ = full_state(RL5, s)
+    u, tau = dw.holding_torques(RL5, W_CONST, x)
+    return u + np.array([3.0, -2.0, 1.0]), tau + np.array([0.01, -0.02, 0.005])
+
+
+def dae_run(s, u, tau, W, times):
+    """The plant's 24-state DAE (delta_wrist.state_derivative) by DOP853 from the full state of s."""
+    x0, _ = full_state(RL5, s)
+    sol = solve_ivp(lambda t, x: dw.state_derivative(RL5, W_CONST, MOUNT, x, list(u), list(tau), list(W[:3]),
+                                                     list(W[3:]), 5.0),
+                    (times[0], times[-1]), x0, method="DOP853", rtol=1e-11, atol=1e-13, t_eval=times)
+    return sol.y.T
+
+
+def test_full_state_and_tool_pose_are_the_plants():
+    """The reduced state's full state lies on the loops (wrist_position = z to 1e-12 m) and its tool
+    pose is the plant's own (peg.plant.tool_pose of the full state, to 1e-12)."""
+    x, _ = full_state(RL5, S0)
+    np.testing.assert_allclose(wrist_position(RL5, x[:9]), S0[:3], atol=1e-12)
+    for mine, plants in zip(tool_pose(W_CONST, MOUNT, S0), plant_tool_pose(RL5, W_CONST, MOUNT, x)):
+        np.testing.assert_allclose(mine, plants, atol=1e-12)
+
+
+def test_reduced_model_follows_the_24_state_dae():
+    """20 samples of propagate (RK4 at 1 ms) against the DAE by DOP853 (rtol 1e-11): plate and wrist
+    positions to 1e-10 m / rad, rates to 1e-8. RK4's global error is ~ T^4 |x^(5)| t ~ 1e-12 x 10 x
+    0.02 here; the bounds leave room for the DAE's Baumgarte drift (|h| ~ 1e-12 m)."""
+    u, tau = inputs(S0)
+    times = np.arange(21) * T
+    truth = dae_run(S0, u, tau, WRENCH, times)[-1]
+    s = S0.copy()
+    for _ in range(20):
+        s = propagate(RL5, W_CONST, MOUNT, s, u, tau, WRENCH, T)
+    np.testing.assert_allclose(s[:3], wrist_position(RL5, truth[:9]), atol=1e-10)
+    np.testing.assert_allclose(s[3:6], truth[9:12], atol=1e-10)
+    x_end, _ = full_state(RL5, s)
+    np.testing.assert_allclose(s[9:12], truth[21:24], atol=1e-8)
+    np.testing.assert_allclose(x_end[12:21], truth[12:21], atol=1e-8)
+
+
+def test_process_jacobian_wrench_columns_are_exact_and_state_columns_match_central_differences():
+    """Accelerations are affine in the wrench: a(W) - a(0) = G W to round-off (1e-9 of |a|); the
+    forward-difference state columns against central differences of step 1e-5 (the two differ by
+    O(step) ~ 1e-5 relative: bound 1e-3 of the column scale)."""
+    u, tau = inputs(S0)
+    J = process_jacobian(RL5, W_CONST, MOUNT, S0, u, tau, np.zeros(6))
+    a0 = derivative(RL5, W_CONST, MOUNT, S0, u, tau, np.zeros(6))
+    aW = derivative(RL5, W_CONST, MOUNT, S0, u, tau, WRENCH)
+    np.testing.assert_allclose(aW - a0, J[:, 12:] @ WRENCH, atol=1e-9 * np.abs(aW).max())
+    for k in range(12):
+        h = 1e-5
+        e = np.eye(12)[k] * h
+        central = (derivative(RL5, W_CONST, MOUNT, S0 + e, u, tau, np.zeros(6))
+                   - derivative(RL5, W_CONST, MOUNT, S0 - e, u, tau, np.zeros(6))) / (2 * h)
+        np.testing.assert_allclose(J[:, k], central, atol=1e-3 * max(np.abs(central).max(), 1.0))
+
+
+def chamfer_contact():
+    """The peg upright, 0.31 mm below the top plane of a hole 1.8 mm off along +x: its rim point
+    opposite the offset (tool angle pi, one of the 32) lies on the 45-degree chamfer, whose radius at
+    that depth is 12.1 - 0.31 = 11.79 mm < 10 + 1.8: penetration (0.01 mm) cos(45 deg)."""
+    hole = Hole(x=0.0018, y=0.0, z=-1.2)
+    peg, law = Peg(), PegContact()
+    tip = (0.0, 0.0, -1.2 - 0.00031)
+    qw = np.zeros(3)
+    z = np.array(tip) - np.array(tip_position(W_CONST, (0.0, 0.0, 0.0))) - np.array([0.0, 0.0, -0.05])
+    s = np.concatenate([z, qw, np.zeros(6)])
+    return hole, peg, law, s
+
+
+def test_locator_finds_the_hole_behind_a_chamfer_contact():
+    """The contact is symmetric about the x axis, so the felt force points along +x exactly and
+    the hole lies on that line: from the nominal hole (0, 0) the locator finds x = 1.8 mm to 0.1 um
+    (its scalar search stops at 1e-8 m; the grid's 20 um cell holds the minimum) and y = 0."""
+    hole, peg, law, s = chamfer_contact()
+    c = contact_wrench(hole, peg, law, W_CONST, MOUNT, s, [hole.x, hole.y, 0.0, 0.0])
+    assert c.active >= 1 and c.force[0] > 0.1 and abs(c.force[1]) < 1e-9
+    nominal = Hole(x=0.0, y=0.0, z=-1.2)
+    felt = np.array(c.force + c.moment)
+    found = locate_hole(nominal, peg, law, W_CONST, MOUNT, s, [0.0, 0.0, 0.0, 0.0], felt, [0.05] * 3 + [0.005] * 3)
+    assert found is not None
+    np.testing.assert_allclose(found[:2], [0.0018, 0.0], atol=1e-7)
+    assert peg_wrench(hole, peg, law, *tool_pose(W_CONST, MOUNT, s)).potential > 0.0
+
+
+def test_locator_knows_a_flat_push_says_nothing_of_the_hole():
+    """A purely axial felt force (the peg on the top face) has no lateral direction: no location."""
+    _, peg, law, s = chamfer_contact()
+    assert locate_hole(Hole(), peg, law, W_CONST, MOUNT, s, [0.0] * 4, [0.0, 0.0, 5.0, 0.0, 0.0, 0.0],
+                       [0.05] * 3 + [0.005] * 3) is None
+
+
+def test_schmidt_update_corrects_only_the_updated_states():
+    """x = [h, w], z = h + w, R = r, w considered: K_h = (a + c) / S, S = a + b + 2c + r, K_w = 0,
+    P_hh = a - (a + c)^2 / S, P_ww = b (unchanged), P_hw = c - K_h (b + c) (closed forms)."""
+    a, b, c, r, res = 4.0, 2.0, 0.5, 1.0, 3.0
+    S = a + b + 2 * c + r
+    dx, P = joseph_update(np.array([[a, c], [c, b]]), np.array([[1.0, 1.0]]), np.array([res]), np.array([[r]]),
+                          slice(0, 1))
+    K = (a + c) / S
+    np.testing.assert_allclose(dx, [K * res, 0.0], rtol=1e-14)
+    np.testing.assert_allclose(P, [[a - (a + c) ** 2 / S, c - K * (b + c)], [c - K * (b + c), b]], rtol=1e-14)
+
+
+def test_the_filter_finds_a_constant_wrench_on_the_moving_robot():
+    """The plant moving freely from S0 under constant torques and the wrench WRENCH (truth: DOP853
+    of the 24-state DAE), the filter sees y, qw at 1 kHz and the torques: after 0.25 s its force is
+    within 2e-3 N and its moment within 1e-4 N m (measured 2e-8 N and 1e-9 N m: the model is the
+    plant's, and a constant is what the random walk tracks without lag). The 2.3 N exceed the
+    contact threshold, so the filter takes them for a contact, but no hole along the felt lateral
+    force makes the contact law explain this wrench better than no contact at all (the locator's
+    test): the hole keeps its prior mean and standard deviations."""
+    u, tau = inputs(S0)
+    times = np.arange(251) * T
+    truth = dae_run(S0, u, tau, WRENCH, times)
+    ekf = PegEKF(RL5, W_CONST, MOUNT, Hole(x=0.5), Peg(), PegContact(), PegEKFSettings(velocity_std0=0.1,
+                 rate_std0=1.0, force_std0=5.0), truth[0, [0, 3, 6]], truth[0, 9:12])
+    for x in truth:
+        est = ekf.step(x[[0, 3, 6]], x[9:12], u, tau)
+    np.testing.assert_allclose(est.force, WRENCH[:3], atol=2e-3)
+    np.testing.assert_allclose(est.moment, WRENCH[3:], atol=1e-4)
+    np.testing.assert_allclose(est.tip, plant_tool_pose(RL5, W_CONST, MOUNT, truth[-1])[0], atol=1e-8)
+    assert est.in_contact  # any wrench above contact_threshold is taken for a contact ...
+    np.testing.assert_array_equal(est.hole, [0.5, 0.0, 0.0, 0.0])  # ... but the law puts no hole here
+    np.testing.assert_array_equal(est.hole_std, [0.002, 0.002, 0.02, 0.02])
+    assert forward_kinematics(RL5, truth[-1, [0, 3, 6]]) == pytest.approx(ekf.x[:3], abs=1e-8)
