@@ -3,7 +3,6 @@ peg-in-hole insertion program, a thin sampled component over deltafmi.mechanics.
 import math
 
 from deltafmi.component import Clock, Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter
-from deltafmi.mechanics import delta_wrist
 from deltafmi.mechanics.assembly import law as assembly_law
 from deltafmi.mechanics.assembly.law import AssemblyLaw
 from deltafmi.mechanics.assembly.program import InsertionProgram, hole_frame, make_program
@@ -12,6 +11,7 @@ from deltafmi.mechanics.assembly.sampling import (AssemblySettings, AssemblyStat
                                                   sample)
 from deltafmi.mechanics.wrist.kernels import WristConstants
 from deltafmi.models.robot_parameters import robot_parameters
+from deltafmi.models.wrist_parameters import wrist_params_of
 
 F6 = tuple[float, float, float, float, float, float]
 #: the robot's parameters as the controller models them (they may differ from the plant's)
@@ -173,17 +173,12 @@ class AssemblyController(ControllerRobotModel, Component):
         self._t0, self._k = 0.0, 0
         self._longest_step = math.inf
 
-    def wrist_params(self):
-        """The wrist as the controller models it (:class:`~deltafmi.mechanics.wrist.params.WristParams`)."""
-        tool = delta_wrist.peg_tool(self.tool_mass, self.tool_length, self.tool_radius, self.tool_tip)
-        return delta_wrist.wrist_params(tuple(self.rotor_inertia), tool, self.g, self.wrist_damping)
-
     def initialize(self, t: float) -> None:
         if not self.sample_period > 0.0:
             raise ValueError(f"sample_period must be > 0, got {self.sample_period}")
         tilt = (float(self.hole_tilt[0]), float(self.hole_tilt[1]))
         impedance = assembly_law.gains(self.mass, self.stiffness, self.inertia, self.rot_stiffness, self.zeta)
-        self._law, self._wrist = assembly_law.make_assembly_law(self.robot_params(), self.wrist_params(), self.mount,
+        self._law, self._wrist = assembly_law.make_assembly_law(self.robot_params(), wrist_params_of(self), self.mount,
                                                    hole_frame(tilt), impedance, self.sigma0, self.torque_limit,
                                                    self.wrist_torque_limit, self.cond_limit)
         self._program = make_program(tuple(self.hole_position), tilt, self.approach_height, self.approach_time,

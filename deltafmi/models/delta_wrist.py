@@ -1,13 +1,14 @@
 """The 6-DOF plant FMU: the delta robot with a spherical wrist, a thin component over
 deltafmi.mechanics.delta_wrist (RL5 delta, the default wrist and a steel peg)."""
 from deltafmi.component import Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter, State
-from deltafmi.mechanics import delta, delta_wrist
+from deltafmi.mechanics import delta
 from deltafmi.mechanics.delta.params import DeltaParams
 from deltafmi.mechanics.delta_wrist import dynamics
 from deltafmi.mechanics.delta_wrist.dynamics import project_state
 from deltafmi.mechanics.delta_wrist.params import WristMount
 from deltafmi.mechanics.wrist.kernels import WristConstants, wrist_constants
 from deltafmi.models.robot_parameters import RobotParameters
+from deltafmi.models.wrist_parameters import wrist_params_of
 
 #: the outputs, in the order dynamics.plant_outputs returns them
 OUTPUTS = ("y", "yd", "qw", "qwd", "z", "zd", "tip", "tip_velocity", "R", "omega", "centre", "lam", "residual",
@@ -98,14 +99,9 @@ class DeltaWrist(RobotParameters, Component):
         self._wrist = None
         self._mount = None
 
-    def wrist_params(self):
-        """The wrist's parameters (:class:`~deltafmi.mechanics.wrist.params.WristParams`) from the FMU's."""
-        tool = delta_wrist.peg_tool(self.tool_mass, self.tool_length, self.tool_radius, self.tool_tip)
-        return delta_wrist.wrist_params(tuple(self.rotor_inertia), tool, self.g, self.wrist_damping)
-
     def initialize(self, t: float) -> None:
         self._plant = self.robot_params()
-        self._wrist = wrist_constants(self.wrist_params())
+        self._wrist = wrist_constants(wrist_params_of(self))
         self._mount = WristMount(*(float(c) for c in self.mount))
         self.states[:] = dynamics.start_state(self._plant, self._wrist, self._mount, self.tip0, self.qw0)
 

@@ -4,9 +4,10 @@ from deltafmi.component import Kernel, NativeKernels, Output, Parameter
 from deltafmi.mechanics.delta.params import DeltaParams
 from deltafmi.mechanics.delta_wrist.dynamics import project_state
 from deltafmi.mechanics.delta_wrist.params import WristMount
-from deltafmi.mechanics.peg import Hole, Peg, PegContact, plant, validate
+from deltafmi.mechanics.peg import Hole, Peg, PegContact, plant
 from deltafmi.mechanics.wrist.kernels import WristConstants
 from deltafmi.models.delta_wrist import ARGUMENTS, OUTPUTS, DeltaWrist
+from deltafmi.models.wrist_parameters import peg_scene_of
 
 #: the peg's outputs, in the order plant.plant_outputs returns them after DeltaWrist's
 PEG_OUTPUTS = ("depth", "contact_force", "contact_moment", "ft_sensor", "lateral_misalignment",
@@ -78,13 +79,7 @@ class DeltaWristPeg(DeltaWrist):
         self._contact = None
 
     def initialize(self, t: float) -> None:
-        x, y, z = (float(c) for c in self.hole_position)
-        tilt_x, tilt_y = (float(c) for c in self.hole_tilt)
-        self._hole = Hole(x, y, z, tilt_x, tilt_y, self.bore_radius, self.chamfer_width, self.chamfer_angle,
-                          self.hole_depth, self.edge_radius)
-        self._peg = Peg(self.tool_radius, self.tool_length)
-        self._contact = PegContact(self.contact_stiffness, self.contact_damping, self.mu, self.v_eps, self.viscous)
-        validate(self._hole, self._peg, self._contact)
+        self._hole, self._peg, self._contact = peg_scene_of(self)
         super().initialize(t)
         self.success = 0
         self.update(t)

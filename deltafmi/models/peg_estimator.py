@@ -2,13 +2,12 @@
 import numpy as np
 
 from deltafmi.component import Clock, Experiment, Input, Output, Parameter, SampledComponent
-from deltafmi.mechanics import delta_wrist
 from deltafmi.mechanics.delta.tactile import Readout
 from deltafmi.mechanics.delta_wrist.params import WristMount
 from deltafmi.mechanics.estimation.peg_ekf import PegEKF, PegEKFSettings
-from deltafmi.mechanics.peg import Hole, Peg, PegContact, validate
 from deltafmi.mechanics.wrist.kernels import wrist_constants
 from deltafmi.models.robot_parameters import robot_parameters
+from deltafmi.models.wrist_parameters import peg_scene_of, wrist_params_of
 
 #: the robot's parameters, as the estimator models them (they may differ from the plant's)
 EstimatorRobotModel = robot_parameters("as the estimator models it")
@@ -130,16 +129,8 @@ class PegEstimator(EstimatorRobotModel, SampledComponent):
     def initialize(self, t: float) -> None:
         self.start_sampling(t)
         self._settings = PegEKFSettings(**{name: getattr(self, name) for name in _SETTINGS})
-        x, y, z = (float(c) for c in self.hole_position)
-        tilt_x, tilt_y = (float(c) for c in self.hole_tilt)
-        self._hole = Hole(x, y, z, tilt_x, tilt_y, self.bore_radius, self.chamfer_width, self.chamfer_angle,
-                          self.hole_depth, self.edge_radius)
-        self._peg = Peg(self.tool_radius, self.tool_length)
-        self._law = PegContact(self.contact_stiffness, self.contact_damping, self.mu, self.v_eps, self.viscous)
-        validate(self._hole, self._peg, self._law)
-        tool = delta_wrist.peg_tool(self.tool_mass, self.tool_length, self.tool_radius, self.tool_tip)
-        self._wrist = wrist_constants(delta_wrist.wrist_params(tuple(self.rotor_inertia), tool, self.g,
-                                                               self.wrist_damping))
+        self._hole, self._peg, self._law = peg_scene_of(self)
+        self._wrist = wrist_constants(wrist_params_of(self))
         self._mount = WristMount(*(float(c) for c in self.mount))
         self._readout = Readout(self.sensor_noise, 0.0, self.seed)
         self._ekf = None
