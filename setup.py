@@ -1,4 +1,4 @@
-"""Wheel build: the package plus its prebuilt native pieces (see deltafmi/export/prebuild.py).
+"""Wheel build: the package plus its prebuilt native pieces (see deltafmi/builder/prebuild.py).
 
 Everything else is declared in pyproject.toml. This file only (1) compiles the packaged models'
 native pieces into the wheel's ``deltafmi/_prebuilt`` after the sources are copied and copies the
@@ -14,14 +14,14 @@ import subprocess
 import sys
 from pathlib import Path
 
-from setuptools import Distribution, setup
+from setuptools import Distribution, find_packages, setup
 from setuptools.command.build_py import build_py
 
 HERE = Path(__file__).resolve().parent
 
 
 class BuildPyWithPrebuilt(build_py):
-    """``build_py``, then ``python -m deltafmi.export.prebuild <build_lib>/deltafmi/_prebuilt``."""
+    """``build_py``, then ``python -m deltafmi.builder.prebuild <build_lib>/deltafmi/_prebuilt``."""
 
     def run(self) -> None:
         super().run()
@@ -38,7 +38,7 @@ class BuildPyWithPrebuilt(build_py):
         target = Path(self.build_lib).resolve() / "deltafmi" / "_prebuilt"
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")]))
         env.pop("DELTAFMI_CACHE", None)
-        subprocess.run([sys.executable, "-m", "deltafmi.export.prebuild", str(target)], cwd=HERE, env=env,
+        subprocess.run([sys.executable, "-m", "deltafmi.builder.prebuild", str(target)], cwd=HERE, env=env,
                        check=True)
 
 
@@ -49,4 +49,9 @@ class PlatformDistribution(Distribution):
         return True
 
 
-setup(cmdclass={"build_py": BuildPyWithPrebuilt}, distclass=PlatformDistribution)
+#: the design's top level: the models (fmu_src/) and the example scenarios (scenarios/) sit beside
+#: the package in a clone, and inside it once installed (``deltafmi.models``, ``deltafmi.scenarios``)
+MAPPED = {"deltafmi.models": "fmu_src", "deltafmi.scenarios": "scenarios"}
+
+setup(cmdclass={"build_py": BuildPyWithPrebuilt}, distclass=PlatformDistribution,
+      packages=find_packages(include=["deltafmi", "deltafmi.*"]) + list(MAPPED), package_dir=MAPPED)

@@ -1,14 +1,14 @@
 """Issue 27's figures: the 6-DOF closed loop's real-time factor, and the peg study's throughput.
 
 1. Real-time factor (simulated seconds per wall second; median of ``--repeats``) of the 6-DOF
-   closed loops: deltafmi/examples/peg_in_hole.yaml (DeltaWristPeg in contact with a chamfered
+   closed loops: scenarios/peg_in_hole.yaml (DeltaWristPeg in contact with a chamfered
    hole, AssemblyController, 1 kHz) and wrist_pose_tracking.yaml (DeltaWrist in free space), each
    with the plant as Model Exchange (the master's CVODE) and as Co-Simulation (the FMU's own
    CVODE). Whole run (FMU loading and initialization included) and the stepping alone. Baseline in
    the same run: the 3-DOF flagship delta_tracking.yaml (DeltaRobot ME, DeltaController and
    Trajectory CS), and each loop's cost per simulated second against it.
 2. Study throughput (cases per second) on ``--cases`` cases spread over
-   deltafmi/examples/studies/peg_robustness.yaml (3 s insertions, every offset, tilt, direction
+   scenarios/studies/peg_robustness.yaml (3 s insertions, every offset, tilt, direction
    and Monte Carlo draw): the sweep on a LocalCluster of 1 and of 2 worker processes (cluster
    start-up printed apart), against the baseline of a serial loop of the same cases in one
    process, each case a ``deltafmi.simulate`` of its exported scenario (loading the FMUs every
@@ -30,25 +30,25 @@ from typing import Dict, List
 import yaml
 
 import deltafmi
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
-from deltafmi.study.cases import Case
-from deltafmi.study.export import case_scenario
-from deltafmi.study.plan import PlannedStudy, plan_study
-from deltafmi.study.spec import load_study
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
+from deltafmi.apps.studies.cases import Case
+from deltafmi.apps.studies.export import case_scenario
+from deltafmi.apps.studies.plan import PlannedStudy, plan_study
+from deltafmi.apps.studies.spec import load_study
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from sweep import spread, sweep  # noqa: E402  (benchmarks/sweep.py: a sweep on a LocalCluster, timed)
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "deltafmi" / "examples"
+EXAMPLES = ROOT / "scenarios"
 STUDY = EXAMPLES / "studies" / "peg_robustness.yaml"
 
 
 def variant(name: str, folder: Path, interface: str) -> Path:
-    """deltafmi/examples/<name>.yaml with its plant as ``interface`` (ME or CS)."""
+    """scenarios/<name>.yaml with its plant as ``interface`` (ME or CS)."""
     spec = yaml.safe_load((EXAMPLES / f"{name}.yaml").read_text())
     spec["components"]["plant"]["interface"] = interface
     path = folder / f"{name}_{interface}.yaml"

@@ -1,7 +1,7 @@
 """The delta robot touching a table: the same approach at several impedance levels, and what
 contact costs a run.
 
-1. deltafmi/examples/contact_approach.yaml (the tool comes down at 20 mm/s; the reference ends 1 cm below
+1. scenarios/contact_approach.yaml (the tool comes down at 20 mm/s; the reference ends 1 cm below
    the touching height) under: a high-gain position controller (poles at -30), the seed's pole
    placement (-7) and its low gains (kp = 1.0, kd = 0.25, no integral), and impedance mode with
    stiffness K along z from 20000 down to 200 N/m (damping
@@ -11,7 +11,7 @@ contact costs a run.
    settle (first touch until the force stays within 2 % of its final value), the steady force and,
    in impedance mode, its error against the commanded K d. The peak impact force must fall as the
    impedance falls (exit code 1 otherwise).
-2. deltafmi/examples/contact_press.yaml: real-time factor of the whole run (median of --repeats, FMU
+2. scenarios/contact_press.yaml: real-time factor of the whole run (median of --repeats, FMU
    loading included, and of the stepping alone), the events, and the share of the stepping spent
    handling events (locating them plus event mode); the baseline is the same run with the table
    lowered out of reach (no contact, no events), measured now on this machine.
@@ -31,12 +31,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping import me_integrator
-from deltafmi.cosim.stepping.explicit_rk import ExplicitRungeKutta
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping import me_integrator
+from deltafmi.master.stepping.explicit_rk import ExplicitRungeKutta
+from deltafmi.master.stepping.master import Master
 
 ROOT = Path(__file__).resolve().parents[1]
 WRIST_MASS = 17.0         # kg: the wrist's inertia along z at the contact (tests/test_robot_contact.py)
@@ -56,8 +56,8 @@ LEVELS = sorted(
 
 
 def variant(name: str, folder: Path, tag: str, **changes: dict) -> Path:
-    """deltafmi/examples/<name>.yaml with ``changes[component]`` merged into its parameters."""
-    spec = yaml.safe_load((ROOT / "deltafmi" / "examples" / f"{name}.yaml").read_text())
+    """scenarios/<name>.yaml with ``changes[component]`` merged into its parameters."""
+    spec = yaml.safe_load((ROOT / "scenarios" / f"{name}.yaml").read_text())
     for component in spec["components"].values():
         component["source"] = str(ROOT / component["source"])
     for component, parameters in changes.items():

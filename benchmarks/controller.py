@@ -1,7 +1,7 @@
 """Cost of one evaluation of the delta feedback-linearising controller.
 
 Prints the median time (us) of one full controller evaluation (forward kinematics + Jc +
-gravity + reduced inertia + PID) of ``deltafmi.mechanics.delta.control.DeltaController``, beside
+gravity + reduced inertia + PID) of ``deltafmi.physics.delta.control.DeltaController``, beside
 a straightforward numpy transcription of the seed's algorithm (dense 6x6 Newton with
 np.linalg.solve, Jc from a 6x6 solve, gravity from the 9x9 solve, My from the reordered 9x9 M)
 measured in the same run, and the ratio. Both are driven through the same 1 kHz sequence of
@@ -19,9 +19,9 @@ from typing import Optional
 
 import numpy as np
 
-from deltafmi.mechanics.delta import control as dc
-from deltafmi.mechanics.delta.params import ARM_ROTATIONS, RL5, DeltaParams
-from deltafmi.mechanics.delta.trajectory import CirclePath
+from deltafmi.physics.delta import control as dc
+from deltafmi.physics.delta.params import ARM_ROTATIONS, RL5, DeltaParams
+from deltafmi.physics.delta.trajectory import CirclePath
 
 SAMPLE = 1e-3
 

@@ -1,6 +1,6 @@
 """Co-simulation master figures: real-time factor of the flagship, and the master's own overhead.
 
-1. Flagship: deltafmi/examples/delta_tracking.yaml as written (plant ME through the master's rk4,
+1. Flagship: scenarios/delta_tracking.yaml as written (plant ME through the master's rk4,
    controller and trajectory CS, Gauss-Seidel, 1 kHz): real-time factor end to end (loading the
    FMUs included) and of the stepping loop, where the time goes; and the same scenario with the
    plant on CVODE (BDF, rtol 1e-8) as the baseline.
@@ -48,20 +48,21 @@ import numpy as np
 from fmpy import extract
 from fmpy.fmi2 import FMU2Slave
 
-from deltafmi.cosim.scenario.resolve import System, resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario, parse_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi import resolve_system
+from deltafmi.master.scenario.system import System
+from deltafmi.master.scenario.spec import load_scenario, parse_scenario
+from deltafmi.master.stepping.master import Master
 from deltafmi.errors import ScenarioError
 
 ROOT = Path(__file__).resolve().parents[1]
-FLAGSHIP = ROOT / "deltafmi" / "examples" / "delta_tracking.yaml"
+FLAGSHIP = ROOT / "scenarios" / "delta_tracking.yaml"
 CHAIN = """\
 experiment: {stop: 1.0, step: 1.0e-3}
 master: {algorithm: jacobi}
 components:
-  a: {source: deltafmi/models/oscillator.py, interface: CS}
-  b: {source: deltafmi/models/oscillator.py, interface: CS}
-  c: {source: deltafmi/models/oscillator.py, interface: CS}
+  a: {source: fmu_src/oscillator.py, interface: CS}
+  b: {source: fmu_src/oscillator.py, interface: CS}
+  c: {source: fmu_src/oscillator.py, interface: CS}
 connections:
   - {from: a.energy, to: b.F, factor: 0.05}
   - {from: b.energy, to: c.F, factor: 0.05}
@@ -113,8 +114,8 @@ def unit_times(system: System, stop: float, out: Path) -> tuple:
     """One instrumented master run: its summary, and wall seconds per unit of each unit's own
     calls (pull, do_step, fetch: timed in Python, or by the master's C loop where it runs the
     steps) and of each ME unit's right-hand sides, with their counts."""
-    from deltafmi.cosim.stepping.me_integrator import ModelExchangeUnit
-    from deltafmi.cosim.stepping.units import CoSimulationUnit, Unit
+    from deltafmi.master.stepping.me_integrator import ModelExchangeUnit
+    from deltafmi.master.stepping.units import CoSimulationUnit, Unit
 
     spent: dict = {}
     depth = [0]  # an ME unit's pull calls Unit.pull: count the outer call only
@@ -212,11 +213,11 @@ class Floor:
             with _fmu_python(extract(str(by_name[component].fmu), unzipdir=str(Path(unzip_dir) / component))):
                 return importlib.import_module(module)
 
-        self.delta = shipped("plant", "deltafmi.mechanics.delta")
+        self.delta = shipped("plant", "deltafmi.physics.delta")
         #: the shipped dynamics module: a mypyc extension (.so) unless the FMU fell back to source
         self.kernels = self.delta.dynamics.__file__
-        self.control = shipped("controller", "deltafmi.mechanics.delta.control")
-        self.trajectory = shipped("trajectory", "deltafmi.mechanics.delta.trajectory")
+        self.control = shipped("controller", "deltafmi.physics.delta.control")
+        self.trajectory = shipped("trajectory", "deltafmi.physics.delta.trajectory")
         self.system = system
         given = {c.name: {p.name: p.value for p in c.spec.parameters} for c in system.components}
         self.given = given
@@ -307,7 +308,7 @@ def rhs_pair(system: System, floor: Floor, out: Path, calls: int = 500, bursts: 
     (``state_derivative`` on the same state): medians of ``bursts`` bursts of ``calls`` each,
     the two sides alternating (one call takes a few us: a single burst is at the mercy of the
     shared machine's slow spells)."""
-    from deltafmi.cosim.stepping.explicit_rk import ExplicitRungeKutta
+    from deltafmi.master.stepping.explicit_rk import ExplicitRungeKutta
 
     master = Master(system, result=out)
     master.open()
@@ -334,7 +335,7 @@ def rhs_pair(system: System, floor: Floor, out: Path, calls: int = 500, bursts: 
 
 def timed_master_run(system: System, stop: float, out: Path) -> tuple:
     """A master run whose C loop times its FMI calls: (summary, {unit: seconds in its calls})."""
-    from deltafmi.cosim.stepping import master as master_module
+    from deltafmi.master.stepping import master as master_module
     loops = []
 
     class TimedLoop(master_module.NativeLoop):
@@ -379,7 +380,7 @@ def crossing(system: System, stop: float, repeats: int, out: Path) -> None:
             add(name, 1e6 * in_units[name] / timed.steps, 1e6 * spent[name] / steps)
         fig.setdefault("own", []).append(1e6 * (timed.stepping_time - sum(in_units.values())) / timed.steps)
         add("rhs", *rhs_pair(system, floor, out / "rhs.csv"))
-    from deltafmi.cosim.results.csv_file import read_csv
+    from deltafmi.master.results.csv_file import read_csv
     _, rows = read_csv(out / "crossing.csv")
     gap = float(np.max(np.abs(rows - reference)[:, 1:]))
     med = lambda key, i: statistics.median(v[i] for v in fig[key])  # noqa: E731
@@ -436,7 +437,7 @@ def main() -> None:
     print("2. master overhead against the plain 20-line fmpy Jacobi loop (target <= 20 %):")
     if flagship is not None:
         overhead("flagship, all CS", all_cs(flagship), stop, args.repeats, out / "cs.csv")
-    chain = resolve_system(parse_scenario(CHAIN, ROOT / "deltafmi" / "examples" / "oscillator_chain.yaml"))
+    chain = resolve_system(parse_scenario(CHAIN, ROOT / "scenarios" / "oscillator_chain.yaml"))
     overhead("3 oscillators, CS", chain, stop, args.repeats, out / "chain.csv")
     if flagship is not None:
         print(f"3. crossing FMI: flagship against the same physics in-process, {stop} s:")

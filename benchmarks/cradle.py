@@ -22,10 +22,10 @@ MASS, RADIUS, SPEED, T_END = 1.0, 0.02, 1.0, 0.05
 
 
 def ours(n: int, exponent: float) -> tuple[np.ndarray, float]:
-    """deltafmi.mechanics: compliant two-body impacts (collision duration 1e-4 s at 1 m/s)."""
-    from deltafmi.mechanics.contact.collision_law import CollisionLaw
-    from deltafmi.mechanics.contact.hybrid_sim import simulate
-    from deltafmi.mechanics.examples.newtons_cradle import make_cradle
+    """deltafmi.physics: compliant two-body impacts (collision duration 1e-4 s at 1 m/s)."""
+    from deltafmi.physics.contact.collision_law import CollisionLaw
+    from deltafmi.physics.contact.hybrid_sim import simulate
+    from deltafmi.physics.contact_problems.newtons_cradle import make_cradle
 
     system, x0 = make_cradle(n, mass=MASS, radius=RADIUS, striker_speed=SPEED,
                              law=CollisionLaw(restitution=1.0, duration=1e-4, exponent=exponent))

@@ -1,6 +1,6 @@
 """A chain of Co-Simulation units in our master (issue 26, item 4): does it scale?
 
-50 Oscillator FMUs (Co-Simulation, deltafmi/models/oscillator.py: CVODE inside each FMU, wall
+50 Oscillator FMUs (Co-Simulation, fmu_src/oscillator.py: CVODE inside each FMU, wall
 impacts, a force step at 2.5 s), Jacobi at 1 ms, run three ways in the same process, rounds
 interleaved (the machine is shared):
 
@@ -29,14 +29,14 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import expm
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 from deltafmi.models.oscillator import Oscillator
 
 ROOT = Path(__file__).resolve().parents[1]
-OSCILLATOR = ROOT / "deltafmi" / "models" / "oscillator.py"
+OSCILLATOR = ROOT / "fmu_src" / "oscillator.py"
 STEP, FACTOR = 1e-3, 0.05
 RESTARTED = '''\
 from deltafmi.models.oscillator import Oscillator

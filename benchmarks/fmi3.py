@@ -26,12 +26,12 @@ import fmpy
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
-from deltafmi.cosim.scenario.fmu_scenario import fmu_scenario
-from deltafmi.cosim.scenario.overrides import with_overrides
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
-from deltafmi.export.packager import build_cached
+from deltafmi.master.scenario.fmu_scenario import fmu_scenario
+from deltafmi.master.scenario.overrides import with_overrides
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
+from deltafmi.builder.packager import build_cached
 
 STEP = 1e-3
 ROOT = Path(__file__).resolve().parents[1]

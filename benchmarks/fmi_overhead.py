@@ -89,7 +89,7 @@ def build_plain_c(workdir: Path) -> Path:
 
 def direct_step_us(steps: int, repeats: int) -> float:
     """Median microseconds per set/do_step/get calling the component in Python directly."""
-    from deltafmi.export import load_component_class
+    from deltafmi.builder import load_component_class
     lag = load_component_class(MODELS / "lag_deltafmi.py")()
     samples, t = [], 0.0
     for _ in range(repeats):
@@ -106,7 +106,7 @@ def direct_step_us(steps: int, repeats: int) -> float:
 def c_host_us(fmu: Path, steps: int, repeats: int, workdir: Path) -> dict[str, float]:
     """Median microseconds per call from the plain-C host (no Python in the host process)."""
     host = workdir / "host"
-    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/export/native'}", str(ROOT / "tests/c_host/host.c"),
+    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/builder/native'}", str(ROOT / "tests/c_host/host.c"),
                     "-o", str(host), "-ldl", "-lm"], check=True)
     md = fmpy.read_model_description(str(fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}
@@ -153,7 +153,7 @@ def main() -> None:
     parser.add_argument("--callgrind", action="store_true",
                         help="also count the instructions of the C host's fmi2DoStep (needs valgrind)")
     args = parser.parse_args()
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
         ours = build_fmu(MODELS / "lag_deltafmi.py", workdir / "ours" / "Lag.fmu")

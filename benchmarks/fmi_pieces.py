@@ -1,12 +1,12 @@
 """Per-piece cost of the flagship's FMUs through FMI against the same code called in-process.
 
-The flagship (deltafmi/examples/delta_tracking.yaml) pays, per 1 ms step, four plant right-hand sides
+The flagship (scenarios/delta_tracking.yaml) pays, per 1 ms step, four plant right-hand sides
 (rk4 in Model Exchange), one trajectory doStep and one controller doStep. Each is timed here
 through the FMU's own fmi2 functions, the FMU loaded by fmpy in this process, and against the
 same Python object the FMU runs (its compiled kernels, its path, its controller) called directly:
 
 - plant RHS: fmi2SetTime + fmi2SetContinuousStates + fmi2GetDerivatives, looped in C by the
-  master's Runge-Kutta kernel (deltafmi.cosim.stepping.explicit_rk, Euler, one RHS per step), against
+  master's Runge-Kutta kernel (deltafmi.master.stepping.explicit_rk, Euler, one RHS per step), against
   ``state_derivative(params, x, u, f, pole)``;
 - trajectory: fmi2DoStep + fmi2GetReal(r, rd, rdd), against ``path.evaluate(t)``;
 - controller: fmi2SetReal(y, yd, r, rd, rdd) + fmi2DoStep + fmi2GetReal(u), against ``ctl.step``.
@@ -30,7 +30,7 @@ import numpy as np
 from fmpy.fmi2 import FMU2Model, FMU2Slave
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "deltafmi" / "examples" / "delta_tracking.yaml"
+SCENARIO = ROOT / "scenarios" / "delta_tracking.yaml"
 
 
 def paired_us(through_fmi, in_process, calls: int, repeats: int) -> tuple[float, float, float]:
@@ -50,8 +50,8 @@ def paired_us(through_fmi, in_process, calls: int, repeats: int) -> tuple[float,
 
 
 def built(source: str, workdir: Path) -> tuple[Path, object]:
-    from deltafmi.export import build_fmu
-    fmu = build_fmu(ROOT / "deltafmi" / "models" / source, workdir / Path(source).with_suffix(".fmu").name)
+    from deltafmi.builder import build_fmu
+    fmu = build_fmu(ROOT / "fmu_src" / source, workdir / Path(source).with_suffix(".fmu").name)
     return fmu, fmpy.read_model_description(str(fmu))
 
 
@@ -71,7 +71,7 @@ def vrs(md, *names: str) -> list[int]:
 
 
 def plant_piece(workdir: Path, repeats: int) -> tuple[float, float]:
-    from deltafmi.cosim.stepping.explicit_rk import ExplicitRungeKutta
+    from deltafmi.master.stepping.explicit_rk import ExplicitRungeKutta
     fmu, md = built("delta_robot.py", workdir)
     m = FMU2Model(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
                   modelIdentifier=md.modelExchange.modelIdentifier, instanceName="plant")

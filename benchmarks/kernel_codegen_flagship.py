@@ -1,6 +1,6 @@
 """Issue 26 item 2: the flagship's kernels GENERATED from their Python source, against the hand C.
 
-benchmarks/kernel_codegen generates C from deltafmi/mechanics/delta/*.py: the plant's
+benchmarks/kernel_codegen generates C from deltafmi/physics/delta/*.py: the plant's
 ``state_derivative`` and ``evaluate_plant``, the controller's ``control_law.evaluate`` (Newton
 forward kinematics, constraint Jacobian, gravity solve, PID with feed-forward and anti-windup),
 ``hold`` and ``warm_start``, and ``MinimumJerkPath.evaluate_flat``; a hand-written driver

@@ -1,7 +1,7 @@
 """Issue 26 item 1: which compiler turns the Python kernels into C functions over C data? Measured.
 
 Every candidate compiles the plant derivative ``state_derivative`` of
-deltafmi/mechanics/delta/dynamics.py (and what it calls) into a C function with one ABI, that of
+deltafmi/physics/delta/dynamics.py (and what it calls) into a C function with one ABI, that of
 the hand transcription benchmarks/native/flagship.c::
 
     int kernel(const DeltaParams *p, double pole, const double x[18], const double u[3],
@@ -11,7 +11,7 @@ and one C timing loop (compiled here) calls it through the function pointer, as 
 callback would, with no Python between calls. Candidates:
 
 - C transcription: benchmarks/native/flagship.c (the reference of speed);
-- codegen: deltafmi/export/codegen, our translator over the kernels' AST (unchanged source);
+- codegen: deltafmi/builder/codegen, our translator over the kernels' AST (unchanged source);
 - Cython 3, pure-Python mode: the kernel functions' unchanged source in a module with an
   augmenting .pxd (C signatures, ctuples, ``noexcept nogil``) and a C entry written for it
   (``cdef api``; its address from the module's ``__pyx_capi__`` capsule);
@@ -58,11 +58,11 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
 import native  # noqa: E402  (benchmarks/native.py: the C transcription and the flagship's data)
-from deltafmi.export.codegen import Entry, Obj, Vec, generate  # noqa: E402
-from deltafmi.export.codegen import D  # noqa: E402
+from deltafmi.builder.codegen import Entry, Obj, Vec, generate  # noqa: E402
+from deltafmi.builder.codegen import D  # noqa: E402
 
-from deltafmi.mechanics.delta import dynamics  # noqa: E402
-from deltafmi.mechanics.delta.params import DeltaParams  # noqa: E402
+from deltafmi.physics.delta import dynamics  # noqa: E402
+from deltafmi.physics.delta.params import DeltaParams  # noqa: E402
 
 _D = POINTER(c_double)
 #: -ffp-contract=off: no fused multiply-add; -fno-builtin-pow: pow(x, 2.0) stays libm's pow, as in
@@ -118,7 +118,7 @@ class Candidate:
 
 
 def cc() -> list[str]:
-    from deltafmi.export.compiler import require_compiler
+    from deltafmi.toolchain import require_compiler
 
     return require_compiler(HERE / "kernel_compilers.py")
 
@@ -164,7 +164,7 @@ int kernel_abi(const DeltaParams *p, double pole, const double *x, const double 
 
 
 def codegen_source() -> str:
-    """dynamics.state_derivative as C (deltafmi/export/codegen)."""
+    """dynamics.state_derivative as C (deltafmi/builder/codegen)."""
     entry = Entry("dfk_state_derivative", dynamics.state_derivative, [Obj(DeltaParams), Vec(18), Vec(3), Vec(3), D])
     # _as_list converts a numpy array or sequence to a list: fixed-length C arrays need none
     return generate([entry], identities={"_as_list"})
@@ -333,12 +333,12 @@ def numba_cfunc(tmp: Path) -> Candidate:
 
 
 def mypyc_today(tmp: Path) -> Candidate:
-    from deltafmi.export.kernels import compiled_kernels, mypyc_version
+    from deltafmi.builder.kernels import compiled_kernels, mypyc_version
 
     if mypyc_version() is None:
         raise Skip("mypy (mypyc) is not installed")
     begin = time.perf_counter()
-    files = compiled_kernels(["deltafmi.mechanics.delta.dynamics"])
+    files = compiled_kernels(["deltafmi.physics.delta.dynamics"])
     build = time.perf_counter() - begin
     if not files:
         raise Skip("mypyc compilation failed (see the warning)")
@@ -353,8 +353,8 @@ def mypyc_today(tmp: Path) -> Candidate:
     saved = {n: sys.modules.pop(n) for n in [n for n in sys.modules if ours(n)]}
     sys.path.insert(0, str(python_dir))
     try:
-        module = importlib.import_module("deltafmi.mechanics.delta.dynamics")
-        params_cls = importlib.import_module("deltafmi.mechanics.delta.params").DeltaParams
+        module = importlib.import_module("deltafmi.physics.delta.dynamics")
+        params_cls = importlib.import_module("deltafmi.physics.delta.params").DeltaParams
     finally:
         sys.path.remove(str(python_dir))
         for n in [n for n in sys.modules if ours(n)]:
@@ -564,9 +564,9 @@ def run(tmp: Path, repeats: int, calls: int) -> None:
 def coverage() -> None:
     """The codegen prototype over every function of the robot's kernel modules, typed from its
     annotations alone (kernel_codegen.signature_of): what translates, the first error of the rest."""
-    from deltafmi.export.codegen import CodegenError, signature_of
+    from deltafmi.builder.codegen import CodegenError, signature_of
 
-    modules = [importlib.import_module(f"deltafmi.mechanics.delta.{name}")
+    modules = [importlib.import_module(f"deltafmi.physics.delta.{name}")
                for name in ("dynamics", "kinematics", "jacobian", "control_law", "trajectory")]
     done = []
     for module in modules:

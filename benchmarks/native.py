@@ -1,6 +1,6 @@
 """Issue 26's baseline: the flagship against a C transcription of its own kernels.
 
-benchmarks/native/flagship.c transcribes what the flagship (deltafmi/examples/delta_tracking.yaml)
+benchmarks/native/flagship.c transcribes what the flagship (scenarios/delta_tracking.yaml)
 computes, in the order the Python computes it: the DeltaRobot's state derivative (mass matrix,
 constraint Jacobian, multipliers by the 6x6 Schur complement, Baumgarte) and outputs, the
 DeltaController's sample (Newton forward kinematics warm-started, control Jacobian, inverse
@@ -20,7 +20,7 @@ microseconds):
   bursts by a C loop; C controller sample: the flagship's samples replayed (its recorded inputs)
   through a fresh C controller;
 - deltafmi: the flagship stepping through FMI (the master, as benchmarks/cosim.py times it), with
-  the FMUs' compiled kernels (C generated from the Python, deltafmi/export/codegen) and, for the
+  the FMUs' compiled kernels (C generated from the Python, deltafmi/builder/codegen) and, for the
   before/after, on their Python methods (``DELTAFMI_NATIVE=0``: the mypyc-compiled Python, what
   every step ran before the kernels; the two runs' CSVs are compared bit for bit); the plant
   derivative through FMI (fmi2SetTime + fmi2SetContinuousStates + fmi2GetDerivatives in C,
@@ -52,7 +52,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 SOURCE = Path(__file__).resolve().parent / "native" / "flagship.c"
-FLAGSHIP = ROOT / "deltafmi" / "examples" / "delta_tracking.yaml"
+FLAGSHIP = ROOT / "scenarios" / "delta_tracking.yaml"
 #: the flagship's CSV columns that a row of the C closed loop holds, in its order
 COLUMNS = (["time"] + [f"plant.z[{i}]" for i in (1, 2, 3)] + [f"plant.zd[{i}]" for i in (1, 2, 3)]
            + [f"trajectory.r[{i}]" for i in (1, 2, 3)] + [f"controller.u[{i}]" for i in (1, 2, 3)]
@@ -100,7 +100,7 @@ def compile_baseline(directory: Path) -> Path:
     """flagship.c compiled into ``directory`` (``cc -std=c99 -O2``, ``$CC`` honoured).
 
     Raises deltafmi's NoCompilerError when there is no C compiler, RuntimeError when it fails."""
-    from deltafmi.export.compiler import require_compiler
+    from deltafmi.toolchain import require_compiler
 
     cc = require_compiler(SOURCE)
     library = Path(directory) / "flagship.so"
@@ -204,8 +204,8 @@ def flagship_models(system, delta=None, control=None) -> Models:
     from deltafmi.models import DeltaController, DeltaRobot, Trajectory
 
     if delta is None:
-        from deltafmi.mechanics import delta
-        from deltafmi.mechanics.delta import control
+        from deltafmi.physics import delta
+        from deltafmi.physics.delta import control
     given = {c.name: {p.name: p.value for p in c.spec.parameters} for c in system.components}
     missing = {"plant", "controller", "trajectory"} - set(given)
     if missing:
@@ -267,8 +267,8 @@ def flagship_spec(system) -> Flagship:
 
 def load_flagship():
     """The flagship's resolved scenario."""
-    from deltafmi.cosim.scenario.resolve import resolve_system
-    from deltafmi.cosim.scenario.spec import load_scenario
+    from deltafmi import resolve_system
+    from deltafmi.master.scenario.spec import load_scenario
 
     return resolve_system(load_scenario(FLAGSHIP))
 
@@ -295,7 +295,7 @@ def gap(a: np.ndarray, b: np.ndarray) -> float:
 
 def compare(rows: np.ndarray, csv: Path) -> str:
     """How the C closed loop's rows agree with the flagship's CSV (plant.z, controller.u, all)."""
-    from deltafmi.cosim.results.csv_file import read_csv
+    from deltafmi.master.results.csv_file import read_csv
 
     names, reference = read_csv(csv)
     reference = reference[:, [names.index(n) for n in COLUMNS]]

@@ -32,7 +32,7 @@ Z0 = {"z0[1]": 0.1, "z0[2]": -0.1, "z0[3]": -0.9}
 
 
 def library_us(repeats: int, n: int = 3000) -> float:
-    from deltafmi.mechanics import delta as d
+    from deltafmi.physics import delta as d
     p = d.RL5
     q = d.inverse_kinematics(p, (0.1, -0.1, -0.9))
     v, u, f = np.full(9, 0.1), np.zeros(3), np.zeros(3)
@@ -83,8 +83,8 @@ def _started(fmu: Path) -> tuple:
 
 
 def jacobian_in_process_us(repeats: int, n: int = 300) -> float:
-    from deltafmi.mechanics import delta as d
-    from deltafmi.mechanics.delta.jacobian import plant_jacobian
+    from deltafmi.physics import delta as d
+    from deltafmi.physics.delta.jacobian import plant_jacobian
     p = d.RL5
     q = d.inverse_kinematics(p, (0.1, -0.1, -0.9))
     v, u, f = np.full(9, 0.1), np.zeros(3), np.zeros(3)
@@ -163,10 +163,10 @@ def master_free_fall(fmu: Path, jacobian: bool, repeats: int) -> tuple:
     """1 s of free fall in Model Exchange through the master's CVODE at rtol 1e-6: (median
     seconds of stepping, after the set-up; right-hand sides; Jacobians) with or without the FMU's
     exact Jacobian."""
-    from deltafmi.cosim.stepping import me_integrator
-    from deltafmi.cosim.stepping.master import Master
-    from deltafmi.cosim.scenario.resolve import resolve_system
-    from deltafmi.cosim.scenario.spec import load_scenario
+    from deltafmi.master.stepping import me_integrator
+    from deltafmi.master.stepping.master import Master
+    from deltafmi import resolve_system
+    from deltafmi.master.scenario.spec import load_scenario
 
     counts = {"rhs": 0, "jac": 0}
     original_rhs, original_jac = me_integrator.ModelExchangeUnit._rhs, me_integrator.ModelExchangeUnit._jacobian
@@ -215,9 +215,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
     args = parser.parse_args()
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
     with tempfile.TemporaryDirectory() as tmp:
-        fmu = build_fmu(ROOT / "deltafmi" / "models" / "delta_robot.py", Path(tmp) / "DeltaRobot.fmu")
+        fmu = build_fmu(ROOT / "fmu_src" / "delta_robot.py", Path(tmp) / "DeltaRobot.fmu")
         lib = library_us(args.repeats)
         fmi = fmi_derivative_us(fmu, args.repeats)
         me = free_fall_seconds(fmu, "ModelExchange", args.repeats)

@@ -32,7 +32,7 @@ from typing import Optional
 import fmpy
 
 ROOT = Path(__file__).resolve().parents[1]
-FMU_SRC = ROOT / "deltafmi" / "models"
+FMU_SRC = ROOT / "fmu_src"
 BUILDER = f"{sys.version_info.major}.{sys.version_info.minor}"
 
 # A C importer that times the first fmi2Instantiate, then N CS steps and N ME derivative evaluations.
@@ -135,7 +135,7 @@ print(json.dumps({"instantiate_s": instantiate, "cs_us": cs, "me_us": me}))
 
 def sizes(portable: bool) -> dict[str, int]:
     """Zipped size in bytes of every packaged model's FMU (from the build cache)."""
-    from deltafmi.export.packager import build_cached
+    from deltafmi.builder.packager import build_cached
     from deltafmi.models import MODELS
     return {module: build_cached(FMU_SRC / f"{module}.py", portable=portable).stat().st_size
             for module in sorted(MODELS.values())}
@@ -145,7 +145,7 @@ def timing_host(workdir: Path) -> Path:
     """``TIMING_HOST`` compiled in ``workdir``."""
     source, exe = workdir / "timing_host.c", workdir / "timing_host"
     source.write_text(TIMING_HOST)
-    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/export/native'}", str(source), "-o", str(exe), "-ldl"],
+    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/builder/native'}", str(source), "-o", str(exe), "-ldl"],
                    check=True)
     return exe
 
@@ -173,7 +173,7 @@ def median_rounds(commands: dict[str, tuple[list[str], Optional[dict]]], repeats
 
 def other_version_python(version: str) -> Optional[Path]:
     """A virtual environment of CPython ``version`` with fmpy, made once in the build cache."""
-    from deltafmi.export.compiler import cache_dir
+    from deltafmi.toolchain import cache_dir
     venv = cache_dir() / "bench-hosts" / f"fmpy-{version}"
     python = venv / "bin" / "python"
     if python.exists():
@@ -200,7 +200,7 @@ def main() -> None:
                         "made once in the build cache)")
     parser.add_argument("--no-sizes", action="store_true", help="skip (a), which builds every portable FMU")
     args = parser.parse_args()
-    from deltafmi.export.packager import build_cached
+    from deltafmi.builder.packager import build_cached
     source = FMU_SRC / f"{args.model}.py"
     fmus = {"non-portable": build_cached(source), "portable": build_cached(source, portable=True)}
 

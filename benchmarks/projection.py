@@ -6,7 +6,7 @@ internal step. Three runs of the same FMU, alternated within each round (the mac
 shared: read the ratios):
 
 - ``after``: everything compiled, the projection included (the C projection callback of
-  deltafmi/export/codegen/cvode_rhs.c over the generated kernel);
+  deltafmi/builder/codegen/cvode_rhs.c over the generated kernel);
 - ``before``: the projection in Python (``DELTAFMI_NATIVE_PROJECT=0``), the rest compiled: what
   a step ran before the project kernel;
 - ``python``: no compiled kernels at all (``DELTAFMI_NATIVE=0``), for reference.
@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from fmpy import extract, read_model_description, simulate_fmu
 
-from deltafmi.export.packager import build_cached
+from deltafmi.builder.packager import build_cached
 
 ROOT = Path(__file__).resolve().parents[1]
 PLANTS = {"DeltaRobot": ("delta_robot.py", {}, ["q[1]", "v[9]", "residual"]),
@@ -63,7 +63,7 @@ def main() -> None:
     print(f"Co-Simulation over {args.stop} s, 1 ms steps, medians of {args.repeats} rounds")
     print(f"{'plant':<11} {'mode':<7} {'wall s':>8} {'x real time':>12}")
     for plant, (source, start, output) in PLANTS.items():
-        fmu = build_cached(ROOT / "deltafmi" / "models" / source)
+        fmu = build_cached(ROOT / "fmu_src" / source)
         directory = extract(str(fmu))
         md = read_model_description(directory)
         times: dict[str, list[float]] = {mode: [] for mode in MODES}

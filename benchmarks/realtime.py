@@ -1,6 +1,6 @@
 """Issue 28's figures: how well a paced run keeps the wall clock, and UDP round trips through a run.
 
-- Lateness of the flagship (deltafmi/examples/delta_tracking.yaml, 1 kHz) paced at real time:
+- Lateness of the flagship (scenarios/delta_tracking.yaml, 1 kHz) paced at real time:
   median, 99th percentile and largest lateness of its communication points, overruns (later than a
   quarter step), times it fell behind; and the wall time one step computes ("busy"). Medians over
   ``--repeats`` runs of ``--seconds`` simulated seconds.
@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 import deltafmi
-from deltafmi.cosim.live.datagram import decode, encode
+from deltafmi.master.live.datagram import decode, encode
 
 
 def lateness_figures(seconds: float, speed: float = 1.0) -> dict:
@@ -108,7 +108,7 @@ def round_trips(pings: int, paced: bool) -> list:
     receiver.settimeout(60.0)
     with tempfile.TemporaryDirectory() as folder:
         scenario = _echo_scenario(Path(folder), port, back)
-        run = subprocess.Popen([sys.executable, "-c", "from deltafmi.cli import main; main()", "run", str(scenario), "-q",
+        run = subprocess.Popen([sys.executable, "-c", "from deltafmi.apps.cli import main; main()", "run", str(scenario), "-q",
                                 "--realtime" if paced else "--no-realtime", "-o", str(Path(folder) / "echo.csv")],
                                stderr=subprocess.DEVNULL)  # its "interrupted" line: the stop asked for
         try:

@@ -25,9 +25,9 @@ import timeit
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from deltafmi.cosim.live.datagram import Encoder
-from deltafmi.cosim.live.scope import Scope, ScopeFigure, _size, run_loop
-from deltafmi.cosim.live.scope_data import ScopeData
+from deltafmi.master.live.datagram import Encoder
+from deltafmi.apps.scope.window import Scope, ScopeFigure, _size, run_loop
+from deltafmi.apps.scope.data import ScopeData
 
 NAMES = [f"{quantity}[{i}]" for quantity in ("plant.z", "trajectory.r", "controller.u") for i in (1, 2, 3)]
 RATE, WINDOW, FRAME = 1000.0, 10.0, 0.05

@@ -1,6 +1,6 @@
 """Study throughput: a loop of ``deltafmi run`` processes against ``deltafmi sweep`` on Dask.
 
-The cases are flagship runs (deltafmi/examples/studies/gain_payload.yaml: pick-and-place, 3.5 s
+The cases are flagship runs (scenarios/studies/gain_payload.yaml: pick-and-place, 3.5 s
 simulated, outer-loop pole x unknown payload), spread over its grid. Measured in one run, on this
 machine, all with the same cases:
 
@@ -30,14 +30,14 @@ import time
 from pathlib import Path
 from typing import Dict, List, NamedTuple
 
-from deltafmi.study.cases import Case
-from deltafmi.study.driver import dask_client, open_store, run_study
-from deltafmi.study.export import case_scenario
-from deltafmi.study.plan import PlannedStudy, plan_study
-from deltafmi.study.spec import load_study
+from deltafmi.apps.studies.cases import Case
+from deltafmi.apps.studies.driver import dask_client, open_store, run_study
+from deltafmi.apps.studies.export import case_scenario
+from deltafmi.apps.studies.plan import PlannedStudy, plan_study
+from deltafmi.apps.studies.spec import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
-STUDY = ROOT / "deltafmi" / "examples" / "studies" / "gain_payload.yaml"
+STUDY = ROOT / "scenarios" / "studies" / "gain_payload.yaml"
 DELTAFMI = Path(sys.executable).parent / "deltafmi"
 
 
@@ -67,9 +67,9 @@ def process_loop(planned: PlannedStudy, cases: List[Case], folder: Path) -> floa
 WORKLOAD = """
 import sys, tempfile, time
 from pathlib import Path
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 system = resolve_system(load_scenario(Path(sys.argv[1])))
 out = Path(tempfile.mkdtemp()) / "run.csv"
 Master(system, result=out).run()
@@ -142,7 +142,7 @@ def per_case(rows: List[dict], wall: float, once: float) -> Dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=24, help="flagship cases per measurement (the studies in "
-                        "deltafmi/examples/studies have 91 and 200)")
+                        "scenarios/studies have 91 and 200)")
     parser.add_argument("--repeats", type=int, default=1, help="repeat each measurement, report medians")
     args = parser.parse_args()
     planned = plan_study(load_study(STUDY))

@@ -22,10 +22,10 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
-from deltafmi.export.packager import build_cached
+from deltafmi.builder.packager import build_cached
 
 ROOT = Path(__file__).resolve().parents[1]
-NATIVE = ROOT / "deltafmi" / "export" / "native"
+NATIVE = ROOT / "deltafmi" / "runtime" / "native"
 TIMING = re.compile(r"timing job=(\d+) steps=(\d+) start=([\d.]+) end=([\d.]+)")
 
 
@@ -43,7 +43,7 @@ def per_step(host: Path, mode: str, job: list[str], k: int, steps: int, step: fl
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", default="oscillator", help="deltafmi/models/<model>.py")
+    parser.add_argument("--model", default="oscillator", help="fmu_src/<model>.py")
     parser.add_argument("--steps", type=int, default=5000)
     parser.add_argument("--step", type=float, default=1e-3)
     parser.add_argument("--repeats", type=int, default=5)
@@ -52,7 +52,7 @@ def main() -> None:
         host = Path(tmp) / "threads_host"
         subprocess.run(["cc", "-O2", f"-I{NATIVE}", str(ROOT / "tests" / "c_host" / "threads_host.c"), "-o",
                         str(host), "-ldl", "-lm", "-lpthread"], check=True)
-        with zipfile.ZipFile(build_cached(ROOT / "deltafmi" / "models" / f"{args.model}.py")) as z:
+        with zipfile.ZipFile(build_cached(ROOT / "fmu_src" / f"{args.model}.py")) as z:
             z.extractall(Path(tmp) / "fmu")
         root = ET.parse(Path(tmp) / "fmu" / "modelDescription.xml").getroot()
         job = [str(Path(tmp) / "fmu"), root.find("CoSimulation").get("modelIdentifier"), root.get("guid"), "0"]

@@ -17,9 +17,9 @@ The public API, importable from here (``from deltafmi import load_scenario, Mast
 
 This module imports nothing when imported: each name loads its module on first use (PEP 562). It
 is bundled into every FMU's ``resources/`` together with the modules of :mod:`deltafmi.component`
-and :mod:`deltafmi.mechanics` that the FMU's model reaches (``deltafmi.export.reach``), and must
+and :mod:`deltafmi.physics` that the FMU's model reaches (``deltafmi.builder.reach``), and must
 stay cheap to import inside an embedded interpreter. A component's source imports from
-:mod:`deltafmi.component` and :mod:`deltafmi.mechanics` directly, never these names: an FMU
+:mod:`deltafmi.component` and :mod:`deltafmi.physics` directly, never these names: an FMU
 carries none of their modules (``reach`` follows import statements, not this table).
 """
 
@@ -27,33 +27,33 @@ __version__ = "0.1.0"
 
 #: public name -> the module that defines it
 _API = {
-    "load_scenario": "deltafmi.cosim.scenario.spec",
-    "Scenario": "deltafmi.cosim.scenario.spec",
-    "resolve_system": "deltafmi.cosim.scenario.resolve",
-    "System": "deltafmi.cosim.scenario.resolve",
-    "load_ssp": "deltafmi.cosim.ssp.read",
-    "export_ssp": "deltafmi.cosim.ssp.write",
-    "Master": "deltafmi.cosim.stepping.master",
-    "simulate": "deltafmi.cosim.simulate",
-    "Result": "deltafmi.cosim.results.result",
-    "read_result": "deltafmi.cosim.results.result",
-    "plot_result": "deltafmi.cosim.results.plot",
-    "build_fmu": "deltafmi.export.packager",
-    "build_cached": "deltafmi.export.packager",
-    "linearize_fmu": "deltafmi.cosim.linearize.fmu",
-    "linearize_scenario": "deltafmi.cosim.linearize.closed_loop",
-    "LinearModel": "deltafmi.cosim.linearize.linear_model",
-    "load_study": "deltafmi.study.spec",
-    "plan_study": "deltafmi.study.plan",
-    "open_store": "deltafmi.study.driver",
-    "sweep_study": "deltafmi.study.driver",
+    "load_scenario": "deltafmi.master.scenario.spec",
+    "Scenario": "deltafmi.master.scenario.spec",
+    "resolve_system": "deltafmi.master.scenario.resolve",
+    "System": "deltafmi.master.scenario.system",
+    "load_ssp": "deltafmi.master.ssp.read",
+    "export_ssp": "deltafmi.master.ssp.write",
+    "Master": "deltafmi.master.stepping.master",
+    "simulate": "deltafmi.master.simulate",
+    "Result": "deltafmi.master.results.result",
+    "read_result": "deltafmi.master.results.result",
+    "plot_result": "deltafmi.master.results.result",
+    "build_fmu": "deltafmi.builder.packager",
+    "build_cached": "deltafmi.builder.packager",
+    "linearize_fmu": "deltafmi.master.linearize.fmu",
+    "linearize_scenario": "deltafmi.master.linearize.closed_loop",
+    "LinearModel": "deltafmi.master.linearize.linear_model",
+    "load_study": "deltafmi.apps.studies.spec",
+    "plan_study": "deltafmi.apps.studies.plan",
+    "open_store": "deltafmi.apps.studies.driver",
+    "sweep_study": "deltafmi.apps.studies.driver",
     "ScenarioError": "deltafmi.errors",
     "BadInput": "deltafmi.errors",
     "SimulationError": "deltafmi.errors",
     "ResultWriteError": "deltafmi.errors",
     "Interrupted": "deltafmi.errors",
-    "ComponentSourceError": "deltafmi.export.sources",
-    "BuildError": "deltafmi.export.compiler",
+    "ComponentSourceError": "deltafmi.builder.sources",
+    "BuildError": "deltafmi.toolchain",
 }
 
 __all__ = sorted(_API)
@@ -65,6 +65,7 @@ def __getattr__(name: str) -> object:
         raise AttributeError(f"module 'deltafmi' has no attribute '{name}'")
     import importlib
 
+    importlib.import_module("deltafmi.apps")  # the composition root: the master gets the builder as FMU provider
     value = getattr(importlib.import_module(module), name)
     globals()[name] = value  # later lookups skip this function
     return value

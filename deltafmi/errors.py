@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import difflib
 from dataclasses import dataclass
+from pathlib import Path
 from typing import IO, Any, Iterable, Optional
 
 import click
@@ -107,3 +108,16 @@ def did_you_mean(word: str, candidates: Iterable[str], n: int = 3) -> str:
     if not matches:
         return ""
     return " (did you mean " + " or ".join(f"'{m}'" for m in matches) + "?)"
+
+
+def file_hint(path: Path, glob: str) -> str:
+    """`` (did you mean 'x'?)`` naming a file beside ``path`` (matching ``glob``) with a close name, or ``""``."""
+    for folder in [path.parent.resolve(), *path.parent.resolve().parents]:
+        if folder.is_dir() and folder.name == path.parent.name:
+            return did_you_mean(path.name, [p.name for p in folder.glob(glob)])
+    return ""
+
+
+class FmuSourceError(Exception):
+    """A scenario component's ``source:`` cannot be made into an FMU (not found, not a component,
+    its build failed); the message says which and why, without naming the component."""

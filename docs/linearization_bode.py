@@ -1,6 +1,6 @@
 """Bode plot of the flagship's closed-loop wrist response z / r, from ``deltafmi linearize``.
 
-Linearizes deltafmi/examples/delta_tracking.yaml at rest (t = 50 ms) as the 1 ms discrete map with the
+Linearizes scenarios/delta_tracking.yaml at rest (t = 50 ms) as the 1 ms discrete map with the
 reference r as input and the wrist z as output, and plots the three diagonal responses against
 the outer loop's continuous design, T(s) = (kP s + kI) / (s + 7)^3 (the reference enters
 through kP and kI; kD acts on the measured velocity). Run from the project root:
@@ -22,9 +22,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(output: Path = ROOT / "docs" / "closed_loop_bode.png") -> Path:
-    from deltafmi.cosim.linearize.closed_loop import linearize_scenario
+    from deltafmi.master.linearize.closed_loop import linearize_scenario
 
-    model = linearize_scenario(ROOT / "deltafmi" / "examples" / "delta_tracking.yaml", at=0.05,
+    model = linearize_scenario(ROOT / "scenarios" / "delta_tracking.yaml", at=0.05,
                                inputs=[f"controller.r[{i}]" for i in (1, 2, 3)],
                                outputs=[f"plant.z[{i}]" for i in (1, 2, 3)])
     omega = np.logspace(-1, np.log10(np.pi / model.sample_time), 400)

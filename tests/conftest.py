@@ -9,16 +9,16 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-FMU_SRC = ROOT / "deltafmi" / "models"
+FMU_SRC = ROOT / "fmu_src"
 #: the file names of the packaged models (deltafmi.models), one component each
 MODEL_FILES = sorted(f"{module}.py" for module in __import__("deltafmi.models").models.MODELS.values())
-NATIVE = ROOT / "deltafmi" / "export" / "native"
+NATIVE = ROOT / "deltafmi" / "runtime" / "native"
 
 
 @pytest.fixture(scope="session")
 def build_fmu_from_src(tmp_path_factory):
     """``build("oscillator.py") -> Path`` of a freshly built FMU (built once per session)."""
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
 
     out = tmp_path_factory.mktemp("fmus")
     built: dict[str, Path] = {}
@@ -34,14 +34,14 @@ def build_fmu_from_src(tmp_path_factory):
 @pytest.fixture(scope="session")
 def portable_oscillator_fmu() -> Path:
     """The portable Oscillator FMU (``deltafmi build --portable``), from the build cache."""
-    from deltafmi.export.packager import build_cached
+    from deltafmi.builder.packager import build_cached
     return build_cached(FMU_SRC / "oscillator.py", portable=True)
 
 
 @pytest.fixture(scope="session")
 def portable_delta_robot_fmu() -> Path:
     """The portable DeltaRobot FMU (CVODE, numpy, compiled kernels), from the build cache."""
-    from deltafmi.export.packager import build_cached
+    from deltafmi.builder.packager import build_cached
     return build_cached(FMU_SRC / "delta_robot.py", portable=True)
 
 

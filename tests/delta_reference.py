@@ -6,7 +6,7 @@ library tests and the FMU tests alike.
 """
 import numpy as np
 
-from deltafmi.mechanics import delta as d
+from deltafmi.physics import delta as d
 
 ROT = np.stack(d.ARM_ROTATIONS)  # (3, 3, 3)
 SERVO = [0, 3, 6]

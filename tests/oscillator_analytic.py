@@ -1,4 +1,4 @@
-"""Closed-form solution of deltafmi/models/oscillator.py: damped oscillator, wall impacts, force step."""
+"""Closed-form solution of fmu_src/oscillator.py: damped oscillator, wall impacts, force step."""
 from __future__ import annotations
 
 import math

@@ -8,7 +8,7 @@ import time
 from typing import Callable, Sequence
 
 #: ``deltafmi`` as a command of this interpreter (the tests' virtual environment)
-DELTAFMI = (sys.executable, "-c", "from deltafmi.cli import main; main()")
+DELTAFMI = (sys.executable, "-c", "from deltafmi.apps.cli import main; main()")
 
 
 def interrupt_when(command: Sequence[str], ready: Callable[[], bool], signum: int = signal.SIGINT,

@@ -6,9 +6,9 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from deltafmi.cli import main
-from deltafmi.mechanics import delta as d
-from deltafmi.viz.animate import frame_rows, load_recording, robot_points
+from deltafmi.apps.cli import main
+from deltafmi.physics import delta as d
+from deltafmi.apps.animation.animate import frame_rows, load_recording, robot_points
 
 
 @pytest.fixture
@@ -72,7 +72,7 @@ def test_animate_without_servo_angles_is_bad_input(tmp_path):
 @pytest.mark.parametrize("suffix", [".parquet", ".mat"])
 def test_animate_reads_every_result_format(result, tmp_path, suffix):
     """A .parquet or .mat result gives the robot the .csv gives (it was read as UTF-8 text)."""
-    from deltafmi.cosim.results.result import read_result
+    from deltafmi.master.results.result import read_result
 
     path, _ = result
     other = read_result(path).save(tmp_path / f"run{suffix}")

@@ -12,12 +12,12 @@ from click.testing import CliRunner
 from PIL import Image
 from scipy.spatial.transform import Rotation
 
-from deltafmi.cli import main
-from deltafmi.export import build_cached
-from deltafmi.mechanics import delta as d
-from deltafmi.mechanics.delta.kinematics import forward_kinematics
-from deltafmi.viz.animate import Scene, load_recording
-from deltafmi.viz.peg_geometry import RIM_SAMPLES, action_point, peg_silhouette
+from deltafmi.apps.cli import main
+from deltafmi.builder import build_cached
+from deltafmi.physics import delta as d
+from deltafmi.physics.delta.kinematics import forward_kinematics
+from deltafmi.apps.animation.animate import Scene, load_recording
+from deltafmi.apps.animation.peg_geometry import RIM_SAMPLES, action_point, peg_silhouette
 
 R_PEG, L_PEG, TIP_DIST, MOUNT = 0.01, 0.1, 0.13, np.array([0.0, 0.0, -0.05])
 HOLE_AT, TILT = np.array([0.01, -0.02, -1.2]), (0.04, -0.03)          # tilt about world x, then world y

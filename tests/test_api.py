@@ -122,8 +122,8 @@ def test_output_file_and_save_carry_the_same_rows_and_units(scenario, tmp_path):
 
 
 def test_simulate_one_fmu_on_its_default_experiment(caplog):
-    from deltafmi.export.packager import build_cached
-    from deltafmi.export.sources import find_component
+    from deltafmi.builder.packager import build_cached
+    from deltafmi.builder.sources import find_component
 
     source = find_component("Oscillator")
     caplog.set_level(logging.DEBUG, logger="deltafmi")
@@ -230,7 +230,7 @@ def test_an_ssp_archive_runs_as_its_scenario(scenario, oscillator, tmp_path):
 def test_every_error_simulate_and_build_raise_is_public(tmp_path):
     """docs/api.md names them; a user catches them from deltafmi."""
     from deltafmi.errors import Interrupted, ResultWriteError
-    from deltafmi.export.compiler import BuildError, NoCompilerError
+    from deltafmi.toolchain import BuildError, NoCompilerError
 
     assert (deltafmi.ResultWriteError, deltafmi.Interrupted, deltafmi.BuildError) == \
         (ResultWriteError, Interrupted, BuildError) and issubclass(NoCompilerError, deltafmi.BuildError)

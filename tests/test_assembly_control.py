@@ -1,4 +1,4 @@
-"""The assembly controller's law at the mechanics level (deltafmi/mechanics/assembly), against an
+"""The assembly controller's law at the mechanics level (deltafmi/physics/assembly), against an
 independent plant: the numpy delta DAE (delta/dynamics.py) carrying the numpy wrist
 (wrist/dynamics.py), coupled through the wrist's plate load (wrist/coupling.py) by an exact
 affine elimination, integrated by DOP853 between the 1 kHz samples with the torques held.
@@ -9,20 +9,20 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from deltafmi.mechanics import wrist as W
-from deltafmi.mechanics.assembly import (PHASE_APPROACH, PHASE_DESCENT, PHASE_HOLD, STATUS_GIMBAL_DAMPED,
+from deltafmi.physics import wrist as W
+from deltafmi.physics.assembly import (PHASE_APPROACH, PHASE_DESCENT, PHASE_HOLD, STATUS_GIMBAL_DAMPED,
                                          AssemblySettings, evaluate, gains, initial_state, make_assembly_law,
                                          make_program, reference, sample)
-from deltafmi.mechanics.assembly.program import hole_frame
-from deltafmi.mechanics.assembly.rotation import (TOOL_DOWN, matmul, orientation_reference, rotation_from_vector,
+from deltafmi.physics.assembly.program import hole_frame
+from deltafmi.physics.assembly.rotation import (TOOL_DOWN, matmul, orientation_reference, rotation_from_vector,
                                                   rotation_vector)
-from deltafmi.mechanics.assembly.wrist_model import inverse_dynamics, wrist_state
-from deltafmi.mechanics.delta import dynamics as D
-from deltafmi.mechanics.delta import kinematics as K
-from deltafmi.mechanics.delta.params import ARM_ROTATIONS, DeltaParams
-from deltafmi.mechanics.delta_wrist import dynamics as delta_wrist_dynamics
-from deltafmi.mechanics.delta_wrist.params import WristMount
-from deltafmi.mechanics.wrist.kernels import wrist_constants
+from deltafmi.physics.assembly.wrist_model import inverse_dynamics, wrist_state
+from deltafmi.physics.delta import dynamics as D
+from deltafmi.physics.delta import kinematics as K
+from deltafmi.physics.delta.params import ARM_ROTATIONS, DeltaParams
+from deltafmi.physics.delta_wrist import dynamics as delta_wrist_dynamics
+from deltafmi.physics.delta_wrist.params import WristMount
+from deltafmi.physics.wrist.kernels import wrist_constants
 
 T = 1e-3  # the controller's sample period (s)
 MOUNT = (0.0, 0.0, -0.05)
@@ -287,6 +287,6 @@ def test_bad_settings_are_one_clear_line(call, message):
 
 
 def test_status_text_is_readable():
-    from deltafmi.mechanics.assembly import describe_status
+    from deltafmi.physics.assembly import describe_status
     assert describe_status(0) == "ok"
     assert describe_status(STATUS_GIMBAL_DAMPED) == "wrist near gimbal lock: damped inverse"

@@ -9,8 +9,8 @@ import pytest
 from fmpy import simulate_fmu
 
 import deltafmi
-from deltafmi.export import build_cached
-from deltafmi.mechanics.assembly.rotation import TOOL_DOWN, orientation_reference, rotation_vector
+from deltafmi.builder import build_cached
+from deltafmi.physics.assembly.rotation import TOOL_DOWN, orientation_reference, rotation_vector
 
 T = 1e-3  # controller sample period (s)
 
@@ -107,7 +107,7 @@ def test_a_stiff_wrist_wedges_where_a_compliant_one_inserts():
     # peg turns into the bore and goes in. Held stiffly (500 N m/rad) it keeps its 3 degrees and
     # meets the bore at two points: rigid geometry puts the second contact l = (D - d cos th) /
     # sin th = 4.3 mm below the lip, where l / d = 0.22 < mu (Whitney's wedging condition,
-    # deltafmi/mechanics/friction/peg.py): it must stay wedged, short of l = mu d below the lip,
+    # deltafmi/physics/friction/peg.py): it must stay wedged, short of l = mu d below the lip,
     # while the program pushes with its full 20 N (the tip 13 mm behind the reference).
     tilted = {"plant.mu": 0.5, "plant.hole_tilt": [0.0524, 0.0]}
     res, depth, _, angular = _insert(**tilted)

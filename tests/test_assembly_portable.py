@@ -15,7 +15,7 @@ into the same binary and Python code, so any difference is the host process, not
 The other CPython runs the same kernels and numpy arithmetic; test_python_hosts' relative
 tolerance (1e-6) is kept for a numpy version that sums in another order.
 
-The MPC FMUs carry their own deltafmi.control (imported at module level, so the FMU's trace
+The MPC FMUs carry their own deltafmi.physics.control (imported at module level, so the FMU's trace
 packs it), copy their OSQP solver into an FMU state by setting up a new one, and name their
 shipped linear model by default.
 """
@@ -36,14 +36,14 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
 from conftest import ROOT, clean_env, unzip
-from deltafmi.cli import main
-from deltafmi.export.packager import build_cached
+from deltafmi.apps.cli import main
+from deltafmi.builder.packager import build_cached
 from host_loops import co_simulation, host_rows, me_env, model_exchange_euler, run_c_host
 from test_fmi3_binary import host3  # noqa: F401 (fixture)
 from test_portable_fmus import no_python, workspace  # noqa: F401 (fixtures)
 from test_python_hosts import BUILDER, TOLERANCE, _deviation, _fresh_fmpy_venv, _scalarized, _simulate
 
-EXAMPLES = ROOT / "deltafmi" / "examples"
+EXAMPLES = ROOT / "scenarios"
 #: the linear model each MPC FMU reads, shipped in its resources (`deltafmi build X --resource F`)
 RESOURCES = {"MpcController": [EXAMPLES / "mpc_press_model.npz"],
              "InsertionMpc": [EXAMPLES / "peg_in_hole_mpc_model.npz"]}

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from deltafmi.mechanics.examples.bouncing_ball import make_bouncing_ball
-from deltafmi.mechanics.examples.bouncing_ball_figures import bounce_figures, energy_gain_per_bounce, free_flight_apexes
-from deltafmi.mechanics.contact.system import Mode
-from deltafmi.mechanics.contact.hybrid_sim import simulate
+from deltafmi.physics.contact_problems.bouncing_ball import make_bouncing_ball
+from deltafmi.physics.contact_problems.bouncing_ball_figures import bounce_figures, energy_gain_per_bounce, free_flight_apexes
+from deltafmi.physics.contact.system import Mode
+from deltafmi.physics.contact.hybrid_sim import simulate
 
 G = 9.81
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from deltafmi.mechanics.examples.box_on_table import make_box_drop
-from deltafmi.mechanics.contact.system import Mode
-from deltafmi.mechanics.contact.hybrid_sim import simulate
+from deltafmi.physics.contact_problems.box_on_table import make_box_drop
+from deltafmi.physics.contact.system import Mode
+from deltafmi.physics.contact.hybrid_sim import simulate
 
 
 @pytest.mark.parametrize("offset", [0.0, 0.04])

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.results.progress import Progress
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi.master.results.progress import Progress
 from deltafmi.files import USER_FILE_MODE
 from signal_runs import DELTAFMI, interrupt_when
 
@@ -136,7 +136,7 @@ def test_build_into_a_directory_names_the_fmu_after_its_model(tmp_path, target):
     folder = tmp_path / target
     if target == "existing":
         folder.mkdir()
-    source = Path(__file__).parents[1] / "deltafmi" / "models" / "oscillator.py"
+    source = Path(__file__).parents[1] / "fmu_src" / "oscillator.py"
     result = CliRunner().invoke(main, ["build", str(source), "-o", f"{tmp_path}/{target}", "--no-validate"])
     assert result.exit_code == 0, result.output
     assert result.output.strip() == f"built {folder / 'Oscillator.fmu'}"

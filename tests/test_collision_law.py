@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from deltafmi.mechanics.examples.box_on_table import make_box_drop
-from deltafmi.mechanics.contact.collision_law import CollisionLaw, calibrate, elastic_duration
-from deltafmi.mechanics.contact.system import ContactSystem
-from deltafmi.mechanics.contact.hybrid_sim import simulate
-from deltafmi.mechanics.examples.newtons_cradle import ChainModel
+from deltafmi.physics.contact_problems.box_on_table import make_box_drop
+from deltafmi.physics.contact.collision_law import CollisionLaw, calibrate, elastic_duration
+from deltafmi.physics.contact.system import ContactSystem
+from deltafmi.physics.contact.hybrid_sim import simulate
+from deltafmi.physics.contact_problems.newtons_cradle import ChainModel
 
 
 @pytest.mark.parametrize("p", [1.0, 1.5, 3.0])

@@ -21,9 +21,9 @@ from click.testing import CliRunner
 from fmpy.cross_check.validate_vendor_repo import validate_repo
 from fmpy.util import read_csv, read_ref_opt_file
 
-from deltafmi.cli import main
-from deltafmi.compat.compare import mismatches
-from deltafmi.compat.files import RefOptions, Table, read_table, write_options, write_table
+from deltafmi.apps.cli import main
+from deltafmi.apps.compat.compare import mismatches
+from deltafmi.apps.compat.files import RefOptions, Table, read_table, write_options, write_table
 from third_party.build import build_fmu
 
 MODELS = ("Oscillator", "BouncingBall", "DeltaRobot")  # an input and events, events alone, arrays
@@ -102,7 +102,7 @@ def test_fmpy_reproduces_the_reference(tree, model, interface):
 
 
 def test_fmi3_tree(tmp_path):
-    from deltafmi.export.packager import build_cached
+    from deltafmi.builder.packager import build_cached
     if "fmi_version" not in inspect.signature(build_cached).parameters:
         pytest.skip("FMI 3.0 export is not in this tree yet")
     result = invoke("compat", str(tmp_path), "--fmi-version", "3", "--models", "DeltaRobot")

@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from deltafmi.export import compiler, kernels, packager
-from deltafmi.export.compiler import BuildError, NoCompilerError, plain_c_library
+from deltafmi import toolchain
+from deltafmi.builder import compiler, kernels, packager
+from deltafmi.toolchain import BuildError, NoCompilerError, plain_c_library
 
 MODELS = Path(packager.__file__).resolve().parent.parent / "models"
 
@@ -23,7 +24,7 @@ MODELS = Path(packager.__file__).resolve().parent.parent / "models"
 def fresh_cache(tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     monkeypatch.setenv("DELTAFMI_CACHE", str(cache))
-    monkeypatch.setattr(compiler, "PREBUILT_DIR", tmp_path / "no-prebuilt")
+    monkeypatch.setattr(toolchain, "PREBUILT_DIR", tmp_path / "no-prebuilt")
     return cache
 
 
@@ -49,7 +50,7 @@ def test_a_long_compiler_output_is_trimmed_to_its_first_lines(tmp_path, fresh_ca
         plain_c_library(source)
     text = str(caught.value)
     assert "missing_0" in text and "missing_59" not in text
-    assert len(text.splitlines()) <= compiler._MAX_OUTPUT_LINES + 3
+    assert len(text.splitlines()) <= toolchain._MAX_OUTPUT_LINES + 3
     assert "more lines)" in text
 
 
@@ -80,7 +81,7 @@ def test_an_fmu_build_without_compiler_names_the_component_and_warns_nothing(fre
 def test_the_prebuilt_layer_serves_without_compiler_and_the_user_cache_comes_first(tmp_path, monkeypatch):
     source = tmp_path / "answer.c"
     source.write_text('__attribute__((visibility("default"))) int answer(void) { return 42; }\n')
-    monkeypatch.setattr(compiler, "PREBUILT_DIR", tmp_path / "prebuilt")
+    monkeypatch.setattr(toolchain, "PREBUILT_DIR", tmp_path / "prebuilt")
     monkeypatch.setenv("DELTAFMI_CACHE", str(tmp_path / "prebuilt"))  # "the wheel build" compiles into it
     built = plain_c_library(source)
     relative = built.relative_to(tmp_path / "prebuilt")
@@ -115,10 +116,10 @@ def test_a_first_build_says_so_in_one_line_and_a_cached_one_is_silent(tmp_path, 
     from click.testing import CliRunner
 
     import deltafmi
-    from deltafmi.cli import main
+    from deltafmi.apps.cli import main
 
     # the shared cache's compiled pieces serve as the prebuilt layer; FMUs go to a fresh cache
-    monkeypatch.setattr(compiler, "PREBUILT_DIR", compiler.cache_dir())
+    monkeypatch.setattr(toolchain, "PREBUILT_DIR", toolchain.cache_dir())
     monkeypatch.setenv("DELTAFMI_CACHE", str(tmp_path / "cache"))
     monkeypatch.setenv("HOME", str(tmp_path))
     monkeypatch.chdir(tmp_path)
@@ -151,7 +152,7 @@ def test_the_fmu_cache_key_is_the_environments_not_the_interpreters_name():
     API and the CLI share the cached FMUs."""
     import subprocess
 
-    code = ("from pathlib import Path; from deltafmi.export.packager import content_key; "
+    code = ("from pathlib import Path; from deltafmi.builder.packager import content_key; "
             f"print(content_key(Path({str(MODELS / 'oscillator.py')!r})))")
     keys = set()
     for name in ("python", "python3"):

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "components.md"
-CLI = [sys.executable, "-c", "from deltafmi.cli import main; main()"]
+CLI = [sys.executable, "-c", "from deltafmi.apps.cli import main; main()"]
 # the motor's declared defaults and the controller's (read back from the FMUs below)
 R, KT, KE, J, B, I_MAX = 1.0, 0.05, 0.05, 1e-4, 1e-4, 2.0
 KP, KI, V_MAX, T = 0.1, 2.6, 24.0, 1e-3

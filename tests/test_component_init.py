@@ -10,7 +10,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-CLI = [sys.executable, "-c", "from deltafmi.cli import main; main()"]
+CLI = [sys.executable, "-c", "from deltafmi.apps.cli import main; main()"]
 
 OWN_INIT = '''\
 from deltafmi.component import Component, Output, Parameter
@@ -124,7 +124,7 @@ class Gain(Component):
 def test_direct_feedthrough_by_fmi_name_declares_the_dependency(tmp_path: Path) -> None:
     from fmpy import read_model_description
 
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
 
     source = tmp_path / "gain.py"
     source.write_text(FEEDTHROUGH.format(lam_inputs='["u"]'))

@@ -77,8 +77,8 @@ def test_compiled_and_python_accessors_agree(tmp_path):
 
     import deltafmi
     from deltafmi.component import native_values
-    from deltafmi.export.compiler import python_extension
-    from deltafmi.export.packager import VALUE_ACCESS_SOURCE
+    from deltafmi.toolchain import python_extension
+    from deltafmi.builder.packager import VALUE_ACCESS_SOURCE
 
     import value_access_cases
 

@@ -1,4 +1,4 @@
-"""The contact estimator's mechanics (deltafmi.mechanics.estimation): its Jacobians against finite
+"""The contact estimator's mechanics (deltafmi.physics.estimation): its Jacobians against finite
 differences, its Kalman algebra against closed forms, and the filter against a closed-loop robot
 simulated independently (solve_ivp, DOP853, rtol 1e-11) with a known wrist force or a spring table."""
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from deltafmi.mechanics import delta as d
-from deltafmi.mechanics.estimation import (ContactEKF, ContactEKFSettings, joseph_update, process_jacobian,
+from deltafmi.physics import delta as d
+from deltafmi.physics.estimation import (ContactEKF, ContactEKFSettings, joseph_update, process_jacobian,
                                            propagate, tangent_basis, transition_matrix, wrist_jacobians)
 
 P = d.RL5

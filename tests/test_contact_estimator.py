@@ -12,13 +12,13 @@ import pytest
 import yaml
 from fmpy.validation import validate_fmu
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "deltafmi" / "examples" / "contact_estimation.yaml"
+SCENARIO = ROOT / "scenarios" / "contact_estimation.yaml"
 G = 9.81
 
 
@@ -41,7 +41,7 @@ def test_torques_holding_more_than_the_robot_mean_a_push(estimator, fmi_type):
     1e-3 N within 0.5 s (measured 5e-13 N in both interfaces)."""
     from dataclasses import replace
 
-    from deltafmi.mechanics import delta as d
+    from deltafmi.physics import delta as d
 
     q = d.inverse_kinematics(d.RL5, [0.1, 0.0, -1.0])
     u = d.holding_torque(replace(d.RL5, payload=0.5), q)[0]

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from deltafmi.mechanics.examples.bouncing_ball_figures import bounce_figures
-from deltafmi.mechanics.contact.hybrid_sim import simulate
-from deltafmi.mechanics.examples.newtons_cradle import make_cradle
+from deltafmi.physics.contact_problems.bouncing_ball_figures import bounce_figures
+from deltafmi.physics.contact.hybrid_sim import simulate
+from deltafmi.physics.contact_problems.newtons_cradle import make_cradle
 
 G = 9.81
 BOTH = ["ModelExchange", "CoSimulation"]

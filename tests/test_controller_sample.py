@@ -1,7 +1,7 @@
-"""Issue 26: the delta controller's whole sample (deltafmi.mechanics.delta.sampling.sample: the
+"""Issue 26: the delta controller's whole sample (deltafmi.physics.delta.sampling.sample: the
 tactile shift, the integral frozen while saturated, the control law, the held torque on a
 singular sample, the zero-order-hold lead, the warm start and the warning latch) translated to C
-by deltafmi.export.codegen from its unchanged source, against the Python DeltaController.
+by deltafmi.builder.codegen from its unchanged source, against the Python DeltaController.
 
 Each sample goes through the Python controller and through the generated ``dfk_sample``, the
 state the C returned handed back to it (C -> Python -> C) for the next sample; the whole state
@@ -22,13 +22,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.export.codegen import Entry, Vec, named
-from deltafmi.export.codegen.build import compile_unit
-from deltafmi.export.codegen.kernel_types import D
-from deltafmi.export.compiler import NoCompilerError
-from deltafmi.mechanics import delta as d
-from deltafmi.mechanics.delta import control
-from deltafmi.mechanics.delta.sampling import SampleSettings, SampleState, initial_state
+from deltafmi.builder.codegen import Entry, Vec, named
+from deltafmi.builder.codegen.build import compile_unit
+from deltafmi.builder.codegen.kernel_types import D
+from deltafmi.toolchain import NoCompilerError
+from deltafmi.physics import delta as d
+from deltafmi.physics.delta import control
+from deltafmi.physics.delta.sampling import SampleSettings, SampleState, initial_state
 
 ROOT = Path(__file__).resolve().parents[1]
 P = d.RL5

@@ -19,11 +19,11 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from scipy.linalg import expm
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
-from deltafmi.export import build_fmu
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
+from deltafmi.builder import build_fmu
 
 COUNTING = '''\
 from deltafmi.component import Input, Output

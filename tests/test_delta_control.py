@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from deltafmi.mechanics import delta as d
-from deltafmi.mechanics.delta import control as dc
-from deltafmi.mechanics.delta.trajectory import CirclePath, MinimumJerkPath
+from deltafmi.physics import delta as d
+from deltafmi.physics.delta import control as dc
+from deltafmi.physics.delta.trajectory import CirclePath, MinimumJerkPath
 
 P = d.RL5
 IY, IX = [0, 3, 6], [1, 2, 4, 5, 7, 8]

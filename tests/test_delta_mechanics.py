@@ -1,4 +1,4 @@
-"""Delta robot plant (deltafmi.mechanics.delta) against physics and independent formulations.
+"""Delta robot plant (deltafmi.physics.delta) against physics and independent formulations.
 
 The reference paths live here, not in the library: a dense KKT solve for the DAE, a dense
 projection onto the closed loops, body-point kinetic energy for the mass matrix, and a
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from deltafmi.mechanics import delta as d
+from deltafmi.physics import delta as d
 from delta_reference import CASES, MinimalModel, fk_minimal
 
 P = d.RL5

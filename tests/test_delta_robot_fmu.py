@@ -9,7 +9,7 @@ import pytest
 from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 
-from deltafmi.mechanics import delta as d
+from deltafmi.physics import delta as d
 from conftest import start_model_exchange
 from delta_reference import CASES, SERVO, MinimalModel, fk_minimal
 
@@ -85,10 +85,10 @@ def test_master_answers_the_step_events(tmp_path, loop_tolerance):
     CVODE: with loop_tolerance the row after each step event closes the loops; without, they drift."""
     from click.testing import CliRunner
 
-    from deltafmi.cli import main
-    from deltafmi.cosim.results.csv_file import columns
+    from deltafmi.apps.cli import main
+    from deltafmi.master.results.csv_file import columns
 
-    source = Path(__file__).resolve().parents[1] / "deltafmi" / "models" / "delta_robot.py"
+    source = Path(__file__).resolve().parents[1] / "fmu_src" / "delta_robot.py"
     scenario = tmp_path / "fall.yaml"
     scenario.write_text(f"""experiment: {{start: 0.0, stop: 0.3, step: 2.0e-3}}
 components:
@@ -137,13 +137,13 @@ def test_singularity_scenario_passes_through_the_stretched_pose(tmp_path, monkey
     """The seed's 'simulation through kinematic singularity', as the shipped scenario runs it."""
     from click.testing import CliRunner
 
-    from deltafmi.cli import main
-    from deltafmi.cosim.results.csv_file import columns
+    from deltafmi.apps.cli import main
+    from deltafmi.master.results.csv_file import columns
 
     root = Path(__file__).resolve().parents[1]
     monkeypatch.chdir(root)  # the scenario names its source relative to the project
     out = tmp_path / "singularity.csv"
-    result = CliRunner().invoke(main, ["run", "deltafmi/examples/delta_singularity.yaml", "-o", str(out), "-q"])
+    result = CliRunner().invoke(main, ["run", "scenarios/delta_singularity.yaml", "-o", str(out), "-q"])
     assert result.exit_code == 0, result.output
     r = columns(out)
     z = r["plant.z[3]"]

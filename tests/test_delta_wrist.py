@@ -1,6 +1,6 @@
 """The DeltaWrist FMU (delta + spherical wrist, 24 states) through fmpy: ME with CVODE, CS, FMI 2.0 and 3.0.
 
-References: the plant's Python kernels (deltafmi.mechanics.delta_wrist, themselves checked against
+References: the plant's Python kernels (deltafmi.physics.delta_wrist, themselves checked against
 a dense KKT solve in test_delta_wrist_mechanics.py) integrated by scipy's DOP853 at rtol 1e-11, and
 the closed-form holding torques. Tolerances are stated where they are asserted.
 """
@@ -18,10 +18,10 @@ from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 
 from conftest import start_model_exchange
-from deltafmi.export import build_cached
-from deltafmi.mechanics import delta_wrist as dw
-from deltafmi.mechanics.delta.params import RL5
-from deltafmi.mechanics.wrist.kernels import wrist_constants
+from deltafmi.builder import build_cached
+from deltafmi.physics import delta_wrist as dw
+from deltafmi.physics.delta.params import RL5
+from deltafmi.physics.wrist.kernels import wrist_constants
 
 #: a start away from rest's symmetry: tip off the axis, the tool tilted 1.1 rad (it swings down)
 START = {"tip0[1]": 0.1, "tip0[2]": -0.05, "tip0[3]": -1.15, "qw0[1]": 0.3, "qw0[2]": 1.1, "qw0[3]": -0.4}

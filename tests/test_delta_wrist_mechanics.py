@@ -1,4 +1,4 @@
-"""The 6-DOF plant's mechanics (deltafmi.mechanics.delta_wrist, wrist.kernels) against independent references.
+"""The 6-DOF plant's mechanics (deltafmi.physics.delta_wrist, wrist.kernels) against independent references.
 
 - The wrist's float kernels against the numpy wrist (same formulas, other order of operations:
   rounding of a few eps per term over at most ~30 terms, asserted to 1e-13 of each quantity's scale).
@@ -20,17 +20,17 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from deltafmi.export.codegen import Entry
-from deltafmi.export.codegen.build import compile_unit
-from deltafmi.export.codegen.kernel_types import D, Obj, Vec
-from deltafmi.export.compiler import NoCompilerError
-from deltafmi.mechanics import delta as d
-from deltafmi.mechanics import delta_wrist as dw
-from deltafmi.mechanics import wrist as w
-from deltafmi.mechanics.delta_wrist import dynamics as dyn
-from deltafmi.mechanics.delta_wrist.params import WristMount
-from deltafmi.mechanics.wrist import kernels as k
-from deltafmi.mechanics.wrist.params import Body, Tool, WristParams
+from deltafmi.builder.codegen import Entry
+from deltafmi.builder.codegen.build import compile_unit
+from deltafmi.builder.codegen.kernel_types import D, Obj, Vec
+from deltafmi.toolchain import NoCompilerError
+from deltafmi.physics import delta as d
+from deltafmi.physics import delta_wrist as dw
+from deltafmi.physics import wrist as w
+from deltafmi.physics.delta_wrist import dynamics as dyn
+from deltafmi.physics.delta_wrist.params import WristMount
+from deltafmi.physics.wrist import kernels as k
+from deltafmi.physics.wrist.params import Body, Tool, WristParams
 
 P = d.DeltaParams(payload=0.5, damping=0.0)
 #: a wrist with every inertia field in use (products of inertia, off-axis centres of mass)

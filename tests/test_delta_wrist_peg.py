@@ -3,7 +3,7 @@
 The robot is held by its closed-form holding torques (delta_wrist.holding_torques) and pushed
 down by a constant force on the tool tip; no controller. References: the DeltaWrist plant's Python
 kernels without any contact integrated by scipy (a centred peg must not touch the hole), and the
-contact kernel in Python (deltafmi.mechanics.peg) re-evaluated on the FMU's own states.
+contact kernel in Python (deltafmi.physics.peg) re-evaluated on the FMU's own states.
 """
 from __future__ import annotations
 
@@ -15,11 +15,11 @@ import pytest
 from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 
-from deltafmi.export import build_cached
-from deltafmi.mechanics import delta_wrist as dw
-from deltafmi.mechanics.delta.params import RL5
-from deltafmi.mechanics.peg import Hole, Peg, PegContact, contact, plant
-from deltafmi.mechanics.wrist.kernels import wrist_constants
+from deltafmi.builder import build_cached
+from deltafmi.physics import delta_wrist as dw
+from deltafmi.physics.delta.params import RL5
+from deltafmi.physics.peg import Hole, Peg, PegContact, contact, plant
+from deltafmi.physics.wrist.kernels import wrist_constants
 
 PUSH = 20.0  #: N, down on the tool tip
 HOLE = Hole()  #: the FMU's default (true) hole: top centre (0, 0, -1.2), bore 10.1 mm, chamfer 2 mm x 45 deg

@@ -1,4 +1,4 @@
-"""fmi2GetDirectionalDerivative: every FMU of deltafmi/models/ against central differences taken as an
+"""fmi2GetDirectionalDerivative: every FMU of fmu_src/ against central differences taken as an
 importer takes them (fmpy, through the FMI calls); the delta robot's exact derivatives against
 Richardson-extrapolated differences of the library; the master's CVODE with those derivatives."""
 from __future__ import annotations
@@ -14,8 +14,8 @@ from fmpy.fmi2 import FMU2Model
 from fmpy.validation import validate_fmu
 
 from conftest import FMU_SRC, MODEL_FILES
-from deltafmi.mechanics import delta as d
-from deltafmi.mechanics.delta.jacobian import plant_jacobian
+from deltafmi.physics import delta as d
+from deltafmi.physics.delta.jacobian import plant_jacobian
 
 SOURCES = MODEL_FILES
 #: start values: Newton's cradle's balls touch at rest, where the contact force has a kink (and
@@ -210,11 +210,11 @@ def test_master_cvode_takes_the_exact_jacobian(build_fmu_from_src, tmp_path):
     """The DeltaRobot FMU says its derivatives are exact (vendor annotation), the oscillator's are
     its own differences; the master's CVODE then takes the robot's: a free fall at rtol 1e-6 with
     and without lands on the same trajectory within the tolerance's reach of a tight reference."""
-    from deltafmi.cosim.stepping.jacobians import computes_exact_derivatives
-    from deltafmi.cosim.stepping.master import Master
-    from deltafmi.cosim.scenario.resolve import resolve_system
-    from deltafmi.cosim.results.csv_file import columns
-    from deltafmi.cosim.scenario.spec import load_scenario
+    from deltafmi.master.stepping.jacobians import computes_exact_derivatives
+    from deltafmi.master.stepping.master import Master
+    from deltafmi import resolve_system
+    from deltafmi.master.results.csv_file import columns
+    from deltafmi.master.scenario.spec import load_scenario
 
     robot = build_fmu_from_src("delta_robot.py")
     assert computes_exact_derivatives(fmpy.extract(str(robot), str(tmp_path / "robot")))
@@ -240,11 +240,11 @@ def test_fmi3_build_gives_the_master_the_same_newton_matrix(build_fmu_from_src, 
     """The robot built as FMI 3.0 (q, v as arrays): the master's CVODE takes its Newton matrix
     from fmi3GetDirectionalDerivative, one seed per array element, and follows the FMI 2.0 build's
     run bit for bit; with CVODE's own difference quotients it does not."""
-    from deltafmi.export import build_fmu
-    from deltafmi.cosim.stepping.master import Master
-    from deltafmi.cosim.scenario.resolve import resolve_system
-    from deltafmi.cosim.results.csv_file import columns
-    from deltafmi.cosim.scenario.spec import load_scenario
+    from deltafmi.builder import build_fmu
+    from deltafmi.master.stepping.master import Master
+    from deltafmi import resolve_system
+    from deltafmi.master.results.csv_file import columns
+    from deltafmi.master.scenario.spec import load_scenario
 
     robots = {2: build_fmu_from_src("delta_robot.py"),
               3: build_fmu(FMU_SRC / "delta_robot.py", tmp_path / "robot3.fmu", fmi_version=3)}

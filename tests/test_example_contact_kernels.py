@@ -7,16 +7,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from deltafmi.mechanics.contact.collision_law import CollisionLaw
-from deltafmi.mechanics.contact.system import COLLISION, CONTACT, FREE, ContactSystem
-from deltafmi.mechanics.examples.restitution_kernels import RestitutionBall, ball_evaluate
-from deltafmi.mechanics.examples.bouncing_ball import BallModel
-from deltafmi.mechanics.examples.box_kernels import BoxModes, BoxParams, box_evaluate, box_outputs
-from deltafmi.mechanics.examples.box_on_table import BoxModel
-from deltafmi.mechanics.contact.law_kernels import law_constants
-from deltafmi.mechanics.examples.contact_kernels import KernelContactSystem, _solve_masked
-from deltafmi.mechanics.examples.cradle_kernels import CradleModes, cradle_outputs
-from deltafmi.mechanics.examples.newtons_cradle import make_cradle
+from deltafmi.physics.contact.collision_law import CollisionLaw
+from deltafmi.physics.contact.system import COLLISION, CONTACT, FREE, ContactSystem
+from deltafmi.physics.contact_problems.restitution_kernels import RestitutionBall, ball_evaluate
+from deltafmi.physics.contact_problems.bouncing_ball import BallModel
+from deltafmi.physics.contact_problems.box_kernels import BoxModes, BoxParams, box_evaluate, box_outputs
+from deltafmi.physics.contact_problems.box_on_table import BoxModel
+from deltafmi.physics.contact.law_kernels import law_constants
+from deltafmi.physics.contact_problems.contact_kernels import KernelContactSystem, _solve_masked
+from deltafmi.physics.contact_problems.cradle_kernels import CradleModes, cradle_outputs
+from deltafmi.physics.contact_problems.newtons_cradle import make_cradle
 
 LAW = CollisionLaw(restitution=0.7, duration=1e-3, reference_speed=1.0, exponent=3.0)
 FIELDS = ("h", "hdot", "H", "lam", "vdot")

@@ -14,9 +14,9 @@ from click.testing import CliRunner
 from fmpy import read_model_description
 
 import deltafmi.models
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.examples import EXAMPLES_DIR, examples
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi.shipped import SCENARIOS_DIR, examples
 
 MODELS_DIR = Path(deltafmi.models.__file__).parent
 
@@ -43,7 +43,7 @@ def test_the_model_table_names_every_packaged_component():
 def test_examples_lists_every_shipped_scenario_and_study():
     result = _invoke("examples")
     assert result.exit_code == 0, result.output
-    shipped = sorted(p.stem for p in EXAMPLES_DIR.glob("*.yaml")) + sorted(p.stem for p in (EXAMPLES_DIR / "studies").glob("*.yaml"))
+    shipped = sorted(p.stem for p in SCENARIOS_DIR.glob("*.yaml")) + sorted(p.stem for p in (SCENARIOS_DIR / "studies").glob("*.yaml"))
     assert [e.name for e in examples()] == shipped and len(shipped) == len(set(shipped)) >= 16
     for e in examples():
         line = next(line for line in result.output.splitlines() if line.split()[:1] == [e.name])
@@ -51,7 +51,7 @@ def test_examples_lists_every_shipped_scenario_and_study():
 
 
 def test_every_shipped_scenario_names_packaged_components():
-    for path in EXAMPLES_DIR.glob("*.yaml"):
+    for path in SCENARIOS_DIR.glob("*.yaml"):
         for name, component in yaml.safe_load(path.read_text())["components"].items():
             assert component["source"].startswith("deltafmi.models:"), (path.name, name)
 
@@ -63,13 +63,13 @@ def test_an_example_runs_by_name_from_any_folder_and_writes_here(tmp_path, monke
     by_name = columns(tmp_path / "delta_tracking.csv")
     assert by_name["time"][-1] == pytest.approx(0.2)
     # the same scenario named by its path gives the same bits
-    assert _invoke("run", str(EXAMPLES_DIR / "delta_tracking.yaml"), "--stop", "0.2", "-q",
+    assert _invoke("run", str(SCENARIOS_DIR / "delta_tracking.yaml"), "--stop", "0.2", "-q",
                    "-o", "by_path.csv").exit_code == 0
     by_path = columns(tmp_path / "by_path.csv")
     assert all(np.array_equal(by_name[k], by_path[k]) for k in by_name)
     # the wrist starts at rest at the first waypoint and follows it to micrometres while it dwells
     assert np.max(np.abs(by_name["plant.z[3]"] + 1.0)) < 1e-5
-    assert not list(EXAMPLES_DIR.glob("*.csv"))  # nothing written into the package
+    assert not list(SCENARIOS_DIR.glob("*.csv"))  # nothing written into the package
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -130,7 +130,7 @@ def test_a_copied_example_is_what_runs_and_edits_take_effect(tmp_path, monkeypat
     assert copied == {"delta_tracking.yaml", "models/trajectory.py", "models/delta_controller.py", "models/delta_robot.py"}
     text = (tmp_path / "mine" / "delta_tracking.yaml").read_text()
     assert "source: models/delta_robot.py" in text and "deltafmi.models:" not in text
-    assert text.splitlines()[0] == (EXAMPLES_DIR / "delta_tracking.yaml").read_text().splitlines()[0]  # comments kept
+    assert text.splitlines()[0] == (SCENARIOS_DIR / "delta_tracking.yaml").read_text().splitlines()[0]  # comments kept
     assert _invoke("examples", "copy", "delta_tracking", "mine").exit_code != 0  # never overwrites
 
     assert _invoke("run", "delta_tracking", "--stop", "0.1", "-q", "-o", "shipped.csv").exit_code == 0

@@ -1,4 +1,4 @@
-"""The FMI 3.0 binary (deltafmi/export/native/fmi3.c over core.c) through fmpy's fmi3 calls and the
+"""The FMI 3.0 binary (deltafmi/runtime/native/fmi3.c over core.c) through fmpy's fmi3 calls and the
 plain-C FMI 3.0 host (tests/c_host/host3.c): arrays against the FMI 2.0 build's scalars, the state
 machine's errors, FMU state, exact partial derivatives, Co-Simulation event mode and the end of a
 simulation asked for by the component."""
@@ -16,14 +16,14 @@ from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.fmi3 import FMU3Model, FMU3Slave, fmi3LogMessageCallback
 
 from conftest import FMU_SRC, NATIVE, ROOT, unzip
-from deltafmi.export.compiler import exported_symbols, fmu_binary
+from deltafmi.builder.compiler import exported_symbols, fmu_binary
 from test_portable_fmus import no_python  # noqa: F401 - the fixture: a command prefix where no Python exists
 
 COMPONENTS = ROOT / "tests" / "components"
 
 
 def _build(source: Path, version: int) -> Path:
-    from deltafmi.export.packager import build_cached
+    from deltafmi.builder.packager import build_cached
     return build_cached(source, fmi_version=version)
 
 
@@ -345,7 +345,7 @@ def test_a_null_resource_path_finds_the_resources_from_the_binary(opened, host3)
 
 @pytest.fixture(scope="module")
 def chatty(tmp_path_factory) -> Opened:
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
     out = tmp_path_factory.mktemp("chatty")
     return Opened(build_fmu(COMPONENTS / "chatty" / "model.py", out / "Chatty.fmu", fmi_version=3), out / "x")
 
@@ -372,7 +372,7 @@ def test_a_component_that_ends_the_simulation_returns_ok_with_terminate_simulati
 
 def test_a_component_that_steps_itself_ends_the_simulation_in_its_step(tmp_path):
     """Stopper (its own do_step) ends the run in its third step: fmi3OK, terminateSimulation."""
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
     stopper = Opened(build_fmu(COMPONENTS / "stopper" / "model.py", tmp_path / "Stopper.fmu", fmi_version=3),
                      tmp_path / "x")
     fmu = stopper.slave()
@@ -388,7 +388,7 @@ def test_a_component_that_steps_itself_ends_the_simulation_in_its_step(tmp_path)
 def test_the_portable_fmi3_fmu_runs_where_no_python_exists(no_python, opened, host3, tmp_path):
     """``--portable`` for FMI 3.0: the Oscillator in host3 where no Python can be found equals the
     plain FMI 3.0 FMU in host3 here, in Co-Simulation and Model Exchange."""
-    from deltafmi.export.packager import build_cached
+    from deltafmi.builder.packager import build_cached
     portable = unzip(build_cached(FMU_SRC / "oscillator.py", portable=True, fmi_version=3), tmp_path / "portable")
     plain = opened(FMU_SRC / "oscillator.py", 3)
     for mode, step in (("cs", 1e-2), ("me", 1e-3)):

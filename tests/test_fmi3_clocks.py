@@ -26,9 +26,9 @@ from fmpy.validation import validate_fmu
 from conftest import ROOT, clean_env
 from deltafmi import simulate
 from deltafmi.component import Clock, Component, Input, Output, Parameter
-from deltafmi.component.model_description import model_description_xml
-from deltafmi.component.model_description3 import model_description3_xml
-from deltafmi.export import build_cached
+from deltafmi.runtime.model_description import model_description_xml
+from deltafmi.runtime.model_description3 import model_description3_xml
+from deltafmi.builder import build_cached
 from test_fmi3_binary import host3  # noqa: F401 - the fixture: tests/c_host/host3.c compiled
 from test_portable_fmus import no_python  # noqa: F401 - the fixture: a command prefix where no Python exists
 
@@ -408,7 +408,7 @@ def test_portable_scheduled_execution_runs_where_no_python_exists(no_python, hos
 def test_info_names_the_scheduled_execution_interface_and_the_clock(fmu3):
     from click.testing import CliRunner
 
-    from deltafmi.cli import main
+    from deltafmi.apps.cli import main
     shown = CliRunner().invoke(main, ["info", str(fmu3)]).output
     assert "(FMI 3.0, Model Exchange, Co-Simulation, Scheduled Execution)" in shown
     assert "clocks: sample (input, fixed)" in shown
@@ -422,7 +422,7 @@ TICKER = ROOT / "tests" / "components" / "ticker" / "model.py"
 def test_a_clock_changes_nothing_for_importers_without_event_mode(tmp_path, fmi_version, fmi_type):
     """A clock-driven component that does not step itself, in fmpy (no event mode, no clocks):
     the same samples with and without its Clock declared, FMI 2.0 and 3.0 builds."""
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
     counts = {}
     for clocked in (False, True):
         fmu = build_fmu(TICKER, tmp_path / f"ticker{clocked}.fmu", class_name="ClockedTicker" if clocked else "Ticker",

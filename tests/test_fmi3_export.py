@@ -15,9 +15,9 @@ import pytest
 from click.testing import CliRunner
 from fmpy.validation import validate_fmu
 
-from deltafmi.cli import main
-from deltafmi.component.instance import CO_SIMULATION, FmuInstance
-from deltafmi.export import build_cached
+from deltafmi.apps.cli import main
+from deltafmi.runtime.instance import CO_SIMULATION, FmuInstance
+from deltafmi.builder import build_cached
 from deltafmi.models import MODELS
 from deltafmi.models.bouncing_ball import BouncingBall
 from deltafmi.models.delta_robot import DeltaRobot

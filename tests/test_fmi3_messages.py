@@ -14,8 +14,8 @@ from fmpy.fmi2 import (FMU2Model, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2Ca
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 
-from deltafmi.cli import main
-from deltafmi.export import build_fmu
+from deltafmi.apps.cli import main
+from deltafmi.builder import build_fmu
 
 # update() raises when u > 1, derivatives() when u < -1: each failure is reached by one FMI call
 GRUMPY = textwrap.dedent('''
@@ -141,7 +141,7 @@ def test_the_rebuild_advice_of_an_fmi3_fmu_keeps_its_version(grumpy):
 
 
 def test_a_missing_module_advice_of_an_fmi3_fmu_keeps_its_version(grumpy):
-    from deltafmi.export.boot import _missing_module
+    from deltafmi.runtime.boot import _missing_module
 
     for version, option in ((3, " --fmi-version 3"), (2, "")):
         resources = str(Path(grumpy[version].dir) / "resources")

@@ -1,6 +1,6 @@
 """An FMU carries the deltafmi modules its model imports and the runtime needs, nothing more.
 
-The set comes from reading import statements (deltafmi.export.reach); these tests hold it against
+The set comes from reading import statements (deltafmi.builder.reach); these tests hold it against
 what Python actually imports, against the archives built from deltafmi/models, and against the cache key.
 """
 from __future__ import annotations
@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.export.kernels import kernel_groups, kernel_modules, mypyc_version
-from deltafmi.export.packager import runtime_modules
-from deltafmi.mechanics import delta as d
+from deltafmi.builder.kernels import kernel_groups, kernel_modules, mypyc_version
+from deltafmi.builder.packager import runtime_modules
+from deltafmi.physics import delta as d
 
 from conftest import FMU_SRC, MODEL_FILES, ROOT, unzip
 
@@ -30,7 +30,7 @@ needs_mypyc = pytest.mark.skipif(mypyc_version() is None, reason="mypy (mypyc) i
 # Import the model as boot.py does (model source + the runtime), then list deltafmi's modules.
 _TRACE = """
 import importlib, importlib.util, json, sys
-importlib.import_module("deltafmi.component.instance")
+importlib.import_module("deltafmi.runtime.instance")
 spec = importlib.util.spec_from_file_location("model_under_test", sys.argv[1])
 spec.loader.exec_module(importlib.util.module_from_spec(spec))
 print(json.dumps(sorted(m for m in sys.modules if m == "deltafmi" or m.startswith("deltafmi."))))
@@ -52,7 +52,7 @@ def test_the_static_set_covers_what_python_imports(source):
                          text=True, check=True, cwd=ROOT)
     imported = set(json.loads(out.stdout))
     carried = set(runtime_modules(FMU_SRC / source))
-    assert "deltafmi.component.instance" in imported
+    assert "deltafmi.runtime.instance" in imported
     assert imported <= carried, f"imported but not carried: {sorted(imported - carried)}"
 
 
@@ -81,9 +81,9 @@ def test_what_a_run_imports_is_in_the_fmu(build_fmu_from_src, source, has_states
     fmu = build_fmu_from_src(source)
     out = subprocess.run([sys.executable, "-I", "-c", _RUN, str(fmu)], capture_output=True, text=True,
                          check=True, cwd=ROOT)
-    imported = {m for m in json.loads(out.stdout) if m != "deltafmi.component._values" and "__mypyc" not in m}
+    imported = {m for m in json.loads(out.stdout) if m != "deltafmi.runtime._values" and "__mypyc" not in m}
     # the CS solver, imported only when a step integrates states
-    assert ("deltafmi.component.cvode" in imported) == has_states
+    assert ("deltafmi.runtime.cvode" in imported) == has_states
     missing = imported - _archive_modules(fmu)
     assert not missing, f"a run imported modules the FMU does not carry: {sorted(missing)}"
 
@@ -98,17 +98,17 @@ def test_oscillator_carries_no_mechanics_and_no_kernels(build_fmu_from_src):
 
 
 @pytest.mark.parametrize("source", [s for s in SOURCES if not any(
-    m.startswith("deltafmi.mechanics.delta") for m in runtime_modules(FMU_SRC / s))])
+    m.startswith("deltafmi.physics.delta") for m in runtime_modules(FMU_SRC / s))])
 def test_fmus_of_models_without_delta_robot_code_are_small(build_fmu_from_src, source):
     fmu = build_fmu_from_src(source)
-    assert not [n for n in zipfile.ZipFile(fmu).namelist() if "mechanics/delta" in n or "__mypyc" in n]
+    assert not [n for n in zipfile.ZipFile(fmu).namelist() if "physics/delta" in n or "__mypyc" in n]
     # ~300 kB of runtime and binary, and the model's compiled kernels: their library and C (30-100 kB)
     assert fmu.stat().st_size <= 450_000, f"{fmu.stat().st_size} bytes"
 
 
 @pytest.mark.parametrize("source, kernels", [
     ("delta_robot.py", {"dynamics", "kinematics", "jacobian"}),
-    # deltafmi.mechanics.delta's __init__ re-exports the plant: importing .control loads it
+    # deltafmi.physics.delta's __init__ re-exports the plant: importing .control loads it
     ("delta_controller.py", {"control_law", "dynamics", "kinematics"}),
     ("bouncing_ball.py", set()),
 ])
@@ -140,7 +140,7 @@ def test_the_robot_fmus_compiled_kernels_load_from_the_fmu_alone(build_fmu_from_
 import json, sys
 sys.path.insert(0, {str(python_dir)!r})
 import deltafmi
-from deltafmi.mechanics.delta import dynamics, jacobian, kinematics, params
+from deltafmi.physics.delta import dynamics, jacobian, kinematics, params
 assert deltafmi.__file__.startswith({str(python_dir)!r}), deltafmi.__file__
 print(json.dumps({{"files": [m.__file__ for m in (dynamics, jacobian, kinematics)],
                   "dx": list(dynamics.state_derivative(params.RL5, {x!r}, {u!r}, [0.0, 0.0, 0.0]))}}))
@@ -162,7 +162,7 @@ def test_content_key_follows_only_the_files_an_fmu_carries(tmp_path):
 import json
 from pathlib import Path
 import deltafmi
-from deltafmi.export.packager import content_key
+from deltafmi.builder.packager import content_key
 assert deltafmi.__file__.startswith({str(tmp_path)!r}), deltafmi.__file__
 print(json.dumps([content_key(Path({str(FMU_SRC)!r}) / name) for name in ("oscillator.py", "bouncing_ball.py")]))
 """
@@ -177,12 +177,12 @@ print(json.dumps([content_key(Path({str(FMU_SRC)!r}) / name) for name in ("oscil
             f.write("\n# edited\n")
 
     oscillator, ball = keys()
-    touch("mechanics/delta/dynamics.py")  # neither carries the robot
+    touch("physics/delta/dynamics.py")  # neither carries the robot
     assert keys() == [oscillator, ball]
-    touch("mechanics/examples/bouncing_ball.py")
+    touch("physics/contact_problems/bouncing_ball.py")
     same_oscillator, new_ball = keys()
     assert same_oscillator == oscillator and new_ball != ball
     ball = new_ball
-    touch("component/base.py")  # both carry the runtime
+    touch("runtime/base.py")  # both carry the runtime
     new_oscillator, new_ball = keys()
     assert new_oscillator != oscillator and new_ball != ball

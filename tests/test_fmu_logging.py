@@ -21,10 +21,10 @@ import pytest
 from click.testing import CliRunner
 
 from conftest import clean_env, unzip
-from deltafmi.cli import main
-from deltafmi.component.fmu_logging import CATEGORIES, message
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.export import build_fmu
+from deltafmi.apps.cli import main
+from deltafmi.runtime.fmu_logging import CATEGORIES, message
+from deltafmi.master.results.csv_file import columns
+from deltafmi.builder import build_fmu
 
 # in-process runs (fmpy, deltafmi run): pytest's own warning capture replaces the FMU's hook
 pytestmark = pytest.mark.filterwarnings("ignore:a warnings.warn from initialize")
@@ -277,7 +277,7 @@ def test_restoring_a_state_from_before_the_end_lets_co_simulation_go_on(unzipped
     from fmpy.fmi1 import FMICallException
     from fmpy.fmi2 import FMU2Slave, fmi2LastSuccessfulTime, fmi2Terminated
 
-    from deltafmi.cosim.stepping.unit_base import logger_callbacks
+    from deltafmi.master.stepping.unit_base import logger_callbacks
 
     directory, guid = unzipped
     said: list = []

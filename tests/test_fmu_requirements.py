@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
+from deltafmi.apps.cli import main
 
 
 def _python_without_numpy() -> str | None:
@@ -33,7 +33,7 @@ def test_validate_names_the_interpreter_a_plain_fmu_needs(build_fmu_from_src):
 
 def test_the_portable_advice_names_the_file_of_an_edited_copy(tmp_path):
     # a packaged model's source, edited: building the packaged name would lose the edit
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
     from deltafmi.models import oscillator
 
     source = tmp_path / "oscillator.py"
@@ -89,7 +89,7 @@ def test_validate_fails_when_the_named_interpreter_lacks_numpy(build_fmu_from_sr
 
 
 def test_info_and_validate_of_a_portable_fmu_state_its_glibc_floor(portable_oscillator_fmu):
-    from deltafmi.export.requirements import read_config
+    from deltafmi.builder.requirements import read_config
 
     floor = read_config(portable_oscillator_fmu)["glibc"]
     for command in ("info", "validate"):

@@ -13,15 +13,15 @@ import pytest
 from click.testing import CliRunner
 from fmpy import simulate_fmu
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
-from deltafmi.examples import EXAMPLES_DIR
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
+from deltafmi.shipped import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
-SHIPPED_MODEL = EXAMPLES_DIR / "mpc_press_model.npz"
+SHIPPED_MODEL = SCENARIOS_DIR / "mpc_press_model.npz"
 
 #: a component that reads a number from a file of its FMU's resources at initialization
 TABLE_GAIN = textwrap.dedent('''\
@@ -152,12 +152,12 @@ def test_the_shipped_linear_model_is_what_the_tool_makes_now(tmp_path):
 
 
 def test_the_controller_fmu_carries_no_co_simulation_code():
-    """MpcController reads its model with numpy: its FMU carries none of deltafmi.cosim (which
+    """MpcController reads its model with numpy: its FMU carries none of deltafmi.master (which
     imports fmpy, a host's package, not an FMU's)."""
-    from deltafmi.export.packager import runtime_modules
-    carried = runtime_modules(ROOT / "deltafmi" / "models" / "mpc_controller.py")
-    assert "deltafmi.control.contact_mpc" in carried
-    assert not [name for name in carried if name.startswith("deltafmi.cosim")]
+    from deltafmi.builder.packager import runtime_modules
+    carried = runtime_modules(ROOT / "fmu_src" / "mpc_controller.py")
+    assert "deltafmi.physics.control.contact_mpc" in carried
+    assert not [name for name in carried if name.startswith("deltafmi.master")]
 
 
 def test_mpc_press_runs_from_any_folder_and_from_its_copy(tmp_path, monkeypatch):

@@ -11,7 +11,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from deltafmi.export import build_fmu
+from deltafmi.builder import build_fmu
 
 COMPONENTS = Path(__file__).parent / "components"
 K = np.array([1.0, 2.0, 4.0])

@@ -23,7 +23,7 @@ import pytest
 from conftest import MODEL_FILES, ROOT, unzip
 
 #: every FMU of deltafmi/models: the flagship ones, and the contact ones (whose collision law calibrates
-#: itself with deltafmi.mechanics.contact.dopri, no longer with scipy)
+#: itself with deltafmi.physics.contact.dopri, no longer with scipy)
 #: models whose sample is a QP solved by OSQP (which takes scipy.sparse matrices): their host's Python
 #: needs osqp and scipy (a --portable FMU carries them); their tests are tests/test_mpc_controller.py
 #: and tests/test_insertion_mpc.py
@@ -111,7 +111,7 @@ logging.getLogger("deltafmi").addHandler(Keep())
 logging.getLogger("deltafmi").setLevel(logging.DEBUG)
 import numpy as np
 from deltafmi.component import sundials
-from deltafmi.component.cvode import Cvode, CvodeError
+from deltafmi.runtime.cvode import Cvode, CvodeError
 decay = Cvode(lambda t, x, xd: xd.__setitem__(0, -x[0]), np.array([1.0]), 0.0, rtol=1e-10, atol=1e-12)
 decay.advance(1.0)
 def blow_up(t, x, xd):
@@ -158,7 +158,7 @@ def test_sundials_from_the_fmu_else_fmpy_else_a_clear_error(build_fmu_from_src, 
     result, _ = _solve(tmp_path, resources / "python", numpy_only)
     assert result.returncode != 0 and result.stdout == ""
     last = result.stderr.strip().splitlines()[-1]
-    assert last.startswith("deltafmi.component.sundials.SundialsNotFound: the SUNDIALS libraries (CVODE)")
+    assert last.startswith("deltafmi.runtime.sundials.SundialsNotFound: the SUNDIALS libraries (CVODE)")
     assert str((resources / "python" / "sundials").resolve()) in last and "pip install fmpy" in last and "--portable" in last
     # bundled the way a portable FMU carries them: found there, without fmpy
     import fmpy
@@ -180,7 +180,7 @@ def test_collision_law_calibration_agrees_with_scipy(e, p):
     """The calibration integrates with our own Dormand-Prince now; scipy's DOP853, given the chi it
     found, must rebound with the same restitution after the same duration."""
     from scipy.integrate import solve_ivp
-    from deltafmi.mechanics.contact.collision_law import _end_function, calibrate
+    from deltafmi.physics.contact.collision_law import _end_function, calibrate
 
     c = calibrate(e, p)
     q = 0.5 * (p - 1.0)

@@ -1,4 +1,4 @@
-"""Coulomb friction as STICK / SLIP modes (deltafmi.mechanics.friction) against closed forms.
+"""Coulomb friction as STICK / SLIP modes (deltafmi.physics.friction) against closed forms.
 
 Tolerances: the motions of the block are piecewise polynomial, which DOP853 integrates exactly;
 what is left is round-off (1e-15 m) and the event offset EPS = 1e-12 (a stop located
@@ -13,18 +13,18 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from deltafmi.mechanics.contact.hybrid_sim import simulate
-from deltafmi.mechanics.friction.belt import make_belt_oscillator, stick_slip_cycle
-from deltafmi.mechanics.friction.incline import (incline_position, incline_viscous_position,
+from deltafmi.physics.contact.hybrid_sim import simulate
+from deltafmi.physics.friction.belt import make_belt_oscillator, stick_slip_cycle
+from deltafmi.physics.friction.incline import (incline_position, incline_viscous_position,
                                                  make_incline, make_plane_incline,
                                                  plane_path_invariant, plane_stop_time)
-from deltafmi.mechanics.friction.law import (SLIP_NEGATIVE, SLIP_POSITIVE, STICK, FrictionParams,
+from deltafmi.physics.friction.law import (SLIP_NEGATIVE, SLIP_POSITIVE, STICK, FrictionParams,
                                              after_stop, regularisation_error_bound,
                                              regularised_force, slip_force)
-from deltafmi.mechanics.friction.peg import (cone_edge_wrenches, jammed, jamming_facets,
+from deltafmi.physics.friction.peg import (cone_edge_wrenches, jammed, jamming_facets,
                                              two_point_tilt, wedged, whitney_jammed, whitney_wedged)
-from deltafmi.mechanics.friction.peg_statics import peg_outcome
-from deltafmi.mechanics.friction.system import FrictionModel, FrictionSystem
+from deltafmi.physics.friction.peg_statics import peg_outcome
+from deltafmi.physics.friction.system import FrictionModel, FrictionSystem
 
 G = 9.81
 FRICTION = FrictionParams(mu_s=0.5, mu_k=0.4)
@@ -340,8 +340,8 @@ def test_whitney_small_angle_diagram_matches_the_exact_geometry():
 
 
 def test_a_contact_pulled_off_separates_and_the_block_flies_freely():
-    from deltafmi.mechanics.friction.law import SEPARATED
-    from deltafmi.mechanics.friction.planar_block import PlanarBlock
+    from deltafmi.physics.friction.law import SEPARATED
+    from deltafmi.physics.friction.planar_block import PlanarBlock
 
     system = FrictionSystem(PlanarBlock(2.0, (1.0, 3.0), FRICTION), f_ref=2.0 * G)
     r = simulate(system, (0.0, 1.0), np.zeros(4), **TIGHT)

@@ -10,17 +10,17 @@ import numpy as np
 import pytest
 import yaml
 
-from deltafmi.control import LinearMPC, zoh
-from deltafmi.control.insertion import BALANCING_SCALE, InsertionMpc, InsertionTask, polynomial_shaping
-from deltafmi.control.model_file import LinearModelFile
-from deltafmi.control.reduction import balanced_truncation, lift, output_coordinates
-from deltafmi.control.insertion_model import keep_components, write_model
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.physics.control import LinearMPC, zoh
+from deltafmi.physics.control.insertion import BALANCING_SCALE, InsertionMpc, InsertionTask, polynomial_shaping
+from deltafmi.physics.control.model_file import LinearModelFile
+from deltafmi.physics.control.reduction import balanced_truncation, lift, output_coordinates
+from deltafmi.apps.insertion_mpc_model import keep_components, write_model
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 
-SCENARIO = Path(__file__).resolve().parents[1] / "deltafmi" / "examples" / "peg_in_hole_mpc.yaml"
+SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "peg_in_hole_mpc.yaml"
 F_MAX = 15.0                      # N, the scenario's force_limit
 K_AX, M_AX = 1500.0, 10.0         # the impedance along the hole (N/m, kg)
 K_LAT, M_LAT = 300.0, 5.0         # sideways
@@ -183,11 +183,11 @@ def test_a_missing_linear_model_is_named_with_the_command_that_makes_it(tmp_path
 
 
 def test_the_mpc_fmu_carries_no_co_simulation_code():
-    """InsertionMpc reads its model with numpy: its FMU carries none of deltafmi.cosim (fmpy's)."""
-    from deltafmi.export.packager import runtime_modules
-    carried = runtime_modules(Path(__file__).resolve().parents[1] / "deltafmi" / "models" / "insertion_mpc.py")
-    assert "deltafmi.control.insertion" in carried
-    assert not [name for name in carried if name.startswith("deltafmi.cosim")]
+    """InsertionMpc reads its model with numpy: its FMU carries none of deltafmi.master (fmpy's)."""
+    from deltafmi.builder.packager import runtime_modules
+    carried = runtime_modules(Path(__file__).resolve().parents[1] / "fmu_src" / "insertion_mpc.py")
+    assert "deltafmi.physics.control.insertion" in carried
+    assert not [name for name in carried if name.startswith("deltafmi.master")]
 
 
 def task(**changes) -> InsertionTask:

@@ -1,4 +1,4 @@
-"""The joystick experiment (deltafmi/examples/joystick_tracking.yaml) from its recorded session:
+"""The joystick experiment (scenarios/joystick_tracking.yaml) from its recorded session:
 paced, re-recorded, replayed; the wrist follows the follower's limited reference.
 
 The live run plays the shipped session at four times real time and records the events it took
@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 import deltafmi
-from deltafmi.examples import EXAMPLES_DIR
+from deltafmi.shipped import SCENARIOS_DIR
 
 STOP = 3.0
-SESSION = EXAMPLES_DIR / "joystick_session.jsonl"
+SESSION = SCENARIOS_DIR / "joystick_session.jsonl"
 
 
 def _copy(tmp_path: Path, session: Path, record: Path | None) -> Path:
-    text = (EXAMPLES_DIR / "joystick_tracking.yaml").read_text()
+    text = (SCENARIOS_DIR / "joystick_tracking.yaml").read_text()
     joystick = f"joystick: {{session: '{session}'" + (f", record: '{record}'" if record else "") + "}"
     text = text.replace("joystick:\n      session: joystick_session.jsonl", joystick)
     text = text.replace("  - {plot:", "  # - {plot:")

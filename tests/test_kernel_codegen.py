@@ -1,4 +1,4 @@
-"""Issue 26 items 1-2: C generated from the delta robot's Python kernels (deltafmi/export/codegen)
+"""Issue 26 items 1-2: C generated from the delta robot's Python kernels (deltafmi/builder/codegen)
 computes what the Python computes, bit for bit.
 
 The generator translates every Python float operation into the same C double operation in the
@@ -22,16 +22,16 @@ import numpy as np
 import pytest
 
 import deltafmi
-from deltafmi.export.compiler import NoCompilerError
-from deltafmi.mechanics.delta import control, control_law, dynamics, kinematics
-from deltafmi.mechanics.delta.params import DeltaParams
+from deltafmi.toolchain import NoCompilerError
+from deltafmi.physics.delta import control, control_law, dynamics, kinematics
+from deltafmi.physics.delta.params import DeltaParams
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from deltafmi.export.codegen import CodegenError, Entry, generate  # noqa: E402
-from deltafmi.export.codegen.build import compile_unit  # noqa: E402
-from deltafmi.export.codegen.translate import D, I  # noqa: E402
+from deltafmi.builder.codegen import CodegenError, Entry, generate  # noqa: E402
+from deltafmi.builder.codegen.build import compile_unit  # noqa: E402
+from deltafmi.builder.codegen.translate import D, I  # noqa: E402
 from kernel_codegen.flagship import IDENTITIES, GeneratedFlagship, entries  # noqa: E402
 
 

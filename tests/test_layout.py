@@ -1,5 +1,5 @@
-"""The package layout: deltafmi.cosim's sub-packages import only what their job needs, nothing is
-left flat in deltafmi.cosim, ``import deltafmi`` imports nothing and resolves its public API
+"""The package layout: deltafmi.master's sub-packages import only what their job needs, nothing is
+left flat in deltafmi.master, ``import deltafmi`` imports nothing and resolves its public API
 lazily, and the robot FMUs share one declaration of the robot's parameters."""
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ import pytest
 from fmpy import read_model_description
 
 import deltafmi
-import deltafmi.cosim
+import deltafmi.master
 
-COSIM = Path(deltafmi.cosim.__file__).parent
+COSIM = Path(deltafmi.master.__file__).parent
 
 #: sub-package -> the sub-packages it must not import (its job does not need them)
 INDEPENDENT = {
@@ -41,13 +41,13 @@ def test_the_sub_packages_are_all_there():
 
 @pytest.mark.parametrize("package", sorted(INDEPENDENT))
 def test_a_sub_package_imports_none_it_does_not_need(package):
-    modules = [f"deltafmi.cosim.{package}.{m.name}" for m in pkgutil.iter_modules([str(COSIM / package)])]
+    modules = [f"deltafmi.master.{package}.{m.name}" for m in pkgutil.iter_modules([str(COSIM / package)])]
     assert modules, package
     loaded = _imported_after("".join(f"import {m}\n" for m in modules))
     assert set(modules) <= loaded
     strays = {m for m in loaded for other in INDEPENDENT[package]
-              if m == f"deltafmi.cosim.{other}" or m.startswith(f"deltafmi.cosim.{other}.")}
-    assert not strays, f"importing deltafmi.cosim.{package} imports {sorted(strays)}"
+              if m == f"deltafmi.master.{other}" or m.startswith(f"deltafmi.master.{other}.")}
+    assert not strays, f"importing deltafmi.master.{package} imports {sorted(strays)}"
 
 
 def test_no_module_is_left_flat_in_cosim():
@@ -73,7 +73,7 @@ def test_every_public_name_resolves_to_its_module():
         value = getattr(deltafmi, name)
         assert value.__module__ == deltafmi._API[name] and value.__name__ == name, name
         assert name in dir(deltafmi)
-    from deltafmi.cosim.stepping.master import Master
+    from deltafmi.master.stepping.master import Master
     assert deltafmi.Master is Master
     with pytest.raises(AttributeError, match="has no attribute 'Mastr'"):
         deltafmi.Mastr  # noqa: B018
@@ -113,6 +113,6 @@ def test_the_export_library_does_not_import_the_master():
     # export builds FMUs; cosim runs them and may ask export to build: the library modules of
     # export never reach into cosim (only the CLI's `validate X.fmu` calls the master's checks)
     export = Path(deltafmi.__file__).parent / "export"
-    reaching = {path.name: sorted(n for n in _imports_in(path) if n.startswith("deltafmi.cosim"))
+    reaching = {path.name: sorted(n for n in _imports_in(path) if n.startswith("deltafmi.master"))
                 for path in export.glob("*.py") if path.name != "commands.py"}
     assert {name: found for name, found in reaching.items() if found} == {}

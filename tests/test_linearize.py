@@ -13,13 +13,13 @@ from click.testing import CliRunner
 
 from conftest import FMU_SRC, ROOT
 from delta_reference import SERVO, MinimalModel, fk_minimal
-from deltafmi.cli import main
-from deltafmi.cosim.linearize.closed_loop import linearize_scenario
-from deltafmi.cosim.linearize.fmu import linearize_fmu
-from deltafmi.cosim.linearize.linear_model import LinearModel
-from deltafmi.mechanics import delta as d
+from deltafmi.apps.cli import main
+from deltafmi.master.linearize.closed_loop import linearize_scenario
+from deltafmi.master.linearize.fmu import linearize_fmu
+from deltafmi.master.linearize.linear_model import LinearModel
+from deltafmi.physics import delta as d
 
-FLAGSHIP = ROOT / "deltafmi" / "examples" / "delta_tracking.yaml"
+FLAGSHIP = ROOT / "scenarios" / "delta_tracking.yaml"
 TS = 1e-3
 REST_POINTS = [(0.0, 0.0, -1.0), (0.2, -0.1, -0.9), (-0.25, 0.3, -1.15)]
 
@@ -202,7 +202,7 @@ def test_fmi3_plant_linearizes_as_its_fmi2_build(robot, tmp_path):
     """The robot built as FMI 3.0 (q, v, u, z arrays; fmi3GetDirectionalDerivative element by
     element of the arrays) gives the FMI 2.0 build's equilibrium and A, B, C, D: both are the same
     exact partial derivatives of the same equations."""
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
 
     robot3 = build_fmu(FMU_SRC / "delta_robot.py", tmp_path / "delta_robot3.fmu", fmi_version=3)
     arguments = dict(start_values={"z0": [0.2, -0.1, -0.9], "pole": 5.0}, rest=True, free=["u"],

@@ -1,4 +1,4 @@
-"""The live datagram formats (deltafmi.cosim.live.datagram) against the byte table of docs/realtime.md,
+"""The live datagram formats (deltafmi.master.live.datagram) against the byte table of docs/realtime.md,
 written out here by hand with struct, field by field."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import struct
 import numpy as np
 import pytest
 
-from deltafmi.cosim.live.datagram import (MAX_DATAGRAM, Datagram, Encoder, MalformedDatagram, PackedDoubles,
+from deltafmi.master.live.datagram import (MAX_DATAGRAM, Datagram, Encoder, MalformedDatagram, PackedDoubles,
                                           decode, encode, encode_json)
 
 #: values whose bits a decimal or float32 detour would change

@@ -1,4 +1,4 @@
-"""Issue 28: the joystick source (deltafmi/cosim/live/joystick.py) and its recorded sessions.
+"""Issue 28: the joystick source (deltafmi/master/live/joystick.py) and its recorded sessions.
 
 The axis mapping is checked against its formula written out here (normalize over the device's
 range, dead band rescaled to stay continuous, offset + scale * value, the rate limit's ramp);
@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.cosim.live.joystick import AxisMap, AxisRange, JoystickSource, read_session
+from deltafmi.master.live.joystick import AxisMap, AxisRange, JoystickSource, read_session
 from deltafmi.errors import BadInput
 
-SHIPPED = Path(__file__).resolve().parents[1] / "deltafmi" / "examples" / "joystick_session.jsonl"
+SHIPPED = Path(__file__).resolve().parents[1] / "scenarios" / "joystick_session.jsonl"
 HEADER = {"format": "deltafmi-joystick-session", "version": 1, "device": "test pad",
           "axes": {"ABS_X": {"min": -32768, "max": 32767, "flat": 0}, "ABS_RY": {"min": 0, "max": 1023, "flat": 0}}}
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import deltafmi
-from deltafmi.cosim.results.csv_file import columns
+from deltafmi.master.results.csv_file import columns
 from deltafmi.errors import BadInput
 from signal_runs import DELTAFMI, interrupt_when
 
@@ -66,7 +66,7 @@ def test_falling_behind_warns_and_goes_on_or_stops_with_the_rows_kept(tmp_path, 
 def test_falling_behind_as_an_error_stops_the_run_with_its_rows(tmp_path):
     """--behind error: exit 1 with a one-line reason, and the rows up to there on disk."""
     from click.testing import CliRunner
-    from deltafmi.cli import main
+    from deltafmi.apps.cli import main
 
     out = tmp_path / "behind.csv"
     outcome = CliRunner().invoke(main, ["run", "delta_tracking", "--stop", "0.05", "--speed", "1000",
@@ -100,15 +100,15 @@ def test_a_stop_signal_ends_a_long_wait_at_once(tmp_path):
     streams its first row once the clock starts: the signal comes in the wait."""
     import socket
 
-    from deltafmi.examples import EXAMPLES_DIR
+    from deltafmi.shipped import SCENARIOS_DIR
 
     listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     listener.bind(("127.0.0.1", 0))
     listener.settimeout(120)
     scenario = tmp_path / "slow.yaml"
-    scenario.write_text((EXAMPLES_DIR / "delta_tracking.yaml").read_text()
+    scenario.write_text((SCENARIOS_DIR / "delta_tracking.yaml").read_text()
                         + f"streams:\n  - {{udp: '127.0.0.1:{listener.getsockname()[1]}', signals: [plant.residual]}}\n")
-    process = subprocess.Popen([sys.executable, "-c", "from deltafmi.cli import main; main()", "run",
+    process = subprocess.Popen([sys.executable, "-c", "from deltafmi.apps.cli import main; main()", "run",
                                 str(scenario), "--speed", "1e-5", "-o", str(tmp_path / "slow.csv")],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

@@ -1,4 +1,4 @@
-"""UDP live inputs and outputs (deltafmi.cosim.live.udp) over real sockets on 127.0.0.1.
+"""UDP live inputs and outputs (deltafmi.master.live.udp) over real sockets on 127.0.0.1.
 
 The senders and receivers on the other side are plain sockets, and what they send or expect is
 written out with struct and json, field by field, as docs/realtime.md documents it."""
@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pytest
 
-from deltafmi.cosim.live.udp import UdpSink, UdpSource, parse_host_port
+from deltafmi.master.live.udp import UdpSink, UdpSource, parse_host_port
 from deltafmi.errors import BadInput
 
 

@@ -19,9 +19,9 @@ import pytest
 from click.testing import CliRunner
 
 import deltafmi
-from deltafmi.cli import main
-from deltafmi.cosim.live.datagram import decode, encode
-from deltafmi.cosim.results.result import read_result
+from deltafmi.apps.cli import main
+from deltafmi.master.live.datagram import decode, encode
+from deltafmi.master.results.result import read_result
 from oscillator_analytic import P, _free
 
 STOP, STEP = 0.6, 1e-3
@@ -284,8 +284,8 @@ connections:
   - {{from: cmd.F, to: osc.F}}
 """)
     scenario = deltafmi.load_scenario(path)
-    from deltafmi.cosim.scenario.resolve import resolve_system
-    from deltafmi.cosim.stepping.master import Master
+    from deltafmi import resolve_system
+    from deltafmi.master.stepping.master import Master
 
     master = Master(resolve_system(scenario), result=tmp_path / "d.csv")
     master.open()

@@ -22,10 +22,10 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 from deltafmi.errors import ScenarioError, SimulationError
 from conftest import ROOT
 from test_master_loops import _with_attribute as with_attribute
@@ -238,7 +238,7 @@ def test_flagship_built_as_fmi3_with_the_controllers_clock_equals_fmi2(tmp_path)
     from dataclasses import replace
 
     from deltafmi import simulate
-    from deltafmi.cosim.stepping import native_loop
+    from deltafmi.master.stepping import c_loop as native_loop
     fmi2 = simulate("delta_tracking", record=["plant.z[*]", "controller.status"])
     scenario = load_scenario("delta_tracking")
     scenario = replace(scenario, components=tuple(replace(spec, fmi_version=3) for spec in scenario.components))
@@ -275,7 +275,7 @@ def test_ticks_inside_steps_hand_the_step_from_c_to_python(tmp_path, period, tic
     the step, and steps with a tick inside go to Python (the step is split at it, a row before and
     after); at 0.6 ms every step has one, also those whose start is a tick. Both loops: the same
     activations (one per tick before the stop) and the same rows, bit for bit."""
-    from deltafmi.cosim.stepping import native_loop
+    from deltafmi.master.stepping import c_loop as native_loop
     path = tmp_path / "controller.yaml"
     path.write_text(f"""fmi_version: 3
 experiment: {{stop: 0.0495, step: 1.0e-3}}

@@ -16,11 +16,11 @@ import pytest
 from click.testing import CliRunner
 from scipy.linalg import expm
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 from deltafmi.errors import ScenarioError
 from test_third_party_fmus import ball_drives_oscillator, ball_exact, first_on_grid
 from third_party.build import build_fmu
@@ -160,7 +160,7 @@ def test_fixed_steps_of_fmi3_units_run_in_c_with_the_same_bits(fmus, tmp_path):
     """The C loop takes FMI 3.0 units (Float64, Int32 and Boolean values, fmi3DoStep, arrays by
     element); an event in a Co-Simulation step (early return) hands the step back to Python. Same
     rows, bit for bit, as the Python loop."""
-    from deltafmi.cosim.stepping.native_loop import NativeLoop
+    from deltafmi.master.stepping.c_loop import NativeLoop
     path = tmp_path / "c.yaml"
     path.write_text(f"""experiment: {{stop: 2.0, step: 0.01}}
 components:
@@ -371,7 +371,7 @@ def test_fmi3_and_fmi2_components_connect_array_to_array():
     same run as the FMI 2.0 flagship."""
     from dataclasses import replace
 
-    from deltafmi.cosim.scenario.spec import load_scenario as load
+    from deltafmi.master.scenario.spec import load_scenario as load
     scenario = load("delta_tracking")
     mixed = replace(scenario, components=tuple(replace(spec, fmi_version=3) if spec.name == "plant" else spec
                                                for spec in scenario.components))
@@ -521,7 +521,7 @@ def test_run_builds_sources_as_fmi3_on_request(tmp_path):
                         "components:\n  osc: {source: deltafmi.models:Oscillator, interface: CS}\n")
     system = resolve_system(load_scenario(scenario))
     assert system.components[0].info.md.fmiVersion == "2.0"
-    from deltafmi.cosim.scenario.overrides import with_overrides
+    from deltafmi.master.scenario.overrides import with_overrides
     system = resolve_system(with_overrides(load_scenario(scenario), fmi_version=3))
     assert system.components[0].info.md.fmiVersion == "3.0"
     assert "osc: CS Oscillator, FMI 3.0 (" in cli("validate", str(scenario), "--fmi-version", "3")

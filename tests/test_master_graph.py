@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from deltafmi.cosim.scenario.graph import (block_stepping_order, initialization_order, loop_groups, stepping_order,
+from deltafmi.master.scenario.graph import (block_stepping_order, initialization_order, loop_groups, stepping_order,
                                   strongly_connected, tear)
 
 # plant: y depends on its states only, lambda on u; controller: u depends on y and r

@@ -25,13 +25,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-import deltafmi.cosim.stepping
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
-from deltafmi.export import build_fmu
+import deltafmi.master.stepping
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
+from deltafmi.builder import build_fmu
 
 COMPONENTS = Path(__file__).parent / "components"
 
@@ -332,11 +332,11 @@ def test_loop_settings_are_checked_with_their_line(fmus):
 def test_adaptive_and_loops_import_nothing_of_the_master():
     """The master imports the adaptive loop and the loop solver; they drive it through small
     protocols and import nothing of it, not even for type checking (no import cycle)."""
-    stepping = Path(deltafmi.cosim.stepping.__file__).parent
+    stepping = Path(deltafmi.master.stepping.__file__).parent
     for module in ("adaptive.py", "loops.py"):
         tree = ast.parse((stepping / module).read_text())
         imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
         imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
         assert not {name for name in imported if name and name.split(".")[-1] == "master"}, module
-    code = "import sys, deltafmi.cosim.stepping.adaptive; assert 'deltafmi.cosim.stepping.master' not in sys.modules"
+    code = "import sys, deltafmi.master.stepping.adaptive; assert 'deltafmi.master.stepping.master' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -1,4 +1,4 @@
-"""The master's fixed-step loop in C (deltafmi.cosim.stepping.native_loop) against its Python loop.
+"""The master's fixed-step loop in C (deltafmi.master.stepping.c_loop) against its Python loop.
 
 The C loop makes the same fmi2 calls with the same arguments in the same order, so a run must be
 the same bit for bit, the result files byte for byte: the flagship (ME plant on rk4, CS
@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.cosim.results.csv_file import CsvWriter
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping import native_loop
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.master.results.csv_file import CsvWriter
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping import c_loop as native_loop
+from deltafmi.master.stepping.master import Master
 from deltafmi.errors import SimulationError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,7 +56,7 @@ def both(tmp_path: Path, text: str, stop: float):
 
 
 def flagship(extra_plant: str = "") -> str:
-    text = (ROOT / "deltafmi" / "examples" / "delta_tracking.yaml").read_text()
+    text = (ROOT / "scenarios" / "delta_tracking.yaml").read_text()
     return text.replace("      z0: [0.0, 0.0, -1.0]", "      z0: [0.0, 0.0, -1.0]\n" + extra_plant)
 
 
@@ -165,9 +165,9 @@ def test_csv_reals_written_as_repr(tmp_path):
 
 
 def test_study_recorder_takes_blocks_and_event_rows(tmp_path, c_runs):
-    # deltafmi.study keeps rows in memory: blocks from the C loop between single rows (the
+    # deltafmi.apps.studies keeps rows in memory: blocks from the C loop between single rows (the
     # initial row, the rows before step events) must come out in order, as the Python loop's
-    from deltafmi.study.runner import MemoryRecorder
+    from deltafmi.apps.studies.runner import MemoryRecorder
     path = tmp_path / "s.yaml"
     path.write_text(flagship("      loop_tolerance: 1.0e-13\n"))
     system = resolve_system(load_scenario(path))

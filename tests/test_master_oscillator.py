@@ -1,4 +1,4 @@
-"""The master on deltafmi/models/oscillator.py, checked against its closed-form solution.
+"""The master on fmu_src/oscillator.py, checked against its closed-form solution.
 
 ME through the master's own CVODE (state events at the wall, a time event at t_step), CS through
 the FMU's doStep, and the recording of events as repeated time stamps.
@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 from deltafmi.errors import SimulationError
 from oscillator_analytic import solution
 

@@ -18,10 +18,10 @@ import yaml
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 
 H, N = 1.0 / 512, 100  # a step exact in binary and in libcosim's integer nanoseconds
 # (source component, output, target component, input, factor, offset)
@@ -168,10 +168,10 @@ def test_jacobi_equals_libcosim(tmp_path, fmus):
 
 
 class Flagship:
-    """deltafmi/examples/delta_tracking.yaml with every component CS and Jacobi, in independent pieces."""
+    """scenarios/delta_tracking.yaml with every component CS and Jacobi, in independent pieces."""
 
     def __init__(self, build_fmu_from_src, h: float, n: int) -> None:
-        self.scenario = yaml.safe_load((Path(__file__).parents[1] / "deltafmi" / "examples" / "delta_tracking.yaml").read_text())
+        self.scenario = yaml.safe_load((Path(__file__).parents[1] / "scenarios" / "delta_tracking.yaml").read_text())
         sources = {"trajectory": "trajectory.py", "controller": "delta_controller.py", "plant": "delta_robot.py"}
         self.fmus = {name: build_fmu_from_src(source) for name, source in sources.items()}
         self.scenario["components"]["controller"]["parameters"]["sample_period"] = h

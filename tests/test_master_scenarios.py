@@ -1,4 +1,4 @@
-"""The scenarios shipped in deltafmi/examples/: each validates, and each runs to physically right answers
+"""The scenarios shipped in scenarios/: each validates, and each runs to physically right answers
 (checked against closed forms and conservation laws, not against earlier runs)."""
 from __future__ import annotations
 
@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 
-SCENARIOS = Path(__file__).parents[1] / "deltafmi" / "examples"
+SCENARIOS = Path(__file__).parents[1] / "scenarios"
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -13,7 +13,7 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Model
 
-from deltafmi.export import build_fmu
+from deltafmi.builder import build_fmu
 
 SOURCE = '''
 import numpy as np

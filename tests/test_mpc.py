@@ -1,4 +1,4 @@
-"""deltafmi.control: the linear MPC against independent solutions (Riccati, SLSQP, closed forms)."""
+"""deltafmi.physics.control: the linear MPC against independent solutions (Riccati, SLSQP, closed forms)."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,9 +6,9 @@ import pytest
 import scipy.linalg
 from scipy.optimize import minimize
 
-from deltafmi.control import LinearMPC, controllable_subspace, finite_horizon_lqr, spring_contact, zoh
-from deltafmi.control.contact_mpc import PlaneContactMpc, PressTask
-from deltafmi.cosim.linearize.linear_model import LinearModel
+from deltafmi.physics.control import LinearMPC, controllable_subspace, finite_horizon_lqr, spring_contact, zoh
+from deltafmi.physics.control.contact_mpc import PlaneContactMpc, PressTask
+from deltafmi.master.linearize.linear_model import LinearModel
 
 
 def random_system(seed: int, nx: int = 4, nu: int = 2, ny: int = 3):

@@ -9,11 +9,11 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 
 ROOT = Path(__file__).resolve().parents[1]
 K_SURFACE = 2e5      # N/m, the table's contact spring in mpc_press.yaml
@@ -38,7 +38,7 @@ def linear_model(tmp_path_factory) -> Path:
 
 
 def run_press(folder: Path, linear_model: Path, force: float = 20.0, impedance: bool = True) -> dict:
-    spec = yaml.safe_load((ROOT / "deltafmi" / "examples" / "mpc_press.yaml").read_text())
+    spec = yaml.safe_load((ROOT / "scenarios" / "mpc_press.yaml").read_text())
     mpc = spec["components"]["mpc"]
     mpc["resources"] = [str(linear_model)]  # into the FMU: read from there, whatever the folder
     mpc["parameters"].update(linear_model=linear_model.name, force=force)

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 import deltafmi
-from deltafmi.export.compiler import NoCompilerError
-from deltafmi.mechanics import delta
+from deltafmi.toolchain import NoCompilerError
+from deltafmi.physics import delta
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -2,7 +2,7 @@
 
 The compiled and the Python paths of the same FMU (``DELTAFMI_NATIVE=0`` switches the compiled
 one off at instantiation) must give the same numbers bit for bit: the generated C performs the
-kernels' float operations in Python's order (deltafmi/export/codegen). That the C path really
+kernels' float operations in Python's order (deltafmi/builder/codegen). That the C path really
 runs is shown by the test component's ``python_calls`` output, which only its Python derivatives
 method advances. Physics: the test oscillator against its closed-form response.
 """
@@ -21,7 +21,7 @@ import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Model, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 
-from deltafmi.export import build_fmu
+from deltafmi.builder import build_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 COMPILED = ROOT / "tests" / "components" / "compiled" / "model.py"
@@ -169,7 +169,7 @@ class Decay(Component):
 def _build(tmp_path: Path, text: str) -> subprocess.CompletedProcess:
     source = tmp_path / "decay.py"
     source.write_text(text)
-    return subprocess.run([sys.executable, "-c", "from deltafmi.cli import main; main()", "build", str(source), "-o",
+    return subprocess.run([sys.executable, "-c", "from deltafmi.apps.cli import main; main()", "build", str(source), "-o",
                            str(tmp_path / "Decay.fmu")],
                           capture_output=True, text=True, cwd=tmp_path)
 
@@ -345,9 +345,9 @@ def test_the_fast_attribute_writer_lays_out_what_ctypes_does(name):
     those of the ctypes struct built field by field (pack), for every shipped model's attributes
     after initialization, and for an Optional left None."""
     import deltafmi.models
-    from deltafmi.component.instance import FmuInstance
-    from deltafmi.component.native_kernels import FieldWriter, c_type, pack, record_classes, unpack
-    from deltafmi.export.codegen.component_kernels import generate_component
+    from deltafmi.runtime.instance import FmuInstance
+    from deltafmi.runtime.native_kernels import FieldWriter, c_type, pack, record_classes, unpack
+    from deltafmi.builder.codegen.component_kernels import generate_component
 
     cls = getattr(deltafmi.models, name)
     description = generate_component(cls).description

@@ -10,7 +10,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 
 import deltafmi.models
-from deltafmi.export import build_cached
+from deltafmi.builder import build_cached
 
 PYTHON_ONLY = deltafmi.models.PYTHON_ONLY  # an EKF's numpy linear algebra, an MPC's OSQP
 MODELS = sorted(set(deltafmi.models.MODELS) - set(PYTHON_ONLY))

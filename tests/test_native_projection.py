@@ -25,7 +25,7 @@ from fmpy import simulate_fmu
 from test_memory import CYCLES, LIMIT
 from test_memory import SCRIPT as MEMORY_SCRIPT
 
-from deltafmi.export import build_fmu
+from deltafmi.builder import build_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 MODES = {"compiled": {}, "python projection": {"DELTAFMI_NATIVE_PROJECT": "0"}, "python": {"DELTAFMI_NATIVE": "0"}}
@@ -153,7 +153,7 @@ def test_a_raising_projection_hands_the_call_to_python_which_explains(ring_fmus,
 @pytest.fixture(scope="module")
 def plant_fmus(tmp_path_factory):
     folder = tmp_path_factory.mktemp("plants")
-    return {name: build_fmu(ROOT / "deltafmi" / "models" / f"{name}.py", folder / f"{name}.fmu")
+    return {name: build_fmu(ROOT / "fmu_src" / f"{name}.py", folder / f"{name}.fmu")
             for name in ("delta_robot", "delta_wrist")}
 
 
@@ -193,8 +193,8 @@ def test_resident_memory_stays_flat_over_reset_cycles_with_the_compiled_projecti
 
 def test_a_projection_that_returns_no_state_or_runs_without_derivatives_is_named():
     from deltafmi.component import Component, Kernel, NativeKernels, Output, State
-    from deltafmi.export.codegen.component_kernels import generate_component
-    from deltafmi.export.codegen.kernel_types import CodegenError
+    from deltafmi.builder.codegen.component_kernels import generate_component
+    from deltafmi.builder.codegen.kernel_types import CodegenError
 
     def keep(x: list) -> list:
         return [x[0]]
@@ -220,14 +220,14 @@ def test_a_projection_that_returns_no_state_or_runs_without_derivatives_is_named
 
 def test_the_wrist_plants_projection_kernel_is_its_mechanics_projection():
     """DeltaWrist's kernel (the codegen subset: new tuples for in-place list updates, J_s^T dzd as
-    dot products, sqrt(sum h^2) for math.hypot) against deltafmi.mechanics.delta_wrist's numpy
+    dot products, sqrt(sum h^2) for math.hypot) against deltafmi.physics.delta_wrist's numpy
     projection at drifted states of a moving robot with a swinging wrist: the same operations but
     numpy's matmul (which may round its 3-term sums otherwise: a few ulps of the rates, ~1e-15)."""
-    from deltafmi.mechanics import delta_wrist
-    from deltafmi.mechanics.delta.params import DeltaParams
-    from deltafmi.mechanics.delta_wrist import dynamics
-    from deltafmi.mechanics.delta_wrist.params import WristMount
-    from deltafmi.mechanics.wrist.kernels import wrist_constants
+    from deltafmi.physics import delta_wrist
+    from deltafmi.physics.delta.params import DeltaParams
+    from deltafmi.physics.delta_wrist import dynamics
+    from deltafmi.physics.delta_wrist.params import WristMount
+    from deltafmi.physics.wrist.kernels import wrist_constants
     from deltafmi.models.delta_wrist import project_state
 
     p = DeltaParams()

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from deltafmi.mechanics.contact.collision_law import CollisionLaw
-from deltafmi.mechanics.contact.system import Mode
-from deltafmi.mechanics.contact.hybrid_sim import simulate
-from deltafmi.mechanics.examples.newtons_cradle import make_cradle, momentum
+from deltafmi.physics.contact.collision_law import CollisionLaw
+from deltafmi.physics.contact.system import Mode
+from deltafmi.physics.contact.hybrid_sim import simulate
+from deltafmi.physics.contact_problems.newtons_cradle import make_cradle, momentum
 
 
 def run(n, t_end=0.01, **kw):

@@ -1,4 +1,4 @@
-"""The peg estimator's mechanics (deltafmi.mechanics.estimation: wrist_process, peg_contact, peg_ekf):
+"""The peg estimator's mechanics (deltafmi.physics.estimation: wrist_process, peg_contact, peg_ekf):
 the reduced process model against the plant's 24-state DAE integrated by solve_ivp (DOP853,
 rtol 1e-11), its wrench columns by linearity, the hole locator against a contact in closed form,
 the Schmidt update against the scalar formulas, and the filter finding a known wrench on the
@@ -9,16 +9,16 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from deltafmi.mechanics import delta_wrist as dw
-from deltafmi.mechanics.delta.kinematics import forward_kinematics, wrist_position
-from deltafmi.mechanics.delta.params import RL5
-from deltafmi.mechanics.estimation.kalman import joseph_update
-from deltafmi.mechanics.estimation.peg_contact import contact_wrench, locate_hole
-from deltafmi.mechanics.estimation.peg_ekf import PegEKF, PegEKFSettings
-from deltafmi.mechanics.estimation.wrist_process import derivative, full_state, process_jacobian, propagate, tool_pose
-from deltafmi.mechanics.peg import Hole, Peg, PegContact, peg_wrench
-from deltafmi.mechanics.peg.plant import tool_pose as plant_tool_pose
-from deltafmi.mechanics.wrist.kernels import tip_position, wrist_constants
+from deltafmi.physics import delta_wrist as dw
+from deltafmi.physics.delta.kinematics import forward_kinematics, wrist_position
+from deltafmi.physics.delta.params import RL5
+from deltafmi.physics.estimation.kalman import joseph_update
+from deltafmi.physics.estimation.peg_contact import contact_wrench, locate_hole
+from deltafmi.physics.estimation.peg_ekf import PegEKF, PegEKFSettings
+from deltafmi.physics.estimation.wrist_process import derivative, full_state, process_jacobian, propagate, tool_pose
+from deltafmi.physics.peg import Hole, Peg, PegContact, peg_wrench
+from deltafmi.physics.peg.plant import tool_pose as plant_tool_pose
+from deltafmi.physics.wrist.kernels import tip_position, wrist_constants
 
 W_CONST = wrist_constants(dw.wrist_params((3e-4, 2e-4, 1e-4), dw.peg_tool(0.25, 0.1, 0.01, 0.13), 9.81, 0.0))
 MOUNT = dw.MOUNT

@@ -14,13 +14,13 @@ import pytest
 import yaml
 from fmpy.validation import validate_fmu
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "deltafmi" / "examples" / "peg_estimation.yaml"
+SCENARIO = ROOT / "scenarios" / "peg_estimation.yaml"
 STOP = 2.2  # s: free approach, impact on the chamfer at ~1.015 s, sliding in the bore from ~1.3 s
 
 

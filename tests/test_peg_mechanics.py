@@ -1,8 +1,8 @@
-"""Issue 27 item 3: the peg-in-hole contact (deltafmi/mechanics/peg) against closed forms and a free
-rigid peg integrated with scipy (deltafmi.mechanics.peg.rigid_peg).
+"""Issue 27 item 3: the peg-in-hole contact (deltafmi/physics/peg) against closed forms and a free
+rigid peg integrated with scipy (deltafmi.physics.peg.rigid_peg).
 
 Closed forms: free flight down a centred bore (no contact at all), the force ratio of a point
-sliding on a chamfer, Whitney's wedging condition l/d <= mu (deltafmi.mechanics.friction.peg);
+sliding on a chamfer, Whitney's wedging condition l/d <= mu (deltafmi.physics.friction.peg);
 second formulations: the wrench of a rigidly moved scene, energy through elastic contacts, and the
 generated C of the kernel (bit for bit).
 """
@@ -17,13 +17,13 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
-from deltafmi.export.codegen import Entry, Obj, Vec
-from deltafmi.export.codegen.build import compile_unit
-from deltafmi.export.compiler import NoCompilerError
-from deltafmi.mechanics.friction import peg as whitney
-from deltafmi.mechanics.friction.law import FrictionParams, regularisation_error_bound
-from deltafmi.mechanics.peg import Hole, Peg, PegContact, RigidPeg, contact, hole_rotation, peg_wrench, validate
-from deltafmi.mechanics.wrist.kinematics import _basis_rotation as rot  # rotation about e_axis
+from deltafmi.builder.codegen import Entry, Obj, Vec
+from deltafmi.builder.codegen.build import compile_unit
+from deltafmi.toolchain import NoCompilerError
+from deltafmi.physics.friction import peg as whitney
+from deltafmi.physics.friction.law import FrictionParams, regularisation_error_bound
+from deltafmi.physics.peg import Hole, Peg, PegContact, RigidPeg, contact, hole_rotation, peg_wrench, validate
+from deltafmi.physics.wrist.kinematics import _basis_rotation as rot  # rotation about e_axis
 
 #: tool rotation with the peg pointing straight down (tool z = -world z)
 DOWN = np.diag([1.0, -1.0, -1.0])
@@ -300,7 +300,7 @@ def _bits(value) -> list:
 
 
 def test_generated_c_gives_the_kernels_bits(tmp_path):
-    """deltafmi/export/codegen translates peg_wrench; the C returns the Python's bits (-ffp-contract=off)."""
+    """deltafmi/builder/codegen translates peg_wrench; the C returns the Python's bits (-ffp-contract=off)."""
     entry = Entry("peg_wrench", peg_wrench, [Obj(Hole), Obj(Peg), Obj(PegContact), Vec(3), Vec(9), Vec(3), Vec(3)])
     try:
         lib = compile_unit([entry], tmp_path)

@@ -1,6 +1,6 @@
 """The peg-in-hole insertion succeeding and failing where the geometry says it must, measured by
 the real study machinery (``deltafmi sweep`` on a Dask LocalCluster, the peg_in_hole scenario's
-FMUs, the metrics of deltafmi/examples/studies/peg_robustness.yaml).
+FMUs, the metrics of scenarios/studies/peg_robustness.yaml).
 
 The chamfer (width w = 2 mm, 45 deg) centres the peg when its rim lands on it: a rigidly held peg
 (wrist stiffness 500 N m/rad) offset by d from the hole is captured for d < w + c (c = 0.1 mm the
@@ -24,10 +24,10 @@ import pyarrow.parquet as pq
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.mechanics.assembly import PHASE_DESCENT, make_program, reference
-from deltafmi.mechanics.assembly.rotation import TOOL_DOWN
-from deltafmi.study.driver import dask_client
+from deltafmi.apps.cli import main
+from deltafmi.physics.assembly import PHASE_DESCENT, make_program, reference
+from deltafmi.physics.assembly.rotation import TOOL_DOWN
+from deltafmi.apps.studies.driver import dask_client
 
 ROOT = Path(__file__).resolve().parents[1]
 STIFF, SOFT = 500.0, 1.0   # N m/rad: a rigidly held peg; the scenario's compliant wrist

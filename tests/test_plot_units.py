@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.plot import UnknownSignal, result_figure
-from deltafmi.cosim.results.result import read_result
-from deltafmi.cosim.results.result import Result
+from deltafmi.apps.cli import main
+from deltafmi.master.results.plot import UnknownSignal
+from deltafmi.master.results.result import result_figure
+from deltafmi.master.results.result import read_result
+from deltafmi.master.results.result import Result
 
 T = np.linspace(0.0, 1.0, 101)
 

@@ -25,8 +25,8 @@ import pytest
 
 from conftest import FMU_SRC, ROOT, clean_env, unzip
 from host_loops import host_rows, me_env, run_c_host
-from deltafmi.export.compiler import cache_dir
-from deltafmi.export.packager import build_cached
+from deltafmi.toolchain import cache_dir
+from deltafmi.builder.packager import build_cached
 
 HIDE = ROOT / "tests" / "c_host" / "hide_python.sh"
 #: the libraries of glibc itself: the only ones a portable FMU may take from the machine

@@ -73,7 +73,7 @@ def _interpreter(version: str) -> Optional[Path]:
 
 
 def _pip_cache() -> Path:
-    from deltafmi.export.compiler import cache_dir
+    from deltafmi.toolchain import cache_dir
     return cache_dir() / "pip"
 
 
@@ -112,13 +112,13 @@ def fmpy_hosts(tmp_path_factory) -> dict:
 @pytest.fixture(scope="session")
 def host_fmus(build_fmu_from_src, portable_oscillator_fmu, portable_delta_robot_fmu) -> dict:
     """(model, "plain" | "portable") -> FMU; portable ones from the build cache."""
-    from deltafmi.export.packager import build_cached
+    from deltafmi.builder.packager import build_cached
     fmus = {(model, "plain"): build_fmu_from_src(f"{model}.py") for model in MODELS}
     fmus["oscillator", "portable"] = portable_oscillator_fmu
     fmus["delta_robot", "portable"] = portable_delta_robot_fmu
     fmus["erf", "portable"] = build_cached(SCIPY_MODEL, portable=True)
     for model in MODELS:  # FMI 3.0 builds: the FMI 2.0 build's results, arrays element by element
-        fmus[model, "fmi3"] = build_cached(ROOT / "deltafmi" / "models" / f"{model}.py", fmi_version=3)
+        fmus[model, "fmi3"] = build_cached(ROOT / "fmu_src" / f"{model}.py", fmi_version=3)
     return fmus
 
 

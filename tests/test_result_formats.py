@@ -14,9 +14,9 @@ import pytest
 import scipy.io
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.results.writers import matlab_names
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi.master.results.writers import matlab_names
 from signal_runs import DELTAFMI, interrupt_when
 
 OUTPUTS = ["osc.x", "osc.v", "osc.energy", "osc.F"]
@@ -103,8 +103,8 @@ def test_matlab_names_are_valid_and_distinct():
 def test_every_fmi_type_gets_its_column_type(tmp_path):
     """Rows with Real, Integer, Boolean, Enumeration and String values, through all three writers
     (String values with a quote and a comma), in row groups of 3: the same values read back."""
-    from deltafmi.cosim.results.csv_file import CsvWriter
-    from deltafmi.cosim.results.writers import MatWriter, ParquetWriter
+    from deltafmi.master.results.csv_file import CsvWriter
+    from deltafmi.master.results.writers import MatWriter, ParquetWriter
 
     names = ["a.x", "a.n", "a.b", "a.e", "a.s"]
     kinds = ["Real", "Integer", "Boolean", "Enumeration", "String"]

@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
-from deltafmi.mechanics import delta as d
-from deltafmi.mechanics.contact import CompliantMaterial, Mode
-from deltafmi.mechanics.contact.hybrid_sim import simulate
-from deltafmi.mechanics.delta import control_law
-from deltafmi.mechanics.delta.contact import DeltaToolModel, Plane, make_robot_contact, robot_start_state
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
+from deltafmi.physics import delta as d
+from deltafmi.physics.contact import CompliantMaterial, Mode
+from deltafmi.physics.contact.hybrid_sim import simulate
+from deltafmi.physics.delta import control_law
+from deltafmi.physics.delta.contact import DeltaToolModel, Plane, make_robot_contact, robot_start_state
 from delta_reference import MinimalModel
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -137,11 +137,11 @@ def test_plant_refuses_to_start_below_the_surface(plant, capfd):
 # --- the closed loop through the master ---------------------------------------------------------
 
 def scenario_variant(name: str, folder: Path, stop: float | None = None, **changes: dict) -> Path:
-    """A copy of deltafmi/examples/<name>.yaml with ``changes[component]`` merged into that component
+    """A copy of scenarios/<name>.yaml with ``changes[component]`` merged into that component
     (its ``parameters`` merged key by key)."""
     import yaml
 
-    spec = yaml.safe_load((ROOT / "deltafmi" / "examples" / f"{name}.yaml").read_text())
+    spec = yaml.safe_load((ROOT / "scenarios" / f"{name}.yaml").read_text())
     for component, change in changes.items():
         change = dict(change)
         spec["components"][component].setdefault("parameters", {}).update(change.pop("parameters", {}))
@@ -209,12 +209,12 @@ def test_resting_force_with_the_plant_in_either_interface(tmp_path, interface, s
     assert c["plant.penetration"][-1] == pytest.approx((F + m * G) / K_SURFACE, rel=1e-6)
 
 
-@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "deltafmi" / "examples").glob("contact_*.yaml")))
+@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "scenarios").glob("contact_*.yaml")))
 def test_contact_scenario_runs_from_the_cli(tmp_path, name, monkeypatch):
     """Each shipped contact scenario starts and runs through ``deltafmi run`` (first 0.3 s)."""
     from click.testing import CliRunner
 
-    from deltafmi.cli import main
+    from deltafmi.apps.cli import main
 
     monkeypatch.chdir(tmp_path)  # a shipped example runs by name from any folder
     out = tmp_path / f"{name}.csv"
@@ -239,9 +239,9 @@ def test_box_dropped_on_the_table_rests_on_two_corners():
     """The box falls tilted, its corners collide in turn and it comes to rest on the two bottom
     corners in CONTACT, each carrying half its weight; the robot, held by its gravity torques far
     above, does not move. The gap Jacobian matches finite differences of the gaps."""
-    from deltafmi.mechanics.delta.box import make_robot_box_contact
-    from deltafmi.mechanics.delta.control import gravity_torque
-    from deltafmi.mechanics.examples.box_on_table import BoxModel
+    from deltafmi.physics.delta.box import make_robot_box_contact
+    from deltafmi.physics.delta.control import gravity_torque
+    from deltafmi.physics.contact_problems.box_on_table import BoxModel
 
     p, box = d.RL5, BoxModel(mass=2.0, width=0.2, height=0.1)
     system = make_robot_box_contact(p, -1.15, box, CompliantMaterial(K_SURFACE, C_SURFACE),

@@ -1,5 +1,5 @@
 """Issue 26: the robot's contact systems between events as float kernels
-(deltafmi/mechanics/delta/contact_kernels.py), what the DeltaRobotContact and DeltaRobotBox FMUs
+(deltafmi/physics/delta/contact_kernels.py), what the DeltaRobotContact and DeltaRobotBox FMUs
 compile to C.
 
 In every mode (FREE, COLLISION with a frozen effective mass, CONTACT) and with the contacts
@@ -14,17 +14,17 @@ import struct
 import numpy as np
 import pytest
 
-from deltafmi.export.codegen import Entry
-from deltafmi.export.codegen.build import compile_unit
-from deltafmi.export.codegen.kernel_types import Obj, Vec, named
-from deltafmi.export.compiler import NoCompilerError
-from deltafmi.mechanics import delta as d
-from deltafmi.mechanics.contact import CompliantMaterial, ContactSystem
-from deltafmi.mechanics.delta import contact_kernels as ck
-from deltafmi.mechanics.delta.box import make_robot_box_contact
-from deltafmi.mechanics.delta.contact import Plane, make_robot_contact, robot_start_state
-from deltafmi.mechanics.delta.params import DeltaParams
-from deltafmi.mechanics.examples.box_on_table import BoxModel
+from deltafmi.builder.codegen import Entry
+from deltafmi.builder.codegen.build import compile_unit
+from deltafmi.builder.codegen.kernel_types import Obj, Vec, named
+from deltafmi.toolchain import NoCompilerError
+from deltafmi.physics import delta as d
+from deltafmi.physics.contact import CompliantMaterial, ContactSystem
+from deltafmi.physics.delta import contact_kernels as ck
+from deltafmi.physics.delta.box import make_robot_box_contact
+from deltafmi.physics.delta.contact import Plane, make_robot_contact, robot_start_state
+from deltafmi.physics.delta.params import DeltaParams
+from deltafmi.physics.contact_problems.box_on_table import BoxModel
 
 MODES = (0, 1, 2)
 
@@ -128,10 +128,10 @@ def test_generated_c_gives_the_python_bits(compiled, make, mode):
 
 @pytest.mark.parametrize("friction_mode", ["stick", "slip"])
 def test_generated_c_gives_the_python_bits_with_friction(compiled, friction_mode):
-    """The tool in CONTACT with Coulomb friction (deltafmi/mechanics/delta/tool_friction.py),
+    """The tool in CONTACT with Coulomb friction (deltafmi/physics/delta/tool_friction.py),
     sticking at an anchor off its position or slipping along an oblique axis: C = Python, bit for bit."""
-    from deltafmi.mechanics.delta.tool_friction import FRICTIONLESS, tangent_basis
-    from deltafmi.mechanics.friction.law import SLIP_POSITIVE, STICK
+    from deltafmi.physics.delta.tool_friction import FRICTIONLESS, tangent_basis
+    from deltafmi.physics.friction.law import SLIP_POSITIVE, STICK
 
     rng = np.random.default_rng(20)
     system, x = plane_system(rng)

@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from deltafmi.mechanics import delta as d
-from deltafmi.mechanics.delta import contact_kernels as ck
-from deltafmi.mechanics.friction import SLIP_POSITIVE, STICK, FrictionParams
-from deltafmi.mechanics.friction.law import slip_force, slip_force_direction
+from deltafmi.physics import delta as d
+from deltafmi.physics.delta import contact_kernels as ck
+from deltafmi.physics.friction import SLIP_POSITIVE, STICK, FrictionParams
+from deltafmi.physics.friction.law import slip_force, slip_force_direction
 from test_robot_contact import run, scenario_variant, wrist_inertia_along
 from test_robot_contact_kernels import plane_system
 
@@ -173,6 +173,6 @@ def test_friction_kernels_keep_the_stick_constraint_and_the_slip_law(mode):
         pole = system.model.pole
         residual = acc + 2.0 * pole * speed + pole ** 2 * (position - np.array(system.anchor))
         assert np.max(np.abs(residual)) < 1e-9 * np.max(np.abs(acc))
-    else:  # the slip law of deltafmi.mechanics.friction.law
+    else:  # the slip law of deltafmi.physics.friction.law
         e = slip_force_direction(speed, np.array(system.axis))
         np.testing.assert_allclose([lt1, lt2], slip_force(lam, speed, e, system.friction), rtol=1e-12)

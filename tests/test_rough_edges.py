@@ -26,12 +26,12 @@ import pyarrow.parquet as pq
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import read_csv
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import read_csv
 
 DELTAFMI = Path(sys.executable).parent / "deltafmi"
 HERE = Path(__file__).resolve().parent
-EXAMPLES = sorted(p.stem for p in (HERE.parent / "deltafmi" / "examples").glob("*.yaml"))
+EXAMPLES = sorted(p.stem for p in (HERE.parent / "scenarios").glob("*.yaml"))
 
 
 def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -384,7 +384,7 @@ components:
 
 
 def test_quiet_run_prints_nothing_on_success(osc, tmp_path):
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
 
     build_fmu(HERE / "components" / "chatty" / "model.py", tmp_path / "Chatty.fmu")
     shutil.copy(osc, tmp_path / "osc.fmu")

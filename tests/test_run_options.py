@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.overrides import Text, with_overrides
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi.master.scenario.overrides import Text, with_overrides
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 from deltafmi.errors import SimulationError
 from oscillator_analytic import P, solution
 
@@ -27,7 +27,7 @@ COMPONENTS = Path(__file__).parent / "components"
 
 @pytest.fixture(scope="module")
 def fmus(build_fmu_from_src, tmp_path_factory) -> dict:
-    from deltafmi.export import build_fmu
+    from deltafmi.builder import build_fmu
     folder = tmp_path_factory.mktemp("run_options")
     return {"osc": build_fmu_from_src("oscillator.py"),
             "lags": build_fmu(COMPONENTS / "first" / "model.py", folder / "Lags.fmu"),

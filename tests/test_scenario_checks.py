@@ -12,10 +12,10 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.cosim.scenario.modelinfo import model_info
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
+from deltafmi.apps.cli import main
+from deltafmi.master.scenario.modelinfo import model_info
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
 
 
 @pytest.fixture(scope="module")
@@ -167,23 +167,23 @@ def test_missing_fmu_suggests_file(fmu_dir):
 
 
 def test_missing_source(fmu_dir):
-    path, result = validate(fmu_dir, HEAD.replace("a: {fmu: osc.fmu}", "a: {source: deltafmi/models/oscilator.py}"))
-    expect_error(result, f"{path}:3", "component 'a': source 'deltafmi/models/oscilator.py' not found")
+    path, result = validate(fmu_dir, HEAD.replace("a: {fmu: osc.fmu}", "a: {source: fmu_src/oscilator.py}"))
+    expect_error(result, f"{path}:3", "component 'a': source 'fmu_src/oscilator.py' not found")
 
 
 def test_source_is_built_on_demand_and_cached(tmp_path, monkeypatch):
     monkeypatch.setenv("DELTAFMI_CACHE", str(tmp_path / "cache"))
-    folder = tmp_path / "project" / "deltafmi" / "examples"
+    folder = tmp_path / "project" / "scenarios"
     folder.mkdir(parents=True)
-    shutil.copytree(Path(__file__).parents[1] / "deltafmi" / "models", tmp_path / "project" / "deltafmi" / "models")
+    shutil.copytree(Path(__file__).parents[1] / "fmu_src", tmp_path / "project" / "fmu_src")
     scenario = folder / "s.yaml"
     scenario.write_text("experiment: {stop: 1.0, step: 0.01}\n"
-                        "components:\n  osc: {source: deltafmi/models/oscillator.py}\n")
+                        "components:\n  osc: {source: fmu_src/oscillator.py}\n")
     first = resolve_system(load_scenario(scenario)).components[0].fmu
     assert first.is_file() and str(first).startswith(str(tmp_path / "cache"))
     mtime = first.stat().st_mtime_ns
     assert resolve_system(load_scenario(scenario)).components[0].fmu == first
     assert first.stat().st_mtime_ns == mtime  # cached, not rebuilt
-    source = tmp_path / "project" / "deltafmi" / "models" / "oscillator.py"
+    source = tmp_path / "project" / "fmu_src" / "oscillator.py"
     source.write_text(source.read_text() + "\n# edited\n")
     assert resolve_system(load_scenario(scenario)).components[0].fmu != first

@@ -13,8 +13,8 @@ import jsonschema
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.cosim.scenario.spec import load_scenario, schema
+from deltafmi.apps.cli import main
+from deltafmi.master.scenario.spec import load_scenario, schema
 
 GOOD = """\
 experiment: {start: 0.0, stop: 1.0, step: 1e-3}
@@ -41,7 +41,7 @@ def expect_error(result, where: str, *fragments: str) -> None:
 
 def test_schema_is_valid_json_schema_and_shipped_in_package():
     jsonschema.Draft202012Validator.check_schema(schema())
-    shipped = Path(__file__).parents[1] / "deltafmi" / "cosim" / "scenario" / "scenario.schema.json"
+    shipped = Path(__file__).parents[1] / "deltafmi" / "master" / "scenario" / "scenario.schema.json"
     assert json.loads(shipped.read_text()) == schema()
 
 

@@ -22,13 +22,13 @@ import pytest
 from click.testing import CliRunner
 from lxml import etree
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.ssp.format import NAMESPACES, SSD_NAME, schema_problems
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi.master.ssp.format import NAMESPACES, SSD_NAME, schema_problems
 from third_party.build import build_fmu as build_c_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
-OSCILLATOR = ROOT / "deltafmi" / "models" / "oscillator.py"
+OSCILLATOR = ROOT / "fmu_src" / "oscillator.py"
 H = 0.0078125  # 1/128 s: its multiples are exact in binary and in libcosim's nanoseconds
 
 
@@ -157,7 +157,7 @@ def test_yaml_and_its_ssp_give_the_same_samples(all_types, tmp_path, name, algor
 
 def test_delta_robot_loop_through_an_ssp(tmp_path):
     """The flagship loop (three FMUs built from sources, ME plant, 18 scalar connections)."""
-    scenario = ROOT / "deltafmi" / "examples" / "delta_tracking.yaml"
+    scenario = ROOT / "scenarios" / "delta_tracking.yaml"
     cli("run", scenario, "-o", tmp_path / "yaml.csv", "--stop", "0.02", "-q")
     ssp = export(scenario, tmp_path / "delta.ssp")
     cli("run", ssp, "-o", tmp_path / "ssp.csv", "--stop", "0.02", "-q")

@@ -1,6 +1,6 @@
-"""How a sweep groups cases into Dask tasks (deltafmi/study/batches.py)."""
-from deltafmi.study.batches import MAX_BATCH, TASK_SECONDS, Batcher
-from deltafmi.study.cases import Case
+"""How a sweep groups cases into Dask tasks (deltafmi/apps/studies/batches.py)."""
+from deltafmi.apps.studies.batches import MAX_BATCH, TASK_SECONDS, Batcher
+from deltafmi.apps.studies.cases import Case
 
 
 def cases(n):

@@ -15,10 +15,10 @@ from click.testing import CliRunner
 
 from dask_processes import DASK, scheduler_address, start_process
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns as read_columns
-from deltafmi.study.plan import plan_study
-from deltafmi.study.spec import load_study
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns as read_columns
+from deltafmi.apps.studies.plan import plan_study
+from deltafmi.apps.studies.spec import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = f"""\

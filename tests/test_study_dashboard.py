@@ -17,8 +17,8 @@ import psutil
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.study.driver import dashboard_address, dashboard_link, dask_client
+from deltafmi.apps.cli import main
+from deltafmi.apps.studies.driver import dashboard_address, dashboard_link, dask_client
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = f"""\

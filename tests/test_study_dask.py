@@ -28,11 +28,11 @@ import pyarrow.parquet as pq
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns as read_columns
-from deltafmi.study.driver import dask_client
-from deltafmi.study.plan import plan_study
-from deltafmi.study.spec import load_study
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns as read_columns
+from deltafmi.apps.studies.driver import dask_client
+from deltafmi.apps.studies.plan import plan_study
+from deltafmi.apps.studies.spec import load_study
 from signal_runs import interrupt_when
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -132,7 +132,7 @@ def test_metrics_equal_plain_runs_and_a_failing_case_is_recorded(cluster, tmp_pa
 
 
 def test_fmi3_study_equals_the_fmi2_study(cluster, tmp_path):
-    flagship = (ROOT / "deltafmi" / "examples" / "delta_tracking.yaml").read_text()
+    flagship = (ROOT / "scenarios" / "delta_tracking.yaml").read_text()
     metrics = {}
     for version in (2, 3):
         (tmp_path / f"flagship{version}.yaml").write_text(f"fmi_version: {version}\n{flagship}")

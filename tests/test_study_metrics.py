@@ -1,4 +1,4 @@
-"""Study metrics against closed forms: the damped oscillator (deltafmi/models/oscillator.py, wall out of
+"""Study metrics against closed forms: the damped oscillator (fmu_src/oscillator.py, wall out of
 reach, no force step) run case by case exactly as a Dask worker runs it (FMU pool, reset between
 cases, rows in memory), and the statistics on signals whose answers are known exactly.
 
@@ -22,11 +22,11 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from deltafmi.study.metrics import first_crossing, reduce, settling_time, statistic, value_at
-from deltafmi.study.plan import plan_study
-from deltafmi.study.runner import run_case
-from deltafmi.study.spec import MetricSpec, Window, load_study
-from deltafmi.study.worker import WorkerCache
+from deltafmi.apps.studies.metrics import first_crossing, reduce, settling_time, statistic, value_at
+from deltafmi.apps.studies.plan import plan_study
+from deltafmi.apps.studies.runner import run_case
+from deltafmi.apps.studies.spec import MetricSpec, Window, load_study
+from deltafmi.apps.studies.worker import WorkerCache
 
 ROOT = Path(__file__).resolve().parents[1]
 H, STOP = 1e-3, 3.0
@@ -214,7 +214,7 @@ def test_steady_state_error_of_an_unknown_payload_matches_the_clamped_integrator
     wrist until kP e = m g / Lzz - L, kP = 3 p^2. Two cases of the shipped gain study's grid; they
     agree to 0.5 %, checked to 2 % (Lzz is taken at the reference point, the wrist rests
     millimetres away; the run ends 1.1 s into the rest)."""
-    from deltafmi.mechanics.delta import control, params
+    from deltafmi.physics.delta import control, params
 
     study = tmp_path / "payload.yaml"
     study.write_text(f"scenario: {ROOT / 'deltafmi' / 'examples' / 'delta_tracking.yaml'}\n" + textwrap.dedent("""\

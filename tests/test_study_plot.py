@@ -9,8 +9,8 @@ import numpy as np
 import pyarrow.parquet as pq
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.study.store import ResultStore, read_results, study_metadata
+from deltafmi.apps.cli import main
+from deltafmi.apps.studies.store import ResultStore, read_results, study_metadata
 
 
 def results(tmp_path, monte_carlo: bool = False):
@@ -72,7 +72,7 @@ def test_wrong_names_are_reported_with_suggestions(tmp_path):
 def test_heat_map_cells_show_the_median_or_the_mean_of_their_cases():
     """Two samples per grid point: the median and mean of (1, 0) and (1, 1); a failed (NaN) case
     is left out of its cell; --cell mean of a 0/1 metric is the success rate."""
-    from deltafmi.study.plot import heatmap_cells
+    from deltafmi.apps.studies.plot import heatmap_cells
 
     xs, ys = [0.0, 0.0, 1.0, 1.0, 0.0, 0.0], ["a", "a", "a", "a", "b", "b"]
     values = np.array([1.0, 0.0, 1.0, 1.0, 0.0, math.nan])

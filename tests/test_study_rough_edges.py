@@ -24,8 +24,8 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from deltafmi.cli import main
-from deltafmi.examples import STUDIES_DIR
+from deltafmi.apps.cli import main
+from deltafmi.shipped import STUDIES_DIR
 from oscillator_study import check_closed_form, write_study
 
 DELTAFMI = Path(sys.executable).parent / "deltafmi"

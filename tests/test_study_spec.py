@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
+from deltafmi.apps.cli import main
 from deltafmi.errors import ScenarioError
-from deltafmi.study.cases import generate_cases
-from deltafmi.study.plan import plan_study
-from deltafmi.study.spec import load_study, parse_study
+from deltafmi.apps.studies.cases import generate_cases
+from deltafmi.apps.studies.plan import plan_study
+from deltafmi.apps.studies.spec import load_study, parse_study
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = f"""\

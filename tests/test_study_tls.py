@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from deltafmi.cli import main
+from deltafmi.apps.cli import main
 from dask_processes import DASK, scheduler_address, start_process
 from oscillator_study import check_closed_form, write_study
 

@@ -3,7 +3,7 @@
 The hostile host is tests/c_host/host.c linked against Debian's SUNDIALS 6 (libsundials-dev), which
 it uses before loading the FMU: every SUNDIALS symbol is then in the process's global scope. Before
 the FMU's solver was loaded with RTLD_DEEPBIND, each Co-Simulation FMU with states died there in
-its first fmi2DoStep (fmpy's CVODE 7 calling the host's CVODE 6 internals). Every FMU of deltafmi/models/
+its first fmi2DoStep (fmpy's CVODE 7 calling the host's CVODE 6 internals). Every FMU of fmu_src/
 runs there in both interfaces and gives what the same algorithm gives through fmpy.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from conftest import MODEL_FILES, NATIVE, ROOT, unzip
-from deltafmi.export.compiler import exported_symbols
+from deltafmi.builder.compiler import exported_symbols
 from host_loops import co_simulation, host_rows, me_env, model_exchange_euler, run_c_host, shared_libraries
 
 FMU_SOURCES = MODEL_FILES

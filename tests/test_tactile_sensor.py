@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
-from deltafmi.mechanics.delta.tactile import Readout, TactilePads
+from deltafmi.master.results.csv_file import columns
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
+from deltafmi.physics.delta.tactile import Readout, TactilePads
 
 ROOT = Path(__file__).resolve().parents[1]
 PADS = TactilePads(spacing=0.01, width=0.004, stiffness=1e5)
@@ -94,7 +94,7 @@ def test_sensor_lags_with_its_bandwidth(sensor, fmi_type):
 @pytest.mark.parametrize("fmi_type", ["ModelExchange", "CoSimulation"])
 def test_compiled_kernels_give_the_python_bits_under_load(sensor, fmi_type, monkeypatch):
     """The FMU's derivatives and outputs run as C generated from the kernels its methods call
-    (deltafmi.mechanics.delta.tactile): the same bits as the Python (DELTAFMI_NATIVE=0) while the
+    (deltafmi.physics.delta.tactile): the same bits as the Python (DELTAFMI_NATIVE=0) while the
     load steps and the lag moves, not only at the default experiment's unloaded rest."""
     with zipfile.ZipFile(sensor) as archive:
         assert json.loads(archive.read("resources/native_kernels.json"))["kernels"] == ["derivatives", "outputs"]
@@ -125,7 +125,7 @@ def test_tactile_loop_centres_the_tool_on_the_hole(tmp_path):
     """contact_tactile.yaml: the hole is 3 mm off the tool; pressing with 20 N, the loop from the
     pad difference to the horizontal reference brings the tool within 0.1 mm of its centre."""
     out = tmp_path / "tactile.csv"
-    Master(resolve_system(load_scenario(ROOT / "deltafmi" / "examples" / "contact_tactile.yaml")), result=out).run()
+    Master(resolve_system(load_scenario(ROOT / "scenarios" / "contact_tactile.yaml")), result=out).run()
     c = columns(out)
     t, offset = c["time"], c["sensor.offset"]
     assert offset[0] == pytest.approx(-3e-3)

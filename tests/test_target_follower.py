@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from fmpy import simulate_fmu
 
-from deltafmi.export import build_cached
-from deltafmi.mechanics.delta.follower import (STATUS_CLAMPED, FollowerSettings, follower_outputs, follower_step,
+from deltafmi.builder import build_cached
+from deltafmi.physics.delta.follower import (STATUS_CLAMPED, FollowerSettings, follower_outputs, follower_step,
                                                initial_state, sample)
 
 WN, V_MAX, A_MAX, H = 10.0, 0.5, 5.0, 1e-3

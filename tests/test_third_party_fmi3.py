@@ -25,7 +25,7 @@ from fmpy.validation import validate_fmu
 from test_third_party_fmus import ball_exact
 from third_party.build import MODELS3, build_all3
 
-NATIVE = Path(__file__).parents[1] / "deltafmi" / "export" / "native"
+NATIVE = Path(__file__).parents[1] / "deltafmi" / "runtime" / "native"
 TABLE = np.loadtxt(Path(__file__).parent / "third_party" / "Table3" / "resources" / "table.txt")
 ERROR = 3  # fmi3Error
 

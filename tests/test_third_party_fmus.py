@@ -18,12 +18,12 @@ import pytest
 from click.testing import CliRunner
 from fmpy.validation import validate_fmu
 
-from deltafmi.cli import main
-from deltafmi.cosim.results.csv_file import columns
-from deltafmi.cosim.results.progress import Termination
-from deltafmi.cosim.scenario.resolve import resolve_system
-from deltafmi.cosim.scenario.spec import load_scenario
-from deltafmi.cosim.stepping.master import Master
+from deltafmi.apps.cli import main
+from deltafmi.master.results.csv_file import columns
+from deltafmi.master.results.progress import Termination
+from deltafmi import resolve_system
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
 from oscillator_analytic import _free
 from third_party.build import MODELS, build_all
 
@@ -72,10 +72,10 @@ def test_fmus_are_valid_plain_c(third_party, tmp_path, model):
 
 
 def test_units_and_me_integrator_do_not_import_each_other():
-    code = ("import sys, deltafmi.cosim.stepping.me_integrator; "
-            "assert 'deltafmi.cosim.stepping.units' not in sys.modules, 'me_integrator imports units'")
+    code = ("import sys, deltafmi.master.stepping.me_integrator; "
+            "assert 'deltafmi.master.stepping.units' not in sys.modules, 'me_integrator imports units'")
     subprocess.run([sys.executable, "-c", code], check=True)
-    source = (Path(__file__).parents[1] / "deltafmi" / "cosim" / "stepping" / "unit_base.py").read_text()
+    source = (Path(__file__).parents[1] / "deltafmi" / "master" / "stepping" / "unit_base.py").read_text()
     assert "me_integrator" not in source.split('"""', 2)[2]
 
 

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from deltafmi.mechanics.delta.params import RL5
-from deltafmi.mechanics.delta.trajectory import (CirclePath, MinimumJerkPath, RecordedPath, Workspace,
+from deltafmi.physics.delta.params import RL5
+from deltafmi.physics.delta.trajectory import (CirclePath, MinimumJerkPath, RecordedPath, Workspace,
                                            minimum_jerk)
 
 A, B, C = (0.0, 0.0, -1.0), (0.2, -0.1, -0.9), (-0.1, 0.3, -1.1)

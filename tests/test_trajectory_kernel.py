@@ -17,13 +17,13 @@ import numpy as np
 import pytest
 import yaml
 
-from deltafmi.export.codegen import D, Entry, I, Vec, named
-from deltafmi.export.codegen.build import compile_unit, from_c, to_c
-from deltafmi.export.compiler import NoCompilerError
-from deltafmi.mechanics.delta.trajectory import (MAX_MOVES, ConstantSpeedPath, ConstantSpeedTable, MinimumJerkPath,
+from deltafmi.builder.codegen import D, Entry, I, Vec, named
+from deltafmi.builder.codegen.build import compile_unit, from_c, to_c
+from deltafmi.toolchain import NoCompilerError
+from deltafmi.physics.delta.trajectory import (MAX_MOVES, ConstantSpeedPath, ConstantSpeedTable, MinimumJerkPath,
                                                  MinimumJerkTable, evaluate_speed_table, evaluate_table)
 
-FLAGSHIP = Path(__file__).resolve().parents[1] / "deltafmi" / "examples" / "delta_tracking.yaml"
+FLAGSHIP = Path(__file__).resolve().parents[1] / "scenarios" / "delta_tracking.yaml"
 
 
 @pytest.fixture(scope="module")

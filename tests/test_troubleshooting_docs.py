@@ -18,7 +18,7 @@ import pytest
 from test_component_docs import doc_files
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "troubleshooting.md"
-CLI = [sys.executable, "-c", "from deltafmi.cli import main; main()"]
+CLI = [sys.executable, "-c", "from deltafmi.apps.cli import main; main()"]
 
 NAN_SOURCE = '''\
 import math

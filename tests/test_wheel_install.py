@@ -83,8 +83,8 @@ def test_the_wheel_is_a_manylinux_wheel_with_prebuilt_binaries_models_and_exampl
     for piece in ("/fmu.so", "/_values.abi3.so", "/fixed_step.so", "/erk.so", "/csv_rows.so", "/kernels.json",
                   "/dynamics_jacobian_kinematics__mypyc."):
         assert any(piece in n for n in prebuilt), piece
-    assert {"deltafmi/models/delta_robot.py", "deltafmi/models/bouncing_ball.py",
-            "deltafmi/examples/delta_tracking.yaml", "deltafmi/examples/studies/gain_payload.yaml",
+    assert {"fmu_src/delta_robot.py", "fmu_src/bouncing_ball.py",
+            "scenarios/delta_tracking.yaml", "scenarios/studies/gain_payload.yaml",
             "deltafmi/docs/api.md", "deltafmi/docs/troubleshooting.md", "deltafmi/docs/delta_tracking.png"} <= set(names)
     assert not [n for n in names if n.endswith(".fmu") or n.startswith(("build/", "tests/"))]
 

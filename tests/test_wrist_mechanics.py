@@ -1,4 +1,4 @@
-"""The spherical wrist (deltafmi.mechanics.wrist) against closed forms and second formulations.
+"""The spherical wrist (deltafmi.physics.wrist) against closed forms and second formulations.
 
 Integration: DOP853 at rtol 1e-11 (atol 1e-13 on angles and rates of order 1..20); its global
 error over the runs below (at most 400 radians of travel) stays below about 1e-9 relative, so
@@ -16,8 +16,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.special import ellipj, ellipk
 
-from deltafmi.mechanics import wrist as w
-from deltafmi.mechanics.wrist import Body, Tool, WristParams
+from deltafmi.physics import wrist as w
+from deltafmi.physics.wrist import Body, Tool, WristParams
 
 P = w.WRIST
 RTOL, ATOL = 1e-11, 1e-13

@@ -1,7 +1,7 @@
 """What a model can do with its variables, as a list of outcomes (value and type, or the error).
 
 Run by test_component_values.py twice: with the pure-Python accessors and, in a subprocess, with
-the compiled ones (deltafmi/component/_values.c). Both must give the same list.
+the compiled ones (deltafmi/runtime/_values.c). Both must give the same list.
 """
 import array
 import json

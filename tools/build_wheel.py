@@ -5,7 +5,7 @@
 The copy holds the files git knows (``git ls-files``: committed, staged and new files not
 ignored, in their working-tree state), nothing else: no build/, caches or local FMUs. Each Python
 builds a ``cpXY-cpXY-linux_<arch>`` wheel (setup.py compiles the packaged models' native pieces
-into it, see deltafmi/export/prebuild.py); pypa's auditwheel then checks every binary in it
+into it, see deltafmi/builder/prebuild.py); pypa's auditwheel then checks every binary in it
 against the manylinux policy ``--plat`` (default manylinux_2_17, i.e. manylinux2014: glibc 2.17,
 which the binaries' GLIBC symbol versions allow, see export/native/glibc_floor.h) and retags the
 wheel; it fails when a binary needs newer symbols or a library outside the policy (it would graft

@@ -6,7 +6,7 @@ Builds the arm's kinetic and potential energy from body positions (upper arm abo
 axis, forearm as a thin rod integrated along its length, one third of the plate as a point mass
 at the arm end), forms m(q), c(q, v) = mdot v - dT/dq and g(q) = dV/dq, the wrist map psi, its
 Jacobian and velocity-product term, prints them, proves them equal to the closed forms written in
-deltafmi/mechanics/delta/dynamics.py's docstring, and checks deltafmi.mechanics.delta numerically
+deltafmi/physics/delta/dynamics.py's docstring, and checks deltafmi.physics.delta numerically
 at random states. Exits non-zero on any mismatch.
 """
 
@@ -17,7 +17,7 @@ import sys
 import numpy as np
 import sympy as sp
 
-from deltafmi.mechanics import delta
+from deltafmi.physics import delta
 
 
 def derive() -> dict[str, sp.Matrix]:
@@ -81,7 +81,7 @@ def closed_forms(S: dict) -> dict[str, sp.Matrix]:
 
 
 def numeric_check(D: dict, rng: np.random.Generator) -> float:
-    """Largest relative mismatch between the sympy model and deltafmi.mechanics.delta."""
+    """Largest relative mismatch between the sympy model and deltafmi.physics.delta."""
     S = D["syms"]
     p = delta.DeltaParams(payload=1.3, damping=0.0)
     subs_p = {S["l0"]: p.l0, S["l1"]: p.l1, S["l2"]: p.l2, S["l3"]: p.l3, S["m1"]: p.m1,

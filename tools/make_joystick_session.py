@@ -1,4 +1,4 @@
-"""Write deltafmi/examples/joystick_session.jsonl: a synthesized 20 s gamepad session.
+"""Write scenarios/joystick_session.jsonl: a synthesized 20 s gamepad session.
 
 A person moves the left stick (ABS_X, ABS_Y) and the right stick's vertical axis (ABS_RY):
 minimum-jerk excursions, holds with a little hand tremor, a circle, releases that spring back to
@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from deltafmi.cosim.live.joystick import AxisRange, session_event, session_header
+from deltafmi.master.live.joystick import AxisRange, session_event, session_header
 
-OUT = Path(__file__).resolve().parents[1] / "deltafmi" / "examples" / "joystick_session.jsonl"
+OUT = Path(__file__).resolve().parents[1] / "scenarios" / "joystick_session.jsonl"
 AXES = ("ABS_X", "ABS_Y", "ABS_RY")
 RANGE = AxisRange(-32768, 32767, 128)
 REPORT, JITTER, POLL, DURATION = 8e-3, 0.25e-3, 1e-3, 20.0

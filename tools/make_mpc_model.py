@@ -1,4 +1,4 @@
-"""Write deltafmi/examples/mpc_press_model.npz: the linear model mpc_press.yaml's MPC predicts with.
+"""Write scenarios/mpc_press_model.npz: the linear model mpc_press.yaml's MPC predicts with.
 
 The delta robot with its contact plane (DeltaRobotContact) linearized at rest with the wrist at
 z = -1.049 m, 1 mm above the touching height, its servo torques u solved to hold it there; inputs
@@ -20,9 +20,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from deltafmi.cli import main as deltafmi_main
+from deltafmi.apps.cli import main as deltafmi_main
 
-OUT = Path(__file__).resolve().parents[1] / "deltafmi" / "examples" / "mpc_press_model.npz"
+OUT = Path(__file__).resolve().parents[1] / "scenarios" / "mpc_press_model.npz"
 ARGUMENTS = ["linearize", "DeltaRobotContact", "--set", "z0=0,0,-1.049", "--rest", "--free", "u",
              "-u", "u", "-u", "f", "-y", "y", "-y", "yd", "-y", "z", "-y", "zd", "-q"]
 

@@ -1,4 +1,4 @@
-"""The flagship's kernels generated from deltafmi/mechanics/delta/*.py, closed in a C loop.
+"""The flagship's kernels generated from deltafmi/physics/delta/*.py, closed in a C loop.
 
 :func:`entries` lists what is generated: the plant's ``state_derivative`` and ``evaluate_plant``
 (dynamics.py), the controller's whole ``sample`` (sampling.py: DeltaController.step, its state
@@ -18,12 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from deltafmi.mechanics.delta import control_law, dynamics, kinematics, sampling
-from deltafmi.mechanics.delta.params import DeltaParams
-from deltafmi.mechanics.delta.trajectory import MinimumJerkPath
+from deltafmi.physics.delta import control_law, dynamics, kinematics, sampling
+from deltafmi.physics.delta.params import DeltaParams
+from deltafmi.physics.delta.trajectory import MinimumJerkPath
 
-from deltafmi.export.codegen.build import Library, compile_unit, ctypes_type, to_c
-from deltafmi.export.codegen.kernel_types import D, Entry, Obj, Opt, Vec, named, record
+from deltafmi.builder.codegen.build import Library, compile_unit, ctypes_type, to_c
+from deltafmi.builder.codegen.kernel_types import D, Entry, Obj, Opt, Vec, named, record
 
 LOOP = Path(__file__).resolve().parent / "flagship_loop.c"
 #: helpers the fixed-length C data make the identity (list / 3-float conversions)

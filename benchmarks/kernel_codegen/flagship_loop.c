@@ -4,7 +4,7 @@
  * the flagship's closed loop as benchmarks/native/flagship.c runs it (the master's Gauss-Seidel
  * order, classical RK4 with the inputs held), with every computation of the plant, the controller
  * (its sample, state between samples included: sampling.sample) and the path done by the kernels
- * generated from deltafmi/mechanics/delta/*.py. Only the RK4 stages and the loop are written here.
+ * generated from deltafmi/physics/delta/*.py. Only the RK4 stages and the loop are written here.
  * --------------------------------------------------------------------------------------------- */
 enum { GL_ROW_WIDTH = 15 };
 

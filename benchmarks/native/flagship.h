@@ -1,4 +1,4 @@
-/* A C transcription of the flagship's kernels (deltafmi/examples/delta_tracking.yaml): the
+/* A C transcription of the flagship's kernels (scenarios/delta_tracking.yaml): the
  * delta robot's state derivative and outputs, the sampled feedback-linearising controller, the
  * minimum-jerk path and the master's classical RK4 with held inputs, closed in one loop.
  *
@@ -11,7 +11,7 @@
 #ifndef DELTAFMI_FLAGSHIP_H
 #define DELTAFMI_FLAGSHIP_H
 
-/* deltafmi.mechanics.delta.params.DeltaParams (SI units) */
+/* deltafmi.physics.delta.params.DeltaParams (SI units) */
 typedef struct {
     double l0, l1, l2, l3, m1, r1, J1, Jm, m2, mp, payload, g, damping;
 } DeltaParams;

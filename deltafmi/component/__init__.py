@@ -1,11 +1,11 @@
-"""The Python side of a component: declarations, the Component base class, the FMI instance
-runtime and the modelDescription.xml writer. Nothing here knows about any particular model."""
-from .base import Component
-from .clocks import Clock
-from .hybrid import HybridSystemComponent
-from .native import Kernel, NativeKernels
-from .sampled import SampledComponent
-from .variables import Experiment, Input, Output, Parameter, State
+"""What a component's source imports: the Component base class and its declarations.
+
+``from deltafmi.component import Component, Parameter, State, ...`` is the public way to write a
+model (the packaged models in ``fmu_src/`` do it too); the classes live in :mod:`deltafmi.runtime`,
+the code that goes inside every FMU.
+"""
+from deltafmi.runtime import (Clock, Component, Experiment, HybridSystemComponent, Input, Kernel, NativeKernels,
+                              Output, Parameter, SampledComponent, State)
 
 __all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Input", "Kernel", "NativeKernels", "Output",
            "Parameter", "SampledComponent", "State"]

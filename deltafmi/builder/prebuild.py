@@ -1,0 +1,76 @@
+"""Compile every native piece the packaged models use into a folder: the wheel's prebuilt layer.
+
+``python -m deltafmi.builder.prebuild DIR`` (run by ``setup.py`` when it builds a wheel, into
+``build/lib/deltafmi/_prebuilt``) compiles, with the same functions and under the same relative
+paths as the per-user cache (see :mod:`deltafmi.builder.compiler`): the FMU binaries (FMI 2.0 and 3.0), the compiled
+value access, the mypyc kernels, the packaged models' compiled kernels (C generated from their
+Python), the C pieces of the master and the CSV writer, and the starter of portable FMUs. An installed wheel finds them there, so that its user needs no C compiler, mypy or
+Python headers to build and run the packaged models, nor their edited copies (their FMUs carry
+the same binary and kernels). Anything that cannot be built is an error: a wheel without a piece
+would compile it on the user's machine, the thing the layer is there to avoid.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import warnings
+from pathlib import Path
+
+#: the ctypes libraries of the co-simulation master and the result writer (package-relative)
+PLAIN_C_SOURCES = ("master/stepping/native/fixed_step.c", "master/stepping/native/erk.c",
+                   "master/results/native/csv_rows.c")
+
+
+def prebuild(target: Path) -> list[Path]:
+    """Build every prebuilt piece into ``target`` (emptied first); returns the files made."""
+    target = Path(target).resolve()
+    if target.exists():
+        shutil.rmtree(target)
+    target.mkdir(parents=True)
+    os.environ["DELTAFMI_CACHE"] = str(target)  # the functions below build into "the cache"
+    from deltafmi import toolchain
+    from . import compiler, kernels
+    from .packager import VALUE_ACCESS_SOURCE
+    from .portable import starter_library
+
+    if toolchain.PREBUILT_DIR.exists():  # an installed wheel's layer would be found, not rebuilt
+        raise SystemExit(f"prebuild: run it from a source tree ({toolchain.PREBUILT_DIR} exists)")
+    package = Path(compiler.__file__).resolve().parent.parent
+    for fmi_version in compiler.VERSION_FILES:
+        compiler.fmu_binary(fmi_version)
+    if sys.version_info >= (3, 11):  # its stable ABI is 3.11's; FMUs built on 3.10 use the Python stand-ins
+        toolchain.python_extension(VALUE_ACCESS_SOURCE)
+    for relative in PLAIN_C_SOURCES:
+        toolchain.plain_c_library(package / relative)
+    starter_library()
+    from .. import models
+    from .codegen.component_kernels import component_library
+    for name in models.MODELS:  # the packaged models' compiled kernels (C generated from their Python)
+        if name in models.PYTHON_ONLY:  # nothing to compile (and an MPC's scipy need not be in the build env)
+            continue
+        if component_library(getattr(models, name)) is None:
+            raise SystemExit(f"prebuild: {name}'s kernels were not compiled")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)  # a kernel build that falls back to Python is a failure here
+        if not kernels.compiled_kernels():
+            raise SystemExit("prebuild: the mypyc kernels were not compiled")
+    return sorted(path for path in target.rglob("*") if path.is_file())
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Command line: ``python -m deltafmi.builder.prebuild DIR``."""
+    parser = argparse.ArgumentParser(prog="python -m deltafmi.builder.prebuild", description=__doc__.splitlines()[0])
+    parser.add_argument("directory", type=Path)
+    args = parser.parse_args(argv)
+    try:
+        files = prebuild(args.directory)
+    except Exception as exc:  # noqa: BLE001 - the wheel build prints one clear line and fails
+        raise SystemExit(f"prebuild failed: {exc}") from None
+    size = sum(path.stat().st_size for path in files)
+    print(f"prebuilt {len(files)} files ({size / 1e6:.1f} MB) into {args.directory}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,248 @@
+"""Result files: rows streamed to CSV while the run goes on, and read back for plots and tests.
+
+The file starts with a ``time`` column followed by one column per recorded ``comp.var``. An event
+shows as two rows with the same time stamp (values just before and just after). Real values are
+written as ``repr`` writes them (they read back bit for bit; blocks of numeric rows are
+formatted in C by ``native/csv_rows.c``, Ryu's shortest digits, ten times faster than ``repr``),
+Integer, Boolean and Enumeration values as integers, String values quoted by the :mod:`csv` module's rules (``QUOTE_NONNUMERIC``: every
+string in double quotes, a quote inside doubled). Rows are buffered and written out whenever
+the buffer fills up or half a second has passed, so a failing or killed run keeps (almost)
+everything up to the failure. The file never ends in a partial row, also when the disk fills up.
+"""
+from __future__ import annotations
+
+import ctypes
+import csv
+import io
+import os
+import time as _time
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from deltafmi.errors import ResultWriteError
+from deltafmi.toolchain import plain_c_library
+
+_FLUSH_SECONDS = 0.5
+_INTEGERS = ("Integer", "Boolean")
+_format_rows: Optional[Any] = None
+_tables: List[np.ndarray] = []  # Ryu's tables, alive as long as the library uses them
+
+
+def _rows_formatter() -> Any:
+    """The C function writing rows of doubles as CSV text (``native/csv_rows.c``), its tables set."""
+    global _format_rows
+    if _format_rows is None:
+        library = ctypes.CDLL(str(plain_c_library(Path(__file__).parent / "native" / "csv_rows.c")))
+        _tables[:] = _ryu_tables()
+        library.deltafmi_csv_tables(ctypes.c_void_p(_tables[0].ctypes.data), ctypes.c_void_p(_tables[1].ctypes.data))
+        function = library.deltafmi_csv_rows
+        function.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_char_p]
+        function.restype = ctypes.c_size_t
+        _format_rows = function
+    return _format_rows
+
+
+def _ryu_tables() -> List[np.ndarray]:
+    """Ryu's 125-bit powers of five, exact (Python integers), as (low, high) 64-bit pairs:
+    ``2^(bits(5^i) - 1 + 125) // 5^i + 1`` for i < 342 and ``5^i`` scaled to 125 bits for i < 326."""
+    def pairs(values: List[int]) -> np.ndarray:
+        return np.array([[v & (2 ** 64 - 1), v >> 64] for v in values], dtype=np.uint64)
+    inverse = [(1 << (5 ** i).bit_length() - 1 + 125) // 5 ** i + 1 for i in range(342)]
+    powers = []
+    for i in range(326):
+        shift = (5 ** i).bit_length() - 125
+        powers.append(5 ** i >> shift if shift >= 0 else 5 ** i << -shift)
+    return [pairs(inverse), pairs(powers)]
+
+
+class CsvWriter:
+    """Appends rows ``time, values...`` to a CSV file.
+
+    ``kinds`` gives each column's FMI type (``Real``, ``Integer``, ``Boolean``, ``String``;
+    default all Real). Without String columns rows go through a float block and one format
+    string; with them, each row is kept as a list and written by :func:`csv.writer`.
+
+    The file only ever holds whole rows: rows go out with ``os.write`` in blocks, and when a
+    write fails (a full disk, a quota, a file size limit) the file is cut back to the end of the
+    last complete row and :class:`~deltafmi.errors.ResultWriteError` says how many rows it holds
+    and up to which time. After that the writer takes no more rows.
+    """
+
+    def __init__(self, path: str | Path, names: Sequence[str], chunk: int = 512,
+                 kinds: Optional[Sequence[str]] = None) -> None:
+        kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
+        if len(kinds) != len(names):
+            raise ValueError(f"{len(names)} column names but {len(kinds)} column types")
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fd: Optional[int] = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        self._size = 0  # bytes of whole rows (and the header) in the file
+        self._failed: Optional[ResultWriteError] = None
+        self._chunk = chunk
+        self._text = "String" in kinds
+        if self._text:
+            self._rows: list = []
+            self._csv_buffer = io.StringIO()
+            self._csv = csv.writer(self._csv_buffer, quoting=csv.QUOTE_NONNUMERIC, lineterminator="\n")
+        else:
+            self._block = np.empty((chunk, len(names) + 1))
+            self._integer = (ctypes.c_int * (len(names) + 1))(0, *[kind in _INTEGERS for kind in kinds])
+            self._text_out = ctypes.create_string_buffer(chunk * (len(names) + 1) * 33)
+            self._format_rows = _rows_formatter()
+        self._n = 0
+        self._last_flush = _time.monotonic()
+        self.rows_written = 0
+        self._last_time: Optional[float] = None  # of the last row in the file
+        header = io.StringIO()
+        csv.writer(header, lineterminator="\n").writerow(["time", *names])
+        data = header.getvalue().encode("utf-8")
+        self._emit(data, np.array([len(data)]), [])
+
+    def write(self, time: float, values: np.ndarray) -> None:
+        """Queue one row; it reaches the file at the next flush."""
+        if self._failed is not None:
+            raise self._failed
+        if self._text:
+            self._rows.append([time, *values])
+        else:
+            row = self._block[self._n]
+            row[0] = time
+            row[1:] = values
+        self._n += 1
+        if self._n == self._chunk or (self._n & 63 == 0 and
+                                      _time.monotonic() - self._last_flush > _FLUSH_SECONDS):
+            self.flush()
+
+    def write_rows(self, rows: np.ndarray) -> None:
+        """Queue rows ``time, values...`` (a 2-D float array) at once."""
+        if self._text:
+            for row in rows:
+                self.write(float(row[0]), row[1:])
+            return
+        if self._failed is not None:
+            raise self._failed
+        done = 0
+        while done < len(rows):
+            take = min(len(rows) - done, self._chunk - self._n)
+            self._block[self._n:self._n + take] = rows[done:done + take]
+            self._n += take
+            done += take
+            if self._n == self._chunk or _time.monotonic() - self._last_flush > _FLUSH_SECONDS:
+                self.flush()
+
+    def flush(self) -> None:
+        """Write the queued rows (whole rows only; see the class). After a failed write it does
+        nothing: the error was raised once, where the rows were written."""
+        if self._failed is not None:
+            return
+        if self._n:
+            n, self._n = self._n, 0
+            if self._text:
+                pieces = []
+                for row in self._rows:
+                    self._csv.writerow(row)
+                    pieces.append(self._csv_buffer.getvalue().encode("utf-8"))
+                    self._csv_buffer.seek(0)
+                    self._csv_buffer.truncate()
+                data = b"".join(pieces)
+                ends = np.cumsum([len(piece) for piece in pieces])
+                times = [row[0] for row in self._rows]
+                self._rows = []
+            else:
+                size = self._format_rows(self._block.ctypes.data, n, self._block.shape[1], self._integer,
+                                         self._text_out)
+                data = ctypes.string_at(self._text_out, size)
+                ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == 10) + 1
+                times = self._block[:n, 0]
+            self._emit(data, ends, times)
+        self._last_flush = _time.monotonic()
+
+    def _emit(self, data: bytes, ends: np.ndarray, times: Sequence[float]) -> None:
+        """Write ``data``, rows ending at byte offsets ``ends`` (the header when ``times`` is empty);
+        on a failed write cut the file back to its last whole row and raise ResultWriteError."""
+        written = 0
+        try:
+            while written < len(data):
+                written += os.write(self._fd, data[written:])
+        except OSError as exc:
+            whole = int(np.searchsorted(ends, written, side="right"))  # rows entirely written
+            keep = int(ends[whole - 1]) if whole else 0
+            try:
+                os.ftruncate(self._fd, self._size + keep)  # frees space: cannot fail for lack of it
+            except OSError:
+                pass
+            if len(times):
+                self.rows_written += whole
+                if whole:
+                    self._last_time = float(times[whole - 1])
+            self._failed = ResultWriteError(self.path, self.rows_written, self._last_time, exc)
+            raise self._failed from None
+        self._size += written
+        if len(times):
+            self.rows_written += len(ends)
+            self._last_time = float(times[-1])
+
+    def close(self) -> None:
+        """Flush and close (idempotent). Raises :class:`~deltafmi.errors.ResultWriteError` when
+        the last rows do not fit; the file is closed either way."""
+        if self._fd is None:
+            return
+        try:
+            self.flush()
+        finally:
+            os.close(self._fd)
+            self._fd = None
+
+
+class RowSampler:
+    """Gathers the recorded variables from the master's buses into one row (float, or an
+    object array when a String variable is recorded)."""
+
+    def __init__(self, parts: Sequence[Tuple[np.ndarray, Sequence[int], Sequence[int]]], width: int) -> None:
+        """``parts``: (bus, bus indices, row columns) per FMI type."""
+        self._parts = [(bus, np.asarray(index, np.intp), np.asarray(columns, np.intp))
+                       for bus, index, columns in parts if len(index)]
+        text = any(bus.dtype == object for bus, _, _ in self._parts)
+        self.row = np.zeros(width, dtype=object if text else float)
+
+    def sample(self) -> np.ndarray:
+        """The current values of every recorded variable."""
+        row = self.row
+        for bus, index, columns in self._parts:
+            row[columns] = bus[index]
+        return row
+
+
+def read_csv(path: str | Path) -> Tuple[List[str], np.ndarray]:
+    """Column names and data (rows x columns, time first) of a result file.
+
+    The data are floats; a file with String columns comes back as an object array whose
+    String columns hold ``str`` (see :func:`columns` for typed columns).
+    """
+    with open(path, newline="") as file:
+        names = next(csv.reader(file))
+        body = file.read()
+    if not body.strip():  # a run that ended before its first row: a header alone
+        return names, np.empty((0, len(names)))
+    if '"' not in body:
+        return names, np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
+    rows = list(csv.reader(io.StringIO(body), quoting=csv.QUOTE_NONNUMERIC))
+    data = np.empty((len(rows), len(names)), dtype=object)
+    for i, row in enumerate(rows):
+        data[i, :] = row
+    return names, data
+
+
+def columns(path: str | Path) -> Dict[str, np.ndarray]:
+    """A result file as ``{name: column}`` (``time`` included): float arrays, and object
+    arrays of ``str`` for String columns."""
+    names, data = read_csv(path)
+    result = {}
+    for i, name in enumerate(names):
+        column = data[:, i]
+        if column.dtype == object and not any(isinstance(value, str) for value in column):
+            column = column.astype(float)
+        result[name] = column
+    return result

@@ -1,0 +1,253 @@
+/* Rows of doubles as CSV text, each Real exactly as Python's repr() writes it, Integer and
+ * Boolean columns as integers.
+ *
+ * repr() writes the shortest digits that read back to the same double (the closest of them
+ * when several are that short), in fixed notation for decimal exponents -4 ... 15 and as
+ * d.ddde+XX otherwise, with ".0" on integral values, "nan", "inf", "-0.0". It costs about
+ * 0.7 us a number (David Gay's dtoa): 10 us a row of the flagship's results, a tenth of a
+ * whole co-simulation step. The digits here come from Ulf Adams' Ryu algorithm (PLDI 2018:
+ * shortest and correctly rounded, 64 x 128-bit products against tables of powers of five),
+ * about ten times faster. The tables are computed exactly by the caller (Python integers, see
+ * deltafmi/master/results.py) and handed over once. Plain C, no Python.
+ */
+#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+
+typedef unsigned __int128 uint128_t;
+
+#define MANTISSA_BITS 52
+#define EXPONENT_BITS 11
+#define BIAS 1023
+#define POW5_INV_BITCOUNT 125
+#define POW5_BITCOUNT 125
+#define POW5_INV_TABLE_SIZE 342
+#define POW5_TABLE_SIZE 326
+
+/* [i][0] low, [i][1] high 64 bits */
+static const uint64_t (*pow5_inv_split)[2];
+static const uint64_t (*pow5_split)[2];
+
+__attribute__((visibility("default")))
+void deltafmi_csv_tables(const uint64_t *inverse, const uint64_t *powers)
+{
+    pow5_inv_split = (const uint64_t(*)[2])inverse;
+    pow5_split = (const uint64_t(*)[2])powers;
+}
+
+static inline uint32_t pow5bits(int32_t e) { return (uint32_t)(((e * 1217359) >> 19) + 1); }
+static inline uint32_t log10_pow2(int32_t e) { return (uint32_t)((e * 78913) >> 18); }
+static inline uint32_t log10_pow5(int32_t e) { return (uint32_t)((e * 732923) >> 20); }
+
+static inline uint32_t pow5_factor(uint64_t value)
+{
+    uint32_t count = 0;
+    for (;;) {
+        uint64_t q = value / 5;
+        if (value - 5 * q != 0) break;
+        value = q;
+        ++count;
+    }
+    return count;
+}
+
+static inline int multiple_of_pow5(uint64_t value, uint32_t p) { return pow5_factor(value) >= p; }
+static inline int multiple_of_pow2(uint64_t value, uint32_t p) { return (value & ((1ull << p) - 1)) == 0; }
+
+static inline uint64_t mul_shift(uint64_t m, const uint64_t *mul, int32_t j)
+{
+    uint128_t b0 = (uint128_t)m * mul[0];
+    uint128_t b2 = (uint128_t)m * mul[1];
+    return (uint64_t)(((b0 >> 64) + b2) >> (j - 64));
+}
+
+/* Ryu's d2d: the shortest decimal mantissa * 10^exponent that reads back as the double */
+static void shortest(uint64_t ieee_mantissa, uint32_t ieee_exponent, uint64_t *digits, int32_t *exponent)
+{
+    int32_t e2;
+    uint64_t m2;
+    if (ieee_exponent == 0) {
+        e2 = 1 - BIAS - MANTISSA_BITS - 2;
+        m2 = ieee_mantissa;
+    } else {
+        e2 = (int32_t)ieee_exponent - BIAS - MANTISSA_BITS - 2;
+        m2 = (1ull << MANTISSA_BITS) | ieee_mantissa;
+    }
+    const int accept_bounds = (m2 & 1) == 0;
+    const uint64_t mv = 4 * m2;
+    const uint32_t mm_shift = ieee_mantissa != 0 || ieee_exponent <= 1;
+    uint64_t vr, vp, vm;
+    int32_t e10;
+    int vm_trailing_zeros = 0, vr_trailing_zeros = 0;
+    if (e2 >= 0) {
+        const uint32_t q = log10_pow2(e2) - (e2 > 3);
+        e10 = (int32_t)q;
+        const int32_t k = POW5_INV_BITCOUNT + (int32_t)pow5bits((int32_t)q) - 1;
+        const int32_t i = -e2 + (int32_t)q + k;
+        vr = mul_shift(4 * m2, pow5_inv_split[q], i);
+        vp = mul_shift(4 * m2 + 2, pow5_inv_split[q], i);
+        vm = mul_shift(4 * m2 - 1 - mm_shift, pow5_inv_split[q], i);
+        if (q <= 21) {
+            if (mv % 5 == 0)
+                vr_trailing_zeros = multiple_of_pow5(mv, q);
+            else if (accept_bounds)
+                vm_trailing_zeros = multiple_of_pow5(mv - 1 - mm_shift, q);
+            else
+                vp -= multiple_of_pow5(mv + 2, q);
+        }
+    } else {
+        const uint32_t q = log10_pow5(-e2) - (-e2 > 1);
+        e10 = (int32_t)q + e2;
+        const int32_t i = -e2 - (int32_t)q;
+        const int32_t k = (int32_t)pow5bits(i) - POW5_BITCOUNT;
+        const int32_t j = (int32_t)q - k;
+        vr = mul_shift(4 * m2, pow5_split[i], j);
+        vp = mul_shift(4 * m2 + 2, pow5_split[i], j);
+        vm = mul_shift(4 * m2 - 1 - mm_shift, pow5_split[i], j);
+        if (q <= 1) {
+            vr_trailing_zeros = 1;
+            if (accept_bounds)
+                vm_trailing_zeros = mm_shift == 1;
+            else
+                --vp;
+        } else if (q < 63) {
+            vr_trailing_zeros = multiple_of_pow2(mv, q);
+        }
+    }
+    int32_t removed = 0;
+    uint8_t last_removed = 0;
+    uint64_t output;
+    if (vm_trailing_zeros || vr_trailing_zeros) {
+        for (;;) {
+            if (vp / 10 <= vm / 10) break;
+            vm_trailing_zeros &= vm % 10 == 0;
+            vr_trailing_zeros &= last_removed == 0;
+            last_removed = (uint8_t)(vr % 10);
+            vr /= 10;
+            vp /= 10;
+            vm /= 10;
+            ++removed;
+        }
+        if (vm_trailing_zeros) {
+            while (vm % 10 == 0) {
+                vr_trailing_zeros &= last_removed == 0;
+                last_removed = (uint8_t)(vr % 10);
+                vr /= 10;
+                vp /= 10;
+                vm /= 10;
+                ++removed;
+            }
+        }
+        if (vr_trailing_zeros && last_removed == 5 && vr % 2 == 0) last_removed = 4; /* round half even */
+        output = vr + ((vr == vm && (!accept_bounds || !vm_trailing_zeros)) || last_removed >= 5);
+    } else {
+        int round_up = 0;
+        if (vp / 100 > vm / 100) {
+            round_up = vr % 100 >= 50;
+            vr /= 100;
+            vp /= 100;
+            vm /= 100;
+            removed += 2;
+        }
+        for (;;) {
+            if (vp / 10 <= vm / 10) break;
+            round_up = vr % 10 >= 5;
+            vr /= 10;
+            vp /= 10;
+            vm /= 10;
+            ++removed;
+        }
+        output = vr + (vr == vm || round_up);
+    }
+    *digits = output;
+    *exponent = e10 + removed;
+}
+
+/* repr(x) into out (room for 32 chars); returns its length */
+static int repr_double(double x, char *out)
+{
+    uint64_t bits;
+    memcpy(&bits, &x, sizeof bits);
+    const int sign = (int)(bits >> 63);
+    const uint64_t ieee_mantissa = bits & ((1ull << MANTISSA_BITS) - 1);
+    const uint32_t ieee_exponent = (uint32_t)((bits >> MANTISSA_BITS) & ((1u << EXPONENT_BITS) - 1));
+    int n = 0;
+    if (ieee_exponent == (1u << EXPONENT_BITS) - 1) {
+        if (ieee_mantissa) {
+            memcpy(out, "nan", 3);
+            return 3;
+        }
+        if (sign) out[n++] = '-';
+        memcpy(out + n, "inf", 3);
+        return n + 3;
+    }
+    if (sign) out[n++] = '-';
+    if (ieee_exponent == 0 && ieee_mantissa == 0) {
+        memcpy(out + n, "0.0", 3);
+        return n + 3;
+    }
+    uint64_t mantissa;
+    int32_t e10;
+    shortest(ieee_mantissa, ieee_exponent, &mantissa, &e10);
+    char digits[24];
+    int nd = 0;
+    for (uint64_t m = mantissa; m; m /= 10) digits[nd++] = (char)('0' + m % 10);
+    for (int i = 0; i < nd / 2; i++) {
+        char c = digits[i];
+        digits[i] = digits[nd - 1 - i];
+        digits[nd - 1 - i] = c;
+    }
+    const int exponent = e10 + nd - 1; /* of the first digit */
+    if (exponent >= -4 && exponent < 16) {
+        if (exponent < 0) {
+            out[n++] = '0';
+            out[n++] = '.';
+            for (int i = -1; i > exponent; i--) out[n++] = '0';
+            memcpy(out + n, digits, (size_t)nd);
+            return n + nd;
+        }
+        for (int i = 0; i <= exponent; i++) out[n++] = i < nd ? digits[i] : '0';
+        out[n++] = '.';
+        if (nd > exponent + 1) {
+            memcpy(out + n, digits + exponent + 1, (size_t)(nd - exponent - 1));
+            return n + nd - exponent - 1;
+        }
+        out[n++] = '0';
+        return n;
+    }
+    out[n++] = digits[0];
+    if (nd > 1) {
+        out[n++] = '.';
+        memcpy(out + n, digits + 1, (size_t)(nd - 1));
+        n += nd - 1;
+    }
+    out[n++] = 'e';
+    out[n++] = exponent < 0 ? '-' : '+';
+    int e = exponent < 0 ? -exponent : exponent;
+    if (e >= 100) out[n++] = (char)('0' + e / 100);
+    out[n++] = (char)('0' + e / 10 % 10);
+    out[n++] = (char)('0' + e % 10);
+    return n;
+}
+
+/* n_rows rows of `width` doubles (row-major) as lines "v,v,...\n" into out (room for
+ * n_rows * width * 32 chars); integer[j] != 0 writes column j as an integer (truncated, as
+ * Python's "%d" does; the master's Integer and Boolean buses hold 32-bit integers).
+ * Returns the number of chars written. */
+__attribute__((visibility("default")))
+size_t deltafmi_csv_rows(const double *rows, long n_rows, long width, const int *integer, char *out)
+{
+    size_t n = 0;
+    for (long i = 0; i < n_rows; i++) {
+        const double *row = rows + i * width;
+        for (long j = 0; j < width; j++) {
+            if (j) out[n++] = ',';
+            if (integer[j])
+                n += (size_t)sprintf(out + n, "%lld", (long long)row[j]);
+            else
+                n += (size_t)repr_double(row[j], out + n);
+        }
+        out[n++] = '\n';
+    }
+    return n;
+}

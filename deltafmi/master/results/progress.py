@@ -1,0 +1,101 @@
+"""A one-line progress bar for terminals, and the end-of-run summary."""
+from __future__ import annotations
+
+import sys
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional, TextIO
+
+
+class Progress:
+    """Redraws ``[#####.....]  42% t = 0.84 s`` at most five times a second; silent when disabled."""
+
+    def __init__(self, start: float, stop: float, enabled: bool, stream: TextIO = sys.stdout) -> None:
+        self.start, self.span = start, max(stop - start, 1e-300)
+        self.enabled = enabled
+        self.stream = stream
+        self._next_draw = 0.0
+
+    def update(self, t: float) -> None:
+        """Show simulated time ``t`` (cheap when called often: redraws are rate limited)."""
+        if not self.enabled:
+            return
+        now = _time.monotonic()
+        if now < self._next_draw:
+            return
+        self._next_draw = now + 0.2
+        fraction = min(max((t - self.start) / self.span, 0.0), 1.0)
+        filled = int(30 * fraction)
+        self.stream.write(f"\r[{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:5.1f}% t = {t:.6g} s")
+        self.stream.flush()
+
+    def close(self, t: float) -> None:
+        """Draw the bar at ``t`` (where the run ended) and finish its line; later calls do nothing."""
+        if self.enabled:
+            self._next_draw = 0.0
+            self.update(t)
+            self.stream.write("\n")
+            self.stream.flush()
+            self.enabled = False
+
+
+@dataclass(frozen=True)
+class Termination:
+    """A component ended the run before its stop time (FMI 2.0: terminateSimulation in Model
+    Exchange, fmi2Discard with fmi2Terminated in Co-Simulation)."""
+
+    component: str
+    time: float
+    #: what the component said (its fmi2Discard message), "" when nothing
+    reason: str = field(default="", compare=False)
+
+    def __str__(self) -> str:
+        text = f"ended early: {self.component} terminated the simulation at t = {self.time:.9g} s"
+        return text + (f" ({self.reason})" if self.reason else "")
+
+
+@dataclass
+class Summary:
+    """Figures of a finished run."""
+
+    steps: int
+    rejected: int
+    events: int
+    wall_time: float
+    simulated: float
+    rows: int
+    result: Path
+    #: who ended the run early, and when (None: it ran to its stop time)
+    terminated: Optional[Termination] = None
+    #: wall seconds spent before the first step (extracting, loading, initializing)
+    setup_time: float = 0.0
+    #: algebraic loops solved (a :class:`~deltafmi.master.stepping.algebraic_loops.LoopStatistics`; None: no loop)
+    loops: Any = None
+    #: wall seconds spent after the last step (last results written, units freed, files removed)
+    close_time: float = 0.0
+    #: a live run's pacing figures and sources' counters (a
+    #: :class:`~deltafmi.master.live.run.LiveReport`; None: no live source, not paced)
+    live: Any = None
+
+    @property
+    def stepping_time(self) -> float:
+        """Wall seconds of the stepping alone (neither set-up nor close)."""
+        return self.wall_time - self.setup_time - self.close_time
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated seconds per wall-clock second (> 1: faster than real time)."""
+        return self.simulated / self.wall_time if self.wall_time > 0 else float("inf")
+
+    def __str__(self) -> str:
+        text = (f"{self.steps} steps ({self.rejected} rejected), {self.events} events, "
+                f"{self.simulated:.6g} s simulated in {self.wall_time:.3f} s wall "
+                f"(real-time factor {self.real_time_factor:.1f}x); {self.rows} rows -> {self.result}")
+        if self.terminated:
+            text += f"; {self.terminated}"
+        if self.loops is not None and self.loops.solves:
+            text += f"; algebraic loops: {self.loops}"
+        if self.live is not None:
+            text += f"\n{self.live}"
+        return text

@@ -1,0 +1,82 @@
+"""Whether an FMU archive can run here, read from the archive alone (nothing is loaded).
+
+:func:`binary_problem`: every FMU needs its binary for this platform; :func:`guid_problem`: a
+deltafmi FMU's modelDescription.xml and binary must agree on the GUID; :func:`clock_problem`: the
+master activates an FMI 3.0 FMU's periodic input Clocks only. ``deltafmi validate`` and
+the scenario resolution ask them; the trial instantiation is
+:func:`deltafmi.master.stepping.fmu_trial.instantiation_problem`.
+"""
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ElementTree
+import zipfile
+from pathlib import Path
+from typing import Any, Iterable, Optional
+
+#: the intervalVariability of the input Clocks the master activates itself (periodic, time-based)
+PERIODIC_CLOCKS = ("constant", "fixed", "tunable")
+
+
+def binary_problem(fmu: Path, model_identifiers: Iterable[str], fmi3: bool = False) -> Optional[str]:
+    """Why ``fmu`` has no binary to load on this platform (``binaries/linux64/<modelIdentifier>.so``
+    for each of ``model_identifiers``; FMI 3.0, ``fmi3``: ``binaries/x86_64-linux/...``), or None
+    when it has them all."""
+    from fmpy import platform as platform2, platform_tuple, sharedLibraryExtension
+    platform = platform_tuple if fmi3 else platform2
+
+    with zipfile.ZipFile(fmu) as archive:
+        names = archive.namelist()
+    binaries = [name for name in names if name.startswith("binaries/") and not name.endswith("/")]
+    for identifier in dict.fromkeys(model_identifiers):
+        expected = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
+        if expected not in names:
+            has = ", ".join(binaries[:6]) + (", ..." if len(binaries) > 6 else "") if binaries else "none"
+            return f"no binary for this platform: {expected} is missing (its binaries: {has})"
+    return None
+
+
+def guid_problem(fmu: Path, guid: str) -> Optional[str]:
+    """For a deltafmi FMU: how the GUID of its modelDescription.xml (``guid``) and the one its
+    binary checks when instantiated (``resources/deltafmi.json``) disagree, or None."""
+    with zipfile.ZipFile(fmu) as archive:
+        try:
+            built = json.loads(archive.read("resources/deltafmi.json")).get("guid", "")
+        except (KeyError, ValueError):
+            return None
+    if built and built != guid:
+        return (f"the GUID of modelDescription.xml, {guid}, is not the one its binary was built with, {built}: "
+                "its instantiation will refuse it (rebuild the FMU, or restore its modelDescription.xml)")
+    return None
+
+
+def clock_problem(fmu: Path, interface: str) -> Optional[str]:
+    """Why the master cannot drive the Clocks of the FMI 3.0 FMU ``fmu`` run as ``interface``
+    ("ME", "CS"), or None (see :func:`clocks_refused`)."""
+    with zipfile.ZipFile(fmu) as archive:
+        try:
+            root = ElementTree.fromstring(archive.read("modelDescription.xml"))
+        except (KeyError, ElementTree.ParseError):
+            return None  # reading the FMU tells that
+    return clocks_refused(root, interface)
+
+
+def clocks_refused(root: Any, interface: str) -> Optional[str]:
+    """Why the master cannot drive the Clocks of the modelDescription ``root`` (an ElementTree
+    element) as ``interface``, or None: it activates periodic input Clocks (constant, fixed,
+    tunable), not aperiodic ones; it reads output Clocks (local ones need nothing); and in
+    Co-Simulation it needs Event Mode, which FMI 3.0 requires of an FMU with Clocks."""
+    used = []
+    for clock in root.iterfind("ModelVariables/Clock"):
+        name, causality = clock.get("name", ""), clock.get("causality", "local")
+        kind = clock.get("intervalVariability") or "?"
+        if causality == "input" and kind not in PERIODIC_CLOCKS:
+            return (f"its input Clock '{name}' is {kind} (intervalVariability), which the master cannot activate: "
+                    f"it drives periodic input Clocks only ({', '.join(PERIODIC_CLOCKS)})")
+        if causality in ("input", "output"):
+            used.append(name)
+    cs = root.find("CoSimulation")
+    if used and interface == "CS" and cs is not None and cs.get("hasEventMode") not in ("true", "1"):
+        return (f"it has Clocks ({', '.join(used)}) but its <CoSimulation> has no Event Mode (hasEventMode), "
+                "which FMI 3.0 requires to use them: run it as Model Exchange (interface: ME)")
+    return None

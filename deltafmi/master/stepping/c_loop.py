@@ -1,0 +1,311 @@
+"""The master's fixed-step loop run in C (``native/fixed_step.c``) for the common case.
+
+A communication step of the Python loop costs a dozen ctypes calls and their Python around
+them (the flagship: about 30 us a step, more than the trajectory and controller FMUs' own work).
+:class:`NativeLoop` lays the same calls out once as a plan (per unit, in stepping order: the
+batched fmi2Set<Type> of its inputs, fmi2DoStep or a Model Exchange unit's Runge-Kutta step,
+the batched fmi2Get<Type> of its outputs) and runs many steps per foreign call, the recorded
+rows gathered into a block the result writer takes at once. The calls, their order and their
+arguments are those of the Python loop, bit for bit.
+
+It covers Co-Simulation units and Model Exchange units on a fixed-step Runge-Kutta method
+without time events or discrete inputs (event indicators are compared after every Runge-Kutta
+step, as :class:`.ExplicitRungeKutta` does), with numeric (not String) values and no algebraic
+loop; FMI 3.0 units too where their values are Float64, Int32 or Boolean (an fmi3DoStep that
+returns an event, an early return or a termination hands its step back), and the ticks of a
+Co-Simulation unit's periodic input Clocks at communication points (a tick inside a step hands
+the step back; :mod:`.clocks`). Anything else runs in
+Python; so do the steps after a C run stopped at an event (a state event is located by the
+solver's bisection), a failure or a termination, which the master finishes exactly as its
+Python loop would.
+"""
+from __future__ import annotations
+
+import ctypes
+from ctypes import POINTER, c_double, c_int, c_long, c_size_t, c_void_p
+from pathlib import Path
+from typing import Any, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from deltafmi.toolchain import plain_c_library
+
+from .explicit_rk import ExplicitRungeKutta
+from .unit_base import Unit, _Inputs, _Outputs, function_address
+
+SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP, SET_BOOL3, GET_BOOL3, CLOCK_TICK = range(9)
+#: why a C run stopped
+RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED, CLOCK_INSIDE, UNSETTLED = range(10)
+#: the FMI 3.0 type the C loop exchanges on each bus (others: the Python loop)
+_FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+_SET, _GET = {"Real": SET_REAL, "Integer": SET_INT, "Boolean": SET_INT}, \
+    {"Real": GET_REAL, "Integer": GET_INT, "Boolean": GET_INT}
+#: the ME_STEP call that failed (Plan.call)
+ME_CALLS = ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2CompletedIntegratorStep", "fmi2GetEventIndicators")
+#: the CLOCK_TICK call that failed (Plan.call)
+CLOCK_CALLS = ("fmi3EnterEventMode", "fmi3SetClock", "fmi3UpdateDiscreteStates", "fmi3EnterStepMode")
+#: the actions of a unit in a step, in the Python loop's terms
+PULL, STEP, FETCH = "pull", "do_step", "fetch"
+
+
+class _Op(ctypes.Structure):
+    _fields_ = [("kind", c_int), ("multiple", c_int), ("function", c_void_p), ("component", c_void_p),
+                ("vrs", c_void_p), ("n", c_size_t), ("values", c_void_p), ("bus", c_void_p), ("index", c_void_p),
+                ("factor", c_void_p), ("offset", c_void_p), ("no_prior_state", c_int),
+                ("erk", c_void_p), ("erk_plan", c_void_p), ("erk_current", c_void_p), ("holds_end", c_int),
+                ("x", c_void_p), ("nx", c_size_t), ("t", c_void_p),
+                ("max_step", c_double), ("set_time", c_void_p), ("set_states", c_void_p), ("completed", c_void_p),
+                ("nz", c_size_t), ("get_indicators", c_void_p), ("z", c_void_p), ("z_last", c_void_p),
+                ("z_valid", c_void_p), ("x0", c_void_p),
+                ("fmi3", c_int), ("positions", c_void_p), ("n_index", c_size_t), ("n_values", c_size_t),
+                ("flags", c_int), ("step_status", c_int), ("last_time", c_double),
+                ("clock_first", c_void_p), ("clock_count", c_void_p), ("clock_interval", c_void_p),
+                ("clock_activated", c_void_p), ("due_vrs", c_void_p), ("on", c_void_p),
+                ("enter_event_mode", c_void_p), ("update_discrete_states", c_void_p), ("enter_step_mode", c_void_p)]
+
+
+class _RowPart(ctypes.Structure):
+    _fields_ = [("bus", c_void_p), ("is_int", c_int), ("n", c_size_t), ("index", c_void_p), ("columns", c_void_p)]
+
+
+class _Plan(ctypes.Structure):
+    _fields_ = [("ops", POINTER(_Op)), ("n_ops", c_size_t), ("parts", POINTER(_RowPart)), ("n_parts", c_size_t),
+                ("width", c_size_t), ("start", c_double), ("h", c_double), ("stop", c_double),
+                ("n_steps", c_long), ("last", c_long), ("every", c_long),
+                ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
+                ("rk_step", c_double), ("op_seconds", c_void_p)]
+
+
+_kernel: Optional[Any] = None
+
+
+def _steps_function() -> Any:
+    global _kernel
+    if _kernel is None:
+        library = ctypes.PyDLL(str(plain_c_library(Path(__file__).parent / "native" / "fixed_step.c")))
+        _kernel = library.deltafmi_fixed_steps
+        _kernel.argtypes = [POINTER(_Plan), c_long, c_long, c_void_p, c_long, POINTER(c_long), POINTER(c_long)]
+        _kernel.restype = c_int
+    return _kernel
+
+
+def _pointer(array: Optional[np.ndarray]) -> Optional[int]:
+    return None if array is None else array.ctypes.data
+
+
+def _fits(unit: Unit) -> bool:
+    """Whether the C loop can step ``unit`` as the Python loop does (see the module docstring; an
+    FMI 3.0 unit's values must be Float64 on the Real bus, Int32 on the Integer bus or Boolean)."""
+    if unit.fmi3 and not (all(i.values.dtype in (i.bus.dtype, np.bool_) for i in unit.inputs if isinstance(i, _Inputs))
+                          and all(o.staging is None or o.staging.dtype == np.bool_
+                                  for o in unit.outputs if isinstance(o, _Outputs))):
+        return False
+    if not all(isinstance(i, _Inputs) and i.kind in _SET for i in unit.inputs):
+        return False
+    if any(i.factor is not None and i.kind != "Real" for i in unit.inputs):
+        return False
+    if not all(isinstance(o, _Outputs) and o.kind in _GET for o in unit.outputs):
+        return False
+    clocks = getattr(unit, "clocks", None)
+    if unit.interface == "CS":
+        return clocks is None or clocks.steps_in_c
+    return unit.interface == "ME" and not unit._discrete_inputs and isinstance(unit.solver, ExplicitRungeKutta)
+
+
+def _slice_address(outputs: _Outputs) -> int:
+    """The address of the first bus slot of ``outputs``."""
+    return outputs.bus.ctypes.data + outputs.slots.start * outputs.bus.itemsize
+
+
+def _function(unit: Unit, verb: str, kind: str) -> str:
+    """The FMI function that sets or gets (``verb``) values of bus ``kind`` for ``unit``."""
+    return f"fmi3{verb}{_FMI3_TYPES[kind]}" if unit.fmi3 else f"fmi2{verb}{kind}"
+
+
+class _Indicators:
+    """An ME unit's event indicators as the C loop compares them, and the solver's copy of the
+    last ones (``ExplicitRungeKutta._z``: None until first read) handed over around each run."""
+
+    def __init__(self, nz: int, nx: int) -> None:
+        self.z, self.z_last = np.zeros(max(nz, 1)), np.zeros(max(nz, 1))
+        self.valid = np.zeros(1, dtype=np.intc)
+        self.x0 = np.zeros(max(nx, 1))
+        self.nz = nz
+
+    def take(self, solver: ExplicitRungeKutta) -> None:
+        last = solver.last_indicators
+        self.valid[0] = last is not None
+        if last is not None:
+            self.z_last[:self.nz] = last
+
+    def give(self, solver: ExplicitRungeKutta) -> None:
+        solver.last_indicators = self.z_last[:self.nz].copy() if self.valid[0] else None
+
+
+class NativeLoop:
+    """The fixed-step loop of one master run as a C plan; see the module docstring.
+
+    ``actions``: (unit, PULL | STEP | FETCH, step multiple) in the order one step runs them;
+    ``sampler``: the master's row sampler (its parts are gathered in C as it gathers them).
+    """
+
+    def __init__(self, actions: Sequence[Tuple[Unit, str, int]], sampler: Any, start: float, h: float,
+                 stop: float, n_steps: int, last: int, every: int, block_rows: int = 256) -> None:
+        self.actions = list(actions)
+        self._keep: List[Any] = []  # what the plan points into
+        ops: List[_Op] = []
+        self.op_action: List[int] = []
+        self.op_function: List[str] = []  # the fmi2 function of each operation (for messages)
+        self._me: List[Tuple[Any, int, np.ndarray]] = []  # (unit, op index, its solver time box)
+        self._indicators: dict = {}  # ME unit name -> its _Indicators
+        for a, (unit, action, m) in enumerate(self.actions):
+            for op, function in self._ops(unit, action, m):
+                self.op_action.append(a)
+                self.op_function.append(function)
+                ops.append(op)
+        self._ops_array = (_Op * max(1, len(ops)))(*ops)
+        parts = [_RowPart(_pointer(bus), int(bus.dtype != np.float64), len(index), _pointer(index), _pointer(columns))
+                 for bus, index, columns in sampler._parts]
+        self._keep.append(sampler)
+        self._parts_array = (_RowPart * max(1, len(parts)))(*parts)
+        width = len(sampler.row)
+        self.rows = np.empty((block_rows, width + 1))
+        self.plan = _Plan(self._ops_array, len(ops), self._parts_array, len(parts), width, start, h, stop,
+                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None)
+        #: set :meth:`timed` to have the C loop add up the wall time of each operation
+        self.op_seconds: Optional[np.ndarray] = None
+        self._run = _steps_function()
+        self._k_done, self._n_rows = c_long(0), c_long(0)
+
+    @staticmethod
+    def fits(units: Sequence[Any], sampler: Any) -> bool:
+        """Whether a run of ``units`` (and recording with ``sampler``) can use the C loop."""
+        return (sampler.row.dtype == np.float64 and all(isinstance(u, Unit) and _fits(u) for u in units)
+                and all(bus.dtype in (np.float64, np.int32) for bus, _, _ in sampler._parts))
+
+    def _ops(self, unit: Unit, action: str, m: int) -> List[Tuple[_Op, str]]:
+        handle = unit.fmu.component
+        booleans = unit.fmi3  # FMI 3.0 Booleans are one byte: converted in C
+        if action == PULL:
+            return [(self._value_op(unit, inputs, SET_BOOL3 if booleans and inputs.kind == "Boolean" else
+                                    _SET[inputs.kind], _function(unit, "Set", inputs.kind), m,
+                                    inputs.values, inputs.bus, inputs.index, inputs.factor, inputs.offset),
+                     _function(unit, "Set", inputs.kind)) for inputs in unit.inputs]
+        if action == FETCH:
+            return [(self._value_op(unit, outputs, GET_BOOL3 if booleans and outputs.kind == "Boolean" else
+                                    _GET[outputs.kind], _function(unit, "Get", outputs.kind), m, None,
+                                    None, None, None, None,
+                                    values_address=ctypes.cast(outputs.pointer, c_void_p).value,
+                                    bus_address=_slice_address(outputs)),
+                     _function(unit, "Get", outputs.kind)) for outputs in unit.outputs]
+        if unit.interface == "CS":
+            name = "fmi3DoStep" if unit.fmi3 else "fmi2DoStep"
+            step = (_Op(kind=DO_STEP, multiple=m, function=function_address(unit.fmu, name), component=handle,
+                        no_prior_state=unit.no_prior_state, fmi3=unit.fmi3), name)
+            return [step] if getattr(unit, "clocks", None) is None else [self._clock_op(unit, m), step]
+        solver = unit.solver
+        erk, erk_plan, erk_current = solver.kernel
+        box = np.array([solver.t])
+        self._keep.append(box)
+        self._me.append((unit, len(self.op_action), box))
+        fmu = unit.fmu
+        indicators = _Indicators(unit.nz, unit.nx)
+        self._indicators[unit.name] = indicators
+        return [(_Op(kind=ME_STEP, multiple=m, component=handle, no_prior_state=unit.no_prior_state,
+                     erk=erk, erk_plan=erk_plan, erk_current=erk_current, x=_pointer(solver.x), nx=unit.nx, t=_pointer(box),
+                     max_step=solver.max_step, set_time=function_address(fmu, "fmi2SetTime"),
+                     set_states=function_address(fmu, "fmi2SetContinuousStates"),
+                     completed=function_address(fmu, "fmi2CompletedIntegratorStep") if unit.needs_completed else None,
+                     nz=unit.nz, get_indicators=function_address(fmu, "fmi2GetEventIndicators"), z=_pointer(indicators.z),
+                     z_last=_pointer(indicators.z_last), z_valid=_pointer(indicators.valid),
+                     x0=_pointer(indicators.x0), fmi3=unit.fmi3),
+                 "")]
+
+    def _clock_op(self, unit: Unit, m: int) -> Tuple[_Op, str]:
+        """The CLOCK_TICK before a Co-Simulation unit's fmi3DoStep: its input Clocks' ticks due at
+        the step's start, on the unit's own schedule arrays (:class:`.clocks.UnitClocks`)."""
+        clocks, fmu = unit.clocks, unit.fmu
+        vrs = np.array(clocks.vrs, dtype=np.uint32)
+        scratch = (np.zeros(len(vrs), dtype=np.uint32), np.ones(len(vrs), dtype=np.bool_))
+        self._keep += [clocks, vrs, scratch]
+        op = _Op(kind=CLOCK_TICK, multiple=m, function=function_address(fmu, "fmi3SetClock"),
+                 component=fmu.component, vrs=_pointer(vrs), n=len(vrs), fmi3=1,
+                 clock_first=_pointer(clocks.first), clock_count=_pointer(clocks.count),
+                 clock_interval=_pointer(clocks.interval), clock_activated=_pointer(clocks.activated),
+                 due_vrs=_pointer(scratch[0]), on=_pointer(scratch[1]),
+                 enter_event_mode=function_address(fmu, "fmi3EnterEventMode"),
+                 update_discrete_states=function_address(fmu, "fmi3UpdateDiscreteStates"),
+                 enter_step_mode=function_address(fmu, "fmi3EnterStepMode"))
+        return op, ""
+
+    def _value_op(self, unit: Unit, holder: Any, kind: int, function: str, m: int, values: Optional[np.ndarray],
+                  bus: Optional[np.ndarray], index: Optional[np.ndarray], factor: Optional[np.ndarray],
+                  offset: Optional[np.ndarray], values_address: Optional[int] = None,
+                  bus_address: Optional[int] = None) -> _Op:
+        self._keep.append(holder)
+        positions = getattr(holder, "positions", None)
+        return _Op(kind=kind, multiple=m, function=function_address(unit.fmu, function), component=unit.fmu.component,
+                   vrs=ctypes.cast(holder.vrs, c_void_p).value, n=holder.n,
+                   values=values_address if values is None else _pointer(values),
+                   bus=bus_address if bus is None else _pointer(bus),
+                   index=_pointer(index), factor=_pointer(factor), offset=_pointer(offset), fmi3=unit.fmi3,
+                   positions=_pointer(positions), n_index=holder.n if index is None else len(index),
+                   n_values=holder.tail[0] if holder.tail else holder.n)
+
+    def ready(self) -> bool:
+        """Whether the next steps can run in C: no time event pending in a Model Exchange unit
+        and its solver still the one planned (an event may have replaced it)."""
+        for unit, index, box in self._me:
+            if unit.next_event_time is not None or not isinstance(unit.solver, ExplicitRungeKutta):
+                return False
+            op = self._ops_array[index]
+            if op.x != unit.solver.x.ctypes.data:
+                erk, erk_plan, erk_current = unit.solver.kernel
+                op.erk, op.erk_plan, op.erk_current = erk, erk_plan, erk_current
+                op.x, op.max_step = unit.solver.x.ctypes.data, unit.solver.max_step
+                self._keep.append(unit.solver)
+        return True
+
+    def timed(self) -> None:
+        """From now on add each operation's wall seconds to :attr:`op_seconds` (for benchmarks)."""
+        self.op_seconds = np.zeros(max(1, len(self.op_action)))
+        self.plan.op_seconds = self.op_seconds.ctypes.data
+
+    def unit_seconds(self) -> dict:
+        """Wall seconds spent in each unit's operations since :meth:`timed`."""
+        spent: dict = {}
+        for i, a in enumerate(self.op_action):
+            name = self.actions[a][0].name
+            spent[name] = spent.get(name, 0.0) + float(self.op_seconds[i])
+        return spent
+
+    def run(self, k: int, k_end: int) -> Tuple[int, int, int]:
+        """Steps ``k`` ... ``k_end - 1`` in C: (why it stopped, first step not completed, rows in
+        :attr:`rows`). The Model Exchange units' solvers are up to date on return."""
+        for unit, _, box in self._me:
+            box[0] = unit.solver.t
+            self._indicators[unit.name].take(unit.solver)
+        why = self._run(ctypes.byref(self.plan), k, k_end, self.rows.ctypes.data, len(self.rows),
+                        ctypes.byref(self._k_done), ctypes.byref(self._n_rows))
+        for unit, _, box in self._me:
+            unit.solver.t = float(box[0])
+            self._indicators[unit.name].give(unit.solver)
+        return why, self._k_done.value, self._n_rows.value
+
+    def locate(self, unit: Any) -> None:
+        """After a STATE_EVENT in ``unit``: bisect the Runge-Kutta step that crossed, as
+        :meth:`.ExplicitRungeKutta.advance` does (the solver then stands just past the crossing)."""
+        unit.solver.locate(self.plan.rk_time, self._indicators[unit.name].x0.copy(), self.plan.rk_step)
+
+    def stopped_op(self) -> _Op:
+        """The operation the last run stopped at (its outputs: an FMI 3.0 step's flags)."""
+        return self._ops_array[self.plan.op]
+
+    def stopped_at(self) -> Tuple[Unit, str, int, str]:
+        """Where the last run stopped: the action (unit, PULL | STEP | FETCH, its index in
+        ``actions``) and the fmi2 function that failed, if one did."""
+        plan = self.plan
+        a = self.op_action[plan.op]
+        unit, action, _ = self.actions[a]
+        calls = CLOCK_CALLS if self._ops_array[plan.op].kind == CLOCK_TICK else ME_CALLS
+        return unit, action, a, self.op_function[plan.op] or calls[plan.call]

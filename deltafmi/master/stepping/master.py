@@ -1,0 +1,645 @@
+"""The co-simulation master: instantiate, initialize and step the units of a resolved :class:`System`.
+
+* Initialization: start values and parameters, then inside initialization mode every connected
+  input is set from its source output in dependency order (outputs that depend directly on
+  inputs are read after those inputs are set), so the closed loop starts consistent.
+* Stepping: Gauss-Seidel in the system's stepping order (default) or Jacobi; a unit with
+  ``step_multiple`` m steps every m-th communication step over m steps.
+* Algebraic loops are solved at initialization and at every step (:mod:`deltafmi.master.stepping.algebraic_loops`):
+  the units of a loop step as one block.
+* Optional adaptive communication step with rollback (:mod:`deltafmi.master.stepping.adaptive`).
+* Results stream to CSV; events of ME units (and of FMI 3.0 CS units in event mode) add rows at
+  the event instant.
+* FMI 2.0 and FMI 3.0 FMUs run side by side (:mod:`.fmi3_units`): an FMI 3.0 array variable is
+  its elements on the buses, each with a slot keyed (bus, unit, value reference, element).
+* Fixed steps run in C where :mod:`deltafmi.master.stepping.c_loop` can (the same FMI calls, 64
+  steps per foreign call); the step where C stops (an event, a failure) is finished here.
+"""
+from __future__ import annotations
+
+import math
+import shutil
+import signal
+import tempfile
+import time as _time
+from pathlib import Path
+from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
+
+import fmpy
+import numpy as np
+
+from deltafmi.errors import BadInput, Interrupted, SimulationError
+
+from ..live.pacing import FellBehind
+from ..results.csv_file import RowSampler
+from ..results.writers import write_rows_to, writer_for
+from ..results.progress import Progress, Summary, Termination
+from ..scenario.system import ResolvedComponent, Port, System
+from ..scenario.spec import grid_steps
+from .adaptive import run_adaptive
+from .explicit_rk import RungeKuttaError, step_failure
+from .fmi3_units import unsettled
+from deltafmi.master.stepping.algebraic_loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
+from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
+                          STEP_RETURNED, TERMINATED, UNSETTLED, NativeLoop)
+from .stop_signals import StopSignals
+from .unit_base import instant_margin
+from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
+
+#: steps per call of the C loop (stop signals and progress are looked at in between)
+_C_STEPS = 64
+
+
+class _FixedGrid(NamedTuple):
+    start: float
+    stop: float
+    h: float
+    n_steps: int
+    last: int  # steps from k with k + m < last are m * h long, later ones end at stop
+
+
+class Master:
+    """Runs one :class:`System`; create, then call :meth:`run` once."""
+
+    def __init__(self, system: System, result: Optional[Path] = None, stop: Optional[float] = None,
+                 algorithm: Optional[str] = None, progress: bool = False,
+                 warn: Callable[[str], None] = lambda message: None,
+                 fmus: Optional[Callable[[ResolvedComponent], Any]] = None,
+                 writer_class: Optional[Callable[..., Any]] = None, native: bool = True,
+                 on_message: Optional[Callable[[str, int, str, str], None]] = None,
+                 debug_logging: bool = False, replay: Optional[Path] = None) -> None:
+        """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
+        FMU for this run; deltafmi.apps.studies keeps them loaded across runs and resets them);
+        ``on_message(component, status, category, text)`` gets every message the FMUs log
+        (default: none is shown); ``debug_logging``: instantiate with loggingOn, so the FMUs send
+        their debug categories too;
+        ``writer_class(path, names, kinds=...)`` makes the result writer (default: chosen by the
+        result file's extension, :func:`~deltafmi.master.results.writers.writer_for`, which also
+        gets ``units=``; an unknown extension is a :class:`BadInput` here, before anything runs);
+        ``native``: run fixed steps in C where :mod:`.native_loop` can (same calls, same results);
+        ``replay``: a results file of an earlier run of this scenario whose recorded live inputs
+        stand in for the live sources (:mod:`deltafmi.master.live.replay`)."""
+        scenario = system.scenario
+        self.system = system
+        self.start = scenario.experiment.start
+        self.stop = scenario.experiment.stop if stop is None else float(stop)
+        if self.stop <= self.start:
+            raise BadInput(f"stop time {self.stop} is not after start time {self.start}")
+        self.step = scenario.experiment.step
+        self.algorithm = algorithm or scenario.master.algorithm
+        self.result_path = Path(result) if result is not None else scenario.result.file
+        self.every = scenario.result.every
+        self._writer_for_file = writer_for(self.result_path) if writer_class is None else None
+        self.progress = Progress(self.start, self.stop, progress)
+        self.warn = warn
+        self.on_message = on_message
+        self.debug_logging = debug_logging
+        self.units: List[Unit] = []
+        #: one block per algebraic loop solved at every step, and the loops of the initialization
+        self.loops: List[LoopBlock] = []
+        self.initial_loops: Optional[InitialLoops] = None
+        self.writer: Optional[Any] = None  # a writer of ..results.writers, or the caller's
+        self.sampler: Optional[RowSampler] = None
+        self.buses: Dict[str, np.ndarray] = {}
+        self.time = self.start
+        self.steps = 0
+        self.rejected = 0
+        self.events = 0
+        self._deferred: Optional[List[Tuple[float, np.ndarray, bool]]] = None
+        self.step_end = self.start
+        self._unzip_root = ""
+        self._by_name: Dict[str, Unit] = {}
+        self.fmus = fmus
+        self.writer_class = writer_class
+        self.native = native
+        #: Ctrl-C / SIGTERM: checked between steps (see :mod:`.stop_signals`)
+        self.stop_signals = StopSignals()
+        #: time of the last row written, None before the first
+        self.recorded_until: Optional[float] = None
+        #: check every recorded row and the Real bus for NaN/inf (see :meth:`_check_finite`)
+        self.check_finite = not scenario.master.allow_nan
+        self._real_names: List[str] = []  # the variable in each slot of the Real bus
+        self._real_columns = np.zeros(0, np.intp)  # the Real columns of a recorded row
+        self._zeros = np.zeros(1)
+        #: live sources, pacing and streams (:mod:`deltafmi.master.live`); None for a plain run
+        self.live: Optional[Any] = None
+        if system.live:
+            from ..live.run import LiveRun
+            if scenario.master.adaptive.enabled:
+                raise BadInput("live sources and real-time pacing need a fixed communication step: "
+                               "master.adaptive is enabled")
+            self.live = LiveRun(system, self.start, self.stop, self.step, replay=replay, warn=warn,
+                                stopped=lambda: bool(self.stop_signals.received))
+        elif replay is not None:
+            raise BadInput(f"--replay {replay}: the scenario has no live source to take from it")
+
+    # --- public -------------------------------------------------------------------------------
+    def run(self) -> Summary:
+        """Simulate from start to stop; raises :class:`SimulationError` with a one-line reason.
+
+        Whatever was recorded before a failure stays in the result file. A component that ends
+        the simulation (:class:`Terminated`) ends the run cleanly at its time.
+        """
+        wall = _time.perf_counter()
+        terminated = None
+        setup = closing = 0.0
+        finished = False
+        try:
+            with self.stop_signals:
+                try:
+                    self.open()
+                    setup = _time.perf_counter() - wall
+                    if self.system.scenario.master.adaptive.enabled and self._can_roll_back():
+                        run_adaptive(self, self.system.scenario.master.adaptive)
+                    else:
+                        self._run_fixed()
+                except Terminated as exc:
+                    terminated = self._end_early(exc)
+        except FellBehind as exc:
+            raise SimulationError(f"{exc.message}{self._partial_note()} (master.realtime.behind: warn goes on)") \
+                from None
+        except (FmuFailure, fmpy.fmi1.FMICallException, RuntimeError, OSError, ValueError, KeyboardInterrupt) as exc:
+            # a stop signal may come back from inside an FMU as its failure
+            if self.stop_signals.received is None and not isinstance(exc, KeyboardInterrupt):
+                raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
+                                      f"{self._partial_note()}") from exc
+            self.close()
+            raise self._interrupted() from None
+        else:
+            finished = True
+        finally:
+            closing = _time.perf_counter()
+            self.close()
+            if not finished and self.live is not None and self.live.started:
+                self.warn(f"live run up to t = {self.time:.9g} s: {self.live.report()}")  # what the summary says
+        end = _time.perf_counter()
+        return Summary(self.steps, self.rejected, self.events, end - wall, self.time - self.start,
+                       self.writer.rows_written, self.result_path, terminated, setup, self.loop_statistics(),
+                       end - closing, self.live.report() if self.live is not None else None)
+
+    def open(self) -> None:
+        """Load, instantiate, wire and initialize every unit; record the first row.
+
+        :meth:`run` calls it; call it yourself only to drive :meth:`step_all` by hand (and then
+        :meth:`close`).
+        """
+        self._load()
+        for unit in self.units:
+            unit.instantiate(self.start, self.stop)
+            unit.apply_start_values()
+        self._wire()
+        self._initialize()
+        # the result file is opened only now, with a first row to write: a run that fails
+        # before leaves an earlier result file as it was
+        if self.live is not None:
+            self.live.open_streams()
+        recorded = self.system.recorded
+        names, kinds = [p.ref for p in recorded], [p.type for p in recorded]
+        if self.writer_class is not None:
+            self.writer = self.writer_class(self.result_path, names, kinds=kinds)
+        else:
+            self.writer = self._writer_for_file(self.result_path, names, kinds=kinds,
+                                                units=[p.unit for p in recorded])
+        self._record(self.start)
+        if self.live is not None:
+            self.live.begin(self.start, self.sampler.sample)
+
+    def close(self) -> None:
+        """Flush the results and free every unit (safe after a failure, and twice)."""
+        self.progress.close(self.time)
+        if self.live is not None:
+            self.live.close()
+        try:
+            if self.writer is not None:
+                self.writer.close()  # may raise ResultWriteError (the last rows did not fit)
+        finally:
+            for unit in self.units:
+                unit.close()
+            if self._unzip_root:
+                shutil.rmtree(self._unzip_root, ignore_errors=True)
+                self._unzip_root = ""
+
+    def _end_early(self, stop: Terminated) -> Termination:
+        """A unit ended the simulation at ``stop.time``: write the rows held back, then the last
+        row with every unit's current values (the terminating unit's at the time it reached)."""
+        self.time = stop.time
+        if self.writer is not None and self.sampler is not None:
+            if self._deferred is not None:
+                self.commit_events()
+            for unit in self.units:
+                unit.fetch()
+            self._record(stop.time)
+        unit = self._by_name.get(stop.unit)
+        return Termination(stop.unit, stop.time, unit.termination_reason() if unit is not None else "")
+
+    def _interrupted(self) -> Interrupted:
+        """The run was stopped by a signal (results flushed by :meth:`close`)."""
+        kept = (self._nothing_kept() if self.recorded_until is None else
+                f"results up to {self.recorded_until:.9g} in {self.result_path}")
+        return Interrupted(f"interrupted at t = {self.time:.9g} s ({kept})",
+                           self.stop_signals.received or signal.SIGINT)
+
+    def _partial_note(self) -> str:
+        if self.writer is None:
+            return f" ({self._nothing_kept()})" if self.result_path.exists() else ""
+        if self._deferred is not None:
+            try:
+                self.commit_events()  # the failing step's events came before the failure
+            except SimulationError:  # a NaN in one of them: the failure at hand is the one to tell
+                pass
+        self.writer.flush()
+        return f" (results up to the failure in {self.result_path})"
+
+    def _nothing_kept(self) -> str:
+        existing = self.result_path.exists() and self.writer is None
+        return f"no rows computed; {self.result_path} left as it was" if existing else "no rows computed"
+
+    # --- set-up -------------------------------------------------------------------------------
+    def _load(self) -> None:
+        extracted: Dict[Path, str] = {}
+        for component in self.system.components:
+            fmu = self.fmus(component) if self.fmus is not None else None
+            if fmu is None and component.fmu not in extracted:
+                if not self._unzip_root:  # FMUs lent by a study's pool need none
+                    self._unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
+                target = Path(self._unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
+                extracted[component.fmu] = fmpy.extract(str(component.fmu), unzipdir=str(target))
+            unit = unit_for(component, extracted[component.fmu] if fmu is None else fmu.unzipDirectory, fmu)
+            if hasattr(unit, "on_event"):  # ME units, and FMI 3.0 CS units in event mode
+                unit.on_event = self._on_event
+            unit.on_message = self.on_message
+            unit.logging_on = self.debug_logging
+            self.units.append(unit)
+            self._by_name[unit.name] = unit
+        for unit in self.live.units if self.live is not None else ():
+            self.units.append(unit)
+            self._by_name[unit.name] = unit
+
+    def _wire(self) -> None:
+        """Lay out one bus per FMI type and precompute every unit's fetch and gather/set.
+
+        Runs after instantiation: the precomputed calls hold the instance handles.
+        """
+        slot = self._wire_outputs()
+        links = self.system.links
+
+        def at(port: Port) -> int:
+            return slot[(port.type, port.component, port.vr, port.index)]
+
+        for unit in self.units:
+            for kind in TYPES:
+                mine = [l for l in links if l.target.component == unit.name and l.target.type == kind]
+                if mine:
+                    unit.wire_inputs(kind, [l.target.vr for l in mine], self.buses[kind],
+                                     [at(l.source) for l in mine], [l.factor for l in mine],
+                                     [l.offset for l in mine], [l.target.index for l in mine])
+        recorded = self.system.recorded
+        parts = []
+        for kind in TYPES:
+            columns = [i for i, p in enumerate(recorded) if p.type == kind]
+            parts.append((self.buses[kind], [at(recorded[i]) for i in columns], columns))
+        self.sampler = RowSampler(parts, len(recorded))
+        self._real_columns = np.asarray([i for i, p in enumerate(recorded) if p.type == "Real"], np.intp)
+        names = [""] * len(self.buses["Real"])
+        for port in [link.source for link in links] + list(recorded):
+            if port.type == "Real":
+                names[at(port)] = port.ref
+        self._real_names = names
+        self._zeros = np.zeros(len(names))
+        self.loops = [LoopBlock(loop, [self._by_name[name] for name in loop.members], self.buses,
+                                [at(port) for port in loop.tears], self.system.scenario.master.loops, self)
+                      for loop in self.system.loops]
+
+    def _wire_outputs(self) -> Dict[Tuple[str, str, int, int], int]:
+        """Give every connected or recorded variable a bus slot; returns (type, unit, vr, element)
+        -> slot (an FMI 3.0 array is fetched whole: each of its elements has a slot)."""
+        fetched: Dict[str, Dict[str, List[int]]] = {kind: {u.name: [] for u in self.units} for kind in TYPES}
+        for port in [link.source for link in self.system.links] + list(self.system.recorded):
+            vrs = fetched[port.type][port.component]
+            if port.vr not in vrs:
+                vrs.append(port.vr)
+        slot: Dict[Tuple[str, str, int, int], int] = {}
+        for kind in TYPES:
+            layouts = {unit.name: unit.output_slots(kind, fetched[kind][unit.name]) for unit in self.units}
+            bus = self.buses[kind] = new_bus(kind, max(1, sum(map(len, layouts.values()))))
+            start = 0
+            for unit in self.units:
+                vrs, layout = fetched[kind][unit.name], layouts[unit.name]
+                if vrs:
+                    unit.wire_outputs(kind, vrs, bus, start)
+                    slot.update({(kind, unit.name, vr, element): start + i for i, (vr, element) in enumerate(layout)})
+                    start += len(layout)
+        return slot
+
+    def _initialize(self) -> None:
+        for unit in self.units:
+            unit.enter_initialization()
+        by_name = self._by_name
+        loops = self.initial_loops = InitialLoops(self.system.init_loops, by_name, self.system.scenario.master.loops)
+        for link in self.system.init_links:
+            if loops.solve_with(link):  # solved with the rest of its loop
+                continue
+            value = by_name[link.source.component].get_value(link.source)
+            if link.source.type == "Real":
+                value = link.factor * value + link.offset
+            by_name[link.target.component].set_value(link.target, value)
+        for unit in self.units:
+            unit.exit_initialization(self.start)
+        for unit in self.units:
+            unit.fetch()
+
+    def _can_roll_back(self) -> bool:
+        lacking = [u.name for u in self.units if not u.can_save_state]
+        if lacking:
+            self.warn(f"adaptive step needs fmi2GetFMUstate/fmi2SetFMUstate, which {', '.join(lacking)} "
+                      f"cannot do: running with the fixed step {self.step:g} s")
+        return not lacking
+
+    # --- stepping -----------------------------------------------------------------------------
+    def ordered_units(self) -> List[Unit]:
+        """Units in stepping order (Gauss-Seidel order, or scenario order for Jacobi)."""
+        if self.algorithm == "gauss-seidel":
+            return [self._by_name[name] for name in self.system.order]
+        return list(self.units)
+
+    def stepping_blocks(self) -> List[Stepper]:
+        """:meth:`ordered_units`, each algebraic loop's units replaced by their :class:`LoopBlock`."""
+        block_of = {unit.name: block for block in self.loops for unit in block.units}
+        blocks: List[Stepper] = []
+        for unit in self.ordered_units():
+            block = block_of.get(unit.name, unit)
+            if not any(b is block for b in blocks):
+                blocks.append(block)
+        return blocks
+
+    def step_all(self, units: Sequence[Stepper], t: float, step: float) -> None:
+        """One communication step of ``units`` (units or loop blocks) from ``t``, all the same step size."""
+        if self.algorithm == "gauss-seidel":
+            for unit in units:
+                unit.pull()
+                unit.do_step(t, step)
+                unit.fetch()
+        else:
+            for unit in units:
+                unit.pull()
+            for unit in units:
+                unit.do_step(t, step)
+            for unit in units:
+                unit.fetch()
+
+    def _run_fixed(self) -> None:
+        start, stop, h = self.start, self.stop, self.step
+        n_steps = grid_steps(start, stop, h)
+        ordered = self.stepping_blocks()
+        # on an exact grid every step is m * h (bit for bit what a plain loop passes to doStep)
+        last = n_steps + 1 if abs(start + n_steps * h - stop) <= 1e-9 * h else n_steps
+        if self.algorithm == "gauss-seidel":
+            actions = [(u, action, u.step_multiple) for u in ordered for action in (PULL, STEP, FETCH)]
+        else:
+            actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
+        native = None
+        if self.native and self.live is None and NativeLoop.fits(ordered, self.sampler):
+            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
+        fixed = _FixedGrid(start, stop, h, n_steps, last)
+        stop_signals, progress = self.stop_signals, self.progress
+        k = 0
+        while k < n_steps:
+            if stop_signals.received:
+                raise KeyboardInterrupt
+            if native is not None and native.ready():
+                k = self._steps_in_c(native, fixed, k, min(n_steps, k + _C_STEPS))
+                progress.update(self.time)
+            else:
+                self._step_in_python(actions, fixed, k)
+                if k & 63 == 0:
+                    progress.update(self.time)
+                k += 1
+
+    def _step_in_python(self, actions: Sequence[Tuple[Any, str, int]], grid: "_FixedGrid", k: int,
+                        first: int = 0, held: Optional[Tuple[bool, int]] = None) -> None:
+        """Step ``k`` of the fixed grid from action ``first`` on (earlier ones done), and its row;
+        the step's event rows are held (from ``held``, a :meth:`hold_events` mark, when the step
+        began elsewhere) and written in time order before it: units step one after the other,
+        and a later one's event may come earlier in the step."""
+        held = self.hold_events() if held is None else held
+        t = self.time = grid.start + k * grid.h
+        n_steps, last, h = grid.n_steps, grid.last, grid.h
+        self.step_end = grid.start + (k + 1) * h if k + 1 < n_steps else grid.stop
+        for unit, action, m in actions[first:]:
+            if k % m:
+                continue
+            if action == STEP:
+                unit.do_step(t, m * h if k + m < last else grid.stop - t)
+            elif action == PULL:
+                unit.pull()
+            else:
+                unit.fetch()
+        self.release_events(held)
+        self.steps = k + 1
+        t_next = self.time = self.step_end
+        recorded = (k + 1) % self.every == 0 or k + 1 == n_steps
+        if self.live is not None:
+            self.live.at_point(t_next, self._record if recorded else None)
+        elif recorded:
+            self._record(t_next)
+
+    def _steps_in_c(self, native: NativeLoop, grid: "_FixedGrid", k: int, k_end: int) -> int:
+        """Steps ``k`` ... ``k_end - 1`` in C as far as they go, the step where C stopped (an
+        event, a failure, a termination) finished here; returns the next step to take."""
+        why, done, rows = native.run(k, k_end)
+        if rows:
+            self._record_rows(native.rows[:rows])
+        if done > k:
+            self.steps = done
+            self.time = self.step_end = grid.start + done * grid.h if done < grid.n_steps else grid.stop
+        if why in (RAN, ROWS_FULL):
+            self._check_bus(self.time)  # the rows held the recorded variables, this the connected ones
+            return done
+        # step `done` stopped inside: the state the Python loop would have there
+        t = self.time = grid.start + done * grid.h
+        self.step_end = grid.start + (done + 1) * grid.h if done + 1 < grid.n_steps else grid.stop
+        unit, action, index, function = native.stopped_at()
+        plan = native.plan
+        if why == CLOCK_INSIDE:  # a Clock ticks inside the unit's step: Python takes the step from there
+            self._step_in_python(native.actions, grid, done, index, self.hold_events())
+            return done + 1
+        if why == STEP_RETURNED:  # an FMI 3.0 fmi3DoStep with an event, an early return or a termination
+            _, _, m = native.actions[index]
+            op = native.stopped_op()
+            held = self.hold_events()
+            unit.finish_step(t, m * grid.h if done + m < grid.last else grid.stop - t, op.step_status, op.flags,
+                             op.last_time)
+            self._step_in_python(native.actions, grid, done, index + 1, held)
+            return done + 1
+        if why in (STEP_EVENT, STATE_EVENT):
+            held = self.hold_events()
+            if why == STEP_EVENT:
+                unit.finish_step_event(plan.time)
+            else:
+                try:
+                    native.locate(unit)
+                except RungeKuttaError as exc:
+                    raise FmuFailure(f"{unit.name}: {exc}") from None
+                except fmpy.fmi1.FMICallException as exc:
+                    raise unit.failure(exc) from None
+                _, _, m = native.actions[index]
+                unit.finish_state_event(t, m * grid.h if done + m < grid.last else grid.stop - t)
+            self._step_in_python(native.actions, grid, done, index + 1, held)
+            return done + 1
+        if why == TERMINATED:
+            raise Terminated(unit.name, plan.time)
+        if why == UNSETTLED:
+            raise FmuFailure(unsettled(unit.name, plan.time))
+        if why == RK_FAILED:
+            raise FmuFailure(f"{unit.name}: {step_failure(plan.rk_time, plan.status)}")
+        exc = fmpy.fmi1.FMICallException(function=function, status=plan.status)
+        if function == "fmi2DoStep":  # fmi2Discard may mean the FMU ended the run
+            unit.step_failed(exc, t)
+        raise unit.failure(exc)
+
+    # --- recording ----------------------------------------------------------------------------
+    def _record(self, t: float) -> None:
+        self.writer.write(t, self.sampler.sample())
+        self.recorded_until = t
+        self._check_bus(t)
+
+    def _check_bus(self, t: float) -> None:
+        """Stop the run when a Real on the bus (recorded or connected, as of ``t``) is NaN or
+        infinite, unless allowed."""
+        if self.check_finite:
+            bus = self.buses["Real"]
+            # x * 0 is NaN for NaN and inf, else 0: one dot product, cheaper than isfinite(bus).all()
+            if not math.isfinite(np.dot(bus, self._zeros)):
+                self._not_finite(t, [self._real_names[i] for i in np.flatnonzero(~np.isfinite(bus))],
+                                 bus[~np.isfinite(bus)])
+
+    def _record_rows(self, rows: np.ndarray) -> None:
+        """Rows ``time, values...`` recorded at once (a writer without ``write_rows`` gets them one by one)."""
+        bad = None
+        if self.check_finite and len(self._real_columns):
+            finite = np.isfinite(rows[:, 1 + self._real_columns]).all(axis=1)
+            if not finite.all():
+                bad = int(np.argmin(finite))
+                rows = rows[:bad + 1]  # rows up to the first with a NaN, that one included
+        write_rows_to(self.writer, rows)
+        self.recorded_until = float(rows[-1, 0])
+        if bad is not None:
+            self._check_row(float(rows[-1, 0]), rows[-1, 1:])
+
+    def _check_row(self, t: float, row: np.ndarray) -> None:
+        """Stop the run when a Real of the recorded ``row`` is NaN or infinite (unless allowed)."""
+        if not self.check_finite or not len(self._real_columns):
+            return
+        values = np.asarray(row[self._real_columns], dtype=float)
+        bad = ~np.isfinite(values)
+        if bad.any():
+            recorded = self.system.recorded
+            self._not_finite(t, [recorded[i].ref for i in self._real_columns[bad]], values[bad])
+
+    def _not_finite(self, t: float, names: Sequence[str], values: np.ndarray) -> None:
+        """Raise the :class:`SimulationError` for the variables ``names`` that are NaN/inf at ``t``,
+        naming first the one of the unit earliest in the stepping order: in a Gauss-Seidel step a
+        NaN spreads to the units after its source, in a Jacobi step to none yet."""
+        rank = {unit.name: i for i, unit in enumerate(self.ordered_units())}
+        order = sorted(range(len(names)), key=lambda i: rank.get(names[i].split(".", 1)[0], len(rank)))
+        first = order[0]
+        value = values[first]
+        what = "NaN" if np.isnan(value) else f"{'-' if value < 0 else ''}infinite"
+        more = len(names) - 1
+        others = f" (and {more} other variable{'s' * (more > 1)})" if more else ""
+        flush = getattr(self.writer, "flush", None)
+        if flush is not None:
+            flush()
+        raise SimulationError(f"{names[first]} is {what} at t = {t:.9g} s{others}; the rows up to there are in "
+                              f"{self.result_path} (to record it and go on: --allow-nan, or allow_nan: true "
+                              "under master:)")
+
+    def record_step(self, t: float) -> None:
+        """Record the row at the end of a step that reached ``t``, and show progress (and stop
+        here if a stop signal came)."""
+        self._record(t)
+        self.progress.update(t)
+        if self.stop_signals.received:
+            raise KeyboardInterrupt
+
+    def _on_event(self, unit: Unit, t: float, after: bool) -> None:
+        # an event within round-off of the step's start or end (a unit's own t + h, or an FMU's
+        # accumulated event time, can be an ulp off the grid's start + k h) is recorded there
+        for grid_time in (self.time, self.step_end):
+            if abs(t - grid_time) <= instant_margin(t):
+                t = grid_time
+        if after and t == self.step_end:
+            # an event at the end of the step: the step's own row shows the values after it
+            self.events += self._deferred is None
+            if self._deferred is not None:
+                self._deferred.append((t, None, True))
+            return
+        unit.fetch()
+        if self._deferred is not None:
+            self._deferred.append((t, self.sampler.sample().copy(), after))
+            return
+        self.events += after
+        self._record(t)
+
+    def defer_events(self) -> None:
+        """Hold event rows back until :meth:`commit_events` (a trial step may be rolled back)."""
+        self._deferred = []
+
+    def commit_events(self) -> None:
+        """Write the held event rows, in time order (a unit's rows stay in their order)."""
+        for t, row, after in sorted(self._deferred or (), key=lambda held: held[0]):
+            self.events += after
+            if row is not None:
+                self.writer.write(t, row)
+                self.recorded_until = t
+                self._check_row(t, row)
+        self._deferred = None
+
+    def drop_events(self) -> None:
+        """Forget the held event rows (their step was rolled back); keep deferring."""
+        if self._deferred is not None:
+            self._deferred = []
+
+    def hold_events(self) -> Tuple[bool, int]:
+        """Hold event rows back from here (a loop's step may be redone); a mark for
+        :meth:`rewind_events` and :meth:`release_events`."""
+        started = self._deferred is None
+        if started:
+            self.defer_events()
+        return started, len(self._deferred)
+
+    def rewind_events(self, mark: Tuple[bool, int]) -> None:
+        """Forget the event rows held since ``mark``."""
+        del self._deferred[mark[1]:]
+
+    def release_events(self, mark: Tuple[bool, int]) -> None:
+        """Stop holding if ``mark`` started it: write the rows held."""
+        if mark[0]:
+            self.commit_events()
+
+    def loop_statistics(self) -> LoopStatistics:
+        """Solves and evaluations of every algebraic loop so far (initialization included)."""
+        total = LoopStatistics()
+        for block in self.loops:
+            total.add(block.statistics)
+        if self.initial_loops is not None:
+            total.add(self.initial_loops.statistics)
+        return total
+
+    # --- rollback helpers (used by the adaptive loop) -----------------------------------------
+    def save(self) -> Tuple[list, Dict[str, np.ndarray]]:
+        """Snapshot of every unit and of the buses."""
+        return [u.save_state() for u in self.units], {k: b.copy() for k, b in self.buses.items()}
+
+    def restore(self, snapshot: Tuple[list, Dict[str, np.ndarray]]) -> None:
+        """Return every unit and the buses to ``snapshot`` (which stays valid)."""
+        states, buses = snapshot
+        for unit, state in zip(self.units, states):
+            unit.restore_state(state)
+        for kind, values in buses.items():
+            self.buses[kind][:] = values
+
+    def release(self, snapshot: Tuple[list, Dict[str, np.ndarray]]) -> None:
+        """Free the FMU states of ``snapshot``."""
+        for unit, state in zip(self.units, snapshot[0]):
+            unit.free_state(state)

@@ -1,0 +1,441 @@
+/* The master's fixed-step communication loop in C: the same FMI 2.0 calls, in the same order and
+ * with the same arguments, as the Python loop of deltafmi/master/master.py makes through fmpy's
+ * ctypes bindings (fmi2Set/Get<Type> of each unit's batched value references, fmi2DoStep,
+ * and for a Model Exchange unit on a fixed-step Runge-Kutta method its stages, fmi2SetTime,
+ * fmi2SetContinuousStates and fmi2CompletedIntegratorStep), for a run of steps at once, with
+ * the recorded rows gathered into a block. Anything else (a failure, an event, a termination)
+ * stops the run and hands back to Python, which carries on exactly where this stopped.
+ * FMI 3.0 units (Op.fmi3) make the FMI 3.0 calls instead: fmi3Set/GetFloat64, Int32 and Boolean
+ * with nValues (whole arrays, the connected elements scattered to their positions), fmi3DoStep with
+ * its outputs (any event, early return or termination hands back), fmi3CompletedIntegratorStep
+ * with fmi3Boolean flags; before the fmi3DoStep of a unit with periodic input Clocks, their ticks
+ * due at the step's start (CLOCK_TICK: fmi3EnterEventMode, fmi3SetClock, fmi3UpdateDiscreteStates
+ * until done, fmi3EnterStepMode; a tick inside the step hands the step back). Plain C, no Python.
+ */
+#include <stdbool.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <time.h>
+
+typedef unsigned int fmi2ValueReference;
+typedef int (*SetReal)(void *, const fmi2ValueReference *, size_t, const double *);
+typedef int (*GetReal)(void *, const fmi2ValueReference *, size_t, double *);
+typedef int (*SetInt)(void *, const fmi2ValueReference *, size_t, const int *);
+typedef int (*GetInt)(void *, const fmi2ValueReference *, size_t, int *);
+typedef int (*DoStep)(void *, double, double, int);
+typedef int (*SetTime)(void *, double);
+typedef int (*SetStates)(void *, const double *, size_t);
+typedef int (*Completed)(void *, int, int *, int *);
+typedef int (*GetIndicators)(void *, double *, size_t);
+/* FMI 3.0 */
+typedef int (*SetReal3)(void *, const fmi2ValueReference *, size_t, const double *, size_t);
+typedef int (*GetReal3)(void *, const fmi2ValueReference *, size_t, double *, size_t);
+typedef int (*SetInt3)(void *, const fmi2ValueReference *, size_t, const int *, size_t);
+typedef int (*GetInt3)(void *, const fmi2ValueReference *, size_t, int *, size_t);
+typedef int (*DoStep3)(void *, double, double, bool, bool *, bool *, bool *, double *);
+typedef int (*Completed3)(void *, bool, bool *, bool *);
+typedef int (*SetBool3)(void *, const fmi2ValueReference *, size_t, const bool *, size_t);
+typedef int (*GetBool3)(void *, const fmi2ValueReference *, size_t, bool *, size_t);
+typedef int (*ErkSteps)(const void *plan, double t, double h, int steps, double *x);
+typedef int (*Instance3)(void *);
+typedef int (*SetClock3)(void *, const fmi2ValueReference *, size_t, const bool *);
+typedef int (*UpdateDiscrete3)(void *, bool *, bool *, bool *, bool *, bool *, double *);
+
+enum { FMI2_WARNING = 1 };
+/* operations */
+enum { SET_REAL = 0, GET_REAL = 1, SET_INT = 2, GET_INT = 3, DO_STEP = 4, ME_STEP = 5,
+       SET_BOOL3 = 6, GET_BOOL3 = 7, /* FMI 3.0 Booleans (one byte) to and from the int bus */
+       CLOCK_TICK = 8 /* FMI 3.0 Co-Simulation: the input Clocks due at the step's start */ };
+/* why a run stopped */
+enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_FULL = 5, STATE_EVENT = 6,
+       STEP_RETURNED = 7, /* fmi3DoStep: an event, an early return or a termination (Op.flags) */
+       CLOCK_INSIDE = 8, /* CLOCK_TICK: a tick inside the step; nothing done, Python takes the step */
+       UNSETTLED = 9 /* CLOCK_TICK: fmi3UpdateDiscreteStates still asked for more after MAX_EVENT_ITERATIONS */ };
+enum { MAX_EVENT_ITERATIONS = 1000 }; /* fmi3_units._MAX_EVENT_ITERATIONS */
+/* Op.flags after fmi3DoStep */
+enum { EVENT_HANDLING_NEEDED = 1, TERMINATE_SIMULATION = 2, EARLY_RETURN = 4 };
+
+typedef struct {
+    int kind;
+    int multiple;            /* runs at the steps k with k % multiple == 0 */
+    void *function;          /* fmi2Set/Get<Type> or fmi2DoStep */
+    void *component;
+    const fmi2ValueReference *vrs;
+    size_t n;
+    void *values;            /* SET_*: the gathered values; GET_*: the bus slice read into */
+    const void *bus;         /* SET_*: the bus gathered from; GET_BOOL3: the bus slice the values go to */
+    const intptr_t *index;
+    const double *factor;    /* SET_REAL: NULL when untransformed */
+    const double *offset;
+    int no_prior_state;
+    /* ME_STEP */
+    ErkSteps erk;
+    const void *erk_plan;
+    int *erk_current;        /* the plan's flag: the FMU holds the start time and states already */
+    int holds_end;           /* 1 after this op set the step's end time and states (valid within a run) */
+    double *x;
+    size_t nx;
+    double *t;               /* the solver's time */
+    double max_step;
+    SetTime set_time;
+    SetStates set_states;
+    Completed completed;     /* NULL: the FMU needs no fmi2CompletedIntegratorStep */
+    /* ME_STEP with event indicators: compared after every Runge-Kutta step with the last ones */
+    size_t nz;
+    GetIndicators get_indicators;
+    double *z;               /* nz: the indicators now */
+    double *z_last;          /* nz: at the last step's end, valid when *z_valid */
+    int *z_valid;
+    double *x0;              /* nx: the states at the start of the step that crossed */
+    /* FMI 3.0 */
+    int fmi3;
+    const intptr_t *positions; /* SET_*: where each gathered bus value goes in values */
+    size_t n_index;          /* SET_*: the bus values gathered (n: the value references) */
+    size_t n_values;         /* SET_*, GET_*: nValues, every element of the variables */
+    int flags;               /* DO_STEP out: EVENT_HANDLING_NEEDED | TERMINATE_SIMULATION | EARLY_RETURN */
+    int step_status;         /* DO_STEP out: the status of fmi3DoStep */
+    double last_time;        /* DO_STEP out: lastSuccessfulTime */
+    /* CLOCK_TICK: the n Clocks' value references in vrs, their ticks first + count * interval
+     * (count advanced here: the arrays are the master's, see clocks.UnitClocks), fmi3SetClock in
+     * function, the other calls below; due_vrs and on: room for n */
+    const double *clock_first;
+    int64_t *clock_count;
+    const double *clock_interval;
+    int64_t *clock_activated;
+    fmi2ValueReference *due_vrs;
+    bool *on;
+    Instance3 enter_event_mode;
+    UpdateDiscrete3 update_discrete_states;
+    Instance3 enter_step_mode;
+} Op;
+
+typedef struct {
+    const void *bus;
+    int is_int;
+    size_t n;
+    const intptr_t *index;
+    const intptr_t *columns;
+} RowPart;
+
+typedef struct {
+    Op *ops;
+    size_t n_ops;
+    RowPart *parts;
+    size_t n_parts;
+    size_t width;            /* recorded columns after time */
+    double start, h, stop;
+    long n_steps, last, every;
+    /* out: where and why the last run stopped */
+    long op;                 /* the operation that stopped it */
+    int status;              /* its fmi2Status */
+    int call;                /* ME_STEP FAILED: 0 fmi2SetTime, 1 fmi2SetContinuousStates,
+                              * 2 fmi2CompletedIntegratorStep, 3 fmi2GetEventIndicators;
+                              * CLOCK_TICK FAILED: 0 fmi3EnterEventMode, 1 fmi3SetClock,
+                              * 2 fmi3UpdateDiscreteStates, 3 fmi3EnterStepMode */
+    double time;             /* ME_STEP: the time reached */
+    double rk_time;          /* RK_FAILED, STATE_EVENT: the time its Runge-Kutta step started from */
+    double rk_step;          /* STATE_EVENT: that step's size (the states it started from in op->x0) */
+    double *op_seconds;      /* NULL, or per operation: wall seconds spent in it (benchmarks) */
+} Plan;
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* the event indicators at (t, x) into z (as the master's Python does: time, states, indicators) */
+static int indicators(Plan *p, Op *o, double t, double *z)
+{
+    int status;
+    p->call = 0;
+    if ((status = o->set_time(o->component, t)) > FMI2_WARNING) return status;
+    p->call = 1;
+    if (o->nx && (status = o->set_states(o->component, o->x, o->nx)) > FMI2_WARNING) return status;
+    p->call = 3;
+    return o->get_indicators(o->component, z, o->nz);
+}
+
+/* Runge-Kutta steps to t_end with the indicators checked after each (ExplicitRungeKutta.advance) */
+static int steps_with_indicators(Plan *p, Op *o, double t_end, double h, int n)
+{
+    int status;
+    if (!*o->z_valid) {
+        if ((status = indicators(p, o, *o->t, o->z_last)) > FMI2_WARNING) goto failed;
+        *o->z_valid = 1;
+    }
+    for (int k = 0; k < n; k++) {
+        double t0 = *o->t;
+        for (size_t i = 0; i < o->nx; i++) o->x0[i] = o->x[i];
+        status = o->erk(o->erk_plan, t0, h, 1, o->x);
+        if (status > FMI2_WARNING) {
+            p->status = status;
+            p->rk_time = t0;
+            return RK_FAILED;
+        }
+        *o->t = k == n - 1 ? t_end : t0 + h;
+        if ((status = indicators(p, o, *o->t, o->z)) > FMI2_WARNING) goto failed;
+        for (size_t i = 0; i < o->nz; i++) {
+            if ((o->z[i] > 0) != (o->z_last[i] > 0)) {
+                p->rk_time = t0;
+                p->rk_step = h;
+                return STATE_EVENT;
+            }
+        }
+        for (size_t i = 0; i < o->nz; i++) o->z_last[i] = o->z[i];
+    }
+    return RAN;
+failed:
+    p->status = status;
+    return FAILED;
+}
+
+static int me_step(Plan *p, Op *o, double t, double step)
+{
+    double t_end = t + step;
+    double eps = 1e-12 * fmax(1.0, fabs(t_end));
+    int status;
+    if (t_end - *o->t > eps) {
+        double span = t_end - *o->t;
+        int n = 1;
+        if (o->max_step > 0) {
+            double c = ceil(span / o->max_step - 1e-9);
+            n = c > 1.0 ? (int)c : 1;
+        }
+        /* since this op set them at the last step's end, the FMU got new inputs only */
+        *o->erk_current = o->holds_end;
+        o->holds_end = 0;
+        if (o->nz) {
+            int stop = steps_with_indicators(p, o, t_end, span / n, n);
+            *o->erk_current = 0;
+            if (stop != RAN) return stop;
+        } else {
+            status = o->erk(o->erk_plan, *o->t, span / n, n, o->x);
+            *o->erk_current = 0;
+            if (status > FMI2_WARNING) {
+                p->status = status;
+                p->rk_time = *o->t;
+                return RK_FAILED;
+            }
+            *o->t = t_end;
+        }
+    }
+    double reached = *o->t;
+    p->time = reached;
+    p->call = 0;
+    if ((status = o->set_time(o->component, reached)) > FMI2_WARNING) goto failed;
+    p->call = 1;
+    if (o->nx && (status = o->set_states(o->component, o->x, o->nx)) > FMI2_WARNING) goto failed;
+    o->holds_end = 1;
+    if (o->completed) {
+        int enter = 0, terminate = 0;
+        p->call = 2;
+        if (o->fmi3) {
+            bool enter3 = false, terminate3 = false;
+            status = ((Completed3)(void *)o->completed)(o->component, o->no_prior_state != 0, &enter3, &terminate3);
+            enter = enter3, terminate = terminate3;
+        } else {
+            status = o->completed(o->component, o->no_prior_state, &enter, &terminate);
+        }
+        if (status > FMI2_WARNING)
+            goto failed;
+        if (terminate) return TERMINATED;
+        if (enter) return STEP_EVENT;
+    }
+    return RAN;
+failed:
+    p->status = status;
+    return FAILED;
+}
+
+static double tick_of(const Op *o, size_t i)
+{
+    return o->clock_first[i] + (double)o->clock_count[i] * o->clock_interval[i];
+}
+
+/* The unit's Clocks ticking at t (within round-off) activated in one Event Mode, as
+ * CoSimulationUnit3.do_step does; a tick later inside the step [t, t + step) hands back first. */
+static int clock_tick(Plan *p, Op *o, double t, double step)
+{
+    double end = t + step, now_eps = 1e-12 * fmax(1.0, fabs(t)), end_eps = 1e-12 * fmax(1.0, fabs(end));
+    size_t n_due = 0;
+    for (size_t i = 0; i < o->n; i++) { /* the first tick after those due now: inside the step? */
+        int64_t count = o->clock_count[i];
+        while (o->clock_first[i] + (double)count * o->clock_interval[i] <= t + now_eps) count++;
+        if (o->clock_first[i] + (double)count * o->clock_interval[i] < end - end_eps) return CLOCK_INSIDE;
+    }
+    for (size_t i = 0; i < o->n; i++) {
+        if (!(tick_of(o, i) <= t + now_eps)) continue;
+        while (tick_of(o, i) <= t + now_eps) o->clock_count[i]++; /* more than one: missed ticks */
+        o->clock_activated[i]++;
+        o->due_vrs[n_due] = o->vrs[i];
+        o->on[n_due++] = true;
+    }
+    if (!n_due) return RAN;
+    int status;
+    p->time = t;
+    p->call = 0;
+    if ((status = o->enter_event_mode(o->component)) > FMI2_WARNING) goto failed;
+    p->call = 1;
+    if ((status = ((SetClock3)o->function)(o->component, o->due_vrs, n_due, o->on)) > FMI2_WARNING) goto failed;
+    p->call = 2;
+    for (int round = 0;; round++) {
+        bool update = false, terminate = false, nominals = false, values = false, defined = false;
+        double next = 0.0;
+        status = o->update_discrete_states(o->component, &update, &terminate, &nominals, &values, &defined, &next);
+        if (status > FMI2_WARNING) goto failed;
+        if (terminate) return TERMINATED;
+        if (!update) break;
+        if (round + 1 == MAX_EVENT_ITERATIONS) return UNSETTLED;
+    }
+    p->call = 3;
+    if ((status = o->enter_step_mode(o->component)) > FMI2_WARNING) goto failed;
+    return RAN;
+failed:
+    p->status = status;
+    return FAILED;
+}
+
+static int run_op(Plan *p, Op *o, long k, double t)
+{
+    int status = 0;
+    switch (o->kind) {
+    case SET_REAL: {
+        double *v = (double *)o->values;
+        const double *bus = (const double *)o->bus;
+        if (o->positions) {
+            for (size_t i = 0; i < o->n_index; i++)
+                v[o->positions[i]] = o->factor ? o->factor[i] * bus[o->index[i]] + o->offset[i] : bus[o->index[i]];
+            status = ((SetReal3)o->function)(o->component, o->vrs, o->n, v, o->n_values);
+            break;
+        }
+        for (size_t i = 0; i < o->n; i++) v[i] = bus[o->index[i]];
+        if (o->factor) {
+            for (size_t i = 0; i < o->n; i++) v[i] *= o->factor[i];
+            for (size_t i = 0; i < o->n; i++) v[i] += o->offset[i];
+        }
+        status = ((SetReal)o->function)(o->component, o->vrs, o->n, v);
+        break;
+    }
+    case GET_REAL:
+        status = o->fmi3 ? ((GetReal3)o->function)(o->component, o->vrs, o->n, (double *)o->values, o->n_values)
+                         : ((GetReal)o->function)(o->component, o->vrs, o->n, (double *)o->values);
+        break;
+    case SET_INT: {
+        int *v = (int *)o->values;
+        const int *bus = (const int *)o->bus;
+        if (o->positions) {
+            for (size_t i = 0; i < o->n_index; i++) v[o->positions[i]] = bus[o->index[i]];
+            status = ((SetInt3)o->function)(o->component, o->vrs, o->n, v, o->n_values);
+            break;
+        }
+        for (size_t i = 0; i < o->n; i++) v[i] = bus[o->index[i]];
+        status = ((SetInt)o->function)(o->component, o->vrs, o->n, v);
+        break;
+    }
+    case GET_INT:
+        status = o->fmi3 ? ((GetInt3)o->function)(o->component, o->vrs, o->n, (int *)o->values, o->n_values)
+                         : ((GetInt)o->function)(o->component, o->vrs, o->n, (int *)o->values);
+        break;
+    case SET_BOOL3: {
+        bool *v = (bool *)o->values;
+        const int *bus = (const int *)o->bus;
+        for (size_t i = 0; i < o->n_index; i++) v[o->positions[i]] = bus[o->index[i]] != 0;
+        status = ((SetBool3)o->function)(o->component, o->vrs, o->n, v, o->n_values);
+        break;
+    }
+    case GET_BOOL3: {
+        const bool *v = (const bool *)o->values;
+        status = ((GetBool3)o->function)(o->component, o->vrs, o->n, (bool *)o->values, o->n_values);
+        for (size_t i = 0; i < o->n_values; i++) ((int *)o->bus)[i] = v[i];
+        break;
+    }
+    case DO_STEP:
+    case ME_STEP:
+    case CLOCK_TICK: {
+        long m = o->multiple;
+        double step = k + m < p->last ? (double)m * p->h : p->stop - t;
+        if (o->kind == ME_STEP) return me_step(p, o, t, step);
+        if (o->kind == CLOCK_TICK) return clock_tick(p, o, t, step);
+        if (o->fmi3) {
+            bool event = false, terminate = false, early = false;
+            double last = t + step;
+            status = ((DoStep3)o->function)(o->component, t, step, o->no_prior_state != 0, &event, &terminate, &early,
+                                            &last);
+            o->flags = (event ? EVENT_HANDLING_NEEDED : 0) | (terminate ? TERMINATE_SIMULATION : 0) |
+                       (early ? EARLY_RETURN : 0);
+            o->step_status = status;
+            o->last_time = last;
+            if (o->flags || status > FMI2_WARNING) return STEP_RETURNED; /* Python carries on */
+            break;
+        }
+        status = ((DoStep)o->function)(o->component, t, step, o->no_prior_state);
+        break;
+    }
+    }
+    if (status > FMI2_WARNING) {
+        p->status = status;
+        return FAILED;
+    }
+    return RAN;
+}
+
+static void record(const Plan *p, double t, double *row)
+{
+    row[0] = t;
+    for (size_t j = 0; j < p->n_parts; j++) {
+        const RowPart *part = &p->parts[j];
+        if (part->is_int)
+            for (size_t i = 0; i < part->n; i++)
+                row[1 + part->columns[i]] = (double)((const int *)part->bus)[part->index[i]];
+        else
+            for (size_t i = 0; i < part->n; i++)
+                row[1 + part->columns[i]] = ((const double *)part->bus)[part->index[i]];
+    }
+}
+
+/* Steps k_begin, k_begin + 1, ... before k_end, every recorded row into `rows` (room for
+ * max_rows). Returns why it stopped (RAN: k_end reached; ROWS_FULL: no room for the next
+ * step's row; else the stop of operation plan->op in step *k_done); *k_done is the first step
+ * not completed and *n_rows the rows written. */
+__attribute__((visibility("default")))
+int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max_rows, long *k_done,
+                         long *n_rows)
+{
+    long k = k_begin, written = 0;
+    int why = RAN;
+    for (size_t i = 0; i < p->n_ops; i++)
+        p->ops[i].holds_end = 0; /* Python may have called the FMUs since the last run */
+    for (; k < k_end; k++) {
+        long next = k + 1;
+        int due = next % p->every == 0 || next == p->n_steps;
+        if (due && written == max_rows) {
+            why = ROWS_FULL;
+            break;
+        }
+        double t = p->start + (double)k * p->h;
+        for (size_t i = 0; i < p->n_ops; i++) {
+            Op *o = &p->ops[i];
+            if (k % o->multiple) continue;
+            double begin = p->op_seconds ? now() : 0.0;
+            int stop = run_op(p, o, k, t);
+            if (p->op_seconds) p->op_seconds[i] += now() - begin;
+            if (stop != RAN) {
+                p->op = (long)i;
+                *k_done = k;
+                *n_rows = written;
+                return stop;
+            }
+        }
+        if (due) {
+            double t_next = next < p->n_steps ? p->start + (double)next * p->h : p->stop;
+            record(p, t_next, rows + written * (long)(p->width + 1));
+            written++;
+        }
+    }
+    *k_done = k;
+    *n_rows = written;
+    return why;
+}

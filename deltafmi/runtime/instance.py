@@ -1,0 +1,618 @@
+"""One FMU instance on the Python side: what the native bridge calls for each fmi2 function.
+
+The native loader owns the FMI state machine and reads/writes the value buffers directly; it
+calls into this class only for work that needs the model: evaluation, initialization, event
+updates, Co-Simulation steps and FMU state. Methods return an FMI status code (0 OK, 1 warning,
+2 discard, 3 error) or raise (the bridge turns exceptions into ``fmi2Error`` plus a traceback).
+"""
+from __future__ import annotations
+
+import copy
+import math
+import pickle
+import struct
+from contextlib import nullcontext
+from typing import TYPE_CHECKING, Callable, ContextManager, Optional, Sequence
+
+import numpy as np
+
+from deltafmi.runtime import fmu_logging
+from .base import Component
+from .clocks import clock_driven
+from .native_kernels import NativeKernelsRuntime
+from .partials import DirectionalDerivatives
+
+if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
+    from .cvode import Cvode
+
+OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
+MODEL_EXCHANGE, CO_SIMULATION, SCHEDULED_EXECUTION = 0, 1, 2
+_MAX_EVENT_ITERATIONS = 100
+_LOG_EVENTS, _LOG_SOLVER = fmu_logging.BITS["logEvents"], fmu_logging.BITS["logSolver"]
+_TINY = 1e-12  # relative time below which intervals are round-off, not integration
+#: default ``cs_options["input_jump_tolerance"]``: see FmuInstance._restart_for_inputs
+_INPUT_JUMP_TOLERANCE = 10.0
+_RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
+                                 "_int_items", "_str", "_str_items", "_log_sink", "_control",
+                                 "resources_dir"})
+
+
+def _cvode_class(module_context: Callable[[], ContextManager]) -> type[Cvode]:
+    """The CVODE wrapper, imported on first use: components that never integrate (no states, or
+    Model Exchange only) never load SUNDIALS. The import runs in the FMU's module context, where
+    its private ``deltafmi`` copy is in ``sys.modules``; once imported it is kept here."""
+    cached = _CVODE.get("class")
+    if cached is None:
+        with module_context():
+            from .cvode import Cvode, CvodeError
+        _CVODE["error"] = CvodeError  # before the class: another thread may take the class at once
+        cached = _CVODE["class"] = Cvode
+    return cached
+
+
+_CVODE: dict = {}
+
+
+class FmuInstance:
+    """The model side of one ``fmi2Component``."""
+
+    def __init__(self, component_class: type[Component], instance_name: str = "instance",
+                 fmu_type: int = CO_SIMULATION, resources_dir: str = "",
+                 module_context: Callable[[], ContextManager] = nullcontext) -> None:
+        self.component_class = component_class
+        self.instance_name = instance_name
+        self.fmu_type = fmu_type
+        self.resources_dir = resources_dir
+        self._module_context = module_context
+        layout = component_class._layout
+        self.nx, self.nz = layout.nx, component_class.n_event_indicators
+        #: samples only at its input Clocks' ticks (no states, no event indicators): see clock_driven
+        self._clock_driven = clock_driven(component_class)
+        if fmu_type == CO_SIMULATION and self.nx and not component_class.overrides_do_step():
+            _cvode_class(module_context)  # a missing SUNDIALS fails fmi2Instantiate, not a later step
+        self.pending_logs: list = []
+        #: what the native loader reads after each call: [0] nonzero when the component ended the
+        #: simulation (Component.terminate_simulation), [1] the time it reached (NaN: the step's end),
+        #: [2] nonzero when a Co-Simulation step in event mode stopped at an event it left unhandled
+        self.control = np.array([0.0, math.nan, 0.0])
+        #: the FMI log categories the importer enabled (fmu_logging.BITS), set by the loader
+        self.log_mask = fmu_logging.DEFAULT
+        self._hooks = fmu_logging.hooks()
+        self._module = component_class.__module__
+        if self._module.startswith(fmu_logging.MODEL_MODULE_PREFIX):
+            self._hooks.adopt(self._module)
+        self.event_indicators = np.zeros(max(self.nz, 1))
+        self._new_component()
+        self.time = 0.0
+        self.stop_time = math.inf
+        self.tolerance: Optional[float] = None
+        self.in_initialization = False
+        self._solver: Optional[Cvode] = None
+        self._next_time_event: Optional[float] = None
+        self._restart_solver = False  # an event handled in FMI 3.0 CS event mode changed the model
+        self._real_inputs = np.array([s.value_reference for s in layout.scalars
+                                      if s.causality == "input" and s.fmi_type == "Real"], dtype=np.intp)
+        self._int_inputs = np.array([s.value_reference - layout.n_real for s in layout.scalars
+                                     if s.causality == "input" and s.fmi_type not in ("Real", "String")],
+                                    dtype=np.intp)
+        self._inputs_at_last_step: Optional[tuple] = None  # (reals, integers) as lists
+        # the communication grid: where it starts, its step (see _communication_point)
+        self.start_time, self._grid_step = 0.0, 0.0
+        # CS: the derivatives at the end of the last step, with the inputs CVODE integrated with
+        self._derivatives_after_step: Optional[list] = None
+        self._jump_tolerance = _INPUT_JUMP_TOLERANCE
+        self._jump_kept = False  # CVODE goes on over an input jump: restart if it fails there
+        self.partials = DirectionalDerivatives(component_class)
+        self._steps_itself = component_class.overrides_do_step()
+        self._has_outputs = component_class.outputs is not Component.outputs  # else nothing to call
+        # derivatives returned as a list or tuple are packed straight into the real buffer
+        self._pack_derivatives = struct.Struct(f"={self.nx}d")
+        #: the component's kernels compiled to C, when its FMU carries them (see native_kernels.py)
+        self.native = self._load_kernels() if getattr(component_class, "native", None) is not None else None
+        if self.native is not None:
+            self.native.attach(self.component._real, self.component._int, self.event_indicators)
+
+    def _load_kernels(self) -> Optional[NativeKernelsRuntime]:
+        try:
+            return NativeKernelsRuntime.load(self.resources_dir)
+        except (OSError, ImportError, KeyError, AttributeError, ValueError) as exc:
+            self.pending_logs.append((WARNING, "logStatusWarning",
+                                      f"the compiled kernels cannot be loaded, the model runs in Python: {exc}"))
+            return None
+
+    def _pack_kernels(self) -> None:
+        """The attributes the compiled kernels read, copied after the model may have changed them."""
+        if self.native is not None:
+            self.native.pack(self.component)
+
+    def _pull_kernels(self) -> None:
+        """The attributes compiled steps changed, copied back before the model reads them."""
+        if self.native is not None:
+            self.native.pull(self.component)
+
+    def step_callable(self) -> Callable[[float, float], object]:
+        """What the native layer calls for the step of a component that steps itself, when its
+        compiled step does not take it: the component's ``do_step``, between copies of the
+        attributes from and to the compiled step's struct when it has one."""
+        if self.native is None or not self.native.has("step"):
+            return self.component.do_step
+
+        def synced(t: float, h: float) -> None:
+            self.native.pull(self.component)
+            self.component.do_step(t, h)
+            self.native.pack(self.component)
+
+        return synced
+
+    def _new_component(self, buffers: Optional[tuple] = None) -> None:
+        comp = self.component = self.component_class.__new__(self.component_class)
+        comp._attach(self.resources_dir, self.pending_logs, buffers, self.control)
+
+    @property
+    def terminate_requested(self) -> bool:
+        """Whether the component ended the simulation (:meth:`Component.terminate_simulation`)."""
+        return bool(self.control[0])
+
+    @terminate_requested.setter
+    def terminate_requested(self, value: bool) -> None:
+        self.control[0] = 1.0 if value else 0.0
+        if not value:
+            self.control[1] = math.nan
+
+    def set_log_categories(self, mask: int) -> int:
+        """The categories the importer enabled (fmi2Instantiate's loggingOn, fmi2SetDebugLogging):
+        the runtime formats its own messages only for these, and the model's logger makes DEBUG
+        and INFO records only while some instance wants logComponent."""
+        self.log_mask = mask
+        if self._module.startswith(fmu_logging.MODEL_MODULE_PREFIX):
+            self._hooks.want_debug(self._module, id(self), bool(mask & fmu_logging.BITS["logComponent"]))
+        return OK
+
+    def _store_derivatives(self, values: Sequence[float]) -> None:
+        comp = self.component
+        cls = type(values)
+        if cls is list or cls is tuple:
+            try:
+                self._pack_derivatives.pack_into(comp._real, 8 * self.nx, *values)
+                return
+            except Exception:
+                pass  # not a flat sequence of nx numbers: numpy converts it, or says what is wrong
+        comp._real[self.nx:2 * self.nx] = _exactly(values, self.nx, "derivatives", "states")
+
+    def _store_event_indicators(self, values: Sequence[float]) -> None:
+        self.event_indicators[:] = _exactly(values, self.nz, "event_indicators", "event indicators")
+
+    # --- what the native layer needs to know ------------------------------------------------
+    def native_layout(self) -> tuple:
+        """Addresses and sizes of the buffers the native layer reads and writes directly.
+
+        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|KnKKpKKKKKKK``): real
+        buffer, n_real, int buffer, n_int, flags (uint8 per real and int scalar), n_str, nx,
+        x_offset, dx_offset, event indicators (double[nz]), nz, nominals (double[nx]), watches
+        drift, steps itself, evaluates after a step, control (double[3]: terminated, time reached,
+        event pending); then, for FMI 3.0: sizes3 (uint32[n_real + n_int + n_str], the element
+        count of the variable whose value reference is the index, 0 inside an array), n_clocks,
+        and per Clock the real-buffer index of its period Parameter (int64, -1: constant) and its
+        constant interval (double, NaN where a Parameter gives it), and whether the component is
+        clock-driven (:func:`.clocks.clock_driven`); then the compiled kernels' addresses
+        (derivatives, event indicators, outputs, step, update; 0 for none), their attributes' struct and
+        its ready flag (int[1]), all 0 without compiled kernels
+        (:class:`.native_kernels.NativeKernelsRuntime`).
+        FMI 3.0 value references after the scalars: ``time`` = n_real + n_int + n_str, then the
+        n_clocks Clocks, then one Float64 per event indicator (Layout.first_indicator_vr)."""
+        comp, layout = self.component, self.component_class._layout
+        return (comp._real.ctypes.data, layout.n_real, comp._int.ctypes.data, layout.n_int,
+                layout.flags.ctypes.data, layout.n_str, layout.nx, layout.x_offset,
+                layout.dx_offset, self.event_indicators.ctypes.data, self.nz,
+                layout.nominals.ctypes.data, self.component_class.watches_drift(), self._steps_itself,
+                bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data,
+                layout.sizes3.ctypes.data, layout.n_clocks, layout.clock_period_index.ctypes.data,
+                layout.clock_interval.ctypes.data, self._clock_driven,
+                *(self.native.layout() if self.native is not None else (0,) * 7))
+
+    # --- initialization ---------------------------------------------------------------------
+    def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:
+        """``fmi2SetupExperiment`` values (stop/tolerance NaN when undefined), then init mode."""
+        self.time = self.start_time = start
+        self._grid_step = 0.0
+        self.stop_time = stop if not math.isnan(stop) else math.inf
+        self.tolerance = tolerance if not math.isnan(tolerance) else None
+        self.in_initialization = True
+        return OK
+
+    def exit_initialization(self, event_mode_used: float = 0.0) -> int:
+        """Leave initialization mode with consistent outputs; prepare the Co-Simulation solver.
+
+        In FMI 3.0 Co-Simulation with ``event_mode_used`` the FMU goes to Event Mode instead, and
+        the importer's fmi3UpdateDiscreteStates calls do the event iteration (as in ME)."""
+        self.evaluate(self.time)
+        self.in_initialization = False
+        if self.fmu_type == CO_SIMULATION and not event_mode_used:
+            self._event_iteration()
+        self._pack_kernels()
+        return OK
+
+    # --- evaluation -------------------------------------------------------------------------
+    def evaluate(self, t: float) -> int:
+        """Compute derivatives, event indicators and outputs at ``t`` into the buffers."""
+        self._pull_kernels()
+        if self.native is not None and not self.in_initialization and self.native.evaluate(t, self.nx, self.nz):
+            return OK
+        self.evaluate_derivatives(t)
+        if self._has_outputs:
+            self.component.outputs(t)
+        return OK
+
+    def evaluate_derivatives(self, t: float) -> int:
+        """Only what an integrator asks for: derivatives and event indicators (not outputs).
+
+        The native layer does the same itself in Model Exchange's event and continuous-time
+        modes (bridge_derivatives), calling ``derivatives`` and ``event_indicators`` directly and
+        handing results that are not lists or tuples to ``_store_derivatives`` and
+        ``_store_event_indicators``."""
+        comp = self.component
+        if self.in_initialization:
+            comp.initialize(t)
+        if self.nx:
+            self._store_derivatives(comp.derivatives(t))
+        if self.nz:
+            self._store_event_indicators(comp.event_indicators(t))
+        return OK
+
+    def evaluate_outputs(self, t: float) -> int:
+        """Outputs only, for getters (in initialization everything: the model initializes)."""
+        self._pull_kernels()
+        if self.in_initialization:
+            return self.evaluate(t)
+        if self._has_outputs:
+            self.component.outputs(t)
+        return OK
+
+    def event_update(self, t: float) -> tuple:
+        """``fmi2NewDiscreteStates``: one discrete update at ``t``.
+
+        Returns (newDiscreteStatesNeeded, terminateSimulation, nominalsChanged,
+        valuesOfContinuousStatesChanged, nextEventTimeDefined, nextEventTime).
+        """
+        comp, nx = self.component, self.nx
+        self.partials.invalidate()
+        self._pull_kernels()
+        self._restart_solver = self.fmu_type == CO_SIMULATION
+        states_before = comp._real[:nx].copy() if nx else None  # none: a sampled component's tick
+        if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
+            comp.project(t)
+        self.evaluate(t)
+        derivatives_before = comp._real[nx: 2 * nx].copy() if nx else None
+        again = bool(comp.update(t))
+        self._pack_kernels()  # the compiled kernels evaluate after the update with its attributes
+        self.evaluate(t)
+        # A mode switch that leaves the states but changes their derivatives (a ball that starts
+        # touching) is reported as changed states too: an importer that restarts its integrator
+        # only on that flag (the Reference FMUs' fmusim) would otherwise go on with the solver's
+        # pre-event history and miss the switch. Restarting where nothing moved costs one restart.
+        changed = nx > 0 and not (np.array_equal(states_before, comp._real[:nx])
+                                  and np.array_equal(derivatives_before, comp._real[nx: 2 * nx]))
+        nte = comp.next_time_event(t)
+        self._next_time_event = nte
+        self._pack_kernels()
+        if self.log_mask & _LOG_EVENTS:
+            self.log(OK, "logEvents", f"event at t = {t}: another iteration {again}, states changed "
+                     f"{changed}, next time event {nte}, terminate {self.terminate_requested}")
+        return (again, self.terminate_requested, False, changed, nte is not None,
+                float(nte) if nte is not None else 0.0)
+
+    def activate_model_partition(self, clock: float, t: float) -> int:
+        """``fmi3ActivateModelPartition`` (Scheduled Execution): the partition of Clock ``clock``
+        (0-based) at its tick ``t``, with the inputs set before: the component's discrete update
+        at ``t`` (its samples due there), iterated as an event iteration would, outputs evaluated."""
+        self.time = t
+        for _ in range(_MAX_EVENT_ITERATIONS):
+            again, terminate, _, _, _, _ = self.event_update(t)
+            if terminate or not again:
+                return OK
+        raise RuntimeError(f"the partition of Clock {int(clock) + 1} at t = {t} did not settle in "
+                           f"{_MAX_EVENT_ITERATIONS} updates")
+
+    def directional_derivative(self, t: float, unknowns: bytes, knowns: bytes, seed: bytes) -> bytes:
+        """``fmi2GetDirectionalDerivative`` at ``t``: value references as uint32 bytes, the seed
+        and the result as float64 bytes (see :mod:`.partials`)."""
+        self._pull_kernels()
+        if self.in_initialization:
+            self.component.initialize(t)
+        return self.partials.directional(self.component, t, unknowns, knowns, seed)
+
+    def completed_integrator_step(self, t: float) -> bool:
+        """``fmi2CompletedIntegratorStep``: True asks for a step event (the states drifted)."""
+        return bool(self.component.needs_projection(t))
+
+    # --- co-simulation ----------------------------------------------------------------------
+    def do_step(self, t: float, h: float, event_mode_used: float = 0.0) -> int:
+        """``fmi2DoStep`` from ``t`` to ``t + h``: integrate with CVODE, handle events inside.
+
+        With ``event_mode_used`` (FMI 3.0 Co-Simulation in event mode) it stops at the first
+        state or time event in (t, t + h] without handling it: control[2] = 1 (event pending),
+        control[1] = the time reached; the importer's Event Mode handles it (:meth:`event_update`)
+        and the next step restarts the solver there.
+
+        The native layer has checked that ``t`` is the FMU's time. A component that steps itself
+        never comes here: the native layer calls its ``do_step``, sets ``time`` before anything
+        reads it and calls :meth:`evaluate` when there is something to evaluate (bridge.c,
+        step_itself; ``native_layout`` tells it which components)."""
+        comp = self.component
+        t_end = self._communication_point(t, h)
+        self.control[2] = 0.0
+        if self._solver is not None:
+            if self._restart_for_inputs(t_end) or self._restart_solver:
+                # a zero-order-hold input jumped too far for CVODE's history (the right-hand side
+                # is discontinuous at t), or the importer handled an event here
+                self._solver.reinit(self.time, comp._real[: self.nx])
+        elif self.nx:
+            self._inputs_changed()  # a fresh solver: the next step compares with these inputs
+        self._restart_solver = False
+        while self.time < t_end and not self.terminate_requested:
+            # in event mode a clock-driven component's events are its Clocks' ticks, which the
+            # importer activates in Event Mode: none to report from the step
+            nte = None if event_mode_used and self._clock_driven else self._next_time_event
+            t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
+            root = False
+            if t_stop - self.time <= _TINY * max(1.0, abs(t_stop)):
+                self.time = t_stop  # a round-off sliver (a time event at a step end): no motion
+            elif self.nx:
+                root = self._integrate_to(t_stop)
+            else:
+                self.time = t_stop
+            time_event = nte is not None and self.time >= nte - _TINY * max(1.0, abs(nte))
+            if (root or time_event) and event_mode_used:
+                self.control[1:] = self.time, 1.0  # fmi3DoStep: eventHandlingNeeded here
+                self.evaluate(self.time)
+                self._derivatives_after_step = None  # the event restarts the solver
+                return OK
+            if root or time_event:
+                self._event_iteration()
+        if self.terminate_requested:
+            self.control[1] = self.time  # fmi2LastSuccessfulTime
+        else:
+            self.time = t_end  # remove round-off so the next doStep matches exactly
+        self.evaluate(self.time)
+        if self.nx:
+            self._derivatives_after_step = comp._real[self.nx: 2 * self.nx].tolist()
+        return DISCARD if self.terminate_requested else OK
+
+    def _communication_point(self, t: float, h: float) -> float:
+        """``t + h``, or the grid point ``start + k H`` where it differs from that by round-off.
+
+        Importers add up time differently (fmpy: ``t += h``; the Reference FMUs' fmusim:
+        ``t = start + k h``), so the same step can end an ulp or a few apart. CVODE's steps are
+        sensitive to that: where its proposed step and the rest of the interval to the stop time
+        agree to round-off, an ulp decides between clipping a step and taking it whole, and the
+        step sequences (and results, at the tolerance's level) part. On a grid every importer
+        gives CVODE the same stop times, bit for bit. The grid's step H is the one the steps
+        so far ended on (a step cut short at an event, in FMI 3.0 event mode, and the rest of it
+        end on the grid of the full steps), else this step's ``h``."""
+        t_end = t + h
+        for step in (self._grid_step, h):
+            if step > 0.0:
+                on_grid = self.start_time + round((t_end - self.start_time) / step) * step
+                if abs(on_grid - t_end) <= _TINY * max(1.0, abs(t_end)):
+                    self._grid_step = step
+                    return on_grid
+        return t_end
+
+    def _integrate_to(self, t_stop: float) -> bool:
+        if self._solver is None:
+            self._solver = self._make_solver()
+        solver, comp = self._solver, self.component
+        root = self._advance_over_jump(t_stop) if self._jump_kept else solver.advance(t_stop)
+        comp._real[: self.nx] = solver.x
+        self.time = solver.t if root else t_stop
+        return root
+
+    def _advance_over_jump(self, t_stop: float) -> bool:
+        # the first advance on a history kept over an input jump: should CVODE's error test still
+        # fail down to the minimum step there (the jump was larger for its steps than judged),
+        # a restart from where this call began gets through, and a second failure is real
+        solver = self._solver
+        t0, x0 = solver.t, solver.x.copy()
+        self._jump_kept = False
+        solver.log_errors = False  # recovered from below: no error for the importer's log
+        try:
+            return solver.advance(t_stop)
+        except _CVODE["error"]:
+            solver.log_errors = True
+            solver.reinit(t0, x0)
+            return solver.advance(t_stop)
+        finally:
+            solver.log_errors = True
+
+    def _inputs_changed(self) -> bool:
+        comp = self.component  # lists: cheaper to compare than arrays, at a handful of inputs
+        current = comp._real.take(self._real_inputs).tolist(), comp._int.take(self._int_inputs).tolist()
+        changed = current != self._inputs_at_last_step
+        self._inputs_at_last_step = current
+        return changed
+
+    def _restart_for_inputs(self, t_end: float) -> bool:
+        """Whether CVODE must restart because the held inputs changed since the last step.
+
+        A zero-order-hold input that jumps makes the right-hand side f discontinuous at the
+        communication point, and CVODE's history (order, step size, Nordsieck array) describes
+        the solution before it. A restart (order 1, a tiny first step) at every change made a
+        chain of CS units, each driven by the last one's output, 4-6x as costly as the same
+        units unconnected. So the history is kept where the jump is small: its first-order
+        effect over the step, ``h (f_new - f_old)`` at the current state in CVODE's error norm
+        (1 = the tolerance), is at most ``cs_options["input_jump_tolerance"]``
+        (default 10; 0 restarts at every change). CVODE's error test then takes the kink in its
+        stride (at worst it retries with a smaller step); a larger jump (a step input, a
+        switching controller's torque) restarts as before. docs/components.md has the figures.
+        """
+        if not self._inputs_changed():
+            return False
+        before = self._derivatives_after_step
+        if self._jump_tolerance <= 0 or before is None or self._restart_solver:
+            restart = True
+        else:
+            # over the whole step, not CVODE's next one: that one shrinks after a kink, which made
+            # the next jump look small: the decision depends on inputs and states, not on that history
+            jump = [new - old for new, old in zip(self._derivatives_now(), before)]
+            restart = (t_end - self.time) * self._solver.error_norm(jump) > self._jump_tolerance
+        self._jump_kept = not restart
+        return restart
+
+    def _derivatives_now(self) -> Sequence[float]:
+        """The derivatives at the current time and states (by the compiled kernel where there is one)."""
+        if self.native is not None and self.native.derivatives(self.time):
+            return self.component._real[self.nx: 2 * self.nx].tolist()
+        return self.component.derivatives(self.time)
+
+    def _make_solver(self) -> Cvode:
+        Cvode = _cvode_class(self._module_context)
+        options = dict(self.component_class.cs_options)
+        rtol = options.pop("rtol", self.tolerance or self.component_class.default_experiment.tolerance)
+        rtol *= options.pop("rtol_factor", 1.0)
+        self._jump_tolerance = float(options.pop("input_jump_tolerance", _INPUT_JUMP_TOLERANCE))
+        # as ME importers do: absolute tolerance from the states' nominal values
+        atol = options.pop("atol", rtol * self.component_class._layout.nominals)
+        comp, nx = self.component, self.nx
+
+        def rhs(t: float, x: np.ndarray, xdot: np.ndarray) -> None:
+            comp._real[:nx] = x
+            xdot[:] = comp.derivatives(t)
+
+        def roots(t: float, x: np.ndarray, g: np.ndarray) -> None:
+            comp._real[:nx] = x
+            g[:] = comp.event_indicators(t)
+
+        def project(t: float, x: np.ndarray, correction: np.ndarray) -> None:
+            comp._real[:nx] = x
+            comp.project(t)
+            correction[:] = comp._real[:nx] - x
+
+        if self.component_class.overrides_project():
+            options["project"] = project
+        if self.component_class.provides_jacobian():
+            partials = self.partials
+
+            def jacobian(t: float, x: np.ndarray, J: np.ndarray) -> None:
+                comp._real[:nx] = x
+                J[:, :] = partials.state_jacobian(comp, t)
+
+            options["jacobian"] = jacobian
+        if self.native is not None and self.native.has("derivatives"):
+            layout = self.component_class._layout
+            options["native"] = self.native.cvode_callbacks(layout.x_offset, layout.dx_offset, nx, self.nz)
+        if self.log_mask & _LOG_SOLVER:
+            self.log(OK, "logSolver", f"CVODE ({options.get('method', 'bdf')}) from t = {self.time}: "
+                     f"{nx} states, {self.nz} event indicators, rtol = {rtol:g}, "
+                     f"atol = {np.array2string(np.atleast_1d(atol), precision=3)}")
+        return Cvode(rhs, comp._real[:nx].copy(), self.time, roots=roots if self.nz else None,
+                     n_roots=self.nz, rtol=rtol, atol=atol, **options)
+
+    def _event_iteration(self) -> None:
+        for _ in range(_MAX_EVENT_ITERATIONS):
+            again, terminate, _, _, _, _ = self.event_update(self.time)
+            if terminate or not again:
+                if self._solver is not None:
+                    # unlike an ME importer, our own solver restarts after every event: the
+                    # right-hand side may jump even when no state does
+                    self._solver.reinit(self.time, self.component._real[: self.nx])
+                    self._restart_solver = False
+                return
+        raise RuntimeError(f"event iteration at t = {self.time} did not converge in "
+                           f"{_MAX_EVENT_ITERATIONS} iterations")
+
+    # --- strings ----------------------------------------------------------------------------
+    def get_string(self, index: int) -> str:
+        """Value of the ``index``-th string scalar."""
+        return self.component._str[index]
+
+    def set_string(self, index: int, value: str) -> int:
+        """Set the ``index``-th string scalar."""
+        self.component._str[index] = value
+        return OK
+
+    # --- FMU state --------------------------------------------------------------------------
+    def get_state(self) -> dict:
+        """A snapshot of everything: buffers, internal component attributes, time, mode.
+
+        The CS solver starts afresh here too, so that continuing from this point and restoring
+        this snapshot later follow exactly the same path: CVODE's history and saved Newton matrix
+        cannot be saved, and even ``CVodeReInit`` keeps the latter.
+        """
+        comp = self.component
+        self._drop_solver()
+        self._pull_kernels()
+        internal = {k: v for k, v in vars(comp).items() if k not in _RUNTIME_ATTRIBUTES}
+        return {
+            "real": comp._real.copy(), "int": comp._int.copy(), "str": list(comp._str),
+            "internal": copy.deepcopy(internal), "time": self.time,
+            "next_time_event": self._next_time_event, "in_initialization": self.in_initialization,
+            "terminate_requested": self.terminate_requested,
+        }
+
+    def set_state(self, state: dict) -> int:
+        """Restore a snapshot from :meth:`get_state`; the CS solver restarts from it."""
+        comp = self.component
+        comp._real[:] = state["real"]
+        comp._int[:] = state["int"]
+        comp._str[:] = state["str"]
+        for key in [k for k in vars(comp) if k not in _RUNTIME_ATTRIBUTES]:
+            delattr(comp, key)
+        vars(comp).update(copy.deepcopy(state["internal"]))
+        self.time = state["time"]
+        self.partials.invalidate()
+        self._next_time_event = state["next_time_event"]
+        self.in_initialization = state["in_initialization"]
+        self.terminate_requested = state["terminate_requested"]
+        self._drop_solver()  # a fresh solver, as in get_state()
+        self._pack_kernels()
+        return OK
+
+    def serialize_state(self, state: dict) -> bytes:
+        """Bytes for ``fmi2SerializeFMUstate``."""
+        with self._module_context():
+            return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def deserialize_state(self, data: bytes) -> dict:
+        """Inverse of :meth:`serialize_state`."""
+        with self._module_context():
+            return pickle.loads(data)
+
+    # --- life cycle -------------------------------------------------------------------------
+    def terminate(self) -> int:
+        """``fmi2Terminate``."""
+        return OK
+
+    def reset(self) -> int:
+        """``fmi2Reset``: back to the freshly instantiated state (same buffer addresses)."""
+        old = self.component
+        self._new_component((old._real, old._int, old._str))
+        self.time, self.stop_time, self.tolerance = 0.0, math.inf, None
+        self.in_initialization = self.terminate_requested = False
+        self._drop_solver()
+        self._next_time_event = None
+        self._pack_kernels()  # the fresh component's (C runs the kernels only after initialization)
+        return OK
+
+    def free(self) -> None:
+        """``fmi2FreeInstance``: release the solver now rather than at the next garbage collection."""
+        self._drop_solver()
+        if self._module.startswith(fmu_logging.MODEL_MODULE_PREFIX):
+            self._hooks.want_debug(self._module, id(self), None)
+
+    def _drop_solver(self) -> None:
+        if self._solver is not None:
+            self._solver.free()
+            self._solver = None
+        self._derivatives_after_step, self._jump_kept = None, False
+
+    def log(self, status: int, category: str, message: str) -> None:
+        """Queue a message for the importer's logger."""
+        self.pending_logs.append((status, category, message))
+
+
+def _exactly(values: Sequence[float], n: int, hook: str, what: str) -> np.ndarray:
+    """``values`` as n floats; a clear error rather than numpy broadcasting a wrong count."""
+    array = np.asarray(values, dtype=float)
+    if array.size != n:
+        raise ValueError(f"{hook}() returned {array.size} values for {n} {what}")
+    return array.reshape(n)

@@ -1,0 +1,102 @@
+"""A component's native kernels: which of its computations ``deltafmi build`` compiles to C.
+
+A component names plain Python functions (kernels: floats, fixed-length sequences, NamedTuples,
+dataclasses of floats; see deltafmi/builder/codegen/translate.py for the subset) and where each
+argument comes from::
+
+    native = NativeKernels(
+        derivatives=Kernel(dynamics.state_derivative, "_plant", "states", "u", "f", "pole"),
+        outputs=Kernel(dynamics.plant_outputs, "_plant", "q", "v", "u", "f", "pole",
+                       returns=("y", "yd", "z", "zd", "lam", "residual", "energy")),
+        attributes={"_plant": DeltaParams})
+
+An argument is ``"t"`` (the time), ``"states"`` (all continuous states, in order), a declared
+variable (its attribute name: read from the FMU's value buffer, in C) or an attribute the
+component sets in ``initialize``/``update`` whose type ``attributes`` gives (a dataclass of
+floats, a NamedTuple, ``Optional[...]``, float, int, bool, str). The FMU's C layer calls the
+generated code where the Python methods would run: ``derivatives`` for ``fmi2GetDerivatives``
+(Model Exchange, between events) and CVODE's right-hand side (Co-Simulation),
+``event_indicators`` for ``fmi2GetEventIndicators`` and CVODE's root functions, ``project`` for
+CVODE's projection after every internal step (Co-Simulation, a component that overrides
+``project``: the projected states; Model Exchange's step-event projection stays Python),
+``outputs`` for the getters, ``step`` for ``fmi2DoStep`` of a component that steps itself (a
+sampled controller, a reference generator; see :class:`Kernel`), ``update`` for the event update
+of a component without states (``fmi2NewDiscreteStates``, fmi3UpdateDiscreteStates at a Clock's tick,
+fmi3ActivateModelPartition). The component's Python methods stay, and must
+compute the same numbers with the same kernels: they serve initialization, events, whatever the
+C cannot, and the tests that compare the two. Attributes are copied to C after initialization,
+after every event update and after every step Python takes; an attribute that does not fit its
+declared type then (``None`` where it is not Optional, another type, an int beyond C's) leaves
+that instance on Python until the next copy. A step kernel's updates are copied back before
+Python next reads them.
+
+``mode``: ``"required"`` (default) fails the build with the file and line of a construct the
+generator cannot translate; ``"fallback"`` warns with the same text instead and ships Python only;
+``"off"`` skips the kernels.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Optional
+
+MODES = ("required", "fallback", "off")
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """One kernel call: ``func(*args)`` with each argument named by where it comes from.
+
+    ``returns``: the variables its result is written to, in order (the result is flattened: a
+    flat tuple of all their scalars, or one item per variable); for ``derivatives`` and
+    ``event_indicators`` the result is the state derivatives / the indicators, and ``returns``
+    stays empty. A ``project`` kernel returns the projected states: all of them in state order
+    with ``returns`` empty, else the state variables ``returns`` names (the others stay).
+
+    A ``step`` kernel (``fmi2DoStep`` of a component that steps itself, from ``"t"`` over
+    ``"h"``) may also change attributes: its result is ``(*updates, *outputs)``, the new values of
+    the attributes named in ``updates`` (dotted paths reach into an attribute: ``"_ctl.state"``)
+    and then the outputs' values; with ``defer=True`` an int follows the updates: nonzero discards
+    the whole C result and runs the Python ``do_step`` instead, for what C cannot do (log a warning).
+    An ``update`` kernel (the event update at ``"t"`` of a component without states) returns
+    ``(*updates, [defer flag], next time event (nan: none), *outputs)``, as its ``update()`` and
+    ``next_time_event()`` would."""
+
+    func: Callable
+    args: tuple
+    returns: tuple = ()
+    updates: tuple = ()
+    defer: bool = False
+
+    def __init__(self, func: Callable, *args: str, returns: tuple = (), updates: tuple = (),
+                 defer: bool = False) -> None:
+        object.__setattr__(self, "func", func)
+        object.__setattr__(self, "args", tuple(args))
+        object.__setattr__(self, "returns", tuple(returns))
+        object.__setattr__(self, "updates", tuple(updates))
+        object.__setattr__(self, "defer", bool(defer))
+
+
+@dataclass(frozen=True)
+class NativeKernels:
+    """The kernels of a component compiled to C (see the module docstring)."""
+
+    derivatives: Optional[Kernel] = None
+    event_indicators: Optional[Kernel] = None
+    outputs: Optional[Kernel] = None
+    step: Optional[Kernel] = None
+    update: Optional[Kernel] = None
+    project: Optional[Kernel] = None
+    attributes: Mapping[str, Any] = field(default_factory=dict)
+    mode: str = "required"
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"NativeKernels mode {self.mode!r} must be one of {', '.join(MODES)}")
+
+    def kernels(self) -> dict[str, Kernel]:
+        """The declared kernels by role (``derivatives``, ``event_indicators``, ``outputs``, ``step``,
+        ``update``, ``project``)."""
+        return {role: k for role, k in (("derivatives", self.derivatives), ("event_indicators", self.event_indicators),
+                                        ("outputs", self.outputs), ("step", self.step), ("update", self.update),
+                                        ("project", self.project))
+                if k is not None}

@@ -1,0 +1,148 @@
+"""Peg contact estimator FMU: a thin sampled component over deltafmi.physics.estimation.peg_ekf."""
+import numpy as np
+
+from deltafmi.component import Clock, Experiment, Input, Output, Parameter, SampledComponent
+from deltafmi.physics.delta.tactile import Readout
+from deltafmi.physics.delta_wrist.params import WristMount
+from deltafmi.physics.estimation.peg_ekf import PegEKF, PegEKFSettings
+from deltafmi.physics.wrist.kernels import wrist_constants
+from deltafmi.models.robot_parameters import robot_parameters
+from deltafmi.models.wrist_parameters import peg_scene_of, wrist_params_of
+
+#: the robot's parameters, as the estimator models them (they may differ from the plant's)
+EstimatorRobotModel = robot_parameters("as the estimator models it")
+
+#: parameters handed to PegEKFSettings under the same names
+_SETTINGS = ("sample_period", "y_std", "qw_std", "acceleration_std", "angular_acceleration_std", "force_rate_std",
+             "moment_rate_std", "velocity_std0", "rate_std0", "force_std0", "moment_std0", "hole_std0", "tilt_std0",
+             "contact_force_std", "contact_moment_std", "contact_threshold", "contact_samples", "pole", "substeps")
+_NOTE = "; as the estimator models it"
+
+
+class PegEstimator(EstimatorRobotModel, SampledComponent):
+    """Extended Kalman filter of the peg's contact wrench and of the hole's position and tilt for the
+    delta robot with its spherical wrist (DeltaWristPeg), sampled (1 kHz), from joint angles and
+    motor torques only.
+
+    Listens to the servo angles y, the wrist angles qw, the servo torques u and the wrist torques
+    tau. Process model: the plant's DAE in its six coordinates (plate position, wrist angles) and
+    rates, with the contact wrench on the peg (force at the tool tip and moment about it, world,
+    the contact multipliers' resultant) as a random walk; the hole's x, y and tilt are constants
+    tied to the wrench by the peg's contact law (the plant's, with the parameters below as the
+    estimator models them) while the estimated force exceeds contact_threshold for
+    contact_samples samples; a contact the law cannot place at the current hole estimate moves
+    the estimate first along the felt lateral force (deltafmi/physics/estimation/peg_contact.py).
+    hole_position and hole_tilt are the NOMINAL hole, the prior's mean. The filter starts at the
+    first y and qw, at rest. sensor_noise adds seeded Gaussian noise to y and qw before the
+    filter sees them. The first sample is one sample_period after the start. Pure Python with
+    numpy: about 4 ms per sample (0.25x real time). Co-Simulation: doStep(t, h) takes the samples
+    due in [t, t + h) with the inputs at t (use h = sample_period and list it after the plant and
+    the controller in a Gauss-Seidel scenario, so that the angles and torques are of the same
+    instant); Model Exchange: time events at the samples.
+    """
+
+    model_name = "PegEstimator"
+    default_experiment = Experiment(start=0.0, stop=0.25, step=1e-3, tolerance=1e-6)  # ~5 ms a sample
+
+    # the wrist and the peg as the estimator models them (DeltaWrist's names)
+    tool_mass = Parameter(0.25, unit="kg", min=0.0, description="Tool (peg) mass" + _NOTE)
+    tool_length = Parameter(0.1, unit="m", min=0.0, description="Tool (peg) length" + _NOTE)
+    tool_radius = Parameter(0.01, unit="m", min=0.0, description="Tool (peg) radius" + _NOTE)
+    tool_tip = Parameter(0.13, unit="m", min=0.0, description="Wrist centre to tool tip" + _NOTE)
+    rotor_inertia = Parameter([3.0e-4, 2.0e-4, 1.0e-4], unit="kg.m2", min=0.0,
+                              description="Wrist rotor inertias; as the estimator models them")
+    wrist_damping = Parameter(0.0, unit="N.m.s/rad", min=0.0, description="Wrist joint viscous friction" + _NOTE)
+    mount = Parameter([0.0, 0.0, -0.05], unit="m", description="Wrist centre relative to the plate centre")
+    # the hole (nominal position and tilt: the prior) and the contact law (DeltaWristPeg's names)
+    hole_position = Parameter([0.0, 0.0, -1.2], unit="m",
+                              description="NOMINAL hole top centre, world: the prior of x, y; its height is known")
+    hole_tilt = Parameter([0.0, 0.0], unit="rad", description="NOMINAL hole tilt about world x, then y: the prior")
+    bore_radius = Parameter(0.0101, unit="m", min=0.0, description="Bore radius" + _NOTE)
+    chamfer_width = Parameter(0.002, unit="m", min=0.0, description="Radial chamfer width at the top plane" + _NOTE)
+    chamfer_angle = Parameter(0.7853981633974483, unit="rad", min=0.0,
+                              description="Angle between the chamfer surface and the top plane" + _NOTE)
+    hole_depth = Parameter(0.04, unit="m", min=0.0, description="Bore depth" + _NOTE)
+    edge_radius = Parameter(2.0e-4, unit="m", min=0.0, description="Fillet radius of the hole's edges" + _NOTE)
+    contact_stiffness = Parameter(2.0e5, unit="N/m", min=0.0, description="Penalty stiffness per contact" + _NOTE)
+    contact_damping = Parameter(50.0, unit="N.s/m", min=0.0, description="Penalty damping per contact" + _NOTE)
+    mu = Parameter(0.3, unit="1", min=0.0, description="Coulomb friction coefficient" + _NOTE)
+    v_eps = Parameter(1.0e-3, unit="m/s", min=0.0, description="Friction regularisation speed" + _NOTE)
+    viscous = Parameter(0.0, unit="N.s/m", min=0.0, description="Viscous tangential force per point" + _NOTE)
+    # the filter
+    sample_period = Parameter(1e-3, unit="s", min=0.0, description="Estimator sample period")
+    sample = Clock(period="sample_period", description="Sample instants: t_start + k * sample_period")
+    y_std = Parameter(1e-6, unit="rad", min=0.0, description="Servo-angle noise (standard deviation)")
+    qw_std = Parameter(1e-6, unit="rad", min=0.0, description="Wrist-angle noise (standard deviation)")
+    acceleration_std = Parameter(0.01, unit="m/s2", min=0.0,
+                                 description="Model error as white plate-acceleration noise (per sqrt(Hz))")
+    angular_acceleration_std = Parameter(0.5, unit="rad/s2", min=0.0,
+                                         description="Model error as white wrist-joint acceleration noise "
+                                         "(per sqrt(Hz))")
+    force_rate_std = Parameter(30.0, unit="N/s", min=0.0,
+                               description="Random walk of the contact force (per sqrt(Hz)): faster, noisier")
+    moment_rate_std = Parameter(2.0, unit="N.m/s", min=0.0,
+                                description="Random walk of the contact moment (per sqrt(Hz))")
+    velocity_std0 = Parameter(0.01, unit="m/s", min=0.0, description="Initial plate velocity uncertainty (about rest)")
+    rate_std0 = Parameter(0.01, unit="rad/s", min=0.0, description="Initial wrist rate uncertainty (about rest)")
+    force_std0 = Parameter(1.0, unit="N", min=0.0, description="Initial contact force uncertainty (about zero)")
+    moment_std0 = Parameter(0.05, unit="N.m", min=0.0, description="Initial contact moment uncertainty (about zero)")
+    hole_std0 = Parameter(0.002, unit="m", min=0.0, description="Prior uncertainty of the hole's x and y")
+    tilt_std0 = Parameter(0.02, unit="rad", min=0.0, description="Prior uncertainty of the hole's tilt")
+    contact_force_std = Parameter(0.05, unit="N", min=0.0, description="Contact-law uncertainty, force")
+    contact_moment_std = Parameter(0.005, unit="N.m", min=0.0, description="Contact-law uncertainty, moment")
+    contact_threshold = Parameter(0.2, unit="N", min=0.0,
+                                  description="Estimated contact force above which the peg is taken to touch")
+    contact_samples = Parameter(5, type=int, min=1,
+                                description="Samples in a row above contact_threshold before the contact law applies")
+    pole = Parameter(5.0, unit="1/s", min=0.0, description="Baumgarte pole of the process model")
+    substeps = Parameter(1, type=int, min=1, description="Runge-Kutta steps per sample period in the prediction")
+    sensor_noise = Parameter(0.0, unit="rad", min=0.0,
+                             description="Seeded Gaussian noise added to y and qw before filtering (0: none)")
+    seed = Parameter(1, type=int, min=0, description="Seed of sensor_noise")
+
+    y = Input([0.0] * 3, unit="rad", description="Measured servo angles")
+    qw = Input([0.0] * 3, unit="rad", description="Measured wrist joint angles")
+    u = Input([0.0] * 3, unit="N.m", description="Servo torques (as commanded)")
+    tau = Input([0.0] * 3, unit="N.m", description="Wrist torques (as commanded)")
+
+    tip = Output(shape=3, unit="m", variability="discrete", description="Estimated tool tip position")
+    force = Output(shape=3, unit="N", variability="discrete",
+                   description="Estimated contact force on the peg (at the tool tip), world frame")
+    moment = Output(shape=3, unit="N.m", variability="discrete",
+                    description="Estimated contact moment about the tool tip, world frame")
+    hole = Output(shape=2, unit="m", variability="discrete", description="Estimated hole top centre x, y")
+    tilt = Output(shape=2, unit="rad", variability="discrete", description="Estimated hole tilt about x, then y")
+    force_std = Output(shape=3, unit="N", variability="discrete", description="Standard deviation of force")
+    moment_std = Output(shape=3, unit="N.m", variability="discrete", description="Standard deviation of moment")
+    hole_std = Output(shape=2, unit="m", variability="discrete", description="Standard deviation of hole")
+    tilt_std = Output(shape=2, unit="rad", variability="discrete", description="Standard deviation of tilt")
+    in_contact = Output(0, type=int, description="1 while the contact law is applied, else 0")
+
+    # the first sample one period after the start: at the start itself the event iteration of
+    # exitInitializationMode samples before an importer has set the inputs (measured: u = 0
+    # there in a master run, a 1.7 N ghost force for 20 ms)
+    first_sample = 1
+
+    def setup(self) -> None:
+        self._ekf = None
+
+    def initialize(self, t: float) -> None:
+        self.start_sampling(t)
+        self._settings = PegEKFSettings(**{name: getattr(self, name) for name in _SETTINGS})
+        self._hole, self._peg, self._law = peg_scene_of(self)
+        self._wrist = wrist_constants(wrist_params_of(self))
+        self._mount = WristMount(*(float(c) for c in self.mount))
+        self._readout = Readout(self.sensor_noise, 0.0, self.seed)
+        self._ekf = None
+
+    def take_sample(self) -> None:
+        """One filter cycle with the inputs now; the filter starts at the first sample."""
+        read = [self._readout.read(float(v), self.sample_index, i) for i, v in enumerate(np.r_[self.y, self.qw])]
+        if self._ekf is None:
+            self._ekf = PegEKF(self.robot_params(), self._wrist, self._mount, self._hole, self._peg, self._law,
+                               self._settings, read[:3], read[3:])
+        est = self._ekf.step(read[:3], read[3:], [float(v) for v in self.u], [float(v) for v in self.tau])
+        self.write_reals((*est.tip, *est.force, *est.moment, *est.hole, *est.force_std, *est.moment_std,
+                          *est.hole_std), "tip", "force", "moment", "hole", "tilt", "force_std", "moment_std",
+                         "hole_std", "tilt_std")
+        self.in_contact = int(est.in_contact)
