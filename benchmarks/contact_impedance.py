@@ -39,7 +39,7 @@ from deltafmi.master.stepping.explicit_rk import ExplicitRungeKutta
 from deltafmi.master.stepping.master import Master
 
 ROOT = Path(__file__).resolve().parents[1]
-WRIST_MASS = 17.0         # kg: the wrist's inertia along z at the contact (tests/test_robot_contact.py)
+WRIST_MASS = 17.0         # kg: the wrist's inertia along z at the contact (tests/models/test_robot_contact.py)
 DEPTH = 0.01              # m: the reference ends this far below the touching height
 K_SURFACE = 2e5           # N/m: the scenarios' contact stiffness
 

@@ -10,7 +10,7 @@ transcription. Both compiled with ``-std=c99 -O2`` (the generated C also with -f
 -fno-builtin-pow, the flags that keep Python's arithmetic).
 
 Checked at every run: the generated closed loop against the hand transcription's over the whole
-flagship (which tests/test_native_baseline.py holds bit for bit to the flagship's CSV), and the
+flagship (which tests/builder/test_native_baseline.py holds bit for bit to the flagship's CSV), and the
 generated controller's torques on the replayed samples. Measured in the same run, medians over
 ``--repeats`` rounds (ratios: medians of the rounds' ratios):
 

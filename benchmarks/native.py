@@ -8,7 +8,7 @@ dynamics with gravity, PID with feed-forward and anti-windup, the half-sample le
 the Trajectory's minimum-jerk path, and the master's classical RK4 with the inputs held, closed
 in the master's Gauss-Seidel order (as benchmarks/cosim.py's in-process floor). Its closed loop
 reproduces the flagship's CSV bit for bit (checked here at every run, and by
-tests/test_native_baseline.py).
+tests/builder/test_native_baseline.py).
 
 It is compiled here with ``cc -std=c99 -O2`` (no -march=native: the binary a user would build)
 into a temporary directory and loaded with ctypes. Figures, medians over ``--repeats`` rounds,

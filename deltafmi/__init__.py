@@ -58,6 +58,11 @@ _API = {
 
 __all__ = sorted(_API)
 
+#: imported before any public name is answered: it hands the master the builder as its FMU
+#: provider (docs/architecture.md). A name, not a literal: an FMU carries this file, and
+#: builder/reach.py follows literal import_module() calls into what it bundles
+_COMPOSITION_ROOT = "deltafmi.apps"
+
 
 def __getattr__(name: str) -> object:
     module = _API.get(name)
@@ -65,7 +70,7 @@ def __getattr__(name: str) -> object:
         raise AttributeError(f"module 'deltafmi' has no attribute '{name}'")
     import importlib
 
-    importlib.import_module("deltafmi.apps")  # the composition root: the master gets the builder as FMU provider
+    importlib.import_module(_COMPOSITION_ROOT)
     value = getattr(importlib.import_module(module), name)
     globals()[name] = value  # later lookups skip this function
     return value

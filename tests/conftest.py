@@ -1,14 +1,30 @@
-"""Shared fixtures: FMUs built from the packaged models (deltafmi/models) once per session, the compiled C host."""
+"""Shared fixtures: FMUs built from the packaged models (fmu_src/) once per session, the compiled C
+host; and the markers every test module gets from the tables below (one place to see them).
+
+The suite runs on both cores (pytest-xdist, ``--dist loadgroup``): the modules of :data:`SERIAL`,
+which measure wall time, threads or memory, or start Dask clusters of their own, run on one worker,
+one test after the other (the ``xdist_group`` "serial"); every other test runs wherever a
+worker is free. The FMU build cache is shared by both workers and safe for that (each build is
+renamed into place whole).
+"""
 from __future__ import annotations
 
 import os
+import re
 import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+#: the folders of tests, one per layer of the package; a test module may use another's helpers by
+#: its name (``from test_third_party_fmus import ball_exact``), whichever folder is collected first
+LAYERS = ("runtime", "physics", "models", "builder", "master", "apps")
+for _layer in LAYERS:
+    if str(ROOT / "tests" / _layer) not in sys.path:
+        sys.path.insert(0, str(ROOT / "tests" / _layer))
 FMU_SRC = ROOT / "fmu_src"
 #: the file names of the packaged models (deltafmi.models), one component each
 MODEL_FILES = sorted(f"{module}.py" for module in __import__("deltafmi.models").models.MODELS.values())
@@ -52,6 +68,47 @@ def c_host(tmp_path_factory) -> Path:
     subprocess.run(["cc", "-O2", "-Wall", f"-I{NATIVE}", str(ROOT / "tests" / "c_host" / "host.c"),
                     "-o", str(exe), "-ldl", "-lm"], check=True)
     return exe
+
+
+#: modules that measure wall time, threads or memory, or start Dask clusters or paced runs
+SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_joystick_tracking", "test_live_scope",
+          "test_fmu_threads", "test_memory", "test_study_dask", "test_study_cluster", "test_study_tls",
+          "test_study_dashboard", "test_study_rough_edges", "test_peg_robustness", "test_troubleshooting_docs",
+          "test_examples", "test_rough_edges", "test_study_metrics"}
+#: modules that start other processes (a C host, another Python, a CLI, a Dask process)
+SUBPROCESS = {"test_component_docs", "test_live_scope", "test_rough_edges", "test_study_cluster", "test_study_dask",
+              "test_study_rough_edges", "test_study_tls", "test_troubleshooting_docs", "test_compiler_messages",
+              "test_fmi3_clocks", "test_fmu_contents", "test_fmu_requirements", "test_native_kernels",
+              "test_native_projection", "test_portable_fmus", "test_python_hosts", "test_wheel_install",
+              "test_live_pacing", "test_master_loops", "test_third_party_fmi3", "test_third_party_fmus",
+              "test_assembly_portable", "test_oscillator_fmu", "test_delta_control", "test_component_init",
+              "test_component_values", "test_fmi3_binary", "test_fmu_logging", "test_fmu_threads",
+              "test_fmu_without_fmpy_scipy", "test_memory", "test_symbol_isolation", "test_third_party_masters",
+              "test_peg_robustness", "test_examples"}
+#: what a module that builds FMUs (or runs scenarios, which build theirs) says somewhere
+_BUILDS = re.compile(r"build_fmu|build_cached|_fmu\b|_fmu\(|simulate|resolve_system|\[\"(run|build|sweep|linearize)\"")
+#: modules with a test over 10 s on this kind of machine (2 cores; `--durations=25` shows them)
+SLOW = {"test_wheel_install", "test_python_hosts", "test_peg_robustness", "test_study_dask", "test_study_cluster",
+        "test_study_tls", "test_assembly_portable", "test_portable_fmus", "test_memory", "test_insertion_mpc",
+        "test_third_party_masters", "test_fmu_threads", "test_symbol_isolation", "test_joystick_tracking",
+        "test_component_docs", "test_mpc_controller", "test_peg_estimator", "test_fmu_without_fmpy_scipy"}
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    builds: dict[Path, bool] = {}
+    for item in items:
+        path = Path(str(item.fspath))
+        module = path.stem
+        if path not in builds:
+            builds[path] = path.suffix == ".py" and bool(_BUILDS.search(path.read_text()))
+        if module in SERIAL:
+            item.add_marker(pytest.mark.xdist_group("serial"))
+        if module in SUBPROCESS:
+            item.add_marker(pytest.mark.subprocess)
+        if module in SLOW:
+            item.add_marker(pytest.mark.slow)
+        if builds[path]:
+            item.add_marker(pytest.mark.fmu)
 
 
 def unzip(fmu: Path, target: Path) -> Path:

@@ -1,6 +1,7 @@
-"""The package layout: deltafmi.master's sub-packages import only what their job needs, nothing is
-left flat in deltafmi.master, ``import deltafmi`` imports nothing and resolves its public API
-lazily, and the robot FMUs share one declaration of the robot's parameters."""
+"""The package layout: the import contracts between the layers hold (docs/architecture.md), the
+master's sub-packages import only what their job needs, nothing is left flat in deltafmi.master,
+``import deltafmi`` imports nothing and resolves its public API lazily, and the robot FMUs share
+one declaration of the robot's parameters."""
 from __future__ import annotations
 
 import json
@@ -14,8 +15,10 @@ from fmpy import read_model_description
 
 import deltafmi
 import deltafmi.master
+import deltafmi.models
 
 COSIM = Path(deltafmi.master.__file__).parent
+ROOT = Path(__file__).resolve().parents[1]
 
 #: sub-package -> the sub-packages it must not import (its job does not need them)
 INDEPENDENT = {
@@ -52,7 +55,7 @@ def test_a_sub_package_imports_none_it_does_not_need(package):
 
 def test_no_module_is_left_flat_in_cosim():
     flat = sorted(p.name for p in COSIM.glob("*.py"))
-    assert flat == ["__init__.py", "commands.py", "simulate.py"]  # the CLI's and the API's entry points
+    assert flat == ["__init__.py", "simulate.py"]  # the API's entry point (the commands are deltafmi.apps')
     assert not list(COSIM.glob("*.json")) and not (COSIM / "native").exists()
 
 
@@ -96,23 +99,21 @@ def test_the_robot_fmus_declare_the_same_robot_parameters(build_fmu_from_src):
     assert robot_parameters("delta_robot_contact.py") == robot_parameters("delta_robot_box.py") == robot
 
 
-def _imports_in(path: Path) -> set[str]:
-    """Every module an ``import`` in ``path`` names, at any depth (function-level imports too)."""
-    import ast
-
-    names = set()
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Import):
-            names |= {alias.name for alias in node.names}
-        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
-            names.add(node.module)
-    return names
+def test_the_import_contracts_hold_and_no_module_imports_itself():
+    """tools/lint_imports.py: import-linter's contracts of pyproject.toml (the layers, the runtime's
+    standard library and numpy, the physics and the models on their own, no cycles between
+    siblings) and no cycle among modules at all, imports inside functions counted."""
+    run = subprocess.run([sys.executable, str(ROOT / "tools" / "lint_imports.py")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+    assert "Contracts: 5 kept, 0 broken." in run.stdout
+    assert "\n0 import cycle(s) among " in run.stdout
 
 
-def test_the_export_library_does_not_import_the_master():
-    # export builds FMUs; cosim runs them and may ask export to build: the library modules of
-    # export never reach into cosim (only the CLI's `validate X.fmu` calls the master's checks)
-    export = Path(deltafmi.__file__).parent / "export"
-    reaching = {path.name: sorted(n for n in _imports_in(path) if n.startswith("deltafmi.master"))
-                for path in export.glob("*.py") if path.name != "commands.py"}
-    assert {name: found for name, found in reaching.items() if found} == {}
+def test_the_layers_are_the_packages_the_design_names():
+    package = Path(deltafmi.__file__).parent
+    assert sorted(p.name for p in package.iterdir() if (p / "__init__.py").is_file()) == \
+        ["apps", "builder", "component", "master", "physics", "runtime"]
+    assert sorted(p.name for p in package.glob("*.py")) == ["__init__.py", "errors.py", "files.py", "shipped.py",
+                                                            "toolchain.py"]
+    assert (ROOT / "fmu_src" / "delta_robot.py").is_file() and (ROOT / "scenarios" / "delta_tracking.yaml").is_file()
+    assert Path(deltafmi.models.__file__).parent == ROOT / "fmu_src"

@@ -141,7 +141,7 @@ def compiled_value_access(modules: Optional[list[str]] = None) -> list[tuple[Pat
     except BuildError as exc:
         warnings.warn(f"FMUs ship without the compiled value access (same results, slower): {exc}", stacklevel=2)
         return []
-    folder = "resources/python/deltafmi/component"
+    folder = "resources/python/deltafmi/runtime"
     return [(module, f"{folder}/{module.name}"), (VALUE_ACCESS_SOURCE, f"{folder}/{VALUE_ACCESS_SOURCE.name}")]
 
 

@@ -412,7 +412,7 @@ def make_portable(fmu: Path, output: Path) -> PortableBundle:
     spec = find_spec("fmpy")
     sundials = Path(spec.submodule_search_locations[0]) / "sundials" / "x86_64-linux" if spec else None
     with zipfile.ZipFile(fmu) as archive:  # the runtime imports its solver only when a component integrates
-        needs_sundials = f"{PYTHON_DIR}/deltafmi/component/cvode.py" in archive.namelist()
+        needs_sundials = f"{PYTHON_DIR}/deltafmi/runtime/cvode.py" in archive.namelist()
     bundle = portable_bundle(modules, needs_sundials=needs_sundials, sundials_dir=sundials)
     replaced = {"resources/python.cfg", "documentation/index.html", "resources/README.txt"}
     with zipfile.ZipFile(fmu) as source, replaced_atomically(output) as tmp:

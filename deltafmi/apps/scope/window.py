@@ -304,31 +304,37 @@ def run_scope(arguments: Sequence[str], *, port: int, host: str = "127.0.0.1", w
     if save is not None and not os.path.isdir(os.path.dirname(os.path.abspath(save))):
         raise BadInput(f"cannot write {save}: no folder {os.path.dirname(os.path.abspath(save))}")
     scope = Scope(arguments, window, host, port)
-    address = "%s:%d" % scope.open()
-    print(f"listening {address}", flush=True)  # the line the master waits for
-    title = f"deltafmi scope · {address}"
     stop = _Stop()
-    if save is None:
-        import matplotlib.pyplot as plt
-
-        figure = plt.figure(figsize=_size(len(scope.data.groups)))
-        figure.canvas.mpl_connect("close_event", lambda _: stop("closed"))
-        events = figure.canvas.flush_events
-    else:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-
-        figure = Figure(figsize=_size(len(scope.data.groups)))
-        FigureCanvasAgg(figure)
-        events = None
-    view = ScopeFigure(scope.data, figure, title=title)
+    # before the line the master (or a test) waits for: a SIGTERM sent once it is read ends the scope
+    # as documented, however long matplotlib then takes to start
     previous = signal.signal(signal.SIGTERM, lambda *_: stop("terminated"))
+    view: Optional[ScopeFigure] = None
     try:
+        address = "%s:%d" % scope.open()
+        print(f"listening {address}", flush=True)  # the line the master waits for
+        title = f"deltafmi scope · {address}"
+        if save is None:
+            import matplotlib.pyplot as plt
+
+            figure = plt.figure(figsize=_size(len(scope.data.groups)))
+            figure.canvas.mpl_connect("close_event", lambda _: stop("closed"))
+            events = figure.canvas.flush_events
+        else:
+            from matplotlib.backends.backend_agg import FigureCanvasAgg
+            from matplotlib.figure import Figure
+
+            figure = Figure(figsize=_size(len(scope.data.groups)))
+            FigureCanvasAgg(figure)
+            events = None
+        view = ScopeFigure(scope.data, figure, title=title)
         if save is None:
             plt.show(block=False)
         reason = run_loop(scope, view, fps=fps, frames=frames, exit_when_idle=exit_when_idle,
                           events=events, stop=stop)
+        scope.drain(0.0)  # what arrived before the end counts, even where the end came first
     except KeyboardInterrupt:
+        if view is None:  # before there was anything to show
+            raise
         reason = "interrupted"
     finally:
         signal.signal(signal.SIGTERM, previous)

@@ -2,8 +2,8 @@
 
 :mod:`.system` is the mode machine (:class:`ContactSystem` over a :class:`LagrangianModel`),
 :mod:`.collision_law` the compliant collision law of the COLLISION mode and its calibration,
-:mod:`.material` a compliant contact in force units (stiffness, damping, restitution),
-:mod:`.hybrid_sim` a reference driver with FMI Model-Exchange event semantics. The derivation is
+:mod:`.material` a compliant contact in force units (stiffness, damping, restitution); the
+tests drive it with a reference driver of FMI Model-Exchange event semantics (tests/hybrid_sim.py). The derivation is
 in docs/contact.md; models built on it are in :mod:`deltafmi.physics.contact_problems` and
 :mod:`deltafmi.physics.delta`.
 """

@@ -23,7 +23,7 @@ crossing located by the solver is made to count. Booleans start false.
 
 With a1 = 0 the contact law does not conserve energy: lambda keeps pushing after the ball has
 risen through h = 0, until ``a0 q* + a2 q*^3 = g``; each bounce gains exactly
-``m (g q* - a0 q*^2/2 - a2 q*^4/4)`` (:func:`.bouncing_ball_figures.energy_gain_per_bounce`).
+``m (g q* - a0 q*^2/2 - a2 q*^4/4)`` (tests/bouncing_ball_figures.py: ``energy_gain_per_bounce``).
 """
 from __future__ import annotations
 

@@ -37,7 +37,7 @@ and then (no iteration: the same elimination run backwards)
 
 On the closed loops (h = 0, H v = 0) every arm end shares zdd and this is exact: it is the dense
 12-coordinate Lagrange system with mass matrix [[M_d + m Jv^T Jv, Jv^T J_s], [J_s^T Jv, M]]
-(tests/test_delta_wrist_mechanics.py solves that KKT system). Off them (Baumgarte's drift) the
+(tests/physics/test_delta_wrist_mechanics.py solves that KKT system). Off them (Baumgarte's drift) the
 per-arm split differs from it by O(|h| + |hd|), like the plate's own split.
 
 Energy (no damping, no inputs: conserved on the closed loops):
