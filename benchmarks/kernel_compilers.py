@@ -17,8 +17,8 @@ callback would, with no Python between calls. Candidates:
   (``cdef api``; its address from the module's ``__pyx_capi__`` capsule);
 - numba: ``@cfunc`` over ``njit`` copies of the unchanged functions (their globals rebound to the
   jitted copies), same C entry as Cython's, in the running process (JIT);
-- mypyc (today's FMUs): the compiled ``state_derivative`` called from Python (it takes Python
-  objects: no C entry exists), timed with a Python loop.
+(The compiler of whole Python modules into CPython extensions that FMUs shipped when this was
+measured, Python objects in and out, went when the code generator became the one compiler.)
 
 Each candidate's numbers are compared with the Python source (``state_derivative`` run by the
 interpreter) on the flagship's plant state at a few instants (bit for bit, else the largest
@@ -332,43 +332,6 @@ def numba_cfunc(tmp: Path) -> Candidate:
                             "note": f"JIT {build:.1f} s at every process start (less with cache=True, a disk cache)"})
 
 
-def mypyc_today(tmp: Path) -> Candidate:
-    from deltafmi.export.kernels import compiled_kernels, mypyc_version
-
-    if mypyc_version() is None:
-        raise Skip("mypy (mypyc) is not installed")
-    begin = time.perf_counter()
-    files = compiled_kernels(["deltafmi.mechanics.delta.dynamics"])
-    build = time.perf_counter() - begin
-    if not files:
-        raise Skip("mypyc compilation failed (see the warning)")
-    python_dir = tmp / "mypyc"
-    shutil.copytree(ROOT / "deltafmi", python_dir / "deltafmi",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.so", "_prebuilt"))
-    size = 0
-    for path, relative in files:
-        shutil.copy2(path, python_dir / relative)
-        size += stripped_size(path, tmp)
-    ours = lambda n: n == "deltafmi" or n.startswith("deltafmi.")  # noqa: E731
-    saved = {n: sys.modules.pop(n) for n in [n for n in sys.modules if ours(n)]}
-    sys.path.insert(0, str(python_dir))
-    try:
-        module = importlib.import_module("deltafmi.mechanics.delta.dynamics")
-        params_cls = importlib.import_module("deltafmi.mechanics.delta.params").DeltaParams
-    finally:
-        sys.path.remove(str(python_dir))
-        for n in [n for n in sys.modules if ours(n)]:
-            del sys.modules[n]
-        sys.modules.update(saved)
-    if not module.__file__.endswith(".so"):
-        raise Skip("the kernels did not load compiled")
-    return Candidate("mypyc (today; Python objects in and out)", None, build_s=build, size=kib(size),
-                     python_call=(module.state_derivative, params_cls),
-                     facts={"gil": "no", "portable": "no (CPython ABI)",
-                            "install": "mypy (build); the exact CPython at run time",
-                            "note": "build time: from the warm cache (1-2 min cold)"})
-
-
 PROBE = """\
 import math
 
@@ -423,7 +386,6 @@ def unsupported_errors(tmp: Path) -> dict[str, str]:
             said["numba"] = f"{type(exc).__name__}: {text[1] if len(text) > 1 else text[0]} (probe_kernel.py, {line})"
     except ImportError:
         said["numba"] = "not installed"
-    said["mypyc"] = "compiles any Python: the construct runs on Python objects (no error)"
     return said
 
 
@@ -494,7 +456,7 @@ def run(tmp: Path, repeats: int, calls: int) -> None:
     ptr = lambda a: a.ctypes.data_as(_D)  # noqa: E731
 
     candidates: list[Candidate] = []
-    for build in (hand_c, codegen, cython, numba_cfunc, mypyc_today):
+    for build in (hand_c, codegen, cython, numba_cfunc):
         try:
             candidates.append(build(tmp))
         except Skip as why:
