@@ -49,7 +49,6 @@ import types
 from ctypes import POINTER, c_double, c_int, c_long, c_void_p
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -106,11 +105,10 @@ class Skip(Exception):
 
 @dataclass
 class Candidate:
-    """One compiled kernel: its C function's address (None: Python-callable only)."""
+    """One compiled kernel: its C function's address."""
 
     name: str
-    address: Optional[int] = None
-    python_call: Optional[Callable] = None  #: (x list, u list, f list, pole) -> list
+    address: int
     build_s: float = 0.0
     size: str = ""
     facts: dict = field(default_factory=dict)
@@ -464,13 +462,8 @@ def run(tmp: Path, repeats: int, calls: int) -> None:
     for c in candidates:
         got = []
         for x, u in points:
-            if c.address is not None:
-                dx = np.empty(18)
-                driver.kernel_call(c.address, ptr(p), spec.pole, ptr(x), ptr(u), ptr(f), ptr(dx))
-            else:
-                fn, cls = c.python_call
-                dx = np.array(fn(cls(**{n: getattr(spec.plant, n) for n in native.ROBOT}), x.tolist(),
-                                 u.tolist(), f.tolist(), spec.pole))
+            dx = np.empty(18)
+            driver.kernel_call(c.address, ptr(p), spec.pole, ptr(x), ptr(u), ptr(f), ptr(dx))
             got.append(dx)
         c.facts["numbers"] = agreement(got, want)
 
@@ -482,16 +475,7 @@ def run(tmp: Path, repeats: int, calls: int) -> None:
         for c in candidates:
             per = []
             for x, u in points:
-                if c.address is not None:
-                    per.append(driver.kernel_ns(c.address, ptr(p), spec.pole, ptr(x), ptr(u), ptr(f), calls))
-                else:
-                    fn, cls = c.python_call
-                    params = cls(**{n: getattr(spec.plant, n) for n in native.ROBOT})
-                    xl, ul, fl, pole, n = x.tolist(), u.tolist(), f.tolist(), spec.pole, calls // 10
-                    begin = time.perf_counter()
-                    for _ in range(n):
-                        fn(params, xl, ul, fl, pole)
-                    per.append(1e9 * (time.perf_counter() - begin) / n)
+                per.append(driver.kernel_ns(c.address, ptr(p), spec.pole, ptr(x), ptr(u), ptr(f), calls))
             round_ns[c.name] = statistics.median(per)
             times[c.name].append(round_ns[c.name])
         base = round_ns[candidates[0].name]
