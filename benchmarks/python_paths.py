@@ -6,7 +6,7 @@ still runs in Python is: the Co-Simulation solver's Jacobian callback (DeltaRobo
 ``DELTAFMI_NATIVE_PROJECT=0``, its projection callback; Model Exchange directional derivatives (the
 same ``jacobian``); every kernel's Python method with ``DELTAFMI_NATIVE=0`` (the fallback of a
 build without a compiler); and the models that declare no kernels, such as the estimators, whose
-EKFs call the delta mechanics (kinematics, dynamics) from numpy code. This script times those
+EKFs call the delta mechanics (kinematics, dynamics) from numpy code, and the insertion MPC. This script times those
 paths through fmpy, in the FMUs of this tree and of ``--baseline`` (another checkout, for example
 an older commit whose FMUs carried compiled mechanics modules), alternated within each round, each case
 in a fresh process (so that each FMU imports its own copy of deltafmi):
@@ -17,8 +17,9 @@ in a fresh process (so that each FMU imports its own copy of deltafmi):
   (``DELTAFMI_NATIVE=0``);
 - ``me dd``: DeltaRobot in Model Exchange, one ``fmi2GetDirectionalDerivative`` call per state
   (the derivatives' and the outputs' column), per call, after initialization;
-- ``PegEstimator`` / ``ContactEstimator``: Co-Simulation over their default experiments (one
-  sample per ms, inputs at their defaults), wall time per sample.
+- ``PegEstimator`` / ``ContactEstimator`` / ``InsertionMpc`` (models without compiled kernels
+  that call the delta mechanics): Co-Simulation over their default experiments in 1 ms steps
+  (the estimators sample every ms), inputs at their defaults, time per ms.
 
 Printed: the medians over ``--repeats`` rounds for each tree, wall and CPU time, and the ratios
 this/baseline (medians of the rounds' ratios); above 1 this tree is slower.
@@ -37,7 +38,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-MODELS = ("DeltaRobot", "DeltaWrist", "PegEstimator", "ContactEstimator")
+MODELS = ("DeltaRobot", "DeltaWrist", "PegEstimator", "ContactEstimator", "InsertionMpc")
 MODES = {"native": {}, "py-project": {"DELTAFMI_NATIVE_PROJECT": "0"}, "python": {"DELTAFMI_NATIVE": "0"}}
 START = {"DeltaRobot": {}, "DeltaWrist": {"qw0[1]": 0.4, "qw0[2]": -0.3}}
 
@@ -46,7 +47,7 @@ def cases() -> list[tuple[str, str, str]]:
     """(label, model, mode) of every case."""
     out = [(f"cs {plant} {mode}", plant, mode) for plant in ("DeltaRobot", "DeltaWrist") for mode in MODES]
     out.append(("me dd (per call)", "DeltaRobot", "dd"))
-    out += [(f"{name} (per sample)", name, "sample") for name in ("PegEstimator", "ContactEstimator")]
+    out += [(f"{name} (per ms)", name, "sample") for name in ("PegEstimator", "ContactEstimator", "InsertionMpc")]
     return out
 
 
