@@ -3,8 +3,8 @@
 Everything else is declared in pyproject.toml. This file only (1) compiles the packaged models'
 native pieces into the wheel's ``deltafmi/_prebuilt`` after the sources are copied and copies the
 guides (docs/*.md and their figures) into ``deltafmi/docs``, and (2) marks
-the wheel as a platform wheel (``cpXY-cpXY-<platform>``), since those pieces are machine code and
-the mypyc kernels are per CPython version. An editable install (``pip install -e .``) skips (1):
+the wheel as a platform wheel (``cpXY-cpXY-<platform>``), since those pieces are machine code (the
+compiled value access and the portable FMUs' starter are built against this CPython's headers). An editable install (``pip install -e .``) skips (1):
 a source checkout compiles on demand into the per-user cache. ``DELTAFMI_NO_PREBUILD=1`` skips
 it too (a pure-source wheel that compiles on the user's machine; it still gets a platform tag).
 """

@@ -10,7 +10,7 @@
    work is small and the master's own per-step cost shows.
 
 3. The crossing of FMI (issue 16): the flagship's stepping against its in-process floor, the same
-   physics in one Python loop with no FMI: the compiled kernels shipped in the DeltaRobot FMU
+   physics in one Python loop with no FMI: the Python modules shipped in the DeltaRobot FMU
    (imported from that FMU's own ``resources/python``), the same classical RK4 (four
    ``state_derivative`` stages per 1 ms step, inputs held), the plant's recorded outputs from one
    ``evaluate_plant``, the same ``MinimumJerkPath.evaluate`` and ``DeltaController.step``; rows
@@ -187,7 +187,7 @@ def overhead(name: str, system: System, stop: float, repeats: int, out: Path) ->
 # --- 3. the in-process floor --------------------------------------------------------------------
 @contextlib.contextmanager
 def _fmu_python(unzip_dir: str):
-    """Inside the block ``import deltafmi...`` resolves to an FMU's own copy (its compiled kernels)."""
+    """Inside the block ``import deltafmi...`` resolves to an FMU's own copy (its Python modules)."""
     python_dir = str(Path(unzip_dir) / "resources" / "python")
     ours = lambda name: name == "deltafmi" or name.startswith("deltafmi.")  # noqa: E731
     saved = {name: sys.modules.pop(name) for name in [n for n in sys.modules if ours(n)]}
@@ -214,8 +214,6 @@ class Floor:
                 return importlib.import_module(module)
 
         self.delta = shipped("plant", "deltafmi.physics.delta")
-        #: the shipped dynamics module: a mypyc extension (.so) unless the FMU fell back to source
-        self.kernels = self.delta.dynamics.__file__
         self.control = shipped("controller", "deltafmi.physics.delta.control")
         self.trajectory = shipped("trajectory", "deltafmi.physics.delta.trajectory")
         self.system = system
@@ -362,7 +360,6 @@ def crossing(system: System, stop: float, repeats: int, out: Path) -> None:
     are medians of the rounds' ratios, so a busy spell on the shared machine hits both sides)."""
     steps = int(round((stop - system.scenario.experiment.start) / system.scenario.experiment.step))
     floor = Floor(system, out / "floor-fmu")
-    compiled = floor.kernels.endswith(".so")
     _, reference, _ = floor.run(steps)
     fig: dict = {}
 
@@ -385,7 +382,7 @@ def crossing(system: System, stop: float, repeats: int, out: Path) -> None:
     gap = float(np.max(np.abs(rows - reference)[:, 1:]))
     med = lambda key, i: statistics.median(v[i] for v in fig[key])  # noqa: E731
     print(f"  flagship stepping {med('flagship', 0):6.1f} us/step, in-process floor {med('flagship', 1):6.1f} us/step "
-          f"({'mypyc-compiled Python' if compiled else 'PLAIN PYTHON kernels: the FMU shipped no mypyc ones'}; "
+          f"(the Python modules the FMUs carry; "
           f"its samples within {gap:.1e} of the flagship's) -> ratio {med('flagship', 2):.2f}x (target <= 1.5x)")
     print(f"  {'piece, us per step (per call for the RHS)':60s} {'FMI':>7s} {'direct':>7s} {'ratio':>6s} {'over':>7s}")
     for key, label in (("rhs", "plant RHS: SetTime + SetContinuousStates + GetDerivatives"),

@@ -17,8 +17,8 @@ callback would, with no Python between calls. Candidates:
   (``cdef api``; its address from the module's ``__pyx_capi__`` capsule);
 - numba: ``@cfunc`` over ``njit`` copies of the unchanged functions (their globals rebound to the
   jitted copies), same C entry as Cython's, in the running process (JIT);
-- mypyc (today's FMUs): the compiled ``state_derivative`` called from Python (it takes Python
-  objects: no C entry exists), timed with a Python loop.
+(The compiler of whole Python modules into CPython extensions that FMUs shipped when this was
+measured, Python objects in and out, went when the code generator became the one compiler.)
 
 Each candidate's numbers are compared with the Python source (``state_derivative`` run by the
 interpreter) on the flagship's plant state at a few instants (bit for bit, else the largest
@@ -49,7 +49,6 @@ import types
 from ctypes import POINTER, c_double, c_int, c_long, c_void_p
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -106,11 +105,10 @@ class Skip(Exception):
 
 @dataclass
 class Candidate:
-    """One compiled kernel: its C function's address (None: Python-callable only)."""
+    """One compiled kernel: its C function's address."""
 
     name: str
-    address: Optional[int] = None
-    python_call: Optional[Callable] = None  #: (x list, u list, f list, pole) -> list
+    address: int
     build_s: float = 0.0
     size: str = ""
     facts: dict = field(default_factory=dict)
@@ -332,43 +330,6 @@ def numba_cfunc(tmp: Path) -> Candidate:
                             "note": f"JIT {build:.1f} s at every process start (less with cache=True, a disk cache)"})
 
 
-def mypyc_today(tmp: Path) -> Candidate:
-    from deltafmi.builder.kernels import compiled_kernels, mypyc_version
-
-    if mypyc_version() is None:
-        raise Skip("mypy (mypyc) is not installed")
-    begin = time.perf_counter()
-    files = compiled_kernels(["deltafmi.physics.delta.dynamics"])
-    build = time.perf_counter() - begin
-    if not files:
-        raise Skip("mypyc compilation failed (see the warning)")
-    python_dir = tmp / "mypyc"
-    shutil.copytree(ROOT / "deltafmi", python_dir / "deltafmi",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.so", "_prebuilt"))
-    size = 0
-    for path, relative in files:
-        shutil.copy2(path, python_dir / relative)
-        size += stripped_size(path, tmp)
-    ours = lambda n: n == "deltafmi" or n.startswith("deltafmi.")  # noqa: E731
-    saved = {n: sys.modules.pop(n) for n in [n for n in sys.modules if ours(n)]}
-    sys.path.insert(0, str(python_dir))
-    try:
-        module = importlib.import_module("deltafmi.physics.delta.dynamics")
-        params_cls = importlib.import_module("deltafmi.physics.delta.params").DeltaParams
-    finally:
-        sys.path.remove(str(python_dir))
-        for n in [n for n in sys.modules if ours(n)]:
-            del sys.modules[n]
-        sys.modules.update(saved)
-    if not module.__file__.endswith(".so"):
-        raise Skip("the kernels did not load compiled")
-    return Candidate("mypyc (today; Python objects in and out)", None, build_s=build, size=kib(size),
-                     python_call=(module.state_derivative, params_cls),
-                     facts={"gil": "no", "portable": "no (CPython ABI)",
-                            "install": "mypy (build); the exact CPython at run time",
-                            "note": "build time: from the warm cache (1-2 min cold)"})
-
-
 PROBE = """\
 import math
 
@@ -423,7 +384,6 @@ def unsupported_errors(tmp: Path) -> dict[str, str]:
             said["numba"] = f"{type(exc).__name__}: {text[1] if len(text) > 1 else text[0]} (probe_kernel.py, {line})"
     except ImportError:
         said["numba"] = "not installed"
-    said["mypyc"] = "compiles any Python: the construct runs on Python objects (no error)"
     return said
 
 
@@ -494,7 +454,7 @@ def run(tmp: Path, repeats: int, calls: int) -> None:
     ptr = lambda a: a.ctypes.data_as(_D)  # noqa: E731
 
     candidates: list[Candidate] = []
-    for build in (hand_c, codegen, cython, numba_cfunc, mypyc_today):
+    for build in (hand_c, codegen, cython, numba_cfunc):
         try:
             candidates.append(build(tmp))
         except Skip as why:
@@ -502,13 +462,8 @@ def run(tmp: Path, repeats: int, calls: int) -> None:
     for c in candidates:
         got = []
         for x, u in points:
-            if c.address is not None:
-                dx = np.empty(18)
-                driver.kernel_call(c.address, ptr(p), spec.pole, ptr(x), ptr(u), ptr(f), ptr(dx))
-            else:
-                fn, cls = c.python_call
-                dx = np.array(fn(cls(**{n: getattr(spec.plant, n) for n in native.ROBOT}), x.tolist(),
-                                 u.tolist(), f.tolist(), spec.pole))
+            dx = np.empty(18)
+            driver.kernel_call(c.address, ptr(p), spec.pole, ptr(x), ptr(u), ptr(f), ptr(dx))
             got.append(dx)
         c.facts["numbers"] = agreement(got, want)
 
@@ -520,16 +475,7 @@ def run(tmp: Path, repeats: int, calls: int) -> None:
         for c in candidates:
             per = []
             for x, u in points:
-                if c.address is not None:
-                    per.append(driver.kernel_ns(c.address, ptr(p), spec.pole, ptr(x), ptr(u), ptr(f), calls))
-                else:
-                    fn, cls = c.python_call
-                    params = cls(**{n: getattr(spec.plant, n) for n in native.ROBOT})
-                    xl, ul, fl, pole, n = x.tolist(), u.tolist(), f.tolist(), spec.pole, calls // 10
-                    begin = time.perf_counter()
-                    for _ in range(n):
-                        fn(params, xl, ul, fl, pole)
-                    per.append(1e9 * (time.perf_counter() - begin) / n)
+                per.append(driver.kernel_ns(c.address, ptr(p), spec.pole, ptr(x), ptr(u), ptr(f), calls))
             round_ns[c.name] = statistics.median(per)
             times[c.name].append(round_ns[c.name])
         base = round_ns[candidates[0].name]

@@ -21,10 +21,10 @@ microseconds):
   through a fresh C controller;
 - deltafmi: the flagship stepping through FMI (the master, as benchmarks/cosim.py times it), with
   the FMUs' compiled kernels (C generated from the Python, deltafmi/builder/codegen) and, for the
-  before/after, on their Python methods (``DELTAFMI_NATIVE=0``: the mypyc-compiled Python, what
+  before/after, on their Python methods (``DELTAFMI_NATIVE=0``: the Python the FMU carries, what
   every step ran before the kernels; the two runs' CSVs are compared bit for bit); the plant
   derivative through FMI (fmi2SetTime + fmi2SetContinuousStates + fmi2GetDerivatives in C,
-  cosim.py's rhs_pair) and the Python path's (``state_derivative`` of the FMU's mypyc kernels,
+  cosim.py's rhs_pair) and the Python path's (``state_derivative`` of the FMU's Python modules,
   in-process); the controller sample through FMI (inputs set + fmi2DoStep + outputs read, timed
   by the master's C loop) and the Python path's (``DeltaController.step``, in-process, replaying
   the same samples as the C controller);
@@ -405,10 +405,10 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
     print(line(f"C plant derivative (one call, median over {len(instants)} instants of the run)", "c rhs"))
     print(line("deltafmi: plant derivative through FMI (SetTime + SetContinuousStates + GetDerivatives)",
                "fmi rhs"))
-    print(line("deltafmi: plant derivative, Python path (state_derivative, mypyc, in-process)", "py rhs"))
+    print(line("deltafmi: plant derivative, Python path (state_derivative, in-process)", "py rhs"))
     print(line("C controller sample (the run's samples replayed)", "c ctl"))
     print(line("deltafmi: controller through FMI (SetReal + DoStep + GetReal, master's C loop)", "fmi ctl"))
-    print(line("deltafmi: controller sample, Python path (DeltaController.step, mypyc, in-process)", "py ctl"))
+    print(line("deltafmi: controller sample, Python path (DeltaController.step, in-process)", "py ctl"))
     print("ratios deltafmi / C, medians of the rounds' ratios (issue 26's targets):")
     for label, fmi, c, target in (("flagship step through FMI", "fmi step", "c step", "step"),
                                   ("plant derivative through FMI", "fmi rhs", "c rhs", "derivative"),

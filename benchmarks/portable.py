@@ -12,7 +12,7 @@ every path once in a fresh process, so that a slow spell of the shared machine h
       C host, non-portable (recorded interpreter) and portable (bundled interpreter);
       fmpy, host interpreter of the same version (this Python), non-portable and portable;
       fmpy, host interpreter of another version (CPython 3.12 by default: the FMU's 3.11 bytecode and
-      mypyc kernels do not load there, its runtime and kernels run from source).
+      value access do not load there, its runtime runs from source).
 The other-version host is a virtual environment with fmpy made once in the build cache.
 Usage: python benchmarks/portable.py [--model delta_robot] [--steps N] [--repeats R] [--other 3.12]
        [--other-python PATH] [--no-sizes]

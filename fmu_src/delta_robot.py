@@ -4,13 +4,24 @@ import numpy as np
 from deltafmi.component import Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter, State
 from deltafmi.physics import delta
 from deltafmi.physics.delta import dynamics
-from deltafmi.physics.delta.jacobian import plant_jacobian
+from deltafmi.physics.delta.jacobian import jacobian_from_values, jacobian_values
 from deltafmi.physics.delta.params import DeltaParams
 from deltafmi.models.robot_parameters import RobotParameters
 
 
 #: the outputs, in the order dynamics.plant_outputs returns them
 _OUTPUTS = ("y", "yd", "z", "zd", "lam", "residual", "energy")
+#: d y / d [q, v, u, f] and d yd / d [q, v, u, f]: the servo joints (constant)
+_SERVO = np.zeros((3, 24))
+_SERVO[[0, 1, 2], [0, 3, 6]] = 1.0
+_SERVO_RATE = np.roll(_SERVO, 9, axis=1)
+
+
+def _jacobian_blocks(values: np.ndarray) -> dict:
+    """DeltaRobot.jacobian()'s matrices from the floats of jacobian_values (the kernel's, or Python's)."""
+    pj = jacobian_from_values(values)
+    return {"der": pj.dx, "y": _SERVO.copy(), "yd": _SERVO_RATE.copy(), "z": pj.dz, "zd": pj.dzd,
+            "lam": pj.dlam, "energy": pj.denergy[None, :]}
 
 
 class DeltaRobot(RobotParameters, Component):
@@ -62,6 +73,7 @@ class DeltaRobot(RobotParameters, Component):
         derivatives=Kernel(dynamics.state_derivative, "_plant", "states", "u", "f", "pole"),
         outputs=Kernel(dynamics.plant_outputs, "_plant", "q", "v", "u", "f", "pole", returns=_OUTPUTS),
         project=Kernel(dynamics.project_state, "_plant", "q", "v", returns=("q", "v")),
+        jacobian=Kernel(jacobian_values, "_plant", "q", "v", "u", "f", "pole", then=_jacobian_blocks),
         attributes={"_plant": DeltaParams})
 
     def setup(self) -> None:
@@ -87,11 +99,7 @@ class DeltaRobot(RobotParameters, Component):
     def jacobian(self, t: float) -> dict:
         """Exact partial derivatives (deltafmi.physics.delta.jacobian); the residual |h|, not
         differentiable on the closed loops, is left to the runtime's differences."""
-        pj = plant_jacobian(self._plant, self.q, self.v, self.u, self.f, self.pole)
-        servo = np.zeros((3, 24))
-        servo[[0, 1, 2], [0, 3, 6]] = 1.0
-        return {"der": pj.dx, "y": servo, "yd": np.roll(servo, 9, axis=1), "z": pj.dz, "zd": pj.dzd,
-                "lam": pj.dlam, "energy": pj.denergy[None, :]}
+        return _jacobian_blocks(np.array(jacobian_values(self._plant, self.q, self.v, self.u, self.f, self.pole)))
 
     def outputs(self, t: float) -> None:
         y, yd, z, zd, lam, residual, energy = dynamics.plant_outputs(self._plant, self.q, self.v, self.u, self.f,

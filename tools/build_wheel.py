@@ -9,9 +9,9 @@ into it, see deltafmi/builder/prebuild.py); pypa's auditwheel then checks every 
 against the manylinux policy ``--plat`` (default manylinux_2_17, i.e. manylinux2014: glibc 2.17,
 which the binaries' GLIBC symbol versions allow, see export/native/glibc_floor.h) and retags the
 wheel; it fails when a binary needs newer symbols or a library outside the policy (it would graft
-one into the wheel; ours need none). The policy is named rather than auto-detected because
-auditwheel's detection fails when the first binary it reads is a mypyc shim without a libc
-dependency. Prints the path of each wheel made.
+one into the wheel; ours need none). The policy is named rather than auto-detected: the wheel's
+platform is a promise (the oldest glibc the binaries are built for), not whatever auditwheel reads
+off the first binary it looks at. Prints the path of each wheel made.
 """
 from __future__ import annotations
 
@@ -71,7 +71,7 @@ def main() -> None:
     parser.add_argument("--python", action="append", help="a CPython to build for (repeatable; default: this one)")
     parser.add_argument("--plat", default="", help="the manylinux policy (default manylinux_2_17_<machine>)")
     parser.add_argument("--no-build-isolation", action="store_true",
-                        help="build with the Python's installed setuptools, mypy and numpy (no download)")
+                        help="build with the Python's installed setuptools and numpy (no download)")
     args = parser.parse_args()
     args.output.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="deltafmi-src-") as tmp:

@@ -25,7 +25,6 @@ from ..files import replaced_atomically
 from deltafmi.toolchain import BuildError, NoCompilerError, cache_dir, compiler_available, no_compiler_message, python_extension
 from .compiler import fmu_binary, native_source_files, python_runtime_config
 from .codegen.component_kernels import component_library
-from .kernels import compiled_kernels
 from .bytecode import unchecked_hash_pyc
 from .reach import BOOT_SOURCE, module_archive_name, module_source, reached_modules
 from .sources import ComponentSourceError, find_component
@@ -119,13 +118,10 @@ def runtime_files(source: Path) -> list[tuple[Path, str]]:
 
 
 def binary_files(source: Path) -> list[tuple[Path, str]]:
-    """(file, archive name) of the compiled modules bundled for ``source``: the value access and
-    the kernels of the modules it carries."""
-    modules = runtime_modules(source)
-    # kernels are deflated since they are stripped: inflating the robot's 0.5 MB takes ~3 ms and
-    # saves 0.35 MB (they were stored while they carried 1.4 MB of debug information)
-    return compiled_value_access(modules) + [(path, f"resources/python/{relative}")
-                                             for path, relative in compiled_kernels(modules)]
+    """(file, archive name) of the compiled Python extension modules bundled for ``source``: the
+    value access, when the modules it carries use it (a model's compiled kernels are C generated
+    from its Python, loaded by the FMU's C layer: see :func:`.codegen.component_kernels.component_library`)."""
+    return compiled_value_access(runtime_modules(source))
 
 
 def compiled_value_access(modules: Optional[list[str]] = None) -> list[tuple[Path, str]]:

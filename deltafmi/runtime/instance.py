@@ -111,6 +111,7 @@ class FmuInstance:
         self.native = self._load_kernels() if getattr(component_class, "native", None) is not None else None
         if self.native is not None:
             self.native.attach(self.component._real, self.component._int, self.event_indicators)
+            self.partials.native = self.native
 
     def _load_kernels(self) -> Optional[NativeKernelsRuntime]:
         try:

@@ -22,7 +22,10 @@ CVODE's projection after every internal step (Co-Simulation, a component that ov
 ``outputs`` for the getters, ``step`` for ``fmi2DoStep`` of a component that steps itself (a
 sampled controller, a reference generator; see :class:`Kernel`), ``update`` for the event update
 of a component without states (``fmi2NewDiscreteStates``, fmi3UpdateDiscreteStates at a Clock's tick,
-fmi3ActivateModelPartition). The component's Python methods stay, and must
+fmi3ActivateModelPartition), ``jacobian`` for the float part of :meth:`~deltafmi.runtime.Component.jacobian`
+(Model Exchange's directional derivatives, the Co-Simulation solver's Newton matrix): Python
+calls it (ctypes) and hands its floats to the kernel's ``then``, which builds the matrices
+(numpy). The component's Python methods stay, and must
 compute the same numbers with the same kernels: they serve initialization, events, whatever the
 C cannot, and the tests that compare the two. Attributes are copied to C after initialization,
 after every event update and after every step Python takes; an attribute that does not fit its
@@ -59,21 +62,25 @@ class Kernel:
     the whole C result and runs the Python ``do_step`` instead, for what C cannot do (log a warning).
     An ``update`` kernel (the event update at ``"t"`` of a component without states) returns
     ``(*updates, [defer flag], next time event (nan: none), *outputs)``, as its ``update()`` and
-    ``next_time_event()`` would."""
+    ``next_time_event()`` would. A ``jacobian`` kernel returns floats (a flat sequence) and
+    ``then(values)`` (a Python function, given them as a float64 array) returns what the
+    component's ``jacobian(t)`` would: that method must be ``then`` of the kernel's Python."""
 
     func: Callable
     args: tuple
     returns: tuple = ()
     updates: tuple = ()
     defer: bool = False
+    then: Optional[Callable] = None
 
     def __init__(self, func: Callable, *args: str, returns: tuple = (), updates: tuple = (),
-                 defer: bool = False) -> None:
+                 defer: bool = False, then: Optional[Callable] = None) -> None:
         object.__setattr__(self, "func", func)
         object.__setattr__(self, "args", tuple(args))
         object.__setattr__(self, "returns", tuple(returns))
         object.__setattr__(self, "updates", tuple(updates))
         object.__setattr__(self, "defer", bool(defer))
+        object.__setattr__(self, "then", then)
 
 
 @dataclass(frozen=True)
@@ -86,17 +93,21 @@ class NativeKernels:
     step: Optional[Kernel] = None
     update: Optional[Kernel] = None
     project: Optional[Kernel] = None
+    jacobian: Optional[Kernel] = None
     attributes: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "required"
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"NativeKernels mode {self.mode!r} must be one of {', '.join(MODES)}")
+        if self.jacobian is not None and self.jacobian.then is None:
+            raise ValueError("NativeKernels: a jacobian kernel needs then=, the function that builds "
+                             "jacobian()'s matrices from its floats")
 
     def kernels(self) -> dict[str, Kernel]:
         """The declared kernels by role (``derivatives``, ``event_indicators``, ``outputs``, ``step``,
-        ``update``, ``project``)."""
+        ``update``, ``project``, ``jacobian``)."""
         return {role: k for role, k in (("derivatives", self.derivatives), ("event_indicators", self.event_indicators),
                                         ("outputs", self.outputs), ("step", self.step), ("update", self.update),
-                                        ("project", self.project))
+                                        ("project", self.project), ("jacobian", self.jacobian))
                 if k is not None}

@@ -32,6 +32,8 @@ DESCRIPTION = "native_kernels.json"
 ROLES = ("derivatives", "event_indicators", "outputs", "step", "update")
 #: the roles only CVODE calls (through :meth:`NativeKernelsRuntime.cvode_callbacks`), not the loader
 CVODE_ROLES = ("project",)
+#: the roles the Python side calls itself (:meth:`NativeKernelsRuntime.jacobian_values`)
+PYTHON_ROLES = ("jacobian",)
 _SCALARS = {"double": ctypes.c_double, "int": ctypes.c_int, "bool": ctypes.c_int, "str": ctypes.c_char_p}
 _TYPES: dict[str, Any] = {}
 
@@ -261,6 +263,12 @@ class NativeKernelsRuntime:
         self._functions = functions
         self.addresses = [ctypes.cast(f, ctypes.c_void_p).value if f is not None else 0 for f in functions]
         self._cvode_roles = {role for role in CVODE_ROLES if role in description["kernels"]}
+        self._jacobian = None
+        if "jacobian" in description["kernels"]:
+            self._jacobian = self.library.dfmi_kernel_jacobian
+            self._jacobian.argtypes = [ctypes.c_void_p, ctypes.c_double] + [ctypes.c_void_p] * 3
+            self._jacobian.restype = ctypes.c_int
+            self._jacobian_values = np.zeros(description["jacobian_size"])
         self._buffers = (None, None, None)
         #: [0] nonzero while the struct holds the component's current attributes
         self.ready = np.zeros(1, dtype=np.intc)
@@ -301,10 +309,30 @@ class NativeKernelsRuntime:
         return bool(self.ready[0]) and kernel is not None and kernel(ctypes.addressof(self.struct), t,
                                                                       *self._buffers) == 0
 
+    def outputs(self, t: float) -> bool:
+        """The outputs at ``t`` into the value buffer by the kernel; False (nothing written) when
+        the kernels are off, there is none, or it raised."""
+        kernel = self._functions[2]
+        return bool(self.ready[0]) and kernel is not None and kernel(ctypes.addressof(self.struct), t,
+                                                                      *self._buffers) == 0
+
+    def jacobian_values(self, t: float) -> Optional[np.ndarray]:
+        """The jacobian kernel's floats at ``t`` (a new array), or None when the kernels are off,
+        there is none, or it raised."""
+        if self._jacobian is None or not self.ready[0]:
+            return None
+        real, ints, _ = self._buffers
+        values = self._jacobian_values
+        if self._jacobian(ctypes.addressof(self.struct), t, real, ints, values.ctypes.data) != 0:
+            return None
+        return values.copy()
+
     def has(self, role: str) -> bool:
         """Whether the library has the kernel of ``role``."""
         if role in CVODE_ROLES:
             return role in self._cvode_roles
+        if role in PYTHON_ROLES:
+            return self._jacobian is not None
         return bool(self.addresses[ROLES.index(role)])
 
     def cvode_callbacks(self, x_offset: int, dx_offset: int, nx: int,

@@ -96,6 +96,9 @@ class DirectionalDerivatives:
             else:
                 self.runs.append(slice(vr, vr + 1))
         self.exact = cls.provides_jacobian()
+        #: the instance's compiled kernels (set by the instance): the differences evaluate them,
+        #: and their jacobian kernel, when there is one, stands for the float part of ``jacobian()``
+        self.native: Optional[Any] = None
         self._key: Optional[tuple] = None
         self._blocks: dict[str, np.ndarray] = {}
         self._checked: set[str] = set()
@@ -141,7 +144,8 @@ class DirectionalDerivatives:
         real = comp._real
         key = (t, id(comp), comp._int.tobytes(), *(real[run].tobytes() for run in self.runs))
         if key != self._key:
-            given = comp.jacobian(t) or {}
+            values = self.native.jacobian_values(t) if self.native is not None else None
+            given = (self.cls.native.jacobian.then(values) if values is not None else comp.jacobian(t)) or {}
             self._blocks = {k: self._checked_block(k, np.ascontiguousarray(m, dtype=float)) for k, m in given.items()}
             self._key = key
         return self._blocks
@@ -195,10 +199,17 @@ class DirectionalDerivatives:
 
     def _unknowns(self, comp: Component, t: float, keys: list, plan: _Plan) -> dict[str, Any]:
         values: dict[str, Any] = {}
+        native = self.native
         if "der" in keys:
-            values["der"] = flatten(comp.derivatives(t))[plan.groups["der"][1]]
+            if native is not None and native.derivatives(t):  # the compiled kernel: the same bits
+                offset = self.cls._layout.dx_offset
+                derivatives = comp._real[offset: offset + self.nx].copy()
+            else:
+                derivatives = flatten(comp.derivatives(t))
+            values["der"] = derivatives[plan.groups["der"][1]]
         outputs = [k for k in keys if k != "der"]
         if outputs:
-            comp.outputs(t)
+            if native is None or not native.outputs(t):
+                comp.outputs(t)
             values.update({k: comp._real[plan.output_buffers[k]] for k in outputs})
         return values

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from deltafmi import toolchain
-from deltafmi.builder import compiler, kernels, packager
+from deltafmi.builder import packager
 from deltafmi.shipped import MODELS_DIR
 from deltafmi.toolchain import BuildError, NoCompilerError, plain_c_library
 
@@ -99,16 +99,16 @@ def test_the_prebuilt_layer_serves_without_compiler_and_the_user_cache_comes_fir
     assert plain_c_library(source) == tmp_path / "user" / relative
 
 
-def test_the_kernels_key_ignores_the_mypy_version_and_the_python_build(monkeypatch):
-    import mypy.version
+def test_the_compiled_kernels_key_ignores_the_python_build(monkeypatch):
+    """A model's compiled kernels are plain C (no Python headers): built for one CPython build,
+    they serve another; their key is the generated source."""
+    from deltafmi.builder.codegen.component_kernels import component_library
+    from deltafmi.models import DeltaRobot
 
-    key = kernels.kernels_path()
-    monkeypatch.setattr(mypy.version, "__version__", "0.0.1")
+    built = component_library(DeltaRobot)
     monkeypatch.setattr(sys, "version", "3.x.y (other build, other compiler)")
-    assert kernels.kernels_path() == key
-    monkeypatch.setattr(kernels.sysconfig, "get_config_var",
-                        lambda name: "cpython-399-x86_64-linux-gnu" if name == "SOABI" else None)
-    assert kernels.kernels_path() != key  # another CPython ABI: other kernels
+    again = component_library(DeltaRobot)
+    assert again.library == built.library and again.source == built.source
 
 
 def test_a_first_build_says_so_in_one_line_and_a_cached_one_is_silent(tmp_path, monkeypatch, capfd, caplog):

@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltafmi.builder.kernels import kernel_groups, kernel_modules, mypyc_version
 from deltafmi.builder.packager import runtime_modules
 from deltafmi.physics import delta as d
 
@@ -25,7 +24,6 @@ from conftest import FMU_SRC, MODEL_FILES, ROOT, unzip
 
 SOURCES = MODEL_FILES
 EXT_SUFFIX = sysconfig.get_config_var("EXT_SUFFIX")
-needs_mypyc = pytest.mark.skipif(mypyc_version() is None, reason="mypy (mypyc) is not installed: no compiled kernels")
 
 # Import the model as boot.py does (model source + the runtime), then list deltafmi's modules.
 _TRACE = """
@@ -81,7 +79,7 @@ def test_what_a_run_imports_is_in_the_fmu(build_fmu_from_src, source, has_states
     fmu = build_fmu_from_src(source)
     out = subprocess.run([sys.executable, "-I", "-c", _RUN, str(fmu)], capture_output=True, text=True,
                          check=True, cwd=ROOT)
-    imported = {m for m in json.loads(out.stdout) if m != "deltafmi.runtime._values" and "__mypyc" not in m}
+    imported = {m for m in json.loads(out.stdout) if m != "deltafmi.runtime._values"}
     # the CS solver, imported only when a step integrates states
     assert ("deltafmi.runtime.cvode" in imported) == has_states
     missing = imported - _archive_modules(fmu)
@@ -92,7 +90,7 @@ def test_oscillator_carries_no_mechanics_and_no_kernels(build_fmu_from_src):
     fmu = build_fmu_from_src("oscillator.py")
     names = zipfile.ZipFile(fmu).namelist()
     assert not [n for n in names if "mechanics" in n]
-    assert not [n for n in names if "__mypyc" in n or n.endswith(EXT_SUFFIX)]  # (_values.abi3.so is the runtime's)
+    assert not [n for n in names if n.endswith(EXT_SUFFIX)]  # (_values.abi3.so is the runtime's)
     assert _archive_modules(fmu) == set(runtime_modules(FMU_SRC / "oscillator.py"))
     assert fmu.stat().st_size <= 300_000, f"{fmu.stat().st_size} bytes"
 
@@ -101,37 +99,34 @@ def test_oscillator_carries_no_mechanics_and_no_kernels(build_fmu_from_src):
     m.startswith("deltafmi.physics.delta") for m in runtime_modules(FMU_SRC / s))])
 def test_fmus_of_models_without_delta_robot_code_are_small(build_fmu_from_src, source):
     fmu = build_fmu_from_src(source)
-    assert not [n for n in zipfile.ZipFile(fmu).namelist() if "physics/delta" in n or "__mypyc" in n]
+    assert not [n for n in zipfile.ZipFile(fmu).namelist() if "physics/delta" in n]
     # ~300 kB of runtime and binary, and the model's compiled kernels: their library and C (30-100 kB)
     assert fmu.stat().st_size <= 450_000, f"{fmu.stat().st_size} bytes"
 
 
-@pytest.mark.parametrize("source, kernels", [
+@pytest.mark.parametrize("source, mechanics", [
     ("delta_robot.py", {"dynamics", "kinematics", "jacobian"}),
     # deltafmi.physics.delta's __init__ re-exports the plant: importing .control loads it
     ("delta_controller.py", {"control_law", "dynamics", "kinematics"}),
     ("bouncing_ball.py", set()),
 ])
-@needs_mypyc
-def test_an_fmu_carries_the_kernels_of_the_modules_it_reaches(build_fmu_from_src, source, kernels):
+def test_an_fmus_only_compiled_code_is_its_binaries_and_the_value_access(build_fmu_from_src, source, mechanics):
+    """The mechanics modules a model reaches go in as source; its compiled kernels are the C
+    library generated from them, beside the FMI binary; the one Python extension module is the
+    runtime's value access."""
     fmu = build_fmu_from_src(source)
     names = zipfile.ZipFile(fmu).namelist()
     folder = "resources/python/deltafmi/physics/delta/"
-    shims = {n[len(folder):-len(EXT_SUFFIX)] for n in names
-             if n.startswith(folder) and n.endswith(EXT_SUFFIX) and "__mypyc" not in n}
-    assert shims == kernels
-    # one shared library per mypyc group of the carried kernels, none of other groups
-    groups = {tuple(group) for group in kernel_groups() for name in group if name.rpartition(".")[2] in kernels}
-    assert len([n for n in names if "__mypyc" in n]) == len(groups)
-    # and no other module's kernels: what goes in follows the carried modules
-    assert {m.rpartition(".")[2] for m in set(kernel_modules()) & _archive_modules(fmu)} == kernels
+    assert {n[len(folder):-3] for n in names if n.startswith(folder) and n.endswith(".py")} >= mechanics
+    assert [n for n in names if n.startswith("resources/python/") and n.endswith(".so")] == [
+        "resources/python/deltafmi/runtime/_values.abi3.so"]
+    model = json.loads(zipfile.ZipFile(fmu).read("resources/native_kernels.json"))["library"]
+    assert model in names and model.startswith("binaries/") and model.endswith("_kernels.so")
 
 
-@needs_mypyc
-def test_the_robot_fmus_compiled_kernels_load_from_the_fmu_alone(build_fmu_from_src, tmp_path):
+def test_the_robot_fmus_mechanics_load_from_the_fmu_alone(build_fmu_from_src, tmp_path):
     """In a fresh interpreter that finds deltafmi only in the FMU, the plant modules are the
-    shipped mypyc extensions (so their group library is in the FMU) and give the pure-Python
-    library's derivatives to round-off."""
+    FMU's sources and give the library's derivatives, bit for bit."""
     python_dir = unzip(build_fmu_from_src("delta_robot.py"), tmp_path / "robot") / "resources" / "python"
     rng = np.random.default_rng(5)
     x = np.concatenate([d.inverse_kinematics(d.RL5, [0.1, -0.2, -0.9]), rng.normal(0.0, 1.0, 9)]).tolist()
@@ -148,9 +143,8 @@ print(json.dumps({{"files": [m.__file__ for m in (dynamics, jacobian, kinematics
     out = subprocess.run([sys.executable, "-I", "-c", script], capture_output=True, text=True, check=True,
                          cwd=tmp_path)
     result = json.loads(out.stdout)
-    assert all(f.endswith(EXT_SUFFIX) for f in result["files"]), result["files"]
-    np.testing.assert_allclose(result["dx"], d.state_derivative(d.RL5, np.array(x), np.array(u), np.zeros(3)),
-                               rtol=1e-12, atol=1e-12)
+    assert all(f.startswith(str(python_dir)) and f.endswith(".py") for f in result["files"]), result["files"]
+    np.testing.assert_array_equal(result["dx"], d.state_derivative(d.RL5, x, u, [0.0, 0.0, 0.0]))
 
 
 def test_content_key_follows_only_the_files_an_fmu_carries(tmp_path):

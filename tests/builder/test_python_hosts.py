@@ -4,8 +4,8 @@ Exchange, give the results of the builder's environment (this test's interpreter
 whatever the host's version.
 
 A host of another version than the FMU's runs the model in its own interpreter with the FMU's
-pure-Python fallbacks (the runtime's sources, the kernels' sources instead of the mypyc modules)
-and its own numpy; the packages a portable FMU carries serve only a host of the bundled version.
+pure-Python fallbacks (the runtime's sources instead of its compiled value access) and its own
+numpy (the compiled kernels are plain C, whatever the host's version); the packages a portable FMU carries serve only a host of the bundled version.
 """
 from __future__ import annotations
 

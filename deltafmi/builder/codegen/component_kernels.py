@@ -98,12 +98,15 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
     description = {"kernels": list(native.kernels()),
                    "attributes": [[name, describe(t)] for name, t in attributes.items()],
                    "updates": list(native.step.updates) if native.step is not None else []}
+    if native.jacobian is not None:
+        description["jacobian_size"] = len(_leaves(returns["dfk_jacobian"], "out", f"{cls.__name__}.native.jacobian"))
     return GeneratedKernels("\n".join(parts) + "\n", description)
 
 
 #: the method each role's kernel stands for
 _METHODS = {"derivatives": "derivatives", "event_indicators": "event_indicators", "outputs": "outputs",
-            "step": "do_step", "update": "update", "project": "project"}
+            "step": "do_step", "update": "update", "project": "project",
+            "jacobian": "jacobian"}
 
 
 def _check_inherited(cls: type[Component]) -> None:
@@ -161,7 +164,7 @@ def component_library(cls: type[Component]) -> Optional[ComponentLibrary]:
     source = folder / f"{cls.fmi_model_name()}_kernels.c"
     try:
         library = single_file_library(source, f"{source.stem}.so", flags=CFLAGS, libraries=["-lm"])
-    except NoCompilerError as exc:  # as the mypyc kernels: the same numbers from the Python methods
+    except NoCompilerError as exc:  # the same numbers from the Python methods, slower
         warnings.warn(f"{cls.__name__}: FMUs ship its Python methods instead of its compiled kernels (same "
                       f"results, slower): {exc}", stacklevel=2)
         return None
@@ -289,7 +292,7 @@ def _updates(cls: type[Component], role: str, kernel: Kernel, result: Any, attri
 
 def _glue(cls: type[Component], role: str, kernel: Kernel, args: list, result: Any, attributes: dict) -> str:
     where = f"{cls.__name__}.native.{role} ({kernel.func.__qualname__})"
-    targets = _targets(cls, role, kernel)
+    targets = [] if role == "jacobian" else _targets(cls, role, kernel)
     checks, updates, outputs = _updates(cls, role, kernel, result, attributes, where)
     if result == D:
         declare, out, leaves = "double out;", "&out", [("out", D)]
@@ -301,6 +304,10 @@ def _glue(cls: type[Component], role: str, kernel: Kernel, args: list, result: A
         declare, out = f"dfk_{role}_result out;", "&out"
         leaves = [leaf for k, item in enumerate(outputs.items) for leaf in _leaves(item, f"out.f{first + k}", where)] \
             if first else _leaves(result, "out", where)
+    if role == "jacobian":  # floats for Python (the caller's array), not variables
+        if any(t != D for _, t in leaves):
+            raise CodegenError(f"{where}: a jacobian kernel returns floats only")
+        targets = [(f"values[{k}]", True) for k in range(len(leaves))]
     if len(leaves) != len(targets):
         raise CodegenError(f"{where}: the kernel returns {len(leaves)} numbers for {len(targets)} scalars")
     stores = []
@@ -312,12 +319,13 @@ def _glue(cls: type[Component], role: str, kernel: Kernel, args: list, result: A
     changes = role in ("step", "update")
     results = [*kernel.updates, *(["(defer)"] if kernel.defer else []),
                *(["(next time event)"] if role == "update" else []), *kernel.returns]
-    last = {"step": "double h, double *real, int *ints", "update": "double *real, int *ints, double *next_event_time"}
+    last = {"step": "double h, double *real, int *ints", "update": "double *real, int *ints, double *next_event_time",
+            "jacobian": "double *real, int *ints, double *values"}
     return (f"/* {role}: {kernel.func.__qualname__}({', '.join(kernel.args)})"
             + (f" -> {', '.join(results)}" if results else "") + " */\n"
             f"{EXPORT} int dfmi_kernel_{role}({'' if changes else 'const '}void *attributes, double time, "
             + last.get(role, "double *real, int *ints, double *indicators") + ")\n{\n"
             f"    {'' if changes else 'const '}DfmiAttributes *a = attributes;\n    (void)a; (void)time; (void)ints;"
-            + ("" if changes else " (void)indicators;") + "\n"
+            + ("" if role in last else " (void)indicators;") + "\n"
             f"    {declare}\n    int err = dfk_{role}({call});\n    if (err) return err;\n"
             + "".join(line + "\n" for line in checks + updates + stores) + "    return 0;\n}\n")

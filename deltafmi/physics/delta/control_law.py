@@ -41,7 +41,8 @@ Frame and parameters as in ``deltafmi.physics.delta.params`` (DESIGN.md); any ob
 ``DeltaParams`` attributes works, so the controller's model may differ from the plant's.
 
 The stateful sampled controller and numpy analysis helpers are in :mod:`.control`; this
-module is the pure law (compiled into FMUs with mypyc, hence the fixed-length float tuples).
+module is the pure law (translated to C for the FMUs, deltafmi/builder/codegen: hence the
+fixed-length float tuples).
 """
 
 from __future__ import annotations

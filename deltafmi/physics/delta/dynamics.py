@@ -60,8 +60,8 @@ __all__ = ["mass_matrix", "coriolis", "gravity", "accelerations", "state_derivat
            "holding_torque", "PlantEvaluation", "evaluate_plant", "loop_residual", "project_to_constraints"]
 
 ArrayLike = Sequence[float] | np.ndarray
-# Fixed-length float tuples: the kernels below are compiled with mypyc into FMUs (see
-# deltafmi/builder/kernels.py), which keeps such tuples and float locals unboxed.
+# Fixed-length float tuples: the kernels below are translated to C for the FMUs (see
+# deltafmi/builder/codegen), which makes such tuples C structs and float locals doubles.
 F3 = tuple[float, float, float]
 F6 = tuple[float, float, float, float, float, float]
 F9 = tuple[float, float, float, float, float, float, float, float, float]

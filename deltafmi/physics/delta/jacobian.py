@@ -32,7 +32,7 @@ from .dynamics import _as_list, _constants, _evaluate
 from .kinematics import ARM_COS_SIN
 from .params import DeltaParams
 
-__all__ = ["PlantJacobian", "plant_jacobian", "N_KNOWNS"]
+__all__ = ["PlantJacobian", "plant_jacobian", "jacobian_values", "jacobian_from_values", "N_KNOWNS", "N_VALUES"]
 
 ArrayLike = Sequence[float] | np.ndarray
 F3 = tuple[float, float, float]
@@ -40,6 +40,8 @@ F9 = tuple[float, float, float, float, float, float, float, float, float]
 
 #: columns of every matrix below: q (9), v (9), u (3), f (3)
 N_KNOWNS = 24
+#: the floats of :func:`jacobian_values`: accelerations, multipliers, three arms' 69
+N_VALUES = 9 + 6 + 3 * 69
 
 
 class PlantJacobian(NamedTuple):
@@ -190,21 +192,35 @@ def plant_jacobian(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: 
     Raises:
         ArithmeticError: H or the KKT matrix lost rank (a direct-kinematic or gimbal singularity).
     """
+    return jacobian_from_values(np.array(jacobian_values(p, q, v, u, f, pole)))
+
+
+def jacobian_values(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,
+                    pole: float) -> list[float]:
+    """The float part of :func:`plant_jacobian`, :data:`N_VALUES` plain floats: the accelerations
+    (9), the multipliers (6) and each arm's share of the KKT system (see :func:`_arm`). A kernel:
+    the DeltaRobot FMU runs it as C generated from this source (deltafmi/builder/codegen)."""
     ql, vl, fl = _as_list(q), _as_list(v), _as_list(f)
     vdot, lam, _ = _evaluate(p, ql, vl, u, fl, pole)
     la0, la1, la2, lb0, lb1, lb2 = lam
     forces = ((la0 + lb0, la1 + lb1, la2 + lb2), (-la0, -la1, -la2), (-lb0, -lb1, -lb2))
     consts, pole, l1, l2, damping = _constants(p), float(pole), p.l1, p.l2, p.damping
     fx, fy, fz = fl[0] / 3.0, fl[1] / 3.0, fl[2] / 3.0
-    values: list[float] = []
-    for i in range(3):
-        cr, sr = ARM_COS_SIN[i]
-        k = 3 * i
-        w = forces[i]
-        values.extend(_arm(consts, damping, pole, cr, sr, l1, l2, ql[k], ql[k + 1], ql[k + 2], vl[k],
-                           vl[k + 1], vl[k + 2], vdot[k], vdot[k + 1], vdot[k + 2], fx + w[0],
-                           fy + w[1], fz + w[2]))
-    flat = np.array(values)
+    (cA, sA), (cB, sB), (cC, sC) = ARM_COS_SIN
+    wA, wB, wC = forces
+    arm1 = _arm(consts, damping, pole, cA, sA, l1, l2, ql[0], ql[1], ql[2], vl[0], vl[1], vl[2],
+                vdot[0], vdot[1], vdot[2], fx + wA[0], fy + wA[1], fz + wA[2])
+    arm2 = _arm(consts, damping, pole, cB, sB, l1, l2, ql[3], ql[4], ql[5], vl[3], vl[4], vl[5],
+                vdot[3], vdot[4], vdot[5], fx + wB[0], fy + wB[1], fz + wB[2])
+    arm3 = _arm(consts, damping, pole, cC, sC, l1, l2, ql[6], ql[7], ql[8], vl[6], vl[7], vl[8],
+                vdot[6], vdot[7], vdot[8], fx + wC[0], fy + wC[1], fz + wC[2])
+    return vdot + list(lam) + list(arm1) + list(arm2) + list(arm3)
+
+
+def jacobian_from_values(values: np.ndarray) -> PlantJacobian:
+    """:func:`plant_jacobian` from :func:`jacobian_values`' floats: the KKT solve and the scatter
+    into the matrices (numpy)."""
+    flat = values[15:]
     system = _SYSTEM_TEMPLATE.copy()  # [[M, -H^T, R1], [H, 0, R2]], 15 x (15 + 24)
     system.flat[_SYSTEM_INDEX] = flat[_SYSTEM_SOURCE] * _SYSTEM_SCALE
     try:
@@ -216,7 +232,7 @@ def plant_jacobian(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: 
     dx[9:] = sens[:9]
     out = np.zeros((7, N_KNOWNS))  # dz, dzd, denergy
     out.flat[_OUTPUT_INDEX] = flat[_OUTPUT_SOURCE] * _OUTPUT_SCALE
-    return PlantJacobian(np.array(vdot), np.array(lam), dx, sens[9:].copy(), out[:3], out[3:6], out[6])
+    return PlantJacobian(values[:9].copy(), values[9:15].copy(), dx, sens[9:].copy(), out[:3], out[3:6], out[6])
 
 
 #: offsets of the blocks in one arm's 69 kernel values (see :func:`_arm`)

@@ -249,7 +249,7 @@ def wrist_along(p: DeltaParams, n: tuple[float, float, float], q: list[float]) -
 
     ``z`` is the mean of the arms' wrist points (as :func:`wrist_position`), so the row is exactly
     the derivative of the first value. A contact's gap along a plane normal needs both at every
-    derivative evaluation (compiled with mypyc into FMUs, like the dynamics).
+    derivative evaluation (translated to C for the FMUs, like the dynamics).
     """
     l0l3, l1, l2 = p.l0 - p.l3, p.l1, p.l2
     nx, ny, nz = n

@@ -41,8 +41,9 @@ held since then, update with y(t_k), qw(t_k), then the gated contact update. Cos
 the shared 2-core box, plain Python): 3.6 to 5.7 ms a sample over peg_estimation.yaml, of which
 the process Jacobian 2.0 ms (23 evaluations of the plant's accelerations), the Runge-Kutta step
 0.6 ms, a contact update 3 ms (17 contact-law evaluations); with delta_wrist.dynamics and
-wrist.kernels compiled by mypyc the plant's derivative drops from 53 to 15 us and a sample to
-about 3 ms: numpy's small-matrix calls (Jv, D, dq/dz) then dominate.
+wrist.kernels compiled ahead of time (measured once, not shipped) the plant's derivative drops
+from 53 to 15 us but a sample only to about 3 ms: numpy's small-matrix calls (Jv, D, dq/dz) then
+dominate.
 """
 from __future__ import annotations
 
