@@ -26,6 +26,7 @@ from ..files import replaced_atomically
 from .compiler import (BuildError, NoCompilerError, cache_dir, compiler_available, fmu_binary, native_source_files,
                        no_compiler_message, python_extension, python_runtime_config)
 from .codegen.component_kernels import component_library
+from .equations import SOURCES as EQUATION_COMPILER, generated_files
 from .kernels import compiled_kernels
 from .reach import module_source, reached_modules
 from .sources import ComponentSourceError, find_component
@@ -160,6 +161,7 @@ def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int
     writers = [module_source(name) for name in reached_modules(modules=_MODEL_DESCRIPTIONS, runtime=False)]
     codegen = PACKAGE_DIR / "export" / "codegen"
     generator = sorted([*codegen.glob("*.py"), *codegen.glob("*.c")])  # writes the compiled kernels' C
+    generator += EQUATION_COMPILER  # writes an equation model's kernels
     for path in (native_source_files(fmi_version) + writers + generator
                  + [Path(__file__), PACKAGE_DIR / "export" / "boot.py"]):
         digest.update(path.read_bytes())
@@ -217,7 +219,7 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
             fmu.writestr("resources/deltafmi.json", json.dumps(info, indent=2))
             fmu.writestr("resources/python.cfg", python_runtime_config())
             fmu.writestr("resources/README.txt", _readme(identifier, fmi_version, _interfaces(cls, fmi_version)))
-            for path, arcname in runtime_files(source):
+            for path, arcname in runtime_files(source) + generated_files(cls):
                 fmu.write(path, arcname)
                 fmu.writestr(importlib.util.cache_from_source(arcname), unchecked_hash_pyc(path, arcname))
             for path, arcname in binary_files(source) + resource_files(resources):

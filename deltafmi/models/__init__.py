@@ -15,6 +15,7 @@ MODELS = {
     "BouncingBall": "bouncing_ball",
     "BouncingBallRestitution": "bouncing_ball_restitution",
     "BoxOnTable": "box_on_table",
+    "CartesianPendulum": "cartesian_pendulum",
     "ContactEstimator": "contact_estimator",
     "DeltaController": "delta_controller",
     "DeltaRobot": "delta_robot",

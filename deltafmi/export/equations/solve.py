@@ -1,0 +1,112 @@
+"""Straight-line float code for the blocks of a sorted system: assignments and linear solves.
+
+:class:`Emitter` collects sympy assignments in stages (one ``sympy.cse`` per stage, so that a
+subexpression is computed once) and writes a dense linear solve with partial pivoting as
+unrolled code over scalar variables: the code generator's lists have no item assignment, and at
+the sizes of models' blocks (up to a few dozen unknowns) unrolled code with the structural zeros
+left out is what a C compiler optimises best. Row swaps happen where a later row has the larger
+pivot candidate, so the solve is as stable as LU with partial pivoting; an exactly zero pivot
+raises ``ArithmeticError`` (a singular system at that point).
+"""
+from __future__ import annotations
+
+from typing import Iterable
+
+import sympy
+
+from .printer import Printer
+
+
+class Emitter:
+    """Lines of a kernel body, with the code names of the symbols assigned so far."""
+
+    def __init__(self, names: dict, prefix: str = "c") -> None:
+        self.names = dict(names)
+        self.lines: list[str] = []
+        self.stage: list[tuple[str, sympy.Expr]] = []
+        self.pending: dict = {}  # symbols solved by assignments, inlined into what uses them
+        self.indent = 1
+        self.counter = 0
+        self.prefix = prefix
+
+    def fresh(self, base: str) -> str:
+        self.counter += 1
+        return f"{base}{self.counter}"
+
+    def line(self, text: str) -> None:
+        self.lines.append("    " * self.indent + text)
+
+    def define(self, symbol: sympy.Symbol, expr: sympy.Expr) -> None:
+        """``symbol`` is ``expr``: inlined where it is used (common subexpressions are shared by cse)."""
+        self.pending[symbol] = sympy.sympify(expr).xreplace(self.pending)
+
+    def assign(self, name: str, expr: sympy.Expr) -> None:
+        """``name = expr`` in the current stage."""
+        self.stage.append((name, sympy.sympify(expr).xreplace(self.pending)))
+
+    def flush(self) -> None:
+        """Write the stage's assignments, common subexpressions first."""
+        if not self.stage:
+            return
+        exprs = [sympy.sympify(e) for _, e in self.stage]
+        tag = self.fresh(self.prefix) + "_"
+        replacements, reduced = sympy.cse(exprs, symbols=sympy.numbered_symbols(tag), order="none")
+        printer = Printer(self.names)
+        for sym, value in replacements:
+            self.line(f"{sym.name} = {printer(value)}")
+        for (name, _), value in zip(self.stage, reduced):
+            self.line(f"{name} = {printer(value)}")
+        self.stage = []
+
+    def linear_solve(self, A: dict, b: list, n: int, what: str) -> list[str]:
+        """Solve ``A x = b`` (``A``: (row, col) -> code name of a structurally nonzero entry,
+        ``b``: code names), in place; returns the code names of x."""
+        tag = self.fresh("L")
+        a = {key: f"{tag}a{key[0]}_{key[1]}" for key in A}
+        rhs = [f"{tag}b{i}" for i in range(n)]
+        for key, name in A.items():
+            self.line(f"{a[key]} = {name}")
+        for i in range(n):
+            self.line(f"{rhs[i]} = {b[i]}")
+        struct = set(A)
+
+        def entry(i: int, j: int) -> str:
+            if (i, j) not in a:
+                a[(i, j)] = f"{tag}a{i}_{j}"
+                self.line(f"{a[(i, j)]} = 0.0")
+                struct.add((i, j))
+            return a[(i, j)]
+
+        for k in range(n):
+            candidates = [i for i in range(k + 1, n) if (i, k) in struct]
+            for i in candidates:
+                cols = sorted({j for j in range(k, n) if (k, j) in struct or (i, j) in struct})
+                left = [entry(k, j) for j in cols] + [rhs[k]]
+                right = [entry(i, j) for j in cols] + [rhs[i]]
+                self.line(f"if abs({a[(i, k)]}) > abs({entry(k, k)}):")
+                self.line(f"    {', '.join(left + right)} = {', '.join(right + left)}")
+            pivot = entry(k, k)
+            self.line(f"if {pivot} == 0.0:")
+            self.line(f"    raise ArithmeticError('singular linear system: {what}')")
+            row_k = sorted(j for j in range(k + 1, n) if (k, j) in struct)
+            for i in candidates:
+                factor = f"{tag}f{i}_{k}"
+                self.line(f"{factor} = {a[(i, k)]} / {pivot}")
+                for j in row_k:
+                    target = entry(i, j)
+                    self.line(f"{target} = {target} - {factor} * {a[(k, j)]}")
+                self.line(f"{rhs[i]} = {rhs[i]} - {factor} * {rhs[k]}")
+        x = [f"{tag}x{k}" for k in range(n)]
+        for k in reversed(range(n)):
+            terms = "".join(f" - {a[(k, j)]} * {x[j]}" for j in range(k + 1, n) if (k, j) in struct)
+            self.line(f"{x[k]} = ({rhs[k]}{terms}) / {a[(k, k)]}")
+        return x
+
+    def body(self) -> list[str]:
+        self.flush()
+        return self.lines
+
+
+def code_names(symbols: Iterable[sympy.Symbol], base: str) -> dict:
+    """Identifiers for symbols (``w1``, ``w2``, ...) in order."""
+    return {s: f"{base}{k}" for k, s in enumerate(symbols)}
