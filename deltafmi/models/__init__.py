@@ -21,6 +21,7 @@ MODELS = {
     "DeltaRobot": "delta_robot",
     "DeltaRobotBox": "delta_robot_box",
     "DeltaRobotContact": "delta_robot_contact",
+    "DeltaRobotEquations": "delta_robot_equations",
     "DeltaWrist": "delta_wrist",
     "DeltaWristPeg": "delta_wrist_peg",
     "InsertionMpc": "insertion_mpc",

@@ -46,7 +46,7 @@ class Symbols:
         for v in flat.variables.values():
             s = sympy.Symbol(v.name, real=True)
             self.var[v.name] = s
-            self.kind[s] = v.kind
+            self.kind[s] = "unknown" if v.kind == "output" else v.kind
         self.time = sympy.Symbol("time", real=True)
         self.kind[self.time] = "time"
         self.der_of: dict[sympy.Symbol, sympy.Symbol] = {}  # x -> der(x)

@@ -24,7 +24,6 @@ class Expr:
     """A node of an equation model's expression tree (immutable; built by the operators)."""
 
     __slots__ = ("op", "args")
-    __array_priority__ = 100
 
     def __init__(self, op: str, *args: Any) -> None:
         self.op = op
