@@ -13,6 +13,8 @@ free of imports (the table below names modules; nothing is loaded until a name i
 MODELS = {
     "AssemblyController": "assembly_controller",
     "BouncingBall": "bouncing_ball",
+    "BouncingBallEquations": "bouncing_ball_equations",
+    "BouncingBallReinit": "bouncing_ball_equations",
     "BouncingBallRestitution": "bouncing_ball_restitution",
     "BoxOnTable": "box_on_table",
     "CartesianPendulum": "cartesian_pendulum",

@@ -168,7 +168,8 @@ class _Events:
     def _condition(self, e: sympy.Basic, where: str) -> sympy.Basic:
         """Relations on continuous quantities -> boolean symbols b[i] (with an indicator each)."""
         replacements = {}
-        for rel in e.atoms(sympy.core.relational.Relational):
+        ordered = [a for a in sympy.preorder_traversal(e) if isinstance(a, sympy.core.relational.Relational)]
+        for rel in dict.fromkeys(ordered):
             if not self._continuous(rel):
                 continue
             if rel not in self.relations:
@@ -246,7 +247,7 @@ class _Events:
             conditions.append(f"c{k}")
             lines.append(f"    if fire and c{k} and not c_pre[{k}]:")
             lines += self._body(body, 2)
-        lines += self._body(self.algorithm, 1, fire=True)
+        lines += self._body(self.algorithm, 1)  # Modelica runs algorithms at initialization too
         lines.append(f"    return x, d, [{', '.join(conditions)}]")
         self.w.functions.append("\n".join(lines))
 

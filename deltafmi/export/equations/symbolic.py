@@ -32,7 +32,7 @@ class _Pre(sympy.Function):
     """pre() of an expression at an event."""
 
 
-class _Edge(sympy.Function):
+class _Edge(sympy.logic.boolalg.BooleanFunction):
     """edge() of a condition at an event."""
 
 
@@ -202,7 +202,7 @@ class Symbols:
 
 
 def _bool(e: sympy.Basic) -> sympy.Basic:
-    if isinstance(e, sympy.logic.boolalg.Boolean):
+    if isinstance(e, (sympy.logic.boolalg.Boolean, _Edge)):
         return e
     return sympy.Ne(e, 0, evaluate=False)
 
