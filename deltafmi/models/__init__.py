@@ -19,6 +19,8 @@ MODELS = {
     "BoxOnTable": "box_on_table",
     "CartesianPendulum": "cartesian_pendulum",
     "ContactEstimator": "contact_estimator",
+    "DCMotorCircuit": "dc_motor_circuit",
+    "DCMotorCircuitL": "dc_motor_circuit",
     "DeltaController": "delta_controller",
     "DeltaRobot": "delta_robot",
     "DeltaRobotBox": "delta_robot_box",

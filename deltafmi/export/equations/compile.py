@@ -82,7 +82,6 @@ class Compiler:
             if isinstance(item, Equation):
                 lhs, rhs = S.convert(item.lhs, item.where), S.convert(item.rhs, item.where)
                 self.plain.append((item, lhs, rhs))
-                S.add_definition(item, lhs, rhs)
             elif isinstance(item, Statement) and item.kind == "if":
                 cond, then, other = item.args
                 c = S.convert(cond, item.where)
@@ -96,6 +95,7 @@ class Compiler:
                 self.branches.append((c, conv(then), conv(other), item.where))
             else:
                 raise EquationModelError(f"{getattr(item, 'where', '?')}: {statement_text(item)} is not an equation")
+        S.add_definitions(self.plain)
 
     def _mode_equations(self) -> list:
         if not self.branches:
@@ -135,7 +135,8 @@ class Compiler:
     def _analyse(self, condition: sympy.Basic, eqs: list) -> ModeSystem:
         S = self.S
         unknowns = [s for name, s in S.var.items() if self.vars[name].kind in ("unknown", "output")
-                    and s not in self.state_set] + [S.der_of[s] for s in self.states]
+                    and s not in self.state_set] + [S.der_of[s] for s in self.states
+                                                    if S.der_of[s] not in self.state_set]
         unknowns += [d for d in S.base_of if d not in unknowns and d not in self.state_set
                      and any(d in self.expanded.get(id(e), sympy.S.Zero).free_symbols for e, _, _ in eqs)]
         uset = set(unknowns)

@@ -127,12 +127,49 @@ class Symbols:
         raise EquationModelError(f"{where}: cannot translate {text(e)}")
 
     # ---------------------------------------------------------------- definitions and derivatives
+    def add_definitions(self, items: list) -> None:
+        """The definitions of a list of (equation, lhs, rhs): first every ``w == e`` with ``w``
+        alone on the left (``der(x) == v`` defines der(x)); then an equation ``w == der(x)`` whose
+        ``x`` nothing defines makes ``w`` the derivative of ``x`` (``der(x) := w``: ``w`` is the
+        state then, as a Modelica tool selects it, not der(x)); then aliases ``a == b``."""
+        rest = []
+        for eq, lhs, rhs in items:
+            if isinstance(rhs, sympy.Symbol) and rhs in self.base_of and isinstance(lhs, sympy.Symbol) \
+                    and self.kind.get(lhs) == "unknown":
+                rest.append((eq, lhs, rhs))
+                continue
+            self.add_definition(eq, lhs, rhs)
+        for eq, lhs, rhs in rest:
+            base = self.base_of[rhs]
+            if base not in self.defs and rhs not in self.defs and not self._depends(lhs, rhs):
+                self.defs[rhs] = lhs
+                self.def_where[rhs] = eq.where
+            else:
+                self.add_definition(eq, lhs, rhs)
+
     def add_definition(self, eq: Equation, lhs: sympy.Expr, rhs: sympy.Expr) -> None:
         """``lhs == rhs`` with lhs a lone unknown (or der() of one) defines it, if nothing did before."""
         if isinstance(lhs, sympy.Symbol) and self.kind.get(lhs) == "unknown" and lhs not in self.defs \
                 and lhs not in rhs.free_symbols:
             self.defs[lhs] = rhs
             self.def_where[lhs] = eq.where
+        elif isinstance(rhs, sympy.Symbol) and isinstance(lhs, sympy.Symbol) and self.kind.get(rhs) == "unknown" \
+                and rhs not in self.defs and lhs != rhs and not self._depends(lhs, rhs):
+            self.defs[rhs] = lhs  # an alias a == b whose a is defined already defines b
+            self.def_where[rhs] = eq.where
+
+    def _depends(self, s: sympy.Symbol, on: sympy.Symbol) -> bool:
+        """Whether the definition of ``s`` reaches ``on`` (an alias the other way would be circular)."""
+        seen, todo = set(), [s]
+        while todo:
+            x = todo.pop()
+            if x == on:
+                return True
+            if x in seen or x not in self.defs:
+                continue
+            seen.add(x)
+            todo += list(self.defs[x].free_symbols)
+        return False
 
     def expand(self, e: sympy.Expr, where: str = "") -> sympy.Expr:
         """``e`` with every raw der(), jacobian() and der() of a defined variable worked out."""

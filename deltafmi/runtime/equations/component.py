@@ -17,7 +17,7 @@ import numpy as np
 
 from deltafmi.component import Component, Kernel, NativeKernels, State
 
-from .model import EquationModelError, flatten
+from .model import EquationModelError, default_section, flatten
 
 #: the package of the generated modules (an FMU carries its model's module in it)
 GENERATED = "deltafmi.runtime.equations.generated"
@@ -32,23 +32,31 @@ class EquationComponent(Component):
     constraints the index reduction differentiates (0: none; the projection holds them)."""
 
     constraint_pole: ClassVar[float] = 0.0
+    #: a base class that other equation models extend (``partial = True``) is not compiled itself
+    partial: ClassVar[bool] = False
     #: Model Exchange: a step event projects the states once a constraint residual exceeds this
     constraint_tolerance: ClassVar[float] = 1e-10
     _equations: ClassVar[Any] = None
 
+    @default_section
     def equations(self) -> list:
         """The model's equations (see :class:`deltafmi.runtime.equations.Model`)."""
         return []
 
+    @default_section
     def initial_equations(self) -> list:
         """Equations that hold at the start."""
         return []
 
+    @default_section
     def algorithm(self) -> list:
         """Statements run in order at every event."""
         return []
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
+        if vars(cls).get("partial", False):  # Modelica's partial model: a base to extend, not compiled
+            super().__init_subclass__(**kwargs)
+            return
         flat = flatten(cls)
         module = _generated_module(cls, flat)
         cls._equations = module

@@ -22,6 +22,13 @@ from deltafmi.component.variables import Input, Output, Parameter, State, Variab
 from .expr import Equation, Expr, Var, as_expr, caller, equation_list, text, vec
 
 
+
+def default_section(function: Any) -> Any:
+    """Marks a base class's empty ``equations``/``initial_equations``/``algorithm``."""
+    function._default = True
+    return function
+
+
 class EquationModelError(ValueError):
     """The model cannot be flattened or compiled (the message names the model line)."""
 
@@ -139,14 +146,17 @@ class Model:
     def __set_name__(self, owner: type, name: str) -> None:
         self.name = name
 
+    @default_section
     def equations(self) -> list:
         """The model's equations (and if-equations, when clauses, connects)."""
         return []
 
+    @default_section
     def initial_equations(self) -> list:
         """Equations that hold at the start only (consistent initial states)."""
         return []
 
+    @default_section
     def algorithm(self) -> list:
         """Statements run in order at every event (if, assign, reinit), until nothing changes."""
         return []
@@ -342,16 +352,22 @@ def flatten(cls: type) -> FlatModel:
 
 
 def _run(instance: Instance, method: str, where: str) -> list:
-    function = getattr(instance._cls, method, None)
-    if function is None:
-        return []
-    try:
-        result = function(instance)
-    except EquationModelError:
-        raise
-    except (TypeError, ValueError, AttributeError, IndexError) as exc:
-        raise EquationModelError(f"{_location(function)}: {instance._cls.__name__}.{method}: {exc}") from None
-    return equation_list(list(result or []))
+    """The items ``method`` of every class of the instance's model returns, bases first (a
+    subclass extends its base's equations, as Modelica's ``extends``)."""
+    out: list = []
+    for owner in reversed(instance._cls.__mro__):
+        function = vars(owner).get(method)
+        if function is None or getattr(function, "_default", False):
+            continue
+        try:
+            result = function(instance)
+        except EquationModelError:
+            raise
+        except (TypeError, ValueError, AttributeError, IndexError) as exc:
+            raise EquationModelError(f"{_location(function)}: {owner.__name__}.{method}: {exc}") from None
+        out += equation_list(list(result or []))
+    return out
+
 
 
 def _location(function: Any) -> str:
