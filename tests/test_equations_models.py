@@ -73,3 +73,20 @@ def test_cartesian_pendulum_period_and_constraint(interface):
         crossings.append(real[0])
     assert len(crossings) == 2
     assert (crossings[1] - crossings[0]) / period == pytest.approx(1.0, abs=1e-7)
+
+
+def test_flagship_tracks_as_before_with_the_equation_plant(tmp_path):
+    import deltafmi
+    from deltafmi.examples import EXAMPLES_DIR
+
+    text = (EXAMPLES_DIR / "delta_tracking.yaml").read_text()
+    assert "source: deltafmi.models:DeltaRobot\n" in text
+    (tmp_path / "tracking.yaml").write_text(text.replace("source: deltafmi.models:DeltaRobot\n",
+                                                         "source: deltafmi.models:DeltaRobotEquations\n"))
+    hand = deltafmi.simulate("delta_tracking")
+    eq = deltafmi.simulate(tmp_path / "tracking.yaml")
+    assert np.array_equal(hand.time, eq.time)
+    assert np.max(np.abs(eq["plant.z"] - hand["plant.z"])) < 1e-9
+    assert np.max(np.abs(eq["controller.u"] - hand["controller.u"])) < 1e-6
+    assert np.max(eq["plant.residual"]) < 1e-9
+    assert np.max(np.abs(eq["plant.z"] - eq["trajectory.r"])) < 2e-3  # tracks: the reference within 2 mm

@@ -321,20 +321,37 @@ class ModuleWriter:
         return body
 
     def _linear(self, em: Emitter, block: Block) -> None:
-        zero = {t: sympy.Integer(0) for t in block.tear}
-        A, b = {}, []
+        """A linear torn block: ``A x = b`` as a dense pivoting solve, or by block elimination
+        (Schur complement) where the structure makes that cheaper (see :func:`_schur_plan`)."""
+        tear, n = block.tear, len(block.tear)
+        zero = {t: sympy.Integer(0) for t in tear}
+        entries = {}
         for i, r in enumerate(block.residuals):
-            for j, t in enumerate(block.tear):
+            for j, t in enumerate(tear):
                 entry = sympy.diff(r, t)
                 if entry != 0:
-                    A[(i, j)] = em.fresh("A")
-                    em.assign(A[(i, j)], entry)
+                    entries[(i, j)] = entry
+        A = {}
+        for key, entry in entries.items():
+            A[key] = em.fresh("A")
+            em.assign(A[key], entry)
+        b = []
+        for r in block.residuals:
             b.append(em.fresh("B"))
             em.assign(b[-1], -r.xreplace(zero))
         em.flush()
-        x = em.linear_solve(A, b, len(block.tear), ", ".join(str(t) for t in block.tear))
-        for t, name in zip(block.tear, x):
+        what = ", ".join(str(t) for t in tear)
+        plan = _schur_plan(n, set(entries), [self._group(t) for t in tear])
+        x = em.linear_solve(A, b, n, what) if plan is None else _emit_schur(em, plan, A, b, n, what)
+        for t, name in zip(tear, x):
             em.names[t] = name
+
+    def _group(self, s: sympy.Symbol) -> str:
+        base = self.S.base_of.get(s)
+        if base is not None:
+            return "der(" + self._group(base) + ")"
+        v = self.c.vars.get(s.name)
+        return v.group if v is not None else s.name
 
     def _newton(self, em: Emitter, block: Block) -> None:
         n = len(block.tear)
@@ -384,6 +401,106 @@ class ModuleWriter:
         body = em.body()
         self.functions.append("\n".join([f"def {name}({', '.join(args or self.args)}):", f'    """{doc}"""',
                                          *body, f"    return [{', '.join(results)}]"]))
+
+
+def _schur_plan(n: int, struct: set, groups: list) -> Optional[tuple]:
+    """Block elimination for a sparse linear system: with the unknowns of one declaration (a
+    multiplier ``lambda[6]``) as the inner tearing set C2, the other rows and unknowns fall into
+    small blocks (each arm's mass matrix) solved for their dependence on C2, and C2 solves the
+    small dense Schur complement. Returns (blocks [(rows, cols)], residual rows, C2) for the
+    cheapest such choice, or None when a dense solve costs less."""
+    best, best_cost = None, (n ** 3) / 3.0 * 2.0  # the dense pivoting solve (its swaps count too)
+    for group in dict.fromkeys(groups):
+        c2 = [j for j in range(n) if groups[j] == group]
+        c1 = [j for j in range(n) if groups[j] != group]
+        if not c1 or len(c2) > n // 2:
+            continue
+        rows = sorted(range(n), key=lambda i: not any((i, t) in struct for t in c2))
+        c1_index = {j: k for k, j in enumerate(c1)}
+        incidence = [{c1_index[j] for j in c1 if (i, j) in struct} for i in rows]
+        eq_var, var_eq = structure.match(incidence, len(c1))
+        if any(e is None for e in var_eq):
+            continue
+        matched = [k for k, v in enumerate(eq_var) if v is not None]
+        residual_rows = [rows[k] for k, v in enumerate(eq_var) if v is None]
+        sub = [incidence[k] for k in matched]
+        sub_var = [eq_var[k] for k in matched]
+        blocks = []
+        for blk in structure.blt(sub, sub_var):
+            blocks.append(([rows[matched[k]] for k in blk], [c1[sub_var[k]] for k in blk]))
+        if max(len(r) for r, _ in blocks) > 6:
+            continue
+        reach: dict = {}
+        cost = len(c2) ** 3 / 3.0 * 2.0
+        for brows, bcols in blocks:
+            cols = {t for i in brows for t in c2 if (i, t) in struct}
+            cols |= {t for i in brows for j in c1 if (i, j) in struct and j not in bcols for t in reach.get(j, ())}
+            for j in bcols:
+                reach[j] = cols
+            size = len(brows)
+            cost += size ** 3 / 3.0 * 2.0 + size * size * (1 + len(cols))
+        cost += sum(len(reach[j]) for i in residual_rows for j in c1 if (i, j) in struct)
+        if cost < best_cost:
+            best, best_cost = (blocks, residual_rows, c2), cost
+    return best
+
+
+def _emit_schur(em: Emitter, plan: tuple, A: dict, b: list, n: int, what: str) -> list[str]:
+    """The code of :func:`_schur_plan`'s block elimination; the solution's names by column."""
+    blocks, residual_rows, c2 = plan
+    c_of: dict = {}  # column in C1 -> name of its part independent of C2
+    d_of: dict = {}  # (column in C1, column in C2) -> name of its coefficient
+    solved: set = set()
+    for brows, bcols in blocks:
+        local = {j: k for k, j in enumerate(bcols)}
+        s = len(bcols)
+        rhs_cols = sorted({t for i in brows for t in c2 if (i, t) in A}
+                          | {t for i in brows for j in solved if (i, j) in A for (jj, t) in d_of if jj == j})
+        aug = {}
+        for r, i in enumerate(brows):
+            for j in bcols:
+                if (i, j) in A:
+                    aug[(r, local[j])] = A[(i, j)]
+            terms = [f" - {A[(i, j)]} * {c_of[j]}" for j in sorted(solved) if (i, j) in A and c_of.get(j)]
+            name = em.fresh("R")
+            em.line(f"{name} = {b[i]}{''.join(terms)}")
+            aug[(r, s)] = name
+            for k, t in enumerate(rhs_cols):
+                parts = ([A[(i, t)]] if (i, t) in A else []) + [f"{A[(i, j)]} * {d_of[(j, t)]}" for j in sorted(solved)
+                                                               if (i, j) in A and (j, t) in d_of]
+                if parts:
+                    name = em.fresh("R")
+                    em.line(f"{name} = -({' + '.join(parts)})")
+                    aug[(r, s + 1 + k)] = name
+        X = em.solve_augmented(aug, s, 1 + len(rhs_cols), what)
+        for j in bcols:
+            c_of[j] = X[0][local[j]]
+            for k, t in enumerate(rhs_cols):
+                if X[1 + k][local[j]]:
+                    d_of[(j, t)] = X[1 + k][local[j]]
+        solved |= set(bcols)
+    S, rhs = {}, []
+    for r, i in enumerate(residual_rows):
+        for k, t in enumerate(c2):
+            parts = ([A[(i, t)]] if (i, t) in A else []) + [f"{A[(i, j)]} * {d_of[(j, t)]}" for j in sorted(solved)
+                                                           if (i, j) in A and (j, t) in d_of]
+            if parts:
+                S[(r, k)] = em.fresh("S")
+                em.line(f"{S[(r, k)]} = {' + '.join(parts)}")
+        terms = [f" - {A[(i, j)]} * {c_of[j]}" for j in sorted(solved) if (i, j) in A and c_of.get(j)]
+        rhs.append(em.fresh("R"))
+        em.line(f"{rhs[-1]} = {b[i]}{''.join(terms)}")
+    t2 = em.linear_solve(S, rhs, len(c2), what)
+    x = ["0.0"] * n
+    for k, t in enumerate(c2):
+        x[t] = t2[k]
+    for j in solved:
+        parts = ([c_of[j]] if c_of.get(j) else []) + [f"{d_of[(j, t)]} * {t2[k]}" for k, t in enumerate(c2)
+                                                       if (j, t) in d_of]
+        name = em.fresh("X")
+        em.line(f"{name} = {' + '.join(parts) or '0.0'}")
+        x[j] = name
+    return x
 
 
 def _needed_blocks(blocks: list, needed: set) -> list:

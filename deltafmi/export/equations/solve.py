@@ -60,15 +60,22 @@ class Emitter:
 
     def linear_solve(self, A: dict, b: list, n: int, what: str) -> list[str]:
         """Solve ``A x = b`` (``A``: (row, col) -> code name of a structurally nonzero entry,
-        ``b``: code names), in place; returns the code names of x."""
+        ``b``: code names); returns the code names of x."""
+        augmented = dict(A)
+        augmented.update({(i, n): name for i, name in enumerate(b)})
+        return [x or "0.0" for x in self.solve_augmented(augmented, n, 1, what)[0]]
+
+    def solve_augmented(self, A: dict, n: int, m: int, what: str) -> list[list]:
+        """Solve ``A[:, :n] X = A[:, n:n+m]`` for m right-hand sides (entries: (row, col) -> code
+        name, structural zeros absent): LU with partial pivoting over the structurally nonzero
+        candidates of each column, row swaps where a later row's entry is larger. Returns X by
+        column, None for structurally zero entries."""
         tag = self.fresh("L")
         a = {key: f"{tag}a{key[0]}_{key[1]}" for key in A}
-        rhs = [f"{tag}b{i}" for i in range(n)]
         for key, name in A.items():
             self.line(f"{a[key]} = {name}")
-        for i in range(n):
-            self.line(f"{rhs[i]} = {b[i]}")
         struct = set(A)
+        width = n + m
 
         def entry(i: int, j: int) -> str:
             if (i, j) not in a:
@@ -80,27 +87,33 @@ class Emitter:
         for k in range(n):
             candidates = [i for i in range(k + 1, n) if (i, k) in struct]
             for i in candidates:
-                cols = sorted({j for j in range(k, n) if (k, j) in struct or (i, j) in struct})
-                left = [entry(k, j) for j in cols] + [rhs[k]]
-                right = [entry(i, j) for j in cols] + [rhs[i]]
+                cols = sorted({j for j in range(k, width) if (k, j) in struct or (i, j) in struct})
+                left = [entry(k, j) for j in cols]
+                right = [entry(i, j) for j in cols]
                 self.line(f"if abs({a[(i, k)]}) > abs({entry(k, k)}):")
                 self.line(f"    {', '.join(left + right)} = {', '.join(right + left)}")
             pivot = entry(k, k)
             self.line(f"if {pivot} == 0.0:")
             self.line(f"    raise ArithmeticError('singular linear system: {what}')")
-            row_k = sorted(j for j in range(k + 1, n) if (k, j) in struct)
+            row_k = sorted(j for j in range(k + 1, width) if (k, j) in struct)
             for i in candidates:
                 factor = f"{tag}f{i}_{k}"
                 self.line(f"{factor} = {a[(i, k)]} / {pivot}")
                 for j in row_k:
                     target = entry(i, j)
                     self.line(f"{target} = {target} - {factor} * {a[(k, j)]}")
-                self.line(f"{rhs[i]} = {rhs[i]} - {factor} * {rhs[k]}")
-        x = [f"{tag}x{k}" for k in range(n)]
-        for k in reversed(range(n)):
-            terms = "".join(f" - {a[(k, j)]} * {x[j]}" for j in range(k + 1, n) if (k, j) in struct)
-            self.line(f"{x[k]} = ({rhs[k]}{terms}) / {a[(k, k)]}")
-        return x
+        out = []
+        for c in range(m):
+            x: list = [None] * n
+            for k in reversed(range(n)):
+                terms = [f" - {a[(k, j)]} * {x[j]}" for j in range(k + 1, n) if (k, j) in struct and x[j]]
+                if (k, n + c) not in struct and not terms:
+                    continue
+                x[k] = f"{tag}x{k}_{c}"
+                self.line(f"{x[k]} = ({a[(k, n + c)] if (k, n + c) in struct else '0.0'}{''.join(terms)}) / "
+                          f"{a[(k, k)]}")
+            out.append(x)
+        return out
 
     def body(self) -> list[str]:
         self.flush()
