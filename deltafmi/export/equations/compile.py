@@ -58,6 +58,7 @@ class ModeSystem:
     unknowns: list
     invariants: list  #: state-level residuals that hold on the solution (position, velocity, ...)
     residuals: list  #: the final residuals (for the Jacobian)
+    matched: list = field(default_factory=list)  #: the unknown (index) each residual determines
 
 
 class Compiler:
@@ -175,7 +176,7 @@ class Compiler:
         blocks = []
         for block in structure.blt(incidence, eq_var):
             blocks.append(self._block([residuals[i] for i in block], [unknowns[eq_var[i]] for i in block]))
-        return ModeSystem(condition, blocks, unknowns, invariants, residuals)
+        return ModeSystem(condition, blocks, unknowns, invariants, residuals, list(eq_var))
 
     def _check_counts(self, residuals: list, unknowns: list, condition: Any) -> None:
         if len(residuals) == len(unknowns):

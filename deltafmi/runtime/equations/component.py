@@ -148,6 +148,43 @@ class EquationComponent(Component):
                 setattr(self, _attribute(group), declaration.type(value))
 
 
+def _jacobian(self: EquationComponent, t: float) -> dict:
+    """Exact partial derivatives of the state derivatives and outputs by the states and Real
+    inputs: the implicit function theorem on the sorted system, dz/dk = -F_z^-1 F_k."""
+    info = self._equations.INFO["jacobian"]
+    nz, nk = info["nz"], info["nk"]
+    parts = np.array(self._equations.jacobian_parts(*self._args(t)), dtype=float)
+    fz, fk = parts[:nz * nz].reshape(nz, nz), parts[nz * nz:].reshape(nz, nk)
+    # an equation not differentiable here (|h| at h = 0): what it determines is left to the
+    # runtime's differences, and so is everything that depends on it
+    bad = [r for r in range(nz) if not (np.all(np.isfinite(fz[r])) and np.all(np.isfinite(fk[r])))]
+    unknown = set()
+    for r in bad:
+        fz[r], fk[r] = 0.0, 0.0
+        fz[r, info["matched"][r]] = 1.0
+        unknown.add(info["matched"][r])
+    dz = -np.linalg.solve(fz, fk)
+    if unknown:  # and what depends on them, through the equations that determine it
+        row_of = {m: r for r, m in enumerate(info["matched"])}
+        changed = True
+        while changed:
+            changed = False
+            for j in range(nz):
+                if j not in unknown and any(fz[row_of[j], i] != 0.0 for i in unknown):
+                    unknown.add(j)
+                    changed = True
+    eye = np.eye(nk)
+
+    def rows(where: list) -> Optional[np.ndarray]:
+        if any(kind == "z" and i in unknown for kind, i in where):
+            return None
+        return np.array([dz[i] if kind == "z" else eye[i] for kind, i in where])
+
+    out = {"der": rows(info["der"])}
+    out.update({_attribute(g): rows(where) for g, where in info["outputs"].items()})
+    return {key: value for key, value in out.items() if value is not None}
+
+
 def _project(self: EquationComponent, t: float) -> None:
     self.states[:] = self._equations.project(*self._args(t))
 
@@ -195,6 +232,8 @@ def _declare(cls: type, info: dict) -> None:
         kernels["outputs"] = Kernel(module.outputs, *args, returns=tuple(_attribute(g) for g, _ in info["outputs"]))
     if info["n_indicators"]:
         kernels["event_indicators"] = Kernel(module.indicators, *args)
+    if info.get("jacobian"):
+        cls.jacobian = _jacobian
     if info["invariants"]:
         kernels["project"] = Kernel(module.project, *args)
         cls.project = _project
