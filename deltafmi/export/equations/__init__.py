@@ -1,7 +1,8 @@
 """The equation compiler: equation models (deltafmi.runtime.equations) -> generated kernels.
 
 Importing it registers :func:`compile_to_cache` with the runtime, which calls it at class
-creation when a model's generated module is not built yet. sympy does the symbolic work.
+creation when a model's generated module is not built yet. sympy does the symbolic work (imported
+only when an equation model is compiled, so that other builds do not pay for it).
 """
 from __future__ import annotations
 
@@ -11,13 +12,6 @@ from pathlib import Path
 
 from deltafmi.runtime.equations import component as _component
 from deltafmi.runtime.equations.model import EquationModelError, FlatModel
-
-try:
-    import sympy  # noqa: F401
-except ImportError:  # pragma: no cover - sympy is a core dependency
-    raise ImportError("deltafmi's equation compiler needs sympy: pip install sympy") from None
-
-from .emit import generate
 
 #: the compiler's own files: what a generated module depends on besides the model
 SOURCES = sorted(Path(__file__).parent.glob("*.py"))
@@ -32,6 +26,13 @@ def compile_to_cache(cls: type, flat: FlatModel, name: str) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{name}.py"
     if not path.exists():
+        try:
+            import sympy  # noqa: F401  (the symbolic work; imported only for equation models)
+        except ImportError:  # pragma: no cover - sympy is one of deltafmi's dependencies
+            raise EquationModelError(f"{cls.__name__}: compiling an equation model needs sympy: "
+                                     f"pip install sympy") from None
+        from .emit import generate
+
         source = generate(flat, name, getattr(cls, "constraint_pole", 0.0))
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
@@ -52,4 +53,4 @@ def generated_files(cls: type) -> list[tuple[Path, str]]:
 if not _component.COMPILER:
     _component.COMPILER.append(compile_to_cache)
 
-__all__ = ["compile_to_cache", "generate", "generated_files", "EquationModelError"]
+__all__ = ["compile_to_cache", "generated_files", "EquationModelError"]

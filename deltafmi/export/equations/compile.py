@@ -158,8 +158,10 @@ class Compiler:
                 else:
                     break
             else:
-                raise EquationModelError(f"{eq.where}: {text}: no unknown occurs in it even after three "
-                                         f"differentiations")
+                states = sorted({str(x) for g in chain for x in g.free_symbols if x in self.state_set})
+                raise EquationModelError(f"{eq.where}: {text}: over-determined: it constrains [{', '.join(states)}], "
+                                         f"which the other equations determine already (three time derivatives of "
+                                         f"it hold no unknown)")
             if chain:
                 invariants += chain
                 if self.pole > 0.0:
@@ -182,14 +184,16 @@ class Compiler:
         if len(residuals) == len(unknowns):
             return
         mode = "" if condition is sympy.true else f" (where {condition})"
-        used = set().union(*[r.expr.free_symbols for r in residuals]) if residuals else set()
+        index = {s: k for k, s in enumerate(unknowns)}
+        incidence = [{index[s] for s in r.expr.free_symbols if s in index} for r in residuals]
+        eq_var, var_eq = structure.match(incidence, len(unknowns))
         if len(residuals) > len(unknowns):
+            extra = [f"{residuals[i].where}: {residuals[i].text}" for i, v in enumerate(eq_var) if v is None]
             raise EquationModelError(f"{self.flat.name}{mode}: over-determined: {len(residuals)} equations for "
-                                     f"{len(unknowns)} unknowns")
-        missing = [str(s) for s in unknowns if s not in used]
+                                     f"{len(unknowns)} unknowns; no unknown is left for [{'; '.join(extra)}]")
+        missing = [str(unknowns[v]) for v, e in enumerate(var_eq) if e is None]
         raise EquationModelError(f"{self.flat.name}{mode}: under-determined: {len(residuals)} equations for "
-                                 f"{len(unknowns)} unknowns" + (f"; in no equation: {', '.join(missing)}" if missing
-                                                                 else f" ({', '.join(map(str, unknowns))})"))
+                                 f"{len(unknowns)} unknowns; no equation determines [{', '.join(missing)}]")
 
     def _check_matching(self, residuals: list, unknowns: list, incidence: list, eq_var: list, var_eq: list) -> None:
         free = [i for i, v in enumerate(eq_var) if v is None]

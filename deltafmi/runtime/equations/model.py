@@ -32,6 +32,9 @@ def default_section(function: Any) -> Any:
 class EquationModelError(ValueError):
     """The model cannot be flattened or compiled (the message names the model line)."""
 
+    def __repr__(self) -> str:  # shown inside other errors' messages: the message alone
+        return str(self)
+
 
 class Real:
     """An unknown of an equation model: a state if the model takes its ``der()``, else algebraic.
