@@ -4,7 +4,7 @@ from deltafmi.models.circuit_parts import EMF, Damper, Fixed, Ground, Inductor, 
 from deltafmi.runtime.equations import EquationComponent, connect
 
 
-class MotorNetwork(EquationComponent):
+class _MotorNetwork(EquationComponent):
     """What both motors share: source, resistor, EMF, rotor, friction and their connections."""
 
     partial = True
@@ -33,7 +33,7 @@ class MotorNetwork(EquationComponent):
                 self.speed == self.rotor.w, self.current == self.resistor.i]
 
 
-class DCMotorCircuit(MotorNetwork):
+class DCMotorCircuit(_MotorNetwork):
     """DC motor as a network: voltage source, armature resistance, EMF, rotor inertia, friction.
 
     The compiler finds J w' = kt i - b w with i = (V - ke w) / R from the connections: the guide's
@@ -47,7 +47,7 @@ class DCMotorCircuit(MotorNetwork):
         return [connect(self.resistor.n, self.emf.p)]
 
 
-class DCMotorCircuitL(MotorNetwork):
+class DCMotorCircuitL(_MotorNetwork):
     """The same motor with the armature inductance L in series: the current is a second state."""
 
     model_name = "DCMotorCircuitL"
