@@ -1,6 +1,6 @@
-"""Bouncing balls as equations: the talk's myBouncingBall (contact modes), and one with when/reinit."""
+"""The talk's myBouncingBall as equations: contact modes, an if-equation and an algorithm."""
 from deltafmi.component import Experiment, Output, Parameter
-from deltafmi.runtime.equations import EquationComponent, If, Real, assign, der, edge, ifelse, pre, reinit, when
+from deltafmi.runtime.equations import EquationComponent, If, Real, assign, der, edge, ifelse
 
 
 class BouncingBallEquations(EquationComponent):
@@ -49,26 +49,3 @@ class BouncingBallEquations(EquationComponent):
                 If(c.is_(1) & edge(b2), assign(c, 2)),
                 If(c.is_(2) & edge(b3), assign(c, 0)),
                 If(c.is_(2) & edge(b4), assign(c, 1))]
-
-
-class BouncingBallReinit(EquationComponent):
-    """The textbook ball: free fall, and at every impact v -> -e v (when h <= 0: reinit)."""
-
-    model_name = "BouncingBallReinit"
-    default_experiment = Experiment(start=0.0, stop=3.0, step=1e-3, tolerance=1e-10)
-    cs_options = dict(rtol=1e-11, atol=1e-13)
-
-    g = Parameter(9.81, unit="m/s2", description="Gravity")
-    e = Parameter(0.8, description="Coefficient of restitution", min=0.0, max=1.0)
-    h0 = Parameter(1.0, unit="m", description="Drop height (from rest)")
-    height = Output(unit="m", description="Height of the ball")
-    impacts = Output(0, type=int, description="Impacts so far")
-    h = Real(1.0, unit="m")
-    v = Real(0.0, unit="m/s")
-
-    def equations(self):
-        return [der(self.h) == self.v, der(self.v) == -self.g, self.height == self.h,
-                when(self.h <= 0.0, reinit(self.v, -self.e * pre(self.v)), assign(self.impacts, pre(self.impacts) + 1))]
-
-    def initial_equations(self):
-        return [self.h == self.h0, self.v == 0.0]

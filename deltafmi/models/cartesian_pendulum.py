@@ -1,6 +1,6 @@
 """A pendulum in Cartesian coordinates: the index-3 DAE as written, reduced by the equation compiler."""
 from deltafmi.component import Experiment, Output, Parameter
-from deltafmi.runtime.equations import EquationComponent, Real, cos, der, sin
+from deltafmi.runtime.equations import EquationComponent, Real, der, sin
 
 
 class CartesianPendulum(EquationComponent):

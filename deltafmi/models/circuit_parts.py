@@ -1,7 +1,8 @@
 """Parts of electrical and rotational networks for equation models (Modelica.Electrical.Analog and
-Modelica.Mechanics.Rotational, the few that a DC motor needs), connected with ``connect``."""
-from deltafmi.component import Parameter
-from deltafmi.runtime.equations import Connector, Flow, Model, Potential, Real, der
+Modelica.Mechanics.Rotational, the few that a DC motor needs), connected with ``connect``; and
+the network both DC motor models extend (a partial model)."""
+from deltafmi.component import Experiment, Input, Output, Parameter
+from deltafmi.runtime.equations import Connector, EquationComponent, Flow, Model, Potential, Real, connect, der
 
 
 class Pin(Connector):
@@ -109,3 +110,32 @@ class Fixed(Model):
 
     def equations(self):
         return [self.flange.phi == 0.0]
+
+
+class MotorNetwork(EquationComponent):
+    """What both motors share: source, resistor, EMF, rotor, friction and their connections."""
+
+    partial = True
+    default_experiment = Experiment(start=0.0, stop=0.5, step=1e-3, tolerance=1e-8)
+
+    R = Parameter(1.0, unit="Ohm", min=0.0, description="Armature resistance")
+    kt = Parameter(0.05, unit="N.m/A", min=0.0, description="Torque constant")
+    ke = Parameter(0.05, unit="V.s/rad", min=0.0, description="Back-EMF constant")
+    J = Parameter(1e-4, unit="kg.m2", min=0.0, description="Rotor inertia")
+    b = Parameter(1e-4, unit="N.m.s/rad", min=0.0, description="Viscous friction")
+    voltage = Input(1.5, unit="V", description="Voltage across the motor's terminals")
+    speed = Output(unit="rad/s", description="Rotor speed")
+    current = Output(unit="A", description="Armature current")
+
+    source = SignalVoltage(u=voltage)
+    resistor = Resistor(R=R)
+    emf = EMF(kt=kt, ke=ke)
+    rotor = Inertia(J=J)
+    friction = Damper(d=b)
+    ground, fixed = Ground(), Fixed()
+
+    def equations(self):
+        return [connect(self.source.p, self.resistor.p), connect(self.emf.n, self.source.n),
+                connect(self.source.n, self.ground.p), connect(self.emf.flange, self.rotor.flange_a),
+                connect(self.rotor.flange_b, self.friction.flange_a), connect(self.friction.flange_b, self.fixed.flange),
+                self.speed == self.rotor.w, self.current == self.resistor.i]

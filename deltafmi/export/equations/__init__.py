@@ -6,7 +6,6 @@ only when an equation model is compiled, so that other builds do not pay for it)
 """
 from __future__ import annotations
 
-import hashlib
 import os
 from pathlib import Path
 
@@ -15,16 +14,13 @@ from deltafmi.runtime.equations.model import EquationModelError, FlatModel
 
 #: the compiler's own files: what a generated module depends on besides the model
 SOURCES = sorted(Path(__file__).parent.glob("*.py"))
-_DIGEST = hashlib.sha256(b"".join(p.read_bytes() for p in SOURCES)).hexdigest()[:16]
 
 
 def compile_to_cache(cls: type, flat: FlatModel, name: str) -> Path:
-    """The generated module ``name`` of ``flat`` in the build cache, generated when missing."""
-    from ..compiler import cache_dir
-
-    folder = cache_dir() / "equations" / _DIGEST
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{name}.py"
+    """The generated module ``name`` of ``flat`` in the build cache, generated when missing
+    (where :func:`deltafmi.runtime.equations.component.equations_cache` finds it)."""
+    path = _component.equations_cache(name)
+    path.parent.mkdir(parents=True, exist_ok=True)
     if not path.exists():
         try:
             import sympy  # noqa: F401  (the symbolic work; imported only for equation models)

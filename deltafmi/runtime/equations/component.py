@@ -8,15 +8,19 @@ its kernels become the component's compiled kernels (``native``) and its Python 
 """
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.util
+import os
 import sys
+from pathlib import Path
 from typing import Any, ClassVar, Optional
 
 import numpy as np
 
 from deltafmi.component import Component, Kernel, NativeKernels, State
 
+from . import generated  # noqa: F401  (the package an FMU carries its generated module in)
 from .model import EquationModelError, default_section, flatten
 
 #: the package of the generated modules (an FMU carries its model's module in it)
@@ -241,27 +245,44 @@ def _declare(cls: type, info: dict) -> None:
     cls.native = NativeKernels(**kernels, attributes=attributes)
 
 
+def equations_cache(name: str) -> Optional[Path]:
+    """Where the build cache keeps generated module ``name``: a folder per version of the
+    compiler's sources (read, not imported); None where there is no compiler (inside an FMU)."""
+    compiler = Path(__file__).resolve().parents[2] / "export" / "equations"
+    sources = sorted(compiler.glob("*.py"))
+    if not sources:
+        return None
+    digest = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()[:16]
+    root = Path(os.environ.get("DELTAFMI_CACHE", Path.home() / ".cache" / "deltafmi"))
+    return root / "equations" / digest / f"{name}.py"
+
+
 def _generated_module(cls: type, flat: Any) -> Any:
     """The module generated from ``flat``: the FMU's copy, else the build cache's (compiled now
-    when missing)."""
+    when missing; only then is the compiler imported)."""
     name = f"m_{cls.__name__}_{flat.key()[:16]}_p{str(getattr(cls, 'constraint_pole', 0.0)).replace('.', '_')}"
     full = f"{GENERATED}.{name}"
-    if full in sys.modules:
-        return sys.modules[full]
+    local = f"_deltafmi_equations_{name}"  # outside deltafmi: the FMU carries it as ``full``
+    for module_name in (full, local):
+        if module_name in sys.modules:
+            return sys.modules[module_name]
     try:
         return importlib.import_module(full)
     except ModuleNotFoundError:
         pass
-    if not COMPILER:
-        # the builder registers the compiler when imported; by a computed name so that FMUs,
-        # whose runtime must not carry the compiler (nor sympy), do not take it along
-        importlib.import_module(".".join(["deltafmi", "export", "equations"]))
-    path = COMPILER[0](cls, flat, name)
-    spec = importlib.util.spec_from_file_location(full, path)
+    path = equations_cache(name)
+    if path is None or not path.is_file():
+        if not COMPILER:
+            # the builder registers the compiler when imported; by a computed name so that FMUs,
+            # whose runtime must not carry the compiler (nor sympy), do not take it along
+            importlib.import_module(".".join(["deltafmi", "export", "equations"]))
+        path = COMPILER[0](cls, flat, name)
+    spec = importlib.util.spec_from_file_location(local, path)
     module = importlib.util.module_from_spec(spec)
-    sys.modules[full] = module
+    sys.modules[local] = module
     spec.loader.exec_module(module)
     module.__deltafmi_generated_file__ = str(path)
+    module.__deltafmi_fmu_module__ = full
     return module
 
 
@@ -269,4 +290,4 @@ def generated_file(cls: type) -> Optional[tuple]:
     """(path, module name) of the generated module of an equation component, for the packager."""
     module = getattr(cls, "_equations", None)
     path = getattr(module, "__deltafmi_generated_file__", None) or getattr(module, "__file__", None)
-    return (path, module.__name__) if path else None
+    return (path, getattr(module, "__deltafmi_fmu_module__", module.__name__)) if path else None
