@@ -285,6 +285,9 @@ def zeros(n: int) -> Vec:
     return vec([0.0] * n)
 
 
+#: the simulation time, for equations and relations (``time >= 1.5`` is a state event at 1.5 s)
+time = Var("time", "time")
+
 _TEXT = {"add": "+", "sub": "-", "mul": "*", "div": "/", "pow": "^", "lt": "<", "le": "<=", "gt": ">",
          "ge": ">=", "and": " and ", "or": " or ", "eq": "==", "ne": "<>"}
 
