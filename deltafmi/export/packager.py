@@ -29,7 +29,7 @@ from .codegen.component_kernels import component_library
 from .equations import SOURCES as EQUATION_COMPILER, generated_files
 from .kernels import compiled_kernels
 from .reach import module_source, reached_modules
-from .sources import ComponentSourceError, find_component
+from .sources import ComponentSourceError, find_component, split_file_reference
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: compiled value access of the variable declarations (see deltafmi/component/native_values.py)
@@ -268,7 +268,12 @@ def _shipped_resources(source: Path) -> list[Path]:
 
 
 def _component(source: Path | str, class_name: Optional[str]) -> tuple[Path, Optional[str]]:
-    """A source file and class name as given, or those of a component named as the CLI names it."""
+    """A source file and class name as given, or those of a component named as the CLI names it
+    (a Modelica file: the equation model written for it, see :mod:`.equations.modelica`)."""
+    file, named = (str(source), class_name) if class_name else split_file_reference(str(source))
+    if file.endswith(".mo") and Path(file).is_file():
+        from .equations.modelica import python_source_for
+        return python_source_for(Path(file), named, cache_dir() / "modelica")
     if Path(source).is_file():
         return Path(source), class_name
     if class_name is not None:
