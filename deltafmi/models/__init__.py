@@ -16,6 +16,7 @@ MODELS = {
     "BouncingBallEquations": "bouncing_ball_equations",
     "BouncingBallReinit": "bouncing_ball_reinit",
     "BouncingBallRestitution": "bouncing_ball_restitution",
+    "BallOnTableEquations": "ball_on_table_equations",
     "BoxOnTable": "box_on_table",
     "CartesianPendulum": "cartesian_pendulum",
     "ContactEstimator": "contact_estimator",
