@@ -78,5 +78,5 @@ def test_delta_robot_jacobian_equals_the_hand_written_exact_one(tmp_path):
     h_knowns = [hvr[to_hand[n]] for n in enames] + [hvr[f"{i}[{k}]"] for i in "uf" for k in (1, 2, 3)]
     exact = _jacobian(E, e_unknowns, e_knowns)
     reference = _jacobian(H, h_unknowns, h_knowns)
-    assert np.max(np.abs(exact - reference)) < 1e-9 * np.max(np.abs(reference))
+    assert np.max(np.abs(exact - reference)) < 1e-12 * np.max(np.abs(reference))
     assert hnames  # the hand-written plant names its states q[k], v[k]
