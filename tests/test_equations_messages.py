@@ -1,8 +1,8 @@
 """What the equation compiler says about a model it cannot compile: one line through
 ``deltafmi build`` naming the model's file:line, the equations and the unknowns."""
+import re
 import subprocess
 import sys
-import textwrap
 
 import pytest
 
@@ -45,5 +45,4 @@ def test_build_names_the_problem_in_one_line(case, tmp_path):
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
-    import re
     assert re.search(message, lines[0]), lines[0]

@@ -26,12 +26,11 @@ import sympy
 
 from deltafmi.runtime.equations.expr import Equation
 from deltafmi.runtime.equations.model import EquationModelError, FlatModel, Statement, statement_text
-from deltafmi.runtime.equations import model as dsl
 
 from . import structure
 from .printer import Printer
 from .solve import Emitter
-from .symbolic import Symbols, _Edge, _Pre
+from .symbolic import Symbols
 
 
 @dataclass
@@ -532,4 +531,4 @@ def _ident(name: str) -> str:
     return "".join(ch if ch.isalnum() else "_" for ch in name)
 
 
-__all__ = ["Compiler", "ModuleWriter", "EquationModelError", "dsl", "_Edge", "_Pre"]
+__all__ = ["Compiler", "ModuleWriter", "EquationModelError"]

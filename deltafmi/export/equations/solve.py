@@ -10,8 +10,6 @@ raises ``ArithmeticError`` (a singular system at that point).
 """
 from __future__ import annotations
 
-from typing import Iterable
-
 import sympy
 
 from .printer import Printer
@@ -119,7 +117,3 @@ class Emitter:
         self.flush()
         return self.lines
 
-
-def code_names(symbols: Iterable[sympy.Symbol], base: str) -> dict:
-    """Identifiers for symbols (``w1``, ``w2``, ...) in order."""
-    return {s: f"{base}{k}" for k, s in enumerate(symbols)}
