@@ -92,3 +92,21 @@ def test_flagship_tracks_as_before_with_the_equation_plant(tmp_path):
     tracking = np.max(np.abs(eq["plant.z"] - eq["trajectory.r"]))
     assert tracking < 5e-5  # the reference within 0.05 mm, as the hand-written plant does
     assert abs(tracking - np.max(np.abs(hand["plant.z"] - hand["trajectory.r"]))) < 1e-9
+
+
+def test_delta_robot_equations_start_where_inverse_kinematics_puts_them():
+    """The initial equations (h0 = 0, z = z0, v = 0), solved by Gauss-Newton from the arms' start
+    values, find the hand-written plant's branch across the nominal workspace."""
+    from deltafmi.models.delta_robot_equations import DeltaRobotEquations
+
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        radius, angle = 0.5 * np.sqrt(rng.uniform()), rng.uniform(0.0, 2.0 * np.pi)
+        z0 = [radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-1.2, -0.75)]
+        robot = DeltaRobotEquations()
+        robot.z0 = z0
+        robot.initialize(0.0)
+        x = np.array(robot.states)
+        q = np.concatenate([x[0:3], x[6:9], x[12:15]])  # arm1.q, arm1.v, arm2.q, ...
+        assert np.max(np.abs(q - delta.inverse_kinematics(RL5, z0))) < 1e-10
+        assert np.max(np.abs(x[[3, 4, 5, 9, 10, 11, 15, 16, 17]])) < 1e-15  # at rest
