@@ -242,8 +242,30 @@ class Compiler:
                         break
                 if len(remaining) <= 1:
                     break
+        # then any equation that gives any remaining unknown with a constant coefficient (the
+        # matching paired them otherwise: z + a y^3 = c gives z even where z was matched elsewhere)
+        rows = [current[s] for s in remaining]
+        found = True
+        while found and len(remaining) > 1:
+            found = False
+            for i, r in enumerate(rows):
+                for s in remaining:
+                    coeff = sympy.diff(r, s)
+                    if coeff.is_Number and coeff != 0:
+                        value = _solve_linear(r, s, coeff)
+                        remaining.remove(s)
+                        rows = [x.xreplace({s: value}) for k, x in enumerate(rows) if k != i]
+                        assignments = [(a, e.xreplace({s: value})) for a, e in assignments] + [(s, value)]
+                        found = True
+                        break
+                if found:
+                    break
         tear = remaining
-        residuals = [current[s] for s in tear]
+        # rows ordered so that row k holds tearing variable k (a structurally nonzero diagonal)
+        column = {t: k for k, t in enumerate(tear)}
+        eq_var, _ = structure.match([{column[x] for x in r.free_symbols if x in column} for r in rows], len(tear))
+        order = sorted(range(len(rows)), key=lambda i: eq_var[i] if eq_var[i] is not None else len(rows))
+        residuals = [rows[i] for i in order]
         linear = all(not (sympy.diff(r, t).free_symbols & set(tear)) for r in residuals for t in tear)
         return Block("linear" if linear else "newton", solved, eqs, assignments=assignments, tear=tear,
                      residuals=residuals)
