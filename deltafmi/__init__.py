@@ -52,7 +52,7 @@ _API = {
     "SimulationError": "deltafmi.errors",
     "ResultWriteError": "deltafmi.errors",
     "Interrupted": "deltafmi.errors",
-    "ComponentSourceError": "deltafmi.builder.sources",
+    "ComponentSourceError": "deltafmi.builder.source_error",
     "BuildError": "deltafmi.toolchain",
 }
 

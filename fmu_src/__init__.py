@@ -2,8 +2,8 @@
 
 ``from deltafmi.models import DeltaRobot`` imports the module that defines it; a scenario names it
 ``source: deltafmi.models:DeltaRobot`` and the CLI ``deltafmi build DeltaRobot``. The modules
-without a component here (``robot_parameters``, ``contact_plant``, ``wrist_parameters``) hold
-declarations that several models share.
+without a component here (``robot_parameters``, ``contact_plant``, ``wrist_parameters``, and the
+equation model parts ``circuit_parts``, ``delta_arm``) hold declarations that several models share.
 
 An FMU carries this package's ``__init__`` when its model imports a shared module: it must stay
 free of imports (the table below names modules; nothing is loaded until a name is asked for).
@@ -13,13 +13,20 @@ free of imports (the table below names modules; nothing is loaded until a name i
 MODELS = {
     "AssemblyController": "assembly_controller",
     "BouncingBall": "bouncing_ball",
+    "BouncingBallEquations": "bouncing_ball_equations",
+    "BouncingBallReinit": "bouncing_ball_reinit",
     "BouncingBallRestitution": "bouncing_ball_restitution",
+    "BallOnTableEquations": "ball_on_table_equations",
     "BoxOnTable": "box_on_table",
+    "CartesianPendulum": "cartesian_pendulum",
     "ContactEstimator": "contact_estimator",
+    "DCMotorCircuit": "dc_motor_circuit",
+    "DCMotorCircuitL": "dc_motor_circuit_l",
     "DeltaController": "delta_controller",
     "DeltaRobot": "delta_robot",
     "DeltaRobotBox": "delta_robot_box",
     "DeltaRobotContact": "delta_robot_contact",
+    "DeltaRobotEquations": "delta_robot_equations",
     "DeltaWrist": "delta_wrist",
     "DeltaWristPeg": "delta_wrist_peg",
     "InsertionMpc": "insertion_mpc",

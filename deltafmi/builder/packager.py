@@ -26,8 +26,9 @@ from deltafmi.toolchain import BuildError, NoCompilerError, cache_dir, compiler_
 from .compiler import fmu_binary, native_source_files, python_runtime_config
 from .codegen.component_kernels import component_library
 from .bytecode import unchecked_hash_pyc
+from .equations import SOURCES as EQUATION_COMPILER, generated_files
 from .reach import BOOT_SOURCE, module_archive_name, module_source, reached_modules
-from .sources import ComponentSourceError, find_component
+from .sources import ComponentSourceError, find_component, split_file_reference
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: compiled value access of the variable declarations (see deltafmi/runtime/native_values.py)
@@ -155,6 +156,7 @@ def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int
     writers = [module_source(name) for name in reached_modules(modules=_MODEL_DESCRIPTIONS, runtime=False)]
     codegen = PACKAGE_DIR / "builder" / "codegen"
     generator = sorted([*codegen.glob("*.py"), *codegen.glob("*.c")])  # writes the compiled kernels' C
+    generator += EQUATION_COMPILER  # writes an equation model's kernels
     for path in (native_source_files(fmi_version) + writers + generator
                  + [Path(__file__), BOOT_SOURCE]):
         digest.update(path.read_bytes())
@@ -212,7 +214,7 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
             fmu.writestr("resources/deltafmi.json", json.dumps(info, indent=2))
             fmu.writestr("resources/python.cfg", python_runtime_config())
             fmu.writestr("resources/README.txt", _readme(identifier, fmi_version, _interfaces(cls, fmi_version)))
-            for path, arcname in runtime_files(source):
+            for path, arcname in runtime_files(source) + generated_files(cls):
                 fmu.write(path, arcname)
                 fmu.writestr(importlib.util.cache_from_source(arcname), unchecked_hash_pyc(path, arcname))
             for path, arcname in binary_files(source) + resource_files(resources):
@@ -261,7 +263,12 @@ def _shipped_resources(source: Path) -> list[Path]:
 
 
 def _component(source: Path | str, class_name: Optional[str]) -> tuple[Path, Optional[str]]:
-    """A source file and class name as given, or those of a component named as the CLI names it."""
+    """A source file and class name as given, or those of a component named as the CLI names it
+    (a Modelica file: the equation model written for it, see :mod:`.equations.modelica`)."""
+    file, named = (str(source), class_name) if class_name else split_file_reference(str(source))
+    if file.endswith(".mo") and Path(file).is_file():
+        from .equations.modelica import python_source_for
+        return python_source_for(Path(file), named, cache_dir() / "modelica")
     if Path(source).is_file():
         return Path(source), class_name
     if class_name is not None:

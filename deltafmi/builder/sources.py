@@ -14,11 +14,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from .source_error import ComponentSourceError
+
 _MODULE_REFERENCE = re.compile(r"(?P<module>[A-Za-z_][\w.]*):(?P<name>[A-Za-z_]\w*)")
-
-
-class ComponentSourceError(ValueError):
-    """The source does not define a usable Component subclass, or the name finds none."""
 
 
 @dataclass(frozen=True)
@@ -33,9 +31,10 @@ class ComponentSource:
 
 
 def split_file_reference(text: str) -> tuple[str, Optional[str]]:
-    """``'model.py:Class'`` -> ``('model.py', 'Class')``; ``'model.py'`` -> ``('model.py', None)``."""
+    """``'model.py:Class'`` -> ``('model.py', 'Class')``; ``'model.py'`` -> ``('model.py', None)``
+    (a Modelica file too: ``'models.mo:Ball'``)."""
     file, colon, name = text.rpartition(":")
-    if colon and file.endswith(".py") and re.fullmatch(r"[A-Za-z_]\w*", name):
+    if colon and file.endswith((".py", ".mo")) and re.fullmatch(r"[A-Za-z_]\w*", name):
         return file, name
     return text, None
 
@@ -95,6 +94,10 @@ def find_component(text: str) -> ComponentSource:
     """A component named on the command line: a file (``x.py``, ``x.py:Class``), a module
     reference (``package.module:Class``) or a packaged model's class name."""
     file, class_name = split_file_reference(text)
+    if file.endswith(".mo") and Path(file).is_file():
+        from .compiler import cache_dir
+        from .equations.modelica import python_source_for
+        return ComponentSource(*python_source_for(Path(file), class_name, cache_dir() / "modelica"))
     if Path(file).is_file():
         return ComponentSource(Path(file), class_name)
     if is_module_reference(text) or not Path(file).suffix and len(Path(file).parts) == 1:

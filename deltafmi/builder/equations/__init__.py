@@ -1,0 +1,52 @@
+"""The equation compiler: equation models (deltafmi.runtime.equations) -> generated kernels.
+
+Importing it registers :func:`compile_to_cache` with the runtime, which calls it at class
+creation when a model's generated module is not built yet. sympy does the symbolic work (imported
+only when an equation model is compiled, so that other builds do not pay for it).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from deltafmi.runtime.equations import component as _component
+from deltafmi.runtime.equations.model import EquationModelError, FlatModel
+
+#: the compiler's own files: what a generated module depends on besides the model
+SOURCES = sorted(Path(__file__).parent.glob("*.py"))
+
+
+def compile_to_cache(cls: type, flat: FlatModel, name: str) -> Path:
+    """The generated module ``name`` of ``flat`` in the build cache, generated when missing
+    (where :func:`deltafmi.runtime.equations.component.equations_cache` finds it)."""
+    path = _component.equations_cache(name)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not path.exists():
+        try:
+            import sympy  # noqa: F401  (the symbolic work; imported only for equation models)
+        except ImportError:  # pragma: no cover - sympy is one of deltafmi's dependencies
+            raise EquationModelError(f"{cls.__name__}: compiling an equation model needs sympy: "
+                                     f"pip install sympy") from None
+        from .emit import generate
+
+        source = generate(flat, name, getattr(cls, "constraint_pole", 0.0))
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)
+    return path
+
+
+def generated_files(cls: type) -> list[tuple[Path, str]]:
+    """(file, archive name) of the generated module an equation component's FMU carries (none
+    for other components)."""
+    found = _component.generated_file(cls)
+    if found is None:
+        return []
+    path, module = found
+    return [(Path(path), "resources/python/" + module.replace(".", "/") + ".py")]
+
+
+if not _component.COMPILER:
+    _component.COMPILER.append(compile_to_cache)
+
+__all__ = ["compile_to_cache", "generated_files", "EquationModelError"]

@@ -1,0 +1,9 @@
+"""The error of a component source that cannot be built (its own module: the source finders and
+the Modelica reader both raise it)."""
+from __future__ import annotations
+
+__all__ = ["ComponentSourceError"]
+
+
+class ComponentSourceError(ValueError):
+    """The source does not define a usable Component subclass, or the name finds none."""

@@ -1,0 +1,1 @@
+"""The modules the equation compiler generates (an FMU carries its model's here)."""
