@@ -9,7 +9,7 @@ from fmpy import simulate_fmu
 
 from deltafmi.builder.packager import build_fmu
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "equations.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "equations.md"
 
 
 @pytest.fixture(scope="module")

@@ -77,9 +77,9 @@ def test_cartesian_pendulum_period_and_constraint(interface):
 
 def test_flagship_tracks_as_before_with_the_equation_plant(tmp_path):
     import deltafmi
-    from deltafmi.apps.examples import EXAMPLES_DIR
+    from deltafmi.shipped import SCENARIOS_DIR
 
-    text = (EXAMPLES_DIR / "delta_tracking.yaml").read_text()
+    text = (SCENARIOS_DIR / "delta_tracking.yaml").read_text()
     assert "source: deltafmi.models:DeltaRobot\n" in text
     (tmp_path / "tracking.yaml").write_text(text.replace("source: deltafmi.models:DeltaRobot\n",
                                                          "source: deltafmi.models:DeltaRobotEquations\n"))

@@ -9,7 +9,7 @@ from scipy.linalg import expm
 
 from deltafmi.builder.packager import build_cached, build_fmu
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "components.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "components.md"
 R, KT, KE, J, B = 1.0, 0.05, 0.05, 1e-4, 1e-4
 VOLTS = 1.5  # below R i_max = 2 V: the guide's drive never limits the current
 

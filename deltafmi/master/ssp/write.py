@@ -95,7 +95,7 @@ def ssd_tree(system: System, sources: Dict[str, Tuple[Path, str]]) -> etree._Ele
 
 def _component(parent: etree._Element, component: ResolvedComponent, source: str, system: System) -> None:
     spec = component.spec
-    element = _sub(parent, "ssd", "ResolvedComponent", name=component.name, type=FMU_MIME_TYPE, source=source,
+    element = _sub(parent, "ssd", "Component", name=component.name, type=FMU_MIME_TYPE, source=source,
                    implementation="ModelExchange" if component.interface == "ME" else "CoSimulation")
     ports = _connected_ports(component, system)
     if ports:
@@ -116,7 +116,7 @@ def _component(parent: etree._Element, component: ResolvedComponent, source: str
             _sub(_sub(parameters, "ssv", "Parameter", name=port.name), "ssv", kind, value=text)
     annotations: List[Tuple[str, etree._Element]] = []
     if spec.step_multiple != 1 or spec.solver:
-        ours = etree.Element(tag("dfmi", "ResolvedComponent"))
+        ours = etree.Element(tag("dfmi", "Component"))
         if spec.step_multiple != 1:
             ours.set("step_multiple", str(spec.step_multiple))
         if spec.solver:
@@ -217,7 +217,7 @@ def _annotations(parent: etree._Element, annotations: Iterable[Tuple[str, etree.
 
 
 def _archive_names(components: List[ResolvedComponent]) -> Dict[str, Tuple[Path, str]]:
-    """ResolvedComponent name -> (FMU file, ``resources/<name>.fmu``); one archive entry per distinct FMU."""
+    """Component name -> (FMU file, ``resources/<name>.fmu``); one archive entry per distinct FMU."""
     by_digest: Dict[str, str] = {}
     taken: set = set()
     names: Dict[str, Tuple[Path, str]] = {}
