@@ -106,7 +106,7 @@ def direct_step_us(steps: int, repeats: int) -> float:
 def c_host_us(fmu: Path, steps: int, repeats: int, workdir: Path) -> dict[str, float]:
     """Median microseconds per call from the plain-C host (no Python in the host process)."""
     host = workdir / "host"
-    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/builder/native'}", str(ROOT / "tests/c_host/host.c"),
+    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/runtime/native'}", str(ROOT / "tests/c_host/host.c"),
                     "-o", str(host), "-ldl", "-lm"], check=True)
     md = fmpy.read_model_description(str(fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}

@@ -2,7 +2,7 @@
 
 Prints, all measured in this one run on this machine (medians over --repeats rounds, each running
 every path once in a fresh process, so that a slow spell of the shared machine hits all paths):
-(a) the zipped size of every deltafmi/models FMU, non-portable and portable;
+(a) the zipped size of every fmu_src/ model FMU, non-portable and portable;
 (b) the first fmi2Instantiate of the portable DeltaRobot in a C host (a fresh process per run, no
     Python in it: the FMU starts the interpreter it carries) against the non-portable FMU (which
     starts the Python recorded at build time);
@@ -145,7 +145,7 @@ def timing_host(workdir: Path) -> Path:
     """``TIMING_HOST`` compiled in ``workdir``."""
     source, exe = workdir / "timing_host.c", workdir / "timing_host"
     source.write_text(TIMING_HOST)
-    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/builder/native'}", str(source), "-o", str(exe), "-ldl"],
+    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/runtime/native'}", str(source), "-o", str(exe), "-ldl"],
                    check=True)
     return exe
 
@@ -192,7 +192,7 @@ def other_version_python(version: str) -> Optional[Path]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", default="delta_robot", help="deltafmi/models model for (b) and (c)")
+    parser.add_argument("--model", default="delta_robot", help="fmu_src/ model for (b) and (c)")
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--other", default="3.12", help="CPython version of the other-version fmpy host")
@@ -206,7 +206,7 @@ def main() -> None:
 
     if not args.no_sizes:
         plain, portable = sizes(False), sizes(True)
-        print("(a) zipped FMU sizes (deltafmi/models)")
+        print("(a) zipped FMU sizes (fmu_src/)")
         print(f"  {'model':28s} {'non-portable':>14s} {'portable':>12s}")
         for name in plain:
             print(f"  {name:28s} {plain[name] / 1e3:11.0f} KB {portable[name] / 1e6:9.1f} MB")

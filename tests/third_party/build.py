@@ -4,7 +4,7 @@ Each model is a folder with ``model.c`` and ``modelDescription.xml`` (and ``reso
 reads files). The binary is compiled with ``cc`` from the model, ``common.c`` and the front end of
 the model's FMI version (its modelDescription's ``fmiVersion``): ``plumbing.c`` supplies every fmi2
 function, ``plumbing3.c`` every fmi3 function. It is compiled against the FMI headers shipped in
-deltafmi/builder/native, exports only the ``fmi2*`` (``fmi3*``) functions and links nothing but libc
+deltafmi/runtime/native, exports only the ``fmi2*`` (``fmi3*``) functions and links nothing but libc
 and libm: no Python anywhere. FMI 2.0 binaries go to ``binaries/linux64``, FMI 3.0 binaries to
 ``binaries/x86_64-linux``.
 
