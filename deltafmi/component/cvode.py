@@ -19,6 +19,8 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 import numpy.ctypeslib  # noqa: F401  (numpy loads it lazily on first use, which raced between threads)
 
+from deltafmi.errors import DeltaFmiError
+
 from . import sundials as _sun
 
 Rhs = Callable[[float, np.ndarray, np.ndarray], None]
@@ -33,7 +35,7 @@ Jacobian = Callable[[float, np.ndarray, np.ndarray], None]
 NativeCallbacks = Callable[[int, int, int, int], tuple[int, int, int, int]]
 
 
-class CvodeError(RuntimeError):
+class CvodeError(DeltaFmiError, RuntimeError):
     """CVODE failed (error test or convergence failures, too much work, ...)."""
 
 

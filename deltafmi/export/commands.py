@@ -9,7 +9,6 @@ import click
 
 from deltafmi.errors import BadInput
 
-from .compiler import BuildError
 from .packager import ComponentSourceError, build_fmu
 from .requirements import runtime_requirement
 
@@ -58,15 +57,10 @@ def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, vali
                                            or output.endswith(("/", os.sep)))
     folder = Path(output) if to_directory else None
     for text in sources:
-        try:
-            source = find_component(text)
-            target = folder / f"{source.path.stem}.fmu.tmp" if folder else (Path(output) if output else None)
-            path = build_fmu(source.path, target, portable=portable, class_name=source.class_name,
-                             fmi_version=int(fmi_version), resources=resources)
-        except ComponentSourceError as exc:
-            raise BadInput(str(exc)) from None
-        except BuildError as exc:
-            raise click.ClickException(str(exc)) from None
+        source = find_component(text)
+        target = folder / f"{source.path.stem}.fmu.tmp" if folder else (Path(output) if output else None)
+        path = build_fmu(source.path, target, portable=portable, class_name=source.class_name,
+                         fmi_version=int(fmi_version), resources=resources)
         if folder:  # name the FMU after its model identifier
             final = folder / _model_identifier(path)
             path.replace(final)
@@ -187,8 +181,6 @@ def _fmu_of(target: str) -> Path:
     except ComponentSourceError as exc:
         raise BadInput(f"{exc}; info takes an .fmu file or a component "
                        "(`deltafmi build DeltaRobot -o DeltaRobot.fmu` writes one)") from None
-    except BuildError as exc:
-        raise click.ClickException(str(exc)) from None
 
 
 def validate_fmu_file(fmu: Path) -> None:

@@ -27,6 +27,8 @@ import tempfile
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
+from deltafmi.errors import DeltaFmiError
+
 NATIVE_DIR = Path(__file__).parent / "native"
 #: what both FMI versions' binaries are made of
 SOURCES = ("core.c", "bridge.c", "python_start.c", "process_lock.c")
@@ -38,7 +40,7 @@ VERSION_FILES = {
 }
 
 
-class BuildError(RuntimeError):
+class BuildError(DeltaFmiError, RuntimeError):
     """The native build failed (no compiler, compiler error, missing Python headers)."""
 
 

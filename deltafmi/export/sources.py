@@ -14,11 +14,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from deltafmi.errors import DeltaFmiError
+
 _MODULE_REFERENCE = re.compile(r"(?P<module>[A-Za-z_][\w.]*):(?P<name>[A-Za-z_]\w*)")
 
 
-class ComponentSourceError(ValueError):
+class ComponentSourceError(DeltaFmiError, ValueError):
     """The source does not define a usable Component subclass, or the name finds none."""
+
+    exit_code = 2  # bad input
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from typing import Any, Collection, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from deltafmi.errors import BadInput, did_you_mean
+from deltafmi.errors import BadInput, DeltaFmiError, did_you_mean
 
 from ..scenario.modelinfo import split_element
 from .result import Result, read_result
@@ -38,8 +38,10 @@ _DASHES = ("-", "--", ":", "-.")
 _LABEL_NAMES, _LABEL_LENGTH = 3, 40
 
 
-class UnknownSignal(LookupError):
+class UnknownSignal(DeltaFmiError, LookupError):
     """A requested signal (or pattern) matches no column; the message carries a suggestion."""
+
+    exit_code = 2  # bad input
 
 
 @dataclass

@@ -21,6 +21,8 @@ from attrs import evolve
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription, ModelVariable
 
+from deltafmi.errors import DeltaFmiError
+
 _RANGE = re.compile(r"^(?P<base>.+)\[(?P<lo>\d+):(?P<hi>\d+)\]$")
 _ALL = re.compile(r"^(?P<base>.+)\[\*\]$")
 _ELEMENT = re.compile(r"(?P<base>.+)\[(?P<i>\d+)\]")
@@ -34,8 +36,10 @@ def split_element(name: str) -> Optional[Tuple[str, int]]:
     return (m["base"], int(m["i"])) if m else None
 
 
-class UnknownVariable(LookupError):
+class UnknownVariable(DeltaFmiError, LookupError):
     """A variable reference names nothing in the FMU; ``names`` are candidates for suggestions."""
+
+    exit_code = 2  # bad input
 
     def __init__(self, reference: str, names: List[str]) -> None:
         super().__init__(reference)

@@ -10,6 +10,8 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import yaml
 
+from deltafmi.errors import DeltaFmiError
+
 Path = Tuple[Any, ...]
 
 
@@ -56,8 +58,10 @@ def _missing_colon(lines: list, line: int) -> str:
     return f" (is the ':' missing on line {previous}, '{lines[previous - 1].strip()}'?)"
 
 
-class YamlSyntaxError(ValueError):
+class YamlSyntaxError(DeltaFmiError, ValueError):
     """The text is not YAML (or repeats a key); ``line`` is 1-based."""
+
+    exit_code = 2  # bad input
 
     def __init__(self, message: str, line: Optional[int]) -> None:
         super().__init__(message)
