@@ -74,6 +74,7 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
     Ctrl-C, :class:`~deltafmi.errors.ResultWriteError` when ``output`` cannot take more rows)
     when the run fails; the error's ``result`` holds every row computed up to the failure.
     """
+    from .results.safe_file import check_writable
     from .results.writers import writer_for
     from .scenario.overrides import with_overrides
     from .scenario.resolve import resolve_system
@@ -106,6 +107,8 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
             kept.append(ResultRecorder(names, kinds, units, file_writer, after_rows=messages.deliver))
             return kept[-1]
 
+        if output is not None:
+            check_writable(Path(output))
         master = Master(system, result=Path(output) if output is not None else _IN_MEMORY, progress=False,
                         warn=scenario_log.warning, writer_class=recorder,
                         on_message=messages.add, debug_logging=verbose,

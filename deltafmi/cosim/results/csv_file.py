@@ -6,8 +6,10 @@ written as ``repr`` writes them (they read back bit for bit; blocks of numeric r
 formatted in C by ``native/csv_rows.c``, Ryu's shortest digits, ten times faster than ``repr``),
 Integer, Boolean and Enumeration values as integers, String values quoted by the :mod:`csv` module's rules (``QUOTE_NONNUMERIC``: every
 string in double quotes, a quote inside doubled). Rows are buffered and written out whenever
-the buffer fills up or half a second has passed, so a failing or killed run keeps (almost)
-everything up to the failure. The file never ends in a partial row, also when the disk fills up.
+the buffer fills up or half a second has passed, to a temporary file beside the result file
+that :meth:`CsvWriter.close` moves into place (:mod:`.safe_file`): a failing or interrupted run
+keeps (almost) everything up to its end, and an earlier result of the same name is replaced
+only by a whole file. The file never ends in a partial row, also when the disk fills up.
 """
 from __future__ import annotations
 
@@ -23,6 +25,8 @@ import numpy as np
 
 from deltafmi.errors import ResultWriteError
 from deltafmi.export.compiler import plain_c_library
+
+from .safe_file import ResultFile
 
 _FLUSH_SECONDS = 0.5
 _INTEGERS = ("Integer", "Boolean")
@@ -68,6 +72,9 @@ class CsvWriter:
     write fails (a full disk, a quota, a file size limit) the file is cut back to the end of the
     last complete row and :class:`~deltafmi.errors.ResultWriteError` says how many rows it holds
     and up to which time. After that the writer takes no more rows.
+
+    The rows go to a temporary file beside ``path``, moved into place by :meth:`close`; after
+    :meth:`fail` (the run failed) to ``path``'s failed name instead (:mod:`.safe_file`).
     """
 
     def __init__(self, path: str | Path, names: Sequence[str], chunk: int = 512,
@@ -76,8 +83,9 @@ class CsvWriter:
         if len(kinds) != len(names):
             raise ValueError(f"{len(names)} column names but {len(kinds)} column types")
         self.path = Path(path)
+        self.file = ResultFile(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fd: Optional[int] = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        self._fd: Optional[int] = os.open(self.file.temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
         self._size = 0  # bytes of whole rows (and the header) in the file
         self._failed: Optional[ResultWriteError] = None
         self._chunk = chunk
@@ -177,16 +185,21 @@ class CsvWriter:
                 self.rows_written += whole
                 if whole:
                     self._last_time = float(times[whole - 1])
-            self._failed = ResultWriteError(self.path, self.rows_written, self._last_time, exc)
+            self._failed = ResultWriteError(self.fail(), self.rows_written, self._last_time, exc)
             raise self._failed from None
         self._size += written
         if len(times):
             self.rows_written += len(ends)
             self._last_time = float(times[-1])
 
+    def fail(self) -> Path:
+        """The run failed: :meth:`close` keeps the rows under the failed name (returned)."""
+        return self.file.fail()
+
     def close(self) -> None:
-        """Flush and close (idempotent). Raises :class:`~deltafmi.errors.ResultWriteError` when
-        the last rows do not fit; the file is closed either way."""
+        """Flush, close and move the file into place (idempotent). Raises
+        :class:`~deltafmi.errors.ResultWriteError` when the last rows do not fit; the file is
+        closed and kept (under the failed name) either way."""
         if self._fd is None:
             return
         try:
@@ -194,6 +207,7 @@ class CsvWriter:
         finally:
             os.close(self._fd)
             self._fd = None
+            self.file.finish()
 
 
 class RowSampler:

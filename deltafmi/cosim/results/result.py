@@ -199,6 +199,12 @@ class ResultRecorder:
         if self.file_writer is not None:
             self.file_writer.flush()
 
+    def fail(self) -> Optional[Path]:
+        """The run failed: the file writer keeps its rows under the failed name (returned; None
+        without a file writer, or one that cannot)."""
+        fail = getattr(self.file_writer, "fail", None)
+        return fail() if fail is not None else None
+
     def close(self) -> None:
         """Close the file writer (idempotent)."""
         self._rows.flush()

@@ -32,6 +32,7 @@ from deltafmi.errors import BadInput, Interrupted, SimulationError
 
 from ..live.pacing import FellBehind
 from ..results.csv_file import RowSampler
+from ..results.safe_file import check_writable
 from ..results.writers import write_rows_to, writer_for
 from ..results.progress import Progress, Summary, Termination
 from ..scenario.resolve import Component, Port, System
@@ -90,6 +91,8 @@ class Master:
         self.result_path = Path(result) if result is not None else scenario.result.file
         self.every = scenario.result.every
         self._writer_for_file = writer_for(self.result_path) if writer_class is None else None
+        if writer_class is None:
+            check_writable(self.result_path)
         self.progress = Progress(self.start, self.stop, progress)
         self.warn = warn
         self.on_message = on_message
@@ -137,13 +140,15 @@ class Master:
     def run(self) -> Summary:
         """Simulate from start to stop; raises :class:`SimulationError` with a one-line reason.
 
-        Whatever was recorded before a failure stays in the result file. A component that ends
-        the simulation (:class:`Terminated`) ends the run cleanly at its time.
+        The result file is replaced only when the run completes or is interrupted (with the rows
+        up to there); a failed run keeps what it recorded under the failed name (``r.failed.csv``,
+        which its message names) and leaves an earlier ``r.csv`` as it was. A component that
+        ends the simulation (:class:`Terminated`) ends the run cleanly at its time.
         """
         wall = _time.perf_counter()
         terminated = None
         setup = closing = 0.0
-        finished = False
+        finished = interrupted = False
         try:
             with self.stop_signals:
                 try:
@@ -163,12 +168,15 @@ class Master:
             if self.stop_signals.received is None and not isinstance(exc, KeyboardInterrupt):
                 raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
                                       f"{self._partial_note()}") from exc
+            interrupted = True
             self.close()
             raise self._interrupted() from None
         else:
             finished = True
         finally:
             closing = _time.perf_counter()
+            if not finished and not interrupted:
+                self._fail_result()
             self.close()
             if not finished and self.live is not None and self.live.started:
                 self.warn(f"live run up to t = {self.time:.9g} s: {self.live.report()}")  # what the summary says
@@ -248,7 +256,20 @@ class Master:
             except SimulationError:  # a NaN in one of them: the failure at hand is the one to tell
                 pass
         self.writer.flush()
-        return f" (results up to the failure in {self.result_path})"
+        return f" (results up to the failure in {self._kept_after_failure()})"
+
+    def _fail_result(self) -> Path:
+        """The run failed: the writer keeps its rows under the failed name; where they are."""
+        fail = getattr(self.writer, "fail", None)
+        kept = fail() if fail is not None else None
+        return Path(kept) if kept is not None else self.result_path
+
+    def _kept_after_failure(self) -> str:
+        """Where a failed run's rows are, and that an earlier result stays as it was."""
+        kept = self._fail_result()
+        if kept != self.result_path and self.result_path.exists():
+            return f"{kept}; {self.result_path} left as it was"
+        return str(kept)
 
     def _nothing_kept(self) -> str:
         existing = self.result_path.exists() and self.writer is None
@@ -551,8 +572,8 @@ class Master:
         if flush is not None:
             flush()
         raise SimulationError(f"{names[first]} is {what} at t = {t:.9g} s{others}; the rows up to there are in "
-                              f"{self.result_path} (to record it and go on: --allow-nan, or allow_nan: true "
-                              "under master:)")
+                              f"{self._kept_after_failure()} (to record it and go on: --allow-nan, or allow_nan: "
+                              "true under master:)")
 
     def record_step(self, t: float) -> None:
         """Record the row at the end of a step that reached ``t``, and show progress (and stop

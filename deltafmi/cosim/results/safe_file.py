@@ -1,0 +1,77 @@
+"""A result file that never destroys an earlier one: rows go to a temporary file beside the target,
+moved into place when the writer closes.
+
+A run that completes, or is interrupted (the rows computed are kept), replaces the target with
+a whole, readable file; a run that fails leaves the target as it was and keeps its rows under
+the failed name (``r.csv`` -> ``r.failed.csv``), which the failure's message names. A process
+killed outright (SIGKILL, power loss) leaves the target untouched and the temporary file
+(``.r.csv.<pid>.tmp``, hidden) behind. The rename is atomic (``os.replace`` on one file system).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Optional
+
+from deltafmi.errors import BadInput
+
+__all__ = ["ResultFile", "failed_name", "check_writable"]
+
+
+def failed_name(target: Path) -> Path:
+    """Where a failed run's rows go: ``r.csv`` -> ``r.failed.csv`` (beside the target)."""
+    return target.with_name(f"{target.stem}.failed{target.suffix}")
+
+
+def check_writable(target: Path) -> None:
+    """Raise :class:`BadInput` (one line) when ``target`` cannot be written: a file where a folder
+    of its path should be, a folder where the file should be, a folder that cannot take files."""
+    target = Path(target)
+    if target.is_dir():
+        raise BadInput(f"result file '{target}': that is a folder; name a file (r.csv, r.parquet, r.mat)")
+    for parent in [target.parent, *target.parent.parents]:
+        if parent.exists():
+            if not parent.is_dir():
+                raise BadInput(f"result file '{target}': {parent} is a file, not a folder")
+            break
+    folder = next(p for p in [target.parent, *target.parent.parents] if p.exists())
+    probe = folder / f".{target.name}.{os.getpid()}.probe"
+    try:
+        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except OSError as exc:
+        raise BadInput(f"result file '{target}': cannot write in {folder}: {exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+class ResultFile:
+    """The temporary file a writer writes, and where it goes when the writer closes."""
+
+    def __init__(self, target: str | Path) -> None:
+        self.target = Path(target)
+        self.temporary = self.target.with_name(f".{self.target.name}.{os.getpid()}.tmp")
+        #: set by :meth:`fail`: the rows go to :func:`failed_name` instead of the target
+        self.failed = False
+
+    @property
+    def final(self) -> Path:
+        """Where the rows are once the writer has closed."""
+        return failed_name(self.target) if self.failed else self.target
+
+    def fail(self) -> Path:
+        """The run failed: the rows go to the failed name (returned), the target stays as it was."""
+        self.failed = True
+        return self.final
+
+    def finish(self) -> Optional[Path]:
+        """Move the temporary file into place (idempotent); its final path, or None when there was
+        none (never opened, or removed because unreadable)."""
+        if not self.temporary.exists():
+            return None
+        final = self.final
+        os.replace(self.temporary, final)
+        return final
+
+    def discard(self) -> None:
+        """Remove the temporary file (a file that cannot be made readable)."""
+        self.temporary.unlink(missing_ok=True)
