@@ -49,3 +49,40 @@ class StopSignals:
         if self.received is not None:
             raise KeyboardInterrupt
         self.received = signum
+
+
+class InterruptOnSignals:
+    """Context manager for a loop that waits rather than steps (a study's sweep): SIGINT, SIGTERM
+    and SIGHUP raise KeyboardInterrupt where the loop waits, so its ``except KeyboardInterrupt``
+    keeps what finished; :attr:`received` says which signal. SIGINT is caught where the shell
+    ignored it (a command started with ``&``), SIGHUP is left alone under ``nohup``; a second
+    signal while the first is handled is ignored (the results are being written)."""
+
+    def __init__(self) -> None:
+        self.received: Optional[int] = None
+        self._previous: Dict[int, Any] = {}
+
+    @property
+    def exit_code(self) -> int:
+        """128 + the signal received (130 when none was: a KeyboardInterrupt from elsewhere)."""
+        return 128 + (self.received or signal.SIGINT)
+
+    def __enter__(self) -> "InterruptOnSignals":
+        if threading.current_thread() is threading.main_thread():
+            for signum in SIGNALS:
+                if signum == signal.SIGHUP and signal.getsignal(signum) == signal.SIG_IGN:
+                    continue
+                self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, kind: Optional[Type[BaseException]], value: Optional[BaseException],
+                 traceback: Optional[TracebackType]) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        self._previous.clear()
+
+    def _handle(self, signum: int, frame: Optional[FrameType]) -> None:
+        if self.received is not None:
+            return
+        self.received = signum
+        raise KeyboardInterrupt
