@@ -14,6 +14,10 @@ from deltafmi.errors import DeltaFmiError
 
 Path = Tuple[Any, ...]
 
+#: values a document may expand to: YAML aliases (``*a`` repeats what ``&a`` names) let a few
+#: lines stand for billions of values ("billion laughs"), which no scenario or study needs
+MAX_VALUES = 200_000
+
 
 class _Loader(yaml.SafeLoader):
     """SafeLoader that also reads ``1e-3`` as a float (YAML 1.1 insists on ``1.0e-3``)."""
@@ -83,10 +87,18 @@ def load_yaml(text: str) -> Tuple[Any, LineMap]:
     lines = LineMap()
     if node is None:
         return None, lines
-    return _build(node, (), lines), lines
+    try:
+        return _build(node, (), lines, [MAX_VALUES]), lines
+    except RecursionError:
+        raise YamlSyntaxError("YAML nested too deeply to be a scenario or a study", None) from None
 
 
-def _build(node: yaml.Node, path: Path, lines: LineMap) -> Any:
+def _build(node: yaml.Node, path: Path, lines: LineMap, left: List[int]) -> Any:
+    left[0] -= 1
+    if left[0] < 0:
+        raise YamlSyntaxError(f"the YAML expands to more than {MAX_VALUES:,} values (aliases such as *a repeat "
+                              "what &a names, again and again): not a scenario or a study",
+                              node.start_mark.line + 1)
     lines.value_lines[path] = node.start_mark.line + 1
     if isinstance(node, yaml.MappingNode):
         out: Dict[Any, Any] = {}
@@ -95,12 +107,12 @@ def _build(node: yaml.Node, path: Path, lines: LineMap) -> Any:
             if key in out:
                 raise YamlSyntaxError(f"duplicate key '{key}'", key_node.start_mark.line + 1)
             lines.key_lines[path + (key,)] = key_node.start_mark.line + 1
-            out[key] = _build(value_node, path + (key,), lines)
+            out[key] = _build(value_node, path + (key,), lines, left)
         return out
     if isinstance(node, yaml.SequenceNode):
         items: List[Any] = []
         for i, item in enumerate(node.value):
-            items.append(_build(item, path + (i,), lines))
+            items.append(_build(item, path + (i,), lines, left))
         return items
     return _scalar(node)
 

@@ -36,7 +36,7 @@ from ..results.safe_file import check_writable
 from ..results.writers import write_rows_to, writer_for
 from ..results.progress import Progress, Summary, Termination
 from ..scenario.resolve import Component, Port, System
-from ..scenario.spec import grid_steps
+from ..scenario.spec import grid_steps, too_many_steps
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
 from .fmi3_units import unsettled
@@ -87,6 +87,12 @@ class Master:
         if self.stop <= self.start:
             raise BadInput(f"stop time {self.stop} is not after start time {self.start}")
         self.step = scenario.experiment.step
+        if not all(map(math.isfinite, (self.start, self.stop, self.step))):
+            raise BadInput(f"start {self.start:g} s, stop {self.stop:g} s and step {self.step:g} s must be finite numbers")
+        if not scenario.master.adaptive.enabled:
+            why = too_many_steps(self.start, self.stop, self.step, scenario.master.max_steps)
+            if why:
+                raise BadInput(why)
         self.algorithm = algorithm or scenario.master.algorithm
         self.result_path = Path(result) if result is not None else scenario.result.file
         self.every = scenario.result.every
