@@ -374,6 +374,23 @@ class Master:
             unit.exit_initialization(self.start)
         for unit in self.units:
             unit.fetch()
+        self._settle_inputs()
+
+    def _settle_inputs(self) -> None:
+        """Set every connected input from its source once more, sources before targets, and read
+        the outputs again: leaving initialization mode a unit may change its outputs (a sampled
+        controller takes its first sample) after the inputs they feed were set, and the first row
+        must hold the inputs the units integrate with over the first step, as every later row
+        holds those of the step it ends. A Model Exchange unit's discrete inputs are left to its
+        first step, where a change is an event (with its rows)."""
+        order = [self._by_name[name] for name in self.system.order if name in self._by_name]
+        order += [unit for unit in self.units if all(unit is not known for known in order)]
+        for unit in order:
+            if hasattr(unit, "_discrete_inputs"):
+                Unit.pull(unit)  # the continuous inputs; setting a discrete one is an event
+            else:
+                unit.pull()
+            unit.fetch()
 
     def _can_roll_back(self) -> bool:
         lacking = [u.name for u in self.units if not u.can_save_state]
