@@ -5,6 +5,8 @@ assembles the click group and is the one place where a library error becomes a m
 exit code (:func:`report`): each :class:`~deltafmi.errors.DeltaFmiError` carries its code (2 bad
 input, 1 a failure, 128 + the signal for an interruption).
 """
+import errno
+import os
 from typing import Any
 
 import click
@@ -22,6 +24,13 @@ from deltafmi.study.commands import plot_study_command, study_case, sweep
 from deltafmi.viz.commands import animate
 
 
+#: errors of a path the user gave (bad input, exit code 2); other OS errors are failures (1)
+_PATH_ERRORS = (errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENOENT,
+                errno.ENAMETOOLONG, errno.ELOOP)
+#: set to 1 to see the traceback of an unexpected error instead of its one line
+DEBUG_VARIABLE = "DELTAFMI_TRACEBACK"
+
+
 def report(error: DeltaFmiError) -> int:
     """Print ``error`` on stderr the way the command line shows it, and return its exit code."""
     for line in error.lines():
@@ -29,15 +38,44 @@ def report(error: DeltaFmiError) -> int:
     return error.exit_code
 
 
+def report_os_error(error: OSError) -> int:
+    """An operating-system error no command turned into its own message (a folder that cannot
+    be written, a file that vanished): one line naming the file; exit code 2 for a path the user
+    gave, 1 otherwise (a full disk)."""
+    names = [str(n) for n in (error.filename, error.filename2) if n is not None]
+    where = f"{' -> '.join(names)}: " if names else ""
+    click.echo(f"Error: {where}{error.strerror or error}", err=True)
+    return 2 if error.errno in _PATH_ERRORS else 1
+
+
+def report_unexpected(error: Exception) -> int:
+    """A bug: one line that says so and how to see the traceback (exit code 1)."""
+    text = " ".join(str(error).split()) or "(no message)"
+    click.echo(f"Error: internal error, {type(error).__name__}: {text} (this is a bug in deltafmi; "
+               f"{DEBUG_VARIABLE}=1 shows where)", err=True)
+    return 1
+
+
 class _Commands(click.Group):
-    """The ``deltafmi`` group: a library error raised by any command (while its options are read
-    or while it runs) ends the process with its message and its exit code, never a traceback."""
+    """The ``deltafmi`` group: an error raised by any command (while its options are read or while
+    it runs) ends the process with one line and its exit code, never a traceback: a library
+    error with its message and code, an OS error naming its file, anything else as a bug."""
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
         except DeltaFmiError as error:
             raise click.exceptions.Exit(report(error)) from None
+        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except OSError as error:
+            if os.environ.get(DEBUG_VARIABLE):
+                raise
+            raise click.exceptions.Exit(report_os_error(error)) from None
+        except Exception as error:  # noqa: BLE001 - the last line of defence: no traceback for a user
+            if os.environ.get(DEBUG_VARIABLE):
+                raise
+            raise click.exceptions.Exit(report_unexpected(error)) from None
 
 
 @click.group(cls=_Commands)

@@ -88,6 +88,9 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], connect_t
     if dashboard is not None:
         dashboard_address(dashboard)  # a malformed address fails here, before any FMU is built
     security = tls_security(tls_ca_file, tls_cert, tls_key)
+    if output is not None and not dry_run:  # before the FMUs are built
+        from deltafmi.cosim.results.safe_file import check_writable
+        check_writable(Path(output), "results table")
     planned = _plan(study)
     if not quiet:  # the scenario's warnings, once for the whole study (the cases run it unchecked)
         for warning in planned.system.warnings:

@@ -23,23 +23,26 @@ def failed_name(target: Path) -> Path:
     return target.with_name(f"{target.stem}.failed{target.suffix}")
 
 
-def check_writable(target: Path) -> None:
-    """Raise :class:`BadInput` (one line) when ``target`` cannot be written: a file where a folder
-    of its path should be, a folder where the file should be, a folder that cannot take files."""
+def check_writable(target: Path, what: str = "result file") -> None:
+    """Raise :class:`BadInput` (one line, naming ``what`` and ``target``) when ``target`` cannot be
+    written: a file where a folder of its path should be, a folder where the file should be, a
+    folder that cannot take files (no permission, a read-only file system). Folders missing on
+    the way are not an error: the writer makes them."""
     target = Path(target)
     if target.is_dir():
-        raise BadInput(f"result file '{target}': that is a folder; name a file (r.csv, r.parquet, r.mat)")
+        raise BadInput(f"{what} '{target}': that is a folder; name a file")
+    folder = target.parent
     for parent in [target.parent, *target.parent.parents]:
         if parent.exists():
             if not parent.is_dir():
-                raise BadInput(f"result file '{target}': {parent} is a file, not a folder")
+                raise BadInput(f"{what} '{target}': {parent} is a file, not a folder")
+            folder = parent
             break
-    folder = next(p for p in [target.parent, *target.parent.parents] if p.exists())
     probe = folder / f".{target.name}.{os.getpid()}.probe"
     try:
         fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     except OSError as exc:
-        raise BadInput(f"result file '{target}': cannot write in {folder}: {exc.strerror or exc}") from None
+        raise BadInput(f"{what} '{target}': cannot write in {folder}: {exc.strerror or exc}") from None
     os.close(fd)
     os.unlink(probe)
 
