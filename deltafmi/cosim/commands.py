@@ -143,14 +143,15 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
                               realtime=False if replay and realtime is None and speed is None else realtime,
                               speed=speed, behind=behind, cli=True)
 
-    from deltafmi.console import progress_shown
+    from deltafmi.console import RepeatedWarnings, progress_shown
 
     printer = None if quiet else _FmuMessagePrinter(verbose)
+    repeated = RepeatedWarnings()
     with progress_shown(not quiet):  # -q: nothing on success, not even a first build's line
         system = load_system(scenario, stop=stop, overrides=overrides, quiet=quiet)
     master = Master(system, result=Path(output) if output else None,
                     progress=not quiet and sys.stdout.isatty(),
-                    warn=(lambda message: None) if quiet else lambda message: click.echo(f"warning: {message}", err=True),
+                    warn=(lambda message: None) if quiet else repeated,
                     on_message=printer, debug_logging=verbose, replay=Path(replay) if replay else None)
     reason = ""
     try:
@@ -159,6 +160,7 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
         reason = str(exc)
         raise
     finally:
+        repeated.close()
         if printer is not None:
             printer.show_errors(reason)
     if not quiet:

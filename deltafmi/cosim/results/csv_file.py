@@ -61,6 +61,25 @@ def _ryu_tables() -> List[np.ndarray]:
     return [pairs(inverse), pairs(powers)]
 
 
+def units_file(path: str | Path) -> Path:
+    """The file beside a CSV result that holds its units (a CSV has no place for them):
+    ``r.csv`` -> ``r.csv.units.json``, ``{"time": "s", "plant.z[3]": "m", ...}``."""
+    path = Path(path)
+    return path.with_name(path.name + ".units.json")
+
+
+def read_units(path: str | Path) -> Dict[str, str]:
+    """The units of the CSV result ``path`` from its :func:`units_file` ({} when there is none,
+    or it cannot be read: the numbers stand without them)."""
+    import json
+
+    try:
+        units = json.loads(units_file(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return {str(k): str(v) for k, v in units.items()} if isinstance(units, dict) else {}
+
+
 class CsvWriter:
     """Appends rows ``time, values...`` to a CSV file.
 
@@ -75,15 +94,17 @@ class CsvWriter:
 
     The rows go to a temporary file beside ``path``, moved into place by :meth:`close`; after
     :meth:`fail` (the run failed) to ``path``'s failed name instead (:mod:`.safe_file`).
+    ``units`` (one per column after ``time``) go to :func:`units_file` beside it when it closes.
     """
 
     def __init__(self, path: str | Path, names: Sequence[str], chunk: int = 512,
-                 kinds: Optional[Sequence[str]] = None) -> None:
+                 kinds: Optional[Sequence[str]] = None, units: Optional[Sequence[str]] = None) -> None:
         kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
         if len(kinds) != len(names):
             raise ValueError(f"{len(names)} column names but {len(kinds)} column types")
         self.path = Path(path)
         self.file = ResultFile(self.path)
+        self._units = dict(zip(["time", *names], ["s", *units])) if units is not None and any(units) else None
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fd: Optional[int] = os.open(self.file.temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
         self._size = 0  # bytes of whole rows (and the header) in the file
@@ -207,7 +228,21 @@ class CsvWriter:
         finally:
             os.close(self._fd)
             self._fd = None
-            self.file.finish()
+            final = self.file.finish()
+            if final is not None and self._units is not None:
+                self._write_units(final)
+
+    def _write_units(self, final: Path) -> None:
+        """The units beside the file (written whole, then renamed: never half a file)."""
+        import json
+
+        target = units_file(final)
+        temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+        try:
+            temporary.write_text(json.dumps(self._units, indent=0, ensure_ascii=False) + "\n", encoding="utf-8")
+            os.replace(temporary, target)
+        except OSError:  # the rows are what matters; a plot then shows no units
+            temporary.unlink(missing_ok=True)
 
 
 class RowSampler:

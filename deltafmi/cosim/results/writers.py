@@ -4,7 +4,7 @@ Every writer takes ``(path, names, kinds=..., units=...)`` and offers ``write(ti
 ``write_rows(rows)``, ``flush()``, ``close()`` and ``rows_written``, like
 :class:`~deltafmi.cosim.results.csv_file.CsvWriter`.
 
-- ``.csv``: streamed text (see :mod:`.csv_file`); no units.
+- ``.csv``: streamed text (see :mod:`.csv_file`); its units in ``r.csv.units.json`` beside it.
 - ``.parquet``: one column per variable, ``time`` first; each field's metadata holds its unit
   under the key ``unit`` (``s`` for time, ``""`` where the modelDescription declares none).
   Rows go out as row groups while the run goes on (whenever 8192 rows are queued or half a
@@ -51,7 +51,7 @@ _NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 
 def _csv(path: Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None,
          units: Optional[Sequence[str]] = None) -> CsvWriter:
-    return CsvWriter(path, names, kinds=kinds)
+    return CsvWriter(path, names, kinds=kinds, units=units)
 
 
 def writer_for(path: str | Path) -> Callable[..., Any]:

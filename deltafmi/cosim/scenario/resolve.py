@@ -644,6 +644,18 @@ def _settable(var: Any) -> bool:
     return var.initial is None and var.start is not None and var.causality == "local"
 
 
+def start_value_problem(var: Any, value: Any) -> str:
+    """Why ``value`` is not a start value the FMU variable ``var`` takes, the checks a scenario's
+    ``parameters:`` pass (its type, finite, within its declared min and max, within its FMI 3.0
+    integer type), else ``""``. For a value given as a number or a boolean (a study's cases)."""
+    kind = _VALUE_KINDS.get(var.type, bus_type(var.type))
+    if kind in _NOT_CONNECTABLE or var.type == "Enumeration":
+        return ""
+    if not _value_fits(kind, value):
+        return f"type mismatch: it is {kind} but the value is {type(value).__name__}"
+    return _outside_range(var, kind, value, _INTEGER_RANGES.get(var.type))
+
+
 def _value_fits(kind: str, value: Any) -> bool:
     if kind == "Real":
         return isinstance(value, (int, float)) and not isinstance(value, bool)
