@@ -229,9 +229,14 @@ def validate(scenario: str, fmi_version: Optional[str]) -> None:
         return
     from .scenario.resolve import describe
 
+    import re
+    import tempfile
+
     system = load_system(scenario, check_fmus=True, overrides=_built_as(fmi_version))
+    # an SSP's FMUs were unpacked into a folder that is gone by now: name them inside the archive
+    unpacked = re.compile(re.escape(str(Path(tempfile.gettempdir()).resolve())) + r"/deltafmi-ssp-[^/]+/")
     for line in describe(system):
-        click.echo(line)
+        click.echo(unpacked.sub(f"{scenario}: ", line))
     click.echo(f"{scenario}: OK")
 
 

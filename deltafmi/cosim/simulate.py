@@ -82,6 +82,12 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
 
     if output is not None:
         writer_for(output)  # an unknown extension fails before anything is built
+    for name, flag in (("verbose", verbose), ("allow_nan", allow_nan), ("realtime", realtime)):
+        if flag is not None and type(flag).__name__ not in ("bool", "bool_"):  # "yes" would reach the FMUs
+            raise BadInput(f"simulate({name}={flag!r}): expected True or False")
+    if on_message is not None and not callable(on_message):
+        raise BadInput(f"simulate(on_message={on_message!r}): expected a function (component, status, "
+                       "category, text)")
     _check_mapping(parameters, "parameters")
     _check_mapping(start_values, "start_values")
     with ExitStack() as resources:

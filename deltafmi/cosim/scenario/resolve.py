@@ -353,8 +353,12 @@ class _Checker:
             try:
                 names = info.expand(param.name)
             except UnknownVariable as exc:
+                prefix = param.name.partition(".")[0]
+                other = (f" (nor is '{prefix}' a component: the scenario's one component is '{component.name}')"
+                         if at and "." in param.name and prefix != component.name
+                         and not any(n.startswith(prefix + ".") for n in exc.names) else "")
                 self.error(param.line, f"{where}: no such variable in the FMU"
-                                       f"{did_you_mean(param.name, exc.names)}", at)
+                                       f"{did_you_mean(param.name, exc.names) or other}", at)
                 continue
             items = value_items(param.value, len(names))
             if len(items) != len(names):
