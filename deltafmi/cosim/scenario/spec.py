@@ -323,8 +323,8 @@ def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Di
                                     f"experiment.stop ({exp['stop']}) must be greater than start ({exp.get('start', 0.0)})"))
     master = data.get("master") if isinstance(data.get("master"), dict) else {}
     adaptive = master.get("adaptive")
-    if isinstance(exp, dict) and all(_number(exp.get(k, 0.0)) for k in ("start", "stop", "step")) \
-            and exp["step"] > 0 and not (isinstance(adaptive, dict) and adaptive.get("enabled")):
+    if isinstance(exp, dict) and _number(exp.get("start", 0.0)) and _number(exp.get("stop")) \
+            and _number(exp.get("step")) and exp["step"] > 0 and not (isinstance(adaptive, dict) and adaptive.get("enabled")):
         limit = master.get("max_steps", MAX_STEPS)
         why = too_many_steps(float(exp.get("start", 0.0)), float(exp["stop"]), float(exp["step"]),
                              limit if _number(limit) else MAX_STEPS)
