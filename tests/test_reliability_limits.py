@@ -6,7 +6,6 @@ from __future__ import annotations
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -143,5 +142,4 @@ def test_a_run_that_never_ends_a_step_ends_on_sigterm(tmp_path):
             process.kill()
     assert process.returncode == 143, stderr
     assert "Traceback" not in stderr and stderr.strip().splitlines()[-1].startswith("interrupted at t = ")
-    assert sys.executable  # the run's rows are in place
-    assert (tmp_path / "r.csv").read_text().count("\n") > 2
+    assert (tmp_path / "r.csv").read_text().count("\n") > 2  # the run's rows, moved into place

@@ -2,7 +2,6 @@
 component does not exist in a one-component scenario, an SSP's FMUs named inside the archive."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 from click.testing import CliRunner

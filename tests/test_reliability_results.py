@@ -84,18 +84,21 @@ def test_a_completed_run_replaces_the_earlier_result_and_a_later_failure_replace
     assert _times(out)[-1] == pytest.approx(1.0)
 
 
-def test_a_nan_names_the_failed_file(oscillator, tmp_path):
+def test_a_nan_names_the_failed_file_and_leaves_the_earlier_result(tmp_path):
+    from test_troubleshooting_docs import NAN_SOURCE  # a component whose output becomes NaN after 0.05 s
+    (tmp_path / "nanny.py").write_text(NAN_SOURCE)
     scenario = tmp_path / "nan.yaml"
-    scenario.write_text(f"experiment: {{stop: 1.0, step: 0.01}}\n"
-                        f"components:\n  osc: {{fmu: {oscillator}, interface: CS, parameters: {{x0: .nan}}}}\n"
-                        "outputs: [osc.x]\n")
-    (tmp_path / "r.csv").write_text("time,osc.x\n0,1\n")
+    scenario.write_text("experiment: {stop: 0.1, step: 1.0e-3}\ncomponents:\n  n: {source: nanny.py}\n")
+    (tmp_path / "r.csv").write_text("time,n.y\n0,1\n")
     done = CliRunner().invoke(main, ["run", str(scenario), "-o", str(tmp_path / "r.csv")])
-    assert done.exit_code in (1, 2), done.output
-    assert "Traceback" not in done.output
-    assert (tmp_path / "r.csv").read_text() == "time,osc.x\n0,1\n"
-    if done.exit_code == 1:
-        assert str(tmp_path / "r.failed.csv") in done.output
+    assert done.exit_code == 1, done.output
+    assert done.output.strip().splitlines()[-1] == (
+        f"Error: n.y is NaN at t = 0.051 s; the rows up to there are in {tmp_path / 'r.failed.csv'}; "
+        f"{tmp_path / 'r.csv'} left as it was (to record it and go on: --allow-nan, or allow_nan: true under "
+        "master:)")
+    assert (tmp_path / "r.csv").read_text() == "time,n.y\n0,1\n"
+    kept = columns(tmp_path / "r.failed.csv")
+    assert kept["time"][-1] == pytest.approx(0.051) and np.isnan(kept["n.y"][-1])
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])

@@ -5,7 +5,6 @@ as ``run`` does; without a terminal it prints progress lines."""
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
