@@ -40,3 +40,14 @@ def test_validate_of_an_ssp_names_its_fmus_inside_the_archive(tmp_path):
     assert done.exit_code == 0, done.output
     assert f"  plant: ME DeltaRobot, FMI 2.0 ({archive}: resources/DeltaRobot.fmu)" in done.output.splitlines()
     assert "deltafmi-ssp-" not in done.output  # no folder that is gone by now
+
+
+def test_the_no_compiler_message_of_a_wheel_does_not_send_its_user_to_the_wheel(tmp_path, monkeypatch):
+    from deltafmi.export import compiler
+    from_clone = compiler.no_compiler_message("cc")
+    assert from_clone.endswith("the packaged models need none when deltafmi is installed from its wheel, which "
+                               "carries them prebuilt")
+    monkeypatch.setattr(compiler, "PREBUILT_DIR", tmp_path)  # where an installed wheel has its prebuilt layer
+    assert compiler.no_compiler_message("cc") == (
+        "building needs a C compiler (cc not found; install gcc or set CC); this installation's prebuilt pieces "
+        "cover the packaged models as shipped, not an edited copy of one or a component of your own")

@@ -79,9 +79,14 @@ def compiler_name() -> str:
 
 
 def no_compiler_message(cc: Optional[str] = None) -> str:
-    """What to say when something must be compiled and ``cc`` is not there (one line)."""
-    return (f"building needs a C compiler ({cc or compiler_name()} not found; install gcc or set CC); "
-            "the packaged models need none when deltafmi is installed from its wheel, which carries them prebuilt")
+    """What to say when something must be compiled and ``cc`` is not there (one line): from a
+    clone, that the wheel carries the packaged models prebuilt; from the wheel (its prebuilt layer
+    is there), that those cover the packaged models as shipped, not an edited copy or a new one."""
+    missing = f"building needs a C compiler ({cc or compiler_name()} not found; install gcc or set CC)"
+    if PREBUILT_DIR.exists():
+        return (f"{missing}; this installation's prebuilt pieces cover the packaged models as shipped, not an "
+                "edited copy of one or a component of your own")
+    return f"{missing}; the packaged models need none when deltafmi is installed from its wheel, which carries them prebuilt"
 
 
 def _compiler_command() -> list[str]:
