@@ -65,3 +65,19 @@ def test_a_run_s_summary_says_both_factors(tmp_path):
                       done.output)
     assert match, done.output
     assert float(match[1]) > float(match[2]) > 0  # the stepping alone is faster than the whole run
+
+
+def test_a_run_without_a_terminal_prints_a_progress_line_at_a_modest_rate():
+    import io
+    import time
+
+    from deltafmi.cosim.results import progress as module
+    stream = io.StringIO()
+    bar = module.Progress(0.0, 10.0, enabled=False, stream=stream, lines=True)
+    bar.update(1.0)  # within LINE_EVERY of the start: nothing yet
+    assert stream.getvalue() == ""
+    bar._next_draw = time.monotonic() - 1  # the next line is due
+    bar.update(4.2)
+    bar.update(4.3)  # LINE_EVERY later at the earliest
+    bar.close(10.0)
+    assert stream.getvalue() == "progress:  42.0% t = 4.2 s\n" and module.LINE_EVERY >= 10

@@ -151,6 +151,7 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
         system = load_system(scenario, stop=stop, overrides=overrides, quiet=quiet)
     master = Master(system, result=Path(output) if output else None,
                     progress=not quiet and sys.stdout.isatty(),
+                    progress_lines=not quiet and not sys.stdout.isatty(),  # a log: a line every 30 s
                     warn=(lambda message: None) if quiet else repeated,
                     on_message=printer, debug_logging=verbose, replay=Path(replay) if replay else None)
     reason = ""

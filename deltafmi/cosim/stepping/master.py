@@ -68,7 +68,7 @@ class Master:
                  fmus: Optional[Callable[[Component], Any]] = None,
                  writer_class: Optional[Callable[..., Any]] = None, native: bool = True,
                  on_message: Optional[Callable[[str, int, str, str], None]] = None,
-                 debug_logging: bool = False, replay: Optional[Path] = None) -> None:
+                 debug_logging: bool = False, replay: Optional[Path] = None, progress_lines: bool = False) -> None:
         """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
         FMU for this run; deltafmi.study keeps them loaded across runs and resets them);
         ``on_message(component, status, category, text)`` gets every message the FMUs log
@@ -79,7 +79,8 @@ class Master:
         gets ``units=``; an unknown extension is a :class:`BadInput` here, before anything runs);
         ``native``: run fixed steps in C where :mod:`.native_loop` can (same calls, same results);
         ``replay``: a results file of an earlier run of this scenario whose recorded live inputs
-        stand in for the live sources (:mod:`deltafmi.cosim.live.replay`)."""
+        stand in for the live sources (:mod:`deltafmi.cosim.live.replay`); ``progress``: a bar on
+        a terminal, ``progress_lines``: a line every 30 s instead (a log)."""
         scenario = system.scenario
         self.system = system
         self.start = scenario.experiment.start
@@ -99,7 +100,7 @@ class Master:
         self._writer_for_file = writer_for(self.result_path) if writer_class is None else None
         if writer_class is None:
             check_writable(self.result_path)
-        self.progress = Progress(self.start, self.stop, progress)
+        self.progress = Progress(self.start, self.stop, progress, lines=progress_lines)
         self.warn = warn
         self.on_message = on_message
         self.debug_logging = debug_logging
