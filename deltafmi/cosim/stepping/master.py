@@ -68,7 +68,8 @@ class Master:
                  fmus: Optional[Callable[[Component], Any]] = None,
                  writer_class: Optional[Callable[..., Any]] = None, native: bool = True,
                  on_message: Optional[Callable[[str, int, str, str], None]] = None,
-                 debug_logging: bool = False, replay: Optional[Path] = None, progress_lines: bool = False) -> None:
+                 debug_logging: bool = False, replay: Optional[Path] = None,
+                 progress_lines: bool = False) -> None:
         """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
         FMU for this run; deltafmi.study keeps them loaded across runs and resets them);
         ``on_message(component, status, category, text)`` gets every message the FMUs log
