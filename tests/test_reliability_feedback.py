@@ -81,3 +81,9 @@ def test_a_run_without_a_terminal_prints_a_progress_line_at_a_modest_rate():
     bar.update(4.3)  # LINE_EVERY later at the earliest
     bar.close(10.0)
     assert stream.getvalue() == "progress:  42.0% t = 4.2 s\n" and module.LINE_EVERY >= 10
+
+
+def test_a_small_real_time_factor_keeps_its_digits():
+    summary = Summary(steps=10, rejected=0, events=0, wall_time=1.2, simulated=0.01, rows=11, result="r.csv",
+                      setup_time=1.19, close_time=0.0)
+    assert "0.0083x with the 1.19 s" in str(summary)  # not 0.0x

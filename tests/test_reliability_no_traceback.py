@@ -90,6 +90,7 @@ def test_a_broken_fmu_in_a_scenario_names_the_component(inputs, tmp_path):
 
 
 @pytest.mark.parametrize("args, code, text", [
+    (["run", "delta_tracking", "-o", ""], 2, "-o '': an empty file name"),
     (["run", "delta_tracking", "--stop", "0.01", "-o", f"{UNWRITABLE}/r.mat"], 2, "cannot write in /sys"),
     (["run", "delta_tracking", "--stop", "0.01", "-o", "{dir}/afile/r.csv"], 2, "afile is a file, not a folder"),
     (["sweep", "gain_payload", "-o", f"{UNWRITABLE}/t.parquet"], 2, "results table '/sys/deltafmi-test/t.parquet': "

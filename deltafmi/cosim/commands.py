@@ -132,6 +132,8 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
 
     if quiet and verbose:
         raise BadInput("-q and -v contradict each other: give one")
+    if output is not None and not output.strip():
+        raise BadInput("-o '': an empty file name; name the result file (r.csv, r.parquet, r.mat)")
     if output:
         writer_for(output)  # an unknown extension fails before any FMU is built or run
     values = dict(parse_assignment(text) for text in assignments)

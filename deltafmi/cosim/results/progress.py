@@ -111,8 +111,8 @@ class Summary:
         overhead = self.wall_time - self.stepping_time
         text = (f"{self.steps} steps ({self.rejected} rejected), {self.events} events, "
                 f"{self.simulated:.6g} s simulated in {self.wall_time:.3f} s wall "
-                f"(real-time factor {self.stepping_factor:.1f}x stepping, {self.real_time_factor:.1f}x with the "
-                f"{overhead:.2f} s of loading and writing); {self.rows} rows -> {self.result}")
+                f"(real-time factor {_factor(self.stepping_factor)}x stepping, {_factor(self.real_time_factor)}x "
+                f"with the {overhead:.2f} s of loading and writing); {self.rows} rows -> {self.result}")
         if self.terminated:
             text += f"; {self.terminated}"
         if self.loops is not None and self.loops.solves:
@@ -120,3 +120,8 @@ class Summary:
         if self.live is not None:
             text += f"\n{self.live}"
         return text
+
+
+def _factor(value: float) -> str:
+    """A real-time factor: one decimal from 1 up, two significant digits below (0.042, not 0.0)."""
+    return f"{value:.1f}" if value >= 1 or value == 0 else f"{value:.2g}"
