@@ -7,6 +7,7 @@ input, 1 a failure, 128 + the signal for an interruption).
 """
 import errno
 import os
+import signal
 from typing import Any
 
 import click
@@ -62,8 +63,16 @@ class _Commands(click.Group):
     error with its message and code, an OS error naming its file, anything else as a bug."""
 
     def invoke(self, ctx: click.Context) -> Any:
+        from deltafmi.cosim.stepping.stop_signals import InterruptOnSignals
+
+        signals = InterruptOnSignals(again=True)  # SIGTERM, SIGHUP outside a run's own handling: one line too
         try:
-            return super().invoke(ctx)
+            with signals:
+                return super().invoke(ctx)
+        except KeyboardInterrupt:  # Ctrl-C (or a signal) while an FMU was built, a file read or written
+            name = signal.Signals(signals.received).name if signals.received else "Ctrl-C"
+            click.echo(f"interrupted ({name})", err=True)
+            raise click.exceptions.Exit(signals.exit_code) from None
         except DeltaFmiError as error:
             raise click.exceptions.Exit(report(error)) from None
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):

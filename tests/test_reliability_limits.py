@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import re
 import signal
-import subprocess
 import time
 from pathlib import Path
 
@@ -125,21 +124,42 @@ def test_a_binary_file_as_the_scenario_is_one_line(tmp_path, command):
         f"{path}: error: not a {document}: not text (byte 128 is not UTF-8); a scenario or study is a YAML file")
 
 
-def test_a_run_that_never_ends_a_step_ends_on_sigterm(tmp_path):
-    """A second SIGTERM breaks a step that never returns (the first asks to stop between steps)."""
-    from signal_runs import DELTAFMI
+def test_a_long_run_ends_on_sigterm_with_its_rows(tmp_path):
+    """SIGTERM once the run steps (its result file open): it ends between two steps, exit 143."""
+    from signal_runs import DELTAFMI, bytes_in, interrupt_when
     path = tmp_path / "long.yaml"
     path.write_text(FLAGSHIP.replace("stop: 3.5", "stop: 1.0e+5", 1))
-    process = subprocess.Popen([*DELTAFMI, "run", str(path), "-o", str(tmp_path / "r.csv")],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        time.sleep(4)
-        assert process.poll() is None
-        process.send_signal(signal.SIGTERM)
-        _, stderr = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 143, stderr
+    out = tmp_path / "r.csv"
+    code, _, stderr = interrupt_when([*DELTAFMI, "run", str(path), "-o", str(out)], lambda: bytes_in(out) > 1000,
+                                     signal.SIGTERM, timeout=120)
+    assert code == 143, stderr
     assert "Traceback" not in stderr and stderr.strip().splitlines()[-1].startswith("interrupted at t = ")
-    assert (tmp_path / "r.csv").read_text().count("\n") > 2  # the run's rows, moved into place
+    assert out.read_text().count("\n") > 2  # the run's rows, moved into place
+
+
+def test_sigterm_while_an_fmu_is_built_is_one_line_and_exit_143(tmp_path):
+    """Outside a run's stepping (here while a fresh cache builds the scenario's FMUs) a signal
+    ends the command with one line and 128 + the signal, not a silent death."""
+    import os
+    import subprocess
+
+    from signal_runs import DELTAFMI
+    log = tmp_path / "stderr.txt"
+    env = {**os.environ, "DELTAFMI_CACHE": str(tmp_path / "cache")}  # nothing cached: it builds
+    with open(log, "w") as stderr:
+        process = subprocess.Popen([*DELTAFMI, "run", "delta_tracking", "-o", str(tmp_path / "r.csv")],
+                                   stdout=subprocess.DEVNULL, stderr=stderr, env=env, cwd=tmp_path)
+        try:
+            deadline = time.monotonic() + 120
+            while "building" not in log.read_text():
+                assert process.poll() is None and time.monotonic() < deadline, log.read_text()
+                time.sleep(0.05)
+            process.send_signal(signal.SIGTERM)
+            process.wait(timeout=60)
+        finally:
+            if process.poll() is None:
+                process.kill()
+    text = log.read_text()
+    assert process.returncode == 143, text
+    assert "Traceback" not in text and text.strip().splitlines()[-1] == "interrupted (SIGTERM)"
+    assert not (tmp_path / "r.csv").exists()

@@ -56,10 +56,12 @@ class InterruptOnSignals:
     and SIGHUP raise KeyboardInterrupt where the loop waits, so its ``except KeyboardInterrupt``
     keeps what finished; :attr:`received` says which signal. SIGINT is caught where the shell
     ignored it (a command started with ``&``), SIGHUP is left alone under ``nohup``; a second
-    signal while the first is handled is ignored (the results are being written)."""
+    signal while the first is handled is ignored (the results are being written), unless
+    ``again``: then it interrupts that too."""
 
-    def __init__(self) -> None:
+    def __init__(self, again: bool = False) -> None:
         self.received: Optional[int] = None
+        self.again = again
         self._previous: Dict[int, Any] = {}
 
     @property
@@ -82,7 +84,7 @@ class InterruptOnSignals:
         self._previous.clear()
 
     def _handle(self, signum: int, frame: Optional[FrameType]) -> None:
-        if self.received is not None:
+        if self.received is not None and not self.again:
             return
         self.received = signum
         raise KeyboardInterrupt
