@@ -237,7 +237,7 @@ def test_every_error_simulate_and_build_raise_is_public(tmp_path):
     with pytest.raises(deltafmi.ComponentSourceError, match="'DeltaRobott' is neither a file nor a packaged model"):
         deltafmi.build_fmu("DeltaRobott", tmp_path / "x.fmu")
     api = (Path(__file__).parent.parent / "docs" / "api.md").read_text()
-    for name in ("ScenarioError", "BadInput", "SimulationError", "Interrupted", "ResultWriteError",
+    for name in ("DeltaFmiError", "ScenarioError", "BadInput", "SimulationError", "Interrupted", "ResultWriteError",
                  "ComponentSourceError", "BuildError"):
         assert f"`{name}`" in api, name
 
