@@ -5,10 +5,11 @@ A run that completes, or is interrupted (the rows computed are kept), replaces t
 a whole, readable file; a run that fails leaves the target as it was and keeps its rows under
 the failed name (``r.csv`` -> ``r.failed.csv``), which the failure's message names. A process
 killed outright (SIGKILL, power loss) leaves the target untouched and the temporary file
-(``.r.csv.<pid>.tmp``, hidden) behind. The rename is atomic (``os.replace`` on one file system).
+(``.r.csv.<pid>-<n>.tmp``, hidden) behind. The rename is atomic (``os.replace`` on one file system).
 """
 from __future__ import annotations
 
+import itertools
 import os
 from pathlib import Path
 from typing import Optional
@@ -16,6 +17,8 @@ from typing import Optional
 from deltafmi.errors import BadInput
 
 __all__ = ["ResultFile", "failed_name", "check_writable"]
+
+_COUNT = itertools.count(1)
 
 
 def failed_name(target: Path) -> Path:
@@ -52,7 +55,8 @@ class ResultFile:
 
     def __init__(self, target: str | Path) -> None:
         self.target = Path(target)
-        self.temporary = self.target.with_name(f".{self.target.name}.{os.getpid()}.tmp")
+        # the process and a count: two writers of one target (two threads) never share a file
+        self.temporary = self.target.with_name(f".{self.target.name}.{os.getpid()}-{next(_COUNT)}.tmp")
         #: set by :meth:`fail`: the rows go to :func:`failed_name` instead of the target
         self.failed = False
 
