@@ -90,7 +90,8 @@ class Master:
             raise BadInput(f"stop time {self.stop} is not after start time {self.start}")
         self.step = scenario.experiment.step
         if not all(map(math.isfinite, (self.start, self.stop, self.step))):
-            raise BadInput(f"start {self.start:g} s, stop {self.stop:g} s and step {self.step:g} s must be finite numbers")
+            raise BadInput(f"start {self.start:g} s, stop {self.stop:g} s and step {self.step:g} s must be finite "
+                           "numbers")
         if not scenario.master.adaptive.enabled:
             why = too_many_steps(self.start, self.stop, self.step, scenario.master.max_steps)
             if why:
