@@ -86,7 +86,8 @@ def no_compiler_message(cc: Optional[str] = None) -> str:
     if PREBUILT_DIR.exists():
         return (f"{missing}; this installation's prebuilt pieces cover the packaged models as shipped, not an "
                 "edited copy of one or a component of your own")
-    return f"{missing}; the packaged models need none when deltafmi is installed from its wheel, which carries them prebuilt"
+    return (f"{missing}; the packaged models need none when deltafmi is installed from its wheel, which carries "
+            "them prebuilt")
 
 
 def _compiler_command() -> list[str]:

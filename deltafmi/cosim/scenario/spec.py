@@ -43,7 +43,8 @@ def too_many_steps(start: float, stop: float, step: float, limit: int) -> Option
     if steps <= limit:
         return None
     return (f"{steps:.3g} communication steps ({stop - start:g} s in steps of {step:g} s), more than the "
-            f"{limit:.3g} a run may take; to run them all, raise the limit (master: {{max_steps: {math.ceil(steps):d}}})")
+            f"{limit:.3g} a run may take; to run them all, raise the limit "
+            f"(master: {{max_steps: {math.ceil(steps):d}}})")
 
 
 def grid_steps(start: float, stop: float, step: float) -> int:
@@ -323,8 +324,9 @@ def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Di
                                     f"experiment.stop ({exp['stop']}) must be greater than start ({exp.get('start', 0.0)})"))
     master = data.get("master") if isinstance(data.get("master"), dict) else {}
     adaptive = master.get("adaptive")
+    adaptive_on = isinstance(adaptive, dict) and adaptive.get("enabled")
     if isinstance(exp, dict) and _number(exp.get("start", 0.0)) and _number(exp.get("stop")) \
-            and _number(exp.get("step")) and exp["step"] > 0 and not (isinstance(adaptive, dict) and adaptive.get("enabled")):
+            and _number(exp.get("step")) and exp["step"] > 0 and not adaptive_on:
         limit = master.get("max_steps", MAX_STEPS)
         why = too_many_steps(float(exp.get("start", 0.0)), float(exp["stop"]), float(exp["step"]),
                              limit if _number(limit) else MAX_STEPS)
