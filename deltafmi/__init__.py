@@ -11,9 +11,10 @@ The public API, importable from here (``from deltafmi import load_scenario, Mast
 * linear models: :func:`linearize_fmu`, :func:`linearize_scenario`, :class:`LinearModel`;
 * studies: :func:`load_study`, :func:`plan_study`, :func:`open_store`, :func:`sweep_study`
   (what ``deltafmi sweep`` runs);
-* errors: :class:`ScenarioError`, :class:`BadInput`, :class:`SimulationError`,
-  :class:`ResultWriteError`, :class:`Interrupted` (runs), :class:`ComponentSourceError`,
-  :class:`BuildError` (builds).
+* errors: :class:`DeltaFmiError`, the base of every error deltafmi raises (``except DeltaFmiError``
+  catches them all; each carries the command line's ``exit_code``); :class:`ScenarioError`,
+  :class:`BadInput`, :class:`SimulationError`, :class:`ResultWriteError`, :class:`Interrupted`
+  (runs), :class:`ComponentSourceError`, :class:`BuildError` (builds).
 
 This module imports nothing when imported: each name loads its module on first use (PEP 562). It
 is bundled into every FMU's ``resources/`` together with the modules of :mod:`deltafmi.component`
@@ -47,6 +48,7 @@ _API = {
     "plan_study": "deltafmi.apps.studies.plan",
     "open_store": "deltafmi.apps.studies.driver",
     "sweep_study": "deltafmi.apps.studies.driver",
+    "DeltaFmiError": "deltafmi.errors",
     "ScenarioError": "deltafmi.errors",
     "BadInput": "deltafmi.errors",
     "SimulationError": "deltafmi.errors",

@@ -1,17 +1,28 @@
-"""Diagnostics and exceptions shared by deltafmi's commands (scenarios, runs, studies, plots).
+"""The root of deltafmi's errors, and the diagnostics and exceptions shared by its commands.
+
+Every error deltafmi raises derives from :class:`DeltaFmiError`, so ``except DeltaFmiError`` catches
+all of them. Each class carries the exit code the command line gives it (``exit_code``: 2 for bad
+input, 1 for a failure, 128 + the signal for :class:`Interrupted`); the command line alone turns an
+error into a message and that code (``deltafmi.apps.cli``), the library only raises.
 
 A :class:`Diagnostic` is one finding about an input file (a scenario or a study), located at
 ``file:line``. Errors abort with :class:`ScenarioError` (exit code 2: bad input), other wrong input
 with :class:`BadInput` (2); failures while simulating raise :class:`SimulationError` (exit code 1).
+
+The base class lives in the FMU runtime (:mod:`deltafmi.runtime.errors`), the bottom layer, whose own
+errors derive from it too; this module adds the rest and imports nothing else of deltafmi.
 """
 from __future__ import annotations
 
 import difflib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, Iterable, Optional
+from typing import Any, Iterable, List, Optional
 
-import click
+from deltafmi.runtime.errors import DeltaFmiError
+
+__all__ = ["DeltaFmiError", "Diagnostic", "ScenarioError", "BadInput", "SimulationError", "ResultWriteError",
+           "Interrupted", "did_you_mean"]
 
 
 @dataclass(frozen=True)
@@ -28,7 +39,7 @@ class Diagnostic:
         return f"{where}: {self.severity}: {self.message}"
 
 
-class ScenarioError(click.ClickException):
+class ScenarioError(DeltaFmiError):
     """The scenario (or an FMU it names) is invalid; carries every error found. Exit code 2.
 
     The CLI shows every error, one per line, as ``file:line: error: message`` (the way compilers
@@ -43,26 +54,24 @@ class ScenarioError(click.ClickException):
         more = len(self.diagnostics) - 1
         super().__init__(first + (f" (and {more} more error{'s' * (more > 1)})" if more > 0 else ""))
 
-    def show(self, file: Optional[IO[Any]] = None) -> None:
+    def lines(self) -> List[str]:
         """Every error, one per line (``file:line: error: message``)."""
-        lines = [str(d) for d in self.diagnostics] or [f"error: {self.format_message()}"]
-        for line in lines:
-            click.echo(line, file=file, err=file is None)
+        return [str(d) for d in self.diagnostics] or [f"error: {self.format_message()}"]
 
 
-class BadInput(click.ClickException):
+class BadInput(DeltaFmiError):
     """Wrong input outside a scenario file: an option value, a signal name, a result file. Exit code 2."""
 
     exit_code = 2
 
 
-class SimulationError(click.ClickException):
+class SimulationError(DeltaFmiError):
     """A run failed after it started (an FMU returned an error, the solver failed). Exit code 1."""
 
     exit_code = 1
 
 
-class ResultWriteError(click.ClickException):
+class ResultWriteError(DeltaFmiError):
     """The result file could not take more rows (a full disk, a quota, a file size limit). The
     rows already in it are complete; the message says how many and up to which time. Exit code 1."""
 
@@ -85,17 +94,21 @@ class ResultWriteError(click.ClickException):
         self.path, self.rows, self.time, self.error = path, rows, time, error
 
 
-class Interrupted(click.ClickException):
-    """A run stopped by Ctrl-C (SIGINT) or SIGTERM; the message says when and what is on disk.
-    Exit code 128 + the signal number (130 for Ctrl-C), the shell's convention."""
+class Interrupted(DeltaFmiError):
+    """A run stopped by Ctrl-C (SIGINT), SIGTERM or SIGHUP; the message says when and what is on
+    disk. Exit code 128 + the signal number (130 for Ctrl-C), the shell's convention."""
+
+    #: 128 + SIGINT; an instance carries its own signal's code
+    exit_code = 130
 
     def __init__(self, message: str, signum: int) -> None:
         super().__init__(message)
-        self.exit_code = 128 + signum  # type: ignore[misc]  # click's is a class variable
+        self.signum = signum
+        self.exit_code = 128 + signum  # type: ignore[misc]  # the class's is the default
 
-    def show(self, file: Optional[IO[Any]] = None) -> None:
+    def lines(self) -> List[str]:
         """The message alone: an interruption is not an error."""
-        click.echo(self.format_message(), file=file, err=file is None)
+        return [self.format_message()]
 
 
 def did_you_mean(word: str, candidates: Iterable[str], n: int = 3) -> str:

@@ -25,8 +25,10 @@ __all__ = ["BuildError", "NoCompilerError", "PREBUILT_DIR", "abi_tag", "build_in
            "compiler_name", "compiler_output", "find_built", "no_compiler_message", "plain_c_library",
            "python_extension", "python_include", "require_compiler", "run_compiler", "single_file_library", "strip_unneeded"]
 
+from deltafmi.errors import DeltaFmiError
 
-class BuildError(RuntimeError):
+
+class BuildError(DeltaFmiError, RuntimeError):
     """The native build failed (no compiler, compiler error, missing Python headers)."""
 
 
@@ -52,9 +54,15 @@ def compiler_name() -> str:
 
 
 def no_compiler_message(cc: Optional[str] = None) -> str:
-    """What to say when something must be compiled and ``cc`` is not there (one line)."""
-    return (f"building needs a C compiler ({cc or compiler_name()} not found; install gcc or set CC); "
-            "the packaged models need none when deltafmi is installed from its wheel, which carries them prebuilt")
+    """What to say when something must be compiled and ``cc`` is not there (one line): from a
+    clone, that the wheel carries the packaged models prebuilt; from the wheel (its prebuilt layer
+    is there), that those cover the packaged models as shipped, not an edited copy or a new one."""
+    missing = f"building needs a C compiler ({cc or compiler_name()} not found; install gcc or set CC)"
+    if PREBUILT_DIR.exists():
+        return (f"{missing}; this installation's prebuilt pieces cover the packaged models as shipped, not an "
+                "edited copy of one or a component of your own")
+    return (f"{missing}; the packaged models need none when deltafmi is installed from its wheel, which carries "
+            "them prebuilt")
 
 
 def _compiler_command() -> list[str]:

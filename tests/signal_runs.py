@@ -5,7 +5,8 @@ import signal
 import subprocess
 import sys
 import time
-from typing import Callable, Sequence
+from pathlib import Path
+from typing import Callable, Optional, Sequence
 
 #: ``deltafmi`` as a command of this interpreter (the tests' virtual environment)
 DELTAFMI = (sys.executable, "-c", "from deltafmi.apps.cli import main; main()")
@@ -32,3 +33,28 @@ def interrupt_when(command: Sequence[str], ready: Callable[[], bool], signum: in
         if process.poll() is None:
             process.kill()
     return process.returncode, stdout, stderr
+
+
+def growing(result: Path) -> Optional[Path]:
+    """The file a running ``deltafmi run -o RESULT`` writes: a hidden temporary file beside RESULT
+    (moved into place when the run ends), or None before the run opened it."""
+    found = sorted(result.parent.glob(f".{result.name}.*.tmp"))
+    return found[0] if found else None
+
+
+def rows_in(result: Path) -> int:
+    """Lines in the running run's CSV file so far (0 before it opened one)."""
+    path = growing(result)
+    try:
+        return path.read_text().count("\n") if path is not None else 0
+    except FileNotFoundError:  # moved into place in between
+        return 0
+
+
+def bytes_in(result: Path) -> int:
+    """Bytes in the running run's file so far (0 before it opened one)."""
+    path = growing(result)
+    try:
+        return path.stat().st_size if path is not None else 0
+    except FileNotFoundError:
+        return 0

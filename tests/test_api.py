@@ -117,7 +117,7 @@ def test_output_file_and_save_carry_the_same_rows_and_units(scenario, tmp_path):
     assert matlab.units["osc.v"] == "m/s" and np.array_equal(matlab["osc.x"], r["osc.x"])
     r.save(tmp_path / "again.csv")
     text = deltafmi.read_result(tmp_path / "again.csv")
-    assert text.units == {} and np.array_equal(text["osc.x"], r["osc.x"])
+    assert text.units == r.units and np.array_equal(text["osc.x"], r["osc.x"])  # from again.csv.units.json
     assert str(r.summary.result) == str(tmp_path / "run.parquet")
 
 
@@ -237,7 +237,7 @@ def test_every_error_simulate_and_build_raise_is_public(tmp_path):
     with pytest.raises(deltafmi.ComponentSourceError, match="'DeltaRobott' is neither a file nor a packaged model"):
         deltafmi.build_fmu("DeltaRobott", tmp_path / "x.fmu")
     api = (Path(__file__).parent.parent / "docs" / "api.md").read_text()
-    for name in ("ScenarioError", "BadInput", "SimulationError", "Interrupted", "ResultWriteError",
+    for name in ("DeltaFmiError", "ScenarioError", "BadInput", "SimulationError", "Interrupted", "ResultWriteError",
                  "ComponentSourceError", "BuildError"):
         assert f"`{name}`" in api, name
 

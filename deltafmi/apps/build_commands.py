@@ -9,7 +9,6 @@ import click
 
 from deltafmi.errors import BadInput
 
-from deltafmi.toolchain import BuildError
 from deltafmi.builder.packager import ComponentSourceError, build_fmu
 from deltafmi.builder.requirements import runtime_requirement
 
@@ -57,16 +56,17 @@ def build(sources: tuple[str, ...], output: Optional[str], build_all: bool, vali
     to_directory = output is not None and (len(sources) > 1 or build_all or Path(output).is_dir()
                                            or output.endswith(("/", os.sep)))
     folder = Path(output) if to_directory else None
+    from deltafmi.master.results.safe_file import check_writable
+    if folder is not None and folder.exists() and not folder.is_dir():
+        raise BadInput(f"-o {output}: building {'every packaged model' if build_all else 'several components'} "
+                       f"writes one FMU each into a folder, and {output} is a file")
+    if output is not None:
+        check_writable(folder / "Model.fmu" if folder is not None else Path(output), "FMU file")
     for text in sources:
-        try:
-            source = find_component(text)
-            target = folder / f"{source.path.stem}.fmu.tmp" if folder else (Path(output) if output else None)
-            path = build_fmu(source.path, target, portable=portable, class_name=source.class_name,
-                             fmi_version=int(fmi_version), resources=resources)
-        except ComponentSourceError as exc:
-            raise BadInput(str(exc)) from None
-        except BuildError as exc:
-            raise click.ClickException(str(exc)) from None
+        source = find_component(text)
+        target = folder / f"{source.path.stem}.fmu.tmp" if folder else (Path(output) if output else None)
+        path = build_fmu(source.path, target, portable=portable, class_name=source.class_name,
+                         fmi_version=int(fmi_version), resources=resources)
         if folder:  # name the FMU after its model identifier
             final = folder / _model_identifier(path)
             path.replace(final)
@@ -97,12 +97,8 @@ def info(target: str) -> None:
       deltafmi info build/fmus/DeltaRobot.fmu
       deltafmi info DeltaRobot
     """
-    from fmpy import read_model_description
     fmu = _fmu_of(target)
-    try:
-        md = read_model_description(str(fmu), validate=False)
-    except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for broken archives
-        raise click.ClickException(f"{fmu}: not a readable FMU: {exc}") from exc
+    md = _readable(fmu).md
     interfaces = [name for name, present in (("Model Exchange", md.modelExchange), ("Co-Simulation", md.coSimulation),
                                              ("Scheduled Execution", getattr(md, "scheduledExecution", None)))
                   if present]
@@ -187,27 +183,35 @@ def _fmu_of(target: str) -> Path:
     except ComponentSourceError as exc:
         raise BadInput(f"{exc}; info takes an .fmu file or a component "
                        "(`deltafmi build DeltaRobot -o DeltaRobot.fmu` writes one)") from None
-    except BuildError as exc:
-        raise click.ClickException(str(exc)) from None
+
+
+def _readable(fmu: Path) -> Any:
+    """The FMU's :class:`~deltafmi.master.scenario.modelinfo.ModelInfo`; :class:`BadInput` (exit 2,
+    as ``run`` says it) when the file is not an FMU deltafmi can read."""
+    from deltafmi.master.scenario.modelinfo import model_info
+    try:
+        return model_info(str(fmu))
+    except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for broken archives
+        raise BadInput(f"{fmu}: cannot read it as an FMU: {exc}") from None
 
 
 def validate_fmu_file(fmu: Path) -> None:
     """``deltafmi validate X.fmu``: fmpy's validation (the XML), the binary for this platform, a
     deltafmi FMU's GUID against its binary's, what the FMU needs to run and whether this machine
-    has it, and one trial fmi2Instantiate; a ClickException (exit 1) at the first that fails."""
-    from fmpy import read_model_description
+    has it, and one trial fmi2Instantiate; a ClickException (exit 1) at the first that fails
+    (:class:`BadInput`, exit 2, for a file that is not an FMU, as ``run`` and ``info`` say it)."""
     from fmpy.validation import validate_fmu
 
     from deltafmi.master.scenario.fmu_checks import binary_problem, guid_problem
     from deltafmi.master.stepping.fmu_trial import instantiation_problem
     if not fmu.is_file():
-        raise click.ClickException(f"{fmu}: no such file")
+        raise BadInput(f"{fmu}: no such FMU file")
+    md = _readable(fmu).md
     try:
         problems = validate_fmu(str(fmu))
-        md = read_model_description(str(fmu), validate=False)
         requirement = runtime_requirement(fmu)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for broken archives
-        raise click.ClickException(f"{fmu}: not a readable FMU: {exc}") from None
+        raise BadInput(f"{fmu}: cannot read it as an FMU: {exc}") from None
     for line in requirement.describe():
         click.echo(f"{fmu}: {line}")
     if problems:

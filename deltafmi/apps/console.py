@@ -8,13 +8,15 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import re
 import warnings
-from typing import Iterator, Optional
+from typing import Dict, Iterator, Optional
 
 import click
 
 #: the loggers whose INFO messages a command shows
 PROGRESS_LOGGERS = ("deltafmi.build",)
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
 class _Stderr(logging.Handler):
@@ -53,3 +55,39 @@ def progress_shown(show: bool) -> Iterator[None]:
 def _one_line_warning(message: Warning | str, category: type, filename: str, lineno: int,
                       line: Optional[str] = None) -> str:
     return f"Warning: {message}\n"
+
+
+class RepeatedWarnings:
+    """A ``warn(message)`` for a run that shows the first :attr:`keep` warnings of each kind as
+    ``warning: ...`` lines on stderr and counts the rest; :meth:`close` says how many were held
+    back. Two warnings are of one kind when they differ only in their numbers (``fell behind real
+    time at t = 1.2 s`` and ``... at t = 3.4 s``)."""
+
+    def __init__(self, keep: int = 3) -> None:
+        self.keep = keep
+        self._seen: Dict[str, int] = {}
+        self._first: Dict[str, str] = {}
+
+    @staticmethod
+    def kind(message: str) -> str:
+        """The message with every number replaced by ``#``."""
+        return _NUMBER.sub("#", message)
+
+    def __call__(self, message: str) -> None:
+        kind = self.kind(message)
+        count = self._seen[kind] = self._seen.get(kind, 0) + 1
+        self._first.setdefault(kind, message)
+        if count <= self.keep:
+            click.echo(f"warning: {message}", err=True)
+        elif count == self.keep + 1:
+            click.echo("warning: more warnings like this one are counted, not shown", err=True)
+
+    def close(self) -> None:
+        """One line for each kind of warning with more than :attr:`keep`: how many were not shown."""
+        for kind, count in self._seen.items():
+            if count > self.keep:
+                first = self._first[kind]
+                short = first if len(first) <= 80 else first[:77] + "..."
+                click.echo(f"warning: {count - self.keep} more warning{'s' * (count - self.keep > 1)} like "
+                           f"'{short}' not shown ({count} in all)", err=True)
+        self._seen.clear()

@@ -59,7 +59,7 @@ OUTPUTS = ("plant.tip", "plant.tip_velocity")
 
 def write_model(scenario: Path, base: Path) -> Path:
     """Linearize ``scenario``'s loop into ``base``.npz (and .mat); returns the .npz."""
-    from deltafmi.apps.api import linearize_scenario, resolve_system
+    from deltafmi import linearize_scenario, resolve_system
     from deltafmi.master.linearize.closed_loop import expand_references
     from deltafmi.master.scenario.spec import load_scenario
 

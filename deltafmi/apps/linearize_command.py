@@ -119,13 +119,9 @@ def _target_path(target: str) -> tuple[Path, Optional[str]]:
     path = Path(target)
     if path.is_file():
         return path, None
-    from deltafmi.builder.sources import ComponentSourceError, find_component, is_module_reference, \
-        packaged_model_names
+    from deltafmi.builder.sources import find_component, is_module_reference, packaged_model_names
     if target in packaged_model_names() or is_module_reference(target):
-        try:
-            source = find_component(target)
-        except ComponentSourceError as exc:
-            raise BadInput(str(exc)) from None
+        source = find_component(target)
         return source.path, source.class_name
     if path.suffix or len(path.parts) > 1:
         raise BadInput(f"'{target}' not found")

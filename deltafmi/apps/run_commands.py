@@ -132,6 +132,8 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
 
     if quiet and verbose:
         raise BadInput("-q and -v contradict each other: give one")
+    if output is not None and not output.strip():
+        raise BadInput("-o '': an empty file name; name the result file (r.csv, r.parquet, r.mat)")
     if output:
         writer_for(output)  # an unknown extension fails before any FMU is built or run
     values = dict(parse_assignment(text) for text in assignments)
@@ -143,14 +145,16 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
                               realtime=False if replay and realtime is None and speed is None else realtime,
                               speed=speed, behind=behind, cli=True)
 
-    from deltafmi.apps.console import progress_shown
+    from deltafmi.apps.console import RepeatedWarnings, progress_shown
 
     printer = None if quiet else _FmuMessagePrinter(verbose)
+    repeated = RepeatedWarnings()
     with progress_shown(not quiet):  # -q: nothing on success, not even a first build's line
         system = load_system(scenario, stop=stop, overrides=overrides, quiet=quiet)
     master = Master(system, result=Path(output) if output else None,
                     progress=not quiet and sys.stdout.isatty(),
-                    warn=(lambda message: None) if quiet else lambda message: click.echo(f"warning: {message}", err=True),
+                    progress_lines=not quiet and not sys.stdout.isatty(),  # a log: a line every 30 s
+                    warn=(lambda message: None) if quiet else repeated,
                     on_message=printer, debug_logging=verbose, replay=Path(replay) if replay else None)
     reason = ""
     try:
@@ -159,6 +163,7 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
         reason = str(exc)
         raise
     finally:
+        repeated.close()
         if printer is not None:
             printer.show_errors(reason)
     if not quiet:
@@ -227,9 +232,14 @@ def validate(scenario: str, fmi_version: Optional[str]) -> None:
         return
     from deltafmi.master.scenario.resolve import describe
 
+    import re
+    import tempfile
+
     system = load_system(scenario, check_fmus=True, overrides=_built_as(fmi_version))
+    # an SSP's FMUs were unpacked into a folder that is gone by now: name them inside the archive
+    unpacked = re.compile(re.escape(str(Path(tempfile.gettempdir()).resolve())) + r"/deltafmi-ssp-[^/]+/")
     for line in describe(system):
-        click.echo(line)
+        click.echo(unpacked.sub(f"{scenario}: ", line))
     click.echo(f"{scenario}: OK")
 
 
@@ -258,9 +268,13 @@ def export_ssp(scenario: str, output: Optional[str], fmi_version: Optional[str])
     target = Path(output) if output else Path(Path(scenario).stem + ".ssp")
     if target.resolve() == Path(scenario).resolve():
         raise BadInput(f"{target}: that is the scenario itself; write the archive elsewhere with -o")
+    from .results.safe_file import check_writable
+    check_writable(target, "SSP archive")
+    missing = next((p for p in reversed([target.parent, *target.parent.parents]) if not p.exists()), None)
     system = load_system(scenario, overrides=_built_as(fmi_version))
     path = write(system, target)
-    click.echo(f"wrote {path} ({len(system.components)} components, {len(system.links)} connections)")
+    made = f"; made the folder {target.parent}, which did not exist" if missing is not None else ""
+    click.echo(f"wrote {path} ({len(system.components)} components, {len(system.links)} connections{made})")
 
 
 @click.command()

@@ -74,6 +74,8 @@ def load_component_class(source: Path, class_name: Optional[str] = None) -> type
     source = Path(source)
     if not source.is_file():
         raise ComponentSourceError(f"{source}: no such file")
+    if source.suffix != ".py":
+        raise ComponentSourceError(f"{source}: a component's source is a Python file (.py)")
     name = f"_deltafmi_source_{re.sub(r'[^0-9a-zA-Z_]', '_', source.stem)}_{_digest(source.read_bytes())[:8]}"
     spec = importlib.util.spec_from_file_location(name, source)
     module = importlib.util.module_from_spec(spec)

@@ -117,7 +117,11 @@ _PARSED: dict[tuple[str, int, int, Optional[str]], list[str]] = {}
 
 
 def _parse_imports(source: bytes, filename: str, package: Optional[str]) -> Iterator[str]:
-    tree = ast.parse(source, filename=filename)
+    try:
+        tree = ast.parse(source, filename=filename)
+    except (SyntaxError, ValueError) as exc:  # a user's source that is not Python (null bytes: ValueError)
+        from .sources import ComponentSourceError
+        raise ComponentSourceError(f"{filename}: importing it failed: {exc!r}") from None
     for node in _statements(tree.body):
         if isinstance(node, ast.Import):
             yield from (alias.name for alias in node.names)

@@ -74,6 +74,7 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
     Ctrl-C, :class:`~deltafmi.errors.ResultWriteError` when ``output`` cannot take more rows)
     when the run fails; the error's ``result`` holds every row computed up to the failure.
     """
+    from .results.safe_file import check_writable
     from .results.writers import writer_for
     from .scenario.overrides import with_overrides
     from .scenario.resolve import resolve_system
@@ -81,6 +82,12 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
 
     if output is not None:
         writer_for(output)  # an unknown extension fails before anything is built
+    for name, flag in (("verbose", verbose), ("allow_nan", allow_nan), ("realtime", realtime)):
+        if flag is not None and type(flag).__name__ not in ("bool", "bool_"):  # "yes" would reach the FMUs
+            raise BadInput(f"simulate({name}={flag!r}): expected True or False")
+    if on_message is not None and not callable(on_message):
+        raise BadInput(f"simulate(on_message={on_message!r}): expected a function (component, status, "
+                       "category, text)")
     _check_mapping(parameters, "parameters")
     _check_mapping(start_values, "start_values")
     with ExitStack() as resources:
@@ -106,6 +113,8 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
             kept.append(ResultRecorder(names, kinds, units, file_writer, after_rows=messages.deliver))
             return kept[-1]
 
+        if output is not None:
+            check_writable(Path(output))
         master = Master(system, result=Path(output) if output is not None else _IN_MEMORY, progress=False,
                         warn=scenario_log.warning, writer_class=recorder,
                         on_message=messages.add, debug_logging=verbose,

@@ -21,6 +21,8 @@ import numpy.ctypeslib  # noqa: F401  (numpy loads it lazily on first use, which
 
 from deltafmi.runtime import sundials as _sun
 
+from .errors import DeltaFmiError
+
 Rhs = Callable[[float, np.ndarray, np.ndarray], None]
 Roots = Callable[[float, np.ndarray, np.ndarray], None]
 Project = Callable[[float, np.ndarray, np.ndarray], None]
@@ -33,7 +35,7 @@ Jacobian = Callable[[float, np.ndarray, np.ndarray], None]
 NativeCallbacks = Callable[[int, int, int, int], tuple[int, int, int, int]]
 
 
-class CvodeError(RuntimeError):
+class CvodeError(DeltaFmiError, RuntimeError):
     """CVODE failed (error test or convergence failures, too much work, ...)."""
 
 

@@ -29,6 +29,8 @@ from ctypes import POINTER, byref, c_char_p, c_double, c_int, c_int64, c_long, c
 from pathlib import Path
 from typing import Any, Callable, Optional
 
+from .errors import DeltaFmiError
+
 __all__ = ["SundialsNotFound", "library_directory", "new_context", "LOGGER"]
 
 #: where SUNDIALS' warnings and errors go (the FMU routes Python logging to the FMI logger)
@@ -41,7 +43,7 @@ _NAMES = ("sundials_core", "sundials_nvecserial", "sundials_sunmatrixdense", "su
 _MODE = ctypes.RTLD_LOCAL | getattr(os, "RTLD_DEEPBIND", 0) | getattr(os, "RTLD_NOW", 2)
 
 
-class SundialsNotFound(ImportError):
+class SundialsNotFound(DeltaFmiError, ImportError):
     """Neither the FMU nor an installed fmpy provides the SUNDIALS libraries."""
 
 

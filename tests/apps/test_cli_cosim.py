@@ -15,7 +15,7 @@ from deltafmi.apps.cli import main
 from deltafmi.master.results.csv_file import columns
 from deltafmi.master.results.progress import Progress
 from deltafmi.files import USER_FILE_MODE
-from signal_runs import DELTAFMI, interrupt_when
+from signal_runs import DELTAFMI, interrupt_when, rows_in
 
 
 @pytest.fixture(scope="module")
@@ -76,8 +76,9 @@ def test_run_failure_exits_1_with_one_line_reason(scenario, tmp_path):
     assert result.exit_code == 1
     last = result.output.strip().splitlines()[-1]
     assert last.startswith("Error: simulation failed at t = 0.5 s: osc: CVODE failed")
-    assert last.endswith(f"(results up to the failure in {tmp_path / 'f.csv'})")
-    assert columns(tmp_path / "f.csv")["time"][-1] == pytest.approx(0.5)
+    assert last.endswith(f"(results up to the failure in {tmp_path / 'f.failed.csv'})")
+    assert columns(tmp_path / "f.failed.csv")["time"][-1] == pytest.approx(0.5)
+    assert not (tmp_path / "f.csv").exists()
 
 
 def test_validate_prints_summary(scenario):
@@ -157,7 +158,7 @@ def test_interrupted_run_keeps_its_rows_and_says_where(build_fmu_from_src, tmp_p
     out = tmp_path / "long.csv"
     returncode, stdout, stderr = interrupt_when(
         [*DELTAFMI, "run", str(path), "-o", str(out)],
-        lambda: out.exists() and out.read_text().count("\n") > 2, signum, timeout=60)  # header and two rows
+        lambda: rows_in(out) > 2, signum, timeout=60)  # header and two rows
     assert returncode == code, stderr
     assert "Traceback" not in stderr and stdout == ""
     last = stderr.strip().splitlines()[-1]

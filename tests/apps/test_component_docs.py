@@ -141,7 +141,7 @@ def test_speed_loop_equals_the_sampled_data_recursion(example: Path, controller:
     # what the docs say of it: the current limit, the overshoot, the end
     assert volts[0] == pytest.approx(5.0)
     limited = result["time"][result["motor.current"] >= I_MAX * (1 - 1e-9)]
-    assert limited[0] == pytest.approx(T) and 0.04 < limited[-1] < 0.045
+    assert limited[0] == 0.0 and 0.04 < limited[-1] < 0.045  # from the first row: 5 V at t = 0
     assert speeds.max() == pytest.approx(54.0, abs=0.05)
     assert speeds[-1] == pytest.approx(50.0, abs=0.01)
 

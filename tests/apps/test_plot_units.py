@@ -71,6 +71,10 @@ def test_cli_plots_a_parquet_result_with_units_and_a_csv_without(tmp_path):
     result = tracking()
     result.save(tmp_path / "r.parquet")
     result.save(tmp_path / "r.csv")
+    # a CSV keeps its units beside it (r.csv.units.json): its plot has them as the Parquet's has
+    from_csv = result_figure(tmp_path / "r.csv", ["plant.z[1]", "plant.z - trajectory.r"])
+    assert [ax.get_ylabel() for ax in from_csv.axes] == ["plant.z[1] [m]", "plant.z - trajectory.r [um]"]
+    (tmp_path / "r.csv.units.json").unlink()  # a CSV from elsewhere: no units
     for name in ("r.parquet", "r.csv"):
         outcome = CliRunner().invoke(main, ["plot", str(tmp_path / name), "plant.z[1]", "plant.z - trajectory.r",
                                             "-o", str(tmp_path / f"{name}.png")])
@@ -78,8 +82,8 @@ def test_cli_plots_a_parquet_result_with_units_and_a_csv_without(tmp_path):
         assert (tmp_path / f"{name}.png").read_bytes()[:4] == b"\x89PNG"
     with_units = result_figure(tmp_path / "r.parquet", ["plant.z[1]", "plant.z - trajectory.r"])
     assert [ax.get_ylabel() for ax in with_units.axes] == ["plant.z[1] [m]", "plant.z - trajectory.r [um]"]
-    # a CSV carries no units: no brackets, a power of ten instead of a prefix (the difference on
-    # its own axis still)
+    # a CSV without units: no brackets, a power of ten instead of a prefix (the difference on its
+    # own axis still)
     without = result_figure(tmp_path / "r.csv", ["plant.z[1]", "plant.z - trajectory.r"])
     assert [ax.get_ylabel() for ax in without.axes] == ["plant.z[1]", "plant.z - trajectory.r (×1e-6)"]
     assert lines(without.axes[1])["plant.z[3] - trajectory.r[3]"] == pytest.approx(9.0 * T, abs=1e-9)

@@ -258,10 +258,11 @@ def test_csv_on_a_full_disk_keeps_whole_rows_and_says_how_many(long_run, tmp_pat
     match = FULL.fullmatch(done.stderr.strip())
     assert match, done.stderr
     rows, until = int(match[2]), float(match[3])
-    text = (kept / "r.csv").read_bytes()
+    assert match[1] == f"{tmp_path}/disk/r.failed.csv"  # the rows of a failed run, under a name that says so
+    text = (kept / "r.failed.csv").read_bytes()
     assert len(text) <= 256 * 1024 and text.endswith(b"\n")
     assert len(text) > 200 * 1024  # the disk was used, not given up early
-    names, data = read_csv(kept / "r.csv")
+    names, data = read_csv(kept / "r.failed.csv")
     assert names == ["time", "osc.x", "osc.v", "osc.energy", "osc.impacts"]
     assert data.shape == (rows, 5) and 1000 < rows < len(complete["time"])
     assert abs(data[-1, 0] - until) <= 5e-9 * until  # the message gives 9 significant digits
@@ -280,8 +281,8 @@ def test_parquet_on_a_full_disk_ends_with_a_readable_file(long_run, tmp_path):
     match = FULL.fullmatch(done.stderr.strip())
     assert match, done.stderr
     rows, until = int(match[2]), float(match[3])
-    assert sorted(p.name for p in kept.iterdir()) == ["r.parquet"]  # the space reserve went too
-    table = pq.read_table(kept / "r.parquet")
+    assert sorted(p.name for p in kept.iterdir()) == ["r.failed.parquet"]  # the space reserve went too
+    table = pq.read_table(kept / "r.failed.parquet")
     assert table.num_rows == rows and 8192 <= rows < len(complete["time"])
     got = table.to_pydict()
     assert got["time"][-1] == until

@@ -122,6 +122,8 @@ def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (folder / "loop.yaml").write_text(LOOP)
     (folder / "scenario.yaml").write_text(UNITS)
     (folder / "nan.yaml").write_text(NAN)
+    (folder / "afile").write_text("a file, not a folder\n")
+    (folder / "x.fmu").write_bytes(bytes(range(256)))
     return folder
 
 
@@ -142,6 +144,9 @@ def cli(folder: Path, *args: str, env: dict | None = None) -> tuple[int, str]:
     ("--set controller.kk", ["run", "loop.yaml", "--set", "controller.kk=1"]),
     ("scenario.yaml:6: error: unit mismatch", ["validate", "scenario.yaml"]),
     ("Error: n.y is NaN", ["run", "nan.yaml", "-o", "nan.csv"]),
+    ("Error: result file 'afile/r.csv'", ["run", "loop.yaml", "-o", "afile/r.csv"]),
+    ("Error: 3.5e+12 communication steps", ["run", "delta_tracking", "--step", "1e-12"]),
+    ("Error: x.fmu: cannot read it as an FMU", ["info", "x.fmu"]),
     ("Error: cannot reach the Dask scheduler", ["sweep", "gain_payload", "--fresh", "--scheduler",
                                                 "tcp://127.0.0.1:9"]),
 ])
@@ -255,3 +260,7 @@ def test_an_exception_in_a_component_and_a_too_long_controller_step(tmp_path: Pa
                                    output), output
     code, output = cli(tmp_path, "run", "delta_tracking", "--stop", "0.01", "--step", "0.002", "-o", "r.csv")
     assert code == 0 and re.search(quoted("warning: controller: communication step"), output), output
+    # the same failure again, now that r.csv holds a good result: it stays, the rows go beside it
+    code, output = cli(tmp_path, "run", "bug.yaml", "-o", "r.csv")
+    assert code == 1 and re.search(quoted("Error: simulation failed at t = <t> s: <reason> (results up to the "
+                                          "failure in r.failed.csv; r.csv left as it was)"), output), output

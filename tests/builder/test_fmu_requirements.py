@@ -103,5 +103,5 @@ def test_info_and_validate_of_a_portable_fmu_state_its_glibc_floor(portable_osci
 
 def test_validate_of_a_missing_file_is_an_error_not_a_traceback(tmp_path):
     result = CliRunner().invoke(main, ["validate", str(tmp_path / "nothing.fmu")])
-    assert result.exit_code == 1
-    assert "no such file" in result.output
+    assert result.exit_code == 2  # bad input, as run and info say it
+    assert "no such FMU file" in result.output

@@ -88,8 +88,8 @@ def test_failure_keeps_results_up_to_it(tmp_path, osc_fmu):
         simulate(tmp_path, text)
     message = str(failure.value.message)
     assert message.startswith("simulation failed at t = 1 s: osc: CVODE failed")
-    assert "results up to the failure in" in message and "\n" not in message
-    c = columns(tmp_path / "r.csv")
+    assert f"results up to the failure in {tmp_path / 'r.failed.csv'}" in message and "\n" not in message
+    c = columns(tmp_path / "r.failed.csv")
     assert c["time"][-1] == pytest.approx(1.0) and len(c["time"]) >= 101
     x, _, _ = solution(c["time"][:100])
     assert np.max(np.abs(c["osc.x"][:100] - x)) < 1e-5

@@ -17,7 +17,7 @@ from click.testing import CliRunner
 from deltafmi.apps.cli import main
 from deltafmi.master.results.csv_file import columns
 from deltafmi.master.results.writers import matlab_names
-from signal_runs import DELTAFMI, interrupt_when
+from signal_runs import DELTAFMI, bytes_in, interrupt_when
 
 OUTPUTS = ["osc.x", "osc.v", "osc.energy", "osc.F"]
 
@@ -166,10 +166,12 @@ def test_failed_run_leaves_a_readable_file_up_to_the_failure(scenario, tmp_path,
     failing = tmp_path / "fail.yaml"
     failing.write_text(scenario.read_text().replace(
         "interface: ME}", "interface: ME, parameters: {F_step: 1.0e+308, t_step: 0.5}}"))
-    out = tmp_path / f"f.{suffix}"
+    out, kept = tmp_path / f"f.{suffix}", tmp_path / f"f.failed.{suffix}"
     result = CliRunner().invoke(main, ["run", str(failing), "-o", str(out)])
     assert result.exit_code == 1
-    assert result.output.strip().splitlines()[-1].endswith(f"(results up to the failure in {out})")
+    assert result.output.strip().splitlines()[-1].endswith(f"(results up to the failure in {kept})")
+    assert not out.exists()  # kept under a name that says it failed
+    out = kept
     time_column = (pq.read_table(out).column("time").to_numpy() if suffix == "parquet"
                    else scipy.io.loadmat(out)["time"].ravel())
     assert time_column[0] == 0.0 and 0.49 <= time_column[-1] <= 0.5
@@ -185,7 +187,7 @@ def test_interrupted_run_leaves_a_readable_parquet(oscillator, tmp_path):
                     "outputs: [osc.x, osc.v]\n")
     out = tmp_path / "long.parquet"
     code, _, stderr = interrupt_when([*DELTAFMI, "run", str(path), "-o", str(out)],
-                                     lambda: out.exists() and out.stat().st_size > 4,  # more than Parquet's magic
+                                     lambda: bytes_in(out) > 4,  # more than Parquet's magic
                                      signal.SIGINT, timeout=60)
     assert code == 130, stderr
     assert "Traceback" not in stderr

@@ -248,14 +248,15 @@ def test_nan_stops_the_run_naming_variable_and_time(fmus, tmp_path):
     out = tmp_path / "nan.csv"
     result = run(scenario, "-o", out, "-q")
     assert result.exit_code == 1, result.output
-    assert "fragile.y is NaN at t = 0.42 s (and 1 other variable); the rows up to there are in" in result.output
+    assert ("fragile.y is NaN at t = 0.42 s (and 1 other variable); the rows up to there are in "
+            f"{tmp_path / 'nan.failed.csv'}") in result.output.replace("\n", "")
     assert "Traceback" not in result.output
-    _check_rows_up_to_the_nan(out)
+    _check_rows_up_to_the_nan(tmp_path / "nan.failed.csv")  # a failed run's rows, under a name that says so
     # the same without the master's C loop (rows recorded one by one)
     python = tmp_path / "python.csv"
     with pytest.raises(SimulationError, match=r"fragile.y is NaN at t = 0.42 s"):
         Master(resolve_system(load_scenario(scenario)), result=python, native=False).run()
-    _check_rows_up_to_the_nan(python)
+    _check_rows_up_to_the_nan(tmp_path / "python.failed.csv")
 
 
 def test_allow_nan_records_to_the_end(fmus, tmp_path):

@@ -421,5 +421,6 @@ def test_discard_without_termination_is_a_failure(third_party, tmp_path):
     assert result.exit_code == 1
     assert result.output.strip().splitlines()[-1] == (
         "Error: simulation failed at t = 0 s: ball: fmi2DoStep failed with status 2 (discard): fmi2DoStep: a step "
-        f"of 0.01 s is longer than the 0.005 s this FMU can take (results up to the failure in {out})")
-    assert list(columns(out)["time"]) == [0.0]
+        f"of 0.01 s is longer than the 0.005 s this FMU can take (results up to the failure in "
+        f"{tmp_path / 'ball.failed.csv'})")
+    assert list(columns(tmp_path / "ball.failed.csv")["time"]) == [0.0]

@@ -17,10 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, List, Optional, Sequence, Tuple
 
-import click
-
 import deltafmi
-from deltafmi.errors import BadInput
+from deltafmi.errors import BadInput, DeltaFmiError
 
 from .compare import DEFAULT_TOLERANCE, mismatches
 from .export import INTERFACE_NAMES
@@ -95,7 +93,7 @@ def _run(entry: ModelFolder, options: RefOptions, reference: Table, inputs: Opti
         result = run_fmu(entry.file(".fmu"), entry.interface, options, reference.names, inputs)
     except BadInput as exc:  # an input deltafmi cannot drive from the table
         return "rejected", f"{entry.file('_in.csv')}: {exc.message.removeprefix('input file: ')}"
-    except click.ClickException as exc:
+    except DeltaFmiError as exc:
         return "failed", exc.message
     except Exception as exc:  # noqa: BLE001 - whatever an FMU does wrong is a failed import, not a crash
         return "failed", f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=3)}"

@@ -88,6 +88,9 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], connect_t
     if dashboard is not None:
         dashboard_address(dashboard)  # a malformed address fails here, before any FMU is built
     security = tls_security(tls_ca_file, tls_cert, tls_key)
+    if output is not None and not dry_run:  # before the FMUs are built
+        from deltafmi.master.results.safe_file import check_writable
+        check_writable(Path(output), "results table")
     planned = _plan(study)
     if not quiet:  # the scenario's warnings, once for the whole study (the cases run it unchecked)
         for warning in planned.system.warnings:
@@ -105,22 +108,26 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], connect_t
         click.echo(f"results: {store.table} ({len(pending)} cases to run, "
                    f"{len(planned.cases) - len(pending)} done in an earlier run)")
         return
-    try:
-        report = sweep_study(planned, store, fresh=fresh, retry_failed=retry_failed, scheduler=scheduler,
-                             workers=workers, security=security, connect_timeout=connect_timeout,
-                             progress=not quiet and sys.stdout.isatty(), dashboard=dashboard or LOCAL_DASHBOARD,
-                             on_dashboard=_announce if dashboard is not None and not quiet else lambda link: None)
-    except KeyboardInterrupt:  # while the cluster started or stopped: the journal has every finished case
-        click.echo(f"interrupted: run the same command again to continue ({store.journal} keeps what finished)",
-                   err=True)
-        raise click.exceptions.Exit(130) from None
-    finally:
-        store.close()
-    if not quiet:
-        for line in summary_lines(planned, store, report):
-            click.echo(line)
+    from deltafmi.master.stepping.stop_signals import InterruptOnSignals
+
+    with InterruptOnSignals() as signals:  # SIGINT, SIGTERM, SIGHUP: keep what finished, say so
+        try:
+            report = sweep_study(planned, store, fresh=fresh, retry_failed=retry_failed, scheduler=scheduler,
+                                 workers=workers, security=security, connect_timeout=connect_timeout,
+                                 progress=not quiet and sys.stdout.isatty(), dashboard=dashboard or LOCAL_DASHBOARD,
+                                 on_dashboard=_announce if dashboard is not None and not quiet else lambda link: None,
+                                 progress_lines=not quiet and not sys.stdout.isatty())
+        except KeyboardInterrupt:  # while the cluster started or stopped: the journal has every finished case
+            click.echo(f"interrupted: run the same command again to continue ({store.journal} keeps what finished)",
+                       err=True)
+            raise click.exceptions.Exit(signals.exit_code) from None
+        finally:
+            store.close()
+        if not quiet:
+            for line in summary_lines(planned, store, report, signals.received):
+                click.echo(line)
     if report.interrupted:
-        raise click.exceptions.Exit(130)
+        raise click.exceptions.Exit(signals.exit_code)
 
 
 def _announce(link: str) -> None:

@@ -41,6 +41,8 @@ from .worker import StudyPlugin, run_cases_task
 
 #: seconds between rewrites of the results table while the study runs
 TABLE_EVERY = 10.0
+#: seconds between progress lines when the output is not a terminal
+LINE_EVERY = 30.0
 
 
 @dataclass
@@ -64,14 +66,18 @@ class SweepReport:
 
 
 class StudyProgress:
-    """``[#######.......]  42/91 cases, 2 failed, 1.9 cases/s, ETA 0:27`` redrawn at most 5x/s."""
+    """``[#######.......]  42/91 cases, 2 failed, 1.9 cases/s, ETA 0:27`` redrawn at most 5x/s on a
+    terminal; with ``lines`` (the output is a log file, CI), ``42/91 cases, ...`` as a line of its
+    own every :data:`LINE_EVERY` seconds."""
 
-    def __init__(self, total: int, reused: int, enabled: bool, stream: TextIO = sys.stdout) -> None:
+    def __init__(self, total: int, reused: int, enabled: bool, stream: TextIO = sys.stdout,
+                 lines: bool = False) -> None:
         self.total, self.done, self.failed = total, reused, 0
         self.ran = 0
-        self.enabled, self.stream = enabled, stream
+        self.enabled, self.stream = enabled or lines, stream
+        self.lines = lines and not enabled
         self.start = _time.monotonic()
-        self._next = 0.0
+        self._next = 0.0 if not self.lines else self.start + LINE_EVERY
 
     def add(self, result: CaseResult) -> None:
         """Count one finished case."""
@@ -87,23 +93,28 @@ class StudyProgress:
         now = _time.monotonic()
         if now < self._next and not force:
             return
-        self._next = now + 0.2
+        self._next = now + (LINE_EVERY if self.lines else 0.2)
         elapsed = now - self.start
         rate = self.ran / elapsed if elapsed > 0 else 0.0
         left = self.total - self.done
         eta = f"ETA {_clock(left / rate)}" if rate > 0 and left else ("done" if not left else "ETA ?")
+        counts = f"{self.done}/{self.total} cases, {self.failed} failed, {rate:.2f} cases/s, {eta}"
+        if self.lines:
+            if not force:
+                self.stream.write(counts + "\n")
+                self.stream.flush()
+            return
         filled = int(30 * self.done / max(self.total, 1))
-        self.stream.write(f"\r[{'#' * filled}{'.' * (30 - filled)}] {self.done}/{self.total} cases, "
-                          f"{self.failed} failed, {rate:.2f} cases/s, {eta}   ")
+        self.stream.write(f"\r[{'#' * filled}{'.' * (30 - filled)}] {counts}   ")
         self.stream.flush()
 
     def close(self) -> None:
         """Finish the line."""
-        if self.enabled:
+        if self.enabled and not self.lines:
             self.draw(force=True)
             self.stream.write("\n")
             self.stream.flush()
-            self.enabled = False
+        self.enabled = False
 
 
 def _clock(seconds: float) -> str:
@@ -251,7 +262,7 @@ def open_store(planned: PlannedStudy, table: Path, timeseries: bool) -> ResultSt
 
 
 def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, scheduler: Optional[str] = None,
-              workers: Optional[int] = None, progress: bool = False,
+              workers: Optional[int] = None, progress: bool = False, progress_lines: bool = False,
               on_result: Callable[[CaseResult], None] = lambda result: None,
               dashboard: str = LOCAL_DASHBOARD,
               on_dashboard: Callable[[str], None] = lambda link: None,
@@ -262,6 +273,8 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
     On ``client`` when given (left open), else on the cluster at ``scheduler`` (``security`` and
     ``connect_timeout`` as in :func:`deltafmi.apps.studies.remote.connect`), else on a local cluster whose
     dashboard listens at ``dashboard``; ``on_dashboard`` gets its link once the cluster is up.
+    ``progress``: a progress bar (a terminal); ``progress_lines``: a progress line every
+    :data:`LINE_EVERY` seconds instead (a log file).
     Ctrl-C cancels what is left; the finished cases stay recorded (a re-run skips them).
     :func:`sweep_study` opens the store too, once the cluster answers.
     """
@@ -269,7 +282,7 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
 
     total = len(planned.cases)
     reused = total - len(todo)
-    bar = StudyProgress(total, reused, progress)
+    bar = StudyProgress(total, reused, progress, lines=progress_lines)
     wall = _time.perf_counter()
     ran = failed = 0
     setup = 0.0
@@ -387,9 +400,12 @@ def _results(future: Any, batch: Batch, batcher: Batcher) -> List[CaseResult]:
     return results
 
 
-def summary_lines(planned: PlannedStudy, store: ResultStore, report: SweepReport) -> List[str]:
+def summary_lines(planned: PlannedStudy, store: ResultStore, report: SweepReport,
+                  signum: Optional[int] = None) -> List[str]:
     """The end-of-sweep summary: counts, rate, and min / median / mean / max of every metric (the
-    mean of a 0/1 metric is a success rate)."""
+    mean of a 0/1 metric is a success rate); ``signum``: the signal that interrupted it."""
+    import signal
+
     import numpy as np
 
     done = [(c, store.rows[c.key]) for c in planned.cases if c.key in store.rows]
@@ -400,7 +416,9 @@ def summary_lines(planned: PlannedStudy, store: ResultStore, report: SweepReport
     lines = [f"{planned.study.path.name}: {len(rows)}/{report.total} cases done, {len(ok)} ok, "
              f"{len(rows) - len(ok)} failed ({report.reused} from an earlier run); {ran}"]
     if report.interrupted:
-        lines.append("interrupted: run the same command again to continue where it stopped")
+        by = f" by {signal.Signals(signum).name}" if signum else ""
+        lines.append(f"interrupted{by}: the {len(rows)} cases done are kept, in {store.table} and "
+                     f"{store.journal.name} alike; run the same command again to continue where it stopped")
     names = [m.name for m in planned.plan.metrics]
     width = max(len(n) for n in names + ["metric"])
     lines.append(f"{'metric':<{width}}  {'min':>12} {'median':>12} {'mean':>12} {'max':>12}  unit")

@@ -19,7 +19,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 from deltafmi.master.scenario.live_components import refuse_live
 from deltafmi.master.scenario.modelinfo import UnknownVariable
-from deltafmi.master.scenario.resolve import resolve_system
+from deltafmi.master.scenario.resolve import resolve_system, start_value_problem
 from deltafmi.master.scenario.system import System, bus_type
 from deltafmi.master.scenario.spec import ComponentSpec, OutputSpec, Parameter, Scenario, load_scenario
 
@@ -101,6 +101,9 @@ def plan_study(study: Study) -> PlannedStudy:
     fingerprint = _fingerprint(scenario, fmus, metrics)
     plan = StudyPlan(scenario, fmus, probe, tuple(metrics), fingerprint)
     cases = generate_cases(study.vary, checker.nominals)
+    checker.case_values(cases)  # every case passes the checks the scenario's values pass, before any runs
+    if checker.found:
+        raise ScenarioError(checker.found)
     units.update({m.name: m.unit for m in metrics})
     return PlannedStudy(study, plan, cases, fmu_files, fmu_bytes, units, system)
 
@@ -167,6 +170,25 @@ class _Checker:
                                     f"('{names[0]}')")
             return None
         return names[0]
+
+    def case_values(self, cases: Sequence[Case]) -> None:
+        """Every case's value of every varied component target against its FMU variable: type,
+        finite, declared min and max (as a scenario's ``parameters:`` and ``--set`` are checked);
+        one error per target, naming its first case that fails and how many more do."""
+        for target in self.study.vary.targets:
+            if target.is_experiment:
+                continue
+            component = self.components[target.component]
+            name = component.info.expand(target.variable)[0]
+            var = component.info.variables[name]
+            bad = [(case, problem) for case in cases
+                   for problem in [start_value_problem(var, case.values[target.name])] if problem]
+            if bad:
+                case, problem = bad[0]
+                more = f" (and {len(bad) - 1} more case{'s' * (len(bad) > 2)})" if len(bad) > 1 else ""
+                joint = " " if problem.startswith("is ") else ": "
+                self.error(target.line, f"'{target.name}' = {case.values[target.name]!r} in case {case.id}{joint}"
+                                        f"{problem}{more}")
 
     def _check_experiment_values(self, target: Target, values: Sequence[Any]) -> None:
         for value in values:

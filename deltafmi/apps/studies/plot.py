@@ -50,11 +50,15 @@ def plot_study(results: str | Path, output: str | Path, metrics: Sequence[str] =
         if name is not None and name not in targets:
             raise BadInput(f"'{name}' is not varied in '{results}'{did_you_mean(name, targets)} "
                            f"(varied: {', '.join(targets)})")
-    kind = kind or _default_kind(targets, kinds, x, y)
+    # the axes chosen when not given: parameters that take more than one value in the table (a
+    # grid axis of one value, there to fix it, would make a map of one row)
+    varied = [t for t in targets if t in table.column_names and len(set(table.column(t).to_pylist())) > 1]
+    axes_from = varied or targets
+    kind = kind or _default_kind(axes_from, kinds, x, y)
     if kind == "heatmap":
-        x, y = _two_axes(targets, kinds, x, y)
+        x, y = _two_axes(axes_from, kinds, x, y)
     elif kind == "line":
-        x = x or next((t for t in targets if kinds[t] != "monte_carlo"), targets[0])
+        x = x or next((t for t in axes_from if kinds[t] != "monte_carlo"), axes_from[0])
     ok = np.array([s == "ok" for s in table.column("status").to_pylist()])
     columns = {name: _floats(table.column(name)) for name in chosen}
     failed = int(np.count_nonzero(~ok))
@@ -74,7 +78,7 @@ def plot_study(results: str | Path, output: str | Path, metrics: Sequence[str] =
             _heatmap(fig, ax, table, x, y, values, label, units, logarithmic, cell)
         else:
             assert x is not None
-            _lines(ax, table, x, y if y else _other(targets, kinds, x), values, label, units, logarithmic)
+            _lines(ax, table, x, y if y else _other(axes_from, kinds, x), values, label, units, logarithmic)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
     study = Path(meta.get("study", str(results))).name

@@ -215,6 +215,10 @@ def _study_wording(error: jsonschema.ValidationError, lines: LineMap, file: str)
 
 
 # --- checks the schema cannot express ------------------------------------------------------------
+#: cases a study may have unless its ``max_cases`` allows more
+MAX_CASES = 1_000_000
+
+
 def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Diagnostic]:
     found: List[Diagnostic] = []
 
@@ -234,17 +238,36 @@ def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Di
             if name.split(".", 1)[0] == "experiment" and name not in EXPERIMENT_TARGETS:
                 error(("vary", block, name), f"'{name}': a study varies only {' and '.join(EXPERIMENT_TARGETS)} "
                                              f"of the experiment{did_you_mean(name, EXPERIMENT_TARGETS)}", key=True)
+    sizes: List[int] = []  # of every block, to count the cases before any list is made
     for name, values in vary.get("grid", {}).items():
         if isinstance(values, dict):
             where: Tuple[Any, ...] = ("vary", "grid", name)
-            if ("step" in values) == ("num" in values):
+            infinite = [k for k in ("from", "to", "step") if isinstance(values.get(k), float)
+                        and not math.isfinite(values[k])]
+            if infinite:
+                error(where + (infinite[0],), f"grid '{name}': '{infinite[0]}' ({values[infinite[0]]}) must be a "
+                                              "finite number")
+            elif ("step" in values) == ("num" in values):
                 error(where, f"grid '{name}': give either 'step' or 'num' with 'from' and 'to'")
             elif values["to"] < values["from"]:
                 error(where, f"grid '{name}': 'to' ({values['to']}) is below 'from' ({values['from']})")
+            else:
+                sizes.append(values["num"] if "num" in values else
+                             int(math.floor((values["to"] - values["from"]) / values["step"] * (1 + 1e-12) + 1e-9)) + 1)
+        elif isinstance(values, list):
+            sizes.append(len(values))
     lengths = {name: len(values) for name, values in vary.get("zip", {}).items()}
     if len(set(lengths.values())) > 1:
         listed = ", ".join(f"{name}: {n}" for name, n in lengths.items())
         error(("vary", "zip"), f"zipped lists must have the same length ({listed})", key=True)
+    sizes += list(lengths.values())[:1]
+    if isinstance(vary.get("monte_carlo", {}).get("samples"), int):
+        sizes.append(vary["monte_carlo"]["samples"])
+    cases, limit = math.prod(sizes), data.get("max_cases", MAX_CASES)
+    if sizes and cases > limit:
+        error(("vary",), f"the study has {cases:,} cases ({' x '.join(f'{n:,}' for n in sizes)}), more than the "
+                         f"{limit:,} a study may have; to plan them all, raise the limit (max_cases: {cases})",
+              key=True)
     for name, spec in vary.get("monte_carlo", {}).get("parameters", {}).items():
         where = ("vary", "monte_carlo", "parameters", name)
         kind = spec["distribution"]

@@ -14,8 +14,10 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
+from deltafmi.errors import DeltaFmiError
 
-class CodegenError(Exception):
+
+class CodegenError(DeltaFmiError):
     """A construct the generator cannot translate; the message names file:line."""
 
 

@@ -34,6 +34,8 @@ import struct
 from dataclasses import dataclass
 from typing import Dict, Iterable, Mapping, Optional, Sequence, Tuple
 
+from deltafmi.errors import DeltaFmiError
+
 MAGIC = b"DFMI"
 VERSION = 1
 KIND_SIGNALS = 1
@@ -49,8 +51,10 @@ _ENTRY_OVERHEAD = 1 + _VALUE.size  # the length byte and the value
 _isfinite = math.isfinite
 
 
-class MalformedDatagram(ValueError):
+class MalformedDatagram(DeltaFmiError, ValueError):
     """A datagram that cannot be read; ``reason`` says precisely why (one line)."""
+
+    exit_code = 2  # bad input
 
     def __init__(self, reason: str) -> None:
         super().__init__(reason)

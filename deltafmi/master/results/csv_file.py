@@ -6,8 +6,10 @@ written as ``repr`` writes them (they read back bit for bit; blocks of numeric r
 formatted in C by ``native/csv_rows.c``, Ryu's shortest digits, ten times faster than ``repr``),
 Integer, Boolean and Enumeration values as integers, String values quoted by the :mod:`csv` module's rules (``QUOTE_NONNUMERIC``: every
 string in double quotes, a quote inside doubled). Rows are buffered and written out whenever
-the buffer fills up or half a second has passed, so a failing or killed run keeps (almost)
-everything up to the failure. The file never ends in a partial row, also when the disk fills up.
+the buffer fills up or half a second has passed, to a temporary file beside the result file
+that :meth:`CsvWriter.close` moves into place (:mod:`.safe_file`): a failing or interrupted run
+keeps (almost) everything up to its end, and an earlier result of the same name is replaced
+only by a whole file. The file never ends in a partial row, also when the disk fills up.
 """
 from __future__ import annotations
 
@@ -23,6 +25,8 @@ import numpy as np
 
 from deltafmi.errors import ResultWriteError
 from deltafmi.toolchain import plain_c_library
+
+from .safe_file import ResultFile
 
 _FLUSH_SECONDS = 0.5
 _INTEGERS = ("Integer", "Boolean")
@@ -57,6 +61,25 @@ def _ryu_tables() -> List[np.ndarray]:
     return [pairs(inverse), pairs(powers)]
 
 
+def units_file(path: str | Path) -> Path:
+    """The file beside a CSV result that holds its units (a CSV has no place for them):
+    ``r.csv`` -> ``r.csv.units.json``, ``{"time": "s", "plant.z[3]": "m", ...}``."""
+    path = Path(path)
+    return path.with_name(path.name + ".units.json")
+
+
+def read_units(path: str | Path) -> Dict[str, str]:
+    """The units of the CSV result ``path`` from its :func:`units_file` ({} when there is none,
+    or it cannot be read: the numbers stand without them)."""
+    import json
+
+    try:
+        units = json.loads(units_file(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return {str(k): str(v) for k, v in units.items()} if isinstance(units, dict) else {}
+
+
 class CsvWriter:
     """Appends rows ``time, values...`` to a CSV file.
 
@@ -68,16 +91,22 @@ class CsvWriter:
     write fails (a full disk, a quota, a file size limit) the file is cut back to the end of the
     last complete row and :class:`~deltafmi.errors.ResultWriteError` says how many rows it holds
     and up to which time. After that the writer takes no more rows.
+
+    The rows go to a temporary file beside ``path``, moved into place by :meth:`close`; after
+    :meth:`fail` (the run failed) to ``path``'s failed name instead (:mod:`.safe_file`).
+    ``units`` (one per column after ``time``) go to :func:`units_file` beside it when it closes.
     """
 
     def __init__(self, path: str | Path, names: Sequence[str], chunk: int = 512,
-                 kinds: Optional[Sequence[str]] = None) -> None:
+                 kinds: Optional[Sequence[str]] = None, units: Optional[Sequence[str]] = None) -> None:
         kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
         if len(kinds) != len(names):
             raise ValueError(f"{len(names)} column names but {len(kinds)} column types")
         self.path = Path(path)
+        self.file = ResultFile(self.path)
+        self._units = dict(zip(["time", *names], ["s", *units])) if units is not None and any(units) else None
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fd: Optional[int] = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        self._fd: Optional[int] = os.open(self.file.temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
         self._size = 0  # bytes of whole rows (and the header) in the file
         self._failed: Optional[ResultWriteError] = None
         self._chunk = chunk
@@ -177,16 +206,21 @@ class CsvWriter:
                 self.rows_written += whole
                 if whole:
                     self._last_time = float(times[whole - 1])
-            self._failed = ResultWriteError(self.path, self.rows_written, self._last_time, exc)
+            self._failed = ResultWriteError(self.fail(), self.rows_written, self._last_time, exc)
             raise self._failed from None
         self._size += written
         if len(times):
             self.rows_written += len(ends)
             self._last_time = float(times[-1])
 
+    def fail(self) -> Path:
+        """The run failed: :meth:`close` keeps the rows under the failed name (returned)."""
+        return self.file.fail()
+
     def close(self) -> None:
-        """Flush and close (idempotent). Raises :class:`~deltafmi.errors.ResultWriteError` when
-        the last rows do not fit; the file is closed either way."""
+        """Flush, close and move the file into place (idempotent). Raises
+        :class:`~deltafmi.errors.ResultWriteError` when the last rows do not fit; the file is
+        closed and kept (under the failed name) either way."""
         if self._fd is None:
             return
         try:
@@ -194,6 +228,21 @@ class CsvWriter:
         finally:
             os.close(self._fd)
             self._fd = None
+            final = self.file.finish()
+            if final is not None and self._units is not None:
+                self._write_units(final)
+
+    def _write_units(self, final: Path) -> None:
+        """The units beside the file (written whole, then renamed: never half a file)."""
+        import json
+
+        target = units_file(final)
+        temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+        try:
+            temporary.write_text(json.dumps(self._units, indent=0, ensure_ascii=False) + "\n", encoding="utf-8")
+            os.replace(temporary, target)
+        except OSError:  # the rows are what matters; a plot then shows no units
+            temporary.unlink(missing_ok=True)
 
 
 class RowSampler:

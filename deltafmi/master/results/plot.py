@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any, Collection, Dict, List, Optional, Sequenc
 
 import numpy as np
 
-from deltafmi.errors import BadInput, did_you_mean
+from deltafmi.errors import BadInput, DeltaFmiError, did_you_mean
 
 from ..scenario.modelinfo import split_element
 
@@ -40,8 +40,10 @@ _DASHES = ("-", "--", ":", "-.")
 _LABEL_NAMES, _LABEL_LENGTH = 3, 40
 
 
-class UnknownSignal(LookupError):
+class UnknownSignal(DeltaFmiError, LookupError):
     """A requested signal (or pattern) matches no column; the message carries a suggestion."""
+
+    exit_code = 2  # bad input
 
 
 @dataclass

@@ -28,7 +28,7 @@ class Result:
     without index (``r["plant.z"]``) a rows x elements array of ``plant.z[1]``, ``plant.z[2]``, ...
     in index order. ``r.names`` lists the recorded variables (``time`` not included),
     ``r.units`` maps each of them and ``time`` to its unit (``""``: the FMU declares none; a
-    result read from CSV has an empty ``units``), ``r.summary`` is the run's
+    result read from a CSV without its ``.units.json`` file has an empty ``units``), ``r.summary`` is the run's
     :class:`~deltafmi.master.results.progress.Summary` (None for a result read from a file).
     An event shows as two rows with the same time (values just before and just after it).
     """
@@ -197,6 +197,12 @@ class ResultRecorder:
         if self.file_writer is not None:
             self.file_writer.flush()
 
+    def fail(self) -> Optional[Path]:
+        """The run failed: the file writer keeps its rows under the failed name (returned; None
+        without a file writer, or one that cannot)."""
+        fail = getattr(self.file_writer, "fail", None)
+        return fail() if fail is not None else None
+
     def close(self) -> None:
         """Close the file writer (idempotent)."""
         self._rows.flush()
@@ -217,7 +223,8 @@ class ResultRecorder:
 
 def read_result(path: str | Path) -> Result:
     """A result file written by ``deltafmi run -o`` (or :meth:`Result.save`) as a :class:`Result`:
-    ``.csv`` (no units), ``.parquet`` and ``.mat`` (with units). Raises
+    ``.csv`` (its units from the ``.units.json`` file beside it, when there is one), ``.parquet``
+    and ``.mat`` (with units). Raises
     :class:`~deltafmi.errors.BadInput` naming the file when it cannot be read."""
     path = Path(path)
     suffix = path.suffix.lower()
@@ -228,8 +235,8 @@ def read_result(path: str | Path) -> Result:
             return _read_parquet(path)
         if suffix == ".mat":
             return _read_mat(path)
-        from .csv_file import columns
-        return Result(columns(path))
+        from .csv_file import columns, read_units
+        return Result(columns(path), read_units(path) or None)
     except BadInput:
         raise
     except (ValueError, OSError, KeyError, StopIteration, UnicodeDecodeError) as exc:

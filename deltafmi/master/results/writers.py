@@ -4,7 +4,7 @@ Every writer takes ``(path, names, kinds=..., units=...)`` and offers ``write(ti
 ``write_rows(rows)``, ``flush()``, ``close()`` and ``rows_written``, like
 :class:`~deltafmi.master.results.csv_file.CsvWriter`.
 
-- ``.csv``: streamed text (see :mod:`.csv_file`); no units.
+- ``.csv``: streamed text (see :mod:`.csv_file`); its units in ``r.csv.units.json`` beside it.
 - ``.parquet``: one column per variable, ``time`` first; each field's metadata holds its unit
   under the key ``unit`` (``s`` for time, ``""`` where the modelDescription declares none).
   Rows go out as row groups while the run goes on (whenever 8192 rows are queued or half a
@@ -20,6 +20,10 @@ Every writer takes ``(path, names, kinds=..., units=...)`` and offers ``write(ti
 
 A write that fails for lack of space raises :class:`~deltafmi.errors.ResultWriteError` (one line:
 the file, the rows it holds and their last time); the writer then takes no more rows.
+
+Every writer writes a temporary file beside the result file and moves it into place when it
+closes (:mod:`.safe_file`): an earlier result of the same name is replaced only by a readable
+file. After ``fail()`` (the run failed) the rows go to the failed name (``r.failed.parquet``).
 """
 from __future__ import annotations
 
@@ -35,6 +39,7 @@ import numpy as np
 from deltafmi.errors import BadInput, ResultWriteError
 
 from .csv_file import CsvWriter
+from .safe_file import ResultFile
 
 _FLUSH_SECONDS = 0.5
 #: MATLAB's namelengthmax
@@ -46,7 +51,7 @@ _NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 
 def _csv(path: Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None,
          units: Optional[Sequence[str]] = None) -> CsvWriter:
-    return CsvWriter(path, names, kinds=kinds)
+    return CsvWriter(path, names, kinds=kinds, units=units)
 
 
 def writer_for(path: str | Path) -> Callable[..., Any]:
@@ -226,6 +231,7 @@ class ParquetWriter:
 
         self._pa = pa
         self.path = Path(path)
+        self.file = ResultFile(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._kinds = ["Real", *(kinds if kinds is not None else ["Real"] * len(names))]
         units = ["s", *(units if units is not None else [""] * len(names))]
@@ -233,7 +239,7 @@ class ParquetWriter:
                  "Boolean": pa.bool_(), "String": pa.string()}
         self._schema = pa.schema([pa.field(name, types[kind], metadata={"unit": unit})
                                   for name, kind, unit in zip(["time", *names], self._kinds, units)])
-        self._sink = _ReservedSink(self.path)
+        self._sink = _ReservedSink(self.file.temporary)
         self._chunk = chunk
         # bytes a row takes in the file: plain size (8 bytes a value) until row groups tell
         self._row_bytes = 9.0 * len(self._kinds) + 16
@@ -246,7 +252,10 @@ class ParquetWriter:
         self._failed: Optional[ResultWriteError] = None
         self.rows_written = 0
         if self._sink.full is not None:
-            self._end(self._sink.full)
+            try:
+                self._end(self._sink.full)
+            finally:
+                self.file.finish()  # no writer to close: the file (its footer, no rows) goes now
 
     def _reserve_size(self) -> int:
         """Room for a full row group (twice the size rows took so far) and the footer (a few hundred
@@ -303,27 +312,39 @@ class ParquetWriter:
             self._abandon(exc, self.rows_written)
         self._file = None
         self._sink.close()
-        self._failed = ResultWriteError(self.path, self.rows_written, self._last_time, error)
+        self._failed = ResultWriteError(self.fail(), self.rows_written, self._last_time, error)
         raise self._failed
 
     def _abandon(self, error: OSError, lost: int) -> None:
         """A write failed with no reserve to fall back on: remove the unreadable file (``lost`` rows)."""
         self._file = None
         self._sink.close()
-        self.path.unlink(missing_ok=True)
+        self.file.fail()
+        self.file.discard()
         self._failed = ResultWriteError(self.path, lost, self._last_time, error, whole_file=True)
         raise self._failed from None
 
+    def fail(self) -> Path:
+        """The run failed: :meth:`close` keeps the rows under the failed name (returned)."""
+        return self.file.fail()
+
     def close(self) -> None:
-        """Write the last rows and the footer (idempotent)."""
-        if self._file is not None:
-            try:
-                self.flush()
-                if self._file is not None:
-                    self._file.close()
-                    self._file = None
-            finally:
-                self._sink.close()
+        """Write the last rows and the footer, and move the file into place (idempotent)."""
+        try:
+            if self._file is not None:
+                try:
+                    self.flush()
+                    if self._file is not None:
+                        self._file.close()
+                        self._file = None
+                finally:
+                    self._sink.close()
+        finally:
+            if self._file is None:  # a file with its footer (a failed close leaves an unreadable one)
+                self.file.finish()
+            else:
+                self._file = None
+                self.file.discard()
 
 
 def matlab_names(names: Sequence[str]) -> List[str]:
@@ -364,6 +385,7 @@ class MatWriter:
     def __init__(self, path: str | Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None,
                  units: Optional[Sequence[str]] = None, chunk: int = 8192) -> None:
         self.path = Path(path)
+        self.file = ResultFile(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._names = list(names)
         self._kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
@@ -388,8 +410,12 @@ class MatWriter:
         """Move the queued rows to the kept ones (the file is written by :meth:`close`)."""
         self._rows.flush()
 
+    def fail(self) -> Path:
+        """The run failed: :meth:`close` writes the rows under the failed name (returned)."""
+        return self.file.fail()
+
     def close(self) -> None:
-        """Write the .mat file with every row kept (idempotent)."""
+        """Write the .mat file with every row kept, and move it into place (idempotent)."""
         if self._closed:
             return
         from scipy.io import savemat
@@ -404,8 +430,9 @@ class MatWriter:
             content[key] = np.array(values, dtype=object).reshape(1, -1)
         self._closed = True
         try:
-            savemat(str(self.path), content, oned_as="column")
+            savemat(str(self.file.temporary), content, oned_as="column")
         except OSError as exc:
-            self.path.unlink(missing_ok=True)  # a partial .mat file is unreadable
+            self.file.discard()  # a partial .mat file is unreadable
             time = float(data[-1, 0]) if len(data) else None
             raise ResultWriteError(self.path, len(data), time, exc, whole_file=True) from None
+        self.file.finish()

@@ -80,3 +80,41 @@ def clocks_refused(root: Any, interface: str) -> Optional[str]:
         return (f"it has Clocks ({', '.join(used)}) but its <CoSimulation> has no Event Mode (hasEventMode), "
                 "which FMI 3.0 requires to use them: run it as Model Exchange (interface: ME)")
     return None
+
+
+def archive_problem(fmu: Path) -> Optional[str]:
+    """Why ``fmu`` is not an FMU deltafmi can read, in words for its user, or None: not a zip
+    archive, a damaged one, an entry that would land outside the folder it is unpacked into (an
+    absolute path or ``..``), no modelDescription.xml, an FMI 1.0 FMU, or a variable whose
+    valueReference is not an unsigned integer (fmpy's own message for these names no variable)."""
+    if not zipfile.is_zipfile(fmu):
+        return "not a zip archive (an FMU is a zip file holding a modelDescription.xml)"
+    try:
+        with zipfile.ZipFile(fmu) as archive:
+            names = archive.namelist()
+            unsafe = next((n for n in names if n.startswith(("/", "\\")) or ":" in n.split("/")[0]
+                           or ".." in n.replace("\\", "/").split("/")), None)
+            if unsafe is not None:
+                return (f"unsafe: its archive entry '{unsafe}' would be unpacked outside the FMU's "
+                        "folder (an FMU's entries are relative paths without '..')")
+            if "modelDescription.xml" not in names:
+                return "its archive has no modelDescription.xml"
+            text = archive.read("modelDescription.xml")
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+        return f"a damaged zip archive ({exc})"
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        return f"modelDescription.xml is not well-formed XML: {exc}"
+    version = root.get("fmiVersion") or ""
+    if version.startswith("1."):
+        return f"an FMI {version} FMU: deltafmi runs FMI 2.0 and FMI 3.0 FMUs (export it as FMI 2.0 or 3.0)"
+    if not version.startswith(("2.", "3.")):
+        return f"modelDescription.xml: fmiVersion '{version}' is not 2.0 or 3.0"
+    variables = root.find("ModelVariables")
+    for variable in variables if variables is not None else ():
+        reference = variable.get("valueReference")
+        if reference is not None and not reference.strip().isdigit():
+            return (f"modelDescription.xml: variable '{variable.get('name')}' has valueReference "
+                    f"'{reference}', not an unsigned integer")
+    return None

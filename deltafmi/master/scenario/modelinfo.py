@@ -15,11 +15,14 @@ import re
 from dataclasses import dataclass
 from functools import cached_property
 from itertools import product
+from pathlib import Path
 from typing import Dict, List, Optional, Set, Tuple
 
 from attrs import evolve
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription, ModelVariable
+
+from deltafmi.errors import BadInput, DeltaFmiError
 
 _RANGE = re.compile(r"^(?P<base>.+)\[(?P<lo>\d+):(?P<hi>\d+)\]$")
 _ALL = re.compile(r"^(?P<base>.+)\[\*\]$")
@@ -34,8 +37,10 @@ def split_element(name: str) -> Optional[Tuple[str, int]]:
     return (m["base"], int(m["i"])) if m else None
 
 
-class UnknownVariable(LookupError):
+class UnknownVariable(DeltaFmiError, LookupError):
     """A variable reference names nothing in the FMU; ``names`` are candidates for suggestions."""
+
+    exit_code = 2  # bad input
 
     def __init__(self, reference: str, names: List[str]) -> None:
         super().__init__(reference)
@@ -237,5 +242,12 @@ def _start_items(v: ModelVariable) -> List[str]:
 
 
 def model_info(path: str) -> ModelInfo:
-    """Read the modelDescription of the FMU at ``path`` (fmpy.read_model_description)."""
+    """Read the modelDescription of the FMU at ``path`` (fmpy.read_model_description); raises
+    :class:`~deltafmi.errors.BadInput` saying why a file is not an FMU deltafmi can read
+    (:func:`~.fmu_checks.archive_problem`)."""
+    from .fmu_checks import archive_problem
+
+    problem = archive_problem(Path(path))
+    if problem is not None:
+        raise BadInput(problem)
     return ModelInfo(str(path), read_model_description(str(path), validate=False))

@@ -221,8 +221,12 @@ class _Checker:
             try:
                 names = info.expand(param.name)
             except UnknownVariable as exc:
+                prefix = param.name.partition(".")[0]
+                other = (f" (nor is '{prefix}' a component: the scenario's one component is '{component.name}')"
+                         if at and "." in param.name and prefix != component.name
+                         and not any(n.startswith(prefix + ".") for n in exc.names) else "")
                 self.error(param.line, f"{where}: no such variable in the FMU"
-                                       f"{did_you_mean(param.name, exc.names)}", at)
+                                       f"{did_you_mean(param.name, exc.names) or other}", at)
                 continue
             items = value_items(param.value, len(names))
             if len(items) != len(names):
@@ -510,6 +514,18 @@ def _settable(var: Any) -> bool:
     if var.initial in ("exact", "approx"):
         return True
     return var.initial is None and var.start is not None and var.causality == "local"
+
+
+def start_value_problem(var: Any, value: Any) -> str:
+    """Why ``value`` is not a start value the FMU variable ``var`` takes, the checks a scenario's
+    ``parameters:`` pass (its type, finite, within its declared min and max, within its FMI 3.0
+    integer type), else ``""``. For a value given as a number or a boolean (a study's cases)."""
+    kind = _VALUE_KINDS.get(var.type, bus_type(var.type))
+    if kind in _NOT_CONNECTABLE or var.type == "Enumeration":
+        return ""
+    if not _value_fits(kind, value):
+        return f"type mismatch: it is {kind} but the value is {type(value).__name__}"
+    return _outside_range(var, kind, value, _INTEGER_RANGES.get(var.type))
 
 
 def _value_fits(kind: str, value: Any) -> bool:

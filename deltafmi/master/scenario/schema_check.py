@@ -18,9 +18,12 @@ Special = Callable[[jsonschema.ValidationError, LineMap, str], Optional[List[Dia
 def read_document(path: Path, document: str) -> str:
     """The text of ``path``; :class:`ScenarioError` naming the file if it cannot be read."""
     try:
-        return path.read_text()
+        return path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise ScenarioError([Diagnostic(str(path), None, f"cannot read {document}: {exc.strerror}")])
+        raise ScenarioError([Diagnostic(str(path), None, f"cannot read {document}: {exc.strerror}")]) from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError([Diagnostic(str(path), None, f"not a {document}: not text (byte {exc.start} is not "
+                                                         "UTF-8); a scenario or study is a YAML file")]) from None
 
 
 def load_mapping(text: str, file: str, document: str) -> Tuple[Dict[str, Any], LineMap]:

@@ -32,6 +32,21 @@ class Experiment:
     tolerance: Optional[float] = None
 
 
+#: communication steps a fixed-step run may take unless ``master.max_steps`` allows more: a step
+#: given a thousand times too small (1e-12 s) asks for more steps than a run ends in a day
+MAX_STEPS = 1_000_000_000
+
+
+def too_many_steps(start: float, stop: float, step: float, limit: int) -> Optional[str]:
+    """Why a fixed-step run from ``start`` to ``stop`` is refused (more than ``limit`` steps), or None."""
+    steps = (stop - start) / step
+    if steps <= limit:
+        return None
+    return (f"{steps:.3g} communication steps ({stop - start:g} s in steps of {step:g} s), more than the "
+            f"{limit:.3g} a run may take; to run them all, raise the limit "
+            f"(master: {{max_steps: {math.ceil(steps):d}}})")
+
+
 def grid_steps(start: float, stop: float, step: float) -> int:
     """How many communication steps a fixed-step run from ``start`` to ``stop`` takes: point k is
     ``start + k * step`` for k < the count, the last one ``stop`` (a shorter last step when the
@@ -87,6 +102,8 @@ class MasterSettings:
     #: False: a recorded or connected Real that becomes NaN or infinite stops the run (exit 1)
     allow_nan: bool = False
     realtime: Realtime = field(default_factory=Realtime)
+    #: the most communication steps a fixed-step run may take (:data:`MAX_STEPS`)
+    max_steps: int = MAX_STEPS
 
 
 @dataclass(frozen=True)
@@ -293,11 +310,28 @@ def _semantic_errors(data: Dict[str, Any], lines: LineMap, file: str) -> List[Di
     """Checks the schema cannot express (relations between numbers)."""
     found = []
     exp = data.get("experiment")
+    infinite = set()
+    for key in ("start", "stop", "step", "tolerance") if isinstance(exp, dict) else ():
+        if _number(exp.get(key)) and not math.isfinite(exp[key]):
+            infinite.add(key)
+            found.append(Diagnostic(file, lines.line(("experiment", key)),
+                                    f"experiment.{key} ({exp[key]}) must be a finite number"))
+    if infinite:
+        return found
     if isinstance(exp, dict) and _number(exp.get("stop")) and _number(exp.get("start", 0.0)):
         if exp["stop"] <= exp.get("start", 0.0):
             found.append(Diagnostic(file, lines.line(("experiment", "stop")),
                                     f"experiment.stop ({exp['stop']}) must be greater than start ({exp.get('start', 0.0)})"))
-    adaptive = (data.get("master") or {}).get("adaptive") if isinstance(data.get("master"), dict) else None
+    master = data.get("master") if isinstance(data.get("master"), dict) else {}
+    adaptive = master.get("adaptive")
+    adaptive_on = isinstance(adaptive, dict) and adaptive.get("enabled")
+    if isinstance(exp, dict) and _number(exp.get("start", 0.0)) and _number(exp.get("stop")) \
+            and _number(exp.get("step")) and exp["step"] > 0 and not adaptive_on:
+        limit = master.get("max_steps", MAX_STEPS)
+        why = too_many_steps(float(exp.get("start", 0.0)), float(exp["stop"]), float(exp["step"]),
+                             limit if _number(limit) else MAX_STEPS)
+        if why:
+            found.append(Diagnostic(file, lines.line(("experiment", "step")), f"experiment.step: {why}"))
     if isinstance(adaptive, dict) and _number(adaptive.get("min_step")) and _number(adaptive.get("max_step")):
         if adaptive["min_step"] > adaptive["max_step"]:
             found.append(Diagnostic(file, lines.line(("master", "adaptive", "min_step")),
@@ -382,7 +416,8 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
     adaptive = Adaptive(**master_data.get("adaptive", {}))
     master = MasterSettings(master_data.get("algorithm", "gauss-seidel"), adaptive,
                             Loops(**master_data.get("loops", {})), bool(master_data.get("allow_nan", False)),
-                            _realtime(master_data.get("realtime", False)))
+                            _realtime(master_data.get("realtime", False)),
+                            int(master_data.get("max_steps", MAX_STEPS)))
     components = tuple(
         ComponentSpec(
             name=name,

@@ -10,7 +10,13 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import yaml
 
+from deltafmi.errors import DeltaFmiError
+
 Path = Tuple[Any, ...]
+
+#: values a document may expand to: YAML aliases (``*a`` repeats what ``&a`` names) let a few
+#: lines stand for billions of values ("billion laughs"), which no scenario or study needs
+MAX_VALUES = 200_000
 
 
 class _Loader(yaml.SafeLoader):
@@ -56,8 +62,10 @@ def _missing_colon(lines: list, line: int) -> str:
     return f" (is the ':' missing on line {previous}, '{lines[previous - 1].strip()}'?)"
 
 
-class YamlSyntaxError(ValueError):
+class YamlSyntaxError(DeltaFmiError, ValueError):
     """The text is not YAML (or repeats a key); ``line`` is 1-based."""
+
+    exit_code = 2  # bad input
 
     def __init__(self, message: str, line: Optional[int]) -> None:
         super().__init__(message)
@@ -79,10 +87,18 @@ def load_yaml(text: str) -> Tuple[Any, LineMap]:
     lines = LineMap()
     if node is None:
         return None, lines
-    return _build(node, (), lines), lines
+    try:
+        return _build(node, (), lines, [MAX_VALUES]), lines
+    except RecursionError:
+        raise YamlSyntaxError("YAML nested too deeply to be a scenario or a study", None) from None
 
 
-def _build(node: yaml.Node, path: Path, lines: LineMap) -> Any:
+def _build(node: yaml.Node, path: Path, lines: LineMap, left: List[int]) -> Any:
+    left[0] -= 1
+    if left[0] < 0:
+        raise YamlSyntaxError(f"the YAML expands to more than {MAX_VALUES:,} values (aliases such as *a repeat "
+                              "what &a names, again and again): not a scenario or a study",
+                              node.start_mark.line + 1)
     lines.value_lines[path] = node.start_mark.line + 1
     if isinstance(node, yaml.MappingNode):
         out: Dict[Any, Any] = {}
@@ -91,12 +107,12 @@ def _build(node: yaml.Node, path: Path, lines: LineMap) -> Any:
             if key in out:
                 raise YamlSyntaxError(f"duplicate key '{key}'", key_node.start_mark.line + 1)
             lines.key_lines[path + (key,)] = key_node.start_mark.line + 1
-            out[key] = _build(value_node, path + (key,), lines)
+            out[key] = _build(value_node, path + (key,), lines, left)
         return out
     if isinstance(node, yaml.SequenceNode):
         items: List[Any] = []
         for i, item in enumerate(node.value):
-            items.append(_build(item, path + (i,), lines))
+            items.append(_build(item, path + (i,), lines, left))
         return items
     return _scalar(node)
 

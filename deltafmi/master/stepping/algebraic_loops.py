@@ -44,6 +44,8 @@ from typing import Any, Callable, Dict, List, Optional, Protocol, Sequence, Tupl
 import numpy as np
 import scipy.optimize
 
+from deltafmi.errors import DeltaFmiError
+
 from ..scenario.system import AlgebraicLoop, Link, Port
 from ..scenario.spec import Loops
 from .unit_base import Unit
@@ -56,7 +58,7 @@ _DEFAULT_RTOL = 1e-6
 _CONTRACTION = 0.5
 
 
-class LoopFailure(RuntimeError):
+class LoopFailure(DeltaFmiError, RuntimeError):
     """An algebraic loop was not solved; the message names its connections and the residual."""
 
 

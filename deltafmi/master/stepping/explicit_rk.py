@@ -24,6 +24,7 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model
 
+from deltafmi.errors import DeltaFmiError
 from deltafmi.toolchain import plain_c_library
 
 from .unit_base import function_address
@@ -39,7 +40,7 @@ TABLEAUS = {
 Indicators = Callable[[float, np.ndarray], np.ndarray]
 
 
-class RungeKuttaError(RuntimeError):
+class RungeKuttaError(DeltaFmiError, RuntimeError):
     """An FMI call inside a Runge-Kutta step failed."""
 
 

@@ -32,10 +32,11 @@ from deltafmi.errors import BadInput, Interrupted, SimulationError
 
 from ..live.pacing import FellBehind
 from ..results.csv_file import RowSampler
+from ..results.safe_file import check_writable
 from ..results.writers import write_rows_to, writer_for
 from ..results.progress import Progress, Summary, Termination
 from ..scenario.system import ResolvedComponent, Port, System
-from ..scenario.spec import grid_steps
+from ..scenario.spec import grid_steps, too_many_steps
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
 from .fmi3_units import unsettled
@@ -67,7 +68,8 @@ class Master:
                  fmus: Optional[Callable[[ResolvedComponent], Any]] = None,
                  writer_class: Optional[Callable[..., Any]] = None, native: bool = True,
                  on_message: Optional[Callable[[str, int, str, str], None]] = None,
-                 debug_logging: bool = False, replay: Optional[Path] = None) -> None:
+                 debug_logging: bool = False, replay: Optional[Path] = None,
+                 progress_lines: bool = False) -> None:
         """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
         FMU for this run; deltafmi.apps.studies keeps them loaded across runs and resets them);
         ``on_message(component, status, category, text)`` gets every message the FMUs log
@@ -78,7 +80,8 @@ class Master:
         gets ``units=``; an unknown extension is a :class:`BadInput` here, before anything runs);
         ``native``: run fixed steps in C where :mod:`.native_loop` can (same calls, same results);
         ``replay``: a results file of an earlier run of this scenario whose recorded live inputs
-        stand in for the live sources (:mod:`deltafmi.master.live.replay`)."""
+        stand in for the live sources (:mod:`deltafmi.master.live.replay`); ``progress``: a bar on
+        a terminal, ``progress_lines``: a line every 30 s instead (a log)."""
         scenario = system.scenario
         self.system = system
         self.start = scenario.experiment.start
@@ -86,11 +89,20 @@ class Master:
         if self.stop <= self.start:
             raise BadInput(f"stop time {self.stop} is not after start time {self.start}")
         self.step = scenario.experiment.step
+        if not all(map(math.isfinite, (self.start, self.stop, self.step))):
+            raise BadInput(f"start {self.start:g} s, stop {self.stop:g} s and step {self.step:g} s must be finite "
+                           "numbers")
+        if not scenario.master.adaptive.enabled:
+            why = too_many_steps(self.start, self.stop, self.step, scenario.master.max_steps)
+            if why:
+                raise BadInput(why)
         self.algorithm = algorithm or scenario.master.algorithm
         self.result_path = Path(result) if result is not None else scenario.result.file
         self.every = scenario.result.every
         self._writer_for_file = writer_for(self.result_path) if writer_class is None else None
-        self.progress = Progress(self.start, self.stop, progress)
+        if writer_class is None:
+            check_writable(self.result_path)
+        self.progress = Progress(self.start, self.stop, progress, lines=progress_lines)
         self.warn = warn
         self.on_message = on_message
         self.debug_logging = debug_logging
@@ -137,13 +149,15 @@ class Master:
     def run(self) -> Summary:
         """Simulate from start to stop; raises :class:`SimulationError` with a one-line reason.
 
-        Whatever was recorded before a failure stays in the result file. A component that ends
-        the simulation (:class:`Terminated`) ends the run cleanly at its time.
+        The result file is replaced only when the run completes or is interrupted (with the rows
+        up to there); a failed run keeps what it recorded under the failed name (``r.failed.csv``,
+        which its message names) and leaves an earlier ``r.csv`` as it was. A component that
+        ends the simulation (:class:`Terminated`) ends the run cleanly at its time.
         """
         wall = _time.perf_counter()
         terminated = None
         setup = closing = 0.0
-        finished = False
+        finished = interrupted = False
         try:
             with self.stop_signals:
                 try:
@@ -163,12 +177,15 @@ class Master:
             if self.stop_signals.received is None and not isinstance(exc, KeyboardInterrupt):
                 raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
                                       f"{self._partial_note()}") from exc
+            interrupted = True
             self.close()
             raise self._interrupted() from None
         else:
             finished = True
         finally:
             closing = _time.perf_counter()
+            if not finished and not interrupted:
+                self._fail_result()
             self.close()
             if not finished and self.live is not None and self.live.started:
                 self.warn(f"live run up to t = {self.time:.9g} s: {self.live.report()}")  # what the summary says
@@ -248,7 +265,20 @@ class Master:
             except SimulationError:  # a NaN in one of them: the failure at hand is the one to tell
                 pass
         self.writer.flush()
-        return f" (results up to the failure in {self.result_path})"
+        return f" (results up to the failure in {self._kept_after_failure()})"
+
+    def _fail_result(self) -> Path:
+        """The run failed: the writer keeps its rows under the failed name; where they are."""
+        fail = getattr(self.writer, "fail", None)
+        kept = fail() if fail is not None else None
+        return Path(kept) if kept is not None else self.result_path
+
+    def _kept_after_failure(self) -> str:
+        """Where a failed run's rows are, and that an earlier result stays as it was."""
+        kept = self._fail_result()
+        if kept != self.result_path and self.result_path.exists():
+            return f"{kept}; {self.result_path} left as it was"
+        return str(kept)
 
     def _nothing_kept(self) -> str:
         existing = self.result_path.exists() and self.writer is None
@@ -346,6 +376,23 @@ class Master:
         for unit in self.units:
             unit.exit_initialization(self.start)
         for unit in self.units:
+            unit.fetch()
+        self._settle_inputs()
+
+    def _settle_inputs(self) -> None:
+        """Set every connected input from its source once more, sources before targets, and read
+        the outputs again: leaving initialization mode a unit may change its outputs (a sampled
+        controller takes its first sample) after the inputs they feed were set, and the first row
+        must hold the inputs the units integrate with over the first step, as every later row
+        holds those of the step it ends. A Model Exchange unit's discrete inputs are left to its
+        first step, where a change is an event (with its rows)."""
+        order = [self._by_name[name] for name in self.system.order if name in self._by_name]
+        order += [unit for unit in self.units if all(unit is not known for known in order)]
+        for unit in order:
+            if hasattr(unit, "_discrete_inputs"):
+                Unit.pull(unit)  # the continuous inputs; setting a discrete one is an event
+            else:
+                unit.pull()
             unit.fetch()
 
     def _can_roll_back(self) -> bool:
@@ -551,8 +598,8 @@ class Master:
         if flush is not None:
             flush()
         raise SimulationError(f"{names[first]} is {what} at t = {t:.9g} s{others}; the rows up to there are in "
-                              f"{self.result_path} (to record it and go on: --allow-nan, or allow_nan: true "
-                              "under master:)")
+                              f"{self._kept_after_failure()} (to record it and go on: --allow-nan, or allow_nan: "
+                              "true under master:)")
 
     def record_step(self, t: float) -> None:
         """Record the row at the end of a step that reached ``t``, and show progress (and stop

@@ -25,6 +25,8 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Boolean, fmi2Error, fmi2Integer, fmi2Real,
                        fmi2String, fmi2ValueReference)
 
+from deltafmi.errors import DeltaFmiError
+
 from ..scenario.system import ResolvedComponent, Port
 
 #: bus -> (FMI 2.0 ctypes element type, numpy dtype of the bus); Enumeration values travel as
@@ -57,7 +59,7 @@ def decoded(texts: Sequence[Any]) -> List[str]:
     return [text.decode("utf-8", "replace") if text is not None else "" for text in texts]
 
 
-class FmuFailure(RuntimeError):
+class FmuFailure(DeltaFmiError, RuntimeError):
     """An FMI call failed; the message names the unit, the call and the FMU's last log message."""
 
 
