@@ -13,6 +13,9 @@ from typing import IO, Any, Iterable, Optional
 
 import click
 
+__all__ = ["BadInput", "Diagnostic", "FmuSourceError", "Interrupted", "ResultWriteError", "ScenarioError",
+           "SimulationError", "did_you_mean", "file_hint"]
+
 
 @dataclass(frozen=True)
 class Diagnostic:

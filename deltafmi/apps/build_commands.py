@@ -13,6 +13,8 @@ from deltafmi.toolchain import BuildError
 from deltafmi.builder.packager import ComponentSourceError, build_fmu
 from deltafmi.builder.requirements import runtime_requirement
 
+__all__ = ["build", "info", "validate_fmu_file"]
+
 
 @click.command()
 @click.argument("sources", nargs=-1)

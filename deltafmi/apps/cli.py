@@ -16,6 +16,8 @@ from deltafmi.apps.guides import guides_command
 from deltafmi.apps.studies.commands import plot_study_command, study_case, sweep
 from deltafmi.apps.animation.commands import animate
 
+__all__ = ["main"]
+
 
 @click.group()
 @click.version_option(package_name="deltafmi")

@@ -13,6 +13,8 @@ from typing import Iterator, Optional
 
 import click
 
+__all__ = ["progress_shown", "show_progress"]
+
 #: the loggers whose INFO messages a command shows
 PROGRESS_LOGGERS = ("deltafmi.build",)
 

@@ -40,6 +40,8 @@ import deltafmi
 from deltafmi.toolchain import NoCompilerError, abi_tag, build_into, cache_dir, find_built, require_compiler, strip_unneeded
 from .reach import direct_imports, module_source, reached_modules
 
+__all__ = ["compiled_kernels", "kernel_groups", "kernel_modules", "kernels_path", "mypyc_version"]
+
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: modules compiled into FMUs (their imports are type-checked, not compiled)
 COMPILED_MODULES = ("physics/delta/kinematics.py", "physics/delta/dynamics.py",

@@ -21,6 +21,8 @@ import numpy.ctypeslib  # noqa: F401  (numpy loads it lazily on first use, which
 
 from deltafmi.runtime import sundials as _sun
 
+__all__ = ["Cvode", "CvodeError"]
+
 Rhs = Callable[[float, np.ndarray, np.ndarray], None]
 Roots = Callable[[float, np.ndarray, np.ndarray], None]
 Project = Callable[[float, np.ndarray, np.ndarray], None]

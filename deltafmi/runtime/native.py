@@ -39,6 +39,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Optional
 
+__all__ = ["Kernel", "NativeKernels"]
+
 MODES = ("required", "fallback", "off")
 
 

@@ -14,6 +14,9 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
+__all__ = ["B", "CodegenError", "D", "Entry", "Fn", "I", "NONE", "Obj", "Opt", "Poison", "S", "Scalar", "Tup", "Vec",
+           "describe", "named", "record"]
+
 
 class CodegenError(Exception):
     """A construct the generator cannot translate; the message names file:line."""

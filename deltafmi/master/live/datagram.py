@@ -34,6 +34,9 @@ import struct
 from dataclasses import dataclass
 from typing import Dict, Iterable, Mapping, Optional, Sequence, Tuple
 
+__all__ = ["Datagram", "Encoder", "MAX_DATAGRAM", "MalformedDatagram", "PackedDoubles", "decode", "encode",
+           "encode_json", "sequence_went_back"]
+
 MAGIC = b"DFMI"
 VERSION = 1
 KIND_SIGNALS = 1

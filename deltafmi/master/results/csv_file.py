@@ -24,6 +24,8 @@ import numpy as np
 from deltafmi.errors import ResultWriteError
 from deltafmi.toolchain import plain_c_library
 
+__all__ = ["CsvWriter", "RowSampler", "columns", "read_csv"]
+
 _FLUSH_SECONDS = 0.5
 _INTEGERS = ("Integer", "Boolean")
 _format_rows: Optional[Any] = None

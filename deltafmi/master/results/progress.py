@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional, TextIO
 
+__all__ = ["Progress", "Summary", "Termination"]
+
 
 class Progress:
     """Redraws ``[#####.....]  42% t = 0.84 s`` at most five times a second; silent when disabled."""

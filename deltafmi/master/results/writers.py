@@ -36,6 +36,8 @@ from deltafmi.errors import BadInput, ResultWriteError
 
 from .csv_file import CsvWriter
 
+__all__ = ["KeptRows", "MatWriter", "ParquetWriter", "matlab_names", "typed_column", "write_rows_to", "writer_for"]
+
 _FLUSH_SECONDS = 0.5
 #: MATLAB's namelengthmax
 _MATLAB_NAME_LENGTH = 63

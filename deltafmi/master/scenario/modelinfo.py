@@ -21,6 +21,8 @@ from attrs import evolve
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription, ModelVariable
 
+__all__ = ["ModelInfo", "UnknownVariable", "element_names", "model_info", "split_element"]
+
 _RANGE = re.compile(r"^(?P<base>.+)\[(?P<lo>\d+):(?P<hi>\d+)\]$")
 _ALL = re.compile(r"^(?P<base>.+)\[\*\]$")
 _ELEMENT = re.compile(r"(?P<base>.+)\[(?P<i>\d+)\]")

@@ -10,6 +10,8 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import yaml
 
+__all__ = ["LineMap", "YamlSyntaxError", "load_yaml"]
+
 Path = Tuple[Any, ...]
 
 

@@ -28,6 +28,8 @@ from .law import FrictionParams
 from .planar_block import PlanarBlock
 from .system import FrictionSystem
 
+__all__ = ["make_belt_oscillator", "stick_slip_cycle"]
+
 
 class StickSlipCycle(NamedTuple):
     """The closed-form limit cycle."""
