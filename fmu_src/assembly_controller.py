@@ -11,7 +11,8 @@ from deltafmi.physics.assembly.sampling import (AssemblySettings, AssemblyState,
                                                   sample)
 from deltafmi.physics.wrist.kernels import WristConstants
 from deltafmi.models.robot_parameters import robot_parameters
-from deltafmi.models.wrist_parameters import hole_parameters, wrist_parameters, wrist_params_of
+from deltafmi.models.wrist_declarations import hole_parameters, wrist_parameters
+from deltafmi.models.wrist_parameters import wrist_params_of
 
 __all__ = ["AssemblyController"]
 

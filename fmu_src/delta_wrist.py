@@ -8,7 +8,8 @@ from deltafmi.physics.delta_wrist.dynamics import project_state
 from deltafmi.physics.delta_wrist.params import WristMount
 from deltafmi.physics.wrist.kernels import WristConstants, wrist_constants
 from deltafmi.models.robot_parameters import RobotParameters
-from deltafmi.models.wrist_parameters import WristParameters, wrist_params_of
+from deltafmi.models.wrist_declarations import WristParameters
+from deltafmi.models.wrist_parameters import wrist_params_of
 
 __all__ = ["ARGUMENTS", "DeltaWrist", "OUTPUTS", "project_state"]
 

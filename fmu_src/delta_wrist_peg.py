@@ -7,7 +7,8 @@ from deltafmi.physics.delta_wrist.params import WristMount
 from deltafmi.physics.peg import Hole, Peg, PegContact, plant
 from deltafmi.physics.wrist.kernels import WristConstants
 from deltafmi.models.delta_wrist import ARGUMENTS, OUTPUTS, DeltaWrist
-from deltafmi.models.wrist_parameters import hole_parameters, peg_scene_of
+from deltafmi.models.wrist_declarations import hole_parameters
+from deltafmi.models.wrist_parameters import peg_scene_of
 
 __all__ = ["DeltaWristPeg"]
 

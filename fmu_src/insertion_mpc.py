@@ -6,7 +6,7 @@ from deltafmi.component import Experiment, Input, Output, Parameter, SampledComp
 from deltafmi.physics.control.insertion import InsertionMpc as Planner, InsertionTask
 from deltafmi.physics.control.model_file import LinearModelFile, find_model_file
 from deltafmi.physics.assembly.program import hole_frame
-from deltafmi.models.wrist_parameters import hole_parameters
+from deltafmi.models.wrist_declarations import hole_parameters
 
 __all__ = ["InsertionMpc"]
 

@@ -7,7 +7,8 @@ from deltafmi.physics.delta_wrist.params import WristMount
 from deltafmi.physics.estimation.peg_ekf import PegEKF, PegEKFSettings
 from deltafmi.physics.wrist.kernels import wrist_constants
 from deltafmi.models.robot_parameters import robot_parameters
-from deltafmi.models.wrist_parameters import hole_parameters, peg_scene_of, wrist_parameters, wrist_params_of
+from deltafmi.models.wrist_declarations import hole_parameters, wrist_parameters
+from deltafmi.models.wrist_parameters import peg_scene_of, wrist_params_of
 
 __all__ = ["PegEstimator"]
 

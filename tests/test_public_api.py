@@ -84,7 +84,7 @@ def test_the_module_search_finds_every_layer():
               "deltafmi.component", "deltafmi.models", "deltafmi.errors", "deltafmi.files", "deltafmi.shipped",
               "deltafmi.toolchain"}
     assert layers <= set(PUBLIC_MODULES)
-    assert "deltafmi.models.wrist_parameters" in PUBLIC_MODULES and len(PUBLIC_MODULES) > 200
+    assert "deltafmi.models.wrist_declarations" in PUBLIC_MODULES and len(PUBLIC_MODULES) > 200
 
 
 @pytest.mark.parametrize("name", PUBLIC_MODULES)

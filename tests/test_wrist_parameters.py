@@ -1,4 +1,4 @@
-"""The wrist, its tool and the hole: one declaration each (deltafmi.models.wrist_parameters), one
+"""The wrist, its tool and the hole: one declaration each (deltafmi.models.wrist_declarations), one
 default each, in every 6-DOF model that carries them (the plants, and the controller, the
 estimator and the MPC that model the plant)."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ import yaml
 
 from deltafmi.models import AssemblyController, DeltaWrist, DeltaWristPeg, InsertionMpc, PegEstimator
 from deltafmi.models.robot_parameters import DECLARATIONS as ROBOT
-from deltafmi.models.wrist_parameters import HOLE_DECLARATIONS, WRIST_DECLARATIONS, hole_parameters
+from deltafmi.models.wrist_declarations import HOLE_DECLARATIONS, WRIST_DECLARATIONS, hole_parameters
 from deltafmi.shipped import SCENARIOS_DIR
 
 #: model -> (the note after every wrist description, None: no wrist; which hole its pose is; the
