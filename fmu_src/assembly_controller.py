@@ -88,8 +88,9 @@ class AssemblyController(NominalHole, ControllerWristModel, ControllerRobotModel
     rotation vector of R_ref R_down^T, R_down the tool-down pose, world). The kinematic and
     inertial parameters are the controller's own model of the robot and the wrist (the plant's
     declarations and names) and may differ from the plant's; payload is what the plate carries
-    besides the wrist and its tool (those are the wrist parameters). Model Exchange: time events at the
-    sample instants; Co-Simulation: use a communication step equal to the sample period.
+    besides the wrist and its tool (those are the wrist parameters; the law compensates
+    wrist_damping). Model Exchange: time events at the sample instants; Co-Simulation: use a
+    communication step equal to the sample period.
     """
 
     model_name = "AssemblyController"
