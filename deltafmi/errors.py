@@ -24,6 +24,9 @@ from deltafmi.runtime.errors import DeltaFmiError
 __all__ = ["DeltaFmiError", "Diagnostic", "ScenarioError", "BadInput", "SimulationError", "ResultWriteError",
            "Interrupted", "did_you_mean"]
 
+__all__ = ["BadInput", "Diagnostic", "FmuSourceError", "Interrupted", "ResultWriteError", "ScenarioError",
+           "SimulationError", "did_you_mean", "file_hint"]
+
 
 @dataclass(frozen=True)
 class Diagnostic:

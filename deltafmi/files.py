@@ -7,6 +7,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
+__all__ = ["USER_FILE_MODE", "replaced_atomically"]
+
 
 def _user_file_mode() -> int:
     mask = os.umask(0)

@@ -2,8 +2,9 @@
 
 ``from deltafmi.models import DeltaRobot`` imports the module that defines it; a scenario names it
 ``source: deltafmi.models:DeltaRobot`` and the CLI ``deltafmi build DeltaRobot``. The modules
-without a component here (``robot_parameters``, ``contact_plant``, ``wrist_parameters``, and the
-equation model parts ``circuit_parts``, ``delta_arm``) hold declarations that several models share.
+without a component here (``robot_parameters``, ``contact_plant``, ``wrist_declarations``,
+``wrist_parameters``, and the equation model parts ``circuit_parts``, ``delta_arm``) hold declarations
+that several models share.
 
 An FMU carries this package's ``__init__`` when its model imports a shared module: it must stay
 free of imports (the table below names modules; nothing is loaded until a name is asked for).

@@ -11,11 +11,17 @@ from deltafmi.physics.assembly.sampling import (AssemblySettings, AssemblyState,
                                                   sample)
 from deltafmi.physics.wrist.kernels import WristConstants
 from deltafmi.models.robot_parameters import robot_parameters
+from deltafmi.models.wrist_declarations import hole_parameters, wrist_parameters
 from deltafmi.models.wrist_parameters import wrist_params_of
+
+__all__ = ["AssemblyController"]
 
 F6 = tuple[float, float, float, float, float, float]
 #: the robot's parameters as the controller models them (they may differ from the plant's)
 ControllerRobotModel = robot_parameters("as the controller models it")
+#: the wrist and its tool as the controller models them, and the hole the program aims at
+ControllerWristModel = wrist_parameters("as the controller models it")
+NominalHole = hole_parameters("nominal", names=("hole_position", "hole_tilt"))
 #: the kernels' outputs, in order
 OUTPUTS = ("u", "tau", "tip_est", "error", "rotation_error", "r_ref", "depth_ref", "phase", "status", "sigma_min")
 #: the measurements and the external reference, in the kernels' order
@@ -60,7 +66,7 @@ def controller_update(law: AssemblyLaw, w: WristConstants, settings: AssemblySet
     return (state, k, defer, t0 + k * period) + _outputs(state)
 
 
-class AssemblyController(ControllerRobotModel, Component):
+class AssemblyController(NominalHole, ControllerWristModel, ControllerRobotModel, Component):
     """6-D impedance controller of the delta robot with a spherical wrist (DeltaWrist,
     DeltaWristPeg), sampled (1 kHz), with a built-in peg-in-hole insertion program.
 
@@ -82,23 +88,14 @@ class AssemblyController(ControllerRobotModel, Component):
     rotation vector of R_ref R_down^T, R_down the tool-down pose, world). The kinematic and
     inertial parameters are the controller's own model of the robot and the wrist (the plant's
     declarations and names) and may differ from the plant's; payload is what the plate carries
-    besides the wrist and its tool (those are the wrist parameters). Model Exchange: time events at the
-    sample instants; Co-Simulation: use a communication step equal to the sample period.
+    besides the wrist and its tool (those are the wrist parameters; the law compensates
+    wrist_damping). Model Exchange: time events at the sample instants; Co-Simulation: use a
+    communication step equal to the sample period.
     """
 
     model_name = "AssemblyController"
     default_experiment = Experiment(start=0.0, stop=2.0, step=1e-3, tolerance=1e-6)
 
-    # the wrist as the controller models it (DeltaWrist's names)
-    tool_mass = Parameter(0.25, unit="kg", min=0.0, description="Tool (peg) mass; as the controller models it")
-    tool_length = Parameter(0.1, unit="m", min=0.0, description="Tool (peg) length; as the controller models it")
-    tool_radius = Parameter(0.01, unit="m", min=0.0, description="Tool (peg) radius; as the controller models it")
-    tool_tip = Parameter(0.13, unit="m", min=0.0, description="Wrist centre to tool tip; as the controller models it")
-    rotor_inertia = Parameter([3.0e-4, 2.0e-4, 1.0e-4], unit="kg.m2", min=0.0,
-                              description="Wrist rotor inertias; as the controller models them")
-    wrist_damping = Parameter(0.0, unit="N.m.s/rad", min=0.0,
-                              description="Wrist joint viscous friction (compensated); as the controller models it")
-    mount = Parameter([0.0, 0.0, -0.05], unit="m", description="Wrist centre relative to the plate centre")
     # the impedance, per axis of the nominal hole frame (x, y lateral, z along the hole)
     mass = Parameter([5.0, 5.0, 10.0], unit="kg", min=0.0, description="Apparent mass of the tip per hole axis, > 0")
     stiffness = Parameter([500.0, 500.0, 2000.0], unit="N/m", min=0.0, description="Tip stiffness per hole axis")
@@ -115,10 +112,7 @@ class AssemblyController(ControllerRobotModel, Component):
     sample_period = Parameter(1e-3, unit="s", min=0.0, description="Controller sample period")
     zoh_lead = Parameter(True, description="Half-sample torque lead compensating the hold")
     sample = Clock(period="sample_period", description="Sample instants: t_start + k * sample_period")
-    # the nominal hole and the insertion program
-    hole_position = Parameter([0.0, 0.0, -1.1], unit="m", description="Nominal hole top centre (world)")
-    hole_tilt = Parameter([0.0, 0.0], unit="rad",
-                          description="Nominal hole tilt (tilt_x, tilt_y), hole frame Ry(tilt_y) Rx(tilt_x)")
+    # the insertion program (the nominal hole it aims at: NominalHole)
     program = Parameter(True, description="Run the insertion program (false: follow the reference inputs)")
     approach_height = Parameter(0.02, unit="m", min=0.0,
                                 description="Program: tip height above the hole at the approach's end")

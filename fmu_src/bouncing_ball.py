@@ -6,6 +6,8 @@ from deltafmi.physics.contact_problems.ball_kernels import (ModelicaBall, modeli
                                                       modelica_outputs)
 from deltafmi.physics.contact_problems.bouncing_ball import ModelicaBouncingBall
 
+__all__ = ["BouncingBall"]
+
 
 class BouncingBall(Component):
     """Modelica myBouncingBall from the talk: contact states 0 free / 1 contact law / 2 released.

@@ -7,6 +7,8 @@ from deltafmi.physics.contact.law_kernels import law_constants
 from deltafmi.physics.contact_problems.contact_kernels import KernelContactSystem
 from deltafmi.physics.contact.collision_law import CollisionLaw
 
+__all__ = ["BouncingBallRestitution"]
+
 
 class BouncingBallRestitution(HybridSystemComponent):
     """Ball on a floor with a compliant collision law of given restitution and duration.

@@ -9,6 +9,8 @@ from deltafmi.physics.contact.law_kernels import law_constants
 from deltafmi.physics.contact_problems.contact_kernels import KernelContactSystem
 from deltafmi.physics.contact.collision_law import CollisionLaw
 
+__all__ = ["BoxOnTable"]
+
 #: the outputs, in the order box_outputs returns them
 _OUTPUTS = ("lam", "gap", "total_force", "energy")
 

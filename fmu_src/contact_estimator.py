@@ -4,6 +4,8 @@ from deltafmi.physics.delta.tactile import Readout
 from deltafmi.physics.estimation.contact_ekf import ContactEKF, ContactEKFSettings
 from deltafmi.models.robot_parameters import robot_parameters
 
+__all__ = ["ContactEstimator"]
+
 #: the robot's parameters, as the estimator models them (they may differ from the plant's)
 EstimatorRobotModel = robot_parameters("as the estimator models it")
 

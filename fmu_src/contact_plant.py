@@ -18,6 +18,8 @@ from deltafmi.physics.delta.dynamics import project_state
 from deltafmi.physics.delta.params import DeltaParams
 from deltafmi.models.robot_parameters import RobotParameters
 
+__all__ = ["RobotContactPlant", "contact_kernels"]
+
 #: the kernels' arguments: robot parameters, contacts, states, servo torques, wrist force
 _ARGUMENTS = ("_plant", "_contact", "states", "u", "f")
 

@@ -5,6 +5,8 @@ from deltafmi.physics.delta.control_law import ControlLaw
 from deltafmi.physics.delta.sampling import F3, SampleSettings, SampleState, sample, warning_text
 from deltafmi.models.robot_parameters import robot_parameters
 
+__all__ = ["DeltaController"]
+
 #: the robot's parameters, as the controller models them (they may differ from the plant's)
 ControllerRobotModel = robot_parameters("as the controller models it")
 

@@ -8,6 +8,8 @@ from deltafmi.physics.delta.jacobian import jacobian_from_values, jacobian_value
 from deltafmi.physics.delta.params import DeltaParams
 from deltafmi.models.robot_parameters import RobotParameters
 
+__all__ = ["DeltaRobot"]
+
 
 #: the outputs, in the order dynamics.plant_outputs returns them
 _OUTPUTS = ("y", "yd", "z", "zd", "lam", "residual", "energy")

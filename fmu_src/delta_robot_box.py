@@ -9,6 +9,8 @@ from deltafmi.physics.delta.contact_kernels import BoxTable, box_derivatives, bo
 from deltafmi.physics.contact_problems.box_on_table import BoxModel
 from deltafmi.models.contact_plant import RobotContactPlant, contact_kernels
 
+__all__ = ["DeltaRobotBox"]
+
 
 class DeltaRobotBox(RobotContactPlant):
     """RL5 delta robot, a movable box and a table: the talk's cartoon with the robot's tool.

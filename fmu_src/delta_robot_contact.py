@@ -6,6 +6,8 @@ from deltafmi.physics.delta.contact import Plane, ToolPlaneSystem, make_robot_co
 from deltafmi.physics.delta.contact_kernels import ToolPlane, plane_derivatives, plane_indicators, plane_outputs
 from deltafmi.models.contact_plant import RobotContactPlant, contact_kernels
 
+__all__ = ["DeltaRobotContact"]
+
 
 class DeltaRobotContact(RobotContactPlant):
     """RL5 delta robot whose tool touches a rigid plane: the robot's DAE plus a unilateral contact.

@@ -8,7 +8,10 @@ from deltafmi.physics.delta_wrist.dynamics import project_state
 from deltafmi.physics.delta_wrist.params import WristMount
 from deltafmi.physics.wrist.kernels import WristConstants, wrist_constants
 from deltafmi.models.robot_parameters import RobotParameters
+from deltafmi.models.wrist_declarations import WristParameters
 from deltafmi.models.wrist_parameters import wrist_params_of
+
+__all__ = ["ARGUMENTS", "DeltaWrist", "OUTPUTS", "project_state"]
 
 #: the outputs, in the order dynamics.plant_outputs returns them
 OUTPUTS = ("y", "yd", "qw", "qwd", "z", "zd", "tip", "tip_velocity", "R", "omega", "centre", "lam", "residual",
@@ -17,7 +20,7 @@ OUTPUTS = ("y", "yd", "qw", "qwd", "z", "zd", "tip", "tip_velocity", "R", "omega
 ARGUMENTS = ("_plant", "_wrist", "_mount", "states", "u", "tau", "f", "moment", "pole")
 
 
-class DeltaWrist(RobotParameters, Component):
+class DeltaWrist(WristParameters, RobotParameters, Component):
     """RL5 delta robot carrying a 3-DOF direct-drive spherical wrist (Z-X-Y axes) with a peg tool.
 
     States: the delta's nine joint angles (loops closed by multipliers solved at every evaluation,
@@ -41,16 +44,6 @@ class DeltaWrist(RobotParameters, Component):
         0.0, unit="m", min=0.0,
         description="Model Exchange: after an integrator step with loop residual |h| above this, a step event "
         "projects the state onto the closed loops; 0: never (Co-Simulation projects after every step)")
-    tool_mass = Parameter(0.25, unit="kg", min=0.0, description="Tool (peg) mass, a solid cylinder on the tool axis")
-    tool_length = Parameter(0.1, unit="m", min=0.0, description="Tool (peg) length")
-    tool_radius = Parameter(0.01, unit="m", min=0.0, description="Tool (peg) radius")
-    tool_tip = Parameter(0.13, unit="m", min=0.0,
-                         description="Distance from the wrist centre to the tool tip along the tool axis")
-    rotor_inertia = Parameter([3.0e-4, 2.0e-4, 1.0e-4], unit="kg.m2", min=0.0,
-                              description="Axial inertia of each wrist motor's rotor (direct drive), > 0")
-    wrist_damping = Parameter(0.0, unit="N.m.s/rad", min=0.0, description="Viscous friction in each wrist joint")
-    mount = Parameter([0.0, 0.0, -0.05], unit="m",
-                      description="Wrist centre relative to the plate centre (the plate only translates)")
     tip0 = Parameter([0.0, 0.0, -1.18], unit="m", description="Initial tool tip position; the robot starts at rest")
     qw0 = Parameter([0.0, 0.0, 0.0], unit="rad", description="Initial wrist joint angles (0: tool pointing down)")
 

@@ -7,7 +7,10 @@ from deltafmi.physics.delta_wrist.params import WristMount
 from deltafmi.physics.peg import Hole, Peg, PegContact, plant
 from deltafmi.physics.wrist.kernels import WristConstants
 from deltafmi.models.delta_wrist import ARGUMENTS, OUTPUTS, DeltaWrist
+from deltafmi.models.wrist_declarations import hole_parameters
 from deltafmi.models.wrist_parameters import peg_scene_of
+
+__all__ = ["DeltaWristPeg"]
 
 #: the peg's outputs, in the order plant.plant_outputs returns them after DeltaWrist's
 PEG_OUTPUTS = ("depth", "contact_force", "contact_moment", "ft_sensor", "lateral_misalignment",
@@ -16,7 +19,7 @@ PEG_OUTPUTS = ("depth", "contact_force", "contact_moment", "ft_sensor", "lateral
 PEG_ARGUMENTS = ("_hole", "_peg", "_contact")
 
 
-class DeltaWristPeg(DeltaWrist):
+class DeltaWristPeg(hole_parameters("true"), DeltaWrist):
     """DeltaWrist whose tool, a cylindrical peg (tool_radius, tool_length; its bottom face centre
     the tool tip), meets a fixture with a chamfered hole. hole_position and hole_tilt are the TRUE
     hole (a controller has its own nominal). The fixture's wrench on the peg (penalty springs and
@@ -29,26 +32,6 @@ class DeltaWristPeg(DeltaWrist):
     n_event_indicators = 1
     direct_feedthrough = {"lam": ["u", "tau", "f", "moment"]}
 
-    hole_position = Parameter([0.0, 0.0, -1.2], unit="m", description="Centre of the hole's top (true), world")
-    hole_tilt = Parameter([0.0, 0.0], unit="rad",
-                          description="Hole axis tilt (true): about the world x axis, then about the world y axis")
-    bore_radius = Parameter(0.0101, unit="m", min=0.0,
-                            description="Bore radius; the clearance is bore_radius - tool_radius")
-    chamfer_width = Parameter(0.002, unit="m", min=0.0, description="Radial width of the chamfer at the top plane")
-    chamfer_angle = Parameter(0.7853981633974483, unit="rad", min=0.0,
-                              description="Angle between the chamfer surface and the top plane (pi/4: 45 deg)")
-    hole_depth = Parameter(0.04, unit="m", min=0.0, description="Depth of the bore, top plane to bottom")
-    edge_radius = Parameter(2.0e-4, unit="m", min=0.0,
-                            description="Fillet radius of the hole's two convex edges (0: sharp, normals jump)")
-    contact_stiffness = Parameter(2.0e5, unit="N/m", min=0.0,
-                                  description="Penalty stiffness of one contact point (a flat face: 32 points)")
-    contact_damping = Parameter(50.0, unit="N.s/m", min=0.0,
-                                description="Penalty damping of one contact point; normal force >= 0 always")
-    mu = Parameter(0.3, unit="1", min=0.0, description="Coulomb friction coefficient peg/fixture")
-    v_eps = Parameter(1.0e-3, unit="m/s", min=0.0,
-                      description="Friction regularisation speed: f_t = -mu f_n tanh(|v_t|/v_eps) v_t/|v_t|")
-    viscous = Parameter(0.0, unit="N.s/m", min=0.0,
-                        description="Viscous tangential force -viscous v_t at each touching point (lubricant)")
     target_depth = Parameter(0.02, unit="m", description="Insertion depth at which success latches to 1")
 
     depth = Output(unit="m", description="Insertion depth: tool tip below the hole's top plane, along the hole axis")

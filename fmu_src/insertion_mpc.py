@@ -6,9 +6,13 @@ from deltafmi.component import Experiment, Input, Output, Parameter, SampledComp
 from deltafmi.physics.control.insertion import InsertionMpc as Planner, InsertionTask
 from deltafmi.physics.control.model_file import LinearModelFile, find_model_file
 from deltafmi.physics.assembly.program import hole_frame
+from deltafmi.models.wrist_declarations import hole_parameters
+
+__all__ = ["InsertionMpc"]
 
 
-class InsertionMpc(SampledComponent):
+class InsertionMpc(hole_parameters("nominal", names=("hole_position", "hole_tilt", "hole_depth")),
+                   SampledComponent):
     """Linear MPC of a peg-in-hole approach and insertion that drives the reference inputs (r, rd,
     rdd) of an AssemblyController (program = false), whose lateral and rotational compliance stays:
     the chamfer still centres the peg.
@@ -38,11 +42,6 @@ class InsertionMpc(SampledComponent):
                              "rdd; outputs tip, tip_velocity)")
     sample_period = Parameter(0.01, unit="s", min=0.0, description="MPC sample period (a multiple of the model's step)")
     horizon = Parameter(30, type=int, min=1, description="Prediction horizon (samples)")
-    hole_position = Parameter([0.0, 0.0, -1.2], unit="m", description="Nominal hole top centre (world)")
-    hole_tilt = Parameter([0.0, 0.0], unit="rad",
-                          description="Nominal hole tilt (tilt_x, tilt_y), hole frame Ry(tilt_y) Rx(tilt_x)")
-    hole_depth = Parameter(0.04, unit="m", min=0.0,
-                           description="Nominal depth of the bore: near its bottom contact_speed, on it blocked stages")
     goal_depth = Parameter(0.035, unit="m", description="Depth below the nominal hole top the tip is sent to")
     start = Parameter([0.0, 0.0, -1.17], unit="m", description="The reference at the start (the tip's position)")
     axial_mass = Parameter(10.0, unit="kg", min=0.0, description="The impedance's apparent mass along the hole")

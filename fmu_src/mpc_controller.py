@@ -3,6 +3,8 @@ from deltafmi.component import Clock, Experiment, Input, Output, Parameter, Samp
 from deltafmi.physics.control.contact_mpc import PlaneContactMpc, PressTask
 from deltafmi.physics.control.model_file import LinearModelFile, find_model_file
 
+__all__ = ["MpcController"]
+
 #: how to make the linear model file
 _HOW = ("`deltafmi linearize DeltaRobotContact --set z0=0,0,-1.049 --rest --free u -u u -u f -y y -y yd -y z "
         "-y zd -o NAME`")

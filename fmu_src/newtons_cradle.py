@@ -5,6 +5,8 @@ from deltafmi.physics.contact_problems.cradle_kernels import (CradleModes, Cradl
                                                        cradle_indicators, cradle_outputs)
 from deltafmi.physics.contact_problems.newtons_cradle import make_cradle
 
+__all__ = ["NewtonsCradle"]
+
 N_MAX = 7
 
 

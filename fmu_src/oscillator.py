@@ -1,6 +1,8 @@
 """Damped oscillator bouncing on a wall: the smallest model with state events and a time event."""
 from deltafmi.component import Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter, State
 
+__all__ = ["Oscillator"]
+
 
 # The kernels: plain float Python that ``deltafmi build`` also compiles to C for the FMU (its
 # derivatives, CVODE's right-hand side and root function, the energy output); the methods below

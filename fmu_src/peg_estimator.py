@@ -7,19 +7,24 @@ from deltafmi.physics.delta_wrist.params import WristMount
 from deltafmi.physics.estimation.peg_ekf import PegEKF, PegEKFSettings
 from deltafmi.physics.wrist.kernels import wrist_constants
 from deltafmi.models.robot_parameters import robot_parameters
+from deltafmi.models.wrist_declarations import hole_parameters, wrist_parameters
 from deltafmi.models.wrist_parameters import peg_scene_of, wrist_params_of
+
+__all__ = ["PegEstimator"]
 
 #: the robot's parameters, as the estimator models them (they may differ from the plant's)
 EstimatorRobotModel = robot_parameters("as the estimator models it")
+#: the wrist, its peg and the hole as the estimator models them; the hole's pose is the prior's mean
+EstimatorWristModel = wrist_parameters("as the estimator models it")
+EstimatorHoleModel = hole_parameters("nominal", "as the estimator models it")
 
 #: parameters handed to PegEKFSettings under the same names
 _SETTINGS = ("sample_period", "y_std", "qw_std", "acceleration_std", "angular_acceleration_std", "force_rate_std",
              "moment_rate_std", "velocity_std0", "rate_std0", "force_std0", "moment_std0", "hole_std0", "tilt_std0",
              "contact_force_std", "contact_moment_std", "contact_threshold", "contact_samples", "pole", "substeps")
-_NOTE = "; as the estimator models it"
 
 
-class PegEstimator(EstimatorRobotModel, SampledComponent):
+class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel, SampledComponent):
     """Extended Kalman filter of the peg's contact wrench and of the hole's position and tilt for the
     delta robot with its spherical wrist (DeltaWristPeg), sampled (1 kHz), from joint angles and
     motor torques only.
@@ -44,30 +49,6 @@ class PegEstimator(EstimatorRobotModel, SampledComponent):
     model_name = "PegEstimator"
     default_experiment = Experiment(start=0.0, stop=0.25, step=1e-3, tolerance=1e-6)  # ~5 ms a sample
 
-    # the wrist and the peg as the estimator models them (DeltaWrist's names)
-    tool_mass = Parameter(0.25, unit="kg", min=0.0, description="Tool (peg) mass" + _NOTE)
-    tool_length = Parameter(0.1, unit="m", min=0.0, description="Tool (peg) length" + _NOTE)
-    tool_radius = Parameter(0.01, unit="m", min=0.0, description="Tool (peg) radius" + _NOTE)
-    tool_tip = Parameter(0.13, unit="m", min=0.0, description="Wrist centre to tool tip" + _NOTE)
-    rotor_inertia = Parameter([3.0e-4, 2.0e-4, 1.0e-4], unit="kg.m2", min=0.0,
-                              description="Wrist rotor inertias; as the estimator models them")
-    wrist_damping = Parameter(0.0, unit="N.m.s/rad", min=0.0, description="Wrist joint viscous friction" + _NOTE)
-    mount = Parameter([0.0, 0.0, -0.05], unit="m", description="Wrist centre relative to the plate centre")
-    # the hole (nominal position and tilt: the prior) and the contact law (DeltaWristPeg's names)
-    hole_position = Parameter([0.0, 0.0, -1.2], unit="m",
-                              description="NOMINAL hole top centre, world: the prior of x, y; its height is known")
-    hole_tilt = Parameter([0.0, 0.0], unit="rad", description="NOMINAL hole tilt about world x, then y: the prior")
-    bore_radius = Parameter(0.0101, unit="m", min=0.0, description="Bore radius" + _NOTE)
-    chamfer_width = Parameter(0.002, unit="m", min=0.0, description="Radial chamfer width at the top plane" + _NOTE)
-    chamfer_angle = Parameter(0.7853981633974483, unit="rad", min=0.0,
-                              description="Angle between the chamfer surface and the top plane" + _NOTE)
-    hole_depth = Parameter(0.04, unit="m", min=0.0, description="Bore depth" + _NOTE)
-    edge_radius = Parameter(2.0e-4, unit="m", min=0.0, description="Fillet radius of the hole's edges" + _NOTE)
-    contact_stiffness = Parameter(2.0e5, unit="N/m", min=0.0, description="Penalty stiffness per contact" + _NOTE)
-    contact_damping = Parameter(50.0, unit="N.s/m", min=0.0, description="Penalty damping per contact" + _NOTE)
-    mu = Parameter(0.3, unit="1", min=0.0, description="Coulomb friction coefficient" + _NOTE)
-    v_eps = Parameter(1.0e-3, unit="m/s", min=0.0, description="Friction regularisation speed" + _NOTE)
-    viscous = Parameter(0.0, unit="N.s/m", min=0.0, description="Viscous tangential force per point" + _NOTE)
     # the filter
     sample_period = Parameter(1e-3, unit="s", min=0.0, description="Estimator sample period")
     sample = Clock(period="sample_period", description="Sample instants: t_start + k * sample_period")

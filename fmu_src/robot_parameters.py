@@ -13,6 +13,8 @@ from typing import Dict, Optional, Tuple
 from deltafmi.component import Parameter
 from deltafmi.physics.delta.params import RL5, DeltaParams
 
+__all__ = ["DECLARATIONS", "RobotParameters", "robot_parameters"]
+
 #: name -> (unit, lower bound or None, description), in declaration (and value reference) order
 DECLARATIONS: Dict[str, Tuple[str, Optional[float], str]] = {
     "l0": ("m", 0.0, "Base radius: robot axis to servo axes"),

@@ -5,6 +5,8 @@ from deltafmi.component import Clock, Component, Experiment, Input, Kernel, Nati
 from deltafmi.physics.delta.tactile import (Axis, Readout, TactilePads, sensor_derivatives, sensor_forces,
                                              sensor_outputs)
 
+__all__ = ["TactileSensor"]
+
 #: the kernels' arguments before the states: the pads, the axis, the geometry and the load
 _GEOMETRY = ("_pads", "_axis", "tip", "hole_centre", "fn", "hole_width")
 

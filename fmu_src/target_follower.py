@@ -4,6 +4,8 @@ from deltafmi.physics.delta.follower import (FollowerSettings, FollowerState, fo
                                                follower_update, initial_state)
 from deltafmi.physics.delta.trajectory import Workspace
 
+__all__ = ["TargetFollower"]
+
 _WORKSPACE = Workspace()
 
 

@@ -7,6 +7,8 @@ from deltafmi.physics.delta.trajectory import (CirclePath, ConstantSpeedPath, Co
                                                  MinimumJerkPath, MinimumJerkTable, RecordedPath, evaluate_speed_table,
                                                  evaluate_table)
 
+__all__ = ["Trajectory"]
+
 MAX_WAYPOINTS = 8
 
 

@@ -1,6 +1,7 @@
 """What the 6-DOF models build alike from their parameters: the wrist with its peg tool
 (DeltaWrist, DeltaWristPeg, AssemblyController, PegEstimator) and the peg-in-hole scene
-(DeltaWristPeg, PegEstimator). Each takes a component declaring the parameters of those names."""
+(DeltaWristPeg, PegEstimator). Each takes a component declaring the parameters of those names
+(declared once, in :mod:`.wrist_declarations`)."""
 from __future__ import annotations
 
 from typing import Any
@@ -8,6 +9,8 @@ from typing import Any
 from deltafmi.physics import delta_wrist
 from deltafmi.physics.peg import Hole, Peg, PegContact, validate
 from deltafmi.physics.wrist.params import WristParams
+
+__all__ = ["peg_scene_of", "wrist_params_of"]
 
 
 def wrist_params_of(component: Any) -> WristParams:

@@ -14,6 +14,8 @@ from scipy.optimize import brentq
 from hybrid_sim import HybridResult, simulate
 from deltafmi.physics.contact_problems.bouncing_ball import ModelicaBouncingBall
 
+__all__ = ["bounce_figures", "energy_gain_per_bounce", "free_flight_apexes"]
+
 
 def energy_gain_per_bounce(g: float = 9.81, m: float = 1.0, a0: float = 100.0,
                            a2: float = 1e6) -> tuple[float, float]:

@@ -28,6 +28,8 @@ from deltafmi.physics.friction.law import FrictionParams
 from deltafmi.physics.friction.planar_block import PlanarBlock
 from deltafmi.physics.friction.system import FrictionSystem
 
+__all__ = ["make_belt_oscillator", "stick_slip_cycle"]
+
 
 class StickSlipCycle(NamedTuple):
     """The closed-form limit cycle."""

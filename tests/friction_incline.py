@@ -22,6 +22,9 @@ from deltafmi.physics.friction.law import FrictionParams
 from deltafmi.physics.friction.planar_block import PlanarBlock
 from deltafmi.physics.friction.system import FrictionSystem
 
+__all__ = ["incline_position", "incline_viscous_position", "make_incline", "make_plane_incline", "plane_path_invariant",
+           "plane_stop_time"]
+
 
 def make_incline(theta: float, friction: FrictionParams, *, mass: float = 1.0, g: float = 9.81,
                  v0: float = 0.0) -> tuple[FrictionSystem, np.ndarray]:

@@ -20,6 +20,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+__all__ = ["HybridResult", "simulate"]
+
 
 @dataclass
 class EventRecord:

@@ -13,6 +13,8 @@ from typing import Sequence
 
 from deltafmi.master.scenario.fmu_source import use_fmu_provider
 
+__all__: list[str] = []
+
 
 def _built_fmu(source: str, directory: Path, fmi_version: int, resources: Sequence[Path] = ()) -> Path:
     from deltafmi.builder.provider import scenario_fmu  # the builder loads only when a source is built

@@ -12,6 +12,8 @@ from deltafmi.errors import BadInput
 from deltafmi.builder.packager import ComponentSourceError, build_fmu
 from deltafmi.builder.requirements import runtime_requirement
 
+__all__ = ["build", "info", "validate_fmu_file"]
+
 
 @click.command()
 @click.argument("sources", nargs=-1)

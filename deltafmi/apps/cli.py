@@ -24,6 +24,8 @@ from deltafmi.apps.guides import guides_command
 from deltafmi.apps.studies.commands import plot_study_command, study_case, sweep
 from deltafmi.apps.animation.commands import animate
 
+__all__ = ["main"]
+
 
 #: errors of a path the user gave (bad input, exit code 2); other OS errors are failures (1)
 _PATH_ERRORS = (errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENOENT,

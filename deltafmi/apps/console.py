@@ -14,6 +14,8 @@ from typing import Dict, Iterator, Optional
 
 import click
 
+__all__ = ["progress_shown", "show_progress"]
+
 #: the loggers whose INFO messages a command shows
 PROGRESS_LOGGERS = ("deltafmi.build",)
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")

@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+__all__ = ["examples"]
+
 
 @click.group(invoke_without_command=True)
 @click.pass_context

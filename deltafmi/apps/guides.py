@@ -11,6 +11,8 @@ from typing import Dict, Optional
 
 import click
 
+__all__ = ["guides_command"]
+
 _PACKAGE = Path(__file__).parent
 
 

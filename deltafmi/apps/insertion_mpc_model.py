@@ -20,6 +20,8 @@ from typing import Sequence
 
 import yaml
 
+__all__ = ["keep_components", "write_model"]
+
 LOOP = ("controller", "plant")
 
 

@@ -8,6 +8,8 @@ import click
 
 from deltafmi.errors import BadInput
 
+__all__ = ["linearize"]
+
 
 def _value(text: str) -> Any:
     lowered = text.strip().lower()

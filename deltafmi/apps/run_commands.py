@@ -19,6 +19,8 @@ from deltafmi.errors import BadInput
 if TYPE_CHECKING:
     from deltafmi.master.scenario.spec import Scenario
 
+__all__ = ["export_ssp", "load_system", "plot", "run", "validate"]
+
 
 def load_system(path: str, check_fmus: bool = False, stop: Optional[float] = None,
                 overrides: Optional[Callable[[Scenario], Scenario]] = None, quiet: bool = False):

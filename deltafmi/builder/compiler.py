@@ -19,6 +19,9 @@ from pathlib import Path
 
 from deltafmi.toolchain import BuildError, build_into, cache_dir, find_built, require_compiler, run_compiler
 
+__all__ = ["NATIVE_DIR", "VERSION_FILES", "exported_symbols", "fmu_binary", "native_source_files",
+           "python_runtime_config"]
+
 NATIVE_DIR = Path(__file__).resolve().parent.parent / "runtime" / "native"  # the FMU binary's C sources
 #: what both FMI versions' binaries are made of
 SOURCES = ("core.c", "bridge.c", "python_start.c", "process_lock.c")

@@ -30,6 +30,9 @@ from .equations import SOURCES as EQUATION_COMPILER, generated_files
 from .reach import BOOT_SOURCE, module_archive_name, module_source, reached_modules
 from .sources import ComponentSourceError, find_component, split_file_reference
 
+__all__ = ["BUILD_LOG", "ComponentSourceError", "VALUE_ACCESS_SOURCE", "build_cached", "build_fmu",
+           "load_component_class", "runtime_modules"]
+
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: compiled value access of the variable declarations (see deltafmi/runtime/native_values.py)
 VALUE_ACCESS_SOURCE = PACKAGE_DIR / "runtime" / "_values.c"

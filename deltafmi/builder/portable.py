@@ -38,6 +38,8 @@ from deltafmi.toolchain import BuildError, abi_tag, build_into, cache_dir, pytho
 from .compiler import NATIVE_DIR
 from .bytecode import unchecked_hash_pyc
 
+__all__ = ["bundle_key", "make_portable", "starter_library"]
+
 PYTHON_DIR = "resources/python"
 #: shared libraries of glibc itself: the host provides them (the FMU states the version it needs)
 GLIBC_LIBRARIES = {"libc.so.6", "libm.so.6", "libdl.so.2", "libpthread.so.0", "librt.so.1", "libutil.so.1",

@@ -17,6 +17,8 @@ import shutil
 import sys
 from pathlib import Path
 
+__all__: list[str] = []
+
 #: the ctypes libraries of the co-simulation master and the result writer (package-relative)
 PLAIN_C_SOURCES = ("master/stepping/native/fixed_step.c", "master/stepping/native/erk.c",
                    "master/results/native/csv_rows.c")

@@ -32,6 +32,9 @@ from typing import Iterable, Iterator, Optional
 import deltafmi
 from deltafmi.shipped import MODELS_DIR
 
+__all__ = ["BOOT_SOURCE", "absolute_imports", "direct_imports", "module_archive_name", "module_source",
+           "reached_modules"]
+
 PACKAGE = "deltafmi"
 PACKAGE_DIR = Path(deltafmi.__file__).parent
 #: the code the native bridge runs first; it imports the runtime (deltafmi.runtime.instance)

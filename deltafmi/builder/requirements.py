@@ -16,6 +16,8 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+__all__ = ["read_config", "runtime_requirement"]
+
 
 @dataclass
 class RuntimeRequirement:

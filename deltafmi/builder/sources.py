@@ -16,6 +16,9 @@ from typing import Optional
 
 from .source_error import ComponentSourceError
 
+__all__ = ["ComponentSourceError", "find_component", "is_module_reference", "module_component", "packaged_model_names",
+           "split_file_reference"]
+
 _MODULE_REFERENCE = re.compile(r"(?P<module>[A-Za-z_][\w.]*):(?P<name>[A-Za-z_]\w*)")
 
 

@@ -7,3 +7,5 @@ and reads result files and draws them, ``linearize`` turns an FMU or a closed lo
 linear model; ``commands`` holds the CLI commands ``run``, ``validate``, ``export-ssp`` and
 ``plot``, which span them. This package talks to FMUs only through fmpy.
 """
+
+__all__: list[str] = []

@@ -19,3 +19,5 @@
 - :mod:`.examples`: the talk's contact examples built on it (bouncing ball, Newton's cradle,
   box on a table).
 """
+
+__all__: list[str] = []

@@ -13,6 +13,8 @@ from .layout import Layout, build_layout
 from .native_values import ValueDescriptor, ValueHolder
 from .variables import _REAL_ARRAY, Experiment
 
+__all__ = ["Component"]
+
 #: Component.log levels -> (FMI status, log category)
 LOG_LEVELS = {"debug": (0, "logComponent"), "info": (0, "logComponent"), "warning": (1, "logStatusWarning"),
               "error": (3, "logStatusError")}

@@ -19,6 +19,8 @@ import os
 import sys
 import types
 
+__all__: list[str] = []
+
 # A host may unload the FMU binary and load it again (fmpy's freeInstance does). The models
 # imported so far and this file's load() (see the end) live in one process-wide registry module,
 # where the reloaded binary finds them instead of running this file and importing all anew.

@@ -11,6 +11,8 @@ from typing import Optional
 from .base import Component
 from .variables import Input, Output
 
+__all__ = ["definition_problem", "feedthrough_of"]
+
 
 def definition_problem(cls: type[Component]) -> Optional[str]:
     """The first mistake in the definition of ``cls`` as a one-line message, or None."""

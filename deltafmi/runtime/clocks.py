@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from typing import Any, Optional, Union
 
+__all__ = ["Clock", "check_clock", "clock_driven"]
+
 
 class Clock:
     """A periodic time-based input Clock: the component is sampled every ``period`` seconds from

@@ -23,6 +23,8 @@ from deltafmi.runtime import sundials as _sun
 
 from .errors import DeltaFmiError
 
+__all__ = ["Cvode", "CvodeError"]
+
 Rhs = Callable[[float, np.ndarray, np.ndarray], None]
 Roots = Callable[[float, np.ndarray, np.ndarray], None]
 Project = Callable[[float, np.ndarray, np.ndarray], None]

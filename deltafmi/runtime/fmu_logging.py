@@ -27,6 +27,8 @@ import types
 import warnings
 from typing import Any, Optional
 
+__all__ = ["BITS", "CATEGORIES", "DEFAULT", "LOG_ALL", "MODEL_MODULE_PREFIX", "hooks", "message"]
+
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 
 #: the FMU's <LogCategories>, in the bit order the loader uses (native/core.c CATEGORY_NAMES);

@@ -12,6 +12,8 @@ import numpy as np
 
 from .base import Component
 
+__all__ = ["HybridSystemComponent"]
+
 
 class HybridSystemComponent(Component):
     """Base class: implement :meth:`build_system`; optionally :meth:`apply_inputs`."""

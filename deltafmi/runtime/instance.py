@@ -25,6 +25,8 @@ from .partials import DirectionalDerivatives
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
     from .cvode import Cvode
 
+__all__ = ["CO_SIMULATION", "FmuInstance"]
+
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 MODEL_EXCHANGE, CO_SIMULATION, SCHEDULED_EXECUTION = 0, 1, 2
 _MAX_EVENT_ITERATIONS = 100

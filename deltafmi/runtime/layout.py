@@ -19,6 +19,8 @@ import numpy as np
 from .clocks import Clock, check_clock
 from .variables import Parameter, Input, State, Variable, is_enumeration
 
+__all__ = ["Layout", "ScalarVariable", "build_layout"]
+
 # Bits of the per-scalar flag byte read by the native layer (keep in sync with native/core.h).
 SET_INSTANTIATED = 1
 SET_INITIALIZATION = 2

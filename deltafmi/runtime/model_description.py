@@ -17,6 +17,11 @@ from .checks import feedthrough_of
 from .fmu_logging import CATEGORIES, LOG_ALL
 from .layout import ScalarVariable
 
+__all__ = ["add_derivatives_annotation", "add_enumeration_items", "add_log_categories_and_experiment",
+           "add_unit_definitions", "dependency_attributes", "derivative_dependencies", "enumeration_name",
+           "enumeration_types", "header_attributes", "initial_unknowns", "integer_attributes", "model_description_xml",
+           "output_dependencies", "real_attributes", "xml_attributes", "xml_value"]
+
 # SI base-unit exponents for the units the project uses; others are declared without exponents.
 _BASE_UNITS: dict[str, dict[str, int]] = {
     "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "m/s2": {"m": 1, "s": -2}, "m/s3": {"m": 1, "s": -3},

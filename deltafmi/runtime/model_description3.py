@@ -21,6 +21,8 @@ from .model_description import (add_derivatives_annotation, add_enumeration_item
                                 enumeration_types, header_attributes, initial_unknowns, integer_attributes,
                                 output_dependencies, real_attributes, xml_attributes, xml_value)
 
+__all__ = ["model_description3_xml"]
+
 _TYPES3 = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String",
            "Enumeration": "Enumeration"}
 #: name of event indicator i (1-based) as a variable

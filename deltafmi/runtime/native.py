@@ -42,6 +42,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Optional
 
+__all__ = ["Kernel", "NativeKernels"]
+
 MODES = ("required", "fallback", "off")
 
 

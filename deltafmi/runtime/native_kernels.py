@@ -26,6 +26,9 @@ from typing import Any, Callable, Optional
 
 import numpy as np
 
+__all__ = ["DESCRIPTION", "FieldWriter", "NativeKernelsRuntime", "c_type", "field_name", "pack", "record_classes",
+           "unpack"]
+
 #: the description file in an FMU's resources folder
 DESCRIPTION = "native_kernels.json"
 #: the kernels' roles, in the order the loader's layout takes their addresses

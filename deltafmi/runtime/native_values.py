@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any, Callable, Optional
 
+__all__ = ["ValueDescriptor", "ValueHolder"]
+
 try:
     from ._values import ValueDescriptor, ValueHolder
     COMPILED = True

@@ -16,6 +16,8 @@ import numpy as np
 from .base import Component
 from .variables import flatten
 
+__all__ = ["DirectionalDerivatives"]
+
 #: relative central-difference step: balances truncation (step^2) against rounding (eps / step)
 FD_STEP = float(np.finfo(float).eps) ** (1.0 / 3.0)
 _MAX_PLANS = 1024

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from .base import Component
 
+__all__ = ["SampledComponent"]
+
 
 class SampledComponent(Component):
     """Base class: declare a Parameter ``sample_period``, call :meth:`start_sampling` in

@@ -31,7 +31,13 @@ from typing import Any, Callable, Optional
 
 from .errors import DeltaFmiError
 
-__all__ = ["SundialsNotFound", "library_directory", "new_context", "LOGGER"]
+__all__ = ["SundialsNotFound", "library_directory", "new_context", "LOGGER", "CV_ADAMS", "CV_BDF", "CV_NORMAL",
+           "CV_ROOT_RETURN", "CVode", "CVodeCreate", "CVodeFree", "CVodeGetRootInfo", "CVodeInit", "CVodeReInit",
+           "CVodeRootInit", "CVodeSVtolerances", "CVodeSetJacFn", "CVodeSetLinearSolver", "CVodeSetMaxNumSteps",
+           "CVodeSetMaxStep", "CVodeSetNoInactiveRootWarn", "CVodeSetProjErrEst", "CVodeSetProjFn",
+           "CVodeSetProjFrequency", "CVodeSetStopTime", "CVodeSetUserData", "JacFn", "N_VDestroy", "N_VGetArrayPointer",
+           "N_VNew_Serial", "ProjFn", "RhsFn", "SUNContext_Free", "SUNDenseMatrix", "SUNDenseMatrix_Data",
+           "SUNLinSolFree", "SUNLinSol_Dense", "SUNMatDestroy"]
 
 #: where SUNDIALS' warnings and errors go (the FMU routes Python logging to the FMI logger)
 LOGGER = logging.getLogger("deltafmi.solver")

@@ -19,6 +19,8 @@ import numpy as np
 
 from .native_values import ValueDescriptor
 
+__all__ = ["Experiment", "Input", "Output", "Parameter", "State", "Variable", "flatten", "is_enumeration"]
+
 _TYPES = {float: "Real", int: "Integer", bool: "Boolean", str: "String"}
 # what a declaration's descriptor does (Variable._kind; the first four as in _values.c)
 _REAL_SCALAR, _REAL_ARRAY, _INT_SCALAR, _BOOL_SCALAR, _INT_ARRAY, _STR_SCALAR, _STR_ARRAY, _ENUM_SCALAR = range(8)

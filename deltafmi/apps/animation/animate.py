@@ -35,6 +35,8 @@ from .peg_recording import HoleTrack, WristTrack, load_hole, load_wrist
 from .peg_view import HoleSectionView, HoleTopView
 from .wrist_view import WristArtists
 
+__all__ = ["Scene", "check_output", "frame_rows", "load_recording", "robot_points", "write_animation"]
+
 _MODES = ("free", "collision", "contact")
 
 

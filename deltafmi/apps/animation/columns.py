@@ -14,6 +14,8 @@ import numpy as np
 
 from deltafmi.errors import BadInput
 
+__all__ = ["Columns", "PEG", "WRIST", "parse_settings"]
+
 #: wrist outputs: meaning -> (variable, size)
 WRIST = {
     "rotation": ("R", 9),        # tool rotation, world <- tool, row-major; column 3 the tool axis

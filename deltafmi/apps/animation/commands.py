@@ -5,6 +5,8 @@ from typing import Optional
 
 import click
 
+__all__ = ["animate"]
+
 
 @click.command()
 @click.argument("result", type=click.Path(exists=True, dir_okay=False))

@@ -16,6 +16,9 @@ from scipy.spatial import ConvexHull
 
 from deltafmi.physics.peg import Hole, hole_rotation
 
+__all__ = ["RIM_SAMPLES", "action_point", "fixture_section", "hole_matrix", "peg_silhouette", "rim_points",
+           "section_direction", "to_hole_frame"]
+
 #: samples of a rim circle; the inscribed polygon's area is (N / 2) sin(2 pi / N) / pi = 1 - 4.0e-4
 #: of the ellipse's at N = 128, its largest radial gap r (1 - cos(pi / N)) = 3.0e-4 r
 RIM_SAMPLES = 128

@@ -12,6 +12,8 @@ from deltafmi.physics.peg import Hole
 from deltafmi.physics.wrist.kinematics import tool_rotation
 from .columns import PEG, WRIST, Columns
 
+__all__ = ["HoleTrack", "WristTrack", "load_hole", "load_wrist"]
+
 
 @dataclass
 class WristTrack:

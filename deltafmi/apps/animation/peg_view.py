@@ -11,6 +11,8 @@ from .peg_geometry import (action_point, fixture_section, hole_matrix, peg_silho
                            section_direction, to_hole_frame)
 from .peg_recording import HoleTrack, WristTrack
 
+__all__ = ["HoleSectionView", "HoleTopView"]
+
 MM = 1e3
 #: the largest contact force of the run is drawn this long (mm); an arrow shows the force's component
 #: in the section plane at that scale

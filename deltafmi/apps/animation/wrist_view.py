@@ -9,6 +9,8 @@ import numpy as np
 from .peg_geometry import hole_matrix, rim_points
 from .peg_recording import HoleTrack, WristTrack
 
+__all__ = ["WristArtists"]
+
 
 class WristArtists:
     """The spherical wrist in the 3D view: the mount from the plate to the wrist centre, the centre,

@@ -15,6 +15,8 @@ from typing import Any, Callable, Dict, Optional, Tuple
 
 import numpy as np
 
+__all__ = ["Case", "case_for"]
+
 Signals = Callable[[np.ndarray], Dict[str, np.ndarray]]
 
 

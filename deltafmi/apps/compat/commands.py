@@ -8,6 +8,8 @@ import click
 
 from .compare import DEFAULT_TOLERANCE
 
+__all__ = ["compat"]
+
 _VERSIONS = {"2": ("2.0",), "3": ("3.0",), "both": ("2.0", "3.0")}
 _INTERFACES = {"cs": ("cs",), "me": ("me",), "both": ("cs", "me")}
 

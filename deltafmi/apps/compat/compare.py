@@ -19,6 +19,8 @@ import numpy as np
 
 from .files import Table
 
+__all__ = ["DEFAULT_TOLERANCE", "mismatches"]
+
 #: default band half-width, relative to each signal's range
 DEFAULT_TOLERANCE = 1e-2
 #: smallest range a band is computed from: a signal that is zero up to round-off (1e-15) is

@@ -22,6 +22,8 @@ from .files import RefOptions, Table, write_options, write_table
 from .layout import PLATFORMS, TOOL, ModelFolder
 from .run import run_fmu
 
+__all__ = ["INTERFACE_NAMES", "write_tree"]
+
 INTERFACE_NAMES = {"cs": "Co-Simulation", "me": "Model Exchange"}
 
 

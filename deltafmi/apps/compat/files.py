@@ -22,6 +22,8 @@ import numpy as np
 from deltafmi.errors import BadInput
 from deltafmi.files import replaced_atomically
 
+__all__ = ["RefOptions", "Table", "read_options", "read_table", "write_options", "write_table"]
+
 #: largest CSV file the rules allow [bytes]
 MAX_CSV_BYTES = 1_000_000
 

@@ -26,6 +26,8 @@ from .files import RefOptions, Table, read_options, read_table, write_table
 from .layout import PLATFORMS, STATUSES, TOOL, ModelFolder, find_models, tree_root
 from .run import run_fmu
 
+__all__ = ["ImportResult", "import_tree"]
+
 
 @dataclass(frozen=True)
 class ImportResult:

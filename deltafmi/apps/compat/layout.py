@@ -21,6 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import List
 
+__all__ = ["ModelFolder", "PLATFORMS", "STATUSES", "TOOL", "find_models", "tree_root"]
+
 #: this tool's name in the tree
 TOOL = "deltafmi"
 #: the platform folder of this machine per FMI version

@@ -23,6 +23,8 @@ from deltafmi.errors import BadInput
 
 from .files import RefOptions, Table
 
+__all__ = ["run_fmu"]
+
 #: the component names in the generated scenario
 MODEL, INPUTS = "model", "inputs"
 #: communication steps of a run whose ``X_ref.opt`` says StepSize 0 (a variable-step solver)

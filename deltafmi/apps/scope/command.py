@@ -5,6 +5,8 @@ from typing import Optional, Sequence
 
 import click
 
+__all__ = ["scope"]
+
 
 @click.command("scope")
 @click.argument("signals", nargs=-1, required=True)

@@ -23,6 +23,8 @@ from deltafmi.errors import BadInput, did_you_mean
 
 from deltafmi.master.live.datagram import MalformedDatagram, decode, sequence_went_back
 
+__all__ = ["Group", "MALFORMED_WARNINGS", "ScopeData", "Trace", "warn_on_stderr"]
+
 #: points a trace holds before it first grows
 _INITIAL_CAPACITY = 1024
 #: the most points a trace holds: a sender whose time stands still cannot exhaust the memory

@@ -30,6 +30,8 @@ from deltafmi.master.live.display import display_problem
 
 from .data import Group, ScopeData, warn_on_stderr
 
+__all__ = ["Scope", "ScopeFigure", "run_loop", "run_scope"]
+
 #: asked of the kernel for the socket (it caps this at net.core.rmem_max): room for the datagrams
 #: that arrive while a frame is drawn
 _RECEIVE_BUFFER = 1 << 22

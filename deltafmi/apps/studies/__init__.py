@@ -6,3 +6,5 @@ generates the cases (grid, zip, Monte Carlo), ``metrics`` computes one number pe
 Dask side (plugin and task), ``driver`` the client side, ``store`` the result files, ``plot``
 the figures, ``commands`` the CLI (``deltafmi sweep``, ``plot-study``, ``study-case``).
 """
+
+__all__: list[str] = []

@@ -20,6 +20,8 @@ from typing import Deque, Iterable, List
 
 from .cases import Case
 
+__all__ = ["Batch", "Batcher", "MAX_BATCH", "TASK_SECONDS"]
+
 #: seconds of cases one task aims to carry: Dask's few milliseconds per task become ~1 % of it
 TASK_SECONDS = 1.0
 #: cases one task carries at most (what an interrupted study may have to run again, per worker)

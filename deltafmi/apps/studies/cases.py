@@ -17,6 +17,8 @@ import numpy as np
 
 from .spec import Distribution, MonteCarlo, Vary
 
+__all__ = ["Case", "case_key", "generate_cases"]
+
 
 @dataclass(frozen=True)
 class Case:

@@ -13,6 +13,8 @@ import click
 
 from deltafmi.errors import BadInput
 
+__all__ = ["plot_study_command", "study_case", "sweep"]
+
 
 def _plan(path: str):
     """Study file -> checked :class:`~deltafmi.apps.studies.plan.PlannedStudy`; prints every diagnostic."""

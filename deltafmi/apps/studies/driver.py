@@ -39,6 +39,9 @@ from .runner import FAILED, OK, CaseResult
 from .store import ResultStore
 from .worker import StudyPlugin, run_cases_task
 
+__all__ = ["LOCAL_DASHBOARD", "dashboard_address", "dashboard_link", "dask_client", "open_store", "run_study",
+           "summary_lines", "sweep_study"]
+
 #: seconds between rewrites of the results table while the study runs
 TABLE_EVERY = 10.0
 #: seconds between progress lines when the output is not a terminal

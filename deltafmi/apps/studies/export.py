@@ -8,6 +8,8 @@ from deltafmi.master.scenario.yaml_lines import load_yaml
 from .cases import Case
 from .plan import PlannedStudy
 
+__all__ = ["case_scenario"]
+
 
 def case_scenario(planned: PlannedStudy, case: Case) -> str:
     """The study's scenario as YAML with ``case``'s values set: start values are added after the

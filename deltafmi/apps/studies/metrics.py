@@ -33,6 +33,8 @@ import numpy as np
 
 from .spec import MetricSpec, Window
 
+__all__ = ["Metric", "first_crossing", "reduce", "settling_time", "statistic", "value_at"]
+
 
 @dataclass(frozen=True)
 class Metric:

@@ -27,6 +27,8 @@ from .cases import Case, generate_cases
 from .metrics import Metric
 from .spec import Study, Target
 
+__all__ = ["PlannedStudy", "StudyPlan", "plan_study", "with_parameters"]
+
 _NUMERIC = ("Real", "Integer", "Int64", "UInt64", "Boolean")
 
 

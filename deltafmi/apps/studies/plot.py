@@ -17,6 +17,8 @@ from deltafmi.errors import BadInput, did_you_mean
 
 from .store import read_results, study_metadata
 
+__all__ = ["heatmap_cells", "plot_study"]
+
 KINDS = ("line", "heatmap", "histogram")
 #: what a heat map's cell shows when several cases share it (Monte Carlo samples at a grid point):
 #: their median, or their mean (of a 0/1 metric: the success rate)

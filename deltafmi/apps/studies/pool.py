@@ -25,6 +25,8 @@ from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from deltafmi.master.scenario.system import ResolvedComponent
 
+__all__ = ["FmuPool"]
+
 Key = Tuple[str, str, str]  # FMU file, interface, instance name
 
 

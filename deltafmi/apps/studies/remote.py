@@ -17,6 +17,8 @@ from typing import Any, List, Optional, Union
 
 from deltafmi.errors import BadInput
 
+__all__ = ["CONNECT_TIMEOUT", "connect", "tls_security"]
+
 #: seconds to wait for a scheduler host that does not answer (a refusal is known at once)
 CONNECT_TIMEOUT = 10.0
 #: the port of a scheduler address that names none (Dask's default)

@@ -28,6 +28,8 @@ from .plan import StudyPlan, with_parameters
 from .pool import FmuPool
 from .spec import Target
 
+__all__ = ["CaseResult", "CaseTemplate", "FAILED", "MemoryRecorder", "OK", "run_case"]
+
 OK, FAILED = "ok", "failed"
 
 

@@ -23,6 +23,8 @@ from deltafmi.shipped import is_shipped
 from deltafmi.master.scenario.schema_check import load_mapping, read_document, schema_diagnostics
 from deltafmi.master.scenario.yaml_lines import LineMap
 
+__all__ = ["Distribution", "MetricSpec", "MonteCarlo", "Study", "Target", "Vary", "Window", "load_study", "parse_study"]
+
 #: experiment settings a study may vary
 EXPERIMENT_TARGETS = ("experiment.stop", "experiment.step")
 STATISTICS = ("max", "min", "mean", "rms", "final", "at", "settling_time", "first_crossing")

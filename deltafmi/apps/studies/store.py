@@ -35,6 +35,8 @@ from deltafmi.files import replaced_atomically
 from .cases import Case, case_key
 from .runner import FAILED, CaseResult
 
+__all__ = ["ResultStore", "read_results", "study_metadata"]
+
 METADATA_KEY = b"deltafmi.apps.studies"
 
 

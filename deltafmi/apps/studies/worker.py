@@ -25,6 +25,8 @@ from .plan import StudyPlan
 from .pool import FmuPool
 from .runner import CaseResult, CaseTemplate, run_case
 
+__all__ = ["StudyPlugin", "WorkerCache", "run_cases_task"]
+
 
 class WorkerCache:
     """Per process: FMU files by hash, the FMU pool, and each study's case template."""

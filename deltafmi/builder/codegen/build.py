@@ -16,6 +16,8 @@ from .translate import generate
 from deltafmi.runtime.native_kernels import c_type, pack, unpack
 from .kernel_types import NONE, B, D, I, Entry, Obj, Opt, Tup, describe
 
+__all__ = ["CFLAGS", "Library", "compile_unit", "ctypes_type", "from_c", "to_c"]
+
 #: no fused multiply-add; pow(x, 2.0) stays libm's pow, as in Python
 CFLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-fno-builtin-pow"]
 

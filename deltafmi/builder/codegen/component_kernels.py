@@ -28,6 +28,8 @@ from .build import CFLAGS
 from .kernel_types import NONE, B, CodegenError, D, Entry, I, Obj, Opt, S, Tup, Vec, _type_of_hint, describe
 from .translate import generate
 
+__all__ = ["component_library", "generate_component"]
+
 #: helpers taken as the identity: list conversions that fixed-length C arrays make unnecessary
 IDENTITIES = ("_as_list", "_f3")
 EXPORT = '__attribute__((visibility("default")))'

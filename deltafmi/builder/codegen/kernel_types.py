@@ -16,6 +16,10 @@ from typing import Any, Callable, Optional
 
 from deltafmi.errors import DeltaFmiError
 
+__all__ = ["B", "CodegenError", "D", "Entry", "Fn", "I", "NONE", "Obj", "Opt", "Poison", "S", "Scalar", "Tup", "Vec",
+           "describe", "named", "record"]
+
+
 
 class CodegenError(DeltaFmiError):
     """A construct the generator cannot translate; the message names file:line."""

@@ -57,6 +57,8 @@ from typing import Any, Callable, Iterable, Optional
 from .kernel_types import (NONE, B, CodegenError, D, Entry, Fn, I, Obj, Opt, Poison, S, Scalar, Tup,
                            _type_of_hint, _type_of_value, _unify)
 
+__all__ = ["D", "I", "generate", "signature_of"]
+
 
 _MATH = {"sin": 1, "cos": 1, "tan": 1, "asin": 1, "acos": 1, "atan": 1, "atan2": 2, "sqrt": 1,
          "exp": 1, "log": 1, "fabs": 1, "tanh": 1, "sinh": 1, "cosh": 1}

@@ -5,3 +5,5 @@
 communication step (Phi, Gamma, C, D), with a ``realization`` of each Co-Simulation unit from its
 pulse responses; ``linear_model`` holds the result (poles, damping, files); ``commands`` the CLI.
 """
+
+__all__: list[str] = []

@@ -37,6 +37,8 @@ from ..stepping.jacobians import FD_STEP, REAL_TYPES, FmuJacobian, Key, RealValu
 from .linear_model import LinearModel
 from .realization import era
 
+__all__ = ["expand_references", "linearize_scenario"]
+
 Signal = Tuple[str, Key]  # (component, scalar key: value reference and element)
 
 

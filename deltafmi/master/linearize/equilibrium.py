@@ -16,6 +16,8 @@ from scipy.optimize import least_squares
 
 from ..stepping.jacobians import FmuJacobian, Key
 
+__all__ = ["find_equilibrium"]
+
 
 class Equilibrium(NamedTuple):
     """The states and free inputs found, and the largest |der(x)| left (its units, per state)."""

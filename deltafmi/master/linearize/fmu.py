@@ -26,6 +26,8 @@ from ..stepping.unit_base import instantiation_reason, logger_callbacks
 from .equilibrium import find_equilibrium
 from .linear_model import LinearModel
 
+__all__ = ["linearize_fmu"]
+
 
 def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None,
                   states: Optional[Mapping[str, Any]] = None, time: float = 0.0, rest: bool = False,

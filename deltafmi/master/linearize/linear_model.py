@@ -14,6 +14,8 @@ from typing import Optional
 import numpy as np
 import scipy.io
 
+__all__ = ["LinearModel"]
+
 
 @dataclass
 class LinearModel:

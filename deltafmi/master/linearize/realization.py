@@ -18,6 +18,8 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+__all__ = ["era"]
+
 
 class Realization(NamedTuple):
     """s[k+1] = F s + G w, y[k+1] = C s + D w; ``singular_values`` of the Hankel matrix."""

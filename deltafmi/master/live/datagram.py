@@ -36,6 +36,9 @@ from typing import Dict, Iterable, Mapping, Optional, Sequence, Tuple
 
 from deltafmi.errors import DeltaFmiError
 
+__all__ = ["Datagram", "Encoder", "MAX_DATAGRAM", "MalformedDatagram", "PackedDoubles", "decode", "encode",
+           "encode_json", "sequence_went_back"]
+
 MAGIC = b"DFMI"
 VERSION = 1
 KIND_SIGNALS = 1

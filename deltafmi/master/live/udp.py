@@ -25,6 +25,8 @@ from deltafmi.errors import BadInput
 from .datagram import (MAX_DATAGRAM, Encoder, MalformedDatagram, PackedDoubles, decode, encode_json,
                        sequence_went_back)
 
+__all__ = ["UdpSink", "UdpSource", "parse_host_port"]
+
 #: the formats a source reads and a sink writes ("dfmi" reads both DFMI v1 forms)
 SOURCE_FORMATS = ("dfmi", "doubles")
 SINK_FORMATS = ("dfmi", "dfmi-json", "doubles")

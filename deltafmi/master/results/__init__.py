@@ -2,3 +2,5 @@
 them back (numbers formatted in C, ``native/csv_rows.c``), ``writers`` picks the writer by the
 file's extension (CSV, Parquet with units, MATLAB .mat), ``progress`` draws the progress bar and
 the end-of-run summary, ``plot`` draws signals of a result file."""
+
+__all__: list[str] = []

@@ -28,6 +28,8 @@ from deltafmi.toolchain import plain_c_library
 
 from .safe_file import ResultFile
 
+__all__ = ["CsvWriter", "RowSampler", "columns", "read_csv"]
+
 _FLUSH_SECONDS = 0.5
 _INTEGERS = ("Integer", "Boolean")
 _format_rows: Optional[Any] = None

@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional, TextIO
 
+__all__ = ["Progress", "Summary", "Termination"]
+
 
 #: seconds between progress lines when the output is not a terminal (a log file, CI)
 LINE_EVERY = 30.0

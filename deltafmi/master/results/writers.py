@@ -41,6 +41,8 @@ from deltafmi.errors import BadInput, ResultWriteError
 from .csv_file import CsvWriter
 from .safe_file import ResultFile
 
+__all__ = ["KeptRows", "MatWriter", "ParquetWriter", "matlab_names", "typed_column", "write_rows_to", "writer_for"]
+
 _FLUSH_SECONDS = 0.5
 #: MATLAB's namelengthmax
 _MATLAB_NAME_LENGTH = 63

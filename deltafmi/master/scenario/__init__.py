@@ -9,3 +9,5 @@ into a :class:`~.resolve.System`, with the stepping order and algebraic loops fr
 Python API's values); ``fmu_scenario`` makes the scenario of one FMU run on its own.
 Nothing here steps an FMU.
 """
+
+__all__: list[str] = []

@@ -14,6 +14,8 @@ import zipfile
 from pathlib import Path
 from typing import Any, Iterable, Optional
 
+__all__ = ["binary_problem", "clock_problem", "clocks_refused", "guid_problem"]
+
 #: the intervalVariability of the input Clocks the master activates itself (periodic, time-based)
 PERIODIC_CLOCKS = ("constant", "fixed", "tunable")
 

@@ -15,6 +15,8 @@ from deltafmi.errors import Diagnostic, ScenarioError
 from .modelinfo import model_info
 from .spec import ComponentSpec, Experiment, MasterSettings, ResultSettings, Scenario
 
+__all__ = ["fmu_scenario", "is_fmu"]
+
 
 def is_fmu(path: str | Path) -> bool:
     """True when ``path`` names an FMU (by its extension)."""

@@ -9,6 +9,9 @@ from __future__ import annotations
 import itertools
 from typing import Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Set, Tuple
 
+__all__ = ["block_stepping_order", "initialization_order", "loop_groups", "stepping_order", "strongly_connected",
+           "tear"]
+
 Link = Tuple[str, str]
 Feedthrough = Mapping[str, Mapping[str, Set[str]]]
 

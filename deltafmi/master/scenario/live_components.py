@@ -15,7 +15,7 @@ from .modelinfo import ModelInfo
 from .system import ResolvedComponent
 from .spec import ComponentSpec, LiveSpec
 
-__all__ = ["LIVE", "REALTIME", "REALTIME_SIGNALS", "live_component", "realtime_component"]
+__all__ = ["LIVE", "REALTIME", "REALTIME_SIGNALS", "live_component", "realtime_component", "refuse_live"]
 
 #: the interface of a component that is no FMU
 LIVE = "LIVE"

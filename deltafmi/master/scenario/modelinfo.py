@@ -24,6 +24,8 @@ from fmpy.model_description import ModelDescription, ModelVariable
 
 from deltafmi.errors import BadInput, DeltaFmiError
 
+__all__ = ["ModelInfo", "UnknownVariable", "element_names", "model_info", "split_element"]
+
 _RANGE = re.compile(r"^(?P<base>.+)\[(?P<lo>\d+):(?P<hi>\d+)\]$")
 _ALL = re.compile(r"^(?P<base>.+)\[\*\]$")
 _ELEMENT = re.compile(r"(?P<base>.+)\[(?P<i>\d+)\]")

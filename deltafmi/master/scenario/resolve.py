@@ -23,6 +23,8 @@ from .modelinfo import UnknownVariable, model_info, split_element
 from .overrides import Text, from_text, value_items
 from .spec import ComponentSpec, ConnectionSpec, Scenario
 
+__all__ = ["AlgebraicLoop", "System", "describe", "pattern_regex", "resolve_system"]
+
 
 _SETTABLE_CAUSALITIES = ("parameter", "input")
 #: how a start value of each FMI 3.0 type is checked: as a Real or Integer value

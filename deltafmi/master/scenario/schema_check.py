@@ -11,6 +11,8 @@ from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 
 from .yaml_lines import LineMap, YamlSyntaxError, load_yaml
 
+__all__ = ["dotted", "load_mapping", "read_document", "schema_diagnostics"]
+
 #: a document's own wording for some errors: None to fall back to the generic one
 Special = Callable[[jsonschema.ValidationError, LineMap, str], Optional[List[Diagnostic]]]
 

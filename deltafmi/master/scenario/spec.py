@@ -20,6 +20,10 @@ from deltafmi.errors import Diagnostic, ScenarioError
 from .schema_check import dotted, load_mapping, read_document, schema_diagnostics
 from .yaml_lines import LineMap
 
+__all__ = ["Adaptive", "ComponentSpec", "ConnectionSpec", "Experiment", "LiveSpec", "Loops", "MasterSettings",
+           "OutputSpec", "Parameter", "ResultSettings", "Scenario", "StreamSpec", "grid_steps", "load_scenario",
+           "parse_scenario", "scenario_from_data", "schema"]
+
 
 @dataclass(frozen=True)
 class Experiment:

@@ -12,6 +12,8 @@ import yaml
 
 from deltafmi.errors import DeltaFmiError
 
+__all__ = ["LineMap", "YamlSyntaxError", "load_yaml"]
+
 Path = Tuple[Any, ...]
 
 #: values a document may expand to: YAML aliases (``*a`` repeats what ``&a`` names) let a few

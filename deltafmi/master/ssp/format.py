@@ -20,6 +20,9 @@ from typing import List, Tuple
 
 from lxml import etree
 
+__all__ = ["ANNOTATION_TYPE", "FMU_MIME_TYPE", "NAMESPACES", "OSP_ANNOTATION_TYPE", "PARAMETER_SET_MIME_TYPE",
+           "SSD_NAME", "schema_problems", "tag"]
+
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"

@@ -34,6 +34,8 @@ from ..scenario.yaml_lines import LineMap
 from .format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE,
                          PARAMETER_SET_MIME_TYPE, SSD_NAME, schema_problems, tag)
 
+__all__ = ["is_ssp", "load_ssp"]
+
 #: annotation attributes that stay text (every other one is read as a number or boolean)
 _TEXT_KEYS = {"algorithm", "error_estimate", "method", "format", "file", "pattern"}
 _INTEGER = re.compile(r"[-+]?\d+\Z")

@@ -32,6 +32,8 @@ from ..scenario.spec import Adaptive, Scenario
 from .format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE, SSD_NAME,
                          tag)
 
+__all__ = ["export_ssp"]
+
 #: name of the parameter set of every component (Ecos applies parameter sets by name)
 PARAMETER_SET_NAME = "start values"
 

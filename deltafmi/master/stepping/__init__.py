@@ -6,3 +6,5 @@ derivatives; ``loops`` solves algebraic loops, ``adaptive`` steps with error con
 rollback, ``native_loop`` runs plain fixed steps in C (``native/``), ``stop_signals`` turns
 Ctrl-C and SIGTERM into a clean stop between steps.
 """
+
+__all__: list[str] = []

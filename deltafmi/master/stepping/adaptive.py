@@ -25,6 +25,8 @@ from ..scenario.spec import Adaptive
 from deltafmi.master.stepping.algebraic_loops import Stepper
 from .unit_base import Unit, instant_margin
 
+__all__ = ["run_adaptive"]
+
 _SAFETY, _SHRINK, _GROW = 0.9, 0.2, 2.0
 
 

@@ -50,6 +50,8 @@ from ..scenario.system import AlgebraicLoop, Link, Port
 from ..scenario.spec import Loops
 from .unit_base import Unit
 
+__all__ = ["InitialLoops", "LoopBlock", "LoopStatistics", "Stepper"]
+
 #: relative accuracy of a loop evaluation that integrates no states
 _EPSILON = float(np.finfo(float).eps)
 #: relative tolerance assumed for a member with states whose solver tolerance nothing gives

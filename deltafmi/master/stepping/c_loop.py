@@ -33,6 +33,9 @@ from deltafmi.toolchain import plain_c_library
 from .explicit_rk import ExplicitRungeKutta
 from .unit_base import Unit, _Inputs, _Outputs, function_address
 
+__all__ = ["CLOCK_INSIDE", "FETCH", "NativeLoop", "PULL", "RAN", "RK_FAILED", "ROWS_FULL", "STATE_EVENT", "STEP",
+           "STEP_EVENT", "STEP_RETURNED", "TERMINATED", "UNSETTLED"]
+
 SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP, SET_BOOL3, GET_BOOL3, CLOCK_TICK = range(9)
 #: why a C run stopped
 RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED, CLOCK_INSIDE, UNSETTLED = range(10)

@@ -35,6 +35,8 @@ from fmpy.fmi3 import fmi3IntervalChanged, fmi3IntervalNotYetKnown, fmi3ValueRef
 from ..scenario.fmu_checks import clocks_refused
 from .unit_base import FmuFailure, instant_margin
 
+__all__ = ["UnitClocks", "unit_clocks"]
+
 
 def _xml_timing(element: Any) -> Tuple[Optional[float], float]:
     """(interval or None, shift) of a <Clock> element as its XML gives them."""

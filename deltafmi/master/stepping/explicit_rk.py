@@ -29,6 +29,8 @@ from deltafmi.toolchain import plain_c_library
 
 from .unit_base import function_address
 
+__all__ = ["ExplicitRungeKutta", "FmuEvaluations", "RungeKuttaError", "TABLEAUS", "step_failure"]
+
 #: name -> Butcher tableau (a rows, b, c)
 TABLEAUS = {
     "euler": ([[]], [1.0], [0.0]),

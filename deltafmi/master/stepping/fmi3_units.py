@@ -47,6 +47,8 @@ from .me_integrator import ModelExchangeUnit
 from .unit_base import (FmuFailure, Terminated, Unit, _Inputs, _Outputs, _StringInputs, _StringOutputs, bare_function,
                         decoded, instant_margin)
 
+__all__ = ["CoSimulationUnit3", "ModelExchangeUnit3", "unsettled"]
+
 #: FMI 3.0 type -> ctypes type of its values; Enumeration values are Int64
 CTYPES: Dict[str, Any] = {
     "Float64": ctypes.c_double, "Float32": ctypes.c_float, "Int8": ctypes.c_int8, "UInt8": ctypes.c_uint8,

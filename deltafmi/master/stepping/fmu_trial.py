@@ -8,6 +8,8 @@ from typing import Optional
 
 from .unit_base import instantiation_reason, logger_callbacks
 
+__all__ = ["instantiation_problem"]
+
 
 def instantiation_problem(fmu: Path) -> Optional[str]:
     """Load the FMU's binary and instantiate it once (Co-Simulation if it offers it, else Model

@@ -22,6 +22,9 @@ import numpy as np
 from ..scenario.modelinfo import ModelInfo, element_names
 from .unit_base import bare_function
 
+__all__ = ["FD_STEP", "FmuJacobian", "Key", "REAL_TYPES", "RealValues", "computes_exact_derivatives", "real_nominals",
+           "scalar_key"]
+
 #: relative step of the central differences (eps^(1/3): truncation and rounding balanced)
 FD_STEP = float(np.finfo(float).eps) ** (1.0 / 3.0)
 

@@ -47,6 +47,8 @@ from .stop_signals import StopSignals
 from .unit_base import instant_margin
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
+__all__ = ["Master", "NativeLoop"]
+
 #: steps per call of the C loop (stop signals and progress are looked at in between)
 _C_STEPS = 64
 

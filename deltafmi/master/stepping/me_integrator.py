@@ -27,6 +27,8 @@ from .explicit_rk import TABLEAUS, ExplicitRungeKutta, FmuEvaluations, RungeKutt
 from .jacobians import FmuJacobian, computes_exact_derivatives
 from .unit_base import FmuFailure, Terminated, Unit, bare_function, instant_margin
 
+__all__ = ["ModelExchangeUnit"]
+
 _MAX_EVENT_ITERATIONS = 1000
 
 

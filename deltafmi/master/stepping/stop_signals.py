@@ -19,6 +19,8 @@ import threading
 from types import FrameType, TracebackType
 from typing import Any, Dict, Optional, Type
 
+__all__ = ["StopSignals"]
+
 #: the signals a run catches
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 

@@ -29,6 +29,9 @@ from deltafmi.errors import DeltaFmiError
 
 from ..scenario.system import ResolvedComponent, Port
 
+__all__ = ["FmuFailure", "TYPES", "Terminated", "Unit", "bare_function", "decoded", "function_address",
+           "instant_margin", "instantiation_reason", "logger_callbacks", "new_bus"]
+
 #: bus -> (FMI 2.0 ctypes element type, numpy dtype of the bus); Enumeration values travel as
 #: Integer; Int64 and UInt64 carry FMI 3.0 values that do not fit an int32 (UInt32, Int64, UInt64)
 TYPES: Dict[str, Tuple[Any, Any]] = {

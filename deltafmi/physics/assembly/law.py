@@ -71,7 +71,7 @@ from .rotation import F3, F9, apply, apply_t, cross, matmul, rotation_vector, tr
 from .wrist_model import WristState, inverse_dynamics, wrist_state
 
 __all__ = ["ImpedanceGains", "AssemblyLaw", "AssemblyOutput", "make_assembly_law", "evaluate", "gains",
-           "STATUS_GIMBAL_DAMPED", "STATUS_WRIST_SATURATED"]
+           "STATUS_GIMBAL_DAMPED", "STATUS_WRIST_SATURATED", "F6"]
 
 F6 = tuple[float, float, float, float, float, float]
 

@@ -23,6 +23,8 @@ from functools import lru_cache
 
 from . import dopri
 
+__all__ = ["CollisionLaw", "calibrate", "elastic_duration"]
+
 
 def _sgnpow(x: float, m: float) -> float:
     return math.copysign(abs(x) ** m, x)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Callable, NamedTuple, Sequence
 
+__all__ = ["find_root", "integrate"]
+
 State = tuple[float, ...]
 Rhs = Callable[[float, State], State]
 Event = Callable[[float, State], float]

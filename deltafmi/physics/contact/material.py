@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 from .collision_law import CollisionLaw, calibrate
 
+__all__ = ["CompliantMaterial"]
+
 
 @dataclass(frozen=True)
 class CompliantMaterial:

@@ -31,6 +31,8 @@ import numpy as np
 from .collision_law import CollisionLaw
 from .material import CompliantMaterial
 
+__all__ = ["COLLISION", "CONTACT", "ContactSystem", "EPS", "FREE", "LagrangianModel", "Mode"]
+
 #: a contact's law: a collision law (rigid contact: the talk's stabilised constraint in CONTACT)
 #: or a compliant material (its spring-damper in CONTACT, a matched collision law in COLLISION)
 Law = Union[CollisionLaw, CompliantMaterial]

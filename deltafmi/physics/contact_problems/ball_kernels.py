@@ -5,6 +5,9 @@ from __future__ import annotations
 
 from typing import NamedTuple, Sequence
 
+__all__ = ["ModelicaBall", "modelica_derivatives", "modelica_energy", "modelica_force", "modelica_indicators",
+           "modelica_lam", "modelica_outputs"]
+
 
 class ModelicaBall(NamedTuple):
     """Parameters of ``myBouncingBall``."""

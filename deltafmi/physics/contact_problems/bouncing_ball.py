@@ -37,6 +37,8 @@ from ..contact.system import ContactSystem, LagrangianModel
 from .ball_kernels import (ModelicaBall, modelica_derivatives, modelica_energy, modelica_force, modelica_indicators,
                            modelica_lam)
 
+__all__ = ["BallModel", "ModelicaBouncingBall", "make_bouncing_ball"]
+
 
 def _floats(x) -> list[float]:
     return [float(v) for v in x[:2]]

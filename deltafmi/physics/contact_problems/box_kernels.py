@@ -9,6 +9,8 @@ from ..contact.law_kernels import LawConstants
 from .contact_kernels import (contact_response, elastic_energy, free_rates, indicator_pairs,
                               kinetic_energy)
 
+__all__ = ["BoxModes", "BoxParams", "box_derivatives", "box_evaluate", "box_indicators", "box_outputs"]
+
 Pair = tuple[float, float]
 ALL = (True, True, True, True)  #: every corner is a contact; no coordinate is frozen
 

@@ -13,6 +13,8 @@ import numpy as np
 from ..contact.collision_law import CollisionLaw
 from ..contact.system import ContactSystem, LagrangianModel
 
+__all__ = ["BoxModel", "make_box_drop"]
+
 
 class BoxModel(LagrangianModel):
     """Rigid rectangle (mass, width, height, inertia about the centre of mass) over a table."""

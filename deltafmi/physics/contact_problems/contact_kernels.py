@@ -26,6 +26,9 @@ from ..contact.collision_law import CollisionLaw
 from ..contact.law_kernels import LawConstants, law_acceleration, law_end_indicator, law_potential
 from ..contact.system import COLLISION, CONTACT, EPS, FREE, ContactSystem, LagrangianModel, _Evaluation
 
+__all__ = ["KernelContactSystem", "contact_response", "elastic_energy", "free_rates", "indicator_pairs",
+           "kinetic_energy"]
+
 
 def _solve_masked(A: Sequence[Sequence[float]], b: Sequence[float], keep: Sequence[bool]) -> list[float]:
     """``x`` with ``A[K, K] x[K] = b[K]`` for ``K = {i: keep[i]}`` and ``x[i] = 0`` elsewhere; ``A[K, K]``

@@ -10,6 +10,9 @@ from ..contact.law_kernels import LawConstants
 from .contact_kernels import (contact_response, elastic_energy, free_rates, indicator_pairs,
                               kinetic_energy)
 
+__all__ = ["CradleModes", "CradleParams", "N_BALLS", "cradle_derivatives", "cradle_evaluate", "cradle_indicators",
+           "cradle_outputs"]
+
 N_BALLS = 7  #: balls the kernels are generated for (the FMU's allocation)
 F7 = tuple[float, float, float, float, float, float, float]
 F6 = tuple[float, float, float, float, float, float]

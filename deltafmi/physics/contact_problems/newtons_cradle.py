@@ -16,6 +16,8 @@ from ..contact.law_kernels import law_constants
 from .contact_kernels import KernelContactSystem
 from .cradle_kernels import N_BALLS, CradleParams, cradle_evaluate
 
+__all__ = ["ChainModel", "make_cradle", "momentum"]
+
 
 class ChainModel(LagrangianModel):
     """Balls on a line (no gravity along it): ``q = x`` centres, ``M = diag(m)``."""

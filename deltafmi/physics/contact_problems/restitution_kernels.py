@@ -8,6 +8,8 @@ from ..contact.law_kernels import LawConstants
 from .contact_kernels import (contact_response, elastic_energy, free_rates, indicator_pairs,
                               kinetic_energy)
 
+__all__ = ["BallModes", "RestitutionBall", "ball_derivatives", "ball_evaluate", "ball_indicators", "ball_outputs"]
+
 
 class RestitutionBall(NamedTuple):
     """The restitution ball: mass, gravity, its collision law, the CONTACT law."""

@@ -33,6 +33,8 @@ import numpy as np
 from .models import controllable_subspace, spring_contact, zoh
 from .mpc import LinearMPC, MpcSolution
 
+__all__ = ["PlaneContactMpc", "PressTask", "pick"]
+
 
 def pick(names: Sequence[str], wanted: Sequence[str], what: str) -> list[int]:
     """Indices of ``wanted`` in ``names``; an array name (``u``) stands for its elements u[1], u[2], ..."""

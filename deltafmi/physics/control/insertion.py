@@ -56,6 +56,8 @@ from .models import AffineStage
 from .mpc import LinearMPC, MpcSolution
 from .reduction import balanced_truncation, lift, output_coordinates
 
+__all__ = ["BALANCING_SCALE", "InsertionMpc", "InsertionTask", "polynomial_shaping"]
+
 #: input scale for balancing (m, m/s, m/s^2: the sizes of a reference move), so that the
 #: Hankel singular values rank states by what a realistic reference excites
 BALANCING_SCALE = (1e-2, 1e-1, 1.0)

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+__all__ = ["finite_horizon_lqr"]
+
 
 def finite_horizon_lqr(A: np.ndarray, B: np.ndarray, Qx: np.ndarray, S: np.ndarray, Ru: np.ndarray,
                        P_N: np.ndarray, N: int) -> list[np.ndarray]:

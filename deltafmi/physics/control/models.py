@@ -13,6 +13,8 @@ from typing import NamedTuple
 import numpy as np
 import scipy.linalg
 
+__all__ = ["AffineStage", "controllable_subspace", "spring_contact", "zoh"]
+
 
 class AffineStage(NamedTuple):
     """x_(k+1) = A x_k + B u_k + e (discrete)."""

@@ -34,6 +34,8 @@ import scipy.sparse as sp
 
 from .models import AffineStage
 
+__all__ = ["LinearMPC", "MpcSolution"]
+
 
 @dataclass
 class MpcSolution:

@@ -24,6 +24,8 @@ from typing import Callable
 import numpy as np
 import scipy.linalg
 
+__all__ = ["balanced_truncation", "lift", "output_coordinates"]
+
 
 def lift(Phi: np.ndarray, Gamma: np.ndarray, n: int, shaping: Callable[[int], np.ndarray]
          ) -> tuple[np.ndarray, np.ndarray]:

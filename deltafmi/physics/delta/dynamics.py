@@ -56,8 +56,9 @@ import numpy as np
 from .kinematics import ARM_COS_SIN, constraint_jacobian
 from .params import DeltaParams
 
-__all__ = ["mass_matrix", "coriolis", "gravity", "accelerations", "state_derivative", "energy",
-           "holding_torque", "PlantEvaluation", "evaluate_plant", "loop_residual", "project_to_constraints"]
+__all__ = ["mass_matrix", "coriolis", "gravity", "accelerations", "state_derivative", "energy", "holding_torque",
+           "PlantEvaluation", "evaluate_plant", "loop_residual", "project_to_constraints", "F3", "F6", "F9",
+           "plant_outputs", "project_state"]
 
 ArrayLike = Sequence[float] | np.ndarray
 # Fixed-length float tuples: the kernels below are translated to C for the FMUs (see

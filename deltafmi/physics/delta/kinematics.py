@@ -24,22 +24,9 @@ import numpy as np
 
 from .params import ARM_ROTATIONS, R2, R3, DeltaParams
 
-__all__ = [
-    "arm_psi",
-    "arm_jacobian",
-    "arm_bias",
-    "inverse_kinematics",
-    "joint_rates",
-    "forward_kinematics",
-    "wrist_position",
-    "wrist_velocity",
-    "constraint",
-    "constraint_jacobian",
-    "constraint_bias",
-    "virtual_jacobian",
-    "wrist_along",
-    "stretched_height",
-]
+__all__ = ["arm_psi", "arm_jacobian", "arm_bias", "inverse_kinematics", "joint_rates", "forward_kinematics",
+           "wrist_position", "wrist_velocity", "constraint", "constraint_jacobian", "constraint_bias",
+           "virtual_jacobian", "wrist_along", "stretched_height", "ARM_COS_SIN", "F9"]
 
 ArrayLike = Sequence[float] | np.ndarray
 F9 = tuple[float, float, float, float, float, float, float, float, float]

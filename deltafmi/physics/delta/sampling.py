@@ -16,7 +16,7 @@ from typing import NamedTuple, Optional
 from .control_law import (STATUS_ILL_CONDITIONED, STATUS_SINGULAR, STATUS_TORQUE_SATURATED, ControlLaw,
                           describe_status, evaluate, hold, warm_start)
 
-__all__ = ["SampleSettings", "SampleState", "WARNING_BITS", "initial_state", "sample", "warning_text"]
+__all__ = ["SampleSettings", "SampleState", "WARNING_BITS", "initial_state", "sample", "warning_text", "F3"]
 
 F3 = tuple[float, float, float]
 F6 = tuple[float, float, float, float, float, float]

@@ -31,6 +31,9 @@ import numpy as np
 
 from .control import inverse_kinematics_servo
 
+__all__ = ["CirclePath", "ConstantSpeedPath", "ConstantSpeedTable", "Flat9", "MAX_MOVES", "MinimumJerkPath",
+           "MinimumJerkTable", "RecordedPath", "Workspace", "evaluate_speed_table", "evaluate_table", "minimum_jerk"]
+
 Vector3 = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 

@@ -22,6 +22,10 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
+__all__ = ["FrictionParams", "SEPARATED", "SLIP_NEGATIVE", "SLIP_POSITIVE", "STICK", "after_stop",
+           "regularisation_error_bound", "regularised_force", "slip_force", "slip_force_direction", "slip_mode",
+           "stick_margin"]
+
 #: contact modes (FMU Integers): the normal contact opened, or closed and sticking / slipping
 SEPARATED, STICK, SLIP_POSITIVE, SLIP_NEGATIVE = 0, 1, 2, 3
 MODE_NAMES = {SEPARATED: "SEPARATED", STICK: "STICK", SLIP_POSITIVE: "SLIP+", SLIP_NEGATIVE: "SLIP-"}

@@ -38,6 +38,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+__all__ = ["cone_edge_wrenches", "contacts", "jammed", "jamming_facets", "two_point_tilt", "wedged", "whitney_jammed",
+           "whitney_wedged"]
+
 
 class PegContacts(NamedTuple):
     """Two-point contact at depth ``l``: tilt, contact points relative to the tip centre, normals

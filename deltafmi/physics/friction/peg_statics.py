@@ -16,6 +16,8 @@ import numpy as np
 
 from .peg import contacts
 
+__all__ = ["peg_outcome"]
+
 
 def _balance_matrix(l: float, d: float, D: float) -> np.ndarray:
     """Columns: the wrench ``(f_x, f_z, m)`` of a unit N1, T1, N2, T2."""

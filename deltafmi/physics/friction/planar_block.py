@@ -14,6 +14,8 @@ import numpy as np
 from .law import FrictionParams
 from .system import FrictionModel
 
+__all__ = ["PlanarBlock"]
+
 
 class PlanarBlock(FrictionModel):
     """Mass ``m`` under a constant force ``(f_t..., f_n)`` plus a spring ``-k (x - x_0)`` along the

@@ -42,6 +42,8 @@ from ..contact.system import LagrangianModel
 from .law import (SEPARATED, STICK, FrictionParams, after_stop, slip_force, slip_force_direction,
                   slip_mode, stick_margin)
 
+__all__ = ["EPS", "FrictionModel", "FrictionSystem", "STOP", "Transition"]
+
 #: offset of the indicators: a contact that sits exactly on the static cone, or has just started
 #: slipping (v_t = 0 to round-off, ~1e-16 v_ref), is strictly inside its mode's domain. A located
 #: stop is late by EPS v_ref / |v_t'|, a release by EPS f_ref / |lambda_t'|: as small as round-off allows.
