@@ -48,7 +48,7 @@ _API = {
     "plan_study": "deltafmi.apps.studies.plan",
     "open_store": "deltafmi.apps.studies.driver",
     "sweep_study": "deltafmi.apps.studies.driver",
-    "DeltaFmiError": "deltafmi.errors",
+    "DeltaFmiError": "deltafmi.runtime.errors",
     "ScenarioError": "deltafmi.errors",
     "BadInput": "deltafmi.errors",
     "SimulationError": "deltafmi.errors",

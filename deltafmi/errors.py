@@ -21,11 +21,8 @@ from typing import Any, Iterable, List, Optional
 
 from deltafmi.runtime.errors import DeltaFmiError
 
-__all__ = ["DeltaFmiError", "Diagnostic", "ScenarioError", "BadInput", "SimulationError", "ResultWriteError",
-           "Interrupted", "did_you_mean"]
-
-__all__ = ["BadInput", "Diagnostic", "FmuSourceError", "Interrupted", "ResultWriteError", "ScenarioError",
-           "SimulationError", "did_you_mean", "file_hint"]
+__all__ = ["BadInput", "DeltaFmiError", "Diagnostic", "FmuSourceError", "Interrupted", "ResultWriteError",
+           "ScenarioError", "SimulationError", "did_you_mean", "file_hint"]
 
 
 @dataclass(frozen=True)
@@ -134,6 +131,6 @@ def file_hint(path: Path, glob: str) -> str:
     return ""
 
 
-class FmuSourceError(Exception):
+class FmuSourceError(DeltaFmiError):
     """A scenario component's ``source:`` cannot be made into an FMU (not found, not a component,
     its build failed); the message says which and why, without naming the component."""

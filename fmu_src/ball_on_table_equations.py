@@ -2,6 +2,8 @@
 from deltafmi.component import Experiment, Output, Parameter
 from deltafmi.runtime.equations import EquationComponent, If, Real, assign, der, edge, ifelse, reinit, time
 
+__all__ = ["BallOnTableEquations"]
+
 
 class BallOnTableEquations(EquationComponent):
     """The talk's FREE / CONTACT machine as equations: free flight, impacts with restitution e,

@@ -2,6 +2,8 @@
 from deltafmi.component import Experiment, Output, Parameter
 from deltafmi.runtime.equations import EquationComponent, If, Real, assign, der, edge, ifelse
 
+__all__ = ["BouncingBallEquations"]
+
 
 class BouncingBallEquations(EquationComponent):
     """The talk's myBouncingBall written as equations and an algorithm (BouncingBall by hand).

@@ -2,6 +2,8 @@
 from deltafmi.component import Experiment, Output, Parameter
 from deltafmi.runtime.equations import EquationComponent, Real, assign, der, pre, reinit, when
 
+__all__ = ["BouncingBallReinit"]
+
 
 class BouncingBallReinit(EquationComponent):
     """The textbook ball: free fall, and at every impact v -> -e v (when h <= 0: reinit)."""

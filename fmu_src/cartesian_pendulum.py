@@ -2,6 +2,8 @@
 from deltafmi.component import Experiment, Output, Parameter
 from deltafmi.runtime.equations import EquationComponent, Real, der, sin
 
+__all__ = ["CartesianPendulum"]
+
 
 class CartesianPendulum(EquationComponent):
     """Point mass on a massless rod of length L, in x (horizontal) and y (up) with a multiplier.

@@ -4,6 +4,8 @@ the network both DC motor models extend (a partial model)."""
 from deltafmi.component import Experiment, Input, Output, Parameter
 from deltafmi.runtime.equations import Connector, EquationComponent, Flow, Model, Potential, Real, connect, der
 
+__all__ = ["Inductor", "MotorNetwork"]
+
 
 class Pin(Connector):
     """An electrical pin: potential v, current i into the part."""

@@ -2,6 +2,8 @@
 from deltafmi.models.circuit_parts import MotorNetwork
 from deltafmi.runtime.equations import connect
 
+__all__ = ["DCMotorCircuit"]
+
 
 class DCMotorCircuit(MotorNetwork):
     """DC motor as a network: voltage source, armature resistance, EMF, rotor inertia, friction.

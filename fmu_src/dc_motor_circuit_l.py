@@ -3,6 +3,8 @@ from deltafmi.component import Parameter
 from deltafmi.models.circuit_parts import Inductor, MotorNetwork
 from deltafmi.runtime.equations import connect
 
+__all__ = ["DCMotorCircuitL"]
+
 
 class DCMotorCircuitL(MotorNetwork):
     """The same motor with the armature inductance L in series: the current is a second state."""

@@ -3,6 +3,8 @@ import numpy as np
 
 from deltafmi.runtime.equations import Model, Real, cos, der, sin
 
+__all__ = ["DeltaArm"]
+
 
 class DeltaArm(Model):
     """deltaRobotArmLagrange: one arm's Lagrangian open chain, servo q1, forearm polar q2, azimuth q3."""

@@ -8,6 +8,8 @@ from deltafmi.models.delta_arm import DeltaArm
 from deltafmi.models.robot_parameters import RobotParameters
 from deltafmi.runtime.equations import EquationComponent, Real, cat, der, jacobian, sqrt
 
+__all__ = ["DeltaRobotEquations"]
+
 
 def rot_z(angle: float) -> np.ndarray:
     """Rotation about z (Utilities.RotZ)."""

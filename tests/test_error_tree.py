@@ -60,7 +60,7 @@ def test_the_errors_keep_the_builtin_bases_callers_catch():
     from deltafmi.runtime.sundials import SundialsNotFound
     from deltafmi.master.scenario.modelinfo import UnknownVariable
     from deltafmi.master.stepping.unit_base import FmuFailure
-    from deltafmi.builder.compiler import BuildError, NoCompilerError
+    from deltafmi.toolchain import BuildError, NoCompilerError
     from deltafmi.builder.sources import ComponentSourceError
     assert issubclass(FmuFailure, RuntimeError) and issubclass(BuildError, RuntimeError)
     assert issubclass(ComponentSourceError, ValueError) and issubclass(UnknownVariable, LookupError)
@@ -76,7 +76,7 @@ def test_the_errors_module_imports_no_click():
 
 
 def test_each_class_carries_its_exit_code():
-    from deltafmi.builder.compiler import BuildError
+    from deltafmi.toolchain import BuildError
     from deltafmi.builder.sources import ComponentSourceError
     assert BadInput.exit_code == ScenarioError.exit_code == ComponentSourceError.exit_code == 2
     assert SimulationError.exit_code == ResultWriteError.exit_code == BuildError.exit_code == 1
@@ -89,7 +89,7 @@ def test_each_class_carries_its_exit_code():
 
 
 def test_the_cli_maps_every_error_in_one_place(capsys):
-    from deltafmi.builder.compiler import BuildError
+    from deltafmi.toolchain import BuildError
     assert report(BuildError("gcc: not found")) == 1
     assert capsys.readouterr().err == "Error: gcc: not found\n"
     assert report(Interrupted("interrupted at t = 2 s: 10 rows kept", 15)) == 143

@@ -2,8 +2,12 @@
 the Modelica reader both raise it)."""
 from __future__ import annotations
 
+from deltafmi.errors import DeltaFmiError
+
 __all__ = ["ComponentSourceError"]
 
 
-class ComponentSourceError(ValueError):
+class ComponentSourceError(DeltaFmiError, ValueError):
     """The source does not define a usable Component subclass, or the name finds none."""
+
+    exit_code = 2  # bad input

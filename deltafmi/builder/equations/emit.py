@@ -19,6 +19,8 @@ from .printer import Printer
 from .solve import Emitter
 from .symbolic import _Edge, _Pre
 
+__all__ = ["generate"]
+
 
 def generate(flat: FlatModel, module_name: str, constraint_pole: float = 0.0) -> str:
     """The source of the generated module of ``flat``."""

@@ -20,6 +20,8 @@ from typing import Any, Optional
 
 from ..source_error import ComponentSourceError
 
+__all__ = ["python_source_for"]
+
 _BINARY = {"Add": "+", "Sub": "-", "Mul": "*", "Div": "/", "Exp": "**", "Lt": "<", "Le": "<=", "Gt": ">",
            "Ge": ">=", "And": "&", "Or": "|"}
 _FUNCTIONS = {"Sin": "sin", "Cos": "cos", "Tan": "tan", "Asin": "asin", "Acos": "acos", "Atan": "atan",

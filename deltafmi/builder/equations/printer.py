@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import sympy
 
+__all__ = ["Printer"]
+
 _FUNCTIONS = {"sin": "math.sin", "cos": "math.cos", "tan": "math.tan", "asin": "math.asin", "acos": "math.acos",
               "atan": "math.atan", "sinh": "math.sinh", "cosh": "math.cosh", "tanh": "math.tanh",
               "exp": "math.exp", "log": "math.log", "Abs": "abs", "atan2": "math.atan2"}

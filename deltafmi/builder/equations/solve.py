@@ -14,6 +14,8 @@ import sympy
 
 from .printer import Printer
 
+__all__ = ["Emitter"]
+
 
 class Emitter:
     """Lines of a kernel body, with the code names of the symbols assigned so far."""

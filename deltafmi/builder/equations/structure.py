@@ -10,6 +10,8 @@ from __future__ import annotations
 import sys
 from typing import Optional
 
+__all__ = ["augment", "blt", "match"]
+
 
 def match(incidence: list[set], n_vars: int) -> tuple[list[Optional[int]], list[Optional[int]]]:
     """(variable of each equation or None, equation of each variable or None), maximum matching."""

@@ -23,6 +23,8 @@ from deltafmi.runtime import Component, Kernel, NativeKernels, State
 from . import generated  # noqa: F401  (the package an FMU carries its generated module in)
 from .model import EquationModelError, default_section, flatten
 
+__all__ = ["COMPILER", "EquationComponent", "equations_cache", "generated_file"]
+
 #: the package of the generated modules (an FMU carries its model's module in it)
 GENERATED = "deltafmi.runtime.equations.generated"
 #: set by the builder (deltafmi.builder.equations) when it is imported: (cls, flat, name) -> path

@@ -16,6 +16,10 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+__all__ = ["Equation", "Expr", "Var", "Vec", "abs_", "acos", "as_expr", "asin", "atan", "atan2", "caller", "cat", "cos",
+           "cosh", "der", "edge", "equation_list", "equations", "exp", "ifelse", "jacobian", "log", "pre", "sin",
+           "sinh", "sqrt", "tan", "tanh", "text", "time", "vec", "zeros"]
+
 #: the functions of one argument a model may call (the builder maps them to sympy and C's libm)
 FUNCTIONS = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "abs")
 

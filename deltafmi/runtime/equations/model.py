@@ -17,9 +17,13 @@ from typing import Any, Optional
 
 import numpy as np
 
+from deltafmi.runtime.errors import DeltaFmiError
 from deltafmi.runtime.variables import Input, Output, Parameter, State, Variable
 
 from .expr import Equation, Expr, Var, as_expr, caller, equation_list, text, vec
+
+__all__ = ["Connector", "Discrete", "EquationModelError", "FlatModel", "Flow", "If", "Model", "Potential", "Real",
+           "Statement", "assign", "connect", "default_section", "flatten", "reinit", "statement_text", "when"]
 
 
 
@@ -29,8 +33,10 @@ def default_section(function: Any) -> Any:
     return function
 
 
-class EquationModelError(ValueError):
+class EquationModelError(DeltaFmiError, ValueError):
     """The model cannot be flattened or compiled (the message names the model line)."""
+
+    exit_code = 2  # bad input
 
     def __repr__(self) -> str:  # shown inside other errors' messages: the message alone
         return str(self)
