@@ -10,7 +10,7 @@ import sys
 import numpy as np
 
 from deltafmi.component import Component, Input, Output, Parameter, State
-from deltafmi.component import native_values
+from deltafmi.runtime import native_values
 
 
 class Cases(Component):

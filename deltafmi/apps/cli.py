@@ -1,6 +1,6 @@
 """Command-line interface: ``deltafmi examples|guides|build|info|run|validate|export-ssp|plot|animate|...``.
 
-The commands live next to what they drive (``export.commands``, ``cosim.commands``); this module
+The commands live in their own modules of :mod:`deltafmi.apps` (``run_commands``, ``build_commands``, ...); this module
 assembles the click group and is the one place where a library error becomes a message and an
 exit code (:func:`report`): each :class:`~deltafmi.errors.DeltaFmiError` carries its code (2 bad
 input, 1 a failure, 128 + the signal for an interruption).

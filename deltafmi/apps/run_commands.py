@@ -270,7 +270,7 @@ def export_ssp(scenario: str, output: Optional[str], fmi_version: Optional[str])
     target = Path(output) if output else Path(Path(scenario).stem + ".ssp")
     if target.resolve() == Path(scenario).resolve():
         raise BadInput(f"{target}: that is the scenario itself; write the archive elsewhere with -o")
-    from .results.safe_file import check_writable
+    from deltafmi.master.results.safe_file import check_writable
     check_writable(target, "SSP archive")
     missing = next((p for p in reversed([target.parent, *target.parent.parents]) if not p.exists()), None)
     system = load_system(scenario, overrides=_built_as(fmi_version))

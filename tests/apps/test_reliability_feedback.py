@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from deltafmi.apps.cli import main
 from deltafmi.apps.console import RepeatedWarnings
 from deltafmi.master.results.csv_file import units_file
-from deltafmi.master.results.plot import result_figure
+from deltafmi.master.results.result import result_figure
 from deltafmi.master.results.progress import Summary
 from deltafmi.master.results.result import read_result
 

@@ -43,11 +43,11 @@ def test_validate_of_an_ssp_names_its_fmus_inside_the_archive(tmp_path):
 
 
 def test_the_no_compiler_message_of_a_wheel_does_not_send_its_user_to_the_wheel(tmp_path, monkeypatch):
-    from deltafmi.builder import compiler
-    from_clone = compiler.no_compiler_message("cc")
+    from deltafmi import toolchain
+    from_clone = toolchain.no_compiler_message("cc")
     assert from_clone.endswith("the packaged models need none when deltafmi is installed from its wheel, which "
                                "carries them prebuilt")
-    monkeypatch.setattr(compiler, "PREBUILT_DIR", tmp_path)  # where an installed wheel has its prebuilt layer
-    assert compiler.no_compiler_message("cc") == (
+    monkeypatch.setattr(toolchain, "PREBUILT_DIR", tmp_path)  # where an installed wheel has its prebuilt layer
+    assert toolchain.no_compiler_message("cc") == (
         "building needs a C compiler (cc not found; install gcc or set CC); this installation's prebuilt pieces "
         "cover the packaged models as shipped, not an edited copy of one or a component of your own")

@@ -76,7 +76,7 @@ def test_compiled_and_python_accessors_agree(tmp_path):
     from pathlib import Path
 
     import deltafmi
-    from deltafmi.component import native_values
+    from deltafmi.runtime import native_values
     from deltafmi.toolchain import python_extension
     from deltafmi.builder.packager import VALUE_ACCESS_SOURCE
 
@@ -86,7 +86,7 @@ def test_compiled_and_python_accessors_agree(tmp_path):
     package = tmp_path / "deltafmi"
     shutil.copytree(Path(deltafmi.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
     extension = python_extension(VALUE_ACCESS_SOURCE)
-    shutil.copy(extension, package / "component" / extension.name)
+    shutil.copy(extension, package / "runtime" / extension.name)
     tests = Path(__file__).parents[1]
     out = subprocess.run([sys.executable, str(tests / "value_access_cases.py")], capture_output=True, text=True,
                          check=True, env={"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin"}).stdout

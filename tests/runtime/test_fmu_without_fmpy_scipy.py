@@ -110,7 +110,7 @@ class Keep(logging.Handler):
 logging.getLogger("deltafmi").addHandler(Keep())
 logging.getLogger("deltafmi").setLevel(logging.DEBUG)
 import numpy as np
-from deltafmi.component import sundials
+from deltafmi.runtime import sundials
 from deltafmi.runtime.cvode import Cvode, CvodeError
 decay = Cvode(lambda t, x, xd: xd.__setitem__(0, -x[0]), np.array([1.0]), 0.0, rtol=1e-10, atol=1e-12)
 decay.advance(1.0)
