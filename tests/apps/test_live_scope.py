@@ -231,7 +231,7 @@ def test_value_axes_keep_still_while_the_curves_stay_inside():
 
 def _start_scope(tmp_path, *arguments):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    process = subprocess.Popen([sys.executable, "-m", "deltafmi.apps.scope", "--port", "0", *arguments],
+    process = subprocess.Popen([sys.executable, "-m", "deltafmi.apps", "scope", "--port", "0", *arguments],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
     line = process.stdout.readline()
     match = re.fullmatch(r"listening 127\.0\.0\.1:(\d+)\n", line)
@@ -290,7 +290,7 @@ def test_the_scope_process_ends_after_its_frames_and_on_sigterm(tmp_path):
 
 def test_without_a_display_the_scope_needs_save_and_says_so_in_one_line(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    run = subprocess.run([sys.executable, "-m", "deltafmi.apps.scope", "--port", "0", "x"],
+    run = subprocess.run([sys.executable, "-m", "deltafmi.apps", "scope", "--port", "0", "x"],
                          capture_output=True, text=True, env=env, timeout=60)
     assert run.returncode == 2 and run.stdout == ""
     assert run.stderr == ("Error: no display (DISPLAY and WAYLAND_DISPLAY are unset): give --save out.png "
@@ -298,7 +298,7 @@ def test_without_a_display_the_scope_needs_save_and_says_so_in_one_line(tmp_path
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
         taken.bind(("127.0.0.1", 0))
         port = taken.getsockname()[1]
-        run = subprocess.run([sys.executable, "-m", "deltafmi.apps.scope", "--port", str(port),
+        run = subprocess.run([sys.executable, "-m", "deltafmi.apps", "scope", "--port", str(port),
                               "--save", str(tmp_path / "c.png"), "x"], capture_output=True, text=True, timeout=60)
     assert run.returncode == 2
     assert run.stderr == f"Error: the scope cannot listen on 127.0.0.1:{port}: Address already in use\n"

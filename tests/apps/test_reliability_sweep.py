@@ -31,7 +31,7 @@ def study(tmp_path) -> Path:
     (tmp_path / "osc.yaml").write_text(textwrap.dedent(f"""\
         experiment: {{stop: 2.0, step: 1.0e-3}}
         components:
-          osc: {{source: {ROOT / 'deltafmi' / 'models' / 'oscillator.py'}, interface: ME}}
+          osc: {{source: {ROOT / 'fmu_src' / 'oscillator.py'}, interface: ME}}
         outputs: [osc.x]
         """))
     path = tmp_path / "osc_study.yaml"

@@ -15,7 +15,7 @@ from deltafmi.apps.cli import main
 from deltafmi.master.scenario.spec import MAX_STEPS, too_many_steps
 
 ROOT = Path(__file__).resolve().parents[2]
-FLAGSHIP = (ROOT / "deltafmi" / "examples" / "delta_tracking.yaml").read_text()
+FLAGSHIP = (ROOT / "scenarios" / "delta_tracking.yaml").read_text()
 
 
 def _flagship_with(tmp_path: Path, key: str, value: str) -> Path:

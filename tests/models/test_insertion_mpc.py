@@ -178,7 +178,7 @@ def test_a_missing_linear_model_is_named_with_the_command_that_makes_it(tmp_path
     monkeypatch.chdir(tmp_path)
     controller = Component()
     controller.linear_model = "missing.npz"
-    with pytest.raises(ValueError, match=r"linear_model 'missing.npz' not found .*insertion_model SCENARIO"):
+    with pytest.raises(ValueError, match=r"linear_model 'missing.npz' not found .*insertion_mpc_model SCENARIO"):
         controller.initialize(0.0)
 
 

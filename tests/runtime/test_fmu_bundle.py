@@ -17,10 +17,10 @@ def test_an_active_bundle_swaps_only_what_the_fmu_carries(build_fmu_from_src, tm
     assert {"deltafmi", "deltafmi.component", "deltafmi.runtime.instance"} <= bundle.names
     assert "deltafmi.apps.studies.worker" not in bundle.names and "deltafmi.builder.packager" not in bundle.names
     host_worker = sys.modules["deltafmi.apps.studies.worker"]
-    host_component = sys.modules["deltafmi.component"]
+    host_runtime = sys.modules["deltafmi.runtime"]
     with bundle.active():
         import deltafmi.runtime.instance  # noqa: F401  (the FMU's copy, as the boot imports it)
-        assert Path(sys.modules["deltafmi.component"].__file__).is_relative_to(python_dir)
+        assert Path(sys.modules["deltafmi.runtime"].__file__).is_relative_to(python_dir)
         assert sys.modules["deltafmi.apps.studies.worker"] is host_worker  # still there for other threads
-    assert sys.modules["deltafmi.component"] is host_component
+    assert sys.modules["deltafmi.runtime"] is host_runtime
     assert sys.modules["deltafmi.apps.studies.worker"] is host_worker

@@ -1,6 +1,6 @@
 """The live plot window: a rolling picture of the signals a run streams out as DFMI datagrams.
 
-``python -m deltafmi.apps.scope --port P --window 10 SIGNAL...`` (``deltafmi scope``) binds a
+``python -m deltafmi.apps scope --port P --window 10 SIGNAL...`` (``deltafmi scope``) binds a
 UDP socket, prints ``listening HOST:PORT`` as its first line of stdout (``--port 0``: a free port,
 the one to send to), and draws what arrives. It runs in a process of its own, so drawing never
 takes time from the simulation: a run only sends datagrams (a scope that falls behind drops them,

@@ -339,6 +339,7 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
             except KeyboardInterrupt:
                 interrupted = True
                 client.cancel(list(running))
+                store.sync_with_journal()  # the signal may have come between a case's journal line and its row
             finally:
                 bar.close()
                 try:

@@ -145,6 +145,14 @@ class ResultStore:
         self.rows[case_key(result.values)] = row
         return row
 
+    def sync_with_journal(self) -> None:
+        """Take the finished rows from the journal again: after an interruption that may have
+        come between a case's journal line and its row here, the table then holds what the
+        journal holds."""
+        if self._file is not None:
+            self._file.flush()
+        self.rows = self._read_journal()
+
     @staticmethod
     def _write_timeseries(partition: Path, columns: Mapping[str, np.ndarray]) -> None:
         partition.mkdir(parents=True, exist_ok=True)

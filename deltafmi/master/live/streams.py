@@ -87,7 +87,7 @@ def open_stream(spec: Any, names: List[str], columns: List[int], warn: Callable[
 def _start_scope(panels: Sequence[str], window: float):
     """Start the plot window's process (one panel per pattern of ``panels``); returns the port it
     listens on. The window outlives the run (closed by the person looking at it)."""
-    process = subprocess.Popen([sys.executable, "-m", "deltafmi.apps.scope", "--port", "0",
+    process = subprocess.Popen([sys.executable, "-m", "deltafmi.apps", "scope", "--port", "0",
                                 "--window", repr(window), *panels], stdout=subprocess.PIPE, text=True)
     ready, _, _ = select.select([process.stdout], [], [], _SCOPE_START)
     line = process.stdout.readline() if ready else ""
