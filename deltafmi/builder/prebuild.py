@@ -46,7 +46,7 @@ def prebuild(target: Path) -> list[Path]:
     for relative in PLAIN_C_SOURCES:
         toolchain.plain_c_library(package / relative)
     starter_library()
-    from .. import models
+    models = _this_trees_models()
     from .codegen.component_kernels import component_library
     for name in models.MODELS:  # the packaged models' compiled kernels (C generated from their Python)
         if name in models.PYTHON_ONLY:  # nothing to compile (and an MPC's scipy need not be in the build env)
@@ -54,6 +54,24 @@ def prebuild(target: Path) -> list[Path]:
         if component_library(getattr(models, name)) is None:
             raise SystemExit(f"prebuild: {name}'s kernels were not compiled")
     return sorted(path for path in target.rglob("*") if path.is_file())
+
+
+def _this_trees_models():
+    """``deltafmi.models`` from this source tree's ``fmu_src/``, not the models of whatever
+    deltafmi an editable install maps the name to (setup.py runs this from a clean copy)."""
+    import importlib.util
+
+    from deltafmi.shipped import MODELS_DIR
+
+    loaded = sys.modules.get("deltafmi.models")
+    if loaded is not None and Path(loaded.__file__).resolve().parent == MODELS_DIR.resolve():
+        return loaded
+    spec = importlib.util.spec_from_file_location("deltafmi.models", MODELS_DIR / "__init__.py",
+                                                  submodule_search_locations=[str(MODELS_DIR)])
+    models = importlib.util.module_from_spec(spec)
+    sys.modules["deltafmi.models"] = models
+    spec.loader.exec_module(models)
+    return models
 
 
 def main(argv: list[str] | None = None) -> None:

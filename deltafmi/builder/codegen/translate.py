@@ -961,14 +961,21 @@ class _Function:
 
 
 def shown_file(path: str) -> str:
-    """A source file as the generated C names it: from ``deltafmi/`` for the package's own, else
-    its name alone, so that the C (and the cache key made from it) does not depend on where the
-    package or the component sits."""
+    """A source file as the generated C names it: from ``deltafmi/`` for the package's own (a
+    packaged model as ``deltafmi/models/...``, in a clone's ``fmu_src/`` too), else its name
+    alone, so that the C (and the cache key made from it) does not depend on where the package
+    or the component sits."""
+    from deltafmi.shipped import MODELS_DIR
+
     package = Path(__file__).resolve().parents[2]
-    try:
-        return Path(path).resolve().relative_to(package.parent).as_posix()
-    except ValueError:
-        return Path(path).name
+    resolved = Path(path).resolve()
+    for folder, shown in ((MODELS_DIR.resolve(), "deltafmi/models"), (package.parent, "")):
+        try:
+            relative = resolved.relative_to(folder).as_posix()
+        except ValueError:
+            continue
+        return f"{shown}/{relative}" if shown else relative
+    return resolved.name
 
 
 def signature_of(func: Callable) -> list:
