@@ -57,7 +57,7 @@ def module_file(name: str) -> Optional[Path]:
 
 
 def module_archive_name(name: str) -> str:
-    """Where deltafmi module ``name`` sits in an installed package (``fmu_src/x.py`` for a
+    """Where deltafmi module ``name`` sits in an installed package (``deltafmi/models/x.py`` for a
     model of ``fmu_src/``): its path in an FMU's ``resources/python``."""
     path = module_source(name)
     return "/".join(name.split(".")) + ("/__init__.py" if path.name == "__init__.py" else ".py")

@@ -85,7 +85,7 @@ def test_the_wheel_is_a_manylinux_wheel_with_prebuilt_binaries_models_and_exampl
         assert any(piece in n for n in prebuilt), piece
     # native C only: the one Python extension module is the runtime's value access (stable ABI)
     assert [n for n in prebuilt if n.endswith(".so") and ".cpython-" in n] == []
-    assert {"fmu_src/delta_robot.py", "fmu_src/bouncing_ball.py",
+    assert {"deltafmi/models/delta_robot.py", "deltafmi/models/bouncing_ball.py",
             "deltafmi/scenarios/delta_tracking.yaml", "deltafmi/scenarios/studies/gain_payload.yaml",
             "deltafmi/docs/api.md", "deltafmi/docs/troubleshooting.md", "deltafmi/docs/delta_tracking.png"} <= set(names)
     assert not [n for n in names if n.endswith(".fmu") or n.startswith(("build/", "tests/"))]
@@ -107,7 +107,7 @@ def test_the_examples_run_from_an_empty_folder_without_a_compiler(user, tmp_path
     assert building == [f"building {name} FMU (cached afterwards in ~/.cache/deltafmi/fmus) ..."
                         for name in ("Trajectory", "DeltaController", "DeltaRobot")]
     assert "Traceback" not in first.stderr and "instead of its compiled kernels" not in first.stderr
-    assert _files(tmp_path) == {"delta_tracking.csv"}
+    assert _files(tmp_path) == {"delta_tracking.csv", "delta_tracking.csv.units.json"}  # its units beside it
     z = _columns(tmp_path / "delta_tracking.csv")
     assert z["time"][-1] == pytest.approx(0.3)
     # the robot starts at rest where the reference starts, and tracks it to a few micrometres
