@@ -49,56 +49,15 @@ def report_cycles() -> int:
     """Print every import cycle among deltafmi's modules (strongly connected components); 1 if any."""
     import grimp
 
+    from deltafmi.master.scenario.graph import strongly_connected  # the master's own (Tarjan), reused
+
     graph = grimp.build_graph("deltafmi", exclude_type_checking_imports=True, cache_dir=None)
-    imports = {module: graph.find_modules_directly_imported_by(module) for module in graph.modules}
-    cycles = [sorted(c) for c in _strongly_connected(imports) if len(c) > 1]
+    imports = {module: sorted(graph.find_modules_directly_imported_by(module)) for module in graph.modules}
+    cycles = [sorted(c) for c in strongly_connected(imports) if len(c) > 1]
     for cycle in cycles:
         print("import cycle: " + " <-> ".join(cycle))
     print(f"{len(cycles)} import cycle(s) among {len(imports)} modules")
     return 1 if cycles else 0
-
-
-def _strongly_connected(edges: dict) -> list:
-    """Tarjan's strongly connected components of the graph ``edges`` (node -> successors)."""
-    index: dict = {}
-    low: dict = {}
-    stack: list = []
-    on_stack: set = set()
-    components: list = []
-    for root in edges:
-        if root in index:
-            continue
-        work = [(root, iter(edges.get(root, ())))]
-        index[root] = low[root] = len(index)
-        stack.append(root)
-        on_stack.add(root)
-        while work:
-            node, successors = work[-1]
-            for successor in successors:
-                if successor not in edges:
-                    continue  # outside deltafmi
-                if successor not in index:
-                    index[successor] = low[successor] = len(index)
-                    stack.append(successor)
-                    on_stack.add(successor)
-                    work.append((successor, iter(edges.get(successor, ()))))
-                    break
-                if successor in on_stack:
-                    low[node] = min(low[node], index[successor])
-            else:
-                work.pop()
-                if work:
-                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
-                if low[node] == index[node]:
-                    component = set()
-                    while True:
-                        member = stack.pop()
-                        on_stack.discard(member)
-                        component.add(member)
-                        if member == node:
-                            break
-                    components.append(component)
-    return components
 
 
 if __name__ == "__main__":
