@@ -131,3 +131,13 @@ def test_an_unexpected_error_is_one_line_that_says_it_is_a_bug(capsys):
     assert report_unexpected(AttributeError("'NoneType' object has no attribute 'x'")) == 1
     assert capsys.readouterr().err == ("Error: internal error, AttributeError: 'NoneType' object has no attribute "
                                        "'x' (this is a bug in deltafmi; DELTAFMI_TRACEBACK=1 shows where)\n")
+
+
+@pytest.mark.parametrize("command", ["run", "validate", "sweep"])
+def test_a_file_of_utf8_control_characters_is_one_line_naming_its_line(tmp_path, command):
+    """Bytes that decode as UTF-8 but that YAML never holds (NUL, most controls): one line naming
+    the file and the line, exit 2 (was an internal error from the YAML reader)."""
+    path = tmp_path / "nul.yaml"
+    path.write_bytes(b"description: x\n\x00\x01binary")
+    last = _one_line(CliRunner().invoke(main, [command, str(path)]), 2)
+    assert f"{path}:2" in last and "not text: character #x0000 is not allowed in YAML" in last, last

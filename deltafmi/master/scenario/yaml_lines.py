@@ -86,6 +86,11 @@ def load_yaml(text: str) -> Tuple[Any, LineMap]:
         if line is not None and "mapping values are not allowed" in str(exc.problem):
             hint = _missing_colon(text.splitlines(), line) or hint
         raise YamlSyntaxError(f"YAML syntax error: {exc.problem or exc}{hint}", line) from None
+    except yaml.reader.ReaderError as exc:  # UTF-8, yet characters YAML never holds (NUL, most controls)
+        line = text.count("\n", 0, exc.position) + 1
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        raise YamlSyntaxError(f"not text: character #x{code:04x} is not allowed in YAML; a scenario or study is a "
+                              "YAML file", line) from None
     lines = LineMap()
     if node is None:
         return None, lines
