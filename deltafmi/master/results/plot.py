@@ -187,14 +187,15 @@ def checked_figure_file(output: str | Path) -> Path:
 
 
 def figure_of(first: "Result", signals: Sequence[str], separate: bool = False, title: str = "",
-              other: "Optional[Result]" = None, names: Tuple[str, str] = ("result", "the compared result")) -> Any:
+              other: "Optional[Result]" = None,
+              names: Tuple[str, str, str] = ("result", "compared", "the compared result")) -> Any:
     """The matplotlib ``Figure`` of ``signals`` of the result ``first`` (minus ``other``'s, when
     given), made without pyplot: it leaves the caller's backend and figures alone. ``names``:
-    what the title and messages call the two results."""
+    what the title calls the result and the compared one, and what messages call the compared one."""
     from matplotlib.figure import Figure
 
-    curves = series_of(first, signals, other, names[1])
-    label = f"{names[0]} - {_short(names[1])}" if other is not None else ""
+    curves = series_of(first, signals, other, names[2])
+    label = f"{names[0]} - {names[1]}" if other is not None else ""
     if label:
         curves = [replace(curve, label=f"{curve.label} ({label})") for curve in curves]
     groups: Dict[object, List[Series]] = {}
@@ -225,10 +226,6 @@ def save_figure(fig: Any, output: Path) -> Path:
     output.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(output, dpi=120)
     return output
-
-
-def _short(name: str) -> str:
-    return "compared" if name == "the compared result" else name
 
 
 __all__ = ["checked_figure_file", "figure_of", "save_figure", "series_of", "Series", "UnknownSignal"]

@@ -298,7 +298,7 @@ def result_figure(result: str | Path | Result, signals: Sequence[str], separate:
     first = _rows_of(result)
     other = None if compare is None else _rows_of(compare)
     return figure_of(first, signals, separate, title, other,
-                     (_name(result, "result"), _name(compare, "the compared result")))
+                     (_name(result, "result"), _name(compare, "compared"), _name(compare, "the compared result")))
 
 
 def _rows_of(result: str | Path | Result) -> Result:
