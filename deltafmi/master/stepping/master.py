@@ -49,8 +49,11 @@ from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 __all__ = ["Master", "NativeLoop"]
 
-#: steps per call of the C loop (stop signals and progress are looked at in between)
+#: steps of the first call of the C loop; later calls take twice as many while a call is shorter
+#: than _C_SECONDS, up to _C_MAX_STEPS (stop signals and progress are looked at in between)
 _C_STEPS = 64
+_C_MAX_STEPS = 4096
+_C_SECONDS = 0.005
 
 
 class _FixedGrid(NamedTuple):
@@ -448,15 +451,19 @@ class Master:
             actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
         native = None
         if self.native and self.live is None and NativeLoop.fits(ordered, self.sampler):
-            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
+            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every,
+                                block_rows=min(_C_MAX_STEPS, n_steps + 1))
         fixed = _FixedGrid(start, stop, h, n_steps, last)
         stop_signals, progress = self.stop_signals, self.progress
-        k = 0
+        k, chunk = 0, _C_STEPS
         while k < n_steps:
             if stop_signals.received:
                 raise KeyboardInterrupt
             if native is not None and native.ready():
-                k = self._steps_in_c(native, fixed, k, min(n_steps, k + _C_STEPS))
+                begin = _time.perf_counter()
+                k = self._steps_in_c(native, fixed, k, min(n_steps, k + chunk))
+                if chunk < _C_MAX_STEPS and _time.perf_counter() - begin < _C_SECONDS:
+                    chunk *= 2
                 progress.update(self.time)
             else:
                 self._step_in_python(actions, fixed, k)
