@@ -42,7 +42,7 @@ from .explicit_rk import RungeKuttaError, step_failure
 from .fmi3_units import unsettled
 from deltafmi.master.stepping.algebraic_loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
-                          STEP_RETURNED, TERMINATED, UNSETTLED, NativeLoop)
+                          STEP_RETURNED, TERMINATED, UNSETTLED, BEHIND, NativeLoop)
 from .stop_signals import StopSignals
 from .unit_base import instant_margin
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
@@ -449,21 +449,29 @@ class Master:
             actions = [(u, action, u.step_multiple) for u in ordered for action in (PULL, STEP, FETCH)]
         else:
             actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
-        native = None
-        if self.native and self.live is None and NativeLoop.fits(ordered, self.sampler):
-            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every,
-                                block_rows=min(_C_MAX_STEPS, n_steps + 1))
+        native, live, most = None, self.live, _C_MAX_STEPS
+        if self.native and (live is None or live.paced_in_c()):
+            # a live source's unit has nothing to step: the C loop leaves it out (its values reach
+            # the bus when it is sampled between the C loop's runs)
+            stepped = [u for u in ordered if getattr(u, "interface", None) != "LIVE"]
+            if NativeLoop.fits(stepped, self.sampler):
+                native = NativeLoop([a for a in actions if getattr(a[0], "interface", None) != "LIVE"], self.sampler,
+                                    start, h, stop, n_steps, last, self.every, block_rows=min(_C_MAX_STEPS, n_steps + 1))
+                if live is not None:
+                    live.pacer.restart()
+                    native.pace(live.pacer, live.clock_slots())
+                    most = live.points_between_samples()
         fixed = _FixedGrid(start, stop, h, n_steps, last)
         stop_signals, progress = self.stop_signals, self.progress
-        k, chunk = 0, _C_STEPS
+        k, chunk = 0, min(_C_STEPS if live is None else most, most)
         while k < n_steps:
             if stop_signals.received:
                 raise KeyboardInterrupt
             if native is not None and native.ready():
                 begin = _time.perf_counter()
                 k = self._steps_in_c(native, fixed, k, min(n_steps, k + chunk))
-                if chunk < _C_MAX_STEPS and _time.perf_counter() - begin < _C_SECONDS:
-                    chunk *= 2
+                if chunk < most and _time.perf_counter() - begin < _C_SECONDS:
+                    chunk = min(2 * chunk, most)
                 progress.update(self.time)
             else:
                 self._step_in_python(actions, fixed, k)
@@ -503,12 +511,20 @@ class Master:
         """Steps ``k`` ... ``k_end - 1`` in C as far as they go, the step where C stopped (an
         event, a failure, a termination) finished here; returns the next step to take."""
         why, done, rows = native.run(k, k_end)
+        live = self.live
+        if live is not None and done > k:
+            t_done = grid.start + done * grid.h if done < grid.n_steps else grid.stop
+            live.after_c_points(t_done)
+            if rows and native.rows[rows - 1, 0] == t_done:  # its row shows what the sources gave by then
+                native.rows[rows - 1, 1:] = self.sampler.sample()
         if rows:
             self._record_rows(native.rows[:rows])
         if done > k:
             self.steps = done
             self.time = self.step_end = grid.start + done * grid.h if done < grid.n_steps else grid.stop
-        if why in (RAN, ROWS_FULL):
+        if live is not None and live.pacer.failure is not None:
+            raise live.pacer.failure
+        if why in (RAN, ROWS_FULL, BEHIND):
             self._check_bus(self.time)  # the rows held the recorded variables, this the connected ones
             return done
         # step `done` stopped inside: the state the Python loop would have there
