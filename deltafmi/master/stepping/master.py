@@ -54,6 +54,7 @@ __all__ = ["Master", "NativeLoop"]
 _C_STEPS = 64
 _C_MAX_STEPS = 4096
 _C_SECONDS = 0.005
+_C_ROWS_BYTES = 8 << 20
 
 
 class _FixedGrid(NamedTuple):
@@ -455,8 +456,10 @@ class Master:
             # the bus when it is sampled between the C loop's runs)
             stepped = [u for u in ordered if getattr(u, "interface", None) != "LIVE"]
             if NativeLoop.fits(stepped, self.sampler):
+                # room for a call's rows, at most _C_ROWS_BYTES (a call with more rows ends early: ROWS_FULL)
+                rows = min(_C_MAX_STEPS, n_steps + 1, max(64, _C_ROWS_BYTES // (8 * (len(self.sampler.row) + 1))))
                 native = NativeLoop([a for a in actions if getattr(a[0], "interface", None) != "LIVE"], self.sampler,
-                                    start, h, stop, n_steps, last, self.every, block_rows=min(_C_MAX_STEPS, n_steps + 1))
+                                    start, h, stop, n_steps, last, self.every, block_rows=rows)
                 if live is not None:
                     live.pacer.restart()
                     native.pace(live.pacer, live.clock_slots())
