@@ -300,7 +300,7 @@ class NativeLoop:
     def _before_paced(self) -> None:
         pacer = self._paced
         self._count[0] = pacer._count
-        self._pace.released = pacer.released
+        self._pace.t0, self._pace.wall0, self._pace.released = pacer._t0, pacer._wall0, pacer.released
 
     def _after_paced(self, times: np.ndarray) -> None:
         """The pacer's record of the points the C run released at ``times``."""

@@ -461,8 +461,8 @@ class Master:
                 native = NativeLoop([a for a in actions if getattr(a[0], "interface", None) != "LIVE"], self.sampler,
                                     start, h, stop, n_steps, last, self.every, block_rows=rows)
                 if live is not None:
-                    live.pacer.restart()
                     native.pace(live.pacer, live.clock_slots())
+                    live.pacer.restart()
                     most = live.points_between_samples()
         fixed = _FixedGrid(start, stop, h, n_steps, last)
         stop_signals, progress = self.stop_signals, self.progress
