@@ -138,11 +138,11 @@ class Baseline:
         return rows, states, wall
 
     def timed_run(self, spec: Flagship, steps: int) -> tuple[np.ndarray, np.ndarray, float, float]:
-        """:meth:`run`'s rows, states and wall seconds, and the CPU seconds of its thread."""
+        """:meth:`run`'s rows, states and wall seconds, and the CPU seconds of the process."""
         rows, states = np.empty((steps + 1, ROW_WIDTH)), np.empty((steps + 1, 18))
-        cpu, begin = time.thread_time(), time.perf_counter()
+        cpu, begin = time.process_time(), time.perf_counter()
         failed = self._lib.flagship_run(ctypes.byref(spec), steps, _ptr(rows), _ptr(states))
-        wall, cpu = time.perf_counter() - begin, time.thread_time() - cpu
+        wall, cpu = time.perf_counter() - begin, time.process_time() - cpu
         if failed:
             raise ArithmeticError("the C transcription's plant hit a singularity")
         return rows, states, wall, cpu
@@ -339,20 +339,21 @@ def python_controller(controller, inputs: np.ndarray) -> tuple[np.ndarray, float
 
 
 def cpu_master_run(cosim, system, stop: float, out: Path) -> tuple:
-    """A master run (as cosim.master_run) and the CPU seconds its thread spent stepping (the
-    fixed-step loop, rows formatted and written as they go; the last block's at close is not in
-    it, as in the summary's stepping time). On a shared machine the wall time of a run that
-    lasts several scheduler slices includes other processes' turns; its CPU time does not."""
+    """A master run (as cosim.master_run) and the CPU seconds the process spent stepping (the
+    fixed-step loop, with the rows formatted and written as they go, on the stepping thread or
+    the result writer's; the last CSV block's at close is not in it, as in the summary's stepping
+    time). On a shared machine the wall time of a run that lasts several scheduler slices
+    includes other processes' turns; its CPU time does not."""
     from deltafmi.master.stepping.master import Master
 
     run_fixed, spent = Master._run_fixed, [0.0]
 
     def timed(master):
-        begin = time.thread_time()
+        begin = time.process_time()
         try:
             return run_fixed(master)
         finally:
-            spent[0] += time.thread_time() - begin
+            spent[0] += time.process_time() - begin
 
     Master._run_fixed = timed
     try:
@@ -432,9 +433,8 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
     print(f"medians of {repeats} rounds (range), both sides measured in each round on this machine:")
     print(line("C closed-loop step (plant rk4 + controller + path + row, 1 ms)", "c step"))
     print(line("deltafmi: flagship stepping through FMI (master, stepping time / steps)", "fmi step"))
-    print(line("C closed-loop step, CPU time of its thread", "c step cpu"))
-    print(line("deltafmi: flagship stepping through FMI, CPU time of the stepping thread (rows written)",
-               "fmi step cpu"))
+    print(line("C closed-loop step, CPU time", "c step cpu"))
+    print(line("deltafmi: flagship stepping through FMI, CPU time of the process (rows written)", "fmi step cpu"))
     same = (out / "flagship.csv").read_bytes() == (out / "python.csv").read_bytes()
     print(line(f"deltafmi: the same, FMUs on their Python methods (DELTAFMI_NATIVE=0; CSV "
                f"{'the same bits' if same else 'DIFFERENT'})", "py step"))
@@ -452,7 +452,7 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
         ratio = statistics.median(a / b for a, b in zip(fig[fmi], fig[c]))
         print(f"  {label:36s} {verdict(ratio, TARGETS[target])}")
     print(f"the flagship at the limit, rows written (target <= {LIMIT:g}x the C transcription):")
-    for label, fmi, c in (("wall time", "fmi step", "c step"), ("CPU time of the thread", "fmi step cpu", "c step cpu")):
+    for label, fmi, c in (("wall time", "fmi step", "c step"), ("CPU time", "fmi step cpu", "c step cpu")):
         ratio = statistics.median(a / b for a, b in zip(fig[fmi], fig[c]))
         print(f"  {label:36s} {verdict(ratio, LIMIT)}")
     print("the Python paths (before the compiled kernels), deltafmi / C:")

@@ -284,6 +284,11 @@ class NativeLoop:
                 self._keep.append(unit.solver)
         return True
 
+    def release_gil(self) -> None:
+        """Run the steps with the GIL released (the process's other Python threads run meanwhile;
+        an FMU that runs Python takes the GIL there)."""
+        self._run = _steps_function(release_gil=True)
+
     def pace(self, pacer: Any, slots: Sequence[Optional[int]]) -> None:
         """Wait for every point's wall-clock time in C, as ``pacer`` (a started
         :class:`~deltafmi.master.live.pacing.Pacer`) would, writing its lateness record and the

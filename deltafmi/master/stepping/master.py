@@ -31,7 +31,8 @@ import numpy as np
 from deltafmi.errors import BadInput, Interrupted, SimulationError
 
 from ..live.pacing import FellBehind
-from ..results.csv_file import RowSampler
+from ..results.background import BackgroundRows
+from ..results.csv_file import CsvWriter, RowSampler
 from ..results.safe_file import check_writable
 from ..results.writers import write_rows_to, writer_for
 from ..results.progress import Progress, Summary, Termination
@@ -460,6 +461,11 @@ class Master:
                 rows = min(_C_MAX_STEPS, n_steps + 1, max(64, _C_ROWS_BYTES // (8 * (len(self.sampler.row) + 1))))
                 native = NativeLoop([a for a in actions if getattr(a[0], "interface", None) != "LIVE"], self.sampler,
                                     start, h, stop, n_steps, last, self.every, block_rows=rows)
+                if type(self.writer) is CsvWriter:
+                    # the C loop's blocks become text on a thread of their own while it steps on
+                    # (it releases the GIL for that)
+                    self.writer = BackgroundRows(self.writer)
+                    native.release_gil()
                 if live is not None:
                     native.pace(live.pacer, live.clock_slots())
                     live.pacer.restart()
@@ -481,6 +487,8 @@ class Master:
                 if k & 63 == 0:
                     progress.update(self.time)
                 k += 1
+        if isinstance(self.writer, BackgroundRows):
+            self.writer.drain()  # the stepping ends with its rows written
 
     def _step_in_python(self, actions: Sequence[Tuple[Any, str, int]], grid: "_FixedGrid", k: int,
                         first: int = 0, held: Optional[Tuple[bool, int]] = None) -> None:
