@@ -316,6 +316,8 @@ _REQUIREMENTS = ("This FMU runs its model in CPython (3.10 or newer) with numpy,
 
 def _interfaces(cls: type[Component], fmi_version: int) -> str:
     """The interfaces the FMU provides, in words."""
+    if cls.co_simulation_only:
+        return "Co-Simulation"
     if fmi_version == 3 and clock_driven(cls):
         return "Model Exchange, Co-Simulation and Scheduled Execution"
     return "Model Exchange and Co-Simulation"
