@@ -29,6 +29,7 @@ import fmpy
 import numpy as np
 
 from deltafmi.errors import BadInput, Interrupted, SimulationError
+from deltafmi.toolchain import BuildError
 
 from ..live.pacing import FellBehind
 from ..results.csv_file import RowSampler
@@ -455,7 +456,10 @@ class Master:
             actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
         native = None
         if self.native and self.live is None and NativeLoop.fits(ordered, self.sampler):
-            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
+            try:
+                native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
+            except BuildError as exc:  # no compiler and no prebuilt loop: the same steps in Python
+                self.warn(f"stepping in Python: {exc}")
         self._fixed_actions, self._fixed_native = actions, native
         self._fixed_grid = _FixedGrid(start, stop, h, n_steps, last)
 
