@@ -128,6 +128,8 @@ def runtime_files(source: Path) -> list[tuple[Path, str]]:
 PLAIN_C_SOURCES = {"master/stepping/native/fixed_step.c": "deltafmi.master.stepping.c_loop",
                    "master/stepping/native/erk.c": "deltafmi.master.stepping.explicit_rk",
                    "master/results/native/csv_rows.c": "deltafmi.master.results.csv_file"}
+#: the data files the master reads when it runs (package-relative file -> the module that reads it)
+MASTER_DATA = {"master/scenario/scenario.schema.json": "deltafmi.master.scenario.spec"}
 
 
 def binary_files(source: Path) -> list[tuple[Path, str]]:
@@ -140,11 +142,13 @@ def binary_files(source: Path) -> list[tuple[Path, str]]:
 
 
 def compiled_master_loops(modules: list[str]) -> list[tuple[Path, str]]:
-    """(file, archive name) of the master's C sources that ``modules`` load, each with its library
-    compiled here into the bundle's prebuilt layer, so that the FMU needs no compiler where it runs;
+    """(file, archive name) of the data files and C sources of the master that ``modules`` read,
+    each C source with its library compiled here into the bundle's prebuilt layer, so that the FMU
+    needs no compiler where it runs;
     a piece that cannot be compiled is left out, with a warning (the master then steps in Python)."""
     package = Path(deltafmi.__file__).resolve().parent
-    files = []
+    files = [(package / relative, f"resources/python/deltafmi/{relative}")
+             for relative, user in MASTER_DATA.items() if user in modules]
     for relative, user in PLAIN_C_SOURCES.items():
         if user not in modules:
             continue

@@ -6,7 +6,8 @@ import logging
 import math
 import struct
 from operator import methodcaller
-from typing import Any, ClassVar, Optional, Sequence
+from contextlib import nullcontext
+from typing import Any, Callable, ClassVar, ContextManager, Optional, Sequence
 
 import numpy as np
 
@@ -18,7 +19,8 @@ __all__ = ["Component"]
 
 #: attributes the runtime keeps on a component (its value buffers, log sink, ...): not its own state
 RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
-                                "_int_items", "_str", "_str_items", "_log_sink", "_control", "resources_dir"})
+                                "_int_items", "_str", "_str_items", "_log_sink", "_control", "resources_dir",
+                                "own_modules"})
 
 #: Component.log levels -> (FMI status, log category)
 LOG_LEVELS = {"debug": (0, "logComponent"), "info": (0, "logComponent"), "warning": (1, "logStatusWarning"),
@@ -70,11 +72,14 @@ class Component(ValueHolder):
         self._attach(resources_dir, [])
 
     def _attach(self, resources_dir: str, log_sink: list, buffers: Optional[tuple] = None,
-                control: Optional[np.ndarray] = None) -> None:
+                control: Optional[np.ndarray] = None,
+                own_modules: Callable[[], ContextManager] = nullcontext) -> None:
         """Set start values (into ``buffers`` when given, so their addresses stay), then setup().
 
         ``control``: the runtime's flags the native loader reads ([0] nonzero: the component ended
-        the simulation, [1] the time it reached, NaN when the step's end)."""
+        the simulation, [1] the time it reached, NaN when the step's end). ``own_modules``: in an
+        FMU, a context under which ``import deltafmi...`` finds the FMU's own copy of deltafmi
+        (:attr:`own_modules`; outside the model's import, a host's deltafmi or none is found)."""
         layout = self._layout
         if buffers is None:
             buffers = (np.empty_like(layout.real_start), np.empty_like(layout.int_start), [])
@@ -91,6 +96,9 @@ class Component(ValueHolder):
         self._log_sink = log_sink
         self._control = control if control is not None else np.array([0.0, math.nan])
         self.resources_dir = resources_dir
+        #: ``with self.own_modules(): ...`` runs code that imports deltafmi modules while the FMU
+        #: runs (not only when its model is imported) against the FMU's own copy
+        self.own_modules = own_modules
         self.setup()
 
     # --- hooks ------------------------------------------------------------------------------

@@ -147,7 +147,7 @@ class FmuInstance:
 
     def _new_component(self, buffers: Optional[tuple] = None) -> None:
         comp = self.component = self.component_class.__new__(self.component_class)
-        comp._attach(self.resources_dir, self.pending_logs, buffers, self.control)
+        comp._attach(self.resources_dir, self.pending_logs, buffers, self.control, self._module_context)
 
     @property
     def terminate_requested(self) -> bool:
@@ -568,6 +568,9 @@ class FmuInstance:
 
     def serialize_state(self, state: dict) -> bytes:
         """Bytes for ``fmi2SerializeFMUstate``."""
+        if not self.component_class.can_serialize_state:
+            raise RuntimeError(f"{self.component_class.fmi_model_name()} cannot serialize its FMU state "
+                               "(canSerializeFMUstate is false); get and set it instead")
         with self._module_context():
             return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
 

@@ -237,3 +237,40 @@ exports:
     assert out.exit_code == 2, out.output
     assert f"{bad}:5" in out.output and "osc.x" in out.output and "not a parameter" in out.output
     assert not (tmp_path / "B.fmu").exists()
+
+
+def test_the_portable_system_fmu_in_a_c_host_with_no_python(c_host, tmp_path_factory):
+    """``--portable``: the system FMU carries CPython and every package its master imports; where
+    no Python can be found (hide_python.sh in a mount namespace), a C host gets the rows of
+    ``deltafmi run``. The units are non-portable FMUs of ours: they run in the interpreter the
+    system FMU brought."""
+    from test_portable_fmus import no_python as _  # noqa: F401  (the fixture's module must load)
+    import test_portable_fmus as portable
+
+    if not portable.shutil.which("unshare") or subprocess.run(["unshare", "-m", "true"]).returncode != 0:
+        pytest.skip("cannot make a mount namespace to hide Python")
+    work = tmp_path_factory.mktemp("portable_system")
+    scenario = work / "spring.yaml"
+    scenario.write_text("""experiment: {stop: 3.0, step: 1.0e-2}
+components:
+  osc: {source: deltafmi.models:Oscillator, interface: CS}
+  table: {source: deltafmi.models:Trajectory, interface: CS}
+outputs: [osc.x, osc.v, osc.energy]
+""")
+    fmu = export_fmu(scenario, work / "Spring.fmu", portable=True)
+    unpacked = work / "unpacked"  # outside every hidden folder
+    with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(unpacked)
+    md = fmpy.read_model_description(str(fmu))
+    vrs = {v.name: v.valueReference for v in md.modelVariables}
+    command = ["unshare", "-m", "bash", str(portable.HIDE), *map(str, portable.hidden_paths()), "--",
+               str(c_host), str(unpacked), md.coSimulation.modelIdentifier, md.guid, "cs", "3.0", "0.01",
+               str(vrs["osc.x"]), str(vrs["osc.v"])]
+    out = subprocess.run(command, capture_output=True, text=True, timeout=600,
+                         env=portable.clean_env(PATH="/usr/local/bin:/usr/bin:/bin"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    rows = np.loadtxt(out.stdout.splitlines(), delimiter=",")
+    run = deltafmi.simulate(scenario)
+    grid = grid_rows(run, 1e-2)
+    np.testing.assert_array_equal(rows[:, 1], np.asarray(run["osc.x"])[grid])
+    np.testing.assert_array_equal(rows[:, 2], np.asarray(run["osc.v"])[grid])

@@ -160,11 +160,15 @@ class SystemComponent(Component):
         self._start, self._stop = start, stop
         self._close()
 
+    # The master imports some of its modules when it first needs them: its calls run with the
+    # FMU's own deltafmi active (own_modules), whatever deltafmi the host has, if any.
+
     def initialize(self, t: float) -> None:
         given = self._given()
         if self._run is None or self._run.given != given:
             self._close()
-            self._run = _Run(self, given, self._start, self._stop)
+            with self.own_modules():
+                self._run = _Run(self, given, self._start, self._stop)
 
     def outputs(self, t: float) -> None:
         if self._run is None:
@@ -175,7 +179,8 @@ class SystemComponent(Component):
     def do_step(self, t: float, h: float) -> None:
         if self._run is None:
             raise RuntimeError("doStep before initialization")
-        self._run.step_to(self, t, h)
+        with self.own_modules():
+            self._run.step_to(self, t, h)
 
     def internal_state(self) -> Any:
         return _Snapshot(self._run) if self._run is not None else None
@@ -187,7 +192,8 @@ class SystemComponent(Component):
             raise RuntimeError("this FMU state belongs to an earlier run of the system (before a reset or a new "
                                "initialization)")
         else:
-            state.restore()
+            with self.own_modules():
+                state.restore()
 
     def _given(self) -> Dict[str, Any]:
         """The FMU's parameters and inputs as start values of the scenario's components."""
@@ -197,7 +203,8 @@ class SystemComponent(Component):
     def _close(self) -> None:
         run, self._run = self._run, None
         if run is not None:
-            run.close()
+            with self.own_modules():
+                run.close()
 
 
 def _plain(value: Any) -> Any:
