@@ -274,3 +274,48 @@ outputs: [osc.x, osc.v, osc.energy]
     grid = grid_rows(run, 1e-2)
     np.testing.assert_array_equal(rows[:, 1], np.asarray(run["osc.x"])[grid])
     np.testing.assert_array_equal(rows[:, 2], np.asarray(run["osc.v"])[grid])
+
+
+def _third_party_master(name):
+    try:
+        return __import__(name)
+    except ImportError as exc:
+        pytest.skip(f"{name} is not usable here ({exc}); install it with pip install {name}")
+    except OSError as exc:  # ecospy needs Debian's libtbb12
+        pytest.skip(f"{name} cannot load its native library ({exc}); apt-get install libtbb12")
+
+
+def test_libcosim_and_ecos_step_the_system_fmu_from_their_threads(exported):
+    """Two C++ masters (OSP libcosim, Ecos) step the system FMU from their own threads, with no
+    stop time: the same rows as ``deltafmi run``."""
+    fmu = str(exported("delta_tracking"))
+    md = fmpy.read_model_description(fmu)
+    vrs = [v.valueReference for v in md.modelVariables if v.name in TRACKED[:3]]
+    run = deltafmi.simulate("delta_tracking", stop=0.5)
+    expected = np.column_stack([np.asarray(run[n]) for n in TRACKED[:3]])[1:]
+
+    _third_party_master("libcosimpy")
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+    execution = CosimExecution.from_step_size(step_size=1_000_000)  # 1 ms in nanoseconds
+    index = execution.add_local_slave(CosimLocalSlave(fmu_path=fmu, instance_name="cell"))
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    rows = []
+    for _ in range(500):
+        assert execution.step()
+        rows.append(observer.last_real_values(index, vrs))
+    np.testing.assert_array_equal(np.array(rows), expected)
+
+    ecospy = _third_party_master("ecospy")
+    structure = ecospy.EcosSimulationStructure()
+    structure.add_model("cell", fmu)
+    rows = []
+    with ecospy.EcosSimulation(structure=structure, step_size=1e-3) as sim:
+        sim.init()
+        for _ in range(500):
+            sim.step()
+            rows.append([sim.get_real(f"cell::{n}") for n in TRACKED[:3]])
+        sim.terminate()
+    np.testing.assert_array_equal(np.array(rows), expected)
