@@ -7,7 +7,6 @@ updates, Co-Simulation steps and FMU state. Methods return an FMI status code (0
 """
 from __future__ import annotations
 
-import copy
 import math
 import pickle
 import struct
@@ -34,9 +33,6 @@ _LOG_EVENTS, _LOG_SOLVER = fmu_logging.BITS["logEvents"], fmu_logging.BITS["logS
 _TINY = 1e-12  # relative time below which intervals are round-off, not integration
 #: default ``cs_options["input_jump_tolerance"]``: see FmuInstance._restart_for_inputs
 _INPUT_JUMP_TOLERANCE = 10.0
-_RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
-                                 "_int_items", "_str", "_str_items", "_log_sink", "_control",
-                                 "resources_dir"})
 
 
 def _cvode_class(module_context: Callable[[], ContextManager]) -> type[Cvode]:
@@ -70,6 +66,8 @@ class FmuInstance:
         self.nx, self.nz = layout.nx, component_class.n_event_indicators
         #: samples only at its input Clocks' ticks (no states, no event indicators): see clock_driven
         self._clock_driven = clock_driven(component_class)
+        if fmu_type != CO_SIMULATION and component_class.co_simulation_only:
+            raise ValueError(f"{component_class.fmi_model_name()} offers Co-Simulation only")
         if fmu_type == CO_SIMULATION and self.nx and not component_class.overrides_do_step():
             _cvode_class(module_context)  # a missing SUNDIALS fails fmi2Instantiate, not a later step
         self.pending_logs: list = []
@@ -149,7 +147,7 @@ class FmuInstance:
 
     def _new_component(self, buffers: Optional[tuple] = None) -> None:
         comp = self.component = self.component_class.__new__(self.component_class)
-        comp._attach(self.resources_dir, self.pending_logs, buffers, self.control)
+        comp._attach(self.resources_dir, self.pending_logs, buffers, self.control, self._module_context)
 
     @property
     def terminate_requested(self) -> bool:
@@ -221,6 +219,7 @@ class FmuInstance:
         self.stop_time = stop if not math.isnan(stop) else math.inf
         self.tolerance = tolerance if not math.isnan(tolerance) else None
         self.in_initialization = True
+        self.component.setup_experiment(start, None if math.isinf(self.stop_time) else self.stop_time)
         return OK
 
     def exit_initialization(self, event_mode_used: float = 0.0) -> int:
@@ -544,10 +543,9 @@ class FmuInstance:
         comp = self.component
         self._drop_solver()
         self._pull_kernels()
-        internal = {k: v for k, v in vars(comp).items() if k not in _RUNTIME_ATTRIBUTES}
         return {
             "real": comp._real.copy(), "int": comp._int.copy(), "str": list(comp._str),
-            "internal": copy.deepcopy(internal), "time": self.time,
+            "internal": comp.internal_state(), "time": self.time,
             "next_time_event": self._next_time_event, "in_initialization": self.in_initialization,
             "terminate_requested": self.terminate_requested,
         }
@@ -558,9 +556,7 @@ class FmuInstance:
         comp._real[:] = state["real"]
         comp._int[:] = state["int"]
         comp._str[:] = state["str"]
-        for key in [k for k in vars(comp) if k not in _RUNTIME_ATTRIBUTES]:
-            delattr(comp, key)
-        vars(comp).update(copy.deepcopy(state["internal"]))
+        comp.restore_internal_state(state["internal"])
         self.time = state["time"]
         self.partials.invalidate()
         self._next_time_event = state["next_time_event"]
@@ -572,6 +568,9 @@ class FmuInstance:
 
     def serialize_state(self, state: dict) -> bytes:
         """Bytes for ``fmi2SerializeFMUstate``."""
+        if not self.component_class.can_serialize_state:
+            raise RuntimeError(f"{self.component_class.fmi_model_name()} cannot serialize its FMU state "
+                               "(canSerializeFMUstate is false); get and set it instead")
         with self._module_context():
             return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
 
