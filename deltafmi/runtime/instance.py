@@ -24,7 +24,7 @@ from .partials import DirectionalDerivatives
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
     from .cvode import Cvode
 
-__all__ = ["CO_SIMULATION", "FmuInstance"]
+__all__ = ["CO_SIMULATION", "EVENTS_AT_STEP_END", "EVENTS_EARLY_RETURN", "EVENTS_INSIDE", "FmuInstance"]
 
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 MODEL_EXCHANGE, CO_SIMULATION, SCHEDULED_EXECUTION = 0, 1, 2
@@ -33,6 +33,11 @@ _LOG_EVENTS, _LOG_SOLVER = fmu_logging.BITS["logEvents"], fmu_logging.BITS["logS
 _TINY = 1e-12  # relative time below which intervals are round-off, not integration
 #: default ``cs_options["input_jump_tolerance"]``: see FmuInstance._restart_for_inputs
 _INPUT_JUMP_TOLERANCE = 10.0
+#: :meth:`FmuInstance.do_step`'s ``events``: what a Co-Simulation step does at a state or time
+#: event. The native layer passes the same numbers (core.h, DfmiStepEvents).
+EVENTS_INSIDE = 0        #: handles every event inside the step (FMI 2.0; FMI 3.0 without eventModeUsed)
+EVENTS_EARLY_RETURN = 1  #: stops at the first event and leaves it pending (eventModeUsed, earlyReturnAllowed)
+EVENTS_AT_STEP_END = 2   #: handles the events inside the step, leaves one at its end pending (eventModeUsed)
 
 
 def _cvode_class(module_context: Callable[[], ContextManager]) -> type[Cvode]:
@@ -328,13 +333,28 @@ class FmuInstance:
         return bool(self.component.needs_projection(t))
 
     # --- co-simulation ----------------------------------------------------------------------
-    def do_step(self, t: float, h: float, event_mode_used: float = 0.0) -> int:
-        """``fmi2DoStep`` from ``t`` to ``t + h``: integrate with CVODE, handle events inside.
+    def do_step(self, t: float, h: float, events: float = EVENTS_INSIDE) -> int:
+        """``fmi2DoStep``/``fmi3DoStep`` from ``t`` to ``t + h``: integrate with CVODE.
 
-        With ``event_mode_used`` (FMI 3.0 Co-Simulation in event mode) it stops at the first
-        state or time event in (t, t + h] without handling it: control[2] = 1 (event pending),
-        control[1] = the time reached; the importer's Event Mode handles it (:meth:`event_update`)
-        and the next step restarts the solver there.
+        ``events`` says what the step does at a state or time event in (t, t + h]:
+
+        - ``EVENTS_INSIDE``: it handles each one inside the step (the event iteration, a solver
+          restart) and goes on to ``t + h``.
+        - ``EVENTS_EARLY_RETURN`` (FMI 3.0, eventModeUsed and earlyReturnAllowed): it stops at
+          the first one without handling it.
+        - ``EVENTS_AT_STEP_END`` (FMI 3.0, eventModeUsed without earlyReturnAllowed): it must
+          reach ``t + h``, so it handles the events before that inside, as ``EVENTS_INSIDE``
+          (the importer could no longer handle them at their time), and leaves one at ``t + h``
+          itself (a time event on the communication point, a root found there) to the importer.
+
+        The contract with the native layer, in ``control`` (any loop that replaces this one, in C
+        too, keeps it): [0] nonzero when the component ended the simulation, [1] then the time it
+        ended at; [2] = 1 when the step left an event pending, [1] then the time reached, where
+        the event is (0 otherwise, reset at each step's start); [1] NaN: the step's end. An event
+        left pending is handled by the importer's Event Mode (:meth:`event_update`), and the next
+        step restarts the solver there. In event mode (either value) a clock-driven component's
+        events are its Clocks' ticks, which the importer activates in Event Mode: its steps report
+        none.
 
         The native layer has checked that ``t`` is the FMU's time. A component that steps itself
         never comes here: the native layer calls its ``do_step``, sets ``time`` before anything
@@ -352,9 +372,7 @@ class FmuInstance:
             self._inputs_changed()  # a fresh solver: the next step compares with these inputs
         self._restart_solver = False
         while self.time < t_end and not self.terminate_requested:
-            # in event mode a clock-driven component's events are its Clocks' ticks, which the
-            # importer activates in Event Mode: none to report from the step
-            nte = None if event_mode_used and self._clock_driven else self._next_time_event
+            nte = None if events != EVENTS_INSIDE and self._clock_driven else self._next_time_event
             t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
             root = False
             if t_stop - self.time <= _TINY * max(1.0, abs(t_stop)):
@@ -364,7 +382,8 @@ class FmuInstance:
             else:
                 self.time = t_stop
             time_event = nte is not None and self.time >= nte - _TINY * max(1.0, abs(nte))
-            if (root or time_event) and event_mode_used:
+            at_end = self.time >= t_end - _TINY * max(1.0, abs(t_end))
+            if (root or time_event) and (events == EVENTS_EARLY_RETURN or (events == EVENTS_AT_STEP_END and at_end)):
                 self.control[1:] = self.time, 1.0  # fmi3DoStep: eventHandlingNeeded here
                 self.evaluate(self.time)
                 self._derivatives_after_step = None  # the event restarts the solver
