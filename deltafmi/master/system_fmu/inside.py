@@ -83,6 +83,11 @@ class _Run:
         self.master.begin_fixed_steps()
         self.by_name = {unit.name: unit for unit in self.master.units}
         self.step = system.scenario.experiment.step
+        # the outputs, as the master samples them: the Reals packed at once, the others one by one
+        kinds = [port.type for port in system.recorded]
+        self.reals = np.array([i for i, kind in enumerate(kinds) if kind == "Real"], dtype=np.intp)
+        self.real_names = tuple(cls.outputs_exported[i][0] for i in self.reals)
+        self.others = [(cls.outputs_exported[i][0], i) for i, kind in enumerate(kinds) if kind != "Real"]
 
     def step_to(self, component: "SystemComponent", t: float, h: float) -> None:
         """The master's steps from ``t`` to ``t + h``, with the FMU's inputs as they are now."""
@@ -100,9 +105,12 @@ class _Run:
                 self.applied[attribute] = value
         master.advance(master.steps + n)
 
-    def values(self) -> np.ndarray:
-        """The exported outputs, in order."""
-        return self.master.sampler.sample()
+    def set_outputs(self, component: "SystemComponent") -> None:
+        """The exported outputs from the master's recorded values."""
+        values = self.master.sampler.sample()
+        component.write_reals(values[self.reals].tolist(), *self.real_names)
+        for attribute, i in self.others:
+            setattr(component, attribute, values[i])
 
     def close(self) -> None:
         self.master.close()
@@ -160,8 +168,10 @@ class SystemComponent(Component):
         self._start, self._stop = start, stop
         self._close()
 
-    # The master imports some of its modules when it first needs them: its calls run with the
-    # FMU's own deltafmi active (own_modules), whatever deltafmi the host has, if any.
+    # The master imports some of its modules when it first needs them (its units' kinds, the
+    # solvers): what opens, restores and closes a run does so with the FMU's own deltafmi active
+    # (own_modules), whatever deltafmi the host has, if any. A step imports nothing, and runs
+    # without the swap, which would cost more than the step.
 
     def initialize(self, t: float) -> None:
         given = self._given()
@@ -171,16 +181,13 @@ class SystemComponent(Component):
                 self._run = _Run(self, given, self._start, self._stop)
 
     def outputs(self, t: float) -> None:
-        if self._run is None:
-            return
-        for (attribute, _), value in zip(self.outputs_exported, self._run.values()):
-            setattr(self, attribute, value)
+        if self._run is not None:
+            self._run.set_outputs(self)
 
     def do_step(self, t: float, h: float) -> None:
         if self._run is None:
             raise RuntimeError("doStep before initialization")
-        with self.own_modules():
-            self._run.step_to(self, t, h)
+        self._run.step_to(self, t, h)
 
     def internal_state(self) -> Any:
         return _Snapshot(self._run) if self._run is not None else None
