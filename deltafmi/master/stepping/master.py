@@ -29,6 +29,7 @@ import fmpy
 import numpy as np
 
 from deltafmi.errors import BadInput, Interrupted, SimulationError
+from deltafmi.toolchain import BuildError
 
 from ..live.pacing import FellBehind
 from ..results.background import BackgroundRows
@@ -442,6 +443,13 @@ class Master:
                 unit.fetch()
 
     def _run_fixed(self) -> None:
+        self.begin_fixed_steps()
+        self.advance(self._fixed_grid.n_steps)
+
+    def begin_fixed_steps(self) -> None:
+        """Lay out the fixed-step loop from start to stop (after :meth:`open`); :meth:`advance`
+        takes its steps. :meth:`run` does both; a caller that steps a run piece by piece (a
+        scenario exported as one FMU) calls them itself."""
         start, stop, h = self.start, self.stop, self.step
         n_steps = grid_steps(start, stop, h)
         ordered = self.stepping_blocks()
@@ -459,20 +467,32 @@ class Master:
             if NativeLoop.fits(stepped, self.sampler):
                 # room for a call's rows, at most _C_ROWS_BYTES (a call with more rows ends early: ROWS_FULL)
                 rows = min(_C_MAX_STEPS, n_steps + 1, max(64, _C_ROWS_BYTES // (8 * (len(self.sampler.row) + 1))))
-                native = NativeLoop([a for a in actions if getattr(a[0], "interface", None) != "LIVE"], self.sampler,
-                                    start, h, stop, n_steps, last, self.every, block_rows=rows)
-                if type(self.writer) is CsvWriter:
-                    # the C loop's blocks become text on a thread of their own while it steps on
-                    # (it releases the GIL for that)
-                    self.writer = BackgroundRows(self.writer)
-                    native.release_gil()
-                if live is not None:
-                    native.pace(live.pacer, live.clock_slots())
-                    live.pacer.restart()
-                    most = live.points_between_samples()
-        fixed = _FixedGrid(start, stop, h, n_steps, last)
+                try:
+                    native = NativeLoop([a for a in actions if getattr(a[0], "interface", None) != "LIVE"],
+                                        self.sampler, start, h, stop, n_steps, last, self.every, block_rows=rows)
+                except BuildError as exc:  # no compiler and no prebuilt loop: the same steps in Python
+                    self.warn(f"stepping in Python: {exc}")
+        if native is not None:
+            if type(self.writer) is CsvWriter:
+                # the C loop's blocks become text on a thread of their own while it steps on
+                # (it releases the GIL for that)
+                self.writer = BackgroundRows(self.writer)
+                native.release_gil()
+            if live is not None:
+                native.pace(live.pacer, live.clock_slots())
+                live.pacer.restart()
+                most = live.points_between_samples()
+        self._fixed_actions, self._fixed_native = actions, native
+        self._fixed_grid = _FixedGrid(start, stop, h, n_steps, last)
+        # steps per call of the C loop: it grows while a call is short (see _C_STEPS)
+        self._fixed_chunk, self._fixed_most = min(_C_STEPS if live is None else most, most), most
+
+    def advance(self, k_end: int) -> None:
+        """Take the fixed steps of :meth:`begin_fixed_steps` until :attr:`steps` is ``k_end``."""
+        actions, native, fixed = self._fixed_actions, self._fixed_native, self._fixed_grid
+        n_steps = min(k_end, fixed.n_steps)
         stop_signals, progress = self.stop_signals, self.progress
-        k, chunk = 0, min(_C_STEPS if live is None else most, most)
+        k, chunk, most = self.steps, self._fixed_chunk, self._fixed_most
         while k < n_steps:
             if stop_signals.received:
                 raise KeyboardInterrupt
@@ -480,7 +500,7 @@ class Master:
                 begin = _time.perf_counter()
                 k = self._steps_in_c(native, fixed, k, min(n_steps, k + chunk))
                 if chunk < most and _time.perf_counter() - begin < _C_SECONDS:
-                    chunk = min(2 * chunk, most)
+                    chunk = self._fixed_chunk = min(2 * chunk, most)
                 progress.update(self.time)
             else:
                 self._step_in_python(actions, fixed, k)
