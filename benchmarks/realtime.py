@@ -6,8 +6,14 @@
   ``--repeats`` runs of ``--seconds`` simulated seconds.
 - The highest speed-up at which it still keeps up: paced runs of 1 simulated second at rising
   speeds (doubling, then bisecting), "keeps up" = at most 1 % of the points overrun. Against the baseline measured in the same run: the speed the busy time
-  allows (step / median busy), and the unpaced run's real-time factor (the C loop, which a paced
-  run does not use: it releases every point from Python).
+  allows (step / median busy), and the unpaced run's real-time factor (both on the master's C
+  loop: a paced run without streams waits for every point in C).
+- The flagship at ``--target-speed`` (default 50x) over ``--seconds``, ``--repeats`` times: overruns
+  and times it fell behind (target: never behind, at most 1 % of the points overrun); and the
+  busy time per point (computing, not waiting) of the C loop against the Python loop paced the
+  same way (``LiveRun.paced_in_c`` off), in the same run: on a loaded machine, where other
+  processes' turns make points late, the busy time against the paced step says whether a run
+  can keep up.
 - UDP round trip: a datagram sent to a live UDP input comes back on a UDP stream of the same
   signal (the run at 1 kHz paced, and unpaced); wall time from sendto to recv, median and 99th
   percentile over ``--pings``. Baseline in the same run: a plain Python echo over loopback (one
@@ -44,6 +50,18 @@ def lateness_figures(seconds: float, speed: float = 1.0) -> dict:
     return {"median": report.percentile(50), "p99": report.percentile(99), "max": float(report.lateness.max()),
             "overruns": report.overruns, "behind": len(report.behind), "busy": float(np.median(busy)),
             "points": len(report.lateness)}
+
+
+def python_loop_busy(seconds: float, speed: float) -> float:
+    """Median busy time per point of the same paced run stepped by the master's Python loop."""
+    from deltafmi.master.live.run import LiveRun
+
+    paced_in_c = LiveRun.paced_in_c
+    LiveRun.paced_in_c = lambda self: False
+    try:
+        return lateness_figures(seconds, speed)["busy"]
+    finally:
+        LiveRun.paced_in_c = paced_in_c
 
 
 def keeps_up(speed: float) -> bool:
@@ -168,6 +186,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pings", type=int, default=300)
+    parser.add_argument("--target-speed", type=float, default=50.0)
     args = parser.parse_args()
 
     logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)  # "fell behind" while probing speeds
@@ -178,6 +197,20 @@ def main() -> None:
     print(f"  lateness median {_us(med['median'])}, 99th percentile {_us(med['p99'])}, max {_us(med['max'])}")
     print(f"  overruns (> 250 us) {med['overruns']:g} of {med['points']:g} points; fell behind {med['behind']:g} times")
     print(f"  busy (one step computing) median {_us(med['busy'])} = {med['busy'] / 1e-3:.1%} of the 1 ms step")
+
+    fast, python_busy = [], []
+    for _ in range(args.repeats):
+        fast.append(lateness_figures(args.seconds, args.target_speed))
+        python_busy.append(python_loop_busy(args.seconds, args.target_speed))
+    print(f"flagship at {args.target_speed:g}x real time, {args.seconds:g} s x {args.repeats}: overruns "
+          + ", ".join(f"{run['overruns']} of {run['points']}" for run in fast) + "; fell behind "
+          + ", ".join(str(run["behind"]) for run in fast) + " times; lateness median "
+          + ", ".join(_us(run["median"]) for run in fast) + "; busy median "
+          + ", ".join(_us(run["busy"]) for run in fast)
+          + " (target: never behind, overruns <= 1 %)")
+    c_busy = statistics.median(run["busy"] for run in fast)
+    print(f"  busy per point, medians: C loop {_us(c_busy)}, Python loop {_us(statistics.median(python_busy))} "
+          f"(paced step {_us(1e-3 / args.target_speed)}); Python / C {statistics.median(python_busy) / c_busy:.1f}x")
 
     plain = deltafmi.simulate("delta_tracking")
     rtf = plain.summary.simulated / plain.summary.stepping_time

@@ -76,6 +76,7 @@ class DeltaRobot(RobotParameters, Component):
         outputs=Kernel(dynamics.plant_outputs, "_plant", "q", "v", "u", "f", "pole", returns=_OUTPUTS),
         project=Kernel(dynamics.project_state, "_plant", "q", "v", returns=("q", "v")),
         jacobian=Kernel(jacobian_values, "_plant", "q", "v", "u", "f", "pole", then=_jacobian_blocks),
+        drift=Kernel(dynamics.loop_drifted, "_plant", "q", "loop_tolerance"),
         attributes={"_plant": DeltaParams})
 
     def setup(self) -> None:
@@ -92,8 +93,7 @@ class DeltaRobot(RobotParameters, Component):
         self.q, self.v = delta.project_to_constraints(self._plant, self.q, self.v)
 
     def needs_projection(self, t: float) -> bool:
-        tolerance = self.loop_tolerance
-        return tolerance > 0.0 and delta.loop_residual(self._plant, self.q) > tolerance
+        return dynamics.loop_drifted(self._plant, self.q, self.loop_tolerance)
 
     def derivatives(self, t: float) -> list:
         return delta.state_derivative(self._plant, self.states, self.u, self.f, self.pole)

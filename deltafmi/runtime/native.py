@@ -22,7 +22,9 @@ CVODE's projection after every internal step (Co-Simulation, a component that ov
 ``outputs`` for the getters, ``step`` for ``fmi2DoStep`` of a component that steps itself (a
 sampled controller, a reference generator; see :class:`Kernel`), ``update`` for the event update
 of a component without states (``fmi2NewDiscreteStates``, fmi3UpdateDiscreteStates at a Clock's tick,
-fmi3ActivateModelPartition), ``jacobian`` for the float part of :meth:`~deltafmi.runtime.Component.jacobian`
+fmi3ActivateModelPartition), ``drift`` for ``fmi2CompletedIntegratorStep`` of a component that
+watches its states for drift (:meth:`~deltafmi.runtime.Component.needs_projection`: true asks for
+a step event), ``jacobian`` for the float part of :meth:`~deltafmi.runtime.Component.jacobian`
 (Model Exchange's directional derivatives, the Co-Simulation solver's Newton matrix): Python
 calls it (ctypes) and hands its floats to the kernel's ``then``, which builds the matrices
 (numpy). The component's Python methods stay, and must
@@ -96,6 +98,7 @@ class NativeKernels:
     update: Optional[Kernel] = None
     project: Optional[Kernel] = None
     jacobian: Optional[Kernel] = None
+    drift: Optional[Kernel] = None
     attributes: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "required"
 
@@ -108,8 +111,9 @@ class NativeKernels:
 
     def kernels(self) -> dict[str, Kernel]:
         """The declared kernels by role (``derivatives``, ``event_indicators``, ``outputs``, ``step``,
-        ``update``, ``project``, ``jacobian``)."""
+        ``update``, ``project``, ``jacobian``, ``drift``)."""
         return {role: k for role, k in (("derivatives", self.derivatives), ("event_indicators", self.event_indicators),
                                         ("outputs", self.outputs), ("step", self.step), ("update", self.update),
-                                        ("project", self.project), ("jacobian", self.jacobian))
+                                        ("project", self.project), ("jacobian", self.jacobian),
+                                        ("drift", self.drift))
                 if k is not None}

@@ -37,6 +37,8 @@ ROLES = ("derivatives", "event_indicators", "outputs", "step", "update")
 CVODE_ROLES = ("project",)
 #: the roles the Python side calls itself (:meth:`NativeKernelsRuntime.jacobian_values`)
 PYTHON_ROLES = ("jacobian",)
+#: kernels whose addresses trail the layout (after the attributes' struct and the ready flag)
+TRAILING_ROLES = ("drift",)
 _SCALARS = {"double": ctypes.c_double, "int": ctypes.c_int, "bool": ctypes.c_int, "str": ctypes.c_char_p}
 _TYPES: dict[str, Any] = {}
 
@@ -265,6 +267,8 @@ class NativeKernelsRuntime:
                 function.restype = ctypes.c_int
         self._functions = functions
         self.addresses = [ctypes.cast(f, ctypes.c_void_p).value if f is not None else 0 for f in functions]
+        self.trailing = [ctypes.cast(getattr(self.library, f"dfmi_kernel_{role}"), ctypes.c_void_p).value
+                         if role in description["kernels"] else 0 for role in TRAILING_ROLES]
         self._cvode_roles = {role for role in CVODE_ROLES if role in description["kernels"]}
         self._jacobian = None
         if "jacobian" in description["kernels"]:
@@ -336,6 +340,8 @@ class NativeKernelsRuntime:
             return role in self._cvode_roles
         if role in PYTHON_ROLES:
             return self._jacobian is not None
+        if role in TRAILING_ROLES:
+            return bool(self.trailing[TRAILING_ROLES.index(role)])
         return bool(self.addresses[ROLES.index(role)])
 
     def cvode_callbacks(self, x_offset: int, dx_offset: int, nx: int,
@@ -392,5 +398,5 @@ class NativeKernelsRuntime:
 
     def layout(self) -> tuple:
         """The trailing fields of FmuInstance.native_layout: the kernels' addresses (0: none), the
-        attributes' address and the ready flag's."""
-        return (*self.addresses, ctypes.addressof(self.struct), self.ready.ctypes.data)
+        attributes' address and the ready flag's, then the drift kernel's address (0: none)."""
+        return (*self.addresses, ctypes.addressof(self.struct), self.ready.ctypes.data, *self.trailing)

@@ -23,13 +23,20 @@ from deltafmi.errors import BadInput
 from signal_runs import DELTAFMI, interrupt_when, rows_in
 
 
-def test_paced_run_takes_its_simulated_time_and_changes_no_number():
+def test_paced_run_takes_its_simulated_time_and_changes_no_number(monkeypatch):
     """0.3 s of the flagship at real time takes at least 0.3 s of stepping, and at 3x at least
-    0.1 s; every value is bit for bit the unpaced run's (the paced run steps in Python, the
-    unpaced one in the C loop: the same FMI calls)."""
+    0.1 s; every value is bit for bit the unpaced run's (both step in the C loop, the paced one
+    waiting there for every point: the same FMI calls)."""
+    from deltafmi.master.stepping.c_loop import NativeLoop
+
+    paced_in_c = []
+    pace = NativeLoop.pace
+    monkeypatch.setattr(NativeLoop, "pace", lambda loop, pacer, slots: (paced_in_c.append(pacer.speed),
+                                                                       pace(loop, pacer, slots)))
     plain = deltafmi.simulate("delta_tracking", stop=0.3)
     paced = deltafmi.simulate("delta_tracking", stop=0.3, realtime=True)
     fast = deltafmi.simulate("delta_tracking", stop=0.3, speed=3.0)
+    assert paced_in_c == [1.0, 3.0]
     for result, least in ((paced, 0.3), (fast, 0.1)):
         assert result.summary.stepping_time >= least
         assert result.summary.stepping_time < least + 5.0  # generous: a loaded machine

@@ -301,3 +301,74 @@ connections:
         assert unit.source.counters()["malformed"] == 1
     finally:
         master.close()
+
+
+def _without_streams(scenario: Path, tmp_path: Path) -> Path:
+    text = scenario.read_text()
+    path = tmp_path / "udp_live_no_streams.yaml"
+    path.write_text(text[:text.index("streams:")])
+    return path
+
+
+def _spy_on_c_pacing(monkeypatch) -> list:
+    """The speeds of the runs paced by the master's C loop (NativeLoop.pace, which still runs)."""
+    from deltafmi.master.stepping.c_loop import NativeLoop
+
+    paced, pace = [], NativeLoop.pace
+    monkeypatch.setattr(NativeLoop, "pace", lambda loop, pacer, slots: (paced.append(pacer.speed),
+                                                                       pace(loop, pacer, slots)))
+    return paced
+
+
+def test_a_paced_replay_without_streams_steps_in_c_and_repeats_the_run(live_run, tmp_path, monkeypatch):
+    """Paced and without streams, a replay runs on the C loop, which hands back at every point
+    for the replayed inputs: the numbers of the live run (stepped in Python for its streams)."""
+    scenario, out, _, _, _, _ = live_run
+    paced = _spy_on_c_pacing(monkeypatch)
+    again = tmp_path / "again.csv"
+    outcome = CliRunner().invoke(main, ["run", str(_without_streams(scenario, tmp_path)), "--replay", str(out),
+                                        "--speed", "20", "-o", str(again)])
+    assert outcome.exit_code == 0, outcome.output
+    assert paced == [20.0]
+    replayed, original = read_result(again), read_result(out)
+    for name in [n for n in original.names if not n.startswith("realtime.")]:
+        assert np.array_equal(replayed[name], original[name]), name
+
+
+def test_live_sources_are_sampled_between_the_c_loops_calls(build_fmu_from_src, tmp_path, monkeypatch):
+    """At 4x without streams the C loop steps 4 points a call (a millisecond of wall time) and the
+    source is sampled in between: the force takes values sent, and x, v follow the closed form
+    under the recorded force held over each step."""
+    port = _free_port()
+    scenario = _without_streams(_scenario(tmp_path, build_fmu_from_src("oscillator.py"), port, _free_port(),
+                                          _free_port()), tmp_path)
+    paced = _spy_on_c_pacing(monkeypatch)
+    done = threading.Event()
+
+    def send() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            n = 0
+            while not done.is_set():
+                sock.sendto(encode({"F": 1.0 + n / 10}, t=n * 0.01, seq=n), ("127.0.0.1", port))
+                n += 1
+                time.sleep(0.005)
+
+    sender = threading.Thread(target=send, daemon=True)
+    sender.start()
+    try:
+        result = deltafmi.simulate(scenario, speed=4.0, output=tmp_path / "fast.csv")
+    finally:
+        done.set()
+        sender.join()
+    assert paced == [4.0]
+    force = result["cmd.F"]
+    taken = set(np.unique(force[1:]).tolist()) - {0.5}
+    assert taken and all(round((f - 1.0) * 10, 9) == round((f - 1.0) * 10) for f in taken)
+    x, v = 1.0, 0.0
+    xs, vs = [x], [v]
+    for k in range(len(result.time) - 1):
+        x, v = _free(x, v, float(force[k]), STEP, {**P, "wall": -10.0})
+        xs.append(x)
+        vs.append(v)
+    assert np.max(np.abs(np.array(xs) - result["osc.x"])) < 1e-7
+    assert np.max(np.abs(np.array(vs) - result["osc.v"])) < 1e-6

@@ -79,6 +79,26 @@ def test_model_exchange_step_events_close_the_loops(robot):
     assert np.sum(np.abs(jumps)) < 1e-7 * _peak_kinetic_energy(r)
 
 
+def test_the_compiled_drift_check_asks_for_the_step_events_the_python_one_does(robot, monkeypatch):
+    """fmi2CompletedIntegratorStep runs the drift check compiled from dynamics.loop_drifted (the
+    FMU carries it); on its Python methods (DELTAFMI_NATIVE=0) the FMU asks needs_projection():
+    the same step events at the same times and the same numbers, bit for bit."""
+    import json
+    import zipfile
+
+    with zipfile.ZipFile(robot) as archive:
+        assert "drift" in json.loads(archive.read("resources/native_kernels.json"))["kernels"]
+        source = archive.read("sources/DeltaRobot_kernels.c").decode()
+    assert "dfmi_kernel_drift" in source and "loop_drifted" in source
+    z0, u, f = CASES["fall-offset"]
+    compiled = _run(robot, "ModelExchange", z0, u, f, loop_tolerance=1e-10)
+    monkeypatch.setenv("DELTAFMI_NATIVE", "0")
+    python = _run(robot, "ModelExchange", z0, u, f, loop_tolerance=1e-10)
+    assert np.sum(np.diff(compiled["time"]) == 0) >= 10  # the step events' rows (before and after)
+    for name in ("time", "residual", *Q, *V):
+        assert np.array_equal(compiled[name], python[name]), name
+
+
 @pytest.mark.parametrize("loop_tolerance", [0.0, 1e-10])
 def test_master_answers_the_step_events(tmp_path, loop_tolerance):
     """The master asks fmi2CompletedIntegratorStep after every communication step of its own

@@ -108,7 +108,7 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
 #: the method each role's kernel stands for
 _METHODS = {"derivatives": "derivatives", "event_indicators": "event_indicators", "outputs": "outputs",
             "step": "do_step", "update": "update", "project": "project",
-            "jacobian": "jacobian"}
+            "jacobian": "jacobian", "drift": "needs_projection"}
 
 
 def _check_inherited(cls: type[Component]) -> None:
@@ -241,6 +241,11 @@ def _targets(cls: type[Component], role: str, kernel: Kernel) -> list[tuple[str,
         if role == "event_indicators":
             return [(f"indicators[{k}]", True) for k in range(cls.n_event_indicators)]
         return [(f"real[{layout.dx_offset + k}]", True) for k in range(layout.nx)]
+    if role == "drift":
+        if kernel.returns:
+            raise CodegenError(f"{cls.__name__}.native: a drift kernel returns whether the states drifted (a bool); "
+                               f"drop returns={kernel.returns!r}")
+        return [("drifted[0]", True)]
     declarations = {d.name: d for d in layout.declarations}
     if role == "project":
         if not kernel.returns:
@@ -322,7 +327,7 @@ def _glue(cls: type[Component], role: str, kernel: Kernel, args: list, result: A
     results = [*kernel.updates, *(["(defer)"] if kernel.defer else []),
                *(["(next time event)"] if role == "update" else []), *kernel.returns]
     last = {"step": "double h, double *real, int *ints", "update": "double *real, int *ints, double *next_event_time",
-            "jacobian": "double *real, int *ints, double *values"}
+            "jacobian": "double *real, int *ints, double *values", "drift": "double *real, int *ints, double *drifted"}
     return (f"/* {role}: {kernel.func.__qualname__}({', '.join(kernel.args)})"
             + (f" -> {', '.join(results)}" if results else "") + " */\n"
             f"{EXPORT} int dfmi_kernel_{role}({'' if changes else 'const '}void *attributes, double time, "

@@ -126,6 +126,12 @@ class Pacer:
         self._t0 = t0
         self._wall0 = self.released = self.clock()
 
+    def restart(self) -> None:
+        """The clock starts again now, at the same simulation time, before any point was waited
+        for (preparing the stepping does not count as the first point's lateness)."""
+        if self._count == 0:
+            self._wall0 = self.released = self.clock()
+
     def wait(self, t: float) -> float:
         """Return at the wall-clock time of simulation time ``t``; returns how late [s]."""
         clock = self.clock
@@ -149,6 +155,18 @@ class Pacer:
         if self._count < len(self._lateness):
             self._lateness[self._count] = late
             self._count += 1
+        self._episode(t, late)
+
+    def note_released(self, times: np.ndarray, lateness: np.ndarray) -> None:
+        """Points released elsewhere (the master's C loop, which waited as :meth:`wait` does and
+        wrote their lateness into the record): at ``times``, ``lateness`` late."""
+        if not (self._behind and self._behind[-1][1] is None) and not (lateness > self.period).any():
+            return
+        for t, late in zip(times.tolist(), lateness.tolist()):
+            self._episode(t, late)
+
+    def _episode(self, t: float, late: float) -> None:
+        """A run falling behind (a point later than a whole step) and catching up again."""
         episodes = self._behind
         if late > self.period:
             if episodes and episodes[-1][1] is None:

@@ -19,7 +19,12 @@ from .pacing import Pacer, RealtimeReport
 from .streams import Stream, open_stream
 from deltafmi.master.live.input_units import LiveInputUnit
 
-__all__ = ["LiveRun", "LiveReport"]
+__all__ = ["C_LONGEST_WAIT", "C_SAMPLE_WALL", "LiveRun", "LiveReport"]
+
+#: a paced step longer than this [s of wall time] is paced in Python (which looks at stop signals while it waits)
+C_LONGEST_WAIT = 0.05
+#: live sources are sampled at least this often [s of wall time] in a run paced by the C loop
+C_SAMPLE_WALL = 1e-3
 
 
 class LiveReport:
@@ -80,6 +85,7 @@ class LiveRun:
         self._recorded = [port.ref for port in system.recorded]
         self._sample: Optional[Callable[[], np.ndarray]] = None
         self.stop = stop
+        self._replayed = replay is not None
         #: the first row is recorded: there is something to report
         self.started = False
 
@@ -121,6 +127,45 @@ class LiveRun:
                 stream.send(t, row, last)
         if self.pacer is not None and self.pacer.failure is not None:
             raise self.pacer.failure
+
+    # --- a paced run stepped by the master's C loop ------------------------------------------------
+    def paced_in_c(self) -> bool:
+        """Whether the master's C loop may pace this run: a pacer, no streams (they send every
+        point's row from Python), and a paced step short enough that a stop signal waits at
+        most :data:`C_LONGEST_WAIT` for the C loop to hand back."""
+        return self.pacer is not None and not self._stream_specs and self.pacer.period <= C_LONGEST_WAIT
+
+    def points_between_samples(self) -> int:
+        """Communication points the C loop steps between two samples of the sources (and looks
+        at stop signals): a replay samples at every point (it reproduces the recorded run); a
+        live source at least every :data:`C_SAMPLE_WALL` of wall time; with no source but the
+        clock, every :data:`C_LONGEST_WAIT`."""
+        if self._replayed or self.pacer is None:
+            return 1
+        every = C_SAMPLE_WALL if self.sources else C_LONGEST_WAIT
+        return max(1, int(every / self.pacer.period))
+
+    def clock_slots(self) -> List[Optional[int]]:
+        """The Real bus addresses of the pacing measurements (lateness, busy, behind; None where
+        a measurement is not on the bus)."""
+        unit = self._clock_unit
+        slots: List[Optional[int]] = [None, None, None]
+        if unit is not None and unit._bus is not None:
+            for vr, slot in zip(unit._vrs.tolist(), unit._slots.tolist()):
+                slots[vr] = unit._bus.ctypes.data + slot * unit._bus.itemsize
+        return slots
+
+    def after_c_points(self, t: float) -> None:
+        """The C loop released the points up to ``t`` (the pacer's record is up to date): the
+        pacing measurements of the last one and the sources' news, put on the bus, as
+        :meth:`at_point` would have before ``t``'s row; raises if the run fell behind and must not
+        go on."""
+        unit = self._clock_unit
+        if unit is not None:
+            pacer = self.pacer
+            unit.values[:] = (pacer.late, pacer.busy, float(pacer.late > pacer.period))
+        for unit in self.sources:
+            unit.sample(t)
 
     def close(self) -> None:
         """Stop the streams and the clock (the sources close with their units)."""

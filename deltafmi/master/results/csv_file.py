@@ -184,20 +184,23 @@ class CsvWriter:
             else:
                 size = self._format_rows(self._block.ctypes.data, n, self._block.shape[1], self._integer,
                                          self._text_out)
-                data = ctypes.string_at(self._text_out, size)
-                ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == 10) + 1
+                data = memoryview(self._text_out)[:size]  # written before the buffer is used again
+                ends = None  # one row a line: found from the text if a write fails
                 times = self._block[:n, 0]
-            self._emit(data, ends, times)
+            self._emit(data, ends, times, n)
         self._last_flush = _time.monotonic()
 
-    def _emit(self, data: bytes, ends: np.ndarray, times: Sequence[float]) -> None:
-        """Write ``data``, rows ending at byte offsets ``ends`` (the header when ``times`` is empty);
-        on a failed write cut the file back to its last whole row and raise ResultWriteError."""
+    def _emit(self, data: Any, ends: Optional[np.ndarray], times: Sequence[float], n_rows: int = 0) -> None:
+        """Write ``data`` (bytes-like), rows ending at byte offsets ``ends`` (None: ``n_rows`` rows
+        of one line each; the header when ``times`` is empty); on a failed write cut the file
+        back to its last whole row and raise ResultWriteError."""
         written = 0
         try:
             while written < len(data):
                 written += os.write(self._fd, data[written:])
         except OSError as exc:
+            if ends is None:
+                ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == 10) + 1
             whole = int(np.searchsorted(ends, written, side="right"))  # rows entirely written
             keep = int(ends[whole - 1]) if whole else 0
             try:
@@ -212,7 +215,7 @@ class CsvWriter:
             raise self._failed from None
         self._size += written
         if len(times):
-            self.rows_written += len(ends)
+            self.rows_written += len(ends) if ends is not None else n_rows
             self._last_time = float(times[-1])
 
     def fail(self) -> Path:

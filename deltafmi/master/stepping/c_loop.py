@@ -33,12 +33,13 @@ from deltafmi.toolchain import plain_c_library
 from .explicit_rk import ExplicitRungeKutta
 from .unit_base import Unit, _Inputs, _Outputs, function_address
 
-__all__ = ["CLOCK_INSIDE", "FETCH", "NativeLoop", "PULL", "RAN", "RK_FAILED", "ROWS_FULL", "STATE_EVENT", "STEP",
-           "STEP_EVENT", "STEP_RETURNED", "TERMINATED", "UNSETTLED"]
+__all__ = ["BEHIND", "CLOCK_INSIDE", "FETCH", "NativeLoop", "PULL", "RAN", "RK_FAILED", "ROWS_FULL", "STATE_EVENT",
+           "STEP", "STEP_EVENT", "STEP_RETURNED", "TERMINATED", "UNSETTLED"]
 
 SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP, SET_BOOL3, GET_BOOL3, CLOCK_TICK = range(9)
 #: why a C run stopped
-RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED, CLOCK_INSIDE, UNSETTLED = range(10)
+RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED, CLOCK_INSIDE, UNSETTLED, \
+    BEHIND = range(11)
 #: the FMI 3.0 type the C loop exchanges on each bus (others: the Python loop)
 _FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 _SET, _GET = {"Real": SET_REAL, "Integer": SET_INT, "Boolean": SET_INT}, \
@@ -71,25 +72,36 @@ class _RowPart(ctypes.Structure):
     _fields_ = [("bus", c_void_p), ("is_int", c_int), ("n", c_size_t), ("index", c_void_p), ("columns", c_void_p)]
 
 
+class _Pace(ctypes.Structure):
+    _fields_ = [("t0", c_double), ("wall0", c_double), ("speed", c_double), ("spin", c_double), ("period", c_double),
+                ("released", c_double), ("lateness", c_void_p), ("count", c_void_p), ("capacity", c_long),
+                ("late", c_void_p), ("busy", c_void_p), ("behind", c_void_p), ("stop_behind", c_int),
+                ("last_busy", c_double)]
+
+
 class _Plan(ctypes.Structure):
     _fields_ = [("ops", POINTER(_Op)), ("n_ops", c_size_t), ("parts", POINTER(_RowPart)), ("n_parts", c_size_t),
                 ("width", c_size_t), ("start", c_double), ("h", c_double), ("stop", c_double),
                 ("n_steps", c_long), ("last", c_long), ("every", c_long),
                 ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
-                ("rk_step", c_double), ("op_seconds", c_void_p)]
+                ("rk_step", c_double), ("op_seconds", c_void_p), ("pace", POINTER(_Pace))]
 
 
-_kernel: Optional[Any] = None
+_kernels: dict = {}
 
 
-def _steps_function() -> Any:
-    global _kernel
-    if _kernel is None:
-        library = ctypes.PyDLL(str(plain_c_library(Path(__file__).parent / "native" / "fixed_step.c")))
-        _kernel = library.deltafmi_fixed_steps
-        _kernel.argtypes = [POINTER(_Plan), c_long, c_long, c_void_p, c_long, POINTER(c_long), POINTER(c_long)]
-        _kernel.restype = c_int
-    return _kernel
+def _steps_function(release_gil: bool = False) -> Any:
+    """The C loop's entry, called with the GIL held (an FMU that runs Python enters it without
+    taking the GIL again) or, for a paced run that mostly waits, released (the process's other
+    Python threads run meanwhile; our FMUs take the GIL where they run Python)."""
+    kernel = _kernels.get(release_gil)
+    if kernel is None:
+        loader = ctypes.CDLL if release_gil else ctypes.PyDLL
+        library = loader(str(plain_c_library(Path(__file__).parent / "native" / "fixed_step.c")))
+        kernel = _kernels[release_gil] = library.deltafmi_fixed_steps
+        kernel.argtypes = [POINTER(_Plan), c_long, c_long, c_void_p, c_long, POINTER(c_long), POINTER(c_long)]
+        kernel.restype = c_int
+    return kernel
 
 
 def _pointer(array: Optional[np.ndarray]) -> Optional[int]:
@@ -174,7 +186,10 @@ class NativeLoop:
         width = len(sampler.row)
         self.rows = np.empty((block_rows, width + 1))
         self.plan = _Plan(self._ops_array, len(ops), self._parts_array, len(parts), width, start, h, stop,
-                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None)
+                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None, None)
+        self._pace: Optional[_Pace] = None
+        self._paced: Optional[Any] = None
+        self._count = np.zeros(1, dtype=np.int_)
         #: set :meth:`timed` to have the C loop add up the wall time of each operation
         self.op_seconds: Optional[np.ndarray] = None
         self._run = _steps_function()
@@ -269,6 +284,39 @@ class NativeLoop:
                 self._keep.append(unit.solver)
         return True
 
+    def release_gil(self) -> None:
+        """Run the steps with the GIL released (the process's other Python threads run meanwhile;
+        an FMU that runs Python takes the GIL there)."""
+        self._run = _steps_function(release_gil=True)
+
+    def pace(self, pacer: Any, slots: Sequence[Optional[int]]) -> None:
+        """Wait for every point's wall-clock time in C, as ``pacer`` (a started
+        :class:`~deltafmi.master.live.pacing.Pacer`) would, writing its lateness record and the
+        measurements to the Real bus addresses ``slots`` (lateness, busy, behind; None: not on
+        the bus); see :meth:`paced_points`."""
+        self._paced = pacer
+        self._pace = _Pace(t0=pacer._t0, wall0=pacer._wall0, speed=pacer.speed, spin=pacer.spin, period=pacer.period,
+                           released=pacer.released, lateness=pacer._lateness.ctypes.data,
+                           count=self._count.ctypes.data, capacity=len(pacer._lateness),
+                           late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error))
+        self.plan.pace = ctypes.pointer(self._pace)
+        self._run = _steps_function(release_gil=True)
+
+    def _before_paced(self) -> None:
+        pacer = self._paced
+        self._count[0] = pacer._count
+        self._pace.t0, self._pace.wall0, self._pace.released = pacer._t0, pacer._wall0, pacer.released
+
+    def _after_paced(self, times: np.ndarray) -> None:
+        """The pacer's record of the points the C run released at ``times``."""
+        pacer = self._paced
+        first, pacer._count = pacer._count, int(self._count[0])
+        pacer.released = self._pace.released
+        lateness = pacer._lateness[first:pacer._count]
+        if len(lateness):
+            pacer.late, pacer.busy = float(lateness[-1]), self._pace.last_busy
+        pacer.note_released(times[:len(lateness)], lateness)
+
     def timed(self) -> None:
         """From now on add each operation's wall seconds to :attr:`op_seconds` (for benchmarks)."""
         self.op_seconds = np.zeros(max(1, len(self.op_action)))
@@ -288,12 +336,20 @@ class NativeLoop:
         for unit, _, box in self._me:
             box[0] = unit.solver.t
             self._indicators[unit.name].take(unit.solver)
+        if self._paced is not None:
+            self._before_paced()
         why = self._run(ctypes.byref(self.plan), k, k_end, self.rows.ctypes.data, len(self.rows),
                         ctypes.byref(self._k_done), ctypes.byref(self._n_rows))
         for unit, _, box in self._me:
             unit.solver.t = float(box[0])
             self._indicators[unit.name].give(unit.solver)
-        return why, self._k_done.value, self._n_rows.value
+        done = self._k_done.value
+        if self._paced is not None:
+            plan = self.plan
+            points = np.arange(k + 1, done + 1)  # the steps k ... done - 1 completed: their end points
+            times = np.where(points < plan.n_steps, plan.start + points * plan.h, plan.stop)
+            self._after_paced(times)
+        return why, done, self._n_rows.value
 
     def locate(self, unit: Any) -> None:
         """After a STATE_EVENT in ``unit``: bisect the Runge-Kutta step that crossed, as

@@ -32,7 +32,8 @@ from deltafmi.errors import BadInput, Interrupted, SimulationError
 from deltafmi.toolchain import BuildError
 
 from ..live.pacing import FellBehind
-from ..results.csv_file import RowSampler
+from ..results.background import BackgroundRows
+from ..results.csv_file import CsvWriter, RowSampler
 from ..results.safe_file import check_writable
 from ..results.writers import write_rows_to, writer_for
 from ..results.progress import Progress, Summary, Termination
@@ -43,15 +44,19 @@ from .explicit_rk import RungeKuttaError, step_failure
 from .fmi3_units import unsettled
 from deltafmi.master.stepping.algebraic_loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
-                          STEP_RETURNED, TERMINATED, UNSETTLED, NativeLoop)
+                          STEP_RETURNED, TERMINATED, UNSETTLED, BEHIND, NativeLoop)
 from .stop_signals import StopSignals
 from .unit_base import instant_margin
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 __all__ = ["Master", "NativeLoop"]
 
-#: steps per call of the C loop (stop signals and progress are looked at in between)
+#: steps of the first call of the C loop; later calls take twice as many while a call is shorter
+#: than _C_SECONDS, up to _C_MAX_STEPS (stop signals and progress are looked at in between)
 _C_STEPS = 64
+_C_MAX_STEPS = 4096
+_C_SECONDS = 0.005
+_C_ROWS_BYTES = 8 << 20
 
 
 class _FixedGrid(NamedTuple):
@@ -454,32 +459,56 @@ class Master:
             actions = [(u, action, u.step_multiple) for u in ordered for action in (PULL, STEP, FETCH)]
         else:
             actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
-        native = None
-        if self.native and self.live is None and NativeLoop.fits(ordered, self.sampler):
-            try:
-                native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
-            except BuildError as exc:  # no compiler and no prebuilt loop: the same steps in Python
-                self.warn(f"stepping in Python: {exc}")
+        native, live, most = None, self.live, _C_MAX_STEPS
+        if self.native and (live is None or live.paced_in_c()):
+            # a live source's unit has nothing to step: the C loop leaves it out (its values reach
+            # the bus when it is sampled between the C loop's runs)
+            stepped = [u for u in ordered if getattr(u, "interface", None) != "LIVE"]
+            if NativeLoop.fits(stepped, self.sampler):
+                # room for a call's rows, at most _C_ROWS_BYTES (a call with more rows ends early: ROWS_FULL)
+                rows = min(_C_MAX_STEPS, n_steps + 1, max(64, _C_ROWS_BYTES // (8 * (len(self.sampler.row) + 1))))
+                try:
+                    native = NativeLoop([a for a in actions if getattr(a[0], "interface", None) != "LIVE"],
+                                        self.sampler, start, h, stop, n_steps, last, self.every, block_rows=rows)
+                except BuildError as exc:  # no compiler and no prebuilt loop: the same steps in Python
+                    self.warn(f"stepping in Python: {exc}")
+        if native is not None:
+            if type(self.writer) is CsvWriter:
+                # the C loop's blocks become text on a thread of their own while it steps on
+                # (it releases the GIL for that)
+                self.writer = BackgroundRows(self.writer)
+                native.release_gil()
+            if live is not None:
+                native.pace(live.pacer, live.clock_slots())
+                live.pacer.restart()
+                most = live.points_between_samples()
         self._fixed_actions, self._fixed_native = actions, native
         self._fixed_grid = _FixedGrid(start, stop, h, n_steps, last)
+        # steps per call of the C loop: it grows while a call is short (see _C_STEPS)
+        self._fixed_chunk, self._fixed_most = min(_C_STEPS if live is None else most, most), most
 
     def advance(self, k_end: int) -> None:
         """Take the fixed steps of :meth:`begin_fixed_steps` until :attr:`steps` is ``k_end``."""
         actions, native, fixed = self._fixed_actions, self._fixed_native, self._fixed_grid
         n_steps = min(k_end, fixed.n_steps)
         stop_signals, progress = self.stop_signals, self.progress
-        k = self.steps
+        k, chunk, most = self.steps, self._fixed_chunk, self._fixed_most
         while k < n_steps:
             if stop_signals.received:
                 raise KeyboardInterrupt
             if native is not None and native.ready():
-                k = self._steps_in_c(native, fixed, k, min(n_steps, k + _C_STEPS))
+                begin = _time.perf_counter()
+                k = self._steps_in_c(native, fixed, k, min(n_steps, k + chunk))
+                if chunk < most and _time.perf_counter() - begin < _C_SECONDS:
+                    chunk = self._fixed_chunk = min(2 * chunk, most)
                 progress.update(self.time)
             else:
                 self._step_in_python(actions, fixed, k)
                 if k & 63 == 0:
                     progress.update(self.time)
                 k += 1
+        if isinstance(self.writer, BackgroundRows):
+            self.writer.drain()  # the stepping ends with its rows written
 
     def _step_in_python(self, actions: Sequence[Tuple[Any, str, int]], grid: "_FixedGrid", k: int,
                         first: int = 0, held: Optional[Tuple[bool, int]] = None) -> None:
@@ -513,12 +542,20 @@ class Master:
         """Steps ``k`` ... ``k_end - 1`` in C as far as they go, the step where C stopped (an
         event, a failure, a termination) finished here; returns the next step to take."""
         why, done, rows = native.run(k, k_end)
+        live = self.live
+        if live is not None and done > k:
+            t_done = grid.start + done * grid.h if done < grid.n_steps else grid.stop
+            live.after_c_points(t_done)
+            if rows and native.rows[rows - 1, 0] == t_done:  # its row shows what the sources gave by then
+                native.rows[rows - 1, 1:] = self.sampler.sample()
         if rows:
             self._record_rows(native.rows[:rows])
         if done > k:
             self.steps = done
             self.time = self.step_end = grid.start + done * grid.h if done < grid.n_steps else grid.stop
-        if why in (RAN, ROWS_FULL):
+        if live is not None and live.pacer.failure is not None:
+            raise live.pacer.failure
+        if why in (RAN, ROWS_FULL, BEHIND):
             self._check_bus(self.time)  # the rows held the recorded variables, this the connected ones
             return done
         # step `done` stopped inside: the state the Python loop would have there

@@ -503,6 +503,15 @@ def loop_residual(p: DeltaParams, q: ArrayLike) -> float:
     return math.hypot(*h)
 
 
+def loop_drifted(p: DeltaParams, q: ArrayLike, tolerance: float) -> bool:
+    """Whether the loop-closure residual |h(q)| (as the plant's ``residual`` output computes it)
+    exceeds ``tolerance`` (never for a tolerance of 0): the drift check after an integrator step."""
+    if not tolerance > 0.0:
+        return False
+    h, _ = _closure(p.l0 - p.l3, p.l1, p.l2, _as_list(q), [0.0] * 9)
+    return math.sqrt(sum(t * t for t in h)) > tolerance
+
+
 def project_to_constraints(p: DeltaParams, q: ArrayLike, v: ArrayLike, *, tol: float = 1e-13,
                            max_iterations: int = 8) -> tuple[np.ndarray, np.ndarray]:
     """Nearest (q, v) on the constraint manifold h(q) = 0, H(q) v = 0 in the mass-matrix metric

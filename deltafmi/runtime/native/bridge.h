@@ -49,6 +49,9 @@ typedef struct {
     DfmiUpdateFn kernel_update;
     void *kernel_attributes;
     const int *kernels_ready;
+    /* The drift check of fmi2CompletedIntegratorStep compiled (NULL: none): writes nonzero to
+     * its last argument when the states drifted (a step event), as needs_projection() says. */
+    DfmiKernelFn kernel_drift;
 } DfmiLayout;
 
 typedef enum {

@@ -519,7 +519,15 @@ int dfmi_update_discrete_states(Instance *c, int flags[5], double *next_event_ti
 int dfmi_completed_integrator_step(Instance *c, int *enter_event_mode, int *terminate) {
     *enter_event_mode = 0;
     int status = DFMI_OK;
-    if (c->L.watches_drift) status = bridge_completed_step(c->py, c->time, enter_event_mode);
+    const DfmiLayout *L = &c->L;
+    double drifted = 0.0;
+    if (L->watches_drift) {
+        if (L->kernel_drift && *L->kernels_ready && c->state != InitializationMode &&
+            L->kernel_drift(L->kernel_attributes, c->time, L->real, L->ints, &drifted) == 0)
+            *enter_event_mode = drifted != 0.0; /* the compiled check: no Python */
+        else
+            status = bridge_completed_step(c->py, c->time, enter_event_mode);
+    }
     /* the component may have ended the simulation in any evaluation since the last step */
     *terminate = dfmi_terminated(c);
     return dfmi_settle(c, status);

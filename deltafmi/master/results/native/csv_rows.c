@@ -11,7 +11,7 @@
  * deltafmi/master/results.py) and handed over once. Plain C, no Python.
  */
 #include <stdint.h>
-#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 typedef unsigned __int128 uint128_t;
@@ -163,6 +163,58 @@ static void shortest(uint64_t ieee_mantissa, uint32_t ieee_exponent, uint64_t *d
     *exponent = e10 + removed;
 }
 
+/* "00" ... "99": two digits a division */
+static const char DIGIT_PAIRS[200] =
+    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+    "8081828384858687888990919293949596979899";
+
+/* the decimal digits of v (> 0, at most 20 of them) */
+static inline int decimal_length(uint64_t v)
+{
+    int n = 1;
+    for (uint64_t bound = 10; n < 20 && v >= bound; bound *= 10) n++;
+    return n;
+}
+
+/* v's nd decimal digits into out[0 .. nd - 1] */
+static inline void write_digits(uint64_t v, char *out, int nd)
+{
+    char *end = out + nd;
+    while (v >= 100) {
+        const uint64_t q = v / 100;
+        const unsigned r = (unsigned)(v - 100 * q);
+        end -= 2;
+        memcpy(end, DIGIT_PAIRS + 2 * r, 2);
+        v = q;
+    }
+    if (v >= 10) {
+        end -= 2;
+        memcpy(end, DIGIT_PAIRS + 2 * v, 2);
+    } else {
+        *--end = (char)('0' + v);
+    }
+}
+
+/* Python's "%d" % int(x) for a double holding an integer in range (the buses' 32-bit ones) */
+static int format_integer(double x, char *out)
+{
+    long long v = (long long)x;
+    int n = 0;
+    uint64_t magnitude = (uint64_t)v;
+    if (v < 0) {
+        out[n++] = '-';
+        magnitude = 0 - magnitude;
+    }
+    const int nd = decimal_length(magnitude ? magnitude : 1);
+    if (!magnitude) {
+        out[n] = '0';
+        return n + 1;
+    }
+    write_digits(magnitude, out + n, nd);
+    return n + nd;
+}
+
 /* repr(x) into out (room for 32 chars); returns its length */
 static int repr_double(double x, char *out)
 {
@@ -190,13 +242,8 @@ static int repr_double(double x, char *out)
     int32_t e10;
     shortest(ieee_mantissa, ieee_exponent, &mantissa, &e10);
     char digits[24];
-    int nd = 0;
-    for (uint64_t m = mantissa; m; m /= 10) digits[nd++] = (char)('0' + m % 10);
-    for (int i = 0; i < nd / 2; i++) {
-        char c = digits[i];
-        digits[i] = digits[nd - 1 - i];
-        digits[nd - 1 - i] = c;
-    }
+    const int nd = decimal_length(mantissa);
+    write_digits(mantissa, digits, nd);
     const int exponent = e10 + nd - 1; /* of the first digit */
     if (exponent >= -4 && exponent < 16) {
         if (exponent < 0) {
@@ -233,21 +280,35 @@ static int repr_double(double x, char *out)
 /* n_rows rows of `width` doubles (row-major) as lines "v,v,...\n" into out (room for
  * n_rows * width * 32 chars); integer[j] != 0 writes column j as an integer (truncated, as
  * Python's "%d" does; the master's Integer and Boolean buses hold 32-bit integers).
+ * A value with the bits of the one above it in its column is copied from that one's text.
  * Returns the number of chars written. */
 __attribute__((visibility("default")))
 size_t deltafmi_csv_rows(const double *rows, long n_rows, long width, const int *integer, char *out)
 {
     size_t n = 0;
+    size_t *above = n_rows > 1 ? malloc((size_t)width * 2 * sizeof *above) : NULL; /* text start, length */
     for (long i = 0; i < n_rows; i++) {
         const double *row = rows + i * width;
+        const double *previous = row - width;
         for (long j = 0; j < width; j++) {
             if (j) out[n++] = ',';
-            if (integer[j])
-                n += (size_t)sprintf(out + n, "%lld", (long long)row[j]);
-            else
-                n += (size_t)repr_double(row[j], out + n);
+            size_t length;
+            if (above && i && memcmp(&row[j], &previous[j], sizeof(double)) == 0) {
+                length = above[2 * j + 1];
+                memcpy(out + n, out + above[2 * j], length);
+            } else if (integer[j]) {
+                length = (size_t)format_integer(row[j], out + n);
+            } else {
+                length = (size_t)repr_double(row[j], out + n);
+            }
+            if (above) {
+                above[2 * j] = n;
+                above[2 * j + 1] = length;
+            }
+            n += length;
         }
         out[n++] = '\n';
     }
+    free(above);
     return n;
 }

@@ -10,13 +10,18 @@
  * its outputs (any event, early return or termination hands back), fmi3CompletedIntegratorStep
  * with fmi3Boolean flags; before the fmi3DoStep of a unit with periodic input Clocks, their ticks
  * due at the step's start (CLOCK_TICK: fmi3EnterEventMode, fmi3SetClock, fmi3UpdateDiscreteStates
- * until done, fmi3EnterStepMode; a tick inside the step hands the step back). Plain C, no Python.
+ * until done, fmi3EnterStepMode; a tick inside the step hands the step back). A paced run
+ * (Plan.pace) waits at every communication point for its wall-clock time as
+ * deltafmi/master/live/pacing.py's Pacer.wait does (sleep until shortly before, then poll the
+ * clock), notes how late it came and writes the pacing measurements to the bus before the row is
+ * recorded. Plain C, no Python.
  */
 #include <stdbool.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <time.h>
+#include <errno.h>
 
 typedef unsigned int fmi2ValueReference;
 typedef int (*SetReal)(void *, const fmi2ValueReference *, size_t, const double *);
@@ -51,7 +56,8 @@ enum { SET_REAL = 0, GET_REAL = 1, SET_INT = 2, GET_INT = 3, DO_STEP = 4, ME_STE
 enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_FULL = 5, STATE_EVENT = 6,
        STEP_RETURNED = 7, /* fmi3DoStep: an event, an early return or a termination (Op.flags) */
        CLOCK_INSIDE = 8, /* CLOCK_TICK: a tick inside the step; nothing done, Python takes the step */
-       UNSETTLED = 9 /* CLOCK_TICK: fmi3UpdateDiscreteStates still asked for more after MAX_EVENT_ITERATIONS */ };
+       UNSETTLED = 9, /* CLOCK_TICK: fmi3UpdateDiscreteStates still asked for more after MAX_EVENT_ITERATIONS */
+       BEHIND = 10 /* paced, Pace.stop_behind: a point came more than a paced step late (its row recorded) */ };
 enum { MAX_EVENT_ITERATIONS = 1000 }; /* fmi3_units._MAX_EVENT_ITERATIONS */
 /* Op.flags after fmi3DoStep */
 enum { EVENT_HANDLING_NEEDED = 1, TERMINATE_SIMULATION = 2, EARLY_RETURN = 4 };
@@ -118,6 +124,19 @@ typedef struct {
     const intptr_t *columns;
 } RowPart;
 
+/* A paced run's clock (Pacer's): point t is due at wall0 + (t - t0) / speed on CLOCK_MONOTONIC
+ * (Python's time.perf_counter on Linux) */
+typedef struct {
+    double t0, wall0, speed, spin, period;
+    double released;         /* in/out: wall time the last point was released */
+    double *lateness;        /* out: how late each point came, from lateness[*count] on ... */
+    long *count;
+    long capacity;           /* ... while *count < capacity */
+    double *late, *busy, *behind; /* NULL or the bus slots of the measurements (live.run._Measurements) */
+    int stop_behind;         /* stop (BEHIND) after a point later than a whole paced step */
+    double last_busy;        /* out: wall seconds from the release of the point before the last to its wait */
+} Pace;
+
 typedef struct {
     Op *ops;
     size_t n_ops;
@@ -137,6 +156,7 @@ typedef struct {
     double rk_time;          /* RK_FAILED, STATE_EVENT: the time its Runge-Kutta step started from */
     double rk_step;          /* STATE_EVENT: that step's size (the states it started from in op->x0) */
     double *op_seconds;      /* NULL, or per operation: wall seconds spent in it (benchmarks) */
+    Pace *pace;              /* NULL: unpaced */
 } Plan;
 
 static double now(void)
@@ -144,6 +164,39 @@ static double now(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void sleep_for(double seconds)
+{
+    struct timespec ts;
+    ts.tv_sec = (time_t)seconds;
+    ts.tv_nsec = (long)((seconds - (double)ts.tv_sec) * 1e9);
+    while (nanosleep(&ts, &ts) != 0 && errno == EINTR) {
+    }
+}
+
+/* Pacer.wait for point t, then the measurements on the bus; returns 1 when it came more than a
+ * whole paced step late. A stop signal is looked at between calls (a call lasts about a
+ * millisecond of wall time, see master.py). */
+static int pace_to(Pace *c, double t)
+{
+    double now_ = now();
+    double busy = now_ - c->released;
+    double deadline = c->wall0 + (t - c->t0) / c->speed;
+    while (deadline - now_ > c->spin + 1e-6) {
+        double left = deadline - now_ - c->spin;
+        sleep_for(left < 0.05 ? left : 0.05);
+        now_ = now();
+    }
+    while (now_ < deadline) now_ = now();
+    double late = now_ - deadline;
+    c->released = now_;
+    if (*c->count < c->capacity) c->lateness[(*c->count)++] = late;
+    if (c->late) *c->late = late;
+    c->last_busy = busy;
+    if (c->busy) *c->busy = busy;
+    if (c->behind) *c->behind = late > c->period ? 1.0 : 0.0;
+    return late > c->period;
 }
 
 /* the event indicators at (t, x) into z (as the master's Python does: time, states, indicators) */
@@ -429,10 +482,16 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
                 return stop;
             }
         }
+        double t_next = next < p->n_steps ? p->start + (double)next * p->h : p->stop;
+        int late = p->pace ? pace_to(p->pace, t_next) : 0;
         if (due) {
-            double t_next = next < p->n_steps ? p->start + (double)next * p->h : p->stop;
             record(p, t_next, rows + written * (long)(p->width + 1));
             written++;
+        }
+        if (late && p->pace->stop_behind) {
+            *k_done = next;
+            *n_rows = written;
+            return BEHIND;
         }
     }
     *k_done = k;

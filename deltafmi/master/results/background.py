@@ -1,0 +1,116 @@
+"""A result writer whose blocks of rows are formatted and written on a thread of their own.
+
+The master's C loop hands its recorded rows over in blocks; turning them into CSV text and
+writing it costs about as much as a third of a flagship step. :class:`BackgroundRows` takes a
+block (a copy) and returns at once; one thread formats and writes the blocks in order while the
+C loop, which releases the GIL, computes the next ones. Every other use of the writer (a single
+row, a flush, close, fail, ``rows_written``, ...) first waits until the blocks handed over are
+written, so rows reach the file in the order they were recorded, and an error the thread met
+(:class:`~deltafmi.errors.ResultWriteError`: the disk filled) is raised there, once, as the
+writer would have raised it.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+from typing import Any, Optional
+
+import numpy as np
+
+from .writers import write_rows_to
+
+__all__ = ["BackgroundRows"]
+
+
+class BackgroundRows:
+    """``writer`` with :meth:`write_rows` on a thread (see the module docstring)."""
+
+    def __init__(self, writer: Any) -> None:
+        self._writer = writer
+        self._blocks: "queue.Queue[Optional[np.ndarray]]" = queue.Queue()
+        self._error: Optional[Any] = None  # what writing a block raised (_Spent once raised here)
+        self._thread: Optional[threading.Thread] = None
+
+    def write_rows(self, rows: np.ndarray) -> None:
+        """Queue rows ``time, values...`` (copied); raises what an earlier block met."""
+        self._raise()
+        if isinstance(self._error, _Spent):  # the writer refuses rows now: let it say so
+            write_rows_to(self._writer, rows)
+            return
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._work, name="deltafmi-result-rows", daemon=True)
+            self._thread.start()
+        self._blocks.put(np.array(rows, copy=True))
+
+    def _work(self) -> None:
+        while True:
+            rows = self._blocks.get()
+            try:
+                if rows is None:
+                    return
+                if self._error is None:  # after a failure the rest is not written
+                    write_rows_to(self._writer, rows)
+            except BaseException as exc:  # noqa: BLE001 - handed to the master's thread
+                self._error = exc
+            finally:
+                self._blocks.task_done()
+
+    def drain(self) -> None:
+        """Wait until every block handed over is written; raise what writing one met."""
+        if self._thread is not None:
+            self._blocks.join()
+        self._raise()
+
+    def _raise(self) -> None:
+        error = self._error
+        if error is not None and not isinstance(error, _Spent):
+            self._error = _Spent(error)  # later blocks are dropped, as the writer refuses them
+            raise error
+
+    def stop(self) -> None:
+        """Write what is queued and end the thread (idempotent); raises what writing met."""
+        if self._thread is not None:
+            self._blocks.put(None)
+            self._thread.join()
+            self._thread = None
+        self._raise()
+
+    def write(self, time: float, values: np.ndarray) -> None:
+        self.drain()
+        self._writer.write(time, values)
+
+    def flush(self) -> None:
+        self.drain()
+        self._writer.flush()
+
+    def close(self) -> None:
+        try:
+            self.stop()
+        finally:
+            self._writer.close()
+
+    def fail(self) -> Any:
+        try:
+            self.stop()
+        except BaseException:  # noqa: BLE001 - failing already: the rows that fit are kept
+            pass
+        return self._writer.fail()
+
+    @property
+    def rows_written(self) -> int:
+        if self._thread is not None:
+            self._blocks.join()
+        return self._writer.rows_written
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        self.drain()
+        return getattr(self._writer, name)
+
+
+class _Spent:
+    """An error already raised: the blocks after it are dropped, nothing is raised again."""
+
+    def __init__(self, error: BaseException) -> None:
+        self.error = error
