@@ -11,14 +11,15 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Tuple
-
-import jsonschema
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 
 from deltafmi.errors import Diagnostic, ScenarioError
 
 from .schema_check import dotted, load_mapping, read_document, schema_diagnostics
 from .yaml_lines import LineMap
+
+if TYPE_CHECKING:
+    import jsonschema
 
 __all__ = ["Adaptive", "ComponentSpec", "ConnectionSpec", "Experiment", "LiveSpec", "Loops", "MasterSettings",
            "OutputSpec", "Parameter", "ResultSettings", "Scenario", "StreamSpec", "grid_steps", "load_scenario",

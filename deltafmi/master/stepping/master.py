@@ -45,6 +45,7 @@ from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_
                           STEP_RETURNED, TERMINATED, UNSETTLED, NativeLoop)
 from .stop_signals import StopSignals
 from .unit_base import instant_margin
+from .unpacked import kept_unpacked
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 __all__ = ["Master", "NativeLoop"]
@@ -292,10 +293,14 @@ class Master:
         for component in self.system.components:
             fmu = self.fmus(component) if self.fmus is not None else None
             if fmu is None and component.fmu not in extracted:
-                if not self._unzip_root:  # FMUs lent by a study's pool need none
-                    self._unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
-                target = Path(self._unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
-                extracted[component.fmu] = fmpy.extract(str(component.fmu), unzipdir=str(target))
+                kept = kept_unpacked(component.fmu)  # a built FMU: unpacked once, by the first run
+                if kept is not None:
+                    extracted[component.fmu] = kept
+                else:
+                    if not self._unzip_root:  # FMUs lent by a study's pool need none
+                        self._unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
+                    target = Path(self._unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
+                    extracted[component.fmu] = fmpy.extract(str(component.fmu), unzipdir=str(target))
             unit = unit_for(component, extracted[component.fmu] if fmu is None else fmu.unzipDirectory, fmu)
             if hasattr(unit, "on_event"):  # ME units, and FMI 3.0 CS units in event mode
                 unit.on_event = self._on_event
