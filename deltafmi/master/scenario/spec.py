@@ -109,6 +109,8 @@ class MasterSettings:
     realtime: Realtime = field(default_factory=Realtime)
     #: the most communication steps a fixed-step run may take (:data:`MAX_STEPS`)
     max_steps: int = MAX_STEPS
+    #: threads stepping the units that do not depend on each other within a step (1: the master's only)
+    threads: int = 1
 
 
 @dataclass(frozen=True)
@@ -422,7 +424,7 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
     master = MasterSettings(master_data.get("algorithm", "gauss-seidel"), adaptive,
                             Loops(**master_data.get("loops", {})), bool(master_data.get("allow_nan", False)),
                             _realtime(master_data.get("realtime", False)),
-                            int(master_data.get("max_steps", MAX_STEPS)))
+                            int(master_data.get("max_steps", MAX_STEPS)), int(master_data.get("threads", 1)))
     components = tuple(
         ComponentSpec(
             name=name,

@@ -64,7 +64,8 @@ class _Op(ctypes.Structure):
                 ("flags", c_int), ("step_status", c_int), ("last_time", c_double),
                 ("clock_first", c_void_p), ("clock_count", c_void_p), ("clock_interval", c_void_p),
                 ("clock_activated", c_void_p), ("due_vrs", c_void_p), ("on", c_void_p),
-                ("enter_event_mode", c_void_p), ("update_discrete_states", c_void_p), ("enter_step_mode", c_void_p)]
+                ("enter_event_mode", c_void_p), ("update_discrete_states", c_void_p), ("enter_step_mode", c_void_p),
+                ("group", c_int), ("group_status", c_int)]
 
 
 class _RowPart(ctypes.Structure):
@@ -76,7 +77,7 @@ class _Plan(ctypes.Structure):
                 ("width", c_size_t), ("start", c_double), ("h", c_double), ("stop", c_double),
                 ("n_steps", c_long), ("last", c_long), ("every", c_long),
                 ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
-                ("rk_step", c_double), ("op_seconds", c_void_p)]
+                ("rk_step", c_double), ("op_seconds", c_void_p), ("threads", c_int)]
 
 
 _kernel: Optional[Any] = None
@@ -149,11 +150,14 @@ class NativeLoop:
     """The fixed-step loop of one master run as a C plan; see the module docstring.
 
     ``actions``: (unit, PULL | STEP | FETCH, step multiple) in the order one step runs them;
-    ``sampler``: the master's row sampler (its parts are gathered in C as it gathers them).
+    ``sampler``: the master's row sampler (its parts are gathered in C as it gathers them);
+    ``groups``: per action, the group of a STEP that ``threads`` threads take at once with the
+    consecutive STEPs of its group (0: none; :mod:`.parallel` says which).
     """
 
     def __init__(self, actions: Sequence[Tuple[Unit, str, int]], sampler: Any, start: float, h: float,
-                 stop: float, n_steps: int, last: int, every: int, block_rows: int = 256) -> None:
+                 stop: float, n_steps: int, last: int, every: int, block_rows: int = 256,
+                 groups: Sequence[int] = (), threads: int = 1) -> None:
         self.actions = list(actions)
         self._keep: List[Any] = []  # what the plan points into
         ops: List[_Op] = []
@@ -163,6 +167,8 @@ class NativeLoop:
         self._indicators: dict = {}  # ME unit name -> its _Indicators
         for a, (unit, action, m) in enumerate(self.actions):
             for op, function in self._ops(unit, action, m):
+                if op.kind == DO_STEP and a < len(groups):
+                    op.group = groups[a]
                 self.op_action.append(a)
                 self.op_function.append(function)
                 ops.append(op)
@@ -174,7 +180,7 @@ class NativeLoop:
         width = len(sampler.row)
         self.rows = np.empty((block_rows, width + 1))
         self.plan = _Plan(self._ops_array, len(ops), self._parts_array, len(parts), width, start, h, stop,
-                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None)
+                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None, threads)
         #: set :meth:`timed` to have the C loop add up the wall time of each operation
         self.op_seconds: Optional[np.ndarray] = None
         self._run = _steps_function()

@@ -45,6 +45,7 @@ from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_
                           STEP_RETURNED, TERMINATED, UNSETTLED, NativeLoop)
 from .stop_signals import StopSignals
 from .unit_base import instant_margin
+from .parallel import StepPool, group_actions
 from .unpacked import kept_unpacked
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
@@ -127,6 +128,10 @@ class Master:
         self.fmus = fmus
         self.writer_class = writer_class
         self.native = native
+        #: threads stepping independent units at once (master.threads; parallel.py)
+        self.threads = scenario.master.threads
+        self._groups: Optional[Tuple[List[Any], List[int]]] = None  # (actions, their groups) of the fixed grid
+        self._pool: Optional[StepPool] = None
         #: Ctrl-C / SIGTERM: checked between steps (see :mod:`.stop_signals`)
         self.stop_signals = StopSignals()
         #: time of the last row written, None before the first
@@ -235,6 +240,9 @@ class Master:
         finally:
             for unit in self.units:
                 unit.close()
+            if self._pool is not None:
+                self._pool.close()
+                self._pool = None
             if self._unzip_root:
                 shutil.rmtree(self._unzip_root, ignore_errors=True)
                 self._unzip_root = ""
@@ -447,13 +455,18 @@ class Master:
         ordered = self.stepping_blocks()
         # on an exact grid every step is m * h (bit for bit what a plain loop passes to doStep)
         last = n_steps + 1 if abs(start + n_steps * h - stop) <= 1e-9 * h else n_steps
-        if self.algorithm == "gauss-seidel":
+        groups: List[int] = []
+        if self.threads > 1:  # independent units grouped to step at once (parallel.py)
+            actions, groups = group_actions(ordered, self.algorithm, self.system.links)
+        elif self.algorithm == "gauss-seidel":
             actions = [(u, action, u.step_multiple) for u in ordered for action in (PULL, STEP, FETCH)]
         else:
             actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
+        self._groups = (actions, groups) if any(groups) else None
         native = None
         if self.native and self.live is None and NativeLoop.fits(ordered, self.sampler):
-            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
+            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every,
+                                groups=groups, threads=self.threads)
         fixed = _FixedGrid(start, stop, h, n_steps, last)
         stop_signals, progress = self.stop_signals, self.progress
         k = 0
@@ -469,6 +482,11 @@ class Master:
                     progress.update(self.time)
                 k += 1
 
+    def _step_pool(self) -> StepPool:
+        if self._pool is None:
+            self._pool = StepPool(self.threads)
+        return self._pool
+
     def _step_in_python(self, actions: Sequence[Tuple[Any, str, int]], grid: "_FixedGrid", k: int,
                         first: int = 0, held: Optional[Tuple[bool, int]] = None) -> None:
         """Step ``k`` of the fixed grid from action ``first`` on (earlier ones done), and its row;
@@ -479,7 +497,21 @@ class Master:
         t = self.time = grid.start + k * grid.h
         n_steps, last, h = grid.n_steps, grid.last, grid.h
         self.step_end = grid.start + (k + 1) * h if k + 1 < n_steps else grid.stop
-        for unit, action, m in actions[first:]:
+        groups = self._groups[1] if self._groups is not None and self._groups[0] is actions else None
+        i = first
+        while i < len(actions):
+            unit, action, m = actions[i]
+            group = groups[i] if groups else 0
+            if group and (i == 0 or groups[i - 1] != group):  # a group from its start: at once, on the pool
+                end = i + 1
+                while end < len(actions) and groups[end] == group:
+                    end += 1
+                due = [(u, n) for u, _, n in actions[i:end] if k % n == 0]
+                self._step_pool().step([u for u, _ in due], t,
+                                       [n * h if k + n < last else grid.stop - t for _, n in due])
+                i = end
+                continue
+            i += 1
             if k % m:
                 continue
             if action == STEP:

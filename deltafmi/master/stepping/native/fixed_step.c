@@ -11,11 +11,23 @@
  * with fmi3Boolean flags; before the fmi3DoStep of a unit with periodic input Clocks, their ticks
  * due at the step's start (CLOCK_TICK: fmi3EnterEventMode, fmi3SetClock, fmi3UpdateDiscreteStates
  * until done, fmi3EnterStepMode; a tick inside the step hands the step back). Plain C, no Python.
+ *
+ * Parallel units (Plan.threads > 1): a run of consecutive DO_STEP operations of one group
+ * (Op.group > 0: FMI 2.0 Co-Simulation units of one step that take no input from one another, whose
+ * fmi2DoStep runs no Python) is stepped by the plan's threads at once, the calling thread among
+ * them; the calling thread lets go of Python's lock meanwhile (PyEval_SaveThread when the process
+ * has it), so that an FMU that calls back into Python (its logger) takes it instead of waiting for
+ * a thread that waits for it. Each step has the arguments it has in turn; the statuses are looked
+ * at in the group's order afterwards, so the first failing unit in stepping order is the one
+ * reported (the others of its group have taken the step too).
  */
+#include <dlfcn.h>
+#include <pthread.h>
 #include <stdbool.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <time.h>
 
 typedef unsigned int fmi2ValueReference;
@@ -108,6 +120,9 @@ typedef struct {
     Instance3 enter_event_mode;
     UpdateDiscrete3 update_discrete_states;
     Instance3 enter_step_mode;
+    /* parallel units */
+    int group;               /* DO_STEP: > 0: stepped at once with the consecutive ops of this group */
+    int group_status;        /* out: the status of its fmi2DoStep in the last group step */
 } Op;
 
 typedef struct {
@@ -137,6 +152,7 @@ typedef struct {
     double rk_time;          /* RK_FAILED, STATE_EVENT: the time its Runge-Kutta step started from */
     double rk_step;          /* STATE_EVENT: that step's size (the states it started from in op->x0) */
     double *op_seconds;      /* NULL, or per operation: wall seconds spent in it (benchmarks) */
+    int threads;             /* threads stepping a group (1: the calling thread only) */
 } Plan;
 
 static double now(void)
@@ -396,6 +412,118 @@ static void record(const Plan *p, double t, double *row)
     }
 }
 
+/* --- parallel units -------------------------------------------------------------------------- */
+enum { MAX_THREADS = 256 };
+typedef void *(*SaveThread)(void);
+typedef void (*RestoreThread)(void *);
+
+typedef struct {
+    Plan *p;
+    int n_workers;
+    pthread_t workers[MAX_THREADS];
+    pthread_mutex_t lock;
+    pthread_cond_t wake, done;
+    unsigned long round;     /* one per group step: the workers wait for the next */
+    int busy;                /* workers not yet through this round */
+    int quit;
+    size_t end;              /* the group: ops [next, end) */
+    size_t next;             /* the next op to take (atomic) */
+    long k;
+    double t;
+    SaveThread save_thread;  /* Python's, when the process has it */
+    RestoreThread restore_thread;
+} Pool;
+
+static void take_steps(Pool *pool)
+{
+    Plan *p = pool->p;
+    for (;;) {
+        size_t i = __atomic_fetch_add(&pool->next, 1, __ATOMIC_RELAXED);
+        if (i >= pool->end) return;
+        Op *o = &p->ops[i];
+        o->group_status = 0;
+        if (pool->k % o->multiple) continue;
+        double begin = p->op_seconds ? now() : 0.0;
+        long m = o->multiple;
+        double step = pool->k + m < p->last ? (double)m * p->h : p->stop - pool->t;
+        o->group_status = ((DoStep)o->function)(o->component, pool->t, step, o->no_prior_state);
+        if (p->op_seconds) p->op_seconds[i] += now() - begin;
+    }
+}
+
+static void *pool_worker(void *arg)
+{
+    Pool *pool = arg;
+    unsigned long seen = 0;
+    pthread_mutex_lock(&pool->lock);
+    for (;;) {
+        while (pool->round == seen && !pool->quit) pthread_cond_wait(&pool->wake, &pool->lock);
+        if (pool->quit) break;
+        seen = pool->round;
+        pthread_mutex_unlock(&pool->lock);
+        take_steps(pool);
+        pthread_mutex_lock(&pool->lock);
+        if (--pool->busy == 0) pthread_cond_signal(&pool->done);
+    }
+    pthread_mutex_unlock(&pool->lock);
+    return NULL;
+}
+
+/* The plan's worker threads (threads - 1 of them; none when it has no group or one thread). */
+static Pool *pool_start(Plan *p)
+{
+    int grouped = 0;
+    for (size_t i = 0; i < p->n_ops; i++) grouped |= p->ops[i].group > 0;
+    if (!grouped || p->threads < 2) return NULL;
+    Pool *pool = calloc(1, sizeof *pool); /* one per run: runs of other masters may go on meanwhile */
+    if (!pool) return NULL;                /* the group steps on the calling thread, one op at a time */
+    pool->p = p;
+    pool->save_thread = (SaveThread)dlsym(RTLD_DEFAULT, "PyEval_SaveThread");
+    pool->restore_thread = (RestoreThread)dlsym(RTLD_DEFAULT, "PyEval_RestoreThread");
+    if (!pool->save_thread || !pool->restore_thread) pool->save_thread = NULL, pool->restore_thread = NULL;
+    pthread_mutex_init(&pool->lock, NULL);
+    pthread_cond_init(&pool->wake, NULL);
+    pthread_cond_init(&pool->done, NULL);
+    int wanted = p->threads - 1 < MAX_THREADS ? p->threads - 1 : MAX_THREADS;
+    for (int i = 0; i < wanted; i++)
+        if (pthread_create(&pool->workers[pool->n_workers], NULL, pool_worker, pool) == 0) pool->n_workers++;
+    return pool; /* no worker started: the calling thread steps the group alone */
+}
+
+static void pool_stop(Pool *pool)
+{
+    if (!pool) return;
+    pthread_mutex_lock(&pool->lock);
+    pool->quit = 1;
+    pthread_cond_broadcast(&pool->wake);
+    pthread_mutex_unlock(&pool->lock);
+    for (int i = 0; i < pool->n_workers; i++) pthread_join(pool->workers[i], NULL);
+    pthread_cond_destroy(&pool->done);
+    pthread_cond_destroy(&pool->wake);
+    pthread_mutex_destroy(&pool->lock);
+    free(pool);
+}
+
+/* Steps ops [first, end) of one group at step k (time t) on the pool, the calling thread too. */
+static void group_step(Pool *pool, size_t first, size_t end, long k, double t)
+{
+    pthread_mutex_lock(&pool->lock);
+    pool->next = first;
+    pool->end = end;
+    pool->k = k;
+    pool->t = t;
+    pool->busy = pool->n_workers;
+    pool->round++;
+    pthread_cond_broadcast(&pool->wake);
+    pthread_mutex_unlock(&pool->lock);
+    void *state = pool->save_thread ? pool->save_thread() : NULL;
+    take_steps(pool);
+    pthread_mutex_lock(&pool->lock);
+    while (pool->busy) pthread_cond_wait(&pool->done, &pool->lock);
+    pthread_mutex_unlock(&pool->lock);
+    if (state) pool->restore_thread(state);
+}
+
 /* Steps k_begin, k_begin + 1, ... before k_end, every recorded row into `rows` (room for
  * max_rows). Returns why it stopped (RAN: k_end reached; ROWS_FULL: no room for the next
  * step's row; else the stop of operation plan->op in step *k_done); *k_done is the first step
@@ -408,6 +536,7 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
     int why = RAN;
     for (size_t i = 0; i < p->n_ops; i++)
         p->ops[i].holds_end = 0; /* Python may have called the FMUs since the last run */
+    Pool *pool = pool_start(p);
     for (; k < k_end; k++) {
         long next = k + 1;
         int due = next % p->every == 0 || next == p->n_steps;
@@ -418,6 +547,23 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
         double t = p->start + (double)k * p->h;
         for (size_t i = 0; i < p->n_ops; i++) {
             Op *o = &p->ops[i];
+            if (pool && o->group > 0) { /* the group's ops, then their statuses in order */
+                size_t end = i + 1;
+                while (end < p->n_ops && p->ops[end].group == o->group) end++;
+                group_step(pool, i, end, k, t);
+                for (; i < end; i++) {
+                    if (p->ops[i].group_status > FMI2_WARNING) {
+                        p->status = p->ops[i].group_status;
+                        p->op = (long)i;
+                        *k_done = k;
+                        *n_rows = written;
+                        pool_stop(pool);
+                        return FAILED;
+                    }
+                }
+                i = end - 1;
+                continue;
+            }
             if (k % o->multiple) continue;
             double begin = p->op_seconds ? now() : 0.0;
             int stop = run_op(p, o, k, t);
@@ -426,6 +572,7 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
                 p->op = (long)i;
                 *k_done = k;
                 *n_rows = written;
+                pool_stop(pool);
                 return stop;
             }
         }
@@ -435,6 +582,7 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
             written++;
         }
     }
+    pool_stop(pool);
     *k_done = k;
     *n_rows = written;
     return why;
