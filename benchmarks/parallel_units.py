@@ -7,9 +7,9 @@ Two systems of 8 independent Co-Simulation units, 1 ms communication steps:
   substeps of --substep seconds so that a step costs measurable time; coupled in a ring (Jacobi)
   or not at all (Gauss-Seidel). It shows what the threads themselves give.
 - ``delta``: 8 compiled DeltaRobot units as Co-Simulation FMUs (built from deltafmi.models), in
-  free fall. A deltafmi FMU runs its component's Python in every fmi2DoStep: it holds the GIL, so
-  the master steps it on its own thread whatever ``threads`` says, and the ratio stays near 1
-  until its step runs without Python.
+  free fall. A deltafmi FMU that runs its component's Python in every fmi2DoStep holds the GIL,
+  and the master steps it on its own thread whatever ``threads`` says (ratio near 1); one that
+  takes its steps in C (Python at events only) steps on the threads. The line says which.
 
 Each is run by the master's C loop and by its Python loop (``Master(native=False)``), threads 1 and
 2 interleaved, --repeats times; printed: the median stepping wall time (set-up excluded), the
@@ -38,6 +38,7 @@ import deltafmi  # noqa: E402,F401  (the composition root: sources are built)
 from deltafmi.master.scenario.resolve import resolve_system  # noqa: E402
 from deltafmi.master.scenario.spec import load_scenario  # noqa: E402
 from deltafmi.master.stepping.master import Master  # noqa: E402
+from deltafmi.master.stepping.parallel import pooled  # noqa: E402
 
 UNITS = 8
 
@@ -74,6 +75,16 @@ def stepping(path: Path, threads: int, native: bool) -> Tuple[float, bytes]:
     return summary.wall_time - summary.setup_time, result.read_bytes()
 
 
+def pooled_count(path: Path) -> int:
+    """How many units of the scenario at ``path`` step on the threads (see deltafmi.master.stepping.parallel)."""
+    master = Master(resolve_system(load_scenario(path)), result=path.with_name("pooled.csv"))
+    try:
+        master.open()
+        return sum(map(pooled, master.units))
+    finally:
+        master.close()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
@@ -93,8 +104,9 @@ def main() -> None:
             cases.append((f"{UNITS} DeltaRobot CS, free fall", delta_scenario(folder, args.stop)))
         print(f"{args.stop:g} s of 1 ms steps; median stepping wall time of {args.repeats} interleaved runs; "
               f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
-        print(f"{'system':<36} {'loop':<7} {'threads 1 s':>11} {'threads 2 s':>11} {'1/2':>6}  identical")
+        print(f"{'system':<36} {'loop':<7} {'threads 1 s':>11} {'threads 2 s':>11} {'1/2':>6}  identical  pooled")
         for name, path in cases:
+            count = pooled_count(path)
             for native in (True, False):
                 stepping(path, 1, native)  # warm: FMUs built and unpacked
                 times: Dict[int, List[float]] = {1: [], 2: []}
@@ -106,7 +118,7 @@ def main() -> None:
                 same = results[1] == results[2]
                 one, two = statistics.median(times[1]), statistics.median(times[2])
                 print(f"{name:<36} {'C' if native else 'Python':<7} {one:11.3f} {two:11.3f} {one / two:6.2f}  "
-                      f"{'yes' if same else 'NO'}")
+                      f"{'yes' if same else 'NO':<9}  {count}/{UNITS}")
 
 
 if __name__ == "__main__":

@@ -65,14 +65,20 @@ def main() -> None:
             for name, command in commands.items():
                 times[name].append(wall(command, env))
     load = os.getloadavg()
-    print(f"start-up, wall time of each command (median of {args.rounds} interleaved runs; "
+    print(f"start-up, wall time of each command ({args.rounds} interleaved rounds; "
           f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} cores)")
-    print(f"{'command':<30} {'median s':>9} {'min s':>7} {'ratio':>7}  baseline")
+    print("ratio: the median over the rounds of (command / its baseline in the same round); "
+          "the medians' and the minima's ratios beside it")
+    print(f"{'command':<30} {'median s':>9} {'min s':>7} {'ratio':>7} {'of med':>7} {'of min':>7}  baseline")
     for name, values in times.items():
-        median = statistics.median(values)
         base = baseline.get(name)
-        ratio = f"{median / statistics.median(times[base]):7.2f}" if base else f"{'':>7}"
-        print(f"{name:<30} {median:9.3f} {min(values):7.3f} {ratio}  {base or ''}")
+        if base:
+            paired = statistics.median(v / b for v, b in zip(values, times[base]))
+            ratios = (f"{paired:7.2f} {statistics.median(values) / statistics.median(times[base]):7.2f} "
+                      f"{min(values) / min(times[base]):7.2f}")
+        else:
+            ratios = " " * 23
+        print(f"{name:<30} {statistics.median(values):9.3f} {min(values):7.3f} {ratios}  {base or ''}")
 
 
 if __name__ == "__main__":

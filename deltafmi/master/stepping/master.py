@@ -39,7 +39,6 @@ from ..scenario.system import ResolvedComponent, Port, System
 from ..scenario.spec import grid_steps, too_many_steps
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
-from .fmi3_units import unsettled
 from deltafmi.master.stepping.algebraic_loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
                           STEP_RETURNED, TERMINATED, UNSETTLED, NativeLoop)
@@ -575,6 +574,8 @@ class Master:
         if why == TERMINATED:
             raise Terminated(unit.name, plan.time)
         if why == UNSETTLED:
+            from .fmi3_units import unsettled  # here: a run of FMI 2.0 units never loads the FMI 3.0 ones
+
             raise FmuFailure(unsettled(unit.name, plan.time))
         if why == RK_FAILED:
             raise FmuFailure(f"{unit.name}: {step_failure(plan.rk_time, plan.status)}")

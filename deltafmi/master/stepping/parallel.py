@@ -2,9 +2,10 @@
 
 A unit's fmi2DoStep may run on another thread than the master's when nothing of the step needs
 Python: fmpy calls an FMU's functions through ctypes, which lets go of Python's lock (the GIL) for
-the call, so that the steps of FMUs written in C run at once on several cores. A deltafmi FMU (or
-a PythonFMU one) runs its component's Python in every step: it holds the GIL, gains nothing from
-another thread and steps on the master's thread, as do Model Exchange units (the master integrates
+the call, so that the steps of FMUs written in C run at once on several cores. A PythonFMU FMU, and a
+deltafmi FMU that does not take its steps in C, runs its component's Python in every step: it
+holds the GIL, gains nothing from another thread and steps on the master's thread, as do Model
+Exchange units (the master integrates
 them, in Python or in its C loop) and FMI 3.0 units (their steps may stop at events the master
 handles). Such a unit is *pooled* when :func:`pooled` says so.
 
@@ -24,31 +25,29 @@ stepping order), except that the others of its group have taken the step too.
 """
 from __future__ import annotations
 
-import json
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 __all__ = ["StepPool", "group_actions", "pooled", "runs_python"]
 
-#: files that say an FMU runs Python in its steps: deltafmi's boot code, PythonFMU's slave module
+#: files that say an FMU runs Python: deltafmi's boot code, PythonFMU's slave module
 _PYTHON_MARKERS = ("resources/deltafmi_boot.py", "resources/slavemodule.txt")
-#: in a deltafmi FMU's resources/deltafmi.json: true when its fmi2DoStep runs no Python (a
-#: component that steps in C between events) and lets go of the GIL
-STEPS_WITHOUT_PYTHON = "step_without_python"
+#: what a deltafmi FMU that takes its Co-Simulation steps in C carries: its compiled kernels' description
+#: and the runtime module that hands the step to C (``deltafmi.runtime.cs_native``)
+_STEPS_IN_C = ("resources/native_kernels.json", "resources/python/deltafmi/runtime/cs_native.py")
 PULL, STEP, FETCH = "pull", "do_step", "fetch"
 
 
 def runs_python(unzip_dir: str | Path) -> bool:
-    """Whether the FMU unpacked in ``unzip_dir`` runs Python in its fmi2DoStep."""
+    """Whether the FMU unpacked in ``unzip_dir`` runs Python in every fmi2DoStep (holding the GIL).
+
+    A deltafmi FMU whose steps run in C (compiled kernels, CVODE called from C) runs Python only at
+    its events: it takes the GIL then, and lets other threads step meanwhile."""
     folder = Path(unzip_dir)
     if not any((folder / marker).is_file() for marker in _PYTHON_MARKERS):
         return False
-    try:
-        info = json.loads((folder / "resources" / "deltafmi.json").read_text())
-    except (OSError, ValueError):
-        return True
-    return not (isinstance(info, dict) and info.get(STEPS_WITHOUT_PYTHON) is True)
+    return not all((folder / marker).is_file() for marker in _STEPS_IN_C)
 
 
 def pooled(unit: Any) -> bool:

@@ -14,10 +14,10 @@
  *
  * Parallel units (Plan.threads > 1): a run of consecutive DO_STEP operations of one group
  * (Op.group > 0: FMI 2.0 Co-Simulation units of one step that take no input from one another, whose
- * fmi2DoStep runs no Python) is stepped by the plan's threads at once, the calling thread among
- * them; the calling thread lets go of Python's lock meanwhile (PyEval_SaveThread when the process
- * has it), so that an FMU that calls back into Python (its logger) takes it instead of waiting for
- * a thread that waits for it. Each step has the arguments it has in turn; the statuses are looked
+ * fmi2DoStep runs Python at most at events) is stepped by the plan's threads at once, the calling
+ * thread among them; the calling thread lets go of Python's lock meanwhile (PyEval_SaveThread), so
+ * that an FMU that takes it (at an event, or its logger calling back) gets it instead of waiting for
+ * a thread that waits for it. A process without Python's symbols steps the group one at a time. Each step has the arguments it has in turn; the statuses are looked
  * at in the group's order afterwards, so the first failing unit in stepping order is the one
  * reported (the others of its group have taken the step too).
  */
@@ -430,7 +430,7 @@ typedef struct {
     size_t next;             /* the next op to take (atomic) */
     long k;
     double t;
-    SaveThread save_thread;  /* Python's, when the process has it */
+    SaveThread save_thread;  /* Python's */
     RestoreThread restore_thread;
 } Pool;
 
@@ -474,13 +474,14 @@ static Pool *pool_start(Plan *p)
 {
     int grouped = 0;
     for (size_t i = 0; i < p->n_ops; i++) grouped |= p->ops[i].group > 0;
-    if (!grouped || p->threads < 2) return NULL;
+    /* without Python's lock to let go of (a host that embeds Python and hides its symbols), one at a time:
+     * an FMU of the group that takes the lock would wait for this thread, which waits for it */
+    if (!grouped || p->threads < 2 || !dlsym(RTLD_DEFAULT, "PyEval_SaveThread")) return NULL;
     Pool *pool = calloc(1, sizeof *pool); /* one per run: runs of other masters may go on meanwhile */
     if (!pool) return NULL;                /* the group steps on the calling thread, one op at a time */
     pool->p = p;
     pool->save_thread = (SaveThread)dlsym(RTLD_DEFAULT, "PyEval_SaveThread");
     pool->restore_thread = (RestoreThread)dlsym(RTLD_DEFAULT, "PyEval_RestoreThread");
-    if (!pool->save_thread || !pool->restore_thread) pool->save_thread = NULL, pool->restore_thread = NULL;
     pthread_mutex_init(&pool->lock, NULL);
     pthread_cond_init(&pool->wake, NULL);
     pthread_cond_init(&pool->done, NULL);
@@ -516,12 +517,12 @@ static void group_step(Pool *pool, size_t first, size_t end, long k, double t)
     pool->round++;
     pthread_cond_broadcast(&pool->wake);
     pthread_mutex_unlock(&pool->lock);
-    void *state = pool->save_thread ? pool->save_thread() : NULL;
+    void *state = pool->save_thread();
     take_steps(pool);
     pthread_mutex_lock(&pool->lock);
     while (pool->busy) pthread_cond_wait(&pool->done, &pool->lock);
     pthread_mutex_unlock(&pool->lock);
-    if (state) pool->restore_thread(state);
+    pool->restore_thread(state);
 }
 
 /* Steps k_begin, k_begin + 1, ... before k_end, every recorded row into `rows` (room for
