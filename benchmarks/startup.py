@@ -7,8 +7,9 @@ which also builds the flagship's FMUs into the cache and unpacks them). The base
 own command line simulating the BouncingBall of tests/third_party (a C FMU in the Reference FMUs'
 style: plain C, no Python inside, built here with ``cc``) on its default experiment; ``fmpy
 --help`` is the baseline of ``deltafmi --help`` and ``deltafmi examples``. The commands run
-interleaved, --rounds times; printed: each command's median and the ratio of medians to its
-baseline.
+interleaved, --rounds times; printed: each command's median and minimum, and its ratio to its
+baseline: the median over the rounds of the ratio within a round (a command and its baseline run
+seconds apart, under much the same load), and the ratios of the medians and of the minima.
 
 Usage: python benchmarks/startup.py [--rounds 15] [--scenario delta_tracking]
 """

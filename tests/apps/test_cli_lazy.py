@@ -73,6 +73,7 @@ def test_a_cached_run_imports_only_what_it_uses(tmp_path):
     loaded_by(*argv)  # builds (or finds) the FMUs, records their stamps, validates the scenario once
     loaded = loaded_by(*argv)
     unused = ["scipy", "dask", "distributed", "matplotlib", "jsonschema", "deltafmi.apps.compat",
-              "deltafmi.apps.studies", "deltafmi.builder.packager", "deltafmi.builder.codegen", "deltafmi.models.delta_robot"]
+              "deltafmi.apps.studies", "deltafmi.builder.packager", "deltafmi.builder.codegen",
+              "deltafmi.models.delta_robot"]
     assert [name for name in unused if name in loaded] == []
     assert "deltafmi.master.stepping.master" in loaded

@@ -178,3 +178,19 @@ def test_bad_threads_options_are_bad_input(tmp_path):
         with pytest.raises(BadInput, match="threads"):
             with_overrides(load_scenario(path), threads=bad)
     assert with_overrides(load_scenario(path), threads=4).master.threads == 4
+
+
+def test_sweep_takes_threads_and_keeps_the_studys_identity(tmp_path):
+    from deltafmi.apps.studies.plan import _fingerprint
+
+    runner = CliRunner()
+    bad = runner.invoke(main, ["sweep", "gain_payload", "--threads", "0", "--dry-run"])
+    assert bad.exit_code == 2 and "--threads" in bad.output
+    from deltafmi.apps.studies.commands import _plan, _with_threads
+    from deltafmi.shipped import find_input
+
+    planned = _plan(str(find_input("gain_payload", "study")))
+    threaded = _with_threads(planned, 2)
+    assert threaded.plan.scenario.master.threads == 2 and planned.plan.scenario.master.threads == 1
+    # the same cases, the same results: earlier results of the study stay valid
+    assert _fingerprint(threaded.plan.scenario, threaded.plan.fmus, threaded.plan.metrics) == planned.plan.fingerprint

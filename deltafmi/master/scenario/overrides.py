@@ -30,7 +30,8 @@ from deltafmi.errors import BadInput, did_you_mean
 
 from .spec import ComponentSpec, OutputSpec, Parameter, Scenario
 
-__all__ = ["ALGORITHMS", "MAX_THREADS", "Text", "parse_assignment", "with_overrides", "split_name", "value_items", "from_text"]
+__all__ = ["ALGORITHMS", "MAX_THREADS", "Text", "parse_assignment", "with_overrides", "split_name", "value_items",
+           "from_text"]
 
 #: the master's algorithms (``master.algorithm``, ``--algorithm``)
 ALGORITHMS = ("gauss-seidel", "jacobi")
@@ -73,8 +74,9 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
     ``record``: patterns of the variables to record (``"plant.z[*]"``, ``"Oscillator.*"``),
     replacing the scenario's ``outputs:``. ``realtime`` paces the run to the wall clock (or not),
     ``speed`` (simulated seconds per wall second; given alone, it paces the run) and ``behind``
-    ("warn" or "error") replace ``master.realtime``'s; ``threads`` ``master.threads``. ``origin`` names the values in diagnostics (``"--set
-    plant.z0"``); ``cli``: messages name the command-line options (``--stop``, ``--record``).
+    ("warn" or "error") replace ``master.realtime``'s; ``threads`` ``master.threads``. ``origin``
+    names the values in diagnostics (``"--set plant.z0"``); ``cli``: messages name the command-line
+    options (``--stop``, ``--record``).
     Raises :class:`BadInput` (exit code 2) for a stop, step or tolerance that is not a finite
     positive number, an unknown algorithm, or a name of no component; variables, types and
     patterns are checked when the scenario is resolved.

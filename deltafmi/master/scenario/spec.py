@@ -9,7 +9,6 @@ import json
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 
@@ -265,7 +264,7 @@ class Scenario:
 @lru_cache(maxsize=1)
 def schema() -> Dict[str, Any]:
     """The JSON Schema of scenario files (shipped as ``deltafmi/master/scenario/scenario.schema.json``)."""
-    text = resources.files("deltafmi.master.scenario").joinpath("scenario.schema.json").read_text()
+    text = Path(__file__).with_name("scenario.schema.json").read_text()  # not importlib.resources: slow to import
     return json.loads(text)
 
 

@@ -17,7 +17,8 @@
  * fmi2DoStep runs Python at most at events) is stepped by the plan's threads at once, the calling
  * thread among them; the calling thread lets go of Python's lock meanwhile (PyEval_SaveThread), so
  * that an FMU that takes it (at an event, or its logger calling back) gets it instead of waiting for
- * a thread that waits for it. A process without Python's symbols steps the group one at a time. Each step has the arguments it has in turn; the statuses are looked
+ * a thread that waits for it. A process without Python's symbols steps the group one at a time.
+ * Each step has the arguments it has in turn; the statuses are looked
  * at in the group's order afterwards, so the first failing unit in stepping order is the one
  * reported (the others of its group have taken the step too).
  */
