@@ -5,7 +5,9 @@ Two systems of 8 independent Co-Simulation units, 1 ms communication steps:
 - ``c``: 8 instances of the C Oscillator of tests/third_party (a plain C FMU in the Reference FMUs'
   style, no Python inside: its fmi2DoStep lets go of the GIL), each integrating with Runge-Kutta
   substeps of --substep seconds so that a step costs measurable time; coupled in a ring (Jacobi)
-  or not at all (Gauss-Seidel). It shows what the threads themselves give.
+  or not at all (Gauss-Seidel). It shows what the threads themselves give; the same with one
+  Runge-Kutta step per communication step ("cheap steps") shows what handing steps to the threads
+  costs, in the C loop (POSIX threads) and in the Python loop (a thread pool).
 - ``delta``: 8 compiled DeltaRobot units as Co-Simulation FMUs (built from deltafmi.models), in
   free fall. A deltafmi FMU that runs its component's Python in every fmi2DoStep holds the GIL,
   and the master steps it on its own thread whatever ``threads`` says (ratio near 1); one that
@@ -60,7 +62,7 @@ def c_scenario(folder: Path, fmu: Path, algorithm: str, stop: float, substep: fl
 def delta_scenario(folder: Path, stop: float) -> Path:
     lines = [f"experiment: {{start: 0.0, stop: {stop}, step: 1.0e-3}}", "master: {algorithm: jacobi}", "components:"]
     lines += [f"  r{i}: {{source: deltafmi.models:DeltaRobot, interface: CS}}" for i in range(UNITS)]
-    lines.append(f"outputs: [{', '.join(f'r{i}.z[3]' for i in range(UNITS))}]")
+    lines.append(f"outputs: [{', '.join(repr(f'r{i}.z[3]') for i in range(UNITS))}]")
     path = folder / "delta.yaml"
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -100,6 +102,9 @@ def main() -> None:
             cases += [(f"{UNITS} C Oscillators, {algorithm}", c_scenario(folder, fmu, algorithm, args.stop,
                                                                          args.substep))
                       for algorithm in ("jacobi", "gauss-seidel")]
+            # one Runge-Kutta step per communication step: what handing steps to threads costs
+            cheap = c_scenario(folder, fmu, "jacobi", args.stop, 1e-3).rename(folder / "c_cheap.yaml")
+            cases.append((f"{UNITS} C Oscillators, cheap steps", cheap))
         if "delta" in args.systems.split(","):
             cases.append((f"{UNITS} DeltaRobot CS, free fall", delta_scenario(folder, args.stop)))
         print(f"{args.stop:g} s of 1 ms steps; median stepping wall time of {args.repeats} interleaved runs; "

@@ -1,13 +1,16 @@
 """FMUs of the build cache are unpacked once and the copy is kept for later runs; any other FMU
-is unpacked for its run only. A run on the kept copy gives the results of a run on a fresh one."""
+is unpacked for its run only. A run on the kept copy gives the results of a run on a fresh one.
+An FMU's model description, once read, is kept under the FMU's stamp."""
 from __future__ import annotations
 
 import shutil
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import deltafmi
+from deltafmi.errors import BadInput
 from deltafmi.builder.packager import build_cached
 from deltafmi.master.stepping.unpacked import kept_unpacked
 
@@ -41,3 +44,23 @@ def test_runs_on_the_kept_copy_and_on_a_fresh_one_agree(tmp_path):
     assert names
     for name in names:
         assert np.array_equal(kept[name], fresh[name]) and np.array_equal(kept[name], again[name])
+
+
+def test_a_model_description_read_before_is_not_parsed_again(tmp_path, monkeypatch):
+    from deltafmi.master.scenario import modelinfo
+
+    fmu = tmp_path / "osc.fmu"
+    shutil.copy(build_cached(FMU_SRC / "oscillator.py"), fmu)
+    first = modelinfo.model_info(str(fmu))
+
+    def refuse(*_args, **_kwargs):
+        raise AssertionError("parsed again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(modelinfo, "read_model_description", refuse)
+        again = modelinfo.model_info(str(fmu))
+    assert again.md.guid == first.md.guid
+    assert [v.name for v in again.md.modelVariables] == [v.name for v in first.md.modelVariables]
+    fmu.write_bytes(b"not a zip any more")  # a changed file is read again, and its problem told
+    with pytest.raises(BadInput, match="not a zip archive"):
+        modelinfo.model_info(str(fmu))

@@ -135,4 +135,9 @@ def _build(node: yaml.Node, path: Path, lines: LineMap, left: List[int]) -> Any:
 def _scalar(node: yaml.Node) -> Any:
     if not isinstance(node, yaml.ScalarNode):
         raise YamlSyntaxError("mapping keys must be plain scalars", node.start_mark.line + 1)
-    return _Loader("").construct_object(node, deep=True)
+    return _construct(node)
+
+
+def _construct(node: yaml.ScalarNode) -> Any:
+    # a constructor alone: a whole loader per scalar (reader, scanner, parser) cost most of reading a scenario
+    return yaml.constructor.SafeConstructor().construct_object(node, deep=True)
