@@ -45,7 +45,7 @@ from deltafmi.master.stepping.parallel import pooled  # noqa: E402
 UNITS = 8
 
 
-def c_scenario(folder: Path, fmu: Path, algorithm: str, stop: float, substep: float) -> Path:
+def c_scenario(folder: Path, fmu: Path, algorithm: str, stop: float, substep: float, name: str = "") -> Path:
     lines = [f"experiment: {{start: 0.0, stop: {stop}, step: 1.0e-3}}", f"master: {{algorithm: {algorithm}}}",
              "components:"]
     for i in range(UNITS):
@@ -54,7 +54,7 @@ def c_scenario(folder: Path, fmu: Path, algorithm: str, stop: float, substep: fl
         lines.append("connections:")
         lines += [f"  - {{from: o{i}.x, to: o{(i + 1) % UNITS}.F, factor: 0.3}}" for i in range(UNITS)]
     lines.append(f"outputs: [{', '.join(f'o{i}.x' for i in range(UNITS))}]")
-    path = folder / f"c_{algorithm}.yaml"
+    path = folder / f"c_{name or algorithm}.yaml"
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -103,7 +103,7 @@ def main() -> None:
                                                                          args.substep))
                       for algorithm in ("jacobi", "gauss-seidel")]
             # one Runge-Kutta step per communication step: what handing steps to threads costs
-            cheap = c_scenario(folder, fmu, "jacobi", args.stop, 1e-3).rename(folder / "c_cheap.yaml")
+            cheap = c_scenario(folder, fmu, "jacobi", args.stop, 1e-3, "cheap")
             cases.append((f"{UNITS} C Oscillators, cheap steps", cheap))
         if "delta" in args.systems.split(","):
             cases.append((f"{UNITS} DeltaRobot CS, free fall", delta_scenario(folder, args.stop)))

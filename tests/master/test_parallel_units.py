@@ -194,3 +194,14 @@ def test_sweep_takes_threads_and_keeps_the_studys_identity(tmp_path):
     assert threaded.plan.scenario.master.threads == 2 and planned.plan.scenario.master.threads == 1
     # the same cases, the same results: earlier results of the study stay valid
     assert _fingerprint(threaded.plan.scenario, threaded.plan.fmus, threaded.plan.metrics) == planned.plan.fingerprint
+
+
+def test_the_threads_end_with_the_run(c_fmus, tmp_path):
+    import os
+
+    text = oscillators(c_fmus["Oscillator"], "jacobi", stop=0.2)
+    run(tmp_path, text, 1, native=True)  # the C loop loaded
+    before = len(os.listdir("/proc/self/task"))
+    for native in (True, False):
+        run(tmp_path, text, 4, native=native)
+        assert len(os.listdir("/proc/self/task")) == before, native

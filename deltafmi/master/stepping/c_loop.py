@@ -77,16 +77,20 @@ class _Plan(ctypes.Structure):
                 ("width", c_size_t), ("start", c_double), ("h", c_double), ("stop", c_double),
                 ("n_steps", c_long), ("last", c_long), ("every", c_long),
                 ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
-                ("rk_step", c_double), ("op_seconds", c_void_p), ("threads", c_int)]
+                ("rk_step", c_double), ("op_seconds", c_void_p), ("threads", c_int), ("pool", c_void_p)]
 
 
 _kernel: Optional[Any] = None
+_end: Optional[Any] = None
 
 
 def _steps_function() -> Any:
-    global _kernel
+    global _kernel, _end
     if _kernel is None:
         library = ctypes.PyDLL(str(plain_c_library(Path(__file__).parent / "native" / "fixed_step.c")))
+        _end = library.deltafmi_fixed_steps_end
+        _end.argtypes = [POINTER(_Plan)]
+        _end.restype = None
         _kernel = library.deltafmi_fixed_steps
         _kernel.argtypes = [POINTER(_Plan), c_long, c_long, c_void_p, c_long, POINTER(c_long), POINTER(c_long)]
         _kernel.restype = c_int
@@ -180,7 +184,7 @@ class NativeLoop:
         width = len(sampler.row)
         self.rows = np.empty((block_rows, width + 1))
         self.plan = _Plan(self._ops_array, len(ops), self._parts_array, len(parts), width, start, h, stop,
-                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None, threads)
+                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None, threads, None)
         #: set :meth:`timed` to have the C loop add up the wall time of each operation
         self.op_seconds: Optional[np.ndarray] = None
         self._run = _steps_function()
@@ -300,6 +304,11 @@ class NativeLoop:
             unit.solver.t = float(box[0])
             self._indicators[unit.name].give(unit.solver)
         return why, self._k_done.value, self._n_rows.value
+
+    def close(self) -> None:
+        """Stop the threads that stepped groups of units (see :mod:`.parallel`); call once the run is over."""
+        if self.plan.pool:
+            _end(ctypes.byref(self.plan))
 
     def locate(self, unit: Any) -> None:
         """After a STATE_EVENT in ``unit``: bisect the Runge-Kutta step that crossed, as

@@ -131,6 +131,7 @@ class Master:
         self.threads = scenario.master.threads
         self._groups: Optional[Tuple[List[Any], List[int]]] = None  # (actions, their groups) of the fixed grid
         self._pool: Optional[StepPool] = None
+        self._native: Optional[NativeLoop] = None  # the C loop of a fixed-step run (its threads closed with the run)
         #: Ctrl-C / SIGTERM: checked between steps (see :mod:`.stop_signals`)
         self.stop_signals = StopSignals()
         #: time of the last row written, None before the first
@@ -242,6 +243,9 @@ class Master:
             if self._pool is not None:
                 self._pool.close()
                 self._pool = None
+            if self._native is not None:
+                self._native.close()
+                self._native = None
             if self._unzip_root:
                 shutil.rmtree(self._unzip_root, ignore_errors=True)
                 self._unzip_root = ""
@@ -464,8 +468,8 @@ class Master:
         self._groups = (actions, groups) if any(groups) else None
         native = None
         if self.native and self.live is None and NativeLoop.fits(ordered, self.sampler):
-            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every,
-                                groups=groups, threads=self.threads)
+            native = self._native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every,
+                                               groups=groups, threads=self.threads)
         fixed = _FixedGrid(start, stop, h, n_steps, last)
         stop_signals, progress = self.stop_signals, self.progress
         k = 0

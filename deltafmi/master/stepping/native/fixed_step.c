@@ -154,6 +154,9 @@ typedef struct {
     double rk_step;          /* STATE_EVENT: that step's size (the states it started from in op->x0) */
     double *op_seconds;      /* NULL, or per operation: wall seconds spent in it (benchmarks) */
     int threads;             /* threads stepping a group (1: the calling thread only) */
+    void *pool;              /* its worker threads, started by the first run that needs them and kept
+                              * until deltafmi_fixed_steps_end: a thread that enters Python keeps the
+                              * thread state it made there, so the threads are made once per plan */
 } Plan;
 
 static double now(void)
@@ -538,7 +541,8 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
     int why = RAN;
     for (size_t i = 0; i < p->n_ops; i++)
         p->ops[i].holds_end = 0; /* Python may have called the FMUs since the last run */
-    Pool *pool = pool_start(p);
+    if (!p->pool) p->pool = pool_start(p);
+    Pool *pool = p->pool;
     for (; k < k_end; k++) {
         long next = k + 1;
         int due = next % p->every == 0 || next == p->n_steps;
@@ -559,7 +563,6 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
                         p->op = (long)i;
                         *k_done = k;
                         *n_rows = written;
-                        pool_stop(pool);
                         return FAILED;
                     }
                 }
@@ -574,7 +577,6 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
                 p->op = (long)i;
                 *k_done = k;
                 *n_rows = written;
-                pool_stop(pool);
                 return stop;
             }
         }
@@ -584,8 +586,15 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
             written++;
         }
     }
-    pool_stop(pool);
     *k_done = k;
     *n_rows = written;
     return why;
+}
+
+/* The plan's worker threads stopped and joined (call once its runs are over; again is harmless). */
+__attribute__((visibility("default")))
+void deltafmi_fixed_steps_end(Plan *p)
+{
+    pool_stop(p->pool);
+    p->pool = NULL;
 }
