@@ -36,7 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "third_party"))
 from build import build_fmu  # noqa: E402  (the C FMUs of tests/third_party)
 
-import deltafmi  # noqa: E402,F401  (the composition root: sources are built)
+import deltafmi.apps  # noqa: E402,F401  (the composition root: source: components are built)
 from deltafmi.master.scenario.resolve import resolve_system  # noqa: E402
 from deltafmi.master.scenario.spec import load_scenario  # noqa: E402
 from deltafmi.master.stepping.master import Master  # noqa: E402
