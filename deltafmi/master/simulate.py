@@ -141,13 +141,15 @@ def load_any(scenario: Any, resources: ExitStack, stop: Optional[float] = None) 
     example's name (:func:`~.scenario.spec.load_scenario`)."""
     from .scenario.fmu_scenario import fmu_scenario, is_fmu
     from .scenario.spec import load_scenario
-    from .ssp.read import is_ssp, load_ssp
+    from .ssp import is_ssp
 
     if isinstance(scenario, Scenario):
         return scenario
     if not isinstance(scenario, (str, Path)):
         raise BadInput(f"simulate() takes a scenario name, a file or a Scenario, not {type(scenario).__name__}")
     if is_ssp(scenario):
+        from .ssp.read import load_ssp  # here: its module loads lxml
+
         workdir = resources.enter_context(TemporaryDirectory(prefix="deltafmi-ssp-"))
         return load_ssp(scenario, Path(workdir), stop)
     if is_fmu(scenario):
