@@ -40,6 +40,8 @@ COMMANDS: Dict[str, Tuple[str, str, str]] = {
         "FMI compatibility information: our FMUs with reference results, and results of importing others'."),
     "examples": ("deltafmi.apps.examples_command", "examples",
         'The example scenarios and studies shipped with deltafmi.'),
+    "export-fmu": ("deltafmi.apps.export_fmu", "export_fmu_command",
+        'Export SCENARIO (a shipped example\'s name or a YAML file) as one Co-Simulation FMU.'),
     "export-ssp": ("deltafmi.apps.run_commands", "export_ssp",
         'Pack SCENARIO and its FMUs into an SSP 1.0 archive that other tools load.'),
     "guides": ("deltafmi.apps.guides", "guides_command",
@@ -114,7 +116,7 @@ class _Commands(click.Group):
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         """The command list of ``deltafmi --help`` from :data:`COMMANDS`, importing none of them."""
         limit = formatter.width - 6 - max(map(len, COMMANDS))
-        rows = [(name, click.utils.make_default_short_help(COMMANDS[name][2], limit)) for name in sorted(COMMANDS)]
+        rows = [(name, click.Command(name, help=COMMANDS[name][2]).get_short_help_str(limit)) for name in sorted(COMMANDS)]
         with formatter.section("Commands"):
             formatter.write_dl(rows)
 

@@ -36,23 +36,26 @@ def hashed(monkeypatch) -> list:
 
 def test_unchanged_files_find_the_fmu_without_reading_them(source, hashed):
     first = packager.build_cached(source)
-    assert hashed == [source]
-    assert packager.build_cached(source) == first and hashed == [source]  # stamps only: nothing hashed
+    assert hashed and set(hashed) == {source}
+    before = len(hashed)
+    assert packager.build_cached(source) == first and len(hashed) == before  # stamps only: nothing hashed
 
 
 def test_a_touched_file_is_hashed_again_and_keeps_its_fmu(source, hashed):
     first = packager.build_cached(source)
+    before = len(hashed)
     status = source.stat()
     os.utime(source, ns=(status.st_atime_ns, status.st_mtime_ns + 1_000_000_000))
-    assert packager.build_cached(source) == first and hashed == [source, source]
-    assert packager.build_cached(source) == first and len(hashed) == 2  # the record renewed
+    assert packager.build_cached(source) == first and len(hashed) == before + 1
+    assert packager.build_cached(source) == first and len(hashed) == before + 1  # the record renewed
 
 
 def test_an_edited_file_gets_a_new_fmu(source, hashed):
     first = packager.build_cached(source)
+    before = len(hashed)
     source.write_text(source.read_text().replace('"""', '"""Edited. ', 1))
     second = packager.build_cached(source)
-    assert second != first and second.is_file() and len(hashed) == 2
+    assert second != first and second.is_file() and len(hashed) > before
     assert packager.content_key(source)[:20] in str(second)
 
 
