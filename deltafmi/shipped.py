@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import List, Union
 
-from deltafmi.errors import BadInput, did_you_mean
 
 __all__ = ["Example", "MODELS_DIR", "SCENARIOS_DIR", "STUDIES_DIR", "example", "examples", "find_input",
            "is_shipped"]
@@ -46,7 +45,8 @@ class Example:
     def summary(self) -> str:
         """The first sentence of the file's ``description``, at most 100 characters."""
         import yaml
-        text = " ".join(str(yaml.safe_load(self.path.read_text()).get("description", "")).split())
+        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when there: `deltafmi examples` reads them all
+        text = " ".join(str(yaml.load(self.path.read_text(), Loader=loader).get("description", "")).split())
         first = re.split(r"(?<=\.)\s", text, maxsplit=1)[0].rstrip(".")
         return first if len(first) <= 100 else first[:97].rstrip() + "..."
 
@@ -62,6 +62,8 @@ def example(name: str) -> Example:
     found = {e.name: e for e in examples()}
     if name in found:
         return found[name]
+    from deltafmi.errors import BadInput, did_you_mean  # here: deltafmi.errors imports numpy (the runtime)
+
     raise BadInput(f"no example called '{name}'{did_you_mean(name, found)}; `deltafmi examples` lists them")
 
 
@@ -84,6 +86,8 @@ def find_input(text: Union[str, Path], kind: str) -> Path:
         return path.with_suffix(".yaml")
     chosen = example(str(text))
     if chosen.kind != kind:
+        from deltafmi.errors import BadInput
+
         raise BadInput(f"'{text}' is an example {chosen.kind}, not a {kind}"
                        + ("; run it with `deltafmi sweep`" if chosen.kind == "study" else "; sweep needs a study"))
     return chosen.path

@@ -98,8 +98,9 @@ def abi_tag() -> str:
 
 
 def plain_c_library(source: Path) -> Path:
-    """A shared library compiled from one self-contained C file (no Python), from the cache."""
-    return single_file_library(source, f"{source.stem}.so", [])
+    """A shared library compiled from one self-contained C file (no Python; POSIX threads and
+    dlsym at hand), from the cache."""
+    return single_file_library(source, f"{source.stem}.so", [], libraries=["-lpthread", "-ldl"])
 
 
 def python_extension(source: Path) -> Path:

@@ -75,7 +75,7 @@ SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_joysti
           "test_fmu_threads", "test_memory", "test_study_dask", "test_study_cluster", "test_study_tls",
           "test_study_dashboard", "test_study_rough_edges", "test_peg_robustness", "test_troubleshooting_docs",
           "test_examples", "test_rough_edges", "test_study_metrics", "test_reliability_results",
-          "test_reliability_sweep", "test_reliability_limits"}
+          "test_reliability_sweep", "test_reliability_limits", "test_parallel_units"}
 #: modules that start other processes (a C host, another Python, a CLI, a Dask process)
 SUBPROCESS = {"test_component_docs", "test_live_scope", "test_rough_edges", "test_study_cluster", "test_study_dask",
               "test_study_rough_edges", "test_study_tls", "test_troubleshooting_docs", "test_compiler_messages",
@@ -87,7 +87,7 @@ SUBPROCESS = {"test_component_docs", "test_live_scope", "test_rough_edges", "tes
               "test_fmu_without_fmpy_scipy", "test_memory", "test_symbol_isolation", "test_third_party_masters",
               "test_peg_robustness", "test_examples", "test_reliability_results", "test_reliability_sweep",
               "test_reliability_recipes", "test_reliability_limits", "test_reliability_no_traceback",
-              "test_export_fmu", "test_fmi3_cs_events"}
+              "test_export_fmu", "test_fmi3_cs_events", "test_cli_lazy"}
 #: what a module that builds FMUs (or runs scenarios, which build theirs) says somewhere
 _BUILDS = re.compile(r"build_fmu|build_cached|_fmu\b|_fmu\(|simulate|resolve_system|\[\"(run|build|sweep|linearize)\"")
 #: modules with a test over 10 s on this kind of machine (2 cores; `--durations=25` shows them)

@@ -5,37 +5,74 @@ assembles the click group and is the one place where a library error becomes a m
 exit code (:func:`report`): each :class:`~deltafmi.errors.DeltaFmiError` carries its code (2 bad
 input, 1 a failure, 128 + the signal for an interruption).
 """
+from __future__ import annotations
+
 import errno
+import importlib
 import os
 import signal
-from typing import Any
+import sys
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 
 import click
 
-from deltafmi.apps.compat.commands import compat
 from deltafmi.apps.console import show_progress
-from deltafmi.apps.run_commands import export_ssp, plot, run, validate
-from deltafmi.apps.linearize_command import linearize
-from deltafmi.apps.scope.command import scope
-from deltafmi.errors import DeltaFmiError
-from deltafmi.apps.examples_command import examples
-from deltafmi.apps.build_commands import build, info
-from deltafmi.apps.export_fmu import export_fmu_command
-from deltafmi.apps.guides import guides_command
-from deltafmi.apps.studies.commands import plot_study_command, study_case, sweep
-from deltafmi.apps.animation.commands import animate
 
-__all__ = ["main"]
+if TYPE_CHECKING:
+    from deltafmi.errors import DeltaFmiError
+
+__all__ = ["COMMANDS", "main"]
 
 
 #: errors of a path the user gave (bad input, exit code 2); other OS errors are failures (1)
 _PATH_ERRORS = (errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENOENT,
                 errno.ENAMETOOLONG, errno.ELOOP)
+#: command name -> (module, attribute, first paragraph of its help): a command's module is imported
+#: only when that command runs (or its own --help is asked), so that ``deltafmi --help`` and a
+#: command pay for no other command's imports (Dask, matplotlib, the builder, the compatibility
+#: trees); tests/apps/test_cli_lazy.py checks each paragraph against the command's docstring
+COMMANDS: Dict[str, Tuple[str, str, str]] = {
+    "animate": ("deltafmi.apps.animation.commands", "animate",
+        'Draw the delta robot of RESULT (.csv, .parquet, .mat) frame by frame: arms, plate, tool, surface.'),
+    "build": ("deltafmi.apps.build_commands", "build",
+        'Build FMUs (Model Exchange + Co-Simulation) from components.'),
+    "compat": ("deltafmi.apps.compat.commands", "compat",
+        "FMI compatibility information: our FMUs with reference results, and results of importing others'."),
+    "examples": ("deltafmi.apps.examples_command", "examples",
+        'The example scenarios and studies shipped with deltafmi.'),
+    "export-fmu": ("deltafmi.apps.export_fmu", "export_fmu_command",
+        'Export SCENARIO (a shipped example\'s name or a YAML file) as one Co-Simulation FMU.'),
+    "export-ssp": ("deltafmi.apps.run_commands", "export_ssp",
+        'Pack SCENARIO and its FMUs into an SSP 1.0 archive that other tools load.'),
+    "guides": ("deltafmi.apps.guides", "guides_command",
+        'Where the guides are (Markdown files: the Python API, writing a component, scenarios, studies, '
+        'troubleshooting, ...), each with its title.'),
+    "info": ("deltafmi.apps.build_commands", "info",
+        "Show an FMU's interfaces, default experiment and variables."),
+    "linearize": ("deltafmi.apps.linearize_command", "linearize",
+        'Linearize TARGET: an FMU (.fmu, or a component source .py) or a scenario (.yaml, .ssp).'),
+    "plot": ("deltafmi.apps.run_commands", "plot",
+        'Plot SIGNALS of a RESULT file (.csv, .parquet, .mat) over time.'),
+    "plot-study": ("deltafmi.apps.studies.commands", "plot_study_command",
+        "Plot the metrics of a study's RESULTS table (.parquet from deltafmi sweep)."),
+    "run": ("deltafmi.apps.run_commands", "run",
+        'Run the co-simulation SCENARIO (a YAML file, an SSP archive, or one .fmu) and write its results.'),
+    "scope": ("deltafmi.apps.scope.command", "scope",
+        'Live plot of the signals a run streams as DFMI datagrams (a `streams:` entry `udp:` of a scenario, '
+        'or any program that sends them).'),
+    "study-case": ("deltafmi.apps.studies.commands", "study_case",
+        'Write CASE of STUDY as a plain scenario, to run it alone with deltafmi run.'),
+    "sweep": ("deltafmi.apps.studies.commands", "sweep",
+        'Run every case of the STUDY (a YAML file, or a shipped example study by name: deltafmi examples '
+        'lists them) on a Dask cluster and tabulate the metrics.'),
+    "validate": ("deltafmi.apps.run_commands", "validate",
+        'Check SCENARIO (a YAML file or an SSP archive) and its FMUs without simulating, or one FMU.'),
+}
 #: set to 1 to see the traceback of an unexpected error instead of its one line
 DEBUG_VARIABLE = "DELTAFMI_TRACEBACK"
 
 
-def report(error: DeltaFmiError) -> int:
+def report(error: "DeltaFmiError") -> int:
     """Print ``error`` on stderr the way the command line shows it, and return its exit code."""
     for line in error.lines():
         click.echo(line, err=True)
@@ -63,7 +100,25 @@ def report_unexpected(error: Exception) -> int:
 class _Commands(click.Group):
     """The ``deltafmi`` group: an error raised by any command (while its options are read or while
     it runs) ends the process with one line and its exit code, never a traceback: a library
-    error with its message and code, an OS error naming its file, anything else as a bug."""
+    error with its message and code, an OS error naming its file, anything else as a bug.
+
+    Its commands are :data:`COMMANDS`, each imported when first asked for."""
+
+    def list_commands(self, ctx: click.Context) -> List[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> Optional[click.Command]:
+        if cmd_name not in COMMANDS:
+            return None
+        module, attribute, _ = COMMANDS[cmd_name]
+        return getattr(importlib.import_module(module), attribute)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The command list of ``deltafmi --help`` from :data:`COMMANDS`, importing none of them."""
+        limit = formatter.width - 6 - max(map(len, COMMANDS))
+        rows = [(name, click.Command(name, help=COMMANDS[name][2]).get_short_help_str(limit)) for name in sorted(COMMANDS)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
     def invoke(self, ctx: click.Context) -> Any:
         from deltafmi.master.stepping.stop_signals import InterruptOnSignals
@@ -76,18 +131,21 @@ class _Commands(click.Group):
             name = signal.Signals(signals.received).name if signals.received else "Ctrl-C"
             click.echo(f"interrupted ({name})", err=True)
             raise click.exceptions.Exit(signals.exit_code) from None
-        except DeltaFmiError as error:
-            raise click.exceptions.Exit(report(error)) from None
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
-        except OSError as error:
-            if os.environ.get(DEBUG_VARIABLE):
-                raise
-            raise click.exceptions.Exit(report_os_error(error)) from None
         except Exception as error:  # noqa: BLE001 - the last line of defence: no traceback for a user
-            if os.environ.get(DEBUG_VARIABLE):
-                raise
-            raise click.exceptions.Exit(report_unexpected(error)) from None
+            raise click.exceptions.Exit(_reported(error)) from None
+
+
+def _reported(error: Exception) -> int:
+    """Show ``error`` as :class:`_Commands` does and return its exit code (raise it again, with its
+    traceback, when :data:`DEBUG_VARIABLE` asks for that and it is no library error)."""
+    library = sys.modules.get("deltafmi.runtime.errors")  # not imported: no library error can have been raised
+    if library is not None and isinstance(error, library.DeltaFmiError):
+        return report(error)
+    if os.environ.get(DEBUG_VARIABLE):
+        raise error
+    return report_os_error(error) if isinstance(error, OSError) else report_unexpected(error)
 
 
 @click.group(cls=_Commands)
@@ -95,10 +153,3 @@ class _Commands(click.Group):
 def main() -> None:
     """deltafmi: Python components as FMI 2.0 FMUs, and a master for closed-loop co-simulation."""
     show_progress()
-
-
-for command in (examples, guides_command, build, info, run, validate, export_ssp, export_fmu_command, plot, animate,
-                linearize, compat, scope):
-    main.add_command(command)
-for command in (sweep, plot_study_command, study_case):  # parameter studies on Dask
-    main.add_command(command)

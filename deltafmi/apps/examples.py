@@ -6,7 +6,6 @@ import re
 from pathlib import Path
 from typing import Dict, List, Union
 
-from deltafmi.errors import BadInput
 from deltafmi.shipped import MODELS_DIR, SCENARIOS_DIR, example
 
 __all__ = ["copy_example", "model_summaries"]
@@ -60,6 +59,8 @@ def copy_example(name: str, directory: Union[str, Path]) -> List[Path]:
     blobs = {directory / relative: source for relative, source in _resource_files(chosen.path, chosen.kind)}
     existing = [str(path) for path in [*files, *blobs] if path.exists()]
     if existing:
+        from deltafmi.errors import BadInput  # here: listing the examples does not import numpy
+
         raise BadInput(f"{', '.join(existing)}: already there; copy into an empty folder or remove them")
     for path, text in files.items():
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -75,6 +75,9 @@ def _built_as(fmi_version: Optional[str]) -> Callable[[Scenario], Scenario]:
               help="Record NaN or infinite values and go on (master.allow_nan) instead of stopping.")
 @click.option("--algorithm", type=click.Choice(["gauss-seidel", "jacobi"]),
               help="Override master.algorithm.")
+@click.option("--threads", type=click.IntRange(1, 256), metavar="N",
+              help="Step the components that do not depend on each other within a step on N threads "
+                   "(master.threads): those whose step runs outside Python (C FMUs); same results, bit for bit.")
 @click.option("--record", "record", multiple=True, metavar="PATTERN",
               help="Record the variables matching PATTERN instead of the scenario's outputs: list "
                    "(repeatable), e.g. --record 'plant.z[*]' or, for one FMU, --record 'Oscillator.*'.")
@@ -94,8 +97,8 @@ def _built_as(fmi_version: Optional[str]) -> Callable[[Scenario], Scenario]:
               help="Every message of the FMUs (their debug log categories too), not only warnings and errors.")
 def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop: Optional[float],
         step: Optional[float], tolerance: Optional[float], allow_nan: Optional[bool], algorithm: Optional[str],
-        record: Tuple[str, ...], fmi_version: Optional[str], realtime: Optional[bool], speed: Optional[float],
-        behind: Optional[str], replay: Optional[str], quiet: bool, verbose: bool) -> None:
+        threads: Optional[int], record: Tuple[str, ...], fmi_version: Optional[str], realtime: Optional[bool],
+        speed: Optional[float], behind: Optional[str], replay: Optional[str], quiet: bool, verbose: bool) -> None:
     """Run the co-simulation SCENARIO (a YAML file, an SSP archive, or one .fmu) and write its results.
 
     SCENARIO without a suffix is NAME.yaml in the current folder when there is one, else the
@@ -142,7 +145,7 @@ def run(scenario: str, output: Optional[str], assignments: Tuple[str, ...], stop
 
     def overrides(loaded: Scenario) -> Scenario:
         return with_overrides(loaded, values, stop=stop, step=step, tolerance=tolerance, allow_nan=allow_nan,
-                              algorithm=algorithm, record=record or None,
+                              algorithm=algorithm, threads=threads, record=record or None,
                               fmi_version=int(fmi_version) if fmi_version else None,
                               realtime=False if replay and realtime is None and speed is None else realtime,
                               speed=speed, behind=behind, cli=True)

@@ -26,12 +26,13 @@ from deltafmi.toolchain import (BuildError, NoCompilerError, cache_dir, compiler
                                 plain_c_library, python_extension)
 from .compiler import fmu_binary, native_source_files, python_runtime_config
 from .codegen.component_kernels import component_library
+from .build_stamps import Stamp, file_request, recorded, remember, stamps_of
 from .bytecode import unchecked_hash_pyc
 from .equations import SOURCES as EQUATION_COMPILER, generated_files
 from .reach import BOOT_SOURCE, module_archive_name, module_source, reached_modules
 from .sources import ComponentSourceError, find_component, split_file_reference
 
-__all__ = ["BUILD_LOG", "ComponentSourceError", "VALUE_ACCESS_SOURCE", "build_cached", "build_fmu",
+__all__ = ["BUILD_LOG", "ComponentSourceError", "VALUE_ACCESS_SOURCE", "build_cached", "build_fmu", "cached_build",
            "load_component_class", "runtime_modules"]
 
 PACKAGE_DIR = Path(deltafmi.__file__).parent
@@ -185,24 +186,35 @@ def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int
     (so that editing a module the model does not reach leaves its cached FMU valid), the
     ``resources`` by name and content, the FMI version, the native sources of its binary, the
     code that writes its modelDescription.xml, this packager and the Python it was built for."""
+    return _keyed(Path(source), class_name, fmi_version, resources)[0]
+
+
+def _keyed(source: Path, class_name: Optional[str], fmi_version: int,
+           resources: Sequence[Path | str]) -> tuple[str, list[Stamp]]:
+    """:func:`content_key`, and the stamps of the files and folders it was taken from (taken
+    before they were read), with which :mod:`.build_stamps` finds it again without reading them."""
     _check_version(fmi_version)
     _fmu_binary_for(source, fmi_version)  # first: without it nothing else matters (no warnings about the rest)
-    digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0fmi{fmi_version}\0".encode())
-    for path, arcname in runtime_files(source) + binary_files(source) + resource_files(resources):
-        digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
+    carried = runtime_files(source) + binary_files(source) + resource_files(resources)
     writers = [module_source(name) for name in reached_modules(modules=_MODEL_DESCRIPTIONS, runtime=False)]
     codegen = PACKAGE_DIR / "builder" / "codegen"
     generator = sorted([*codegen.glob("*.py"), *codegen.glob("*.c")])  # writes the compiled kernels' C
     generator += EQUATION_COMPILER  # writes an equation model's kernels
-    for path in (native_source_files(fmi_version) + writers + generator
-                 + [Path(__file__), BOOT_SOURCE]):
+    hashed = native_source_files(fmi_version) + writers + generator + [Path(__file__), BOOT_SOURCE]
+    # folders where reached modules were found: a module added to one may be reached (from P import name)
+    folders = sorted({path.parent for path, _ in carried} | {path.parent for path in writers} | {codegen})
+    stamps = stamps_of([source, *(path for path, _ in carried), *hashed, *folders])
+    digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0fmi{fmi_version}\0".encode())
+    for path, arcname in carried:
+        digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
+    for path in hashed:
         digest.update(path.read_bytes())
     # an FMU built where its compiled kernels could not be (no compiler) is not the one built where they can
     digest.update(f"\0compiler={compiler_available()}".encode())
     # the environment, not the interpreter's name in it: bin/python and bin/python3.12 (the console
     # scripts' shebang) of one venv build the same FMU
     digest.update(re.sub(r"(?m)^executable=.*$", f"prefix={sys.prefix}", python_runtime_config()).encode())
-    return digest.hexdigest()
+    return digest.hexdigest(), stamps
 
 
 #: where :func:`build_cached` says, at INFO, that it builds an FMU (silent when the FMU is cached);
@@ -272,20 +284,45 @@ def build_cached(source: Path | str, portable: bool = False, class_name: Optiona
                  fmi_version: int = 2, resources: Sequence[Path | str] = ()) -> Path:
     """The FMU for ``source`` and ``resources`` (as :func:`build_fmu` takes them) from the per-user
     build cache, built when the source, a resource's content or the runtime changed."""
+    return cached_build(source, portable, class_name, fmi_version, resources)
+
+
+def cached_build(source: Path | str, portable: bool = False, class_name: Optional[str] = None,
+                 fmi_version: int = 2, resources: Sequence[Path | str] = (),
+                 also: Optional[tuple[str, Sequence[Stamp]]] = None) -> Path:
+    """:func:`build_cached`; ``also``, (a :mod:`.build_stamps` request, stamps), is another request
+    answered by this FMU while those stamps hold besides the FMU's own (a module reference,
+    resolved through its module's file)."""
     source, class_name = _component(source, class_name)
     resources = resources or _shipped_resources(source)
-    key = content_key(source, class_name, fmi_version, resources)[:20]
+    request = None if portable else file_request(source, class_name, fmi_version, [Path(r) for r in resources])
+    known = recorded(request) if request else None
+    if known is not None:
+        found, stamps = known
+    else:
+        found, stamps = _cached_or_built(source, portable, class_name, fmi_version, resources)
+        if request:
+            remember(request, stamps, found)
+    if also is not None and request:
+        remember(also[0], [*stamps, *also[1]], found)
+    return found
+
+
+def _cached_or_built(source: Path, portable: bool, class_name: Optional[str], fmi_version: int,
+                     resources: Sequence[Path | str]) -> tuple[Path, list[Stamp]]:
+    key, stamps = _keyed(source, class_name, fmi_version, resources)
+    key = key[:20]
     if portable:
         from .portable import bundle_key
         key += "-portable-" + bundle_key()[:12]
     target = cache_dir() / "fmus" / key
     existing = list(target.glob("*.fmu")) if target.is_dir() else []
     if existing:
-        return existing[0]
+        return existing[0], stamps
     cls = load_component_class(source, class_name)
     BUILD_LOG.info("building %s FMU (cached afterwards in %s) ...", cls.__name__, _home_relative(cache_dir() / "fmus"))
     return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable, class_name=class_name,
-                     fmi_version=fmi_version, resources=resources)
+                     fmi_version=fmi_version, resources=resources), stamps
 
 
 def _shipped_resources(source: Path) -> list[Path]:

@@ -41,7 +41,7 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
              fmi_version: Optional[int] = None, verbose: bool = False,
              on_message: Optional[Callable[[str, int, str, str], None]] = None,
              realtime: Optional[bool] = None, speed: Optional[float] = None, behind: Optional[str] = None,
-             replay: Optional[str | Path] = None) -> Result:
+             replay: Optional[str | Path] = None, threads: Optional[int] = None) -> Result:
     """Run ``scenario`` and return its :class:`~deltafmi.master.results.result.Result`.
 
     ``scenario``: a shipped example's name (``"delta_tracking"``), a scenario file (``.yaml``),
@@ -62,7 +62,9 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
     (``--realtime``, ``--speed``; the summary's ``live`` says how well it kept up; ``behind``:
     "warn" or "error" when it falls a whole step behind); ``replay``: the
     results file of an earlier run of this scenario whose live inputs stand in for its live
-    sources (``--replay``; not paced unless ``realtime`` or ``speed`` says so).
+    sources (``--replay``; not paced unless ``realtime`` or ``speed`` says so); ``threads``: step
+    the units that do not depend on each other on this many threads (``--threads``,
+    ``master.threads``; the same results, bit for bit).
 
     ``output``: also write the results to this file (``.csv``, ``.parquet``, ``.mat``) as the
     run goes. ``verbose``: the FMUs send their debug messages too. ``on_message(component,
@@ -97,7 +99,7 @@ def simulate(scenario: str | Path | Scenario, *, stop: Optional[float] = None,
         loaded = with_overrides(loaded, start_values or {}, stop=stop, step=step, tolerance=tolerance,
                                 allow_nan=allow_nan, algorithm=algorithm, record=record, fmi_version=fmi_version,
                                 realtime=False if replay is not None and realtime is None and speed is None
-                                else realtime, speed=speed, behind=behind, origin="start_values")
+                                else realtime, speed=speed, behind=behind, threads=threads, origin="start_values")
         system = resolve_system(loaded)
         scenario_log = logging.getLogger(SCENARIO_LOGGER)
         for diagnostic in system.warnings:
@@ -139,13 +141,15 @@ def load_any(scenario: Any, resources: ExitStack, stop: Optional[float] = None) 
     example's name (:func:`~.scenario.spec.load_scenario`)."""
     from .scenario.fmu_scenario import fmu_scenario, is_fmu
     from .scenario.spec import load_scenario
-    from .ssp.read import is_ssp, load_ssp
+    from .ssp import is_ssp
 
     if isinstance(scenario, Scenario):
         return scenario
     if not isinstance(scenario, (str, Path)):
         raise BadInput(f"simulate() takes a scenario name, a file or a Scenario, not {type(scenario).__name__}")
     if is_ssp(scenario):
+        from .ssp.read import load_ssp  # here: its module loads lxml
+
         workdir = resources.enter_context(TemporaryDirectory(prefix="deltafmi-ssp-"))
         return load_ssp(scenario, Path(workdir), stop)
     if is_fmu(scenario):

@@ -89,6 +89,7 @@ ALONE = {
     "LookupTable": (0.5, 0.1, {"u": 0.3}, ["y", "rows"], 1e-10),
     # state events: CVODE finds them to within its tolerance, in fmpy and in the master
     "BouncingBall": (3.0, 0.01, {"e": 0.7}, ["h", "v", "bounces"], 1e-12),
+    "Oscillator": (2.0, 0.01, {"k": 4.0, "c": 0.3, "F": 0.5}, ["x", "v"], 1e-12),
 }
 
 

@@ -20,7 +20,7 @@ from typing import Dict, Optional, Tuple
 
 HERE = Path(__file__).resolve().parent
 HEADERS = HERE.parents[1] / "deltafmi" / "runtime" / "native"
-MODELS = ("AllTypes", "Ticker", "LookupTable", "BouncingBall")
+MODELS = ("AllTypes", "Ticker", "LookupTable", "BouncingBall", "Oscillator")
 MODELS3 = ("AllTypes3", "StateSpace3", "BouncingBall3", "Stopper3", "Table3", "Sampler3")
 FRONT_END = {2: "plumbing.c", 3: "plumbing3.c"}
 PLATFORM = {2: "linux64", 3: "x86_64-linux"}

@@ -24,6 +24,15 @@ def _plan(path: str):
     return plan_study(load_study(path))  # a ScenarioError shows every error, one per line
 
 
+def _with_threads(planned, threads: int):
+    """``planned`` with its cases stepped on ``threads`` threads (the study's identity unchanged)."""
+    import dataclasses
+
+    scenario = planned.plan.scenario
+    scenario = dataclasses.replace(scenario, master=dataclasses.replace(scenario.master, threads=threads))
+    return dataclasses.replace(planned, plan=dataclasses.replace(planned.plan, scenario=scenario))
+
+
 def _table_path(planned, output: Optional[str]) -> Path:
     path = Path(output) if output else planned.study.result_file
     return path if path.suffix == ".parquet" else path.with_name(path.name + ".parquet")
@@ -57,12 +66,15 @@ def _table_path(planned, output: Optional[str]) -> Path:
 @click.option("--fresh", is_flag=True,
               help="Discard earlier results of this study instead of continuing them (once the cluster answers).")
 @click.option("--retry-failed", is_flag=True, help="Run again the cases that failed in an earlier run.")
+@click.option("--threads", type=click.IntRange(1, 256), metavar="N",
+              help="In each case, step the components that do not depend on each other on N threads (the "
+                   "scenario's master.threads): those whose step runs outside Python; same results.")
 @click.option("--dry-run", is_flag=True, help="Check the study and list its cases; run nothing.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 def sweep(study: str, output: Optional[str], scheduler: Optional[str], connect_timeout: float,
           tls_ca_file: Optional[str], tls_cert: Optional[str], tls_key: Optional[str], workers: Optional[int],
-          dashboard: Optional[str], timeseries: Optional[bool], fresh: bool, retry_failed: bool, dry_run: bool,
-          quiet: bool) -> None:
+          dashboard: Optional[str], timeseries: Optional[bool], fresh: bool, retry_failed: bool,
+          threads: Optional[int], dry_run: bool, quiet: bool) -> None:
     """Run every case of the STUDY (a YAML file, or a shipped example study by name: deltafmi
     examples lists them) on a Dask cluster and tabulate the metrics.
 
@@ -94,6 +106,8 @@ def sweep(study: str, output: Optional[str], scheduler: Optional[str], connect_t
         from deltafmi.master.results.safe_file import check_writable
         check_writable(Path(output), "results table")
     planned = _plan(study)
+    if threads is not None:
+        planned = _with_threads(planned, threads)
     if not quiet:  # the scenario's warnings, once for the whole study (the cases run it unchecked)
         for warning in planned.system.warnings:
             click.echo(str(warning), err=True)

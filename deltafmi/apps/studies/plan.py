@@ -324,7 +324,9 @@ def _plain(value: Any) -> Any:
     """Dataclasses as dicts without their lines, paths, description and result settings (and a
     component's FMU path: its content hash stands in for it)."""
     if dataclasses.is_dataclass(value):
-        skipped = ("path", "result", "description") + (("fmu", "source") if isinstance(value, ComponentSpec) else ())
+        # threads: how many step the units, never what they compute
+        skipped = ("path", "result", "description", "threads") + (("fmu", "source") if isinstance(value, ComponentSpec)
+                                                                   else ())
         return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)
                 if not f.name.endswith("line") and f.name not in skipped}
     if isinstance(value, (list, tuple)):

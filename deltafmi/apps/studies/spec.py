@@ -14,14 +14,15 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Tuple
-
-import jsonschema
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 from deltafmi.shipped import is_shipped
 from deltafmi.master.scenario.schema_check import load_mapping, read_document, schema_diagnostics
 from deltafmi.master.scenario.yaml_lines import LineMap
+
+if TYPE_CHECKING:
+    import jsonschema
 
 __all__ = ["Distribution", "MetricSpec", "MonteCarlo", "Study", "Target", "Vary", "Window", "load_study", "parse_study"]
 

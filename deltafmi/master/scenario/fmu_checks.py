@@ -9,7 +9,6 @@ the scenario resolution ask them; the trial instantiation is
 from __future__ import annotations
 
 import json
-import xml.etree.ElementTree as ElementTree
 import zipfile
 from pathlib import Path
 from typing import Any, Iterable, Optional
@@ -55,6 +54,8 @@ def guid_problem(fmu: Path, guid: str) -> Optional[str]:
 def clock_problem(fmu: Path, interface: str) -> Optional[str]:
     """Why the master cannot drive the Clocks of the FMI 3.0 FMU ``fmu`` run as ``interface``
     ("ME", "CS"), or None (see :func:`clocks_refused`)."""
+    import xml.etree.ElementTree as ElementTree  # here: FMI 2.0 runs never need it
+
     with zipfile.ZipFile(fmu) as archive:
         try:
             root = ElementTree.fromstring(archive.read("modelDescription.xml"))
@@ -89,6 +90,8 @@ def archive_problem(fmu: Path) -> Optional[str]:
     archive, a damaged one, an entry that would land outside the folder it is unpacked into (an
     absolute path or ``..``), no modelDescription.xml, an FMI 1.0 FMU, or a variable whose
     valueReference is not an unsigned integer (fmpy's own message for these names no variable)."""
+    import xml.etree.ElementTree as ElementTree  # here: an FMU read before is not checked again (modelinfo)
+
     if not zipfile.is_zipfile(fmu):
         return "not a zip archive (an FMU is a zip file holding a modelDescription.xml)"
     try:

@@ -10,8 +10,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
-from deltafmi.errors import FmuSourceError
-
 __all__ = ["FmuProvider", "provided_fmu", "use_fmu_provider"]
 
 #: ``provider(source, directory, fmi_version, resources) -> Path``: the FMU built from ``source``
@@ -32,6 +30,8 @@ def use_fmu_provider(provider: Optional[FmuProvider]) -> Optional[FmuProvider]:
 def provided_fmu(source: str, directory: Path, fmi_version: int, resources: Sequence[Path] = ()) -> Path:
     """The FMU of ``source`` from the provider set up; :class:`FmuSourceError` when there is none."""
     if _provider is None:
+        from deltafmi.errors import FmuSourceError  # here: importing this module (every command does) stays cheap
+
         raise FmuSourceError(f"source '{source}' names a component to build, and this master has no FMU "
                              "builder: run it with `deltafmi run` or deltafmi.simulate(), or give an `fmu:` file")
     return _provider(source, directory, fmi_version, resources)

@@ -247,9 +247,63 @@ def model_info(path: str) -> ModelInfo:
     """Read the modelDescription of the FMU at ``path`` (fmpy.read_model_description); raises
     :class:`~deltafmi.errors.BadInput` saying why a file is not an FMU deltafmi can read
     (:func:`~.fmu_checks.archive_problem`)."""
-    from .fmu_checks import archive_problem
+    kept = _kept_description(Path(path))
+    md = kept.read() if kept is not None else None
+    if md is None:
+        from .fmu_checks import archive_problem
 
-    problem = archive_problem(Path(path))
-    if problem is not None:
-        raise BadInput(problem)
-    return ModelInfo(str(path), read_model_description(str(path), validate=False))
+        problem = archive_problem(Path(path))
+        if problem is not None:
+            raise BadInput(problem)
+        md = read_model_description(str(path), validate=False)
+        if kept is not None:
+            kept.write(md)
+    return ModelInfo(str(path), md)
+
+
+class _KeptDescription:
+    """An FMU's model description as read before, kept in the cache under the FMU's stamp (path,
+    size, modification time, inode) and fmpy's version: reading it again costs a millisecond,
+    parsing the XML (and the checks of the archive, which passed) many."""
+
+    def __init__(self, file: Path) -> None:
+        self.file = file
+
+    def read(self) -> Optional[ModelDescription]:
+        import pickle
+
+        try:
+            md = pickle.loads(self.file.read_bytes())
+        except Exception:  # noqa: BLE001 - none kept, or kept by another fmpy: read the FMU
+            return None
+        return md if isinstance(md, ModelDescription) else None
+
+    def write(self, md: ModelDescription) -> None:
+        import os
+        import pickle
+
+        temporary = self.file.with_name(f"{self.file.name}.{os.getpid()}.tmp")
+        try:
+            self.file.parent.mkdir(parents=True, exist_ok=True)
+            temporary.write_bytes(pickle.dumps(md, protocol=pickle.HIGHEST_PROTOCOL))
+            os.replace(temporary, self.file)
+        except Exception:  # noqa: BLE001 - a read-only cache, a description pickle cannot hold: read it each time
+            temporary.unlink(missing_ok=True)
+
+
+def _kept_description(fmu: Path) -> Optional[_KeptDescription]:
+    import hashlib
+    import sys
+
+    import fmpy
+
+    from deltafmi.toolchain import cache_dir
+
+    try:
+        status = fmu.stat()
+        where = fmu.resolve()
+    except OSError:
+        return None  # archive_problem says what is wrong
+    key = (f"{where}\0{status.st_size}\0{status.st_mtime_ns}\0{status.st_ino}\0{fmpy.__version__}"
+           f"\0{sys.version_info[:2]}")
+    return _KeptDescription(cache_dir() / "model-descriptions" / hashlib.sha256(key.encode()).hexdigest()[:32])

@@ -30,10 +30,13 @@ from deltafmi.errors import BadInput, did_you_mean
 
 from .spec import ComponentSpec, OutputSpec, Parameter, Scenario
 
-__all__ = ["ALGORITHMS", "Text", "parse_assignment", "with_overrides", "split_name", "value_items", "from_text"]
+__all__ = ["ALGORITHMS", "MAX_THREADS", "Text", "parse_assignment", "with_overrides", "split_name", "value_items",
+           "from_text"]
 
 #: the master's algorithms (``master.algorithm``, ``--algorithm``)
 ALGORITHMS = ("gauss-seidel", "jacobi")
+#: the most threads ``master.threads`` takes (the schema's maximum)
+MAX_THREADS = 256
 
 _NO_VALUES: Mapping[str, Any] = {}
 
@@ -59,7 +62,7 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
                    algorithm: Optional[str] = None, record: Optional[Sequence[str]] = None,
                    fmi_version: Optional[int] = None, realtime: Optional[bool] = None,
                    speed: Optional[float] = None, behind: Optional[str] = None,
-                   origin: str = "--set", cli: bool = False) -> Scenario:
+                   threads: Optional[int] = None, origin: str = "--set", cli: bool = False) -> Scenario:
     """``scenario`` with start values (``{"plant.z0": [0.1, 0, -1.0], "controller.pole": 10}``), the
     stop time, the communication step, every component's relative tolerance, the NaN check
     (``allow_nan``), the master's ``algorithm``, the recorded variables and the scenario's
@@ -71,8 +74,9 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
     ``record``: patterns of the variables to record (``"plant.z[*]"``, ``"Oscillator.*"``),
     replacing the scenario's ``outputs:``. ``realtime`` paces the run to the wall clock (or not),
     ``speed`` (simulated seconds per wall second; given alone, it paces the run) and ``behind``
-    ("warn" or "error") replace ``master.realtime``'s. ``origin`` names the values in diagnostics (``"--set
-    plant.z0"``); ``cli``: messages name the command-line options (``--stop``, ``--record``).
+    ("warn" or "error") replace ``master.realtime``'s; ``threads`` ``master.threads``. ``origin``
+    names the values in diagnostics (``"--set plant.z0"``); ``cli``: messages name the command-line
+    options (``--stop``, ``--record``).
     Raises :class:`BadInput` (exit code 2) for a stop, step or tolerance that is not a finite
     positive number, an unknown algorithm, or a name of no component; variables, types and
     patterns are checked when the scenario is resolved.
@@ -100,6 +104,11 @@ def with_overrides(scenario: Scenario, values: Mapping[str, Any] = _NO_VALUES, *
                            f"{did_you_mean(str(algorithm), ALGORITHMS)}")
         master = replace(master, algorithm=algorithm)
     master = _paced(master, realtime, speed, behind, cli)
+    if threads is not None:
+        if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= MAX_THREADS:
+            raise BadInput(f"{'--threads ' if cli else 'threads '}{threads!r}: a whole number of threads from 1 to "
+                           f"{MAX_THREADS}")
+        master = replace(master, threads=threads)
     outputs = scenario.outputs
     if record is not None:
         if isinstance(record, str):

@@ -2,19 +2,23 @@
 as diagnostics at their file and line, with did-you-mean suggestions."""
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional, Tuple
-
-import jsonschema
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Optional, Tuple
 
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
+from deltafmi.toolchain import cache_dir
 
 from .yaml_lines import LineMap, YamlSyntaxError, load_yaml
+
+if TYPE_CHECKING:
+    import jsonschema
 
 __all__ = ["dotted", "load_mapping", "read_document", "schema_diagnostics"]
 
 #: a document's own wording for some errors: None to fall back to the generic one
-Special = Callable[[jsonschema.ValidationError, LineMap, str], Optional[List[Diagnostic]]]
+Special = Callable[["jsonschema.ValidationError", LineMap, str], Optional[List[Diagnostic]]]
 
 
 def read_document(path: Path, document: str) -> str:
@@ -43,16 +47,43 @@ def load_mapping(text: str, file: str, document: str) -> Tuple[Dict[str, Any], L
 def schema_diagnostics(data: Any, lines: LineMap, file: str, schema: Dict[str, Any], document: str,
                        special: Optional[Special] = None) -> List[Diagnostic]:
     """Every violation of ``schema`` in ``data`` (read from ``file``), one diagnostic each, sorted
-    by line; ``document`` names the whole ("scenario") in messages about its top level."""
+    by line; ``document`` names the whole ("scenario") in messages about its top level.
+
+    A document found valid is remembered in the cache by a hash of its data and the schema:
+    found again, it is not validated again (importing and running jsonschema costs more than
+    the rest of reading a scenario)."""
+    valid = _valid_mark(data, schema)
+    if valid is not None and valid.exists():
+        return []
+    import jsonschema  # here: a document already found valid never needs it
+
     validator = jsonschema.Draft202012Validator(schema)
     found: List[Diagnostic] = []
     for error in sorted(validator.iter_errors(data), key=lambda e: list(map(str, e.absolute_path))):
         own = special(error, lines, file) if special else None
         found.extend(own if own is not None else _describe(error, lines, file, document))
+    if not found and valid is not None:
+        try:
+            valid.parent.mkdir(parents=True, exist_ok=True)
+            valid.touch()
+        except OSError:
+            pass  # a read-only cache: validated every time
     return sorted(set(found), key=lambda d: (d.line or 0, d.message))
 
 
-def _describe(error: jsonschema.ValidationError, lines: LineMap, file: str, document: str) -> List[Diagnostic]:
+def _valid_mark(data: Any, schema: Dict[str, Any]) -> Optional[Path]:
+    """The cache file that says ``data`` is valid under ``schema`` (None: data JSON cannot hold,
+    never remembered: a date, a key that is not a string, which JSON would write as another value)."""
+    if not _plain(data):
+        return None
+    try:
+        text = json.dumps([schema, data], sort_keys=True, allow_nan=True)
+    except (TypeError, ValueError):
+        return None
+    return cache_dir() / "valid-documents" / hashlib.sha256(text.encode()).hexdigest()[:32]
+
+
+def _describe(error: "jsonschema.ValidationError", lines: LineMap, file: str, document: str) -> List[Diagnostic]:
     path = tuple(error.absolute_path)
     where = dotted(path) or f"the {document}"
     if error.validator == "additionalProperties" and isinstance(error.instance, dict):
@@ -65,6 +96,15 @@ def _describe(error: jsonschema.ValidationError, lines: LineMap, file: str, docu
         hint = did_you_mean(str(error.instance), choices) or f" (one of {', '.join(choices)})"
         return [Diagnostic(file, lines.line(path), f"{where}: '{error.instance}' is not allowed{hint}")]
     return [Diagnostic(file, lines.line(path), f"{where}: {error.message}")]
+
+
+def _plain(value: Any) -> bool:
+    """Whether ``value`` is made of JSON's types only, every mapping keyed by strings."""
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and _plain(v) for k, v in value.items())
+    if isinstance(value, list):
+        return all(map(_plain, value))
+    return value is None or isinstance(value, (str, int, float, bool))
 
 
 def dotted(path: Tuple[Any, ...]) -> str:

@@ -9,18 +9,19 @@ import json
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Tuple
-
-import jsonschema
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 
 from deltafmi.errors import Diagnostic, ScenarioError
 
 from .schema_check import dotted, load_mapping, read_document, schema_diagnostics
 from .yaml_lines import LineMap
 
-__all__ = ["Adaptive", "ComponentSpec", "ExportSpec", "ConnectionSpec", "Experiment", "LiveSpec", "Loops", "MasterSettings",
+if TYPE_CHECKING:
+    import jsonschema
+
+__all__ = ["Adaptive", "ComponentSpec", "ExportSpec", "ConnectionSpec", "Experiment", "LiveSpec", "Loops",
+           "MasterSettings",
            "OutputSpec", "Parameter", "ResultSettings", "Scenario", "StreamSpec", "grid_steps", "load_scenario",
            "parse_scenario", "scenario_from_data", "schema"]
 
@@ -108,6 +109,8 @@ class MasterSettings:
     realtime: Realtime = field(default_factory=Realtime)
     #: the most communication steps a fixed-step run may take (:data:`MAX_STEPS`)
     max_steps: int = MAX_STEPS
+    #: threads stepping the units that do not depend on each other within a step (1: the master's only)
+    threads: int = 1
 
 
 @dataclass(frozen=True)
@@ -274,7 +277,7 @@ class Scenario:
 @lru_cache(maxsize=1)
 def schema() -> Dict[str, Any]:
     """The JSON Schema of scenario files (shipped as ``deltafmi/master/scenario/scenario.schema.json``)."""
-    text = resources.files("deltafmi.master.scenario").joinpath("scenario.schema.json").read_text()
+    text = Path(__file__).with_name("scenario.schema.json").read_text()  # not importlib.resources: slow to import
     return json.loads(text)
 
 
@@ -433,7 +436,7 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
     master = MasterSettings(master_data.get("algorithm", "gauss-seidel"), adaptive,
                             Loops(**master_data.get("loops", {})), bool(master_data.get("allow_nan", False)),
                             _realtime(master_data.get("realtime", False)),
-                            int(master_data.get("max_steps", MAX_STEPS)))
+                            int(master_data.get("max_steps", MAX_STEPS)), int(master_data.get("threads", 1)))
     components = tuple(
         ComponentSpec(
             name=name,

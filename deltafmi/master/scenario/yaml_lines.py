@@ -25,11 +25,15 @@ class _Loader(yaml.SafeLoader):
     """SafeLoader that also reads ``1e-3`` as a float (YAML 1.1 insists on ``1.0e-3``)."""
 
 
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
-)
+#: the same loader on libyaml, when PyYAML has it: it composes a document several times faster
+_FastLoader = type("_FastLoader", (getattr(yaml, "CSafeLoader", _Loader),), {"__doc__": _Loader.__doc__})
+
+for _loader in {_Loader, _FastLoader}:
+    _loader.add_implicit_resolver(
+        "tag:yaml.org,2002:float",
+        re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+        list("-+0123456789"),
+    )
 
 
 class LineMap:
@@ -77,7 +81,11 @@ class YamlSyntaxError(DeltaFmiError, ValueError):
 def load_yaml(text: str) -> Tuple[Any, LineMap]:
     """Parse ``text``; return its data and the :class:`LineMap`. Raises :class:`YamlSyntaxError`."""
     try:
-        node = yaml.compose(text, Loader=_Loader)
+        node = yaml.compose(text, Loader=_FastLoader)
+    except yaml.YAMLError:  # said as the Python parser says it (its messages and marks are the ones documented)
+        node = None
+    try:
+        node = node if node is not None else yaml.compose(text, Loader=_Loader)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
@@ -127,4 +135,9 @@ def _build(node: yaml.Node, path: Path, lines: LineMap, left: List[int]) -> Any:
 def _scalar(node: yaml.Node) -> Any:
     if not isinstance(node, yaml.ScalarNode):
         raise YamlSyntaxError("mapping keys must be plain scalars", node.start_mark.line + 1)
-    return _Loader("").construct_object(node, deep=True)
+    return _construct(node)
+
+
+def _construct(node: yaml.ScalarNode) -> Any:
+    # a constructor alone: a whole loader per scalar (reader, scanner, parser) cost most of reading a scenario
+    return yaml.constructor.SafeConstructor().construct_object(node, deep=True)

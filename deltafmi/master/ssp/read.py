@@ -29,6 +29,7 @@ from lxml import etree
 
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 
+from . import is_ssp
 from ..scenario.spec import ResultSettings, Scenario, scenario_from_data
 from ..scenario.yaml_lines import LineMap
 from .format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE,
@@ -39,11 +40,6 @@ __all__ = ["is_ssp", "load_ssp"]
 #: annotation attributes that stay text (every other one is read as a number or boolean)
 _TEXT_KEYS = {"algorithm", "error_estimate", "method", "format", "file", "pattern"}
 _INTEGER = re.compile(r"[-+]?\d+\Z")
-
-
-def is_ssp(path: str | Path) -> bool:
-    """Whether ``path`` names an SSP archive or an SSD file (by its extension)."""
-    return Path(path).suffix.lower() in (".ssp", ".ssd")
 
 
 def load_ssp(path: str | Path, workdir: Path, stop: Optional[float] = None) -> Scenario:

@@ -42,7 +42,6 @@ from dataclasses import dataclass
 from typing import Any, Callable, Dict, List, Optional, Protocol, Sequence, Tuple
 
 import numpy as np
-import scipy.optimize
 
 from deltafmi.errors import DeltaFmiError
 
@@ -183,6 +182,8 @@ class TearSolver:
             self._newton_at_once = True
 
     def _newton(self, attempt: "_Attempt", guess: np.ndarray, jacobian: Optional[Callable[[], np.ndarray]]) -> None:
+        from scipy import optimize  # here: a run whose system has no loop never pays for importing scipy
+
         settings = self.settings
         start = attempt.best_tau.copy() if len(attempt.best_tau) else guess
         attempt.fixed_point = min(attempt.fixed_point, attempt.evaluations)
@@ -212,14 +213,14 @@ class TearSolver:
             else:
                 cache_used[0] = True
                 steps = self.fd_step * np.maximum(np.abs(z), 1.0)
-                unscaled = scipy.optimize.approx_fprime(z, residual, steps) * scale[:, None] / scale[None, :]
+                unscaled = optimize.approx_fprime(z, residual, steps) * scale[:, None] / scale[None, :]
                 self._cached_jacobian = unscaled
             last[0], last[1] = z.copy(), unscaled * scale[None, :] / scale[:, None]
             return last[1]
 
         try:
-            result = scipy.optimize.root(residual, start / scale, jac=derivative, method="hybr",
-                                         options={"maxfev": 100 * (settings.max_iterations + len(start))})
+            result = optimize.root(residual, start / scale, jac=derivative, method="hybr",
+                                   options={"maxfev": 100 * (settings.max_iterations + len(start))})
         except _OutOfBudget:
             attempt.note = f"{settings.max_iterations} Newton evaluations spent"
             return

@@ -65,7 +65,8 @@ class _Op(ctypes.Structure):
                 ("flags", c_int), ("step_status", c_int), ("last_time", c_double),
                 ("clock_first", c_void_p), ("clock_count", c_void_p), ("clock_interval", c_void_p),
                 ("clock_activated", c_void_p), ("due_vrs", c_void_p), ("on", c_void_p),
-                ("enter_event_mode", c_void_p), ("update_discrete_states", c_void_p), ("enter_step_mode", c_void_p)]
+                ("enter_event_mode", c_void_p), ("update_discrete_states", c_void_p), ("enter_step_mode", c_void_p),
+                ("group", c_int), ("group_status", c_int)]
 
 
 class _RowPart(ctypes.Structure):
@@ -84,20 +85,27 @@ class _Plan(ctypes.Structure):
                 ("width", c_size_t), ("start", c_double), ("h", c_double), ("stop", c_double),
                 ("n_steps", c_long), ("last", c_long), ("every", c_long),
                 ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
-                ("rk_step", c_double), ("op_seconds", c_void_p), ("pace", POINTER(_Pace))]
+                ("rk_step", c_double), ("op_seconds", c_void_p), ("pace", POINTER(_Pace)), ("threads", c_int),
+                ("pool", c_void_p), ("gil_released", c_int)]
 
 
 _kernels: dict = {}
+_end: Optional[Any] = None
 
 
 def _steps_function(release_gil: bool = False) -> Any:
     """The C loop's entry, called with the GIL held (an FMU that runs Python enters it without
     taking the GIL again) or, for a paced run that mostly waits, released (the process's other
     Python threads run meanwhile; our FMUs take the GIL where they run Python)."""
+    global _end
     kernel = _kernels.get(release_gil)
     if kernel is None:
         loader = ctypes.CDLL if release_gil else ctypes.PyDLL
         library = loader(str(plain_c_library(Path(__file__).parent / "native" / "fixed_step.c")))
+        if _end is None:
+            _end = library.deltafmi_fixed_steps_end
+            _end.argtypes = [POINTER(_Plan)]
+            _end.restype = None
         kernel = _kernels[release_gil] = library.deltafmi_fixed_steps
         kernel.argtypes = [POINTER(_Plan), c_long, c_long, c_void_p, c_long, POINTER(c_long), POINTER(c_long)]
         kernel.restype = c_int
@@ -161,11 +169,14 @@ class NativeLoop:
     """The fixed-step loop of one master run as a C plan; see the module docstring.
 
     ``actions``: (unit, PULL | STEP | FETCH, step multiple) in the order one step runs them;
-    ``sampler``: the master's row sampler (its parts are gathered in C as it gathers them).
+    ``sampler``: the master's row sampler (its parts are gathered in C as it gathers them);
+    ``groups``: per action, the group of a STEP that ``threads`` threads take at once with the
+    consecutive STEPs of its group (0: none; :mod:`.parallel` says which).
     """
 
     def __init__(self, actions: Sequence[Tuple[Unit, str, int]], sampler: Any, start: float, h: float,
-                 stop: float, n_steps: int, last: int, every: int, block_rows: int = 256) -> None:
+                 stop: float, n_steps: int, last: int, every: int, block_rows: int = 256,
+                 groups: Sequence[int] = (), threads: int = 1) -> None:
         self.actions = list(actions)
         self._keep: List[Any] = []  # what the plan points into
         ops: List[_Op] = []
@@ -175,6 +186,8 @@ class NativeLoop:
         self._indicators: dict = {}  # ME unit name -> its _Indicators
         for a, (unit, action, m) in enumerate(self.actions):
             for op, function in self._ops(unit, action, m):
+                if op.kind == DO_STEP and a < len(groups):
+                    op.group = groups[a]
                 self.op_action.append(a)
                 self.op_function.append(function)
                 ops.append(op)
@@ -186,7 +199,7 @@ class NativeLoop:
         width = len(sampler.row)
         self.rows = np.empty((block_rows, width + 1))
         self.plan = _Plan(self._ops_array, len(ops), self._parts_array, len(parts), width, start, h, stop,
-                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None, None)
+                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None, None, threads, None, 0)
         self._pace: Optional[_Pace] = None
         self._paced: Optional[Any] = None
         self._count = np.zeros(1, dtype=np.int_)
@@ -288,6 +301,7 @@ class NativeLoop:
         """Run the steps with the GIL released (the process's other Python threads run meanwhile;
         an FMU that runs Python takes the GIL there)."""
         self._run = _steps_function(release_gil=True)
+        self.plan.gil_released = 1
 
     def pace(self, pacer: Any, slots: Sequence[Optional[int]]) -> None:
         """Wait for every point's wall-clock time in C, as ``pacer`` (a started
@@ -301,6 +315,7 @@ class NativeLoop:
                            late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error))
         self.plan.pace = ctypes.pointer(self._pace)
         self._run = _steps_function(release_gil=True)
+        self.plan.gil_released = 1
 
     def _before_paced(self) -> None:
         pacer = self._paced
@@ -350,6 +365,11 @@ class NativeLoop:
             times = np.where(points < plan.n_steps, plan.start + points * plan.h, plan.stop)
             self._after_paced(times)
         return why, done, self._n_rows.value
+
+    def close(self) -> None:
+        """Stop the threads that stepped groups of units (see :mod:`.parallel`); call once the run is over."""
+        if self.plan.pool:
+            _end(ctypes.byref(self.plan))
 
     def locate(self, unit: Any) -> None:
         """After a STATE_EVENT in ``unit``: bisect the Runge-Kutta step that crossed, as

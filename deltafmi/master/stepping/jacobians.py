@@ -12,15 +12,17 @@ every FMI 2.0 variable, the row-major place in an FMI 3.0 array variable otherwi
 """
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from ctypes import POINTER, c_double, c_uint32 as _VR  # fmi2ValueReference = fmi3ValueReference
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from ..scenario.modelinfo import ModelInfo, element_names
 from .unit_base import bare_function
+
+if TYPE_CHECKING:
+    import xml.etree.ElementTree as ET
 
 __all__ = ["FD_STEP", "FmuJacobian", "Key", "REAL_TYPES", "RealValues", "computes_exact_derivatives", "real_nominals",
            "scalar_key"]
@@ -66,6 +68,8 @@ def provides_directional_derivatives(unzip_dir: str) -> bool:
 
 
 def _model_description(unzip_dir: str) -> Optional[ET.Element]:
+    import xml.etree.ElementTree as ET  # here: a run whose solvers need no Jacobian never parses it
+
     try:
         return ET.parse(Path(unzip_dir) / "modelDescription.xml").getroot()
     except (OSError, ET.ParseError):

@@ -41,12 +41,13 @@ from ..scenario.system import ResolvedComponent, Port, System
 from ..scenario.spec import grid_steps, too_many_steps
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
-from .fmi3_units import unsettled
 from deltafmi.master.stepping.algebraic_loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
                           STEP_RETURNED, TERMINATED, UNSETTLED, BEHIND, NativeLoop)
 from .stop_signals import StopSignals
 from .unit_base import instant_margin
+from .parallel import StepPool, group_actions
+from .unpacked import kept_unpacked
 from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 __all__ = ["Master", "NativeLoop"]
@@ -132,6 +133,11 @@ class Master:
         self.fmus = fmus
         self.writer_class = writer_class
         self.native = native
+        #: threads stepping independent units at once (master.threads; parallel.py)
+        self.threads = scenario.master.threads
+        self._groups: Optional[Tuple[List[Any], List[int]]] = None  # (actions, their groups) of the fixed grid
+        self._pool: Optional[StepPool] = None
+        self._native: Optional[NativeLoop] = None  # the C loop of a fixed-step run (its threads closed with the run)
         #: Ctrl-C / SIGTERM: checked between steps (see :mod:`.stop_signals`)
         self.stop_signals = StopSignals()
         #: time of the last row written, None before the first
@@ -240,6 +246,12 @@ class Master:
         finally:
             for unit in self.units:
                 unit.close()
+            if self._pool is not None:
+                self._pool.close()
+                self._pool = None
+            if self._native is not None:
+                self._native.close()
+                self._native = None
             if self._unzip_root:
                 shutil.rmtree(self._unzip_root, ignore_errors=True)
                 self._unzip_root = ""
@@ -298,10 +310,14 @@ class Master:
         for component in self.system.components:
             fmu = self.fmus(component) if self.fmus is not None else None
             if fmu is None and component.fmu not in extracted:
-                if not self._unzip_root:  # FMUs lent by a study's pool need none
-                    self._unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
-                target = Path(self._unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
-                extracted[component.fmu] = fmpy.extract(str(component.fmu), unzipdir=str(target))
+                kept = kept_unpacked(component.fmu)  # a built FMU: unpacked once, by the first run
+                if kept is not None:
+                    extracted[component.fmu] = kept
+                else:
+                    if not self._unzip_root:  # FMUs lent by a study's pool need none
+                        self._unzip_root = tempfile.mkdtemp(prefix="deltafmi-run-")
+                    target = Path(self._unzip_root) / f"{len(extracted)}-{component.fmu.stem}"
+                    extracted[component.fmu] = fmpy.extract(str(component.fmu), unzipdir=str(target))
             unit = unit_for(component, extracted[component.fmu] if fmu is None else fmu.unzipDirectory, fmu)
             if hasattr(unit, "on_event"):  # ME units, and FMI 3.0 CS units in event mode
                 unit.on_event = self._on_event
@@ -455,10 +471,14 @@ class Master:
         ordered = self.stepping_blocks()
         # on an exact grid every step is m * h (bit for bit what a plain loop passes to doStep)
         last = n_steps + 1 if abs(start + n_steps * h - stop) <= 1e-9 * h else n_steps
-        if self.algorithm == "gauss-seidel":
+        groups: List[int] = []
+        if self.threads > 1:  # independent units grouped to step at once (parallel.py)
+            actions, groups = group_actions(ordered, self.algorithm, self.system.links)
+        elif self.algorithm == "gauss-seidel":
             actions = [(u, action, u.step_multiple) for u in ordered for action in (PULL, STEP, FETCH)]
         else:
             actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
+        self._groups = (actions, groups) if any(groups) else None
         native, live, most = None, self.live, _C_MAX_STEPS
         if self.native and (live is None or live.paced_in_c()):
             # a live source's unit has nothing to step: the C loop leaves it out (its values reach
@@ -467,9 +487,12 @@ class Master:
             if NativeLoop.fits(stepped, self.sampler):
                 # room for a call's rows, at most _C_ROWS_BYTES (a call with more rows ends early: ROWS_FULL)
                 rows = min(_C_MAX_STEPS, n_steps + 1, max(64, _C_ROWS_BYTES // (8 * (len(self.sampler.row) + 1))))
+                kept = [(a, g) for a, g in zip(actions, groups or [0] * len(actions))
+                        if getattr(a[0], "interface", None) != "LIVE"]
                 try:
-                    native = NativeLoop([a for a in actions if getattr(a[0], "interface", None) != "LIVE"],
-                                        self.sampler, start, h, stop, n_steps, last, self.every, block_rows=rows)
+                    native = self._native = NativeLoop(
+                        [a for a, _ in kept], self.sampler, start, h, stop, n_steps, last, self.every,
+                        block_rows=rows, groups=[g for _, g in kept] if groups else (), threads=self.threads)
                 except BuildError as exc:  # no compiler and no prebuilt loop: the same steps in Python
                     self.warn(f"stepping in Python: {exc}")
         if native is not None:
@@ -510,6 +533,11 @@ class Master:
         if isinstance(self.writer, BackgroundRows):
             self.writer.drain()  # the stepping ends with its rows written
 
+    def _step_pool(self) -> StepPool:
+        if self._pool is None:
+            self._pool = StepPool(self.threads)
+        return self._pool
+
     def _step_in_python(self, actions: Sequence[Tuple[Any, str, int]], grid: "_FixedGrid", k: int,
                         first: int = 0, held: Optional[Tuple[bool, int]] = None) -> None:
         """Step ``k`` of the fixed grid from action ``first`` on (earlier ones done), and its row;
@@ -520,7 +548,21 @@ class Master:
         t = self.time = grid.start + k * grid.h
         n_steps, last, h = grid.n_steps, grid.last, grid.h
         self.step_end = grid.start + (k + 1) * h if k + 1 < n_steps else grid.stop
-        for unit, action, m in actions[first:]:
+        groups = self._groups[1] if self._groups is not None and self._groups[0] is actions else None
+        i = first
+        while i < len(actions):
+            unit, action, m = actions[i]
+            group = groups[i] if groups else 0
+            if group and (i == 0 or groups[i - 1] != group):  # a group from its start: at once, on the pool
+                end = i + 1
+                while end < len(actions) and groups[end] == group:
+                    end += 1
+                due = [(u, n) for u, _, n in actions[i:end] if k % n == 0]
+                self._step_pool().step([u for u, _ in due], t,
+                                       [n * h if k + n < last else grid.stop - t for _, n in due])
+                i = end
+                continue
+            i += 1
             if k % m:
                 continue
             if action == STEP:
@@ -592,6 +634,8 @@ class Master:
         if why == TERMINATED:
             raise Terminated(unit.name, plan.time)
         if why == UNSETTLED:
+            from .fmi3_units import unsettled  # here: a run of FMI 2.0 units never loads the FMI 3.0 ones
+
             raise FmuFailure(unsettled(unit.name, plan.time))
         if why == RK_FAILED:
             raise FmuFailure(f"{unit.name}: {step_failure(plan.rk_time, plan.status)}")

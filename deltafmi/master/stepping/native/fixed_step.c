@@ -15,11 +15,24 @@
  * deltafmi/master/live/pacing.py's Pacer.wait does (sleep until shortly before, then poll the
  * clock), notes how late it came and writes the pacing measurements to the bus before the row is
  * recorded. Plain C, no Python.
+ *
+ * Parallel units (Plan.threads > 1): a run of consecutive DO_STEP operations of one group
+ * (Op.group > 0: FMI 2.0 Co-Simulation units of one step that take no input from one another, whose
+ * fmi2DoStep runs Python at most at events) is stepped by the plan's threads at once, the calling
+ * thread among them; a calling thread that holds Python's lock (Plan.gil_released 0) lets go of it
+ * meanwhile (PyEval_SaveThread), so that an FMU that takes it (at an event, or its logger calling
+ * back) gets it instead of waiting for a thread that waits for it. A process without Python's
+ * symbols steps the group one at a time. Each step has the arguments it has in turn; the statuses
+ * are looked at in the group's order afterwards, so the first failing unit in stepping order is
+ * the one reported (the others of its group have taken the step too).
  */
+#include <dlfcn.h>
+#include <pthread.h>
 #include <stdbool.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <time.h>
 #include <errno.h>
 
@@ -114,6 +127,9 @@ typedef struct {
     Instance3 enter_event_mode;
     UpdateDiscrete3 update_discrete_states;
     Instance3 enter_step_mode;
+    /* parallel units */
+    int group;               /* DO_STEP: > 0: stepped at once with the consecutive ops of this group */
+    int group_status;        /* out: the status of its fmi2DoStep in the last group step */
 } Op;
 
 typedef struct {
@@ -157,6 +173,11 @@ typedef struct {
     double rk_step;          /* STATE_EVENT: that step's size (the states it started from in op->x0) */
     double *op_seconds;      /* NULL, or per operation: wall seconds spent in it (benchmarks) */
     Pace *pace;              /* NULL: unpaced */
+    int threads;             /* threads stepping a group (1: the calling thread only) */
+    void *pool;              /* its worker threads, started by the first run that needs them and kept
+                              * until deltafmi_fixed_steps_end: a thread that enters Python keeps the
+                              * thread state it made there, so the threads are made once per plan */
+    int gil_released;        /* called without Python's lock (ctypes.CDLL): nothing to let go of */
 } Plan;
 
 static double now(void)
@@ -449,6 +470,120 @@ static void record(const Plan *p, double t, double *row)
     }
 }
 
+/* --- parallel units -------------------------------------------------------------------------- */
+enum { MAX_THREADS = 256 };
+typedef void *(*SaveThread)(void);
+typedef void (*RestoreThread)(void *);
+
+typedef struct {
+    Plan *p;
+    int n_workers;
+    pthread_t workers[MAX_THREADS];
+    pthread_mutex_t lock;
+    pthread_cond_t wake, done;
+    unsigned long round;     /* one per group step: the workers wait for the next */
+    int busy;                /* workers not yet through this round */
+    int quit;
+    size_t end;              /* the group: ops [next, end) */
+    size_t next;             /* the next op to take (atomic) */
+    long k;
+    double t;
+    SaveThread save_thread;  /* Python's */
+    RestoreThread restore_thread;
+} Pool;
+
+static void take_steps(Pool *pool)
+{
+    Plan *p = pool->p;
+    for (;;) {
+        size_t i = __atomic_fetch_add(&pool->next, 1, __ATOMIC_RELAXED);
+        if (i >= pool->end) return;
+        Op *o = &p->ops[i];
+        o->group_status = 0;
+        if (pool->k % o->multiple) continue;
+        double begin = p->op_seconds ? now() : 0.0;
+        long m = o->multiple;
+        double step = pool->k + m < p->last ? (double)m * p->h : p->stop - pool->t;
+        o->group_status = ((DoStep)o->function)(o->component, pool->t, step, o->no_prior_state);
+        if (p->op_seconds) p->op_seconds[i] += now() - begin;
+    }
+}
+
+static void *pool_worker(void *arg)
+{
+    Pool *pool = arg;
+    unsigned long seen = 0;
+    pthread_mutex_lock(&pool->lock);
+    for (;;) {
+        while (pool->round == seen && !pool->quit) pthread_cond_wait(&pool->wake, &pool->lock);
+        if (pool->quit) break;
+        seen = pool->round;
+        pthread_mutex_unlock(&pool->lock);
+        take_steps(pool);
+        pthread_mutex_lock(&pool->lock);
+        if (--pool->busy == 0) pthread_cond_signal(&pool->done);
+    }
+    pthread_mutex_unlock(&pool->lock);
+    return NULL;
+}
+
+/* The plan's worker threads (threads - 1 of them; none when it has no group or one thread). */
+static Pool *pool_start(Plan *p)
+{
+    int grouped = 0;
+    for (size_t i = 0; i < p->n_ops; i++) grouped |= p->ops[i].group > 0;
+    /* without Python's lock to let go of (a host that embeds Python and hides its symbols), one at a time:
+     * an FMU of the group that takes the lock would wait for this thread, which waits for it */
+    if (!grouped || p->threads < 2 || !dlsym(RTLD_DEFAULT, "PyEval_SaveThread")) return NULL;
+    Pool *pool = calloc(1, sizeof *pool); /* one per run: runs of other masters may go on meanwhile */
+    if (!pool) return NULL;                /* the group steps on the calling thread, one op at a time */
+    pool->p = p;
+    pool->save_thread = (SaveThread)dlsym(RTLD_DEFAULT, "PyEval_SaveThread");
+    pool->restore_thread = (RestoreThread)dlsym(RTLD_DEFAULT, "PyEval_RestoreThread");
+    pthread_mutex_init(&pool->lock, NULL);
+    pthread_cond_init(&pool->wake, NULL);
+    pthread_cond_init(&pool->done, NULL);
+    int wanted = p->threads - 1 < MAX_THREADS ? p->threads - 1 : MAX_THREADS;
+    for (int i = 0; i < wanted; i++)
+        if (pthread_create(&pool->workers[pool->n_workers], NULL, pool_worker, pool) == 0) pool->n_workers++;
+    return pool; /* no worker started: the calling thread steps the group alone */
+}
+
+static void pool_stop(Pool *pool)
+{
+    if (!pool) return;
+    pthread_mutex_lock(&pool->lock);
+    pool->quit = 1;
+    pthread_cond_broadcast(&pool->wake);
+    pthread_mutex_unlock(&pool->lock);
+    for (int i = 0; i < pool->n_workers; i++) pthread_join(pool->workers[i], NULL);
+    pthread_cond_destroy(&pool->done);
+    pthread_cond_destroy(&pool->wake);
+    pthread_mutex_destroy(&pool->lock);
+    free(pool);
+}
+
+/* Steps ops [first, end) of one group at step k (time t) on the pool, the calling thread too;
+ * the calling thread lets go of Python's lock meanwhile where it holds it (gil_held). */
+static void group_step(Pool *pool, size_t first, size_t end, long k, double t, bool gil_held)
+{
+    pthread_mutex_lock(&pool->lock);
+    pool->next = first;
+    pool->end = end;
+    pool->k = k;
+    pool->t = t;
+    pool->busy = pool->n_workers;
+    pool->round++;
+    pthread_cond_broadcast(&pool->wake);
+    pthread_mutex_unlock(&pool->lock);
+    void *state = gil_held ? pool->save_thread() : NULL;
+    take_steps(pool);
+    pthread_mutex_lock(&pool->lock);
+    while (pool->busy) pthread_cond_wait(&pool->done, &pool->lock);
+    pthread_mutex_unlock(&pool->lock);
+    if (gil_held) pool->restore_thread(state);
+}
+
 /* Steps k_begin, k_begin + 1, ... before k_end, every recorded row into `rows` (room for
  * max_rows). Returns why it stopped (RAN: k_end reached; ROWS_FULL: no room for the next
  * step's row; else the stop of operation plan->op in step *k_done); *k_done is the first step
@@ -461,6 +596,8 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
     int why = RAN;
     for (size_t i = 0; i < p->n_ops; i++)
         p->ops[i].holds_end = 0; /* Python may have called the FMUs since the last run */
+    if (!p->pool) p->pool = pool_start(p);
+    Pool *pool = p->pool;
     for (; k < k_end; k++) {
         long next = k + 1;
         int due = next % p->every == 0 || next == p->n_steps;
@@ -471,6 +608,22 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
         double t = p->start + (double)k * p->h;
         for (size_t i = 0; i < p->n_ops; i++) {
             Op *o = &p->ops[i];
+            if (pool && o->group > 0) { /* the group's ops, then their statuses in order */
+                size_t end = i + 1;
+                while (end < p->n_ops && p->ops[end].group == o->group) end++;
+                group_step(pool, i, end, k, t, !p->gil_released);
+                for (; i < end; i++) {
+                    if (p->ops[i].group_status > FMI2_WARNING) {
+                        p->status = p->ops[i].group_status;
+                        p->op = (long)i;
+                        *k_done = k;
+                        *n_rows = written;
+                        return FAILED;
+                    }
+                }
+                i = end - 1;
+                continue;
+            }
             if (k % o->multiple) continue;
             double begin = p->op_seconds ? now() : 0.0;
             int stop = run_op(p, o, k, t);
@@ -497,4 +650,12 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
     *k_done = k;
     *n_rows = written;
     return why;
+}
+
+/* The plan's worker threads stopped and joined (call once its runs are over; again is harmless). */
+__attribute__((visibility("default")))
+void deltafmi_fixed_steps_end(Plan *p)
+{
+    pool_stop(p->pool);
+    p->pool = NULL;
 }
