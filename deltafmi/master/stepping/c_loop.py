@@ -76,7 +76,7 @@ class _Plan(ctypes.Structure):
                 ("width", c_size_t), ("start", c_double), ("h", c_double), ("stop", c_double),
                 ("n_steps", c_long), ("last", c_long), ("every", c_long),
                 ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
-                ("rk_step", c_double), ("op_seconds", c_void_p)]
+                ("rk_step", c_double), ("op_seconds", c_void_p), ("step_start", c_void_p)]
 
 
 _kernel: Optional[Any] = None
@@ -174,9 +174,11 @@ class NativeLoop:
         width = len(sampler.row)
         self.rows = np.empty((block_rows, width + 1))
         self.plan = _Plan(self._ops_array, len(ops), self._parts_array, len(parts), width, start, h, stop,
-                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None)
+                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None, None)
         #: set :meth:`timed` to have the C loop add up the wall time of each operation
         self.op_seconds: Optional[np.ndarray] = None
+        #: set :meth:`keep_step_start` to have the C loop gather the recorded values at each step's start here
+        self.step_start: Optional[np.ndarray] = None
         self._run = _steps_function()
         self._k_done, self._n_rows = c_long(0), c_long(0)
 
@@ -268,6 +270,12 @@ class NativeLoop:
                 op.x, op.max_step = unit.solver.x.ctypes.data, unit.solver.max_step
                 self._keep.append(unit.solver)
         return True
+
+    def keep_step_start(self) -> None:
+        """From now on gather the recorded row (time first) at the start of every step into
+        :attr:`step_start`: after a stop inside a step, the values every unit had when it began."""
+        self.step_start = np.zeros(len(self.rows[0]))
+        self.plan.step_start = self.step_start.ctypes.data
 
     def timed(self) -> None:
         """From now on add each operation's wall seconds to :attr:`op_seconds` (for benchmarks)."""

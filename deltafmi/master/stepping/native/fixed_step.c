@@ -137,6 +137,8 @@ typedef struct {
     double rk_time;          /* RK_FAILED, STATE_EVENT: the time its Runge-Kutta step started from */
     double rk_step;          /* STATE_EVENT: that step's size (the states it started from in op->x0) */
     double *op_seconds;      /* NULL, or per operation: wall seconds spent in it (benchmarks) */
+    double *step_start;      /* NULL, or a row: the recorded values at the start of each step
+                              * (what an event row inside the step shows of the other units) */
 } Plan;
 
 static double now(void)
@@ -416,6 +418,7 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
             break;
         }
         double t = p->start + (double)k * p->h;
+        if (p->step_start) record(p, t, p->step_start);
         for (size_t i = 0; i < p->n_ops; i++) {
             Op *o = &p->ops[i];
             if (k % o->multiple) continue;
