@@ -11,13 +11,14 @@ from deltafmi.errors import BadInput
 
 from deltafmi.builder.packager import ComponentSourceError, build_fmu
 from deltafmi.builder.requirements import runtime_requirement
+from deltafmi.apps.console import output_folders
 
 __all__ = ["build", "info", "validate_fmu_file"]
 
 
 @click.command()
 @click.argument("sources", nargs=-1)
-@click.option("-o", "--output", type=click.Path(),
+@click.option("-o", "--output", type=click.Path(), callback=output_folders,
               help="Output .fmu file, or a directory (existing, or ending in '/') that gets <Model>.fmu; "
                    "always a directory with several sources or --all.")
 @click.option("--all", "build_all", is_flag=True, help="Build every packaged model (deltafmi.models).")

@@ -5,6 +5,8 @@ from typing import Optional, Sequence
 
 import click
 
+from deltafmi.apps.console import output_folders
+
 __all__ = ["scope"]
 
 
@@ -18,7 +20,7 @@ __all__ = ["scope"]
               help="Seconds of the sender's (simulation) time shown.")
 @click.option("--fps", type=click.FloatRange(1.0, 60.0), default=20.0, show_default=True,
               help="Most redraws per second.")
-@click.option("--save", type=click.Path(dir_okay=False), default=None,
+@click.option("--save", type=click.Path(dir_okay=False), callback=output_folders, default=None,
               help="Draw off screen (no window) and write the last picture to this PNG file at the end.")
 @click.option("--frames", type=click.IntRange(1), default=None,
               help="End after this many redraws (a redraw needs new datagrams).")
