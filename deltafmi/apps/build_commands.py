@@ -176,7 +176,9 @@ def _fmu_of(target: str) -> Path:
     path = Path(target)
     if path.is_file() and path.suffix.lower() != ".py":
         return path
-    if path.suffix.lower() == ".fmu" or path.is_dir():
+    if path.is_dir():
+        raise BadInput(f"{target}: a folder, not an FMU file (an FMU is one .fmu file, a zip archive)")
+    if path.suffix.lower() == ".fmu":
         raise BadInput(f"{target}: no such FMU file")
     from deltafmi.builder.packager import build_cached
     from deltafmi.builder.sources import find_component
@@ -207,6 +209,8 @@ def validate_fmu_file(fmu: Path) -> None:
 
     from deltafmi.master.scenario.fmu_checks import binary_problem, guid_problem
     from deltafmi.master.stepping.fmu_trial import instantiation_problem
+    if fmu.is_dir():
+        raise BadInput(f"{fmu}: a folder, not an FMU file (an FMU is one .fmu file, a zip archive)")
     if not fmu.is_file():
         raise BadInput(f"{fmu}: no such FMU file")
     md = _readable(fmu).md

@@ -48,6 +48,11 @@ def inputs(build_fmu_from_src, tmp_path_factory) -> Path:
     for name in ("binary.yaml", "binary.csv", "binary.parquet", "binary.mat", "binary.py"):
         (folder / name).write_bytes(binary)
     (folder / "afile").write_text("a file, not a folder\n")
+    os.mkfifo(folder / "pipe.csv")
+    (folder / "syntax.py").write_text("class X(:\n")
+    (folder / "adir.fmu").mkdir()
+    (folder / "empty.csv").write_text("")
+    (folder / "one.yaml").write_text(f"experiment: {{stop: 0.01, step: 1.0e-3}}\ncomponents:\n  osc: {{fmu: {osc}}}\n")
     good = CliRunner().invoke(main, ["run", "delta_tracking", "--stop", "0.05", "-q", "-o", str(folder / "r.csv")])
     assert good.exit_code == 0, good.output
     return folder
@@ -119,6 +124,14 @@ def test_a_broken_fmu_in_a_scenario_names_the_component(inputs, tmp_path):
     (["info", "{dir}/binary.py"], 2, "importing it failed"),
     (["linearize", "{dir}/binary.py"], 2, "importing it failed"),
     (["run", "{dir}/r.csv"], 2, "a scenario must be a YAML mapping"),
+    (["run", "delta_tracking", "--stop", "0.01", "-o", "{dir}/pipe.csv"], 2,
+     "result file '{dir}/pipe.csv': not a regular file (a device, a pipe or a socket)"),
+    (["run", "{dir}/syntax.py"], 2, "not a scenario: a Python file (a component's source"),
+    (["build", "{dir}/syntax.py"], 2, "importing it failed: {dir}/syntax.py:1: invalid syntax"),
+    (["info", "{dir}"], 2, "a folder, not an FMU file"),
+    (["run", "{dir}/adir.fmu"], 2, "a folder, not an FMU file"),
+    (["plot", "{dir}/empty.csv", "x", "-o", "{dir}/p.png"], 2, "as a result file: it is empty (0 bytes)"),
+    (["run", "{dir}/one.yaml", "--set", "osc=1"], 2, "'osc' is the component: set one of its variables, osc.NAME"),
 ])
 def test_every_command_ends_with_one_line_never_a_traceback(inputs, args, code, text):
     args = [a.replace("{dir}", str(inputs)) for a in args]

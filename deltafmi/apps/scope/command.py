@@ -1,6 +1,7 @@
 """CLI command ``scope``: the live plot window of a run's UDP output stream (:mod:`.window`)."""
 from __future__ import annotations
 
+import signal
 from typing import Optional, Sequence
 
 import click
@@ -8,6 +9,9 @@ import click
 from deltafmi.apps.console import output_folders
 
 __all__ = ["scope"]
+
+#: the reasons a signal ends the scope, and the signal
+_SIGNALLED = {"interrupted": signal.SIGINT, "terminated": signal.SIGTERM, "hung up": signal.SIGHUP}
 
 
 @click.command("scope")
@@ -52,3 +56,5 @@ def scope(signals: Sequence[str], port: int, host: str, window: float, fps: floa
     frames = f"{view.frames} frame{'s' * (view.frames != 1)}"
     click.echo(f"scope: {view.data.summary()}; {frames} drawn, ended: {reason}"
                + (f"; wrote {save}" if save else ""), err=True)
+    if reason in _SIGNALLED:  # ended by a signal: the picture is saved, the exit code says which
+        raise SystemExit(128 + _SIGNALLED[reason])

@@ -230,6 +230,8 @@ def read_result(path: str | Path) -> Result:
     suffix = path.suffix.lower()
     if not path.is_file():
         raise BadInput(f"result file '{path}' not found")
+    if path.stat().st_size == 0:
+        raise BadInput(f"cannot read '{path}' as a result file: it is empty (0 bytes)")
     try:
         if suffix == ".parquet":
             return _read_parquet(path)

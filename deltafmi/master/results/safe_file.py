@@ -28,12 +28,15 @@ def failed_name(target: Path) -> Path:
 
 def check_writable(target: Path, what: str = "result file") -> None:
     """Raise :class:`BadInput` (one line, naming ``what`` and ``target``) when ``target`` cannot be
-    written: a file where a folder of its path should be, a folder where the file should be, a
-    folder that cannot take files (no permission, a read-only file system). Folders missing on
+    written: a file where a folder of its path should be, a folder, a device, a pipe or a socket
+    where the file should be (moved into place, the new file would replace it), a folder that
+    cannot take files (no permission, a read-only file system). Folders missing on
     the way are not an error: the writer makes them."""
     target = Path(target)
     if target.is_dir():
         raise BadInput(f"{what} '{target}': that is a folder; name a file")
+    if target.exists() and not target.is_file():  # the rename into place would replace it by a file
+        raise BadInput(f"{what} '{target}': not a regular file (a device, a pipe or a socket); name a file")
     folder = target.parent
     for parent in [target.parent, *target.parent.parents]:
         if parent.exists():
