@@ -131,6 +131,8 @@ def test_a_broken_fmu_in_a_scenario_names_the_component(inputs, tmp_path):
     (["info", "{dir}"], 2, "a folder, not an FMU file"),
     (["run", "{dir}/adir.fmu"], 2, "a folder, not an FMU file"),
     (["plot", "{dir}/empty.csv", "x", "-o", "{dir}/p.png"], 2, "as a result file: it is empty (0 bytes)"),
+    (["run", "{dir}/one.yaml", "--stop", "1e308"], 2, "1e+308 s in steps of 0.001 s: more communication steps "
+                                                      "than a run can count"),
     (["run", "{dir}/one.yaml", "--set", "osc=1"], 2, "'osc' is the component: set one of its variables, osc.NAME"),
 ])
 def test_every_command_ends_with_one_line_never_a_traceback(inputs, args, code, text):
@@ -154,3 +156,25 @@ def test_a_file_of_utf8_control_characters_is_one_line_naming_its_line(tmp_path,
     path.write_bytes(b"description: x\n\x00\x01binary")
     last = _one_line(CliRunner().invoke(main, [command, str(path)]), 2)
     assert f"{path}:2" in last and "not text: character #x0000 is not allowed in YAML" in last, last
+
+
+def test_a_result_that_cannot_be_put_in_place_says_where_its_rows_are(inputs, tmp_path):
+    """An immutable result file (chattr +i): the run's rows stay in the temporary file beside it,
+    which the one line names; the earlier file is as it was."""
+    import subprocess
+
+    from deltafmi.master.results.csv_file import columns
+
+    target = tmp_path / "locked.csv"
+    target.write_text("earlier\n")
+    if subprocess.run(["chattr", "+i", str(target)], capture_output=True).returncode != 0:
+        pytest.skip("chattr +i needs root and a file system that has it")
+    try:
+        done = CliRunner().invoke(main, ["run", str(inputs / "one.yaml"), "-q", "-o", str(target)])
+    finally:
+        subprocess.run(["chattr", "-i", str(target)], check=True)
+    last = _one_line(done, 2)
+    kept = re.search(r"cannot put the finished file in its place \(.+\); its rows are in (\S+\.tmp)$", last)
+    assert kept, last
+    assert target.read_text() == "earlier\n"
+    assert len(columns(kept[1])["time"]) == 11  # 0 to 0.01 s in steps of 1 ms

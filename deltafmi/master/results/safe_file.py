@@ -79,7 +79,11 @@ class ResultFile:
         if not self.temporary.exists():
             return None
         final = self.final
-        os.replace(self.temporary, final)
+        try:
+            os.replace(self.temporary, final)
+        except OSError as exc:  # an immutable or otherwise locked target: the rows stay where they are
+            raise BadInput(f"result file '{final}': cannot put the finished file in its place "
+                           f"({exc.strerror or exc}); its rows are in {self.temporary}") from None
         return final
 
     def discard(self) -> None:
