@@ -19,7 +19,8 @@ __all__ = ["folder_output", "output_folders", "progress_shown", "show_progress"]
 
 #: the loggers whose INFO messages a command shows
 PROGRESS_LOGGERS = ("deltafmi.build",)
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+#: a number, and the unit of time after it (one kind of message says "10.1 ms" or "9069.7 us")
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?: ?(?:[mun\u00b5]?s)\b)?")
 
 
 class _Stderr(logging.Handler):
@@ -73,7 +74,7 @@ class RepeatedWarnings:
 
     @staticmethod
     def kind(message: str) -> str:
-        """The message with every number replaced by ``#``."""
+        """The message with every number (and a unit of time after it) replaced by ``#``."""
         return _NUMBER.sub("#", message)
 
     def __call__(self, message: str) -> None:
