@@ -7,7 +7,7 @@ The public API, importable from here (``from deltafmi import load_scenario, Mast
 * runs: :func:`simulate` -> :class:`Result` (in memory, with units), :class:`Master`
   (``Master(system, result=...).run()``), :func:`read_result` (``.csv``, ``.parquet``, ``.mat``),
   :func:`plot_result`;
-* FMUs: :func:`build_fmu`, :func:`build_cached`;
+* FMUs: :func:`build_fmu`, :func:`build_cached`, :func:`export_fmu` (a scenario as one FMU);
 * linear models: :func:`linearize_fmu`, :func:`linearize_scenario`, :class:`LinearModel`;
 * studies: :func:`load_study`, :func:`plan_study`, :func:`open_store`, :func:`sweep_study`
   (what ``deltafmi sweep`` runs);
@@ -41,6 +41,7 @@ _API = {
     "plot_result": "deltafmi.master.results.result",
     "build_fmu": "deltafmi.builder.packager",
     "build_cached": "deltafmi.builder.packager",
+    "export_fmu": "deltafmi.apps.export_fmu",
     "linearize_fmu": "deltafmi.master.linearize.fmu",
     "linearize_scenario": "deltafmi.master.linearize.closed_loop",
     "LinearModel": "deltafmi.master.linearize.linear_model",

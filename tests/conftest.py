@@ -86,14 +86,16 @@ SUBPROCESS = {"test_reliability_signals_tools", "test_component_docs", "test_liv
               "test_component_values", "test_fmi3_binary", "test_fmu_logging", "test_fmu_threads",
               "test_fmu_without_fmpy_scipy", "test_memory", "test_symbol_isolation", "test_third_party_masters",
               "test_peg_robustness", "test_examples", "test_reliability_results", "test_reliability_sweep",
-              "test_reliability_recipes", "test_reliability_limits", "test_reliability_no_traceback"}
+              "test_reliability_recipes", "test_reliability_limits", "test_reliability_no_traceback",
+              "test_export_fmu", "test_fmi3_cs_events"}
 #: what a module that builds FMUs (or runs scenarios, which build theirs) says somewhere
 _BUILDS = re.compile(r"build_fmu|build_cached|_fmu\b|_fmu\(|simulate|resolve_system|\[\"(run|build|sweep|linearize)\"")
 #: modules with a test over 10 s on this kind of machine (2 cores; `--durations=25` shows them)
 SLOW = {"test_reliability_signals_tools", "test_wheel_install", "test_python_hosts", "test_peg_robustness", "test_study_dask", "test_study_cluster",
         "test_study_tls", "test_assembly_portable", "test_portable_fmus", "test_memory", "test_insertion_mpc",
         "test_third_party_masters", "test_fmu_threads", "test_symbol_isolation", "test_joystick_tracking",
-        "test_component_docs", "test_mpc_controller", "test_peg_estimator", "test_fmu_without_fmpy_scipy"}
+        "test_component_docs", "test_mpc_controller", "test_peg_estimator", "test_fmu_without_fmpy_scipy",
+        "test_export_fmu"}
 
 
 def pytest_collection_modifyitems(config, items) -> None:

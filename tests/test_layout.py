@@ -28,6 +28,7 @@ INDEPENDENT = {
     "live": {"stepping", "ssp", "linearize", "commands"},
     "stepping": {"ssp", "linearize", "commands"},
     "linearize": {"ssp"},
+    "system_fmu": {"ssp", "linearize", "commands"},
 }
 
 

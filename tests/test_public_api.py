@@ -19,7 +19,7 @@ TOP_LEVEL = [
     "BadInput", "BuildError", "ComponentSourceError", "DeltaFmiError", "Interrupted", "LinearModel", "Master",
     "Result",
     "ResultWriteError", "Scenario", "ScenarioError", "SimulationError", "System", "build_cached", "build_fmu",
-    "export_ssp", "linearize_fmu", "linearize_scenario", "load_scenario", "load_ssp", "load_study", "open_store",
+    "export_fmu", "export_ssp", "linearize_fmu", "linearize_scenario", "load_scenario", "load_ssp", "load_study", "open_store",
     "plan_study", "plot_result", "read_result", "resolve_system", "simulate", "sweep_study",
 ]
 

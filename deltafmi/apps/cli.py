@@ -20,6 +20,7 @@ from deltafmi.apps.scope.command import scope
 from deltafmi.errors import DeltaFmiError
 from deltafmi.apps.examples_command import examples
 from deltafmi.apps.build_commands import build, info
+from deltafmi.apps.export_fmu import export_fmu_command
 from deltafmi.apps.guides import guides_command
 from deltafmi.apps.studies.commands import plot_study_command, study_case, sweep
 from deltafmi.apps.animation.commands import animate
@@ -96,8 +97,8 @@ def main() -> None:
     show_progress()
 
 
-for command in (examples, guides_command, build, info, run, validate, export_ssp, plot, animate, linearize, compat,
-                scope):
+for command in (examples, guides_command, build, info, run, validate, export_ssp, export_fmu_command, plot, animate,
+                linearize, compat, scope):
     main.add_command(command)
 for command in (sweep, plot_study_command, study_case):  # parameter studies on Dask
     main.add_command(command)

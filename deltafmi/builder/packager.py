@@ -22,7 +22,8 @@ from deltafmi.runtime.clocks import clock_driven
 from deltafmi.runtime.model_description3 import model_description3_xml
 from deltafmi.runtime.native_kernels import DESCRIPTION as NATIVE_KERNELS
 from ..files import replaced_atomically
-from deltafmi.toolchain import BuildError, NoCompilerError, cache_dir, compiler_available, no_compiler_message, python_extension
+from deltafmi.toolchain import (BuildError, NoCompilerError, cache_dir, compiler_available, no_compiler_message,
+                                plain_c_library, python_extension)
 from .compiler import fmu_binary, native_source_files, python_runtime_config
 from .codegen.component_kernels import component_library
 from .bytecode import unchecked_hash_pyc
@@ -124,11 +125,42 @@ def runtime_files(source: Path) -> list[tuple[Path, str]]:
     return files
 
 
+#: the plain C the master compiles when it runs (package-relative source -> the module that loads it)
+PLAIN_C_SOURCES = {"master/stepping/native/fixed_step.c": "deltafmi.master.stepping.c_loop",
+                   "master/stepping/native/erk.c": "deltafmi.master.stepping.explicit_rk",
+                   "master/results/native/csv_rows.c": "deltafmi.master.results.csv_file"}
+#: the data files the master reads when it runs (package-relative file -> the module that reads it)
+MASTER_DATA = {"master/scenario/scenario.schema.json": "deltafmi.master.scenario.spec"}
+
+
 def binary_files(source: Path) -> list[tuple[Path, str]]:
-    """(file, archive name) of the compiled Python extension modules bundled for ``source``: the
-    value access, when the modules it carries use it (a model's compiled kernels are C generated
-    from its Python, loaded by the FMU's C layer: see :func:`.codegen.component_kernels.component_library`)."""
-    return compiled_value_access(runtime_modules(source))
+    """(file, archive name) of the compiled pieces bundled for ``source``: the value access, when
+    the modules it carries use it, and the master's C, when it carries the master (a scenario
+    exported as one FMU). A model's compiled kernels are C generated from its Python, loaded by
+    the FMU's C layer: see :func:`.codegen.component_kernels.component_library`."""
+    modules = runtime_modules(source)
+    return compiled_value_access(modules) + compiled_master_loops(modules)
+
+
+def compiled_master_loops(modules: list[str]) -> list[tuple[Path, str]]:
+    """(file, archive name) of the data files and C sources of the master that ``modules`` read,
+    each C source with its library compiled here into the bundle's prebuilt layer, so that the FMU
+    needs no compiler where it runs;
+    a piece that cannot be compiled is left out, with a warning (the master then steps in Python)."""
+    package = Path(deltafmi.__file__).resolve().parent
+    files = [(package / relative, f"resources/python/deltafmi/{relative}")
+             for relative, user in MASTER_DATA.items() if user in modules]
+    for relative, user in PLAIN_C_SOURCES.items():
+        if user not in modules:
+            continue
+        try:
+            library = plain_c_library(package / relative)
+        except BuildError as exc:
+            warnings.warn(f"the FMU's master steps in Python (same results, slower): {exc}", stacklevel=2)
+            continue
+        files.append((package / relative, f"resources/python/deltafmi/{relative}"))
+        files.append((library, f"resources/python/deltafmi/_prebuilt/native/{library.parent.name}/{library.name}"))
+    return files
 
 
 def compiled_value_access(modules: Optional[list[str]] = None) -> list[tuple[Path, str]]:
@@ -317,6 +349,8 @@ _REQUIREMENTS = ("This FMU runs its model in CPython (3.10 or newer) with numpy,
 
 def _interfaces(cls: type[Component], fmi_version: int) -> str:
     """The interfaces the FMU provides, in words."""
+    if cls.co_simulation_only:
+        return "Co-Simulation"
     if fmi_version == 3 and clock_driven(cls):
         return "Model Exchange, Co-Simulation and Scheduled Execution"
     return "Model Exchange and Co-Simulation"

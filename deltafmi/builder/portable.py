@@ -346,7 +346,10 @@ resources, out = sys.argv[1], sys.argv[2]
 sys.path += sys.argv[3:]  # the site directories, without the site module's .pth hooks (not bundled)
 load = runpy.run_path(resources + "/deltafmi_boot.py")["load"]
 for fmu_type in (1, 0):  # Co-Simulation, then Model Exchange
-    instance = load(resources, "trace", "", fmu_type)
+    try:
+        instance = load(resources, "trace", "", fmu_type)
+    except ValueError:  # a model that offers Co-Simulation only
+        continue
     instance.enter_initialization(0.0, math.nan, math.nan)
     instance.exit_initialization()
     for k in range(3):
@@ -355,7 +358,9 @@ for fmu_type in (1, 0):  # Co-Simulation, then Model Exchange
         else:
             instance.evaluate(k * 1e-3)
     state = instance.get_state()
-    instance.set_state(instance.deserialize_state(instance.serialize_state(state)))
+    if instance.component_class.can_serialize_state:
+        state = instance.deserialize_state(instance.serialize_state(state))
+    instance.set_state(state)
     instance.terminate()
     instance.reset()
 for name in json.loads(os.environ["DELTAFMI_STATIC_IMPORTS"]):  # what branches that did not run import
@@ -414,7 +419,7 @@ def make_portable(fmu: Path, output: Path) -> PortableBundle:
     spec = find_spec("fmpy")
     sundials = Path(spec.submodule_search_locations[0]) / "sundials" / "x86_64-linux" if spec else None
     with zipfile.ZipFile(fmu) as archive:  # the runtime imports its solver only when a component integrates
-        needs_sundials = f"{PYTHON_DIR}/deltafmi/runtime/cvode.py" in archive.namelist()
+        needs_sundials = _integrates(archive)
     bundle = portable_bundle(modules, needs_sundials=needs_sundials, sundials_dir=sundials)
     replaced = {"resources/python.cfg", "documentation/index.html", "resources/README.txt"}
     with zipfile.ZipFile(fmu) as source, replaced_atomically(output) as tmp:
@@ -434,6 +439,19 @@ def make_portable(fmu: Path, output: Path) -> PortableBundle:
             archive.writestr("documentation/index.html", _with_portable_section(
                 source.read("documentation/index.html").decode(), bundle, version))
     return bundle
+
+
+def _integrates(archive: zipfile.ZipFile) -> bool:
+    """Whether the FMU's Python side, or that of an FMU of ours it carries in resources/ (a scenario
+    exported as one FMU runs them in its interpreter), integrates with CVODE."""
+    if f"{PYTHON_DIR}/deltafmi/runtime/cvode.py" in archive.namelist():
+        return True
+    for name in archive.namelist():
+        if name.startswith("resources/") and name.endswith(".fmu"):
+            with archive.open(name) as nested_file, zipfile.ZipFile(io.BytesIO(nested_file.read())) as nested:
+                if _integrates(nested):
+                    return True
+    return False
 
 
 def _fmi_version(model_description: bytes) -> str:

@@ -20,8 +20,6 @@ from pathlib import Path
 __all__: list[str] = []
 
 #: the ctypes libraries of the co-simulation master and the result writer (package-relative)
-PLAIN_C_SOURCES = ("master/stepping/native/fixed_step.c", "master/stepping/native/erk.c",
-                   "master/results/native/csv_rows.c")
 
 
 def prebuild(target: Path) -> list[Path]:
@@ -33,7 +31,7 @@ def prebuild(target: Path) -> list[Path]:
     os.environ["DELTAFMI_CACHE"] = str(target)  # the functions below build into "the cache"
     from deltafmi import toolchain
     from . import compiler
-    from .packager import VALUE_ACCESS_SOURCE
+    from .packager import PLAIN_C_SOURCES, VALUE_ACCESS_SOURCE
     from .portable import starter_library
 
     if toolchain.PREBUILT_DIR.exists():  # an installed wheel's layer would be found, not rebuilt

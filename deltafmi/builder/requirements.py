@@ -9,6 +9,7 @@ and GUID, is the master's question: :mod:`deltafmi.master.scenario.fmu_checks`.)
 from __future__ import annotations
 
 import json
+import re
 import os
 import platform
 import subprocess
@@ -17,6 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 __all__ = ["read_config", "runtime_requirement"]
+
+
+#: the first line of the component source ``deltafmi export-fmu`` writes
+_EXPORTED = re.compile(r'"""(?P<scenario>\S+) exported as one Co-Simulation FMU by deltafmi export-fmu')
 
 
 @dataclass
@@ -30,6 +35,8 @@ class RuntimeRequirement:
     executable: str = ""
     source: str = ""
     missing: list[str] = field(default_factory=list)
+    #: the start of the model source the FMU carries
+    source_text: str = ""
     fmi_version: int = 2
 
     @property
@@ -40,6 +47,14 @@ class RuntimeRequirement:
     @property
     def runs_here(self) -> bool:
         return not self.missing
+
+    def _build_command(self) -> str:
+        """The command (after ``deltafmi``) that built the FMU: ``build SOURCE``, or ``export-fmu
+        SCENARIO`` for a scenario exported as one FMU (its source's docstring names the scenario)."""
+        exported = _EXPORTED.match(self.source_text)
+        if exported:
+            return f"export-fmu {exported['scenario']}"
+        return f"build {self.source or 'SOURCE'}"
 
     def describe(self) -> list[str]:
         """Lines for the CLI."""
@@ -53,7 +68,7 @@ class RuntimeRequirement:
             lines = [f"not portable: in a host that runs no Python it starts CPython {self.python_version} "
                      f"({self.library}) with the packages of {self.executable}, or what DELTAFMI_LIBPYTHON and "
                      f"DELTAFMI_PYTHON name; a Python host lends its own interpreter, which needs numpy. "
-                     f"`deltafmi build {self.source or 'SOURCE'}{version_option} --portable` makes one that "
+                     f"`deltafmi {self._build_command()}{version_option} --portable` makes one that "
                      f"carries its own Python"]
         if self.missing:
             lines += [f"this machine: cannot start it: {problem}" for problem in self.missing]
@@ -70,6 +85,16 @@ def read_config(fmu: Path) -> dict[str, str]:
         except KeyError:
             return {}
     return dict(line.split("=", 1) for line in text.splitlines() if "=" in line)
+
+
+def _source_text(fmu: Path) -> str:
+    """The first 200 characters of the model source the FMU carries ("" if none)."""
+    with zipfile.ZipFile(fmu) as archive:
+        try:
+            source = json.loads(archive.read("resources/deltafmi.json")).get("source", "")
+            return archive.read(f"resources/model/{source}")[:200].decode(errors="replace") if source else ""
+        except (KeyError, ValueError):
+            return ""
 
 
 def _source(fmu: Path) -> tuple[str, int]:
@@ -116,6 +141,7 @@ def runtime_requirement(fmu: Path) -> RuntimeRequirement:
     executable = os.environ.get("DELTAFMI_PYTHON") or cfg.get("executable", "")
     source, fmi_version = _source(fmu)
     requirement = RuntimeRequirement(False, version, library=library, executable=executable, source=source,
+                                     source_text=_source_text(fmu),
                                      fmi_version=fmi_version)
     if not library or not Path(library).is_file():
         requirement.missing.append(f"no Python library {library or '(none recorded)'}")

@@ -1,11 +1,13 @@
 """The :class:`Component` base class that models and controllers derive from."""
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import struct
 from operator import methodcaller
-from typing import Any, ClassVar, Optional, Sequence
+from contextlib import nullcontext
+from typing import Any, Callable, ClassVar, ContextManager, Optional, Sequence
 
 import numpy as np
 
@@ -14,6 +16,11 @@ from .native_values import ValueDescriptor, ValueHolder
 from .variables import _REAL_ARRAY, Experiment
 
 __all__ = ["Component"]
+
+#: attributes the runtime keeps on a component (its value buffers, log sink, ...): not its own state
+RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
+                                "_int_items", "_str", "_str_items", "_log_sink", "_control", "resources_dir",
+                                "own_modules"})
 
 #: Component.log levels -> (FMI status, log category)
 LOG_LEVELS = {"debug": (0, "logComponent"), "info": (0, "logComponent"), "warning": (1, "logStatusWarning"),
@@ -46,6 +53,11 @@ class Component(ValueHolder):
     cs_options: ClassVar[dict] = {}
     author: ClassVar[str] = ""
     version: ClassVar[str] = "1.0"
+    #: offer Co-Simulation only (no ``<ModelExchange>``, no directional derivatives): for a
+    #: component whose ``do_step`` is all it does, such as a whole scenario run by a master
+    co_simulation_only: ClassVar[bool] = False
+    #: whether fmi2SerializeFMUstate can write this component's state (see :meth:`internal_state`)
+    can_serialize_state: ClassVar[bool] = True
 
     _layout: ClassVar[Layout]
 
@@ -60,11 +72,14 @@ class Component(ValueHolder):
         self._attach(resources_dir, [])
 
     def _attach(self, resources_dir: str, log_sink: list, buffers: Optional[tuple] = None,
-                control: Optional[np.ndarray] = None) -> None:
+                control: Optional[np.ndarray] = None,
+                own_modules: Callable[[], ContextManager] = nullcontext) -> None:
         """Set start values (into ``buffers`` when given, so their addresses stay), then setup().
 
         ``control``: the runtime's flags the native loader reads ([0] nonzero: the component ended
-        the simulation, [1] the time it reached, NaN when the step's end)."""
+        the simulation, [1] the time it reached, NaN when the step's end). ``own_modules``: in an
+        FMU, a context under which ``import deltafmi...`` finds the FMU's own copy of deltafmi
+        (:attr:`own_modules`; outside the model's import, a host's deltafmi or none is found)."""
         layout = self._layout
         if buffers is None:
             buffers = (np.empty_like(layout.real_start), np.empty_like(layout.int_start), [])
@@ -81,11 +96,17 @@ class Component(ValueHolder):
         self._log_sink = log_sink
         self._control = control if control is not None else np.array([0.0, math.nan])
         self.resources_dir = resources_dir
+        #: ``with self.own_modules(): ...`` runs code that imports deltafmi modules while the FMU
+        #: runs (not only when its model is imported) against the FMU's own copy
+        self.own_modules = own_modules
         self.setup()
 
     # --- hooks ------------------------------------------------------------------------------
     def setup(self) -> None:
         """Create internal (non-FMI) state. Called at construction and at ``fmi2Reset``."""
+
+    def setup_experiment(self, start: float, stop: Optional[float]) -> None:
+        """The importer's start and stop time (None: no stop time), before initialization."""
 
     def initialize(self, t: float) -> None:
         """Compute calculated start values from parameters (runs during initialization mode)."""
@@ -140,6 +161,18 @@ class Component(ValueHolder):
         declare that it needs ``fmi2CompletedIntegratorStep``.
         """
         return False
+
+    def internal_state(self) -> Any:
+        """What an FMU state saves besides the variables (``fmi2GetFMUstate``): by default a deep
+        copy of the component's own attributes. Override with :meth:`restore_internal_state`
+        when an attribute cannot be copied (a handle of another library)."""
+        return copy.deepcopy({k: v for k, v in vars(self).items() if k not in RUNTIME_ATTRIBUTES})
+
+    def restore_internal_state(self, state: Any) -> None:
+        """Restore what :meth:`internal_state` returned (which stays valid for another restore)."""
+        for key in [k for k in vars(self) if k not in RUNTIME_ATTRIBUTES]:
+            delattr(self, key)
+        vars(self).update(copy.deepcopy(state))
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` to ``t + h``. Override only for purely discrete components."""

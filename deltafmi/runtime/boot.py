@@ -51,14 +51,14 @@ class _Bundle:
         with _LOCK:
             # list() copies the keys without running Python code, so no other thread's import can
             # change sys.modules under the iteration (holding the lock does not stop other imports)
-            saved = {k: sys.modules.pop(k) for k in [k for k in list(sys.modules) if k in self.names]}
+            saved = {k: sys.modules.pop(k) for k in self.names.intersection(list(sys.modules))}
             sys.modules.update(self.modules)
             sys.path.insert(0, self.python_dir)
             try:
                 yield
             finally:
                 sys.path.remove(self.python_dir)
-                for k in [k for k in list(sys.modules) if k in self.names]:
+                for k in self.names.intersection(list(sys.modules)):
                     self.modules[k] = sys.modules.pop(k)
                 sys.modules.update(saved)
 

@@ -7,7 +7,6 @@ updates, Co-Simulation steps and FMU state. Methods return an FMI status code (0
 """
 from __future__ import annotations
 
-import copy
 import math
 import pickle
 import struct
@@ -25,7 +24,7 @@ from .partials import DirectionalDerivatives
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
     from .cvode import Cvode
 
-__all__ = ["CO_SIMULATION", "FmuInstance"]
+__all__ = ["CO_SIMULATION", "EVENTS_AT_STEP_END", "EVENTS_EARLY_RETURN", "EVENTS_INSIDE", "FmuInstance"]
 
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 MODEL_EXCHANGE, CO_SIMULATION, SCHEDULED_EXECUTION = 0, 1, 2
@@ -34,9 +33,11 @@ _LOG_EVENTS, _LOG_SOLVER = fmu_logging.BITS["logEvents"], fmu_logging.BITS["logS
 _TINY = 1e-12  # relative time below which intervals are round-off, not integration
 #: default ``cs_options["input_jump_tolerance"]``: see FmuInstance._restart_for_inputs
 _INPUT_JUMP_TOLERANCE = 10.0
-_RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
-                                 "_int_items", "_str", "_str_items", "_log_sink", "_control",
-                                 "resources_dir"})
+#: :meth:`FmuInstance.do_step`'s ``events``: what a Co-Simulation step does at a state or time
+#: event. The native layer passes the same numbers (core.h, DfmiStepEvents).
+EVENTS_INSIDE = 0        #: handles every event inside the step (FMI 2.0; FMI 3.0 without eventModeUsed)
+EVENTS_EARLY_RETURN = 1  #: stops at the first event and leaves it pending (eventModeUsed, earlyReturnAllowed)
+EVENTS_AT_STEP_END = 2   #: handles the events inside the step, leaves one at its end pending (eventModeUsed)
 
 
 def _cvode_class(module_context: Callable[[], ContextManager]) -> type[Cvode]:
@@ -70,6 +71,8 @@ class FmuInstance:
         self.nx, self.nz = layout.nx, component_class.n_event_indicators
         #: samples only at its input Clocks' ticks (no states, no event indicators): see clock_driven
         self._clock_driven = clock_driven(component_class)
+        if fmu_type != CO_SIMULATION and component_class.co_simulation_only:
+            raise ValueError(f"{component_class.fmi_model_name()} offers Co-Simulation only")
         if fmu_type == CO_SIMULATION and self.nx and not component_class.overrides_do_step():
             _cvode_class(module_context)  # a missing SUNDIALS fails fmi2Instantiate, not a later step
         self.pending_logs: list = []
@@ -149,7 +152,7 @@ class FmuInstance:
 
     def _new_component(self, buffers: Optional[tuple] = None) -> None:
         comp = self.component = self.component_class.__new__(self.component_class)
-        comp._attach(self.resources_dir, self.pending_logs, buffers, self.control)
+        comp._attach(self.resources_dir, self.pending_logs, buffers, self.control, self._module_context)
 
     @property
     def terminate_requested(self) -> bool:
@@ -221,6 +224,7 @@ class FmuInstance:
         self.stop_time = stop if not math.isnan(stop) else math.inf
         self.tolerance = tolerance if not math.isnan(tolerance) else None
         self.in_initialization = True
+        self.component.setup_experiment(start, None if math.isinf(self.stop_time) else self.stop_time)
         return OK
 
     def exit_initialization(self, event_mode_used: float = 0.0) -> int:
@@ -329,13 +333,28 @@ class FmuInstance:
         return bool(self.component.needs_projection(t))
 
     # --- co-simulation ----------------------------------------------------------------------
-    def do_step(self, t: float, h: float, event_mode_used: float = 0.0) -> int:
-        """``fmi2DoStep`` from ``t`` to ``t + h``: integrate with CVODE, handle events inside.
+    def do_step(self, t: float, h: float, events: float = EVENTS_INSIDE) -> int:
+        """``fmi2DoStep``/``fmi3DoStep`` from ``t`` to ``t + h``: integrate with CVODE.
 
-        With ``event_mode_used`` (FMI 3.0 Co-Simulation in event mode) it stops at the first
-        state or time event in (t, t + h] without handling it: control[2] = 1 (event pending),
-        control[1] = the time reached; the importer's Event Mode handles it (:meth:`event_update`)
-        and the next step restarts the solver there.
+        ``events`` says what the step does at a state or time event in (t, t + h]:
+
+        - ``EVENTS_INSIDE``: it handles each one inside the step (the event iteration, a solver
+          restart) and goes on to ``t + h``.
+        - ``EVENTS_EARLY_RETURN`` (FMI 3.0, eventModeUsed and earlyReturnAllowed): it stops at
+          the first one without handling it.
+        - ``EVENTS_AT_STEP_END`` (FMI 3.0, eventModeUsed without earlyReturnAllowed): it must
+          reach ``t + h``, so it handles the events before that inside, as ``EVENTS_INSIDE``
+          (the importer could no longer handle them at their time), and leaves one at ``t + h``
+          itself (a time event on the communication point, a root found there) to the importer.
+
+        The contract with the native layer, in ``control`` (any loop that replaces this one, in C
+        too, keeps it): [0] nonzero when the component ended the simulation, [1] then the time it
+        ended at; [2] = 1 when the step left an event pending, [1] then the time reached, where
+        the event is (0 otherwise, reset at each step's start); [1] NaN: the step's end. An event
+        left pending is handled by the importer's Event Mode (:meth:`event_update`), and the next
+        step restarts the solver there. In event mode (either value) a clock-driven component's
+        events are its Clocks' ticks, which the importer activates in Event Mode: its steps report
+        none.
 
         The native layer has checked that ``t`` is the FMU's time. A component that steps itself
         never comes here: the native layer calls its ``do_step``, sets ``time`` before anything
@@ -353,9 +372,7 @@ class FmuInstance:
             self._inputs_changed()  # a fresh solver: the next step compares with these inputs
         self._restart_solver = False
         while self.time < t_end and not self.terminate_requested:
-            # in event mode a clock-driven component's events are its Clocks' ticks, which the
-            # importer activates in Event Mode: none to report from the step
-            nte = None if event_mode_used and self._clock_driven else self._next_time_event
+            nte = None if events != EVENTS_INSIDE and self._clock_driven else self._next_time_event
             t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
             root = False
             if t_stop - self.time <= _TINY * max(1.0, abs(t_stop)):
@@ -365,7 +382,8 @@ class FmuInstance:
             else:
                 self.time = t_stop
             time_event = nte is not None and self.time >= nte - _TINY * max(1.0, abs(nte))
-            if (root or time_event) and event_mode_used:
+            at_end = self.time >= t_end - _TINY * max(1.0, abs(t_end))
+            if (root or time_event) and (events == EVENTS_EARLY_RETURN or (events == EVENTS_AT_STEP_END and at_end)):
                 self.control[1:] = self.time, 1.0  # fmi3DoStep: eventHandlingNeeded here
                 self.evaluate(self.time)
                 self._derivatives_after_step = None  # the event restarts the solver
@@ -544,10 +562,9 @@ class FmuInstance:
         comp = self.component
         self._drop_solver()
         self._pull_kernels()
-        internal = {k: v for k, v in vars(comp).items() if k not in _RUNTIME_ATTRIBUTES}
         return {
             "real": comp._real.copy(), "int": comp._int.copy(), "str": list(comp._str),
-            "internal": copy.deepcopy(internal), "time": self.time,
+            "internal": comp.internal_state(), "time": self.time,
             "next_time_event": self._next_time_event, "in_initialization": self.in_initialization,
             "terminate_requested": self.terminate_requested,
         }
@@ -558,9 +575,7 @@ class FmuInstance:
         comp._real[:] = state["real"]
         comp._int[:] = state["int"]
         comp._str[:] = state["str"]
-        for key in [k for k in vars(comp) if k not in _RUNTIME_ATTRIBUTES]:
-            delattr(comp, key)
-        vars(comp).update(copy.deepcopy(state["internal"]))
+        comp.restore_internal_state(state["internal"])
         self.time = state["time"]
         self.partials.invalidate()
         self._next_time_event = state["next_time_event"]
@@ -572,6 +587,9 @@ class FmuInstance:
 
     def serialize_state(self, state: dict) -> bytes:
         """Bytes for ``fmi2SerializeFMUstate``."""
+        if not self.component_class.can_serialize_state:
+            raise RuntimeError(f"{self.component_class.fmi_model_name()} cannot serialize its FMU state "
+                               "(canSerializeFMUstate is false); get and set it instead")
         with self._module_context():
             return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
 

@@ -55,10 +55,13 @@ def model_description_xml(cls: type[Component], guid: str) -> bytes:
     root = ET.Element("fmiModelDescription", dict(
         **header_attributes(cls, "2.0", guid=guid), numberOfEventIndicators=str(cls.n_event_indicators)))
     common = dict(modelIdentifier=name, needsExecutionTool="false", canGetAndSetFMUstate="true",
-                  canSerializeFMUstate="true", canNotUseMemoryManagementFunctions="true",
+                  canSerializeFMUstate="true" if cls.can_serialize_state else "false", canNotUseMemoryManagementFunctions="true",
                   providesDirectionalDerivative="true")
-    ET.SubElement(root, "ModelExchange", xml_attributes(
-        **common, completedIntegratorStepNotNeeded="false" if cls.watches_drift() else "true"))
+    if cls.co_simulation_only:
+        common.update(providesDirectionalDerivative="false")
+    else:
+        ET.SubElement(root, "ModelExchange", xml_attributes(
+            **common, completedIntegratorStepNotNeeded="false" if cls.watches_drift() else "true"))
     ET.SubElement(root, "CoSimulation", xml_attributes(
         **common, canHandleVariableCommunicationStepSize="true", canInterpolateInputs="false",
         maxOutputDerivativeOrder="0", canRunAsynchronuously="false"))

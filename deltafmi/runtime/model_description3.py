@@ -44,10 +44,13 @@ def model_description3_xml(cls: type[Component], token: str) -> bytes:
     _check_names(cls)
     root = ET.Element("fmiModelDescription", header_attributes(cls, "3.0", instantiationToken=token))
     common = dict(modelIdentifier=cls.fmi_model_name(), needsExecutionTool="false",
-                  canGetAndSetFMUState="true", canSerializeFMUState="true",
+                  canGetAndSetFMUState="true", canSerializeFMUState=_bool(cls.can_serialize_state),
                   providesDirectionalDerivatives="true", providesAdjointDerivatives="true")
-    ET.SubElement(root, "ModelExchange", xml_attributes(
-        **common, needsCompletedIntegratorStep=_bool(cls.watches_drift())))
+    if cls.co_simulation_only:
+        common.update(providesDirectionalDerivatives="false", providesAdjointDerivatives="false")
+    else:
+        ET.SubElement(root, "ModelExchange", xml_attributes(
+            **common, needsCompletedIntegratorStep=_bool(cls.watches_drift())))
     event_mode = cs_event_mode(cls)
     ET.SubElement(root, "CoSimulation", xml_attributes(
         **common, canHandleVariableCommunicationStepSize="true", maxOutputDerivativeOrder="0",

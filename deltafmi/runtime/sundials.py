@@ -65,14 +65,17 @@ def _platform() -> tuple[str, str]:
 
 
 def library_directory() -> Path:
-    """The folder holding SUNDIALS' libraries: the FMU's own, else fmpy's installed copy.
+    """The folder holding SUNDIALS' libraries: the FMU's own, the running portable interpreter's,
+    else fmpy's installed copy.
 
     Raises:
         SundialsNotFound: with both places named, when neither has them.
     """
     folder, suffix = _platform()
     bundled = Path(__file__).resolve().parents[2] / "sundials"  # resources/python/sundials in an FMU
-    candidates = [bundled]
+    # the interpreter a portable FMU brought (resources/python) carries them too: an FMU of ours run
+    # inside it (a unit of a scenario exported as one portable FMU) finds them there
+    candidates = [bundled, Path(sys.prefix) / "sundials"]
     spec = importlib.util.find_spec("fmpy")  # locates fmpy without importing it
     if spec is not None and spec.submodule_search_locations:
         candidates.append(Path(list(spec.submodule_search_locations)[0]) / "sundials" / folder)

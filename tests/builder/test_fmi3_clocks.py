@@ -249,7 +249,7 @@ def test_an_importer_that_activates_the_clock_samples_once_per_tick(md, unzipped
     inputs, activates the clock and updates the discrete states. One sample per tick:
     the torques are the CS build's exactly (a second sample at an instant would advance the
     controller's integral and its sample counter, and every later torque would differ). Without
-    early return the FMU steps itself as in FMI 2.0 and finds each sample taken already."""
+    early return too: the ticks are events at the communication points, the importer's."""
     clock = vr["sample"]
     fmu = _instance(FMU3Model if interface == "ME" else FMU3Slave, md, unzipped)
     if interface == "ME":

@@ -12,16 +12,16 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from deltafmi.errors import Diagnostic, FmuSourceError, ScenarioError, did_you_mean, file_hint
 
 from .fmu_source import provided_fmu
-from .system import AlgebraicLoop, Link, Port, ResolvedComponent, System, bus_type
+from .system import AlgebraicLoop, Link, Port, ResolvedComponent, System, SystemInterface, bus_type
 from .graph import block_stepping_order, initialization_order, loop_groups, tear
 from .modelinfo import UnknownVariable, model_info, split_element
 from .overrides import Text, from_text, value_items
-from .spec import ComponentSpec, ConnectionSpec, Scenario
+from .spec import ComponentSpec, ConnectionSpec, OutputSpec, Scenario
 
 __all__ = ["AlgebraicLoop", "System", "describe", "pattern_regex", "resolve_system"]
 
@@ -31,6 +31,8 @@ _SETTABLE_CAUSALITIES = ("parameter", "input")
 _VALUE_KINDS = {"Int64": "Integer", "UInt64": "Integer", "UInt32": "Integer"}
 _INTEGER_RANGES = {f"{sign}Int{bits}": ((0, 2 ** bits - 1) if sign else (-2 ** (bits - 1), 2 ** (bits - 1) - 1))
                    for sign in ("", "U") for bits in (8, 16, 32, 64)}
+#: the buses whose variables a scenario exported as one FMU offers
+_EXPORTED_TYPES = ("Real", "Integer", "Boolean")
 #: FMI 3.0 types whose values the master does not exchange
 _NOT_CONNECTABLE = ("Binary", "Clock")
 
@@ -81,6 +83,7 @@ class _Checker:
         streamed = [self._matches(stream.signals, stream.line, "stream") for stream in self.scenario.streams]
         recorded = _with(recorded, [port for c in live for port in _outputs(c)] + [p for s in streamed for p in s])
         self._settings()
+        interface = self._interface(recorded, links)
         if any(d.severity == "error" for d in self.found):
             return None
         names = [c.name for c in self.scenario.components]
@@ -89,7 +92,8 @@ class _Checker:
                       block_stepping_order(names + [c.name for c in live], pairs, feedthrough,
                                            [loop.members for loop in loops]),
                       [by_pair[p] for p in initialization_order(pairs, initial_feedthrough)],
-                      [d for d in self.found if d.severity == "warning"], loops, init_loops, live, streamed)
+                      [d for d in self.found if d.severity == "warning"], loops, init_loops, live, streamed,
+                      interface)
 
     def _live_components(self) -> List[ResolvedComponent]:
         """The live sources' components (and the pacing measurements' of a paced run), added to
@@ -443,6 +447,67 @@ class _Checker:
                 port = _port(component, name)
                 found.setdefault(port.ref, port)
         return list(found.values())
+
+    def _interface(self, recorded: List[Port], links: Sequence[Link]) -> SystemInterface:
+        """What the scenario exported as one FMU offers: ``exports:``, else the recorded variables,
+        every unconnected input and the parameters this file sets; an error for an exported
+        variable of the wrong kind (a connected input, an output given as a parameter, ...)."""
+        exports = self.scenario.exports
+        driven = {link.target.ref for link in links}
+        components = [c for c in self.components.values() if c.name in {s.name for s in self.scenario.components}]
+
+        def kind(port: Port) -> Tuple[str, str]:
+            var = self.components[port.component].info.variables[port.name]
+            return var.causality, var.variability
+
+        def chosen(specs: Optional[Sequence[OutputSpec]], default: List[Port], what: str,
+                   fits: Callable[[Port], Optional[str]]) -> Tuple[Port, ...]:
+            if specs is None:
+                ports = [p for p in default if fits(p) is None]
+            else:
+                ports = []
+                for spec in specs:
+                    for port in self._matches([spec.pattern], spec.line, f"exported {what}"):
+                        why = fits(port)
+                        if why is None:
+                            ports.append(port)
+                        elif "*" not in spec.pattern and "?" not in spec.pattern:
+                            self.error(spec.line, f"exports: {what} '{port.ref}' {why}")
+            unique: Dict[str, Port] = {}
+            for port in ports:
+                unique.setdefault(port.ref, port)
+            return tuple(unique.values())
+
+        def output(port: Port) -> Optional[str]:
+            if port.type not in _EXPORTED_TYPES:
+                return f"is a {port.type_name}: an exported variable is a Real, Integer or Boolean"
+            return None if port.component in self.components else "is not a component's variable"
+
+        def free_input(port: Port) -> Optional[str]:
+            if kind(port)[0] != "input":
+                return f"is {_article(kind(port)[0])}, not an input"
+            if port.ref in driven:
+                return "is connected: only an unconnected input can be the exported FMU's input"
+            return output(port)
+
+        def parameter(port: Port) -> Optional[str]:
+            causality, variability = kind(port)
+            if causality != "parameter" or variability == "constant":
+                return f"is {_article(variability if variability == 'constant' else causality)}, not a parameter"
+            return output(port)
+
+        every_input = [_port(c, n) for c in components for n, v in c.info.variables.items() if v.causality == "input"]
+        set_here = [_port(c, name) for c in components for p in c.spec.parameters if p.origin is None
+                    for name in self._expanded(c, p.name)]
+        return SystemInterface(chosen(exports.outputs, recorded, "output", output),
+                               chosen(exports.inputs, every_input, "input", free_input),
+                               chosen(exports.parameters, set_here, "parameter", parameter))
+
+    def _expanded(self, component: ResolvedComponent, name: str) -> List[str]:
+        try:
+            return component.info.expand(name)
+        except UnknownVariable:
+            return []  # reported with the start values
 
     def _array_named(self, pattern: str) -> List[Tuple[ResolvedComponent, str]]:
         """The elements of the array ``component.array`` that ``pattern`` names (``plant.z`` records

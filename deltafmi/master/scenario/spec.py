@@ -20,7 +20,7 @@ from deltafmi.errors import Diagnostic, ScenarioError
 from .schema_check import dotted, load_mapping, read_document, schema_diagnostics
 from .yaml_lines import LineMap
 
-__all__ = ["Adaptive", "ComponentSpec", "ConnectionSpec", "Experiment", "LiveSpec", "Loops", "MasterSettings",
+__all__ = ["Adaptive", "ComponentSpec", "ExportSpec", "ConnectionSpec", "Experiment", "LiveSpec", "Loops", "MasterSettings",
            "OutputSpec", "Parameter", "ResultSettings", "Scenario", "StreamSpec", "grid_steps", "load_scenario",
            "parse_scenario", "scenario_from_data", "schema"]
 
@@ -122,6 +122,17 @@ class Parameter:
     line: Optional[int]
     #: where the value comes from when not the scenario file (``"--set plant.z0"``)
     origin: Optional[str] = None
+
+
+@dataclass(frozen=True)
+class ExportSpec:
+    """``exports:``: patterns of the variables a scenario exported as one FMU offers, by kind;
+    None keeps that kind's default (see :mod:`deltafmi.master.system_fmu`)."""
+
+    outputs: Optional[Tuple[OutputSpec, ...]] = None
+    inputs: Optional[Tuple[OutputSpec, ...]] = None
+    parameters: Optional[Tuple[OutputSpec, ...]] = None
+    line: Optional[int] = None
 
 
 @dataclass(frozen=True)
@@ -244,6 +255,7 @@ class Scenario:
     #: live input sources and live output streams (see :mod:`deltafmi.master.live`)
     live: Tuple[LiveSpec, ...] = ()
     streams: Tuple[StreamSpec, ...] = ()
+    exports: ExportSpec = ExportSpec()
 
     @property
     def directory(self) -> Path:
@@ -461,7 +473,18 @@ def _build(data: Dict[str, Any], lines: LineMap, path: Path) -> Scenario:
     return Scenario(path, experiment, master, components, connections, outputs, result,
                     data.get("description", ""), fmi_version=data.get("fmi_version"),
                     live=tuple(_live(name, source, lines) for name, source in (data.get("live") or {}).items()),
-                    streams=tuple(_stream(i, stream, lines) for i, stream in enumerate(data.get("streams") or [])))
+                    streams=tuple(_stream(i, stream, lines) for i, stream in enumerate(data.get("streams") or [])),
+                    exports=_exports(data.get("exports"), lines))
+
+
+def _exports(data: Optional[Dict[str, Any]], lines: LineMap) -> ExportSpec:
+    """``exports:`` as patterns with their lines."""
+    if not data:
+        return ExportSpec()
+    kinds = {kind: tuple(OutputSpec(pattern, lines.line(("exports", kind, i)))
+                         for i, pattern in enumerate(data[kind]))
+             for kind in ("outputs", "inputs", "parameters") if kind in data}
+    return ExportSpec(**kinds, line=lines.key_line(("exports",)))
 
 
 def _realtime(value: Any) -> Realtime:

@@ -16,7 +16,7 @@ from deltafmi.errors import Diagnostic
 from .modelinfo import ModelInfo
 from .spec import ComponentSpec, Scenario
 
-__all__ = ["AlgebraicLoop", "Link", "Port", "ResolvedComponent", "System", "bus_type"]
+__all__ = ["AlgebraicLoop", "Link", "Port", "ResolvedComponent", "System", "SystemInterface", "bus_type"]
 
 _TYPE_NAMES = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
                "String": "String",
@@ -115,6 +115,16 @@ class ResolvedComponent:
         return self.spec.name
 
 
+@dataclass(frozen=True)
+class SystemInterface:
+    """The variables a scenario exported as one FMU offers (``exports:`` or the defaults):
+    each a variable of one of its components, under the same name (``plant.z[1]``)."""
+
+    outputs: Tuple[Port, ...] = ()
+    inputs: Tuple[Port, ...] = ()
+    parameters: Tuple[Port, ...] = ()
+
+
 @dataclass
 class System:
     """Everything the master needs: components, scalar links, recorded variables, orders."""
@@ -133,3 +143,5 @@ class System:
     live: List[ResolvedComponent] = field(default_factory=list)
     #: each ``streams:`` entry's signals, resolved (in the order of :attr:`Scenario.streams`)
     streamed: List[List[Port]] = field(default_factory=list)
+    #: what the scenario exported as one FMU offers
+    interface: SystemInterface = SystemInterface()

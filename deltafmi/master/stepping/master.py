@@ -32,6 +32,7 @@ import fmpy
 import numpy as np
 
 from deltafmi.errors import BadInput, Interrupted, SimulationError
+from deltafmi.toolchain import BuildError
 
 from ..live.pacing import FellBehind
 from ..results.csv_file import RowSampler
@@ -449,6 +450,13 @@ class Master:
                 unit.fetch()
 
     def _run_fixed(self) -> None:
+        self.begin_fixed_steps()
+        self.advance(self._fixed_grid.n_steps)
+
+    def begin_fixed_steps(self) -> None:
+        """Lay out the fixed-step loop from start to stop (after :meth:`open`); :meth:`advance`
+        takes its steps. :meth:`run` does both; a caller that steps a run piece by piece (a
+        scenario exported as one FMU) calls them itself."""
         start, stop, h = self.start, self.stop, self.step
         n_steps = grid_steps(start, stop, h)
         ordered = self.stepping_blocks()
@@ -460,12 +468,21 @@ class Master:
             actions = [(u, action, u.step_multiple) for action in (PULL, STEP, FETCH) for u in ordered]
         native = None
         if self.native and self.live is None and NativeLoop.fits(ordered, self.sampler):
-            native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
-            if self._others:
-                native.keep_step_start()
-        fixed = _FixedGrid(start, stop, h, n_steps, last)
+            try:
+                native = NativeLoop(actions, self.sampler, start, h, stop, n_steps, last, self.every)
+                if self._others:
+                    native.keep_step_start()
+            except BuildError as exc:  # no compiler and no prebuilt loop: the same steps in Python
+                self.warn(f"stepping in Python: {exc}")
+        self._fixed_actions, self._fixed_native = actions, native
+        self._fixed_grid = _FixedGrid(start, stop, h, n_steps, last)
+
+    def advance(self, k_end: int) -> None:
+        """Take the fixed steps of :meth:`begin_fixed_steps` until :attr:`steps` is ``k_end``."""
+        actions, native, fixed = self._fixed_actions, self._fixed_native, self._fixed_grid
+        n_steps = min(k_end, fixed.n_steps)
         stop_signals, progress = self.stop_signals, self.progress
-        k = 0
+        k = self.steps
         while k < n_steps:
             if stop_signals.received:
                 raise KeyboardInterrupt

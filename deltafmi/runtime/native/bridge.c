@@ -526,7 +526,8 @@ int bridge_call(void *handle, DfmiOp op, const double *args, int nargs) {
     ENTER;
     PyObject *previous = listen(b->pending_logs);
     int status;
-    /* in FMI 3.0 event mode the importer handles the events: FmuInstance.do_step stops at them */
+    /* FMI 3.0 event mode (args[2], DfmiStepEvents, is EARLY_RETURN or AT_STEP_END): the importer
+     * handles the events FmuInstance.do_step leaves pending */
     int event_mode = op == DFMI_DO_STEP && nargs >= 3;
     if (op == DFMI_DO_STEP && b->steps_itself && !(event_mode && b->clock_driven)) {
         status = finish(b, step_itself(b, args[0], args[1]), OP_NAMES[op]);

@@ -26,7 +26,8 @@ typedef struct {
     int watches_drift;            /* fmi2CompletedIntegratorStep asks the model (else: no event) */
     const double *control;        /* [0] nonzero: the component ended the simulation; [1] the time
                                    * it reached (NaN: the end of the step); [2] (FMI 3.0 event mode
-                                   * only) nonzero: the step stopped at an event it did not handle */
+                                   * only) nonzero: the step left an event pending at [1] for the
+                                   * importer's Event Mode (the contract: core.h, DfmiStepEvents) */
     /* FMI 3.0 only (trailing fields of native_layout; NULL / 0 from a runtime without them): */
     const uint32_t *sizes3;       /* n_real + n_int + n_str entries: sizes3[v] = element count of the
                                    * FMI 3.0 variable whose value reference is v, 0 where v is not
@@ -54,9 +55,9 @@ typedef enum {
     DFMI_ENTER_INITIALIZATION = 0, /* args: start, stop (NaN: undefined), tolerance (NaN: undefined) */
     DFMI_EXIT_INITIALIZATION,      /* args: none, or 1 (FMI 3.0 Co-Simulation with event mode used) */
     DFMI_EVALUATE,                 /* args: time; derivatives, event indicators and outputs */
-    DFMI_DO_STEP,                  /* args: current communication point, step size[, event mode
-                                    * used (1: stop at the first event, leave it pending; a
-                                    * component that steps itself then steps as one that does not)] */
+    DFMI_DO_STEP,                  /* args: current communication point, step size[, FMI 3.0 event
+                                    * mode: DfmiStepEvents EARLY_RETURN or AT_STEP_END (core.h); a
+                                    * clock-driven component that steps itself then only moves time] */
     DFMI_TERMINATE,
     DFMI_RESET,
     DFMI_EVALUATE_DERIVATIVES,     /* args: time; derivatives and event indicators only */

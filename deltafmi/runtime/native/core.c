@@ -598,17 +598,17 @@ int dfmi_activate_model_partition(Instance *c, const char *function, size_t i, d
 
 int dfmi_terminated(const Instance *c) { return c->L.control && c->L.control[0] != 0.0; }
 
-int dfmi_do_step(Instance *c, const char *function, double t, double h, int event_mode) {
+int dfmi_do_step(Instance *c, const char *function, double t, double h, DfmiStepEvents events) {
     if (!(h > 0.0)) return dfmi_fail(c, "%s: communicationStepSize must be > 0, got %g", function, h);
     if (fabs(t - c->time) > 1e-9 * fmax(1.0, fabs(t)))
         return dfmi_fail(c, "%s: currentCommunicationPoint %.16g differs from the FMU time %.16g", function, t,
                          c->time);
     const DfmiLayout *L = &c->L;
-    if (!event_mode && L->kernel_step && *L->kernels_ready &&
+    if (events == DFMI_EVENTS_INSIDE && L->kernel_step && *L->kernels_ready &&
         L->kernel_step(L->kernel_attributes, t, h, L->real, L->ints) == 0) {
         bridge_time_moved(c->py, t + h); /* the compiled step took it: no Python */
         return DFMI_OK;
     }
-    double args[3] = {t, h, 1.0};
-    return bridge_call(c->py, DFMI_DO_STEP, args, event_mode ? 3 : 2);
+    double args[3] = {t, h, (double)events};
+    return bridge_call(c->py, DFMI_DO_STEP, args, events == DFMI_EVENTS_INSIDE ? 2 : 3);
 }

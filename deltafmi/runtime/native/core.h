@@ -148,9 +148,27 @@ int dfmi_activate_model_partition(Instance *c, const char *function, size_t i, d
 /* ---- Co-Simulation ---- */
 /* Whether the component ended the simulation (Component.terminate_simulation). */
 int dfmi_terminated(const Instance *c);
-/* The model's step from t to t + h (checked against the instance's time). With event_mode the
- * model stops at the first event in (t, t + h] and leaves it pending (the control array's [2]),
- * the time reached in its [1]. Returns the bridge's status; the caller sets time and state. */
-int dfmi_do_step(Instance *c, const char *function, double t, double h, int event_mode);
+/* What a Co-Simulation step does at a state or time event in (t, t + h] (the same numbers as
+ * runtime/instance.py's EVENTS_*, FmuInstance.do_step's `events`):
+ *   DFMI_EVENTS_INSIDE        handles each event inside the step and reaches t + h (FMI 2.0;
+ *                             FMI 3.0 without eventModeUsed);
+ *   DFMI_EVENTS_EARLY_RETURN  stops at the first event and leaves it pending (FMI 3.0 with
+ *                             eventModeUsed and earlyReturnAllowed);
+ *   DFMI_EVENTS_AT_STEP_END   reaches t + h, handling the events before it inside, and leaves one
+ *                             at t + h itself pending (FMI 3.0 with eventModeUsed only: the
+ *                             FMU may not return early, and an event inside the step has passed).
+ * The step reports through the layout's control array (whoever runs the loop, Python or C):
+ *   control[0] nonzero: the component ended the simulation, at control[1];
+ *   control[2] = 1: the step left an event pending at the time it reached, control[1]; the
+ *                   importer's Event Mode handles it and the next step restarts the solver;
+ *                   0 otherwise (cleared at each step's start);
+ *   control[1] NaN: the step reached t + h.
+ * In event mode (EARLY_RETURN or AT_STEP_END) a clock-driven component's events are its Clocks'
+ * ticks, activated by the importer in Event Mode: its steps only move time. */
+typedef enum { DFMI_EVENTS_INSIDE = 0, DFMI_EVENTS_EARLY_RETURN = 1, DFMI_EVENTS_AT_STEP_END = 2 } DfmiStepEvents;
+
+/* The model's step from t to t + h (checked against the instance's time), treating events as
+ * `events` says. Returns the bridge's status; the caller sets time and state. */
+int dfmi_do_step(Instance *c, const char *function, double t, double h, DfmiStepEvents events);
 
 #endif

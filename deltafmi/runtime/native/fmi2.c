@@ -423,7 +423,8 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
     Instance *c = component;
     (void)noSetFMUStatePriorToCurrentPoint;
     CHECK("fmi2DoStep", StepComplete);
-    int status = dfmi_do_step(c, "fmi2DoStep", currentCommunicationPoint, communicationStepSize, 0);
+    int status = dfmi_do_step(c, "fmi2DoStep", currentCommunicationPoint, communicationStepSize,
+                              DFMI_EVENTS_INSIDE);
     if (status >= fmi2Error) return (fmi2Status)dfmi_settle(c, status);
     int ended = dfmi_terminated(c);
     if (ended && status < fmi2Discard) status = fmi2Discard; /* a component that steps itself ended it */

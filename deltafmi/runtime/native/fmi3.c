@@ -959,10 +959,19 @@ fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
     return fmi3OK;
 }
 
-/* The model stops at the first event only where the importer both handles events and accepts an
- * early return; otherwise (earlyReturnAllowed = false) the step reaches its end and the model
- * handles the events inside it, as in FMI 2.0. A component that ended the simulation returns
- * fmi3OK with terminateSimulation = true and lastSuccessfulTime where it ended. */
+/* With eventModeUsed, a state or time event makes fmi3DoStep return eventHandlingNeeded and leaves
+ * the event to the importer's Event Mode (fmi3EnterEventMode, fmi3UpdateDiscreteStates,
+ * fmi3EnterStepMode):
+ * - earlyReturnAllowed: the step stops at the first event, earlyReturn and lastSuccessfulTime
+ *   say where (an event at the step's end is no early return);
+ * - otherwise the FMU must reach the communication point. An event inside the step has passed
+ *   when the step returns, and the importer could only handle it too late, so the FMU handles
+ *   it inside, as without event mode (the FMI 3.0 Reference FMUs do the same, and report no
+ *   event they handled); an event at the communication point itself (a time event there, a root
+ *   found there) is left to the importer with eventHandlingNeeded.
+ * Without eventModeUsed every event is handled inside the step, as in FMI 2.0, whether or not
+ * early return is allowed. A component that ended the simulation returns fmi3OK with
+ * terminateSimulation = true and lastSuccessfulTime where it ended. */
 fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint,
                       fmi3Float64 communicationStepSize, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                       fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn,
@@ -976,8 +985,10 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     *eventHandlingNeeded = *terminateSimulation = *earlyReturn = fmi3False;
     *lastSuccessfulTime = c->time;
     double end = currentCommunicationPoint + communicationStepSize;
-    int event_mode = c->event_mode_used && c->early_return_allowed;
-    int status = dfmi_do_step(c, "fmi3DoStep", currentCommunicationPoint, communicationStepSize, event_mode);
+    DfmiStepEvents events = !c->event_mode_used        ? DFMI_EVENTS_INSIDE
+                            : c->early_return_allowed ? DFMI_EVENTS_EARLY_RETURN
+                                                      : DFMI_EVENTS_AT_STEP_END;
+    int status = dfmi_do_step(c, "fmi3DoStep", currentCommunicationPoint, communicationStepSize, events);
     if (status >= fmi3Error) return (fmi3Status)dfmi_settle(c, status);
     int ended = dfmi_terminated(c);
     if (status == fmi3Discard && !ended) {
@@ -989,12 +1000,13 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         c->terminated_by_model = *terminateSimulation = fmi3True;
         if (!isnan(c->L.control[1])) reached = c->L.control[1];
         status = status == fmi3Warning ? fmi3Warning : fmi3OK;
-    } else if (event_mode && c->L.control[2] != 0.0) {
+    } else if (events != DFMI_EVENTS_INSIDE && c->L.control[2] != 0.0) {
         *eventHandlingNeeded = fmi3True;
         if (!isnan(c->L.control[1])) reached = c->L.control[1];
     }
     if (fabs(reached - end) <= 1e-12 * fmax(1.0, fabs(end))) reached = end; /* round-off: the step's end */
-    *earlyReturn = *eventHandlingNeeded && reached < end; /* an end of the simulation is no early return */
+    /* an end of the simulation is no early return, nor is an event at the communication point */
+    *earlyReturn = *eventHandlingNeeded && reached < end;
     c->time = c->last_successful_time = *lastSuccessfulTime = reached;
     c->dirty = c->outputs_dirty = 0;
     return (fmi3Status)status;

@@ -1,0 +1,76 @@
+"""The flagship exported as one FMU (``deltafmi export-fmu``): what a communication step costs
+through the system FMU against the same steps in our master.
+
+Both run ``delta_tracking`` (3.5 s, 1 ms steps), rounds interleaved in one process:
+
+- run: :func:`deltafmi.simulate` (the master's C loop, 64 steps per call, rows kept in memory);
+  its stepping time from the run's summary (loading and writing apart);
+- system FMU in fmpy: ``doStep`` of 1 ms and ``getReal`` of the wrist position, 3500 times,
+  on an instance initialized beforehand;
+
+and prints the cost per step (medians of ``--repeats`` rounds) and their ratio. The system FMU
+takes one master step per ``doStep`` and crosses the FMU's Python layer each time; the run takes
+64 steps per call into C.
+
+Usage: python benchmarks/system_fmu.py [--repeats 5]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import fmpy
+from fmpy.fmi2 import FMU2Slave
+
+import deltafmi
+
+STEPS, STEP = 3500, 1e-3
+
+
+def system_step_cost(fmu: Path, unzipped: str) -> float:
+    """Seconds per doStep (with one getReal) over the whole run."""
+    md = fmpy.read_model_description(str(fmu))
+    vrs = [v.valueReference for v in md.modelVariables if v.name in ("plant.z[1]", "plant.z[2]", "plant.z[3]")]
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier)
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0, stopTime=STEPS * STEP)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    start = time.perf_counter()
+    for k in range(STEPS):
+        slave.doStep(k * STEP, STEP)
+        slave.getReal(vrs)
+    seconds = time.perf_counter() - start
+    slave.terminate()
+    slave.freeInstance()
+    return seconds / STEPS
+
+
+def run_step_cost() -> float:
+    summary = deltafmi.simulate("delta_tracking").summary
+    return (summary.wall_time - summary.setup_time - summary.close_time) / summary.steps
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        fmu = deltafmi.export_fmu("delta_tracking", Path(tmp) / "Tracking.fmu")
+        unzipped = fmpy.extract(str(fmu), str(Path(tmp) / "unzipped"))
+        runs, systems = [], []
+        for _ in range(args.repeats):
+            runs.append(run_step_cost())
+            systems.append(system_step_cost(fmu, unzipped))
+    run, system = statistics.median(runs), statistics.median(systems)
+    print(f"delta_tracking, {STEPS} steps of {STEP * 1e3:g} ms, medians of {args.repeats} interleaved rounds")
+    print(f"  deltafmi run (master, C loop)  {run * 1e6:8.1f} us per step")
+    print(f"  system FMU in fmpy             {system * 1e6:8.1f} us per step")
+    print(f"  system FMU / run               {system / run:8.2f}x")
+
+
+if __name__ == "__main__":
+    main()
