@@ -114,7 +114,8 @@ def test_a_broken_fmu_in_a_scenario_names_the_component(inputs, tmp_path):
     (["linearize", "{dir}/binary.yaml"], 2, "not a scenario: not text"),
     (["sweep", "{dir}/binary.yaml"], 2, "not a study: not text"),
     (["study-case", "{dir}/binary.yaml", "0", "-o", "{dir}/c.yaml"], 2, "not a study: not text"),
-    (["plot", "{dir}/binary.csv", "x", "-o", "{dir}/p.png"], 2, "cannot read '{dir}/binary.csv' as a result file"),
+    (["plot", "{dir}/binary.csv", "x", "-o", "{dir}/p.png"], 2, "cannot read '{dir}/binary.csv' as a result file: "
+                                                             "not text (byte 128 is not UTF-8)"),
     (["plot", "{dir}/binary.parquet", "x", "-o", "{dir}/p.png"], 2, "as a result file"),
     (["plot", "{dir}/binary.mat", "x", "-o", "{dir}/p.png"], 2, "as a result file"),
     (["animate", "{dir}/binary.csv", "-o", "{dir}/a.gif"], 2, "as a result file"),
