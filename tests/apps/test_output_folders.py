@@ -32,6 +32,7 @@ COMMANDS = {  # the command, with {out} its output in folders that do not exist 
     "build": ["build", "{dir}/clock.py", "-o", "{out}/Clock.fmu"],
     "build_into_folder": ["build", "{dir}/clock.py", "-o", "{out}/"],
     "export-ssp": ["export-ssp", "{dir}/s.yaml", "-o", "{out}/s.ssp"],
+    "export-fmu": ["export-fmu", "{dir}/s.yaml", "-o", "{out}/S.fmu"],
     "linearize": ["linearize", "{dir}/osc.fmu", "-o", "{out}/lin"],
     "examples_copy": ["examples", "copy", "bouncing_ball", "{out}"],
     "study-case": ["study-case", "gain_payload", "0", "-o", "{out}/case.yaml"],
