@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -16,6 +17,9 @@ def _user_file_mode() -> int:
     return 0o666 & ~mask
 
 
+#: the signals that stop a command (held back while a temporary file is made)
+_STOPS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP} if hasattr(signal, "pthread_sigmask") else set()
+
 #: the permissions of any file the user creates (a temporary file is private: 0600)
 USER_FILE_MODE = _user_file_mode()
 
@@ -26,12 +30,21 @@ def replaced_atomically(path: Path) -> Iterator[Path]:
     without an error, with the user's usual permissions, and is removed when it raises."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
-    os.close(handle)
+    name = ""
+    # a signal (Ctrl-C, SIGTERM) between making the file and the try below would leave it behind:
+    # held back until its name is known here
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS) if _STOPS else None
     try:
+        handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
+        os.close(handle)
+        if held is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+            held = None
         yield Path(name)
         os.chmod(name, USER_FILE_MODE)
         os.replace(name, path)
     finally:
-        if os.path.exists(name):
+        if held is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        if name and os.path.exists(name):
             os.unlink(name)

@@ -75,9 +75,9 @@ SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_joysti
           "test_fmu_threads", "test_memory", "test_study_dask", "test_study_cluster", "test_study_tls",
           "test_study_dashboard", "test_study_rough_edges", "test_peg_robustness", "test_troubleshooting_docs",
           "test_examples", "test_rough_edges", "test_study_metrics", "test_reliability_results",
-          "test_reliability_sweep", "test_reliability_limits", "test_parallel_units"}
+          "test_reliability_sweep", "test_reliability_limits", "test_parallel_units", "test_reliability_signals_tools"}
 #: modules that start other processes (a C host, another Python, a CLI, a Dask process)
-SUBPROCESS = {"test_component_docs", "test_live_scope", "test_rough_edges", "test_study_cluster", "test_study_dask",
+SUBPROCESS = {"test_reliability_signals_tools", "test_component_docs", "test_live_scope", "test_rough_edges", "test_study_cluster", "test_study_dask",
               "test_study_rough_edges", "test_study_tls", "test_troubleshooting_docs", "test_compiler_messages",
               "test_fmi3_clocks", "test_fmu_contents", "test_fmu_requirements", "test_native_kernels",
               "test_native_projection", "test_portable_fmus", "test_python_hosts", "test_wheel_install",
@@ -91,7 +91,7 @@ SUBPROCESS = {"test_component_docs", "test_live_scope", "test_rough_edges", "tes
 #: what a module that builds FMUs (or runs scenarios, which build theirs) says somewhere
 _BUILDS = re.compile(r"build_fmu|build_cached|_fmu\b|_fmu\(|simulate|resolve_system|\[\"(run|build|sweep|linearize)\"")
 #: modules with a test over 10 s on this kind of machine (2 cores; `--durations=25` shows them)
-SLOW = {"test_wheel_install", "test_python_hosts", "test_peg_robustness", "test_study_dask", "test_study_cluster",
+SLOW = {"test_reliability_signals_tools", "test_wheel_install", "test_python_hosts", "test_peg_robustness", "test_study_dask", "test_study_cluster",
         "test_study_tls", "test_assembly_portable", "test_portable_fmus", "test_memory", "test_insertion_mpc",
         "test_third_party_masters", "test_fmu_threads", "test_symbol_isolation", "test_joystick_tracking",
         "test_component_docs", "test_mpc_controller", "test_peg_estimator", "test_fmu_without_fmpy_scipy",

@@ -11,13 +11,14 @@ from deltafmi.errors import BadInput
 
 from deltafmi.builder.packager import ComponentSourceError, build_fmu
 from deltafmi.builder.requirements import runtime_requirement
+from deltafmi.apps.console import output_folders
 
 __all__ = ["build", "info", "validate_fmu_file"]
 
 
 @click.command()
 @click.argument("sources", nargs=-1)
-@click.option("-o", "--output", type=click.Path(),
+@click.option("-o", "--output", type=click.Path(), callback=output_folders,
               help="Output .fmu file, or a directory (existing, or ending in '/') that gets <Model>.fmu; "
                    "always a directory with several sources or --all.")
 @click.option("--all", "build_all", is_flag=True, help="Build every packaged model (deltafmi.models).")
@@ -175,7 +176,9 @@ def _fmu_of(target: str) -> Path:
     path = Path(target)
     if path.is_file() and path.suffix.lower() != ".py":
         return path
-    if path.suffix.lower() == ".fmu" or path.is_dir():
+    if path.is_dir():
+        raise BadInput(f"{target}: a folder, not an FMU file (an FMU is one .fmu file, a zip archive)")
+    if path.suffix.lower() == ".fmu":
         raise BadInput(f"{target}: no such FMU file")
     from deltafmi.builder.packager import build_cached
     from deltafmi.builder.sources import find_component
@@ -206,6 +209,8 @@ def validate_fmu_file(fmu: Path) -> None:
 
     from deltafmi.master.scenario.fmu_checks import binary_problem, guid_problem
     from deltafmi.master.stepping.fmu_trial import instantiation_problem
+    if fmu.is_dir():
+        raise BadInput(f"{fmu}: a folder, not an FMU file (an FMU is one .fmu file, a zip archive)")
     if not fmu.is_file():
         raise BadInput(f"{fmu}: no such FMU file")
     md = _readable(fmu).md

@@ -10,15 +10,17 @@ import contextlib
 import logging
 import re
 import warnings
+from pathlib import Path
 from typing import Dict, Iterator, Optional
 
 import click
 
-__all__ = ["progress_shown", "show_progress"]
+__all__ = ["folder_output", "output_folders", "progress_shown", "show_progress"]
 
 #: the loggers whose INFO messages a command shows
 PROGRESS_LOGGERS = ("deltafmi.build",)
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+#: a number, and the unit of time after it (one kind of message says "10.1 ms" or "9069.7 us")
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?: ?(?:[mun\u00b5]?s)\b)?")
 
 
 class _Stderr(logging.Handler):
@@ -72,7 +74,7 @@ class RepeatedWarnings:
 
     @staticmethod
     def kind(message: str) -> str:
-        """The message with every number replaced by ``#``."""
+        """The message with every number (and a unit of time after it) replaced by ``#``."""
         return _NUMBER.sub("#", message)
 
     def __call__(self, message: str) -> None:
@@ -93,3 +95,35 @@ class RepeatedWarnings:
                 click.echo(f"warning: {count - self.keep} more warning{'s' * (count - self.keep > 1)} like "
                            f"'{short}' not shown ({count} in all)", err=True)
         self._seen.clear()
+
+
+def _note_made(ctx: click.Context, path: Path, folder: bool) -> None:
+    """Register, on the running command's context, a note for when it ends: the folder of
+    ``path`` (``path`` itself when ``folder``) did not exist and the command made it."""
+    holder = path if folder else path.parent
+    missing = next((p for p in reversed([holder, *holder.parents]) if not p.exists()), None)
+    if missing is None:
+        return
+
+    def note() -> None:
+        if holder.is_dir():
+            made = f"the folder {holder}" if folder else f"the folder {holder} for {path}"
+            click.echo(f"made {made} (it did not exist)", err=True)
+    ctx.call_on_close(note)
+
+
+def output_folders(ctx: click.Context, param: click.Parameter, value: Optional[str]) -> Optional[str]:
+    """click callback of an output file option: every command makes the missing folders of its
+    output's path (as ``mkdir -p``) and says so in one line on stderr when it has."""
+    if value:
+        text = str(value)
+        _note_made(ctx, Path(text), folder=text.endswith(("/", "\\")))
+    return value
+
+
+def folder_output(ctx: click.Context, param: click.Parameter, value: Optional[str | Path]) -> Optional[str | Path]:
+    """click callback of an output folder argument or option: like :func:`output_folders`, the
+    folder itself included."""
+    if value:
+        _note_made(ctx, Path(value), folder=True)
+    return value

@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from deltafmi.apps.console import folder_output
+
 __all__ = ["examples"]
 
 
@@ -43,7 +45,7 @@ def list_examples() -> None:
 
 @examples.command("copy")
 @click.argument("name")
-@click.argument("directory", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("directory", type=click.Path(file_okay=False, path_type=Path), callback=folder_output)
 def copy(name: str, directory: Path) -> None:
     """Write example NAME and the component sources it uses into DIRECTORY, ready to edit.
 

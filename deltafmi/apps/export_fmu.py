@@ -14,6 +14,7 @@ import click
 
 from deltafmi.builder.packager import build_fmu
 from deltafmi.errors import BadInput
+from deltafmi.apps.console import output_folders
 from deltafmi.master.results.safe_file import check_writable
 from deltafmi.master.scenario.resolve import resolve_system
 from deltafmi.master.scenario.spec import load_scenario
@@ -48,7 +49,7 @@ def export_fmu(scenario: str | Path, output: Optional[str | Path] = None, *, fmi
 
 @click.command("export-fmu")
 @click.argument("scenario")
-@click.option("-o", "--output", type=click.Path(dir_okay=False),
+@click.option("-o", "--output", type=click.Path(dir_okay=False), callback=output_folders,
               help="The FMU file to write (default: <Model>.fmu in the current folder).")
 @click.option("--fmi-version", type=click.Choice(["2", "3"]), default="2", show_default=True,
               help="FMI version of the system FMU (its units keep theirs).")

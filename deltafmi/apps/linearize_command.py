@@ -7,6 +7,7 @@ from typing import Any, Dict, Optional, Sequence
 import click
 
 from deltafmi.errors import BadInput
+from deltafmi.apps.console import output_folders
 
 __all__ = ["linearize"]
 
@@ -35,7 +36,7 @@ def _assignments(items: Sequence[str], option: str) -> Dict[str, Any]:
 
 @click.command()
 @click.argument("target")
-@click.option("-o", "--save", "save", type=click.Path(dir_okay=False),
+@click.option("-o", "--save", "save", type=click.Path(dir_okay=False), callback=output_folders,
               help="Base name of the .npz and .mat files written (default: <target>_linear next to it).")
 @click.option("--at", "at", type=float,
               help="Time of the operating point [s]. FMU: 0 by default; scenario: a communication point "

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Callable, Optional, Sequence, Tuple
 import click
 
 from deltafmi.errors import BadInput
+from deltafmi.apps.console import output_folders
 
 if TYPE_CHECKING:
     from deltafmi.master.scenario.spec import Scenario
@@ -60,7 +61,7 @@ def _built_as(fmi_version: Optional[str]) -> Callable[[Scenario], Scenario]:
 
 @click.command()
 @click.argument("scenario")
-@click.option("-o", "--output", type=click.Path(dir_okay=False),
+@click.option("-o", "--output", type=click.Path(dir_okay=False), callback=output_folders,
               help="Result file: .csv, .parquet (units in its field metadata) or .mat (MATLAB); "
                    "default: result.file of the scenario, else <scenario>.csv here.")
 @click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
@@ -250,7 +251,7 @@ def validate(scenario: str, fmi_version: Optional[str]) -> None:
 
 @click.command("export-ssp")
 @click.argument("scenario")
-@click.option("-o", "--output", type=click.Path(dir_okay=False),
+@click.option("-o", "--output", type=click.Path(dir_okay=False), callback=output_folders,
               help="SSP archive to write (default: <scenario name>.ssp here).")
 @_FMI_VERSION
 def export_ssp(scenario: str, output: Optional[str], fmi_version: Optional[str]) -> None:
@@ -275,17 +276,15 @@ def export_ssp(scenario: str, output: Optional[str], fmi_version: Optional[str])
         raise BadInput(f"{target}: that is the scenario itself; write the archive elsewhere with -o")
     from deltafmi.master.results.safe_file import check_writable
     check_writable(target, "SSP archive")
-    missing = next((p for p in reversed([target.parent, *target.parent.parents]) if not p.exists()), None)
     system = load_system(scenario, overrides=_built_as(fmi_version))
     path = write(system, target)
-    made = f"; made the folder {target.parent}, which did not exist" if missing is not None else ""
-    click.echo(f"wrote {path} ({len(system.components)} components, {len(system.links)} connections{made})")
+    click.echo(f"wrote {path} ({len(system.components)} components, {len(system.links)} connections)")
 
 
 @click.command()
 @click.argument("result", type=click.Path(exists=True, dir_okay=False))
 @click.argument("signals", nargs=-1, required=True)
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
+@click.option("-o", "--output", type=click.Path(dir_okay=False), callback=output_folders, required=True,
               help="Figure file; its extension picks the format (.png, .pdf, .svg, ...).")
 @click.option("--compare", type=click.Path(exists=True, dir_okay=False),
               help="A second result file: plot RESULT minus it, signal by signal.")

@@ -30,6 +30,7 @@ from .build_stamps import Stamp, file_request, recorded, remember, stamps_of
 from .bytecode import unchecked_hash_pyc
 from .equations import SOURCES as EQUATION_COMPILER, generated_files
 from .reach import BOOT_SOURCE, module_archive_name, module_source, reached_modules
+from .source_error import import_failure
 from .sources import ComponentSourceError, find_component, split_file_reference
 
 __all__ = ["BUILD_LOG", "ComponentSourceError", "VALUE_ACCESS_SOURCE", "build_cached", "build_fmu", "cached_build",
@@ -88,7 +89,7 @@ def load_component_class(source: Path, class_name: Optional[str] = None) -> type
     try:
         spec.loader.exec_module(module)
     except Exception as exc:
-        raise ComponentSourceError(f"{source}: importing it failed: {exc!r}") from exc
+        raise ComponentSourceError(f"{source}: importing it failed: {import_failure(exc)}") from exc
     classes = [obj for obj in vars(module).values()
                if isinstance(obj, type) and issubclass(obj, Component) and obj.__module__ == name]
     if class_name is not None:

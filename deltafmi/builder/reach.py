@@ -123,8 +123,8 @@ def _parse_imports(source: bytes, filename: str, package: Optional[str]) -> Iter
     try:
         tree = ast.parse(source, filename=filename)
     except (SyntaxError, ValueError) as exc:  # a user's source that is not Python (null bytes: ValueError)
-        from .sources import ComponentSourceError
-        raise ComponentSourceError(f"{filename}: importing it failed: {exc!r}") from None
+        from .source_error import ComponentSourceError, import_failure
+        raise ComponentSourceError(f"{filename}: importing it failed: {import_failure(exc)}") from None
     for node in _statements(tree.body):
         if isinstance(node, ast.Import):
             yield from (alias.name for alias in node.names)

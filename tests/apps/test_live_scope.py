@@ -137,13 +137,14 @@ def test_malformed_datagrams_are_counted_and_the_first_ones_warned():
     assert np.array_equal(data.traces["x"].since(0.0)[1], [2.5])
 
 
-def test_bad_arguments_are_one_line_errors():
+def test_bad_arguments_are_one_line_errors(tmp_path):
     with pytest.raises(BadInput, match="window must be a positive number of seconds, not 0"):
         ScopeData(["x"], 0.0)
     with pytest.raises(BadInput, match="name the signals to draw"):
         ScopeData(["x", "  "], 1.0)
-    with pytest.raises(BadInput, match=r"cannot write .*out\.png: no folder .*no-such-folder"):
-        run_scope(["x"], port=0, save="no-such-folder/out.png")
+    (tmp_path / "afile").write_text("a file where the picture's folder should be")
+    with pytest.raises(BadInput, match=r"picture '.*afile/out\.png': .*afile is a file, not a folder"):
+        run_scope(["x"], port=0, save=str(tmp_path / "afile" / "out.png"))
 
 
 def test_a_display_with_a_backend_that_draws_no_window_is_told(monkeypatch):
@@ -239,9 +240,9 @@ def _start_scope(tmp_path, *arguments):
     return process, ("127.0.0.1", int(match[1]))
 
 
-def _ended(process):
+def _ended(process, code: int = 0):
     out, err = process.communicate(timeout=60)
-    assert process.returncode == 0, err
+    assert process.returncode == code, err
     return SUMMARY.search(err), err
 
 
@@ -283,7 +284,7 @@ def test_the_scope_process_ends_after_its_frames_and_on_sigterm(tmp_path):
         sender.sendto(encode({"x": 1.0}, 0.0, 0), address)
     time.sleep(0.5)
     process.send_signal(signal.SIGTERM)
-    summary, err = _ended(process)
+    summary, err = _ended(process, 128 + signal.SIGTERM)
     assert summary and summary[1] == "1" and summary[7] == "terminated", err
     assert (tmp_path / "b.png").stat().st_size > 1000
 

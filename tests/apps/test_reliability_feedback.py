@@ -48,6 +48,19 @@ def test_repeated_warnings_show_a_few_times_then_as_a_count(capsys):
     assert len(lines) == 6
 
 
+def test_warnings_that_differ_in_a_unit_of_time_are_one_kind(capsys):
+    """The pacing says '10.1 ms late' or '9069.7 us late' as the lateness goes: one kind, counted
+    once (a paced run on a loaded machine showed three kinds of it, three lines each)."""
+    warn = RepeatedWarnings(keep=3)
+    for k, late in enumerate(["10.1 ms", "9069.7 us", "15.6 ms", "5157.0 us", "1.2 s", "812 ns"]):
+        warn(f"fell behind real time at t = {k * 0.01:.6g} s: released {late} late, more than a whole step "
+             "(1000.0 us of wall time); going on")
+    warn.close()
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 5 and lines[3] == "warning: more warnings like this one are counted, not shown"
+    assert lines[4].startswith("warning: 3 more warnings like 'fell behind real time at t = 0 s: released 10.1 ms")
+
+
 def test_the_real_time_factor_is_the_stepping_s_with_the_whole_run_s_beside_it():
     summary = Summary(steps=3500, rejected=0, events=0, wall_time=0.35, simulated=3.5, rows=3501,
                       result="r.csv", setup_time=0.32, close_time=0.014)

@@ -48,6 +48,11 @@ def inputs(build_fmu_from_src, tmp_path_factory) -> Path:
     for name in ("binary.yaml", "binary.csv", "binary.parquet", "binary.mat", "binary.py"):
         (folder / name).write_bytes(binary)
     (folder / "afile").write_text("a file, not a folder\n")
+    os.mkfifo(folder / "pipe.csv")
+    (folder / "syntax.py").write_text("class X(:\n")
+    (folder / "adir.fmu").mkdir()
+    (folder / "empty.csv").write_text("")
+    (folder / "one.yaml").write_text(f"experiment: {{stop: 0.01, step: 1.0e-3}}\ncomponents:\n  osc: {{fmu: {osc}}}\n")
     good = CliRunner().invoke(main, ["run", "delta_tracking", "--stop", "0.05", "-q", "-o", str(folder / "r.csv")])
     assert good.exit_code == 0, good.output
     return folder
@@ -109,7 +114,8 @@ def test_a_broken_fmu_in_a_scenario_names_the_component(inputs, tmp_path):
     (["linearize", "{dir}/binary.yaml"], 2, "not a scenario: not text"),
     (["sweep", "{dir}/binary.yaml"], 2, "not a study: not text"),
     (["study-case", "{dir}/binary.yaml", "0", "-o", "{dir}/c.yaml"], 2, "not a study: not text"),
-    (["plot", "{dir}/binary.csv", "x", "-o", "{dir}/p.png"], 2, "cannot read '{dir}/binary.csv' as a result file"),
+    (["plot", "{dir}/binary.csv", "x", "-o", "{dir}/p.png"], 2, "cannot read '{dir}/binary.csv' as a result file: "
+                                                             "not text (byte 128 is not UTF-8)"),
     (["plot", "{dir}/binary.parquet", "x", "-o", "{dir}/p.png"], 2, "as a result file"),
     (["plot", "{dir}/binary.mat", "x", "-o", "{dir}/p.png"], 2, "as a result file"),
     (["animate", "{dir}/binary.csv", "-o", "{dir}/a.gif"], 2, "as a result file"),
@@ -119,6 +125,16 @@ def test_a_broken_fmu_in_a_scenario_names_the_component(inputs, tmp_path):
     (["info", "{dir}/binary.py"], 2, "importing it failed"),
     (["linearize", "{dir}/binary.py"], 2, "importing it failed"),
     (["run", "{dir}/r.csv"], 2, "a scenario must be a YAML mapping"),
+    (["run", "delta_tracking", "--stop", "0.01", "-o", "{dir}/pipe.csv"], 2,
+     "result file '{dir}/pipe.csv': not a regular file (a device, a pipe or a socket)"),
+    (["run", "{dir}/syntax.py"], 2, "not a scenario: a Python file (a component's source"),
+    (["build", "{dir}/syntax.py"], 2, "importing it failed: {dir}/syntax.py:1: invalid syntax"),
+    (["info", "{dir}"], 2, "a folder, not an FMU file"),
+    (["run", "{dir}/adir.fmu"], 2, "a folder, not an FMU file"),
+    (["plot", "{dir}/empty.csv", "x", "-o", "{dir}/p.png"], 2, "as a result file: it is empty (0 bytes)"),
+    (["run", "{dir}/one.yaml", "--stop", "1e308"], 2, "1e+308 s in steps of 0.001 s: more communication steps "
+                                                      "than a run can count"),
+    (["run", "{dir}/one.yaml", "--set", "osc=1"], 2, "'osc' is the component: set one of its variables, osc.NAME"),
 ])
 def test_every_command_ends_with_one_line_never_a_traceback(inputs, args, code, text):
     args = [a.replace("{dir}", str(inputs)) for a in args]
@@ -141,3 +157,25 @@ def test_a_file_of_utf8_control_characters_is_one_line_naming_its_line(tmp_path,
     path.write_bytes(b"description: x\n\x00\x01binary")
     last = _one_line(CliRunner().invoke(main, [command, str(path)]), 2)
     assert f"{path}:2" in last and "not text: character #x0000 is not allowed in YAML" in last, last
+
+
+def test_a_result_that_cannot_be_put_in_place_says_where_its_rows_are(inputs, tmp_path):
+    """An immutable result file (chattr +i): the run's rows stay in the temporary file beside it,
+    which the one line names; the earlier file is as it was."""
+    import subprocess
+
+    from deltafmi.master.results.csv_file import columns
+
+    target = tmp_path / "locked.csv"
+    target.write_text("earlier\n")
+    if subprocess.run(["chattr", "+i", str(target)], capture_output=True).returncode != 0:
+        pytest.skip("chattr +i needs root and a file system that has it")
+    try:
+        done = CliRunner().invoke(main, ["run", str(inputs / "one.yaml"), "-q", "-o", str(target)])
+    finally:
+        subprocess.run(["chattr", "-i", str(target)], check=True)
+    last = _one_line(done, 2)
+    kept = re.search(r"cannot put the finished file in its place \(.+\); its rows are in (\S+\.tmp)$", last)
+    assert kept, last
+    assert target.read_text() == "earlier\n"
+    assert len(columns(kept[1])["time"]) == 11  # 0 to 0.01 s in steps of 1 ms

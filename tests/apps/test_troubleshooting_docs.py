@@ -124,6 +124,7 @@ def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (folder / "nan.yaml").write_text(NAN)
     (folder / "afile").write_text("a file, not a folder\n")
     (folder / "x.fmu").write_bytes(bytes(range(256)))
+    os.mkfifo(folder / "pipe.csv")
     return folder
 
 
@@ -145,6 +146,7 @@ def cli(folder: Path, *args: str, env: dict | None = None) -> tuple[int, str]:
     ("scenario.yaml:6: error: unit mismatch", ["validate", "scenario.yaml"]),
     ("Error: n.y is NaN", ["run", "nan.yaml", "-o", "nan.csv"]),
     ("Error: result file 'afile/r.csv'", ["run", "loop.yaml", "-o", "afile/r.csv"]),
+    ("Error: result file 'pipe.csv'", ["run", "loop.yaml", "-o", "pipe.csv"]),
     ("Error: 3.5e+12 communication steps", ["run", "delta_tracking", "--step", "1e-12"]),
     ("Error: x.fmu: cannot read it as an FMU", ["info", "x.fmu"]),
     ("Error: cannot reach the Dask scheduler", ["sweep", "gain_payload", "--fresh", "--scheduler",
@@ -154,6 +156,12 @@ def test_a_quoted_error(folder: Path, prefix: str, args: list) -> None:
     code, output = cli(folder, *args)
     assert code != 0
     assert re.search(quoted(prefix), output), output
+
+
+def test_the_line_of_a_folder_made(folder: Path) -> None:
+    code, output = cli(folder, "run", "loop.yaml", "--stop", "0.01", "-q", "-o", "results/today/r.csv")
+    assert code == 0 and re.search(quoted("made the folder"), output), output
+    assert (folder / "results" / "today" / "r.csv").is_file()
 
 
 @pytest.mark.parametrize("prefix, name, source", [

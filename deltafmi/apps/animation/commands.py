@@ -5,12 +5,14 @@ from typing import Optional
 
 import click
 
+from deltafmi.apps.console import output_folders
+
 __all__ = ["animate"]
 
 
 @click.command()
 @click.argument("result", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
+@click.option("-o", "--output", type=click.Path(dir_okay=False), callback=output_folders, required=True,
               help="Animation file: .gif (Pillow) or .mp4 (needs ffmpeg).")
 @click.option("--plant", help="Component whose servo angles to draw (default: the only one with y[1..3]).")
 @click.option("--fps", type=float, default=20.0, show_default=True, help="Frames per second.")

@@ -6,6 +6,8 @@ from typing import List, Optional, Tuple
 
 import click
 
+from deltafmi.apps.console import folder_output
+
 from .compare import DEFAULT_TOLERANCE
 
 __all__ = ["compat"]
@@ -40,7 +42,7 @@ def compat() -> None:
 
 
 @compat.command("export")
-@click.argument("directory", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("directory", type=click.Path(file_okay=False, path_type=Path), callback=folder_output)
 @click.option("--fmi-version", "fmi_version", type=click.Choice(sorted(_VERSIONS)), default="both", show_default=True)
 @click.option("--interface", type=click.Choice(sorted(_INTERFACES)), default="both", show_default=True)
 @click.option("--models", "models", multiple=True, metavar="NAME",
@@ -66,7 +68,7 @@ def export_command(directory: Path, fmi_version: str, interface: str, models: Tu
 
 @compat.command("import")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False, path_type=Path))
-@click.option("--results", "results", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--results", "results", type=click.Path(file_okay=False, path_type=Path), callback=folder_output,
               help="Root of the results/ tree to write (default: FOLDER, next to its fmus/).")
 @click.option("--fmi-version", "fmi_version", type=click.Choice(sorted(_VERSIONS)), default="both", show_default=True)
 @click.option("--interface", type=click.Choice(sorted(_INTERFACES)), default="both", show_default=True)

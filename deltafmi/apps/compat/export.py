@@ -16,6 +16,7 @@ import numpy as np
 
 import deltafmi
 from deltafmi.errors import BadInput
+from deltafmi.files import replaced_atomically
 
 from .cases import Case, case_for
 from .files import RefOptions, Table, write_options, write_table
@@ -62,7 +63,8 @@ def write_tree(root: Path, fmi_versions: Sequence[str] = ("2.0", "3.0"), interfa
 def _write_model(entry: ModelFolder, fmu: Path, md: Any, options: RefOptions, inputs: Optional[Table],
                  names: List[str], portable: bool) -> None:
     entry.folder.mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(fmu, entry.file(".fmu"))
+    with replaced_atomically(entry.file(".fmu")) as temporary:
+        shutil.copyfile(fmu, temporary)
     if inputs is not None:
         write_table(entry.file("_in.csv"), inputs.time, inputs.columns)
     elif entry.file("_in.csv").exists():
@@ -70,7 +72,8 @@ def _write_model(entry: ModelFolder, fmu: Path, md: Any, options: RefOptions, in
     write_options(entry.file("_ref.opt"), options)
     reference = run_fmu(entry.file(".fmu"), entry.interface, options, names, inputs)
     write_table(entry.file("_ref.csv"), reference.time, reference.columns)
-    (entry.folder / "ReadMe.md").write_text(_readme(entry, md, options, inputs, names, portable))
+    with replaced_atomically(entry.folder / "ReadMe.md") as temporary:
+        temporary.write_text(_readme(entry, md, options, inputs, names, portable))
 
 
 def _build(model: str, version: str, portable: bool) -> Path:

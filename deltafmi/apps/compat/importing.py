@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import Callable, List, Optional, Sequence, Tuple
 
 import deltafmi
-from deltafmi.errors import BadInput, DeltaFmiError
+from deltafmi.errors import BadInput, DeltaFmiError, Interrupted
+from deltafmi.files import replaced_atomically
 
 from .compare import DEFAULT_TOLERANCE, mismatches
 from .export import INTERFACE_NAMES
@@ -67,9 +68,9 @@ def import_tree(folder: Path, results_root: Optional[Path] = None, fmi_versions:
 def _import_one(entry: ModelFolder, results_root: Path, tolerance: float) -> ImportResult:
     out = results_root / entry.result_folder(TOOL, deltafmi.__version__).relative_to(entry.root)
     out.mkdir(parents=True, exist_ok=True)
-    for stale in [*STATUSES, f"{entry.model}_out.csv"]:
-        if (out / stale).exists():
-            (out / stale).unlink()
+    # an earlier import's files stay until this one's are written (an interrupted import keeps them)
+    earlier_out = out / f"{entry.model}_out.csv"
+    earlier_out = earlier_out.stat().st_mtime_ns if earlier_out.exists() else None
     options: Optional[RefOptions] = None
     try:
         reason = _rejection(entry)
@@ -83,8 +84,16 @@ def _import_one(entry: ModelFolder, results_root: Path, tolerance: float) -> Imp
         status = "rejected"
     else:
         status, reason = _run(entry, options, reference, inputs, out, tolerance)
-    (out / status).write_text("")
-    (out / "ReadMe.md").write_text(_readme(entry, status, reason, options, tolerance))
+    with replaced_atomically(out / "ReadMe.md") as temporary:
+        temporary.write_text(_readme(entry, status, reason, options, tolerance))
+    with replaced_atomically(out / status) as temporary:
+        temporary.write_text("")
+    for stale in STATUSES:
+        if stale != status:
+            (out / stale).unlink(missing_ok=True)
+    written = out / f"{entry.model}_out.csv"
+    if written.exists() and written.stat().st_mtime_ns == earlier_out:  # an earlier import's, not this one's
+        written.unlink()
     return ImportResult(entry, status, reason or "", out)
 
 
@@ -95,6 +104,8 @@ def _run(entry: ModelFolder, options: RefOptions, reference: Table, inputs: Opti
         result = run_fmu(entry.file(".fmu"), entry.interface, options, reference.names, inputs)
     except BadInput as exc:  # an input deltafmi cannot drive from the table
         return "rejected", f"{entry.file('_in.csv')}: {exc.message.removeprefix('input file: ')}"
+    except Interrupted:  # Ctrl-C, SIGTERM, SIGHUP: the import stops, not this FMU
+        raise
     except DeltaFmiError as exc:
         return "failed", exc.message
     except Exception as exc:  # noqa: BLE001 - whatever an FMU does wrong is a failed import, not a crash

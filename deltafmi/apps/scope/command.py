@@ -1,11 +1,17 @@
 """CLI command ``scope``: the live plot window of a run's UDP output stream (:mod:`.window`)."""
 from __future__ import annotations
 
+import signal
 from typing import Optional, Sequence
 
 import click
 
+from deltafmi.apps.console import output_folders
+
 __all__ = ["scope"]
+
+#: the reasons a signal ends the scope, and the signal
+_SIGNALLED = {"interrupted": signal.SIGINT, "terminated": signal.SIGTERM, "hung up": signal.SIGHUP}
 
 
 @click.command("scope")
@@ -18,7 +24,7 @@ __all__ = ["scope"]
               help="Seconds of the sender's (simulation) time shown.")
 @click.option("--fps", type=click.FloatRange(1.0, 60.0), default=20.0, show_default=True,
               help="Most redraws per second.")
-@click.option("--save", type=click.Path(dir_okay=False), default=None,
+@click.option("--save", type=click.Path(dir_okay=False), callback=output_folders, default=None,
               help="Draw off screen (no window) and write the last picture to this PNG file at the end.")
 @click.option("--frames", type=click.IntRange(1), default=None,
               help="End after this many redraws (a redraw needs new datagrams).")
@@ -50,3 +56,5 @@ def scope(signals: Sequence[str], port: int, host: str, window: float, fps: floa
     frames = f"{view.frames} frame{'s' * (view.frames != 1)}"
     click.echo(f"scope: {view.data.summary()}; {frames} drawn, ended: {reason}"
                + (f"; wrote {save}" if save else ""), err=True)
+    if reason in _SIGNALLED:  # ended by a signal: the picture is saved, the exit code says which
+        raise SystemExit(128 + _SIGNALLED[reason])

@@ -17,11 +17,11 @@ twitch every frame. The scope reads DFMI datagrams (binary or JSON); packed doub
 from __future__ import annotations
 
 import math
-import os
 import select
 import signal
 import socket
 import time
+from pathlib import Path
 from typing import Any, Callable, List, Optional, Sequence, Tuple
 
 from deltafmi.errors import BadInput
@@ -165,10 +165,14 @@ class ScopeFigure:
         self.figure.draw_artist(self.clock)
 
     def save(self, path: str) -> None:
-        """Write the picture, as it stands, to a file (its format from the name's suffix)."""
+        """Write the picture, as it stands, to a file (its format from the name's suffix), whole
+        or not at all: an earlier file of that name stays until the new one is complete."""
+        from deltafmi.files import replaced_atomically
+
         self.clock.set_animated(False)  # a figure's own animated artists are left out of a saved file
         try:
-            self.figure.savefig(path)
+            with replaced_atomically(Path(path)) as temporary:
+                self.figure.savefig(temporary, format=Path(path).suffix.lstrip(".").lower() or None)
         finally:
             self.clock.set_animated(self.blit)
 
@@ -250,6 +254,15 @@ class _Stop:
     def __call__(self, reason: str) -> None:
         self.reason = self.reason or reason
 
+    def on_signal(self, reason: str) -> Callable[[int, Any], None]:
+        """A signal handler that stops the loop for ``reason``; a signal after that one raises
+        KeyboardInterrupt."""
+        def handle(signum: int, frame: Any) -> None:
+            if self.reason is not None:
+                raise KeyboardInterrupt
+            self(reason)
+        return handle
+
 
 def run_loop(scope: Scope, view: ScopeFigure, *, fps: float = 20.0,
              frames: Optional[int] = None, exit_when_idle: Optional[float] = None,
@@ -294,8 +307,9 @@ def run_scope(arguments: Sequence[str], *, port: int, host: str = "127.0.0.1", w
               fps: float = 20.0, save: Optional[str] = None, frames: Optional[int] = None,
               exit_when_idle: Optional[float] = None) -> Tuple[ScopeFigure, str]:
     """The scope from start to end: a window (or, with ``save``, a PNG drawn off screen), fed
-    until it is closed, ``frames`` redraws, ``exit_when_idle`` seconds of silence, Ctrl-C or
-    SIGTERM. Prints ``listening HOST:PORT`` first; returns the picture (``.data``, ``.frames``) and
+    until it is closed, ``frames`` redraws, ``exit_when_idle`` seconds of silence, Ctrl-C,
+    SIGTERM or SIGHUP (the reason: "interrupted", "terminated", "hung up"; the picture is saved
+    in every case). Prints ``listening HOST:PORT`` first; returns the picture (``.data``, ``.frames``) and
     why it ended. Raises
     BadInput (one line) for a socket that cannot be bound or no display without ``save``."""
     if save is None:
@@ -303,13 +317,19 @@ def run_scope(arguments: Sequence[str], *, port: int, host: str = "127.0.0.1", w
         if problem:
             raise BadInput(f"{problem}: give --save out.png (with --frames N or --exit-when-idle SECONDS) "
                            "to draw into a file")
-    if save is not None and not os.path.isdir(os.path.dirname(os.path.abspath(save))):
-        raise BadInput(f"cannot write {save}: no folder {os.path.dirname(os.path.abspath(save))}")
+    if save is not None:
+        from deltafmi.master.results.safe_file import check_writable
+        check_writable(Path(save), "picture")
     scope = Scope(arguments, window, host, port)
     stop = _Stop()
     # before the line the master (or a test) waits for: a SIGTERM sent once it is read ends the scope
     # as documented, however long matplotlib then takes to start
     previous = signal.signal(signal.SIGTERM, lambda *_: stop("terminated"))
+    # Ctrl-C and a closed terminal end it the same way (SIGHUP not under nohup); a second signal
+    # breaks whatever it is doing
+    previous_interrupt = signal.signal(signal.SIGINT, stop.on_signal("interrupted"))
+    hangup = signal.getsignal(signal.SIGHUP) != signal.SIG_IGN
+    previous_hangup = signal.signal(signal.SIGHUP, stop.on_signal("hung up")) if hangup else None
     view: Optional[ScopeFigure] = None
     try:
         address = "%s:%d" % scope.open()
@@ -340,6 +360,9 @@ def run_scope(arguments: Sequence[str], *, port: int, host: str = "127.0.0.1", w
         reason = "interrupted"
     finally:
         signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGINT, previous_interrupt)
+        if previous_hangup is not None:
+            signal.signal(signal.SIGHUP, previous_hangup)
         scope.close()
     if save is None:
         plt.close(figure)

@@ -12,6 +12,7 @@ from typing import Optional, Sequence
 import click
 
 from deltafmi.errors import BadInput
+from deltafmi.apps.console import output_folders
 
 __all__ = ["plot_study_command", "study_case", "sweep"]
 
@@ -40,7 +41,7 @@ def _table_path(planned, output: Optional[str]) -> Path:
 
 @click.command()
 @click.argument("study")
-@click.option("-o", "--output", type=click.Path(dir_okay=False),
+@click.option("-o", "--output", type=click.Path(dir_okay=False), callback=output_folders,
               help="Results table (.parquet; default: result.file of the study, else <study>.parquet here). "
                    "The CSV copy, the journal and the time series go next to it.")
 @click.option("--scheduler", metavar="ADDRESS",
@@ -157,7 +158,7 @@ def _announce(link: str) -> None:
 
 @click.command("plot-study")
 @click.argument("results", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
+@click.option("-o", "--output", type=click.Path(dir_okay=False), callback=output_folders, required=True,
               help="Figure file (.png, .pdf, .svg).")
 @click.option("-m", "--metric", "metrics", multiple=True, help="Metric to draw (repeatable; default: all).")
 @click.option("--x", "x", help="Varied parameter on the horizontal axis.")
@@ -189,7 +190,7 @@ def plot_study_command(results: str, output: str, metrics: Sequence[str], x: Opt
 @click.command("study-case")
 @click.argument("study")
 @click.argument("case", type=click.IntRange(min=0))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Scenario file to write.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), callback=output_folders, required=True, help="Scenario file to write.")
 def study_case(study: str, case: int, output: str) -> None:
     """Write CASE of STUDY as a plain scenario, to run it alone with deltafmi run.
 
@@ -202,8 +203,13 @@ def study_case(study: str, case: int, output: str) -> None:
     """
     from .export import case_scenario
 
+    from deltafmi.files import replaced_atomically
+    from deltafmi.master.results.safe_file import check_writable
+
+    check_writable(Path(output), "scenario file")
     planned = _plan(study)
     if case >= len(planned.cases):
         raise BadInput(f"{study} has {len(planned.cases)} cases (0 to {len(planned.cases) - 1}), not case {case}")
-    Path(output).write_text(case_scenario(planned, planned.cases[case]))
+    with replaced_atomically(Path(output)) as temporary:
+        temporary.write_text(case_scenario(planned, planned.cases[case]), encoding="utf-8")
     click.echo(f"wrote {output} ({planned.cases[case].describe()})")

@@ -230,6 +230,8 @@ def read_result(path: str | Path) -> Result:
     suffix = path.suffix.lower()
     if not path.is_file():
         raise BadInput(f"result file '{path}' not found")
+    if path.stat().st_size == 0:
+        raise BadInput(f"cannot read '{path}' as a result file: it is empty (0 bytes)")
     try:
         if suffix == ".parquet":
             return _read_parquet(path)
@@ -239,7 +241,9 @@ def read_result(path: str | Path) -> Result:
         return Result(columns(path), read_units(path) or None)
     except BadInput:
         raise
-    except (ValueError, OSError, KeyError, StopIteration, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
+        raise BadInput(f"cannot read '{path}' as a result file: not text (byte {exc.start} is not UTF-8)") from None
+    except (ValueError, OSError, KeyError, StopIteration) as exc:
         raise BadInput(f"cannot read '{path}' as a result file: {exc or type(exc).__name__}") from None
     except Exception as exc:  # pyarrow's and scipy's own errors for files that are not theirs
         raise BadInput(f"cannot read '{path}' as a result file: {exc}") from None

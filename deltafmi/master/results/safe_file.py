@@ -28,12 +28,15 @@ def failed_name(target: Path) -> Path:
 
 def check_writable(target: Path, what: str = "result file") -> None:
     """Raise :class:`BadInput` (one line, naming ``what`` and ``target``) when ``target`` cannot be
-    written: a file where a folder of its path should be, a folder where the file should be, a
-    folder that cannot take files (no permission, a read-only file system). Folders missing on
+    written: a file where a folder of its path should be, a folder, a device, a pipe or a socket
+    where the file should be (moved into place, the new file would replace it), a folder that
+    cannot take files (no permission, a read-only file system). Folders missing on
     the way are not an error: the writer makes them."""
     target = Path(target)
     if target.is_dir():
         raise BadInput(f"{what} '{target}': that is a folder; name a file")
+    if target.exists() and not target.is_file():  # the rename into place would replace it by a file
+        raise BadInput(f"{what} '{target}': not a regular file (a device, a pipe or a socket); name a file")
     folder = target.parent
     for parent in [target.parent, *target.parent.parents]:
         if parent.exists():
@@ -76,7 +79,11 @@ class ResultFile:
         if not self.temporary.exists():
             return None
         final = self.final
-        os.replace(self.temporary, final)
+        try:
+            os.replace(self.temporary, final)
+        except OSError as exc:  # an immutable or otherwise locked target: the rows stay where they are
+            raise BadInput(f"result file '{final}': cannot put the finished file in its place "
+                           f"({exc.strerror or exc}); its rows are in {self.temporary}") from None
         return final
 
     def discard(self) -> None:

@@ -30,6 +30,9 @@ def fmu_scenario(path: str | Path) -> Scenario:
     The result file is ``<file name>.csv`` in the current folder. Raises :class:`ScenarioError`
     (exit code 2) when the file is missing or is not an FMU."""
     path = Path(path)
+    if path.is_dir():
+        raise ScenarioError([Diagnostic(str(path), None, "a folder, not an FMU file (an FMU is one .fmu file, a "
+                                        "zip archive)")])
     if not path.is_file():
         raise ScenarioError([Diagnostic(str(path), None, "no such FMU file")])
     try:

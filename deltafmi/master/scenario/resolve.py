@@ -231,6 +231,8 @@ class _Checker:
                 other = (f" (nor is '{prefix}' a component: the scenario's one component is '{component.name}')"
                          if at and "." in param.name and prefix != component.name
                          and not any(n.startswith(prefix + ".") for n in exc.names) else "")
+                if at and param.name == component.name:
+                    other = f" ('{param.name}' is the component: set one of its variables, {param.name}.NAME=VALUE)"
                 self.error(param.line, f"{where}: no such variable in the FMU"
                                        f"{did_you_mean(param.name, exc.names) or other}", at)
                 continue

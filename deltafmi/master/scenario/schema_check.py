@@ -23,6 +23,10 @@ Special = Callable[["jsonschema.ValidationError", LineMap, str], Optional[List[D
 
 def read_document(path: Path, document: str) -> str:
     """The text of ``path``; :class:`ScenarioError` naming the file if it cannot be read."""
+    if path.suffix.lower() == ".py":  # YAML would read it and fail at a line of Python
+        raise ScenarioError([Diagnostic(str(path), None, f"not a {document}: a Python file (a component's source: "
+                                                         f"build it with `deltafmi build {path}`, or name it as "
+                                                         "`source:` of a component in a scenario)")])
     try:
         return path.read_text(encoding="utf-8")
     except OSError as exc:

@@ -86,7 +86,7 @@ class _Plan(ctypes.Structure):
                 ("n_steps", c_long), ("last", c_long), ("every", c_long),
                 ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
                 ("rk_step", c_double), ("op_seconds", c_void_p), ("pace", POINTER(_Pace)), ("threads", c_int),
-                ("pool", c_void_p), ("gil_released", c_int)]
+                ("pool", c_void_p), ("gil_released", c_int), ("step_start", c_void_p)]
 
 
 _kernels: dict = {}
@@ -199,12 +199,14 @@ class NativeLoop:
         width = len(sampler.row)
         self.rows = np.empty((block_rows, width + 1))
         self.plan = _Plan(self._ops_array, len(ops), self._parts_array, len(parts), width, start, h, stop,
-                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None, None, threads, None, 0)
+                          n_steps, last, every, 0, 0, 0, 0.0, 0.0, 0.0, None, None, threads, None, 0, None)
         self._pace: Optional[_Pace] = None
         self._paced: Optional[Any] = None
         self._count = np.zeros(1, dtype=np.int_)
         #: set :meth:`timed` to have the C loop add up the wall time of each operation
         self.op_seconds: Optional[np.ndarray] = None
+        #: set :meth:`keep_step_start` to have the C loop gather the recorded values at each step's start here
+        self.step_start: Optional[np.ndarray] = None
         self._run = _steps_function()
         self._k_done, self._n_rows = c_long(0), c_long(0)
 
@@ -331,6 +333,12 @@ class NativeLoop:
         if len(lateness):
             pacer.late, pacer.busy = float(lateness[-1]), self._pace.last_busy
         pacer.note_released(times[:len(lateness)], lateness)
+
+    def keep_step_start(self) -> None:
+        """From now on gather the recorded row (time first) at the start of every step into
+        :attr:`step_start`: after a stop inside a step, the values every unit had when it began."""
+        self.step_start = np.zeros(len(self.rows[0]))
+        self.plan.step_start = self.step_start.ctypes.data
 
     def timed(self) -> None:
         """From now on add each operation's wall seconds to :attr:`op_seconds` (for benchmarks)."""

@@ -9,7 +9,10 @@
   the units of a loop step as one block.
 * Optional adaptive communication step with rollback (:mod:`deltafmi.master.stepping.adaptive`).
 * Results stream to CSV; events of ME units (and of FMI 3.0 CS units in event mode) add rows at
-  the event instant.
+  the event instant: the event unit's values there, every other unit's latest at or before it (a
+  co-simulation knows them only at communication points): inside a step those of the step's
+  start, at the step's end those of the units that reached it. No row shows a value of a time
+  after its own.
 * FMI 2.0 and FMI 3.0 FMUs run side by side (:mod:`.fmi3_units`): an FMI 3.0 array variable is
   its elements on the buses, each with a slot keyed (bus, unit, value reference, element).
 * Fixed steps run in C where :mod:`deltafmi.master.stepping.c_loop` can (the same FMI calls, 64
@@ -126,7 +129,12 @@ class Master:
         self.steps = 0
         self.rejected = 0
         self.events = 0
-        self._deferred: Optional[List[Tuple[float, np.ndarray, bool]]] = None
+        self._deferred: Optional[List[Tuple[float, Optional[np.ndarray], bool]]] = None
+        #: the recorded row at the start of the step under way (time first), kept when a unit
+        #: may have events inside a step and other units' columns to show with them
+        self._step_start: Optional[np.ndarray] = None
+        #: each event unit's name -> the recorded columns that are not its own (bool mask)
+        self._others: Dict[str, np.ndarray] = {}
         self.step_end = self.start
         self._unzip_root = ""
         self._by_name: Dict[str, Unit] = {}
@@ -353,6 +361,9 @@ class Master:
             columns = [i for i, p in enumerate(recorded) if p.type == kind]
             parts.append((self.buses[kind], [at(recorded[i]) for i in columns], columns))
         self.sampler = RowSampler(parts, len(recorded))
+        owners = np.array([p.component for p in recorded], dtype=object)
+        self._others = {unit.name: owners != unit.name for unit in self.units
+                        if hasattr(unit, "on_event") and (owners != unit.name).any()}
         self._real_columns = np.asarray([i for i, p in enumerate(recorded) if p.type == "Real"], np.intp)
         names = [""] * len(self.buses["Real"])
         for port in [link.source for link in links] + list(recorded):
@@ -445,6 +456,7 @@ class Master:
 
     def step_all(self, units: Sequence[Stepper], t: float, step: float) -> None:
         """One communication step of ``units`` (units or loop blocks) from ``t``, all the same step size."""
+        self._mark_step_start(t)
         if self.algorithm == "gauss-seidel":
             for unit in units:
                 unit.pull()
@@ -493,6 +505,8 @@ class Master:
                     native = self._native = NativeLoop(
                         [a for a, _ in kept], self.sampler, start, h, stop, n_steps, last, self.every,
                         block_rows=rows, groups=[g for _, g in kept] if groups else (), threads=self.threads)
+                    if self._others:
+                        native.keep_step_start()
                 except BuildError as exc:  # no compiler and no prebuilt loop: the same steps in Python
                     self.warn(f"stepping in Python: {exc}")
         if native is not None:
@@ -546,6 +560,8 @@ class Master:
         and a later one's event may come earlier in the step."""
         held = self.hold_events() if held is None else held
         t = self.time = grid.start + k * grid.h
+        if first == 0:
+            self._mark_step_start(t)
         n_steps, last, h = grid.n_steps, grid.last, grid.h
         self.step_end = grid.start + (k + 1) * h if k + 1 < n_steps else grid.stop
         groups = self._groups[1] if self._groups is not None and self._groups[0] is actions else None
@@ -602,6 +618,8 @@ class Master:
             return done
         # step `done` stopped inside: the state the Python loop would have there
         t = self.time = grid.start + done * grid.h
+        if native.step_start is not None:
+            self._step_start = native.step_start[1:].copy()
         self.step_end = grid.start + (done + 1) * grid.h if done + 1 < grid.n_steps else grid.stop
         unit, action, index, function = native.stopped_at()
         plan = native.plan
@@ -709,6 +727,12 @@ class Master:
         if self.stop_signals.received:
             raise KeyboardInterrupt
 
+    def _mark_step_start(self, t: float) -> None:
+        """A step begins at ``t``: keep the recorded values its event rows show of the units
+        other than the event's (only when some unit can have events and others are recorded)."""
+        if self._others:
+            self._step_start = self.sampler.sample().copy()
+
     def _on_event(self, unit: Unit, t: float, after: bool) -> None:
         # an event within round-off of the step's start or end (a unit's own t + h, or an FMU's
         # accumulated event time, can be an ulp off the grid's start + k h) is recorded there
@@ -722,11 +746,22 @@ class Master:
                 self._deferred.append((t, None, True))
             return
         unit.fetch()
+        row = self.sampler.sample().copy()
+        others = self._others.get(unit.name)
+        if others is not None and self._step_start is not None and t != self.step_end:
+            # in a step the others have no values at t but those of its start (in a Gauss-Seidel
+            # step the units stepped earlier already hold the step's end on the bus: later than t)
+            row[others] = self._step_start[others]
         if self._deferred is not None:
-            self._deferred.append((t, self.sampler.sample().copy(), after))
+            self._deferred.append((t, row, after))
             return
         self.events += after
-        self._record(t)
+        self._write_row(t, row)
+
+    def _write_row(self, t: float, row: np.ndarray) -> None:
+        self.writer.write(t, row)
+        self.recorded_until = t
+        self._check_row(t, row)
 
     def defer_events(self) -> None:
         """Hold event rows back until :meth:`commit_events` (a trial step may be rolled back)."""
@@ -737,9 +772,7 @@ class Master:
         for t, row, after in sorted(self._deferred or (), key=lambda held: held[0]):
             self.events += after
             if row is not None:
-                self.writer.write(t, row)
-                self.recorded_until = t
-                self._check_row(t, row)
+                self._write_row(t, row)
         self._deferred = None
 
     def drop_events(self) -> None:

@@ -178,6 +178,8 @@ typedef struct {
                               * until deltafmi_fixed_steps_end: a thread that enters Python keeps the
                               * thread state it made there, so the threads are made once per plan */
     int gil_released;        /* called without Python's lock (ctypes.CDLL): nothing to let go of */
+    double *step_start;      /* NULL, or a row: the recorded values at the start of each step
+                              * (what an event row inside the step shows of the other units) */
 } Plan;
 
 static double now(void)
@@ -606,6 +608,7 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
             break;
         }
         double t = p->start + (double)k * p->h;
+        if (p->step_start) record(p, t, p->step_start);
         for (size_t i = 0; i < p->n_ops; i++) {
             Op *o = &p->ops[i];
             if (pool && o->group > 0) { /* the group's ops, then their statuses in order */
