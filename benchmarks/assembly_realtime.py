@@ -71,12 +71,14 @@ def figures(times: List[float]) -> Dict[str, float]:
             "over": float(np.mean(t > 1.0))}
 
 
-def report(title: str, rows: Dict[str, Dict[str, float]]) -> None:
+def report(title: str, rows: Dict[str, Dict[str, float]], ratios: bool = True) -> None:
+    """One line per row; with ``ratios``, the first row is the baseline (how many times faster)."""
     base = next(iter(rows.values()))
-    print(f"\n{title}\n{'':44}{'median ms':>10}{'p99 ms':>9}{'max ms':>9}{'> 1 ms':>8}{'median x':>10}{'p99 x':>8}")
+    head = f"{'median x':>10}{'p99 x':>8}" if ratios else ""
+    print(f"\n{title}\n{'':44}{'median ms':>10}{'p99 ms':>9}{'max ms':>9}{'> 1 ms':>8}{head}")
     for label, f in rows.items():
-        print(f"{label:44}{f['median']:10.3f}{f['p99']:9.3f}{f['max']:9.2f}{100 * f['over']:7.1f}%"
-              f"{base['median'] / f['median']:10.2f}{base['p99'] / f['p99']:8.2f}")
+        tail = f"{base['median'] / f['median']:10.2f}{base['p99'] / f['p99']:8.2f}" if ratios else ""
+        print(f"{label:44}{f['median']:10.3f}{f['p99']:9.3f}{f['max']:9.2f}{100 * f['over']:7.1f}%{tail}")
 
 
 # ------------------------------------------------------------------------------------------ MPC
@@ -90,7 +92,7 @@ def mpc_inputs(folder: Path, stop: float) -> dict:
 def mpc_replay(data: dict, **changes: object) -> tuple:
     """Step the planner (the scenario's task with ``changes``) through the recorded measurements at
     its 10 ms samples; its own reference moves as the FMU's does (the last plan's polynomial).
-    Per-sample seconds, planned pushes, OSQP iterations."""
+    Per-sample seconds, planned pushes, OSQP iterations, whether polishing succeeded."""
     from deltafmi.physics.control.insertion import InsertionMpc, InsertionTask
     from deltafmi.physics.control.model_file import LinearModelFile
 
@@ -106,7 +108,7 @@ def mpc_replay(data: dict, **changes: object) -> tuple:
     planner = InsertionMpc(LinearModelFile.read(str(EXAMPLES / "peg_in_hole_mpc_model.npz")), task)
     T = task.sample_period
     r, rd, a = np.array(spec["start"], float), np.zeros(3), np.zeros(3)
-    times, pushes, iterations = [], [], []
+    times, pushes, iterations, polished = [], [], [], []
     for k in range(int(data["time"][-1] / T + 1e-9) + 1):
         i = int(np.searchsorted(data["time"], k * T + 1e-9)) - 1  # the last row at the sample instant
         if k:
@@ -116,7 +118,8 @@ def mpc_replay(data: dict, **changes: object) -> tuple:
         times.append(time.perf_counter() - start)
         pushes.append(planner.planned_force(plan))
         iterations.append(plan.iterations)
-    return times, pushes, iterations
+        polished.append(plan.polished)
+    return times, pushes, iterations, polished
 
 
 def mpc(folder: Path, stop: float) -> None:
@@ -126,13 +129,14 @@ def mpc(folder: Path, stop: float) -> None:
                            ("one solver per mode", dict(polish=False, relaxation=1.6)),
                            ("one solver per mode, polished", dict(relaxation=1.6)),
                            ("now: per mode, polished, alpha 1", {})):
-        times, push, iterations = mpc_replay(data, **changes)
+        times, push, iterations, polished = mpc_replay(data, **changes)
         rows[label] = figures(times)
-        extra[label] = (max(push), np.median(iterations), np.percentile(iterations, 99), max(iterations))
+        extra[label] = (max(push), np.median(iterations), np.percentile(iterations, 99), max(iterations),
+                        np.mean(polished))
     report(f"InsertionMpc, {len(times)} samples of 10 ms (peg_in_hole_mpc.yaml pressing on the bottom)", rows)
-    print(f"\n{'':44}{'largest planned push N':>24}{'iterations median':>19}{'p99':>7}{'max':>7}")
-    for label, (push, med, p99, most) in extra.items():
-        print(f"{label:44}{push:24.6f}{med:19.0f}{p99:7.0f}{most:7d}")
+    print(f"\n{'':44}{'largest planned push N':>24}{'iterations median':>19}{'p99':>7}{'max':>7}{'polished':>10}")
+    for label, (push, med, p99, most, share) in extra.items():
+        print(f"{label:44}{push:24.6f}{med:19.0f}{p99:7.0f}{most:7d}{100 * share:9.0f}%")
 
 
 # ----------------------------------------------------------------------------------- estimators
@@ -206,7 +210,7 @@ def peg(folder: Path, stop: float) -> None:
     times = timed(ekf.step, [(d["y"][i], d["qw"][i], d["u"][i], d["tau"][i]) for i in rows])
     report(f"PegEstimator, {len(times)} samples of 1 ms (peg_estimation.yaml, 0.9-{stop:g} s: free, chamfer, bore)",
            {"per sample (Python, numpy)": figures(times), "  prediction": figures(parts["predict"]),
-            "  measurement + contact-law update": figures(parts["update"])})
+            "  measurement + contact-law update": figures(parts["update"])}, ratios=False)
 
 
 def contact(folder: Path) -> None:
@@ -219,7 +223,7 @@ def contact(folder: Path) -> None:
     ekf = ContactEKF(c.robot_params(), c._settings, d["y"][rows[0]])
     times = timed(ekf.step, [(d["y"][i], d["u"][i]) for i in rows])
     report(f"ContactEstimator, {len(times)} samples of 1 ms (contact_estimation.yaml)",
-           {"per sample (Python, numpy)": figures(times)})
+           {"per sample (Python, numpy)": figures(times)}, ratios=False)
 
 
 def main() -> None:
