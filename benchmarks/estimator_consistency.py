@@ -12,7 +12,8 @@ filter the mean NEES over R runs of a d-dimensional error is chi-square(d R) / R
 [chi2.ppf(0.025, d R), chi2.ppf(0.975, d R)] / R at 95 %. Printed at several instants and
 averaged over the bore, for the settings given (``--set name=value``, PegEKFSettings names) and
 for the baseline: reject_samples huge (the filter before a lock-in reopened the hole's
-covariance).
+covariance); and with the hole's random walk set (hole_drift_std, tilt_drift_std; off by
+default).
 
 ContactEstimator (--estimator contact): scenarios/contact_estimation.yaml recorded once without
 the estimator, ContactEKF replayed from 0.2 s before the touch to the end (the press at rest),
@@ -43,7 +44,7 @@ from deltafmi.physics.estimation.contact_ekf import ContactEKF  # noqa: E402
 
 
 def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start: float, stop: float) -> tuple:
-    """(times, hole NEES, force NEES, reopened) of one seeded run."""
+    """(times, hole NEES, force NEES, reopened, hole error norm) of one seeded run."""
     readout, ekf, t = Readout(noise, 0.0, seed), None, d["time"]
     rows = []
     for k in range(int(round(start / 1e-3)), int(round(stop / 1e-3)) + 1):
@@ -54,21 +55,24 @@ def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start:
                          read[3:])
         est = ekf.step(read[:3], read[3:], d["u"][i], d["tau"][i])
         eh, ef = est.hole[:2] - d["hole"][i][:2], est.force - d["force"][i]
-        rows.append((t[i], eh @ np.linalg.solve(ekf.P[18:20, 18:20], eh), ef @ np.linalg.solve(ekf.P[12:15, 12:15], ef)))
+        rows.append((t[i], eh @ np.linalg.solve(ekf.P[18:20, 18:20], eh), ef @ np.linalg.solve(ekf.P[12:15, 12:15], ef),
+                     np.linalg.norm(eh)))
     a = np.array(rows)
-    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened
+    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened, a[:, 3]
 
 
 def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
-    H, F, reopened = [], [], []
+    H, F, reopened, E = [], [], [], []
     began = time.perf_counter()
     for r in range(args.runs):
-        t, h, f, n = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
+        t, h, f, n, e = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
+        E.append(e[-1])
         H.append(h)
         F.append(f)
         reopened.append(n)
     H, F, R = np.array(H), np.array(F), args.runs
-    print(f"  {R} runs in {time.perf_counter() - began:.0f} s; hole covariance reopened in {np.count_nonzero(reopened)} runs")
+    print(f"  {R} runs in {time.perf_counter() - began:.0f} s; hole covariance reopened in {np.count_nonzero(reopened)} "
+          f"runs; hole error at the end: median {np.median(E) * 1e6:.1f} um, largest {np.max(E) * 1e6:.1f} um")
     for name, nees, dof in (("hole x, y", H, 2), ("force", F, 3)):
         lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
         at = [(q, nees[:, np.argmin(np.abs(t - q))].mean()) for q in (1.1, 1.2, 1.4, args.stop) if q <= args.stop]
@@ -132,9 +136,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         d = peg_truth(Path(tmp), args.stop)
     changes = {k: float(v) for k, v in (s.split("=", 1) for s in args.set)}
-    baseline = replace(c._settings, reject_samples=10 ** 9)
-    for label, settings in (("baseline: no reopening", baseline),
-                            ("now", replace(c._settings, **changes))):
+    baseline = replace(c._settings, reject_samples=10 ** 9, hole_drift_std=0.0, tilt_drift_std=0.0)
+    drift = replace(c._settings, hole_drift_std=3e-3, tilt_drift_std=3e-2)
+    for label, settings in (("baseline: no reopening, no drift of the hole", baseline),
+                            ("now (defaults, with --set)", replace(c._settings, **changes)),
+                            ("with the hole's random walk 3e-3 m, 3e-2 rad per sqrt(s)", drift)):
         print(label)
         monte_carlo(d, c, settings, args)
 

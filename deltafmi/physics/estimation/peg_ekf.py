@@ -11,8 +11,12 @@ inputs: the servo torques u and the wrist torques tau, held over each sample per
 - W = [F, M]: the contact wrench on the peg, force at the tool tip and moment about it, world
   frame (the resultant of the contact multipliers; the plant's contact_force, contact_moment),
   a random walk (force_rate_std, moment_rate_std);
-- h = [x, y, tilt_x, tilt_y]: the hole (:mod:`.peg_contact`), constants with a prior
-  (the nominal hole, hole_std0, tilt_std0).
+- h = [x, y, tilt_x, tilt_y]: the hole (:mod:`.peg_contact`), with a prior (the nominal hole,
+  hole_std0, tilt_std0); constants by default, or a random walk (hole_drift_std, tilt_drift_std):
+  the hole does not move, but the law's updates are linearised at the estimate, and a walk makes
+  the filter forget the old ones (fading memory) instead of trusting each of thousands forever.
+  The price: it also forgets what the chamfer told across a bore contact's normal (measured in
+  docs/assembly.md), so it is off by default.
 
 The hole is tied in by the contact law as a pseudo-measurement, as :mod:`.contact_ekf` ties the
 surface height, applied while the filter believes the peg touches (|F| > contact_threshold for
@@ -40,12 +44,15 @@ Consistency (benchmarks/estimator_consistency.py, Monte Carlo over seeded encode
 law is a penalty contact, stiff (2e5 N/m a point) and switching with its active points, so the
 update linearised at a hole estimate tens of micrometres off can be confident about the wrong
 contact, and the gate then refuses every correction: the estimate locks in with a covariance of
-micrometres against an error of a tenth of a millimetre. Such a lock-in shows as the gate
+micrometres against an error of a tenth of a millimetre. The hole's random walk (when set) keeps
+its covariance from shrinking below what the linearisation can support; a lock-in shows as the
+gate
 refusing the law reject_samples times in a row while in contact; the hole's covariance then goes
 back to its prior's about the current mean (its correlations dropped), and the law's updates
 start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that detects its
 innovations are inconsistent raises its uncertainty instead of refusing the data). This lowers
-the hole's mean NEES but does not make it consistent: see docs/assembly.md.
+the hole's mean NEES by orders of magnitude but does not make it consistent: see
+docs/assembly.md.
 
 Cycle per sample t_k (:meth:`PegEKF.step`), as ContactEKF: predict from t_(k-1) with the torques
 held since then, update with y(t_k), qw(t_k), then the gated contact update. Cost (measured on
@@ -105,6 +112,8 @@ class PegEKFSettings:
     contact_samples: int = 5  #: samples in a row above contact_threshold before the law applies
     contact_gate: float = 22.46  #: largest normalised innovation r^T S^-1 r of an applied contact update
     reject_samples: int = 50  #: contact updates refused in a row after which the hole's covariance reopens
+    hole_drift_std: float = 0.0  #: random walk of the hole's x, y (m/sqrt(s)): forgets old contacts
+    tilt_drift_std: float = 0.0  #: random walk of the hole's tilt (rad/sqrt(s))
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
 
@@ -115,7 +124,7 @@ class PegEKFSettings:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "angular_acceleration_std", "force_rate_std", "moment_rate_std",
-                     "contact_threshold", "contact_gate", "pole"):
+                     "hole_drift_std", "tilt_drift_std", "contact_threshold", "contact_gate", "pole"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
         for name in ("substeps", "contact_samples", "reject_samples"):
@@ -171,6 +180,7 @@ class PegEKF:
         for i, a in enumerate([st.acceleration_std] * 3 + [st.angular_acceleration_std] * 3):
             Q[np.ix_([i, i + 6], [i, i + 6])] = a * a * W
         Q[_W, _W] = np.diag([st.force_rate_std ** 2] * 3 + [st.moment_rate_std ** 2] * 3) * T
+        Q[_H, _H] = np.diag([st.hole_drift_std ** 2] * 2 + [st.tilt_drift_std ** 2] * 2) * T
         self._Q = Q
 
     # --------------------------------------------------------------------------------- cycle
