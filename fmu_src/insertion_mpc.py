@@ -60,6 +60,9 @@ class InsertionMpc(hole_parameters("nominal", names=("hole_position", "hole_tilt
     acceleration_limit = Parameter(2.0, unit="m/s2", min=0.0, description="Bound on each component of rdd")
     qp_tolerance = Parameter(1e-5, min=0.0, description="OSQP's absolute and relative tolerance")
     qp_iterations = Parameter(4000, type=int, min=1, description="OSQP's iteration cap per sample")
+    qp_polish = Parameter(True, type=bool,
+                          description="Polish each QP's solution (the active set's exact solution: the same on any "
+                          "machine)")
 
     tip = Input([0.0, 0.0, -1.17], unit="m", description="Measured tool tip (world)")
     tip_velocity = Input([0.0] * 3, unit="m/s", description="Measured tool tip velocity (world)")
@@ -72,6 +75,8 @@ class InsertionMpc(hole_parameters("nominal", names=("hole_position", "hole_tilt
     depth_ref = Output(unit="m", variability="discrete", description="The reference's depth below the nominal top")
     axial_force = Output(unit="N", variability="discrete",
                          description="The axial push K_ax lead + D_ax lead rate at the last sample")
+    planned_force = Output(unit="N", variability="discrete",
+                           description="The largest axial push the last plan predicts (what force_limit bounds)")
     time_qp = Parameter(False, type=bool,
                         description="Put the wall-clock time of each QP in solve_time (off: 0; a clock makes runs differ)")
     solve_time = Output(unit="s", variability="discrete", description="Wall-clock time of the last QP (time_qp)")
@@ -93,7 +98,8 @@ class InsertionMpc(hole_parameters("nominal", names=("hole_position", "hole_tilt
             bore_speed=self.bore_speed, contact_zone=list(self.contact_zone),
             acceleration_limit=self.acceleration_limit, sample_period=self.sample_period, horizon=int(self.horizon),
             bottom_depth=self.hole_depth, bottom_speed=self.bottom_speed, contact_force=self.contact_force,
-            tolerance=self.qp_tolerance, max_iterations=int(self.qp_iterations))
+            tolerance=self.qp_tolerance, max_iterations=int(self.qp_iterations),
+            polish=bool(self.qp_polish))
         self._mpc = Planner(LinearModelFile.read(find_model_file(self.linear_model, self.resources_dir,
                                                                       "`python -m deltafmi.apps.insertion_mpc_model SCENARIO -o NAME`")), task)
         self._ref = ([float(c) for c in self.start], [0.0] * 3, [0.0] * 3)
@@ -109,8 +115,8 @@ class InsertionMpc(hole_parameters("nominal", names=("hole_position", "hole_tilt
         # the tool's z axis points into the hole (aligned to within the misalignment's cosine)
         rdd, plan = self._mpc.step(v[0:3], v[3:6], r, rd, push_back=-v[8])
         self._ref = (r, rd, [float(c) for c in rdd])
-        self.write_reals([self._mpc.axial_force(plan.x[0]), plan.solve_time if self.time_qp else 0.0], "axial_force",
-                         "solve_time")
+        self.write_reals([self._mpc.axial_force(plan.x[0]), self._mpc.planned_force(plan),
+                          plan.solve_time if self.time_qp else 0.0], "axial_force", "planned_force", "solve_time")
         self.iterations = plan.iterations
         self.status = 0 if plan.status == "solved" else 1
 

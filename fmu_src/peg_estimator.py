@@ -21,7 +21,8 @@ EstimatorHoleModel = hole_parameters("nominal", "as the estimator models it")
 #: parameters handed to PegEKFSettings under the same names
 _SETTINGS = ("sample_period", "y_std", "qw_std", "acceleration_std", "angular_acceleration_std", "force_rate_std",
              "moment_rate_std", "velocity_std0", "rate_std0", "force_std0", "moment_std0", "hole_std0", "tilt_std0",
-             "contact_force_std", "contact_moment_std", "contact_threshold", "contact_samples", "pole", "substeps")
+             "contact_force_std", "contact_moment_std", "contact_threshold", "contact_samples", "reject_samples",
+             "hole_drift_std", "tilt_drift_std", "pole", "substeps")
 
 
 class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel, SampledComponent):
@@ -75,6 +76,14 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
                                   description="Estimated contact force above which the peg is taken to touch")
     contact_samples = Parameter(5, type=int, min=1,
                                 description="Samples in a row above contact_threshold before the contact law applies")
+    hole_drift_std = Parameter(0.0, unit="m", min=0.0,
+                               description="Random walk of the hole's x, y (per sqrt(s); 0: constant): the filter "
+                               "forgets old contacts, whose linearisation may have been wrong")
+    tilt_drift_std = Parameter(0.0, unit="rad", min=0.0,
+                               description="Random walk of the hole's tilt (per sqrt(s); 0: constant)")
+    reject_samples = Parameter(50, type=int, min=1,
+                               description="Contact-law updates refused in a row (the estimate locked in a wrong "
+                               "hole) after which the hole's uncertainty goes back to its prior")
     pole = Parameter(5.0, unit="1/s", min=0.0, description="Baumgarte pole of the process model")
     substeps = Parameter(1, type=int, min=1, description="Runge-Kutta steps per sample period in the prediction")
     sensor_noise = Parameter(0.0, unit="rad", min=0.0,

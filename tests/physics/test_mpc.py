@@ -189,3 +189,48 @@ def test_a_copy_of_the_mpc_plans_as_the_original():
     want = mpc.solve(x, np.array([1.0, 0.0])).u0
     for other in copies:
         assert other.solve(x, np.array([1.0, 0.0])).u0 == pytest.approx(want, rel=1e-6, abs=1e-6)
+
+
+def _two_mode_problem():
+    """Time-varying stages of two kinds (the contact modes of the module docstring), an active box
+    and an active soft output limit."""
+    rng, A, B, C, D = random_system(7, nx=3, nu=2, ny=2)
+    free = zoh(A, B, 0.1)
+    pushed = zoh(A - 0.5 * np.eye(3), B, 0.1, e=np.array([0.05, -0.02, 0.0]))
+    kw = dict(C=C, D=D, g=np.array([0.1, 0.0]), Q=np.diag([5.0, 1.0]), R=0.1 * np.eye(2), N=8, u_min=[-0.6] * 2,
+              u_max=[0.6] * 2, H=np.array([C[0]]), h=np.array([0.1]), hi=np.array([0.5]), rho_l=1e3, rho_q=1e3,
+              eps=1e-6, max_iter=20000)
+    return free, pushed, kw
+
+
+def test_a_kept_mode_solver_plans_as_a_fresh_one():
+    """Switching between two stage sequences back and forth: the solver kept for each mode (set up
+    once) gives, at every switch, the plan that a solver set up afresh for that sequence gives
+    (``modes=1`` condenses and factorizes again at every switch), both polished: to 1e-9 of the
+    input scale (the active set's equality QP, solved twice, agrees to rounding)."""
+    free, pushed, kw = _two_mode_problem()
+    sequences = ([free] * 8, [free if k % 3 else pushed for k in range(8)])
+    kept, fresh = LinearMPC(free, **kw), LinearMPC(free, modes=1, **kw)
+    rng = np.random.default_rng(3)
+    for k in range(8):
+        x0, r = 0.3 * rng.normal(size=3), np.array([1.5, -1.0])
+        a, b = kept.solve(x0, r, stages=sequences[k % 2]), fresh.solve(x0, r, stages=sequences[k % 2])
+        assert a.polished and b.polished
+        np.testing.assert_allclose(a.u, b.u, rtol=0.0, atol=1e-9 * 0.6)
+    assert len(kept._modes) == 2 and len(fresh._modes) == 1
+
+
+def test_a_polished_plan_does_not_depend_on_the_iteration_path():
+    """The same problem solved cold and warm-started from an unrelated plan: ADMM takes other
+    iterates (and counts), polishing lands both on the active set's solution, equal to 1e-9 of the
+    input scale, far below OSQP's 1e-6 tolerance: what another machine's rounding would change
+    in the iterations does not reach the plan."""
+    free, pushed, kw = _two_mode_problem()
+    stages = [free if k % 3 else pushed for k in range(8)]
+    x0, r = np.array([0.2, -0.1, 0.3]), np.array([1.5, -1.0])
+    cold = LinearMPC(free, **kw).solve(x0, r, stages=stages)
+    warm = LinearMPC(free, **kw)
+    warm.solve(-x0, -r, stages=stages)  # a plan elsewhere to start the next solve from
+    second = warm.solve(x0, r, stages=stages)
+    assert cold.polished and second.polished and cold.iterations != second.iterations
+    np.testing.assert_allclose(second.u, cold.u, rtol=0.0, atol=1e-9 * 0.6)

@@ -14,9 +14,17 @@ delta robot's model sampled at 2 ms, B is 1e-6 (positions) to 1e-3 (rates) per N
 iterations per sample at 1e-5 (9 ms), where the condensed Hessian's condition number is about 70.
 (Both were measured with rho_l = 1e5; the penalty turned out to matter as much, see rho_l; the
 sparse form was not measured again with the smaller one.) With 3 inputs and N = 25 the dense QP
-is small (75 inputs). A new stage sequence (the contact mode changing along the horizon) refills
-the dense blocks with the same pattern (an OSQP ``update``, one new factorization); a new state,
-reference or disturbance changes only vectors.
+is small (75 inputs). Each stage sequence (a contact mode along the horizon) has its own OSQP
+solver, set up (condensed and factorized) the first time the sequence is met and kept (up to
+``modes`` of them, the least recently used dropped): a mode switch costs a solve, not a new
+factorization; a new state, reference or disturbance changes only vectors.
+
+What decides a solve: iterations and tolerances only, never the clock (no time limit; rho
+adapted every ``adaptive_rho_interval`` iterations, not at a fraction of the setup time as
+OSQP's interval 0 does). With ``polish`` the returned point is the solution of the equality QP
+on the active set ADMM found (when polishing succeeds, ``MpcSolution.polished``): it does not
+depend on the path of the iterations, so a rounding difference (another BLAS, another CPU) that
+changes the iteration path does not change the answer beyond rounding.
 The slacks make every problem feasible (the state at k = 0 is given, the limits start at k = 1);
 rho_l above the largest multiplier makes the penalty exact: the limits hold whenever they can
 (Kerrigan & Maciejowski, "Soft constraints and exact penalty functions in MPC", UKACC 2000).
@@ -48,11 +56,12 @@ class MpcSolution:
     status: str
     iterations: int
     solve_time: float       # s, wall clock of update + solve
+    polished: bool = False  # the active set's equality QP was solved (polish succeeded)
 
 
 class _Pattern:
-    """A sparse matrix assembled from named blocks whose pattern never changes (explicit zeros kept),
-    so that new values are an OSQP ``Px``/``Ax`` update."""
+    """A sparse matrix assembled from named blocks whose pattern never changes (explicit zeros kept):
+    every mode's solver has the same KKT pattern."""
 
     def __init__(self, shape: tuple[int, int]) -> None:
         self.shape = shape
@@ -117,14 +126,21 @@ class LinearMPC:
         eps: OSQP's absolute and relative tolerance; ``polish`` refines the active set's solution;
             ``check_termination``: iterations between OSQP's convergence checks (5: a warm-started
             problem that converges at once stops after 5, not 25).
+        modes: stage sequences whose solvers are kept (module docstring; 1: every new sequence
+            condenses and factorizes again).
     """
+
+    #: the condensed arrays of one stage sequence (what a cached mode restores)
+    _CONDENSED = ("_stages", "_weights", "_Phi", "_G", "_c", "_M", "_S", "_Zx", "_zc", "_Zd", "_W", "_Puu", "_HG",
+                  "_HPhi", "_Hc", "_Hd")
 
     def __init__(self, stage: AffineStage, C: np.ndarray, D: np.ndarray, g: np.ndarray, Q: np.ndarray,
                  R: np.ndarray, N: int, Q_N: Optional[np.ndarray] = None, u_min: Optional[np.ndarray] = None,
                  u_max: Optional[np.ndarray] = None, H: Optional[np.ndarray] = None,
                  h: Optional[np.ndarray] = None, lo: Optional[np.ndarray] = None, hi: Optional[np.ndarray] = None,
                  rho_l: float = 1e3, rho_q: float = 10.0, eps: float = 1e-6, polish: bool = True,
-                 max_iter: int = 4000, check_termination: int = 5, soft: bool = True) -> None:
+                 max_iter: int = 4000, check_termination: int = 5, soft: bool = True, modes: int = 8,
+                 alpha: float = 1.6) -> None:
         if N < 1:
             raise ValueError(f"horizon N must be >= 1, got {N}")
         nx, nu = stage.B.shape
@@ -152,8 +168,13 @@ class LinearMPC:
         self._stages = [stage] * N
         self._weights = [self.Q] * N + [self.Q_N]
         self._previous: Optional[tuple[np.ndarray, np.ndarray]] = None
+        if modes < 1:
+            raise ValueError(f"modes must be >= 1, got {modes}")
+        self.max_modes = int(modes)
+        self._modes: dict = {}   # mode key -> (condensed arrays, solver), least recently used first
         self._condense()
-        self._build(eps, polish, max_iter, check_termination)
+        self._build(eps, polish, max_iter, check_termination, alpha)
+        self._modes[self._key()] = (self._condensed(), self._solver)
 
     def _condense(self) -> None:
         """Phi (N+1 nx, nx), G (N+1 nx, N nu), c (N+1 nx) of x = Phi x0 + G U + c; then the
@@ -185,7 +206,7 @@ class LinearMPC:
         self._HG, self._HPhi, self._Hc = H_bar @ G[nx:], H_bar @ Phi[nx:], H_bar @ c[nx:] + np.tile(self.h, N)
         self._Hd = H_bar @ M[nx:]
 
-    def _build(self, eps: float, polish: bool, max_iter: int, check_termination: int) -> None:
+    def _build(self, eps: float, polish: bool, max_iter: int, check_termination: int, alpha: float) -> None:
         nu, N = self.nu, self.N
         nU, nC, nS = N * nu, N * self.nc, N * self.ns
         P = _Pattern((nU + nS, nU + nS))
@@ -201,8 +222,11 @@ class LinearMPC:
         if nS:
             A.add("slack", nU + 2 * nC, nU, nS, nS, "diag")
         self._P, self._A = P, A
+        # iteration counts and tolerances decide a solve (module docstring): no time limit (OSQP 1.x
+        # takes none below 1e10 s, 0 is refused), rho adapted on an iteration count
         self._options = dict(eps_abs=eps, eps_rel=eps, polishing=polish, max_iter=max_iter, verbose=False,
-                             warm_starting=True, check_termination=check_termination, adaptive_rho_interval=25)
+                             warm_starting=True, check_termination=check_termination, adaptive_rho=True, alpha=alpha,
+                             adaptive_rho_interval=25, time_limit=1e10)
         self._solver = self._new_solver()
 
     def _new_solver(self) -> "osqp.OSQP":
@@ -215,12 +239,37 @@ class LinearMPC:
 
     # an FMU's state (fmi2GetFMUstate) is a deep copy of its component: OSQP's solver is no Python
     # value, so a copy sets up its own from the same matrices (and warm-starts from the same plan)
+    # (the cached modes are keyed by the stages' identities, which a copy does not keep: dropped)
     def __getstate__(self) -> dict:
-        return {key: value for key, value in self.__dict__.items() if key != "_solver"}
+        return {key: value for key, value in self.__dict__.items() if key not in ("_solver", "_modes")}
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self._solver = self._new_solver()
+        self._modes = {self._key(): (self._condensed(), self._solver)}
+
+    def _key(self) -> tuple:
+        return tuple(id(s) for s in self._stages) + tuple(id(w) for w in self._weights)
+
+    def _condensed(self) -> dict:
+        return {name: getattr(self, name) for name in self._CONDENSED}
+
+    def _switch(self, stages: list, weights: list) -> None:
+        """Make the solver of this stage sequence current: a cached one, or condensed and set up
+        now (the cache keeps the stages and weights alive, so their ids stay theirs)."""
+        self._stages, self._weights = stages, weights
+        key = self._key()
+        mode = self._modes.pop(key, None)
+        if mode is None:
+            self._condense()
+            self._solver = self._new_solver()
+            mode = (self._condensed(), self._solver)
+            while len(self._modes) >= self.max_modes:
+                self._modes.pop(next(iter(self._modes)))
+        else:
+            self.__dict__.update(mode[0])
+            self._solver = mode[1]
+        self._modes[key] = mode
 
     def _p_blocks(self) -> dict:
         return {"uu": self._Puu, "ss": np.full(self.N * self.ns, self.rho_q)}
@@ -266,28 +315,25 @@ class LinearMPC:
         N = self.N
         r = np.broadcast_to(np.asarray(r, float), (N + 1, self.ny)).ravel()
         ur = np.zeros(N * self.nu) if ur is None else np.broadcast_to(np.asarray(ur, float), (N, self.nu)).ravel()
-        changed = False
+        new_stages, new_weights = self._stages, self._weights
         if stages is not None:
             if len(stages) != N:
                 raise ValueError(f"expected {N} stages, got {len(stages)}")
-            changed = any(a is not b for a, b in zip(stages, self._stages))
-            self._stages = list(stages)
+            new_stages = list(stages)
         if weights is not None:
             if len(weights) != N + 1:
                 raise ValueError(f"expected {N + 1} output weights (stages and terminal), got {len(weights)}")
-            changed = changed or any(a is not b for a, b in zip(weights, self._weights))
-            self._weights = list(weights)
-        update: dict = {}
-        if changed:
-            self._condense()
-            update = {"Px": self._P.data(self._p_blocks()), "Ax": self._A.data(self._a_blocks())}
+            new_weights = list(weights)
+        if any(a is not b for a, b in zip(new_stages, self._stages)) or \
+                any(a is not b for a, b in zip(new_weights, self._weights)):
+            self._switch(new_stages, new_weights)
         x0 = np.asarray(x0, float).reshape(self.nx)
         d = np.zeros(self.nx) if disturbance is None else np.asarray(disturbance, float).reshape(self.nx)
         z_free = self._Zx @ x0 + self._zc + self._Zd @ d
         q_u = self._S.T @ (self._W @ (z_free - r)) - np.kron(np.eye(N), self.R) @ ur
         q = np.concatenate([q_u, np.full(N * self.ns, self.rho_l)])
         lower, upper = self._bounds(x0, d, lo, hi)
-        self._solver.update(q=q, l=lower, u=upper, **update)
+        self._solver.update(q=q, l=lower, u=upper)
         if self._previous is not None:
             self._solver.warm_start(x=self._shift(self._previous[0], (self.nu, self.ns)),
                                     y=self._shift(self._previous[1], (self.nu, self.nc, self.nc, self.ns)))
@@ -301,7 +347,7 @@ class LinearMPC:
         xs = (self._Phi @ x0 + self._G @ U + self._c + self._M @ d).reshape(N + 1, self.nx)
         slack = float(np.max(v[N * self.nu:])) if self.ns else 0.0
         return MpcSolution(U[:self.nu].copy(), xs, U.reshape(N, self.nu), max(slack, 0.0), status,
-                           int(result.info.iter), time.perf_counter() - start)
+                           int(result.info.iter), time.perf_counter() - start, int(result.info.status_polish) == 1)
 
     def _shift(self, v: np.ndarray, sizes: tuple[int, ...]) -> np.ndarray:
         """A vector of per-stage blocks (N blocks of each size in turn) one sample on: every block

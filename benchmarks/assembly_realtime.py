@@ -1,0 +1,246 @@
+"""Per-sample cost of the assembly's estimators and insertion MPC against the 1 ms of a 1 kHz sample.
+
+Each one is replayed on the inputs a real closed loop gave it: the scenario is run once through
+the master (real FMUs) with the inputs recorded, then the estimator's or planner's class
+(deltafmi.physics) steps through those inputs in this process, timed per sample. Before and after
+in the same run, on the same inputs:
+
+- InsertionMpc (peg_in_hole_mpc.yaml pushing on the bottom: --set mpc.goal_depth=0.06, 4.4 s,
+  free and blocked modes switching): baseline one OSQP solver re-condensed and refactorized at
+  every mode switch (``modes=1``), against one solver per mode set up once (the default), each
+  with and without polishing;
+- PegEstimator (peg_estimation.yaml, 0.9-2.2 s: free, the chamfer, the bore; with its parts)
+  and ContactEstimator (contact_estimation.yaml): Python with numpy, no compiled kernels yet:
+  their figures against the 1 ms budget (no before/after).
+
+Prints median and 99th percentile per sample (ms), their ratios to the baseline, and the share of
+samples over 1 ms. The machine's load goes into the figures: read the ratios.
+
+Usage: python benchmarks/assembly_realtime.py [--only mpc|peg|contact] [--stop SECONDS]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Dict, List
+
+import numpy as np
+import yaml
+
+from deltafmi import resolve_system
+from deltafmi.master.results.csv_file import columns
+from deltafmi.master.scenario.spec import load_scenario
+from deltafmi.master.stepping.master import Master
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "scenarios"
+
+
+def record(name: str, folder: Path, outputs: List[str], stop: float, drop: tuple = (), **parameters: dict) -> dict:
+    """Run scenarios/<name>.yaml with ``outputs`` added (and components ``drop``-ped), columns."""
+    spec = yaml.safe_load((EXAMPLES / f"{name}.yaml").read_text())
+    spec["experiment"]["stop"] = stop
+    for component, values in parameters.items():
+        spec["components"][component]["parameters"].update(values)
+    for component in drop:
+        del spec["components"][component]
+    spec["connections"] = [c for c in spec["connections"]
+                           if c["from"].split(".")[0] not in drop and c["to"].split(".")[0] not in drop]
+    spec["outputs"] = [o for o in spec["outputs"] if o.split(".")[0] not in drop] + outputs
+    path = folder / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    for resource in spec["components"].get("mpc", {}).get("resources", []):
+        (folder / resource).write_bytes((EXAMPLES / resource).read_bytes())
+    out = path.with_suffix(".csv")
+    Master(resolve_system(load_scenario(path)), result=out).run()
+    return columns(out)
+
+
+def vector(c: dict, name: str, n: int) -> np.ndarray:
+    return np.column_stack([c[f"{name}[{i}]"] for i in range(1, n + 1)])
+
+
+def figures(times: List[float]) -> Dict[str, float]:
+    t = np.asarray(times) * 1e3
+    return {"median": float(np.median(t)), "p99": float(np.percentile(t, 99)), "max": float(t.max()),
+            "over": float(np.mean(t > 1.0))}
+
+
+def report(title: str, rows: Dict[str, Dict[str, float]], ratios: bool = True) -> None:
+    """One line per row; with ``ratios``, the first row is the baseline (how many times faster)."""
+    base = next(iter(rows.values()))
+    head = f"{'median x':>10}{'p99 x':>8}" if ratios else ""
+    print(f"\n{title}\n{'':44}{'median ms':>10}{'p99 ms':>9}{'max ms':>9}{'> 1 ms':>8}{head}")
+    for label, f in rows.items():
+        tail = f"{base['median'] / f['median']:10.2f}{base['p99'] / f['p99']:8.2f}" if ratios else ""
+        print(f"{label:44}{f['median']:10.3f}{f['p99']:9.3f}{f['max']:9.2f}{100 * f['over']:7.1f}%{tail}")
+
+
+# ------------------------------------------------------------------------------------------ MPC
+def mpc_inputs(folder: Path, stop: float) -> dict:
+    c = record("peg_in_hole_mpc", folder, ["plant.tip_velocity[*]", "plant.ft_sensor[*]"], stop,
+               drop=("impedance", "impedance_plant"), mpc={"goal_depth": 0.06})
+    return {"time": c["time"], "tip": vector(c, "plant.tip", 3), "velocity": vector(c, "plant.tip_velocity", 3),
+            "push_back": -c["plant.ft_sensor[3]"]}
+
+
+def mpc_replay(data: dict, **changes: object) -> tuple:
+    """Step the planner (the scenario's task with ``changes``) through the recorded measurements at
+    its 10 ms samples; its own reference moves as the FMU's does (the last plan's polynomial).
+    Per-sample seconds, planned pushes, OSQP iterations, whether polishing succeeded."""
+    from deltafmi.physics.control.insertion import InsertionMpc, InsertionTask
+    from deltafmi.physics.control.model_file import LinearModelFile
+
+    spec = yaml.safe_load((EXAMPLES / "peg_in_hole_mpc.yaml").read_text())["components"]["mpc"]["parameters"]
+    K, M = spec["axial_stiffness"], spec["axial_mass"]
+    task = InsertionTask(hole_top=spec["hole_position"], hole_axis=[0.0, 0.0, 1.0], goal_depth=0.06,
+                         axial_stiffness=K, axial_damping=2.0 * math.sqrt(K * M), force_limit=spec["force_limit"],
+                         speed_limit=spec["speed_limit"], contact_speed=spec["contact_speed"],
+                         bore_speed=spec["bore_speed"], contact_zone=spec["contact_zone"],
+                         acceleration_limit=spec["acceleration_limit"], sample_period=spec["sample_period"],
+                         horizon=spec["horizon"], bottom_depth=spec["hole_depth"], bottom_speed=spec["bottom_speed"],
+                         **changes)
+    planner = InsertionMpc(LinearModelFile.read(str(EXAMPLES / "peg_in_hole_mpc_model.npz")), task)
+    T = task.sample_period
+    r, rd, a = np.array(spec["start"], float), np.zeros(3), np.zeros(3)
+    times, pushes, iterations, polished = [], [], [], []
+    for k in range(int(data["time"][-1] / T + 1e-9) + 1):
+        i = int(np.searchsorted(data["time"], k * T + 1e-9)) - 1  # the last row at the sample instant
+        if k:
+            r, rd = r + rd * T + 0.5 * a * T * T, rd + a * T
+        start = time.perf_counter()
+        a, plan = planner.step(data["tip"][i], data["velocity"][i], r, rd, push_back=data["push_back"][i])
+        times.append(time.perf_counter() - start)
+        pushes.append(planner.planned_force(plan))
+        iterations.append(plan.iterations)
+        polished.append(plan.polished)
+    return times, pushes, iterations, polished
+
+
+def mpc(folder: Path, stop: float) -> None:
+    data = mpc_inputs(folder, stop)
+    rows, extra = {}, {}
+    for label, changes in (("baseline: rebuilt at mode switches", dict(modes=1, polish=False, relaxation=1.6)),
+                           ("one solver per mode", dict(polish=False, relaxation=1.6)),
+                           ("one solver per mode, polished", dict(relaxation=1.6)),
+                           ("now: per mode, polished, alpha 1", {})):
+        times, push, iterations, polished = mpc_replay(data, **changes)
+        rows[label] = figures(times)
+        extra[label] = (max(push), np.median(iterations), np.percentile(iterations, 99), max(iterations),
+                        np.mean(polished))
+    report(f"InsertionMpc, {len(times)} samples of 10 ms (peg_in_hole_mpc.yaml pressing on the bottom)", rows)
+    print(f"\n{'':44}{'largest planned push N':>24}{'iterations median':>19}{'p99':>7}{'max':>7}{'polished':>10}")
+    for label, (push, med, p99, most, share) in extra.items():
+        print(f"{label:44}{push:24.6f}{med:19.0f}{p99:7.0f}{most:7d}{100 * share:9.0f}%")
+
+
+# ----------------------------------------------------------------------------------- estimators
+def peg_truth(folder: Path, stop: float) -> dict:
+    c = record("peg_estimation", folder, ["plant.qw[*]", "controller.u[*]", "controller.tau[*]"], stop,
+               drop=("estimator",))
+    return {"time": c["time"], "y": vector(c, "plant.y", 3), "qw": vector(c, "plant.qw", 3),
+            "u": vector(c, "controller.u", 3), "tau": vector(c, "controller.tau", 3),
+            "force": vector(c, "plant.contact_force", 3), "hole": vector(c, "plant.hole_position", 3)}
+
+
+def component() -> "PegEstimator":  # noqa: F821
+    """The scenario's estimator (its parameters as the scenario sets them), initialised."""
+    from deltafmi.models.peg_estimator import PegEstimator
+
+    c = PegEstimator()
+    c.hole_position, c.hole_tilt, c.mu = [0.0, 0.0, -1.2], [0.0, 0.0], 0.3
+    c.initialize(0.0)
+    return c
+
+
+def contact_truth(folder: Path) -> dict:
+    c = record("contact_estimation", folder, ["controller.u[*]", "plant.friction_force[*]", "plant.normal_force[*]"],
+               5.5, drop=("estimator",))
+    return {"time": c["time"], "y": vector(c, "plant.y", 3), "u": vector(c, "controller.u", 3),
+            "force": vector(c, "plant.normal_force", 3) + vector(c, "plant.friction_force", 3),
+            "surface": c["plant.surface_height"], "mode": c["plant.mode"]}
+
+
+def contact_component() -> "ContactEstimator":  # noqa: F821
+    """The scenario's ContactEstimator, initialised (its parameters as the scenario sets them)."""
+    from deltafmi.models.contact_estimator import ContactEstimator
+
+    c = ContactEstimator()
+    spec = yaml.safe_load((EXAMPLES / "contact_estimation.yaml").read_text())
+    for name, value in spec["components"]["estimator"]["parameters"].items():
+        setattr(c, name, value)
+    c.initialize(0.0)
+    return c
+
+
+def timed(step, calls: List[tuple]) -> List[float]:
+    times = []
+    for args in calls:
+        start = time.perf_counter()
+        step(*args)
+        times.append(time.perf_counter() - start)
+    return times
+
+
+def peg(folder: Path, stop: float) -> None:
+    """PegEKF on peg_estimation.yaml's recorded angles and torques (noise-free) from 0.9 s (before
+    the chamfer) to ``stop``: per sample, and its parts (prediction: process Jacobian and
+    Runge-Kutta; measurement update with the contact law's)."""
+    from deltafmi.physics.estimation.peg_ekf import PegEKF
+
+    d, c = peg_truth(folder, stop), component()
+    t = d["time"]
+    rows = [int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1 for k in range(900, int(round(stop / 1e-3)) + 1)]
+    ekf = PegEKF(c.robot_params(), c._wrist, c._mount, c._hole, c._peg, c._law, c._settings, d["y"][rows[0]],
+                 d["qw"][rows[0]])
+    parts: Dict[str, List[float]] = {"predict": [], "update": []}
+    for name in parts:
+        method = getattr(ekf, name)
+
+        def wrapped(*a, _m=method, _n=name):
+            start = time.perf_counter()
+            _m(*a)
+            parts[_n].append(time.perf_counter() - start)
+        setattr(ekf, name, wrapped)
+    times = timed(ekf.step, [(d["y"][i], d["qw"][i], d["u"][i], d["tau"][i]) for i in rows])
+    report(f"PegEstimator, {len(times)} samples of 1 ms (peg_estimation.yaml, 0.9-{stop:g} s: free, chamfer, bore)",
+           {"per sample (Python, numpy)": figures(times), "  prediction": figures(parts["predict"]),
+            "  measurement + contact-law update": figures(parts["update"])}, ratios=False)
+
+
+def contact(folder: Path) -> None:
+    """ContactEKF on contact_estimation.yaml's recorded angles and torques, the whole run."""
+    from deltafmi.physics.estimation.contact_ekf import ContactEKF
+
+    d, c = contact_truth(folder), contact_component()
+    t = d["time"]
+    rows = [int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1 for k in range(1, int(round(t[-1] / 1e-3)) + 1)]
+    ekf = ContactEKF(c.robot_params(), c._settings, d["y"][rows[0]])
+    times = timed(ekf.step, [(d["y"][i], d["u"][i]) for i in rows])
+    report(f"ContactEstimator, {len(times)} samples of 1 ms (contact_estimation.yaml)",
+           {"per sample (Python, numpy)": figures(times)}, ratios=False)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--only", choices=("mpc", "peg", "contact"), default=None)
+    parser.add_argument("--stop", type=float, default=None, help="simulated seconds of each recorded run")
+    args = parser.parse_args()
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        if args.only in (None, "mpc"):
+            mpc(folder, args.stop or 4.4)
+        if args.only in (None, "peg"):
+            peg(folder, args.stop or 2.2)
+        if args.only in (None, "contact"):
+            contact(folder)
+
+
+if __name__ == "__main__":
+    main()
