@@ -93,7 +93,8 @@ _BUILDS = re.compile(r"build_fmu|build_cached|_fmu\b|_fmu\(|simulate|resolve_sys
 SLOW = {"test_wheel_install", "test_python_hosts", "test_peg_robustness", "test_study_dask", "test_study_cluster",
         "test_study_tls", "test_assembly_portable", "test_portable_fmus", "test_memory", "test_insertion_mpc",
         "test_third_party_masters", "test_fmu_threads", "test_symbol_isolation", "test_joystick_tracking",
-        "test_component_docs", "test_mpc_controller", "test_peg_estimator", "test_fmu_without_fmpy_scipy"}
+        "test_component_docs", "test_mpc_controller", "test_peg_estimator", "test_fmu_without_fmpy_scipy",
+        "test_assembly_hold", "test_assembly_sampled_stability"}
 
 
 def pytest_collection_modifyitems(config, items) -> None:
