@@ -110,7 +110,8 @@ class AssemblyController(NominalHole, ControllerWristModel, ControllerRobotModel
     wrist_torque_limit = Parameter(20.0, unit="N.m", min=0.0, description="Wrist torque saturation")
     cond_limit = Parameter(100.0, min=1.0, description="Status bit 4 (delta ill-conditioned) above this cond(Jc)")
     sample_period = Parameter(1e-3, unit="s", min=0.0, description="Controller sample period")
-    zoh_lead = Parameter(True, description="Half-sample torque lead compensating the hold")
+    zoh_lead = Parameter(True, description="Half-sample lead compensating the hold, on the torque's motion part "
+                         "(the measured wrench's part is held as computed)")
     sample = Clock(period="sample_period", description="Sample instants: t_start + k * sample_period")
     # the insertion program (the nominal hole it aims at: NominalHole)
     program = Parameter(True, description="Run the insertion program (false: follow the reference inputs)")

@@ -22,7 +22,7 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from deltafmi.apps.studies.metrics import first_crossing, reduce, settling_time, statistic, value_at
+from deltafmi.apps.studies.metrics import alternation, first_crossing, reduce, settling_time, statistic, value_at
 from deltafmi.apps.studies.plan import plan_study
 from deltafmi.apps.studies.runner import run_case
 from deltafmi.apps.studies.spec import MetricSpec, Window, load_study
@@ -194,6 +194,27 @@ def test_event_rows_and_windows():
     assert math.isnan(first_crossing(t, s, 0.5, "falling"))
     assert statistic(spec("max", window=Window(None, 0.9)), t, s) == 0.0
     assert math.isnan(statistic(spec("max", window=Window(2.5, 3.0)), t, s))
+
+
+def test_alternation_reads_a_step_to_step_oscillation_and_not_a_smooth_swing():
+    # 1 kHz rows: a 30 Hz swing of 10 N (its binomial fourth difference is exactly
+    # (2 sin(w h / 2))^4 / 16 times the signal: RMS 10 sin(w h / 2)^4 / sqrt(2)) plus, from t = 1 s, a
+    # sign-flipping vector alternation of amplitude 3 N about it
+    h, w = 1e-3, 2 * math.pi * 30.0
+    t = np.arange(0.0, 2.0, h)
+    swing = 10.0 * np.sin(w * t)
+    smooth = alternation(t, swing[:, None], None, Window(None, None))
+    assert smooth == pytest.approx(10.0 * math.sin(w * h / 2) ** 4 / math.sqrt(2), rel=1e-3)  # 8e-4 N
+    flip = np.where(np.arange(len(t)) % 2 == 0, 1.0, -1.0) * (t >= 1.0)
+    vector = np.column_stack((swing, 3.0 * flip * 0.6, 3.0 * flip * 0.8))
+    late = alternation(t, vector, None, Window(1.01, None))
+    assert late == pytest.approx(3.0, rel=1e-3)  # the norm after the difference: sign flips kept
+    whole = alternation(t, vector, None, Window(None, None))
+    assert whole == pytest.approx(3.0 * math.sqrt(0.5), rel=0.01)  # present in half the rows
+    # an event's duplicated time stamp counts once; too few rows: NaN
+    assert alternation(np.r_[t[:3], t[2:]], np.r_[swing[:3], swing[2:]][:, None], None, Window(None, None)) \
+        == pytest.approx(smooth, rel=1e-9)
+    assert math.isnan(alternation(t[:4], swing[:4, None], None, Window(None, None)))
 
 
 def test_settling_time_interpolates_the_entry_into_the_band():

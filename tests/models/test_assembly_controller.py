@@ -76,8 +76,9 @@ def test_bad_parameters_fail_initialization_with_a_clear_message(start, message,
 
 
 # the shipped peg_in_hole.yaml's geometry: peg d = 20 mm in a bore D = 20.2 mm whose 2 mm, 45-degree
-# chamfer puts the bore's lip (the chamfer/bore ring, the second point of two-point contact) 2 mm deep
-D_PEG, D_BORE, LIP = 0.020, 0.0202, 0.002
+# chamfer puts the bore edge (the chamfer/bore ring, the second point of two-point contact) 2 mm
+# below the hole's top
+D_PEG, D_BORE, BORE_EDGE = 0.020, 0.0202, 0.002
 PEG = "peg_in_hole"
 
 
@@ -91,13 +92,14 @@ def test_the_peg_goes_into_a_hole_off_by_two_mm_and_one_degree():
     # centres the peg against the soft lateral impedance and the bore's contacts align it against
     # the soft rotational one (about the tip). At the end the misalignments are what a rigid peg in
     # the bore allows: the tip within the clearance c = (D - d)/2 of the axis and the tilt within
-    # (D - d) / l for the engaged length l below the lip (d cos th + l sin th = D), each plus the
+    # (D - d) / l for the engaged length l below the bore edge (d cos th + l sin th = D), each plus the
     # penalty contacts' deflection (|f_n| / k < 0.1 mm / 33 mm here: the 1e-5 margins).
     res, depth, lateral, angular = _insert()
     # at the start the tip is 2.1 mm off the true axis (1.8 mm at the top, 0.5 mm more 3 cm above it)
     assert lateral[0] > 20 * (D_BORE - D_PEG) / 2 and angular[0] == pytest.approx(0.01745)
     assert res["plant.success"][-1] == 1 and depth[-1] >= 0.03
-    engaged = depth[-1] - LIP
+    engaged = depth[-1] - BORE_EDGE
+    print(f"final misalignment: lateral {lateral[-1]:.3e} m, angular {angular[-1]:.5f} rad (docs/assembly.md)")
     assert lateral[-1] <= (D_BORE - D_PEG) / 2 + 1e-5
     assert angular[-1] <= (D_BORE - D_PEG) / engaged + 1e-4
     assert set(res["controller.phase"]) == {1, 2, 3} and set(res["controller.status"]) == {0}
@@ -107,8 +109,8 @@ def test_a_stiff_wrist_wedges_where_a_compliant_one_inserts():
     # Same plant, mu = 0.5, the hole tilted 3 degrees. Compliant about the tip (1 N m/rad) the
     # peg turns into the bore and goes in. Held stiffly (500 N m/rad) it keeps its 3 degrees and
     # meets the bore at two points: rigid geometry puts the second contact l = (D - d cos th) /
-    # sin th = 4.3 mm below the lip, where l / d = 0.22 < mu (Whitney's wedging condition,
-    # deltafmi/physics/friction/peg.py): it must stay wedged, short of l = mu d below the lip,
+    # sin th = 4.3 mm below the bore edge, where l / d = 0.22 < mu (Whitney's wedging condition,
+    # deltafmi/physics/friction/peg.py): it must stay wedged, short of l = mu d below the bore edge,
     # while the program pushes with its full 20 N (the tip 13 mm behind the reference).
     tilted = {"plant.mu": 0.5, "plant.hole_tilt": [0.0524, 0.0]}
     res, depth, _, angular = _insert(**tilted)
@@ -116,7 +118,8 @@ def test_a_stiff_wrist_wedges_where_a_compliant_one_inserts():
     res, depth, _, angular = _insert(**tilted, **{"controller.rot_stiffness": [500.0] * 3,
                                                   "controller.inertia": [0.05] * 3})
     assert res["plant.success"][-1] == 0
-    assert depth[-1] - LIP < 0.5 * D_PEG and angular[-1] > 0.05
+    print(f"wedged: {depth[-1] * 1e3:.2f} mm below the top at the end (docs/assembly.md)")
+    assert depth[-1] - BORE_EDGE < 0.5 * D_PEG and angular[-1] > 0.05
     assert res["controller.depth_ref"][-1] - depth[-1] == pytest.approx(20.0 / 1500.0, rel=0.05)
     # and the fixture takes that push: the contact force along the (3-degree) hole axis is K e = 20 N
     axis = np.array([0.0, -np.sin(0.0524), np.cos(0.0524)])  # Ry(0) Rx(0.0524) e_z

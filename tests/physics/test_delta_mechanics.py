@@ -324,3 +324,17 @@ def test_projection_closes_loops_with_the_mass_weighted_correction(p, z, dq):
     q_ref, v_ref = dense_projection(p, q0, v0)
     assert np.max(np.abs(q - q_ref)) < 1e-12
     assert np.max(np.abs(v - v_ref)) < 1e-12
+
+
+def test_the_mpc_press_holding_torques_with_and_without_its_payload():
+    # scenarios/mpc_press.yaml's figures: the servo torque holding the robot at the touching height
+    # (wrist at z = -1.05 m), without and with the scenario's 0.5 kg payload, as the virtual-work
+    # gradient of the potential energy (torque per servo; the three equal on the axis)
+    for payload, expected in ((0.0, 18.27), (0.5, 19.09)):
+        p = d.DeltaParams(payload=payload)
+        y = d.inverse_kinematics(p, (0.0, 0.0, -1.05))[SERVO]
+        U = lambda yy: d.energy(p, d.inverse_kinematics(p, d.forward_kinematics(p, yy)), np.zeros(9))  # noqa
+        eps = 1e-5
+        dUdy = np.array([(U(y + eps * e) - U(y - eps * e)) / (2 * eps) for e in np.eye(3)])
+        print(f"payload {payload} kg: holding torque {dUdy[0]:.3f} N m per servo")
+        assert np.allclose(dUdy, expected, atol=0.005)

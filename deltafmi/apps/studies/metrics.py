@@ -22,6 +22,14 @@ included; default the whole run):
 ``first_crossing``
     the time (absolute) at which the signal first crosses ``level`` in ``direction`` (rising,
     falling, either), interpolated linearly; NaN when it never does.
+``alternation``
+    the amplitude of a step-to-step oscillation: per recorded element, over consecutive rows, the
+    binomial high-pass ``a_i = (s_i-2 - 4 s_i-1 + 6 s_i - 4 s_i+1 + s_i+2) / 16`` (a signal
+    alternating +-A about a smooth one gives ``|a| = A``; a smooth one ``h^4 |s^(4)| / 16`` for a
+    row spacing ``h``: a 30 Hz swing of 10 N sampled at 1 kHz reads 8e-4 N), reduced per row by the
+    norm before the signal's own reduction (a vector flipping sign keeps its amplitude), then its
+    RMS over the rows in the window: a sustained oscillation reads its amplitude, a transient of a
+    few rows in a long window little. Rows sharing a time stamp (an event) count once, the last.
 """
 from __future__ import annotations
 
@@ -33,7 +41,7 @@ import numpy as np
 
 from .spec import MetricSpec, Window
 
-__all__ = ["Metric", "first_crossing", "reduce", "settling_time", "statistic", "value_at"]
+__all__ = ["Metric", "alternation", "first_crossing", "reduce", "settling_time", "statistic", "value_at"]
 
 
 @dataclass(frozen=True)
@@ -59,7 +67,13 @@ class Metric:
 
     def value(self, columns: Mapping[str, np.ndarray]) -> float:
         """The metric of one run; ``columns`` holds ``time`` and the recorded variables."""
-        return statistic(self.spec, np.asarray(columns["time"], dtype=float), self.signal(columns))
+        time = np.asarray(columns["time"], dtype=float)
+        if self.spec.statistic == "alternation":
+            values = np.column_stack([np.asarray(columns[c], dtype=float) for c in self.left])
+            if self.right:
+                values = values - np.column_stack([np.asarray(columns[c], dtype=float) for c in self.right])
+            return alternation(time, values, self.spec.norm, self.spec.window)
+        return statistic(self.spec, time, self.signal(columns))
 
 
 def reduce(values: np.ndarray, norm: str | None) -> np.ndarray:
@@ -101,6 +115,25 @@ def statistic(spec: MetricSpec, time: np.ndarray, signal: np.ndarray) -> float:
     if kind == "first_crossing":
         return first_crossing(time, signal, _given(spec.level), spec.direction)
     raise ValueError(f"unknown statistic '{kind}'")
+
+
+def alternation(time: np.ndarray, values: np.ndarray, norm: str | None, window: Window) -> float:
+    """The RMS amplitude of the step-to-step alternation of ``values`` (rows x elements) over the
+    rows in ``window`` (module docstring); NaN with fewer than five rows."""
+    last = np.ones(len(time), dtype=bool)
+    last[:-1] = time[1:] != time[:-1]
+    time, values = time[last], values[last]
+    if len(time) < 5:
+        return math.nan
+    high = (values[:-4] - 4.0 * values[1:-3] + 6.0 * values[2:-2] - 4.0 * values[3:-1] + values[4:]) / 16.0
+    if values.shape[1] == 1 and norm is None:
+        amplitude = np.abs(high[:, 0])
+    else:
+        amplitude = reduce(high, "2" if norm is None else norm)
+    _, amplitude = windowed(time[2:-2], amplitude, window)
+    if len(amplitude) == 0:
+        return math.nan
+    return float(math.sqrt(np.mean(amplitude * amplitude)))
 
 
 def _given(value: float | None) -> float:

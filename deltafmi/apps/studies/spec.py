@@ -28,7 +28,7 @@ __all__ = ["Distribution", "MetricSpec", "MonteCarlo", "Study", "Target", "Vary"
 
 #: experiment settings a study may vary
 EXPERIMENT_TARGETS = ("experiment.stop", "experiment.step")
-STATISTICS = ("max", "min", "mean", "rms", "final", "at", "settling_time", "first_crossing")
+STATISTICS = ("max", "min", "mean", "rms", "final", "at", "settling_time", "first_crossing", "alternation")
 #: keys a statistic takes besides signal, statistic, norm and window: (required, optional)
 STATISTIC_KEYS: Dict[str, Tuple[Tuple[str, ...], Tuple[str, ...]]] = {
     "at": (("time",), ()),

@@ -43,13 +43,14 @@ compliance centre is the tool tip: a lateral force at the tip moves it without t
 and a moment turns the peg about the tip (Whitney's remote-centre compliance, which is what
 lets a chamfer centre a peg and a two-point contact align it).
 
-Sampling. The law runs at the sample instants and its torques are held (optionally with the
-delta controller's half-sample lead). The measured-wrench cancellation is a sampled force
-feedback: with the natural inertia m_n of an axis, the closed loop feels the contact force
-scaled by 1 + (m_n / M_d - 1), that part a sample late; M_d and I_d far below the natural
-inertias amplify a stiff contact's force with that delay. (With the peg plant's 2e5 N/m contact
-points the insertion of examples/peg_in_hole.yaml stays stable for M_d from 1 to 40 kg and I_d
-from 0.002 to 0.1 kg m^2.)
+Sampling. The law runs at the sample instants and its torques are held (the delta controller's
+half-sample lead on their motion part only: :mod:`.sampling`). The measured-wrench cancellation is
+a sampled force feedback: along a direction n the closed loop feels the contact force scaled by
+mu = (n^T M_d^-1 n) / (n^T Lambda^-1 n) (Lambda the robot's natural inertia at the tip), the part
+mu - 1 of it a sample late. A contact that blocks the tip within one sample takes what the
+actuators push, so the force then follows F_k+1 = (1 - mu) F_k: stable for 0 < mu < 2, an
+apparent mass above half the natural one along every direction a contact can block
+(docs/assembly.md, section 5, where the shipped impedances sit).
 
 Gimbal lock (|q2| -> pi/2, :mod:`deltafmi.physics.wrist.singularity`): below sigma_min = sqrt(1
 - |sin q2|) < sigma0 the wrist's joint accelerations are the damped least-squares solution

@@ -2,17 +2,26 @@
 
 Per sample: the reference (the insertion program of :mod:`.program`, or the external tip and
 orientation reference), the 6-D impedance law (:func:`.law.evaluate`), the torques held until
-the next sample with the delta controller's half-sample lead (:func:`deltafmi.physics.delta.
-control_law.hold`, on the servo and on the wrist torques), Newton's warm start for the next
-sample and the warning latch. A singular sample (no forward kinematics) holds the previous
-torques and drops the warm start.
+the next sample, Newton's warm start for the next sample and the warning latch. A singular
+sample (no forward kinematics) holds the previous torques and drops the warm start.
+
+The held torque is the law's torque in two parts. The law is affine in the measured wrench, so
+evaluating it once more with the sensor at zero splits it into the MOTION part (inverse dynamics
+of the reference and the impedance's spring and damper: smooth between samples) and the FORCE
+part (the measured wrench's cancellation and its M_d^-1 feedback). The delta controller's
+half-sample lead (:func:`deltafmi.physics.delta.control_law.hold`: 1.5 u_k - 0.5 u_k-1, the
+hold's half-sample delay compensated) goes on the motion part only. On the force part it would
+double the loop gain at the Nyquist frequency (1.5 + 0.5 = 2 for a signal alternating from one
+sample to the next), and against a contact that blocks the tip within one sample (a stiff
+spring, or regularised friction at creep speed: a damper of mu f_n / v_eps) that gain is what
+decides stability: the force part is held as computed (docs/assembly.md, section 5).
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple, Optional
 
-from ..delta.control_law import STATUS_ILL_CONDITIONED, STATUS_SINGULAR, STATUS_TORQUE_SATURATED, hold, warm_start
+from ..delta.control_law import STATUS_ILL_CONDITIONED, STATUS_SINGULAR, STATUS_TORQUE_SATURATED, warm_start
 from ..wrist.kernels import WristConstants
 from .law import STATUS_GIMBAL_DAMPED, STATUS_WRIST_SATURATED, AssemblyLaw, F6, evaluate
 from .program import InsertionProgram, reference
@@ -20,6 +29,8 @@ from .rotation import F3, F9, TOOL_DOWN, orientation_reference
 
 __all__ = ["AssemblySettings", "AssemblyState", "WARNING_BITS", "initial_state", "sample", "describe_status"]
 
+#: the F/T sensor at zero: the law's motion part
+_NO_WRENCH: F6 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 #: status bits that warn, once each
 WARNING_BITS = STATUS_ILL_CONDITIONED | STATUS_SINGULAR | STATUS_GIMBAL_DAMPED | STATUS_WRIST_SATURATED
 
@@ -48,8 +59,8 @@ class AssemblyState(NamedTuple):
 
     u: F3                   #: servo torques held (N m)
     tau: F3                 #: wrist torques held (N m)
-    u_law: Optional[F3]     #: the law's servo torques of the last sample, before the lead
-    tau_law: Optional[F3]   #: the law's wrist torques of the last sample
+    u_law: Optional[F3]     #: the motion part of the law's servo torques of the last sample, before the lead
+    tau_law: Optional[F3]   #: the motion part of the law's wrist torques of the last sample
     x_next: Optional[F6]    #: Newton's warm start for the next sample
     xd: Optional[F6]        #: the delta's unmeasured rates of the last sample
     status: int             #: status bits of the last sample
@@ -95,13 +106,32 @@ def sample(law: AssemblyLaw, w: WristConstants, settings: AssemblySettings, prog
     if status & STATUS_SINGULAR:
         return AssemblyState(state.u, state.tau, None, None, None, None, status, state.warned | new, new, state.tip,
                              state.error, state.rotation_error, state.sigma_min, phase, depth, r, start, start_rotation)
-    lead = settings.zoh_lead
-    u, clipped = hold(out.u, state.u_law if lead else None, law.delta.torque_limit)
-    tw, clipped_w = hold(out.tau, state.tau_law if lead else None, law.wrist_torque_limit)
+    u_motion, tau_motion = out.u, out.tau
+    if settings.zoh_lead:
+        free = evaluate(law, w, y, yd, qw, qwd, _NO_WRENCH, r, rd, rdd, rot, omega, alpha, out.x)
+        if not free.status & STATUS_SINGULAR:
+            u_motion, tau_motion = free.u, free.tau
+    u, clipped = _held(u_motion, state.u_law if settings.zoh_lead else None, out.u, law.delta.torque_limit)
+    tw, clipped_w = _held(tau_motion, state.tau_law if settings.zoh_lead else None, out.tau,
+                          law.wrist_torque_limit)
     if clipped:
         status = status | STATUS_TORQUE_SATURATED
     if clipped_w:
         status = status | STATUS_WRIST_SATURATED
     x0, x1, x2, x3, x4, x5 = warm_start(out.x, out.xd, state.xd, settings.sample_period)
-    return AssemblyState(u, tw, out.u, out.tau, (x0, x1, x2, x3, x4, x5), out.xd, status, state.warned | new, new,
-                         out.tip, out.error, out.rotation_error, out.sigma_min, phase, depth, r, start, start_rotation)
+    return AssemblyState(u, tw, u_motion, tau_motion, (x0, x1, x2, x3, x4, x5), out.xd, status, state.warned | new,
+                         new, out.tip, out.error, out.rotation_error, out.sigma_min, phase, depth, r, start,
+                         start_rotation)
+
+
+def _held(motion: F3, previous: Optional[F3], total: F3, limit: float) -> tuple[F3, bool]:
+    """The torque to hold: ``total`` (the law's) plus the half-sample lead (motion - previous) / 2
+    of its ``motion`` part (none without a ``previous`` one), clipped to +-limit; and whether it was."""
+    u0, u1, u2 = total
+    if previous is not None:
+        u0 = u0 + 0.5 * (motion[0] - previous[0])
+        u1 = u1 + 0.5 * (motion[1] - previous[1])
+        u2 = u2 + 0.5 * (motion[2] - previous[2])
+    if max(abs(u0), abs(u1), abs(u2)) <= limit:
+        return (u0, u1, u2), False
+    return (min(max(u0, -limit), limit), min(max(u1, -limit), limit), min(max(u2, -limit), limit)), True
