@@ -24,8 +24,8 @@ __all__ = ["NATIVE_DIR", "VERSION_FILES", "exported_symbols", "fmu_binary", "nat
 
 NATIVE_DIR = Path(__file__).resolve().parent.parent / "runtime" / "native"  # the FMU binary's C sources
 #: what both FMI versions' binaries are made of
-SOURCES = ("core.c", "bridge.c", "python_start.c", "process_lock.c")
-HEADERS = ("core.h", "bridge.h", "python_start.h", "process_lock.h", "glibc_floor.h", "pyapi.h")
+SOURCES = ("core.c", "cs_step.c", "bridge.c", "python_start.c", "process_lock.c")
+HEADERS = ("core.h", "cs_step.h", "bridge.h", "python_start.h", "process_lock.h", "glibc_floor.h", "pyapi.h")
 #: each FMI version's API file and the standard's headers it includes
 VERSION_FILES = {
     2: ("fmi2.c", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
