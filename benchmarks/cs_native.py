@@ -66,15 +66,16 @@ def tolerances(source: str) -> tuple[float, float]:
 
 
 def run(exe: Path, fmu_dir: Path, md: dict, mode: str, steps: int, outputs: list[str], extra: list[str],
-        env: dict) -> tuple[float, str]:
+        env: dict) -> tuple[float, float, str]:
+    """(CPU us per step of the stepping thread, wall us per step, the last row)."""
     vrs = [str(md["vr"][name]) for name in outputs]
     args = [str(exe), str(fmu_dir), md["id"], md["guid"], mode, str(steps), repr(H), *extra, *vrs]
     done = subprocess.run(args, capture_output=True, text=True, env=env, timeout=600)
     if done.returncode != 0:
         raise SystemExit(f"{mode} failed ({done.returncode}): {done.stderr[-2000:]}")
     lines = done.stdout.splitlines()
-    us = float(next(line for line in lines if line.startswith("us_per_step,")).split(",")[1])
-    return us, lines[-2]
+    figure = {line.split(",")[0]: float(line.split(",")[1]) for line in lines if "_per_step," in line}
+    return figure["cpu_us_per_step"], figure["us_per_step"], lines[-2]
 
 
 def describe(fmu_dir: Path) -> dict:
@@ -99,9 +100,10 @@ def main() -> None:
         exe = compile_host(work)
         base = {k: v for k, v in os.environ.items() if k not in ("DELTAFMI_NATIVE_CS", "DELTAFMI_NATIVE")}
         print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; medians of {opts.repeats} runs, "
-              f"us per {H * 1e3:g} ms step")
-        print(f"{'model':14s} {'me (host CVODE)':>16s} {'cs Python':>10s} {'cs C':>8s} "
-              f"{'Python/me':>10s} {'C/me':>6s}  C and Python loops")
+              f"us per {H * 1e3:g} ms step: CPU time of the stepping thread (wall time in brackets: on a "
+              f"loaded machine it counts others' time too)")
+        print(f"{'model':14s} {'me (host CVODE)':>18s} {'cs Python':>18s} {'cs C':>18s} "
+              f"{'Python/me':>10s} {'C/me':>6s} {'Python/C':>9s}  C and Python loops")
         for name, (source, outputs, stop) in MODELS.items():
             fmu = build_cached(ROOT / "fmu_src" / source)
             fmu_dir = work / name
@@ -111,18 +113,21 @@ def main() -> None:
             rtol, atol = tolerances(source)
             steps = opts.steps or round(stop / H)
             me_env = dict(base, CS_HOST_NX=str(md["nx"]), CS_HOST_NZ=str(md["nz"]))
-            times: dict[str, list[float]] = {"me": [], "py": [], "c": []}
+            cpu: dict[str, list[float]] = {"me": [], "py": [], "c": []}
+            wall: dict[str, list[float]] = {"me": [], "py": [], "c": []}
             rows = {}
             for _ in range(opts.repeats):
-                times["c"].append(run(exe, fmu_dir, md, "cs", steps, outputs, [], base)[0])
-                us, rows["py"] = run(exe, fmu_dir, md, "cs", steps, outputs, [], dict(base, DELTAFMI_NATIVE_CS="0"))
-                times["py"].append(us)
-                times["me"].append(run(exe, fmu_dir, md, "me", steps, outputs,
-                                       [repr(rtol), repr(atol), sundials_dir], me_env)[0])
-                rows["c"] = run(exe, fmu_dir, md, "cs", steps, outputs, [], base)[1]
-            me, py, c = (statistics.median(times[k]) for k in ("me", "py", "c"))
+                for key, mode, extra, env in (
+                        ("c", "cs", [], base), ("py", "cs", [], dict(base, DELTAFMI_NATIVE_CS="0")),
+                        ("me", "me", [repr(rtol), repr(atol), sundials_dir], me_env)):
+                    us_cpu, us_wall, rows[key] = run(exe, fmu_dir, md, mode, steps, outputs, extra, env)
+                    cpu[key].append(us_cpu)
+                    wall[key].append(us_wall)
+            me, py, c = (statistics.median(cpu[k]) for k in ("me", "py", "c"))
+            cells = " ".join(f"{statistics.median(cpu[k]):8.2f} ({statistics.median(wall[k]):7.2f})"
+                             for k in ("me", "py", "c"))
             same = "identical" if rows["c"] == rows["py"] else f"DIFFER: {rows['c']} vs {rows['py']}"
-            print(f"{name:14s} {me:16.2f} {py:10.2f} {c:8.2f} {py / me:10.2f} {c / me:6.2f}  {same}")
+            print(f"{name:14s} {cells} {py / me:10.2f} {c / me:6.2f} {py / c:9.2f}  {same}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
