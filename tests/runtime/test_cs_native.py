@@ -177,10 +177,11 @@ def test_reset_runs_the_same_simulation_again(monkeypatch):
     assert np.array_equal(before, after)
 
 
-def test_the_ball_in_c_hosts_with_and_without_fmi3_event_mode(tmp_path):
+def test_c_hosts_with_and_without_fmi3_event_mode(tmp_path):
     """In the plain C FMI 3.0 host with eventModeUsed and early return, the C loop stops at the
-    ball's first contact at the closed-form time sqrt(2 h0 / g); every event time and row equals
-    the Python loop's. In the FMI 2.0 host the two loops print the same rows as well."""
+    ball's first contact at the closed-form time sqrt(2 h0 / g), and at the Oscillator's wall
+    impacts (closed form) and its force step (a time event); every event time and row equals the
+    Python loop's. In the FMI 2.0 host the two loops print the same rows as well."""
     host3 = tmp_path / "host3"
     subprocess.run(["cc", "-O2", "-Wall", f"-I{NATIVE}", str(ROOT / "tests" / "c_host" / "host3.c"),
                     "-o", str(host3), "-ldl", "-lm"], check=True)
@@ -205,3 +206,56 @@ def test_the_ball_in_c_hosts_with_and_without_fmi3_event_mode(tmp_path):
     events = [float(row.split(",")[1]) for row in outputs[3, "1"] if row.startswith("event")]
     assert len(events) >= 2
     assert events[0] == pytest.approx(math.sqrt(2 / 9.81), abs=1e-8)
+    # the Oscillator's wall impacts and its force step (a time event at t_step = 2.5 s) in event mode
+    fmu = build_cached(FMU_SRC / "oscillator.py", fmi_version=3)
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    directory = extract(str(fmu), str(tmp_path / "oscillator3"))
+    rows = {}
+    for flag in ("1", "0"):
+        done = subprocess.run([str(host3), directory, md.coSimulation.modelIdentifier, md.guid, "cs-events", "3.0",
+                               "0.01", str(vr["x"]), str(vr["v"])], capture_output=True, text=True,
+                              timeout=300, env={"PATH": "/usr/bin:/bin", "DELTAFMI_NATIVE_CS": flag})
+        assert done.returncode == 0, done.stderr
+        rows[flag] = done.stdout.split()
+    assert rows["1"] == rows["0"]
+    events = [float(row.split(",")[1]) for row in rows["1"] if row.startswith("event")]
+    _, _, impacts = solution(np.linspace(0.0, 3.0, 3001))
+    assert 2.5 in events
+    # (today each impact is reported twice, the second a few ulp after the first, by both loops)
+    assert all(t == 2.5 or min(abs(t - i) for i in impacts) < 1e-6 for t in events)
+    assert all(min(abs(t - i) for t in events) < 1e-6 for i in impacts)
+
+
+@pytest.mark.parametrize("c_step", [True, False], ids=["c", "python"])
+def test_a_failing_step_is_an_error_explained_by_the_python_that_raised(c_step, monkeypatch, tmp_path):
+    """tests/components/compiled: its derivatives kernel raises beyond an input limit, the Python
+    method then runs and raises with the model's message. Within the limit no Python derivatives
+    run after initialization; beyond it fmi2DoStep fails with that message in either loop (the C
+    loop hands CVODE's failure to Python, which raises what the right-hand side raised)."""
+    from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+
+    fmu = build_cached(ROOT / "tests" / "components" / "compiled" / "model.py")
+    monkeypatch.setenv("DELTAFMI_NATIVE_CS", "1" if c_step else "0")
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    messages: list[str] = []
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, inst, status, cat, msg: messages.append(msg.decode()))
+    callbacks.allocateMemory, callbacks.freeMemory = defaultCallbacks.allocateMemory, defaultCallbacks.freeMemory
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu), str(tmp_path)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="failing")
+    slave.instantiate(callbacks=callbacks)
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    slave.setReal([vr["u"]], [0.3])
+    for k in range(50):
+        slave.doStep(k * 0.01, 0.01)
+    calls = slave.getInteger([vr["python_calls"]])[0]
+    slave.setReal([vr["u"]], [30.0])
+    with pytest.raises(Exception):
+        slave.doStep(0.5, 0.01)
+    assert any("input 30.0 is beyond the limit 10.0" in m for m in messages), messages
+    slave.freeInstance()
+    assert calls <= 5  # CVODE's right-hand side is the kernel in either loop
