@@ -8,6 +8,10 @@ its exact Jacobian) three runs of ``benchmarks/native/cs_host.c`` take turns, re
 - ``cs Python``: the same FMU with ``DELTAFMI_NATIVE_CS=0`` (the loop in Python, as before);
 - ``me``: Model Exchange, CVODE (BDF, dense, rtol and atol as our CS solver uses) in the host.
 
+The figures are the CPU time of the stepping thread (the machine these run on is shared; the wall
+time, in brackets, counts the time other processes ran too). CS's first step, which makes the
+FMU's solver as the ME run makes its own before its loop, is timed apart ("1st step ms", wall).
+
 Prints the medians (microseconds per 1 ms step, the stepping loop only) and the ratios
 ``cs / me`` before and after, all measured in this run. The final rows of the C and the Python
 loop must agree bit for bit (printed as "identical").
@@ -66,8 +70,9 @@ def tolerances(source: str) -> tuple[float, float]:
 
 
 def run(exe: Path, fmu_dir: Path, md: dict, mode: str, steps: int, outputs: list[str], extra: list[str],
-        env: dict) -> tuple[float, float, str]:
-    """(CPU us per step of the stepping thread, wall us per step, the last row)."""
+        env: dict) -> tuple[float, float, float, str]:
+    """(CPU us per step of the stepping thread, wall us per step, wall us of CS's first step
+    (it makes the solver; NaN for ME), the last row)."""
     vrs = [str(md["vr"][name]) for name in outputs]
     args = [str(exe), str(fmu_dir), md["id"], md["guid"], mode, str(steps), repr(H), *extra, *vrs]
     done = subprocess.run(args, capture_output=True, text=True, env=env, timeout=600)
@@ -75,7 +80,8 @@ def run(exe: Path, fmu_dir: Path, md: dict, mode: str, steps: int, outputs: list
         raise SystemExit(f"{mode} failed ({done.returncode}): {done.stderr[-2000:]}")
     lines = done.stdout.splitlines()
     figure = {line.split(",")[0]: float(line.split(",")[1]) for line in lines if "_per_step," in line}
-    return figure["cpu_us_per_step"], figure["us_per_step"], lines[-2]
+    first = next((float(line.split(",")[1]) for line in lines if line.startswith("first_step_us,")), float("nan"))
+    return figure["cpu_us_per_step"], figure["us_per_step"], first, lines[-2]
 
 
 def describe(fmu_dir: Path) -> dict:
@@ -103,7 +109,7 @@ def main() -> None:
               f"us per {H * 1e3:g} ms step: CPU time of the stepping thread (wall time in brackets: on a "
               f"loaded machine it counts others' time too)")
         print(f"{'model':14s} {'me (host CVODE)':>18s} {'cs Python':>18s} {'cs C':>18s} "
-              f"{'Python/me':>10s} {'C/me':>6s} {'Python/C':>9s}  C and Python loops")
+              f"{'Python/me':>10s} {'C/me':>6s} {'Python/C':>9s} {'1st step ms':>11s}  C and Python loops")
         for name, (source, outputs, stop) in MODELS.items():
             fmu = build_cached(ROOT / "fmu_src" / source)
             fmu_dir = work / name
@@ -115,19 +121,22 @@ def main() -> None:
             me_env = dict(base, CS_HOST_NX=str(md["nx"]), CS_HOST_NZ=str(md["nz"]))
             cpu: dict[str, list[float]] = {"me": [], "py": [], "c": []}
             wall: dict[str, list[float]] = {"me": [], "py": [], "c": []}
-            rows = {}
+            rows, first_steps = {}, []
             for _ in range(opts.repeats):
                 for key, mode, extra, env in (
                         ("c", "cs", [], base), ("py", "cs", [], dict(base, DELTAFMI_NATIVE_CS="0")),
                         ("me", "me", [repr(rtol), repr(atol), sundials_dir], me_env)):
-                    us_cpu, us_wall, rows[key] = run(exe, fmu_dir, md, mode, steps, outputs, extra, env)
+                    us_cpu, us_wall, first, rows[key] = run(exe, fmu_dir, md, mode, steps, outputs, extra, env)
+                    if key == "c":
+                        first_steps.append(first)
                     cpu[key].append(us_cpu)
                     wall[key].append(us_wall)
             me, py, c = (statistics.median(cpu[k]) for k in ("me", "py", "c"))
             cells = " ".join(f"{statistics.median(cpu[k]):8.2f} ({statistics.median(wall[k]):7.2f})"
                              for k in ("me", "py", "c"))
             same = "identical" if rows["c"] == rows["py"] else f"DIFFER: {rows['c']} vs {rows['py']}"
-            print(f"{name:14s} {cells} {py / me:10.2f} {c / me:6.2f} {py / c:9.2f}  {same}")
+            print(f"{name:14s} {cells} {py / me:10.2f} {c / me:6.2f} {py / c:9.2f} "
+                  f"{statistics.median(first_steps) / 1e3:11.1f}  {same}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
