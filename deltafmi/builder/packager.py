@@ -24,7 +24,7 @@ from deltafmi.runtime.native_kernels import DESCRIPTION as NATIVE_KERNELS
 from ..files import replaced_atomically
 from deltafmi.toolchain import (BuildError, NoCompilerError, cache_dir, compiler_available, no_compiler_message,
                                 plain_c_library, python_extension)
-from .compiler import fmu_binary, native_source_files, python_runtime_config
+from .compiler import CFLAGS, fmu_binary, native_source_files, python_runtime_config
 from .codegen.component_kernels import component_library
 from .bytecode import unchecked_hash_pyc
 from .equations import SOURCES as EQUATION_COMPILER, generated_files
@@ -183,8 +183,9 @@ def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int
                 resources: Sequence[Path | str] = ()) -> str:
     """Hash of everything that determines an FMU built from ``source``: the files it carries
     (so that editing a module the model does not reach leaves its cached FMU valid), the
-    ``resources`` by name and content, the FMI version, the native sources of its binary, the
-    code that writes its modelDescription.xml, this packager and the Python it was built for."""
+    ``resources`` by name and content, the FMI version, the native sources of its binary and how
+    they are compiled, the code that writes its modelDescription.xml, this packager and the Python
+    it was built for."""
     _check_version(fmi_version)
     _fmu_binary_for(source, fmi_version)  # first: without it nothing else matters (no warnings about the rest)
     digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0fmi{fmi_version}\0".encode())
@@ -197,6 +198,7 @@ def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int
     for path in (native_source_files(fmi_version) + writers + generator
                  + [Path(__file__), BOOT_SOURCE]):
         digest.update(path.read_bytes())
+    digest.update(" ".join(CFLAGS).encode())  # how the binary is compiled
     # an FMU built where its compiled kernels could not be (no compiler) is not the one built where they can
     digest.update(f"\0compiler={compiler_available()}".encode())
     # the environment, not the interpreter's name in it: bin/python and bin/python3.12 (the console
