@@ -29,7 +29,7 @@ class CsShared(ctypes.Structure):
                 ("quiet", c_void_p), ("atol", c_void_p),
                 ("rtol", c_double), ("jump_tolerance", c_double), ("solver_t", c_double),
                 ("time", c_double), ("start_time", c_double), ("grid_step", c_double),
-                ("next_time_event", c_double),
+                ("next_time_event", c_double), ("event_time", c_double),
                 ("restart_solver", c_int), ("jump_kept", c_int), ("after_valid", c_int), ("inputs_valid", c_int),
                 ("after", c_void_p), ("inputs", c_void_p), ("real_inputs", c_void_p), ("int_inputs", c_void_p),
                 ("n_real_inputs", c_int64), ("n_int_inputs", c_int64), ("enabled", c_int)]
@@ -46,7 +46,7 @@ class CsShared(ctypes.Structure):
         self.after_view = self._arrays["after"][:nx]
         self.atol_view = self._arrays["atol"][:nx]
         self.inputs_view = self._arrays["inputs"][:len(real_inputs) + len(int_inputs)]
-        self.next_time_event = float("nan")
+        self.next_time_event = self.event_time = float("nan")
 
     def attach_solver(self, solver: Any) -> None:
         """The solver's addresses and tolerances for the C step (``solver``: a :class:`.cvode.Cvode`)."""
@@ -60,6 +60,7 @@ class CsShared(ctypes.Structure):
     def detach_solver(self) -> None:
         """No solver: the next step makes one."""
         self.mem = self.y = self.x = None
+        self.event_time = float("nan")
 
 
 def native_cs_wanted() -> bool:

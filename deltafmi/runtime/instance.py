@@ -411,6 +411,8 @@ class FmuInstance:
                 self._reinit(self.time, comp._real[: self.nx])
         elif self.nx:
             self._inputs_changed()  # a fresh solver: the next step compares with these inputs
+        if self._restart_solver:
+            self._cs.event_time = self.time  # the solver starts here after the importer's Event Mode
         self._restart_solver = False
         while self.time < t_end and not self.terminate_requested:
             nte = None if events != EVENTS_INSIDE and self._clock_driven else self._next_time_event
@@ -424,7 +426,13 @@ class FmuInstance:
                 self.time = t_stop
             time_event = nte is not None and self.time >= nte - _TINY * max(1.0, abs(nte))
             at_end = self.time >= t_end - _TINY * max(1.0, abs(t_end))
-            if (root or time_event) and (events == EVENTS_EARLY_RETURN or (events == EVENTS_AT_STEP_END and at_end)):
+            # a root within round-off of the event the solver restarted at is that event's own
+            # indicator crossing back (CVODE returns a root just past the crossing, where the
+            # indicator has its new sign; the event's update sends it back over zero): handled
+            # inside like any event, never reported to the importer a second time
+            echo = root and abs(self.time - self._cs.event_time) <= _TINY * max(1.0, abs(self.time))
+            if (time_event or (root and not echo)) and (
+                    events == EVENTS_EARLY_RETURN or (events == EVENTS_AT_STEP_END and at_end)):
                 self.control[1:] = self.time, 1.0  # fmi3DoStep: eventHandlingNeeded here
                 self.evaluate(self.time)
                 self._derivatives_after_step = None  # the event restarts the solver
@@ -587,6 +595,7 @@ class FmuInstance:
                     # right-hand side may jump even when no state does
                     self._reinit(self.time, self.component._real[: self.nx])
                     self._restart_solver = False
+                    self._cs.event_time = self.time
                 return
         raise RuntimeError(f"event iteration at t = {self.time} did not converge in "
                            f"{_MAX_EVENT_ITERATIONS} iterations")

@@ -221,10 +221,71 @@ def test_c_hosts_with_and_without_fmi3_event_mode(tmp_path):
     assert rows["1"] == rows["0"]
     events = [float(row.split(",")[1]) for row in rows["1"] if row.startswith("event")]
     _, _, impacts = solution(np.linspace(0.0, 3.0, 3001))
-    assert 2.5 in events
-    # (today each impact is reported twice, the second a few ulp after the first, by both loops)
+    # each impact once (its indicator crossing back a few ulp later is no second event), and the force step
+    assert len(events) == len(impacts) + 1 and 2.5 in events
     assert all(t == 2.5 or min(abs(t - i) for i in impacts) < 1e-6 for t in events)
     assert all(min(abs(t - i) for t in events) < 1e-6 for i in impacts)
+
+
+def _events_host(tmp_path: Path) -> Path:
+    exe = tmp_path / "fmi3_cs_events"
+    subprocess.run(["cc", "-O2", "-Wall", f"-I{NATIVE}", str(ROOT / "tests" / "c_host" / "fmi3_cs_events.c"),
+                    "-o", str(exe), "-ldl", "-lm"], check=True)
+    return exe
+
+
+def _event_mode_rows(host: Path, source: str, names: list[str], early_return: bool, c_step: bool,
+                     directory: Path) -> list[list[str]]:
+    """The rows of tests/c_host/fmi3_cs_events.c (fmusim's loop) with eventModeUsed, split at commas."""
+    fmu = build_cached(FMU_SRC / source, fmi_version=3)
+    md = read_model_description(str(fmu))
+    variables = {v.name: v for v in md.modelVariables}
+    unzipped = directory / source
+    if not unzipped.exists():
+        extract(str(fmu), str(unzipped))
+    refs = [("i" if variables[n].type in ("Int32", "Boolean") else "") + str(variables[n].valueReference)
+            for n in names]
+    done = subprocess.run([str(host), str(unzipped), md.coSimulation.modelIdentifier, md.guid, "1",
+                           str(int(early_return)), "3.0", "0.01", *refs], capture_output=True, text=True,
+                          timeout=300, env={"PATH": "/usr/bin:/bin", "DELTAFMI_NATIVE_CS": "1" if c_step else "0"})
+    assert done.returncode == 0, done.stderr
+    return [line.split(",") for line in done.stdout.split()]
+
+
+@pytest.mark.parametrize("early_return", [True, False], ids=["early-return", "at-step-end"])
+def test_fmi3_event_modes_the_c_step_equals_the_python_step(early_return, tmp_path):
+    """FMI 3.0 Co-Simulation with eventModeUsed, with and without earlyReturnAllowed, from the plain
+    C host that steps as fmusim does: every row (steps, their eventHandlingNeeded and earlyReturn,
+    the values after each Event Mode) of the C loop equals the Python loop's to the last digit, for
+    the Oscillator (wall impacts: state events; the force step at t = 2.5 s: a time event on a
+    communication point) and the BouncingBall. With early return the Oscillator's steps stop once
+    at each impact, at its closed-form time (to 1e-6 s), and at the force step; without it the
+    impacts are handled inside the steps and only the force step, on the communication point, is
+    left to the importer (no early return), and the values on the grid are the early-return run's."""
+    host = _events_host(tmp_path)
+    runs = {}
+    for source, names in (("oscillator.py", ["x", "v", "impacts"]), ("bouncing_ball.py", ["q", "v", "contact"])):
+        for c_step in (True, False):
+            runs[source, c_step] = _event_mode_rows(host, source, names, early_return, c_step, tmp_path)
+        assert runs[source, True] == runs[source, False]
+    rows = runs["oscillator.py", True]
+    steps = [row for row in rows if row[0] == "step"]
+    events = [float(row[1]) for row in rows if row[0] == "event"]
+    early = [float(row[1]) for row in steps if row[3] == "1"]
+    _, _, impacts = solution(np.linspace(0.0, 3.0, 3001))
+    assert len(impacts) >= 3
+    assert [row[2] for row in steps].count("1") == len(events)  # each eventHandlingNeeded had its Event Mode
+    if early_return:
+        assert len(early) == len(impacts) and 2.5 not in early
+        np.testing.assert_allclose(early, impacts, rtol=0, atol=1e-6)
+        assert events == sorted(early + [2.5])
+    else:
+        assert early == [] and events == [2.5]
+        with_early_return = _event_mode_rows(host, "oscillator.py", ["x", "v", "impacts"], True, True, tmp_path)
+        on_grid = [row[1:2] + row[4:] for row in with_early_return if row[0] == "step" and row[3] == "0"]
+        assert [row[1:2] + row[4:] for row in steps] == on_grid
+    impacts_after = [int(row[-1]) for row in rows if row[0] == "event"]
+    assert impacts_after[-1] == len(impacts)  # each impact counted once
 
 
 @pytest.mark.parametrize("c_step", [True, False], ids=["c", "python"])

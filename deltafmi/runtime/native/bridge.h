@@ -31,6 +31,7 @@ typedef struct {
     double time;       /* the instance's time */
     double start_time, grid_step; /* the communication grid */
     double next_time_event;       /* NaN: none */
+    double event_time;            /* where the solver last restarted at an event (NaN: none) */
     int restart_solver, jump_kept, after_valid, inputs_valid;
     double *after;     /* nx: the derivatives at the end of the last step (valid: after_valid) */
     double *inputs;    /* n_real_inputs + n_int_inputs: the inputs the last step saw (inputs_valid) */

@@ -160,6 +160,7 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
     } else {
         inputs_changed(L, s); /* a fresh solver: the next step compares with these inputs */
     }
+    if (s->restart_solver) s->event_time = s->time; /* the solver starts here after the importer's Event Mode */
     s->restart_solver = 0;
     while (s->time < t_end && !dfmi_terminated(c)) {
         /* Python drops the time event of a clock-driven component in event mode (its Clocks'
@@ -176,7 +177,10 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
         }
         int time_event = timed && s->time >= nte - TINY * fmax(1.0, fabs(nte));
         int at_end = s->time >= t_end - TINY * fmax(1.0, fabs(t_end));
-        if ((root || time_event) &&
+        /* a root within round-off of the event the solver restarted at is that event's indicator
+         * crossing back: handled inside, not reported again (instance.py) */
+        int echo = root && fabs(s->time - s->event_time) <= TINY * fmax(1.0, fabs(s->time));
+        if ((time_event || (root && !echo)) &&
             (events == DFMI_EVENTS_EARLY_RETURN || (events == DFMI_EVENTS_AT_STEP_END && at_end))) {
             control[1] = s->time; /* fmi3DoStep: eventHandlingNeeded here */
             control[2] = 1.0;
