@@ -24,8 +24,11 @@ __all__ = ["NATIVE_DIR", "VERSION_FILES", "exported_symbols", "fmu_binary", "nat
 
 NATIVE_DIR = Path(__file__).resolve().parent.parent / "runtime" / "native"  # the FMU binary's C sources
 #: what both FMI versions' binaries are made of
-SOURCES = ("core.c", "bridge.c", "python_start.c", "process_lock.c")
-HEADERS = ("core.h", "bridge.h", "python_start.h", "process_lock.h", "glibc_floor.h", "pyapi.h")
+SOURCES = ("core.c", "cs_step.c", "bridge.c", "python_start.c", "process_lock.c")
+HEADERS = ("core.h", "cs_step.h", "bridge.h", "python_start.h", "process_lock.h", "glibc_floor.h", "pyapi.h")
+#: how they are compiled: no fused multiply-add and pow() from libm, so that the Co-Simulation
+#: step in C (cs_step.c) computes what the Python step computes, to the bit
+CFLAGS = ("-shared", "-fPIC", "-O2", "-ffp-contract=off", "-fno-builtin-pow", "-fvisibility=hidden", "-Wall")
 #: each FMI version's API file and the standard's headers it includes
 VERSION_FILES = {
     2: ("fmi2.c", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
@@ -53,6 +56,7 @@ def fmu_binary(fmi_version: int = 2) -> Path:
     digest = hashlib.sha256()
     for path in files:
         digest.update(path.read_bytes())
+    digest.update(" ".join(CFLAGS).encode())
     name = "fmu.so" if fmi_version == 2 else f"fmu{fmi_version}.so"
     relative = f"native/{digest.hexdigest()[:16]}/{name}"
     found = find_built(relative)
@@ -62,9 +66,8 @@ def fmu_binary(fmi_version: int = 2) -> Path:
     cc = require_compiler(api)
     binary = cache_dir() / relative
     build_into(binary.parent, lambda tmp: run_compiler(
-        [*cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", f"-I{NATIVE_DIR}",
-         *[str(path) for path in files if path.suffix == ".c"], "-o", f"{tmp}/{binary.name}",
-         "-ldl", "-lpthread", "-lm"], api))
+        [*cc, *CFLAGS, f"-I{NATIVE_DIR}", *[str(path) for path in files if path.suffix == ".c"],
+         "-o", f"{tmp}/{binary.name}", "-ldl", "-lpthread", "-lm"], api))
     return binary
 
 

@@ -24,7 +24,7 @@ from deltafmi.runtime.native_kernels import DESCRIPTION as NATIVE_KERNELS
 from ..files import replaced_atomically
 from deltafmi.toolchain import (BuildError, NoCompilerError, cache_dir, compiler_available, no_compiler_message,
                                 plain_c_library, python_extension)
-from .compiler import fmu_binary, native_source_files, python_runtime_config
+from .compiler import CFLAGS, fmu_binary, native_source_files, python_runtime_config
 from .codegen.component_kernels import component_library
 from .build_stamps import Stamp, file_request, recorded, remember, stamps_of
 from .bytecode import unchecked_hash_pyc
@@ -185,8 +185,9 @@ def content_key(source: Path, class_name: Optional[str] = None, fmi_version: int
                 resources: Sequence[Path | str] = ()) -> str:
     """Hash of everything that determines an FMU built from ``source``: the files it carries
     (so that editing a module the model does not reach leaves its cached FMU valid), the
-    ``resources`` by name and content, the FMI version, the native sources of its binary, the
-    code that writes its modelDescription.xml, this packager and the Python it was built for."""
+    ``resources`` by name and content, the FMI version, the native sources of its binary and how
+    they are compiled, the code that writes its modelDescription.xml, this packager and the Python
+    it was built for."""
     return _keyed(Path(source), class_name, fmi_version, resources)[0]
 
 
@@ -210,6 +211,7 @@ def _keyed(source: Path, class_name: Optional[str], fmi_version: int,
         digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
     for path in hashed:
         digest.update(path.read_bytes())
+    digest.update(" ".join(CFLAGS).encode())  # how the binary is compiled
     # an FMU built where its compiled kernels could not be (no compiler) is not the one built where they can
     digest.update(f"\0compiler={compiler_available()}".encode())
     # the environment, not the interpreter's name in it: bin/python and bin/python3.12 (the console

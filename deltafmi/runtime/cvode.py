@@ -66,8 +66,9 @@ class Cvode:
         # SUNDIALS' errors are kept for the exception, not printed (see :mod:`.sundials`)
         self.last_message = ""
         self.callback_error: Optional[BaseException] = None
-        #: False while a failure would be recovered from (the caller retries): errors are kept, not logged
-        self.log_errors = True
+        #: [0] nonzero while a failure would be recovered from (the caller retries): errors are kept,
+        #: not logged (an array: a step taken in C sets it too, see cs_native.py)
+        self.quiet = np.zeros(1, dtype=np.intc)
         self._ctx, self._err_handler = _sun.new_context(self._on_error)
         self._y = _sun.N_VNew_Serial(n, self._ctx)
         self.x = np.ctypeslib.as_array(_sun.N_VGetArrayPointer(self._y), (n,))
@@ -120,6 +121,15 @@ class Cvode:
         self._root_info = np.zeros(max(self.n_roots, 1), dtype=np.int32)
         self._views: dict[int, np.ndarray] = {}
         self.t = t0
+
+    @property
+    def log_errors(self) -> bool:
+        """Whether SUNDIALS' errors are logged (False while the caller would recover from a failure)."""
+        return not self.quiet[0]
+
+    @log_errors.setter
+    def log_errors(self, value: bool) -> None:
+        self.quiet[0] = 0 if value else 1
 
     def _on_error(self, _line: int, function: Optional[bytes], _file: Optional[bytes],
                   message: Optional[bytes], _code: int) -> None:
@@ -186,6 +196,11 @@ class Cvode:
                    "CVodeGetRootInfo")
             return True
         return False
+
+    def c_functions(self) -> tuple[int, int, int]:
+        """The addresses of ``CVode``, ``CVodeSetStopTime`` and ``CVodeReInit`` of the SUNDIALS this
+        solver runs on, for C code that steps it (the FMU's Co-Simulation step, cs_native.py)."""
+        return tuple(ctypes.cast(f, c_void_p).value for f in (_sun.CVode, _sun.CVodeSetStopTime, _sun.CVodeReInit))
 
     @property
     def roots(self) -> np.ndarray:

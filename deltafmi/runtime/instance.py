@@ -7,6 +7,7 @@ updates, Co-Simulation steps and FMU state. Methods return an FMI status code (0
 """
 from __future__ import annotations
 
+import ctypes
 import math
 import pickle
 import struct
@@ -18,7 +19,8 @@ import numpy as np
 from deltafmi.runtime import fmu_logging
 from .base import Component
 from .clocks import clock_driven
-from .native_kernels import NativeKernelsRuntime
+from .cs_native import CsShared, native_cs_wanted
+from .native_kernels import TRAILING_ROLES, NativeKernelsRuntime
 from .partials import DirectionalDerivatives
 
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
@@ -59,6 +61,40 @@ _CVODE: dict = {}
 class FmuInstance:
     """The model side of one ``fmi2Component``."""
 
+    # the Co-Simulation step's state lives in the struct the C step shares (cs_native.py)
+    time = property(lambda self: self._cs.time, lambda self, value: setattr(self._cs, "time", value),
+                    doc="The instance's time.")
+    start_time = property(lambda self: self._cs.start_time,
+                          lambda self, value: setattr(self._cs, "start_time", value),
+                          doc="Where the communication grid starts (fmi2SetupExperiment's start).")
+    _grid_step = property(lambda self: self._cs.grid_step, lambda self, value: setattr(self._cs, "grid_step", value))
+    _restart_solver = property(lambda self: bool(self._cs.restart_solver),
+                               lambda self, value: setattr(self._cs, "restart_solver", int(value)))
+    _jump_tolerance = property(lambda self: self._cs.jump_tolerance,
+                               lambda self, value: setattr(self._cs, "jump_tolerance", value))
+    _jump_kept = property(lambda self: bool(self._cs.jump_kept),
+                          lambda self, value: setattr(self._cs, "jump_kept", int(value)))
+
+    @property
+    def _next_time_event(self) -> Optional[float]:
+        nte = self._cs.next_time_event
+        return None if math.isnan(nte) else nte
+
+    @_next_time_event.setter
+    def _next_time_event(self, value: Optional[float]) -> None:
+        self._cs.next_time_event = math.nan if value is None else float(value)
+
+    @property
+    def _derivatives_after_step(self) -> Optional[list]:
+        """CS: the derivatives at the end of the last step, with the inputs CVODE integrated with."""
+        return self._cs.after_view.tolist() if self._cs.after_valid else None
+
+    @_derivatives_after_step.setter
+    def _derivatives_after_step(self, value: Optional[Sequence[float]]) -> None:
+        if value is not None:
+            self._cs.after_view[:] = value
+        self._cs.after_valid = int(value is not None)
+
     def __init__(self, component_class: type[Component], instance_name: str = "instance",
                  fmu_type: int = CO_SIMULATION, resources_dir: str = "",
                  module_context: Callable[[], ContextManager] = nullcontext) -> None:
@@ -87,6 +123,7 @@ class FmuInstance:
         if self._module.startswith(fmu_logging.MODEL_MODULE_PREFIX):
             self._hooks.adopt(self._module)
         self.event_indicators = np.zeros(max(self.nz, 1))
+        self._cs = CsShared()
         self._new_component()
         self.time = 0.0
         self.stop_time = math.inf
@@ -100,11 +137,9 @@ class FmuInstance:
         self._int_inputs = np.array([s.value_reference - layout.n_real for s in layout.scalars
                                      if s.causality == "input" and s.fmi_type not in ("Real", "String")],
                                     dtype=np.intp)
-        self._inputs_at_last_step: Optional[tuple] = None  # (reals, integers) as lists
+        self._cs.setup(self.nx, self._real_inputs, self._int_inputs)
         # the communication grid: where it starts, its step (see _communication_point)
         self.start_time, self._grid_step = 0.0, 0.0
-        # CS: the derivatives at the end of the last step, with the inputs CVODE integrated with
-        self._derivatives_after_step: Optional[list] = None
         self._jump_tolerance = _INPUT_JUMP_TOLERANCE
         self._jump_kept = False  # CVODE goes on over an input jump: restart if it fails there
         self.partials = DirectionalDerivatives(component_class)
@@ -117,6 +152,10 @@ class FmuInstance:
         if self.native is not None:
             self.native.attach(self.component._real, self.component._int, self.event_indicators)
             self.partials.native = self.native
+        # the C layer takes the steps (cs_step.c) where it has the kernels a step needs
+        self._cs.enabled = int(fmu_type == CO_SIMULATION and self.nx > 0 and not self._steps_itself
+                               and self.native is not None and self.native.has("derivatives")
+                               and native_cs_wanted())
 
     def _load_kernels(self) -> Optional[NativeKernelsRuntime]:
         try:
@@ -192,7 +231,7 @@ class FmuInstance:
     def native_layout(self) -> tuple:
         """Addresses and sizes of the buffers the native layer reads and writes directly.
 
-        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|KnKKpKKKKKKK``): real
+        Fields (bridge.c parses them in this order, format ``KnKnKnnnnKnKpppK|KnKKpKKKKKKKK``): real
         buffer, n_real, int buffer, n_int, flags (uint8 per real and int scalar), n_str, nx,
         x_offset, dx_offset, event indicators (double[nz]), nz, nominals (double[nx]), watches
         drift, steps itself, evaluates after a step, control (double[3]: terminated, time reached,
@@ -203,7 +242,8 @@ class FmuInstance:
         clock-driven (:func:`.clocks.clock_driven`); then the compiled kernels' addresses
         (derivatives, event indicators, outputs, step, update; 0 for none), their attributes' struct and
         its ready flag (int[1]), all 0 without compiled kernels
-        (:class:`.native_kernels.NativeKernelsRuntime`).
+        (:class:`.native_kernels.NativeKernelsRuntime`); then the step's shared state
+        (:class:`.cs_native.CsShared`) where the C layer takes the Co-Simulation steps, else 0.
         FMI 3.0 value references after the scalars: ``time`` = n_real + n_int + n_str, then the
         n_clocks Clocks, then one Float64 per event indicator (Layout.first_indicator_vr)."""
         comp, layout = self.component, self.component_class._layout
@@ -214,7 +254,8 @@ class FmuInstance:
                 bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data,
                 layout.sizes3.ctypes.data, layout.n_clocks, layout.clock_period_index.ctypes.data,
                 layout.clock_interval.ctypes.data, self._clock_driven,
-                *(self.native.layout() if self.native is not None else (0,) * 7))
+                *(self.native.layout() if self.native is not None else (0,) * (7 + len(TRAILING_ROLES))),
+                ctypes.addressof(self._cs) if self._cs.enabled else 0)
 
     # --- initialization ---------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float, tolerance: float) -> int:
@@ -367,9 +408,11 @@ class FmuInstance:
             if self._restart_for_inputs(t_end) or self._restart_solver:
                 # a zero-order-hold input jumped too far for CVODE's history (the right-hand side
                 # is discontinuous at t), or the importer handled an event here
-                self._solver.reinit(self.time, comp._real[: self.nx])
+                self._reinit(self.time, comp._real[: self.nx])
         elif self.nx:
             self._inputs_changed()  # a fresh solver: the next step compares with these inputs
+        if self._restart_solver:
+            self._cs.event_time = self.time  # the solver starts here after the importer's Event Mode
         self._restart_solver = False
         while self.time < t_end and not self.terminate_requested:
             nte = None if events != EVENTS_INSIDE and self._clock_driven else self._next_time_event
@@ -383,7 +426,13 @@ class FmuInstance:
                 self.time = t_stop
             time_event = nte is not None and self.time >= nte - _TINY * max(1.0, abs(nte))
             at_end = self.time >= t_end - _TINY * max(1.0, abs(t_end))
-            if (root or time_event) and (events == EVENTS_EARLY_RETURN or (events == EVENTS_AT_STEP_END and at_end)):
+            # a root within round-off of the event the solver restarted at is that event's own
+            # indicator crossing back (CVODE returns a root just past the crossing, where the
+            # indicator has its new sign; the event's update sends it back over zero): handled
+            # inside like any event, never reported to the importer a second time
+            echo = root and abs(self.time - self._cs.event_time) <= _TINY * max(1.0, abs(self.time))
+            if (time_event or (root and not echo)) and (
+                    events == EVENTS_EARLY_RETURN or (events == EVENTS_AT_STEP_END and at_end)):
                 self.control[1:] = self.time, 1.0  # fmi3DoStep: eventHandlingNeeded here
                 self.evaluate(self.time)
                 self._derivatives_after_step = None  # the event restarts the solver
@@ -424,6 +473,7 @@ class FmuInstance:
             self._solver = self._make_solver()
         solver, comp = self._solver, self.component
         root = self._advance_over_jump(t_stop) if self._jump_kept else solver.advance(t_stop)
+        self._cs.solver_t = solver.t
         comp._real[: self.nx] = solver.x
         self.time = solver.t if root else t_stop
         return root
@@ -433,24 +483,30 @@ class FmuInstance:
         # fail down to the minimum step there (the jump was larger for its steps than judged),
         # a restart from where this call began gets through, and a second failure is real
         solver = self._solver
-        t0, x0 = solver.t, solver.x.copy()
+        t0, x0 = self._cs.solver_t, solver.x.copy()
         self._jump_kept = False
         solver.log_errors = False  # recovered from below: no error for the importer's log
         try:
             return solver.advance(t_stop)
         except _CVODE["error"]:
             solver.log_errors = True
-            solver.reinit(t0, x0)
+            self._reinit(t0, x0)
             return solver.advance(t_stop)
         finally:
             solver.log_errors = True
 
     def _inputs_changed(self) -> bool:
-        comp = self.component  # lists: cheaper to compare than arrays, at a handful of inputs
-        current = comp._real.take(self._real_inputs).tolist(), comp._int.take(self._int_inputs).tolist()
-        changed = current != self._inputs_at_last_step
-        self._inputs_at_last_step = current
+        comp, cs = self.component, self._cs  # lists: cheaper to compare than arrays, at a handful of inputs
+        current = comp._real.take(self._real_inputs).tolist() + comp._int.take(self._int_inputs).tolist()
+        changed = not cs.inputs_valid or current != cs.inputs_view.tolist()
+        cs.inputs_view[:] = current  # as floats, as cs_step.c keeps them
+        cs.inputs_valid = 1
         return changed
+
+    def _reinit(self, t: float, x: np.ndarray) -> None:
+        """Restart the solver at ``(t, x)`` (its time kept where a step in C reads it)."""
+        self._solver.reinit(t, x)
+        self._cs.solver_t = t
 
     def _restart_for_inputs(self, t_end: float) -> bool:
         """Whether CVODE must restart because the held inputs changed since the last step.
@@ -525,8 +581,10 @@ class FmuInstance:
             self.log(OK, "logSolver", f"CVODE ({options.get('method', 'bdf')}) from t = {self.time}: "
                      f"{nx} states, {self.nz} event indicators, rtol = {rtol:g}, "
                      f"atol = {np.array2string(np.atleast_1d(atol), precision=3)}")
-        return Cvode(rhs, comp._real[:nx].copy(), self.time, roots=roots if self.nz else None,
-                     n_roots=self.nz, rtol=rtol, atol=atol, **options)
+        solver = Cvode(rhs, comp._real[:nx].copy(), self.time, roots=roots if self.nz else None,
+                       n_roots=self.nz, rtol=rtol, atol=atol, **options)
+        self._cs.attach_solver(solver)
+        return solver
 
     def _event_iteration(self) -> None:
         for _ in range(_MAX_EVENT_ITERATIONS):
@@ -535,11 +593,36 @@ class FmuInstance:
                 if self._solver is not None:
                     # unlike an ME importer, our own solver restarts after every event: the
                     # right-hand side may jump even when no state does
-                    self._solver.reinit(self.time, self.component._real[: self.nx])
+                    self._reinit(self.time, self.component._real[: self.nx])
                     self._restart_solver = False
+                    self._cs.event_time = self.time
                 return
         raise RuntimeError(f"event iteration at t = {self.time} did not converge in "
                            f"{_MAX_EVENT_ITERATIONS} iterations")
+
+    # --- what the C step (native/cs_step.c) asks of Python --------------------------------------
+    def cs_prepare(self) -> int:
+        """A step in C needs a solver: made here, as the Python step makes it (:meth:`_integrate_to`)."""
+        self._solver = self._make_solver()
+        self._solver.callback_error = None
+        return OK
+
+    def cs_event(self) -> int:
+        """A step in C reached a state or time event at :attr:`time`: the event iteration."""
+        self._event_iteration()
+        return OK
+
+    def cs_failed(self, flag: float, t: float, retry: float) -> int:
+        """CVODE failed in a step in C (``flag`` < 0, at ``t``): raises what the Python step
+        raises; with ``retry`` (the first advance over a kept input jump), OK unless a callback
+        raised: the C step then restarts the solver and tries once more."""
+        solver = self._solver
+        error, solver.callback_error = solver.callback_error, None
+        if error is not None:
+            raise error
+        if retry:
+            return OK
+        raise _CVODE["error"](f"CVODE failed with flag {int(flag)} at t = {t:.9g}: {solver.last_message}")
 
     # --- strings ----------------------------------------------------------------------------
     def get_string(self, index: int) -> str:
@@ -621,6 +704,7 @@ class FmuInstance:
             self._hooks.want_debug(self._module, id(self), None)
 
     def _drop_solver(self) -> None:
+        self._cs.detach_solver()
         if self._solver is not None:
             self._solver.free()
             self._solver = None

@@ -18,7 +18,7 @@
 
 static const char *const OP_NAMES[DFMI_N_OPS] = {
     "enter_initialization", "exit_initialization", "evaluate", "do_step", "terminate", "reset",
-    "evaluate_derivatives", "evaluate_outputs", "activate_model_partition"};
+    "evaluate_derivatives", "evaluate_outputs", "activate_model_partition", "cs_prepare", "cs_event", "cs_failed"};
 
 typedef struct {
     PyObject *instance;
@@ -419,16 +419,16 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
     unsigned long long clock_index = 0, clock_interval = 0;
     unsigned long long kernel_derivatives = 0, kernel_indicators = 0, kernel_outputs = 0, kernel_step = 0;
     unsigned long long kernel_update = 0, kernel_attributes = 0;
-    unsigned long long kernels_ready = 0, kernel_drift = 0;
+    unsigned long long kernels_ready = 0, kernel_drift = 0, cs = 0;
     Py_ssize_t n_real, n_int, n_str, nx, x_offset, dx_offset, nz, n_clocks = 0;
     int watches_drift;
     /* the FMI 3.0 fields trail: a runtime without them still serves an FMI 2.0 binary */
-    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK|KnKKpKKKKKKKK", &real, &n_real, &ints, &n_int, &flags,
+    if (!spec || !py.PyArg_ParseTuple(spec, "KnKnKnnnnKnKpppK|KnKKpKKKKKKKKK", &real, &n_real, &ints, &n_int, &flags,
                                    &n_str, &nx, &x_offset, &dx_offset, &indicators, &nz, &nominals, &watches_drift,
                                    &b->steps_itself, &b->evaluates_after_step, &control, &sizes3, &n_clocks,
                                    &clock_index, &clock_interval, &b->clock_driven, &kernel_derivatives,
                                    &kernel_indicators, &kernel_outputs, &kernel_step, &kernel_update,
-                                   &kernel_attributes, &kernels_ready, &kernel_drift))
+                                   &kernel_attributes, &kernels_ready, &kernel_drift, &cs))
         goto python_error;
     *layout = (DfmiLayout){(double *)(uintptr_t)real, (size_t)n_real, (int *)(uintptr_t)ints, (size_t)n_int,
                            (const unsigned char *)(uintptr_t)flags, (size_t)n_str, (size_t)nx,
@@ -440,7 +440,8 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
                            (DfmiKernelFn)(uintptr_t)kernel_outputs,
                            (DfmiStepFn)(uintptr_t)kernel_step, (DfmiUpdateFn)(uintptr_t)kernel_update,
                            (void *)(uintptr_t)kernel_attributes,
-                           (const int *)(uintptr_t)kernels_ready, (DfmiKernelFn)(uintptr_t)kernel_drift};
+                           (const int *)(uintptr_t)kernels_ready, (DfmiKernelFn)(uintptr_t)kernel_drift,
+                           (DfmiCs *)(uintptr_t)cs};
     for (int i = 0; i < DFMI_N_OPS; i++)
         if (!(b->ops[i] = py.PyObject_GetAttrString(b->instance, OP_NAMES[i]))) goto python_error;
     if (!(b->event_update = py.PyObject_GetAttrString(b->instance, "event_update")) ||

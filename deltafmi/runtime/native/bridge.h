@@ -14,6 +14,32 @@ typedef int (*DfmiKernelFn)(const void *attributes, double time, double *real, i
 typedef int (*DfmiStepFn)(void *attributes, double time, double h, double *real, int *ints);
 typedef int (*DfmiUpdateFn)(void *attributes, double time, double *real, int *ints, double *next_event_time);
 
+/* A Co-Simulation step taken in C (cs_step.c): what a step reads and writes between steps, and
+ * the solver, shared field for field with the Python instance (deltafmi/runtime/cs_native.py
+ * CsShared), which takes the steps the C layer leaves to it. */
+typedef struct {
+    void *mem;         /* CVODE's memory (NULL: no solver yet; Python makes it, DFMI_CS_PREPARE) */
+    void *y;           /* CVODE's state vector (N_Vector) ... */
+    double *x;         /* ... and its data (nx) */
+    int (*cvode)(void *mem, double tout, void *y, double *tret, int itask);
+    int (*set_stop_time)(void *mem, double tstop);
+    int (*reinit)(void *mem, double t0, void *y0);
+    int *quiet;        /* [0] nonzero: the solver's errors are kept, not logged (a retry follows) */
+    const double *atol; /* nx */
+    double rtol, jump_tolerance;
+    double solver_t;   /* the time CVODE returned last (or restarted at) */
+    double time;       /* the instance's time */
+    double start_time, grid_step; /* the communication grid */
+    double next_time_event;       /* NaN: none */
+    double event_time;            /* where the solver last restarted at an event (NaN: none) */
+    int restart_solver, jump_kept, after_valid, inputs_valid;
+    double *after;     /* nx: the derivatives at the end of the last step (valid: after_valid) */
+    double *inputs;    /* n_real_inputs + n_int_inputs: the inputs the last step saw (inputs_valid) */
+    const int64_t *real_inputs, *int_inputs; /* their indices in the real and int buffers */
+    int64_t n_real_inputs, n_int_inputs;
+    int enabled;
+} DfmiCs;
+
 /* Buffers owned by the Python instance and read/written in place by the loader. */
 typedef struct {
     double *real;                 size_t n_real;
@@ -52,6 +78,7 @@ typedef struct {
     /* The drift check of fmi2CompletedIntegratorStep compiled (NULL: none): writes nonzero to
      * its last argument when the states drifted (a step event), as needs_projection() says. */
     DfmiKernelFn kernel_drift;
+    DfmiCs *cs; /* NULL: the Python instance takes every Co-Simulation step */
 } DfmiLayout;
 
 typedef enum {
@@ -66,6 +93,9 @@ typedef enum {
     DFMI_EVALUATE_DERIVATIVES,     /* args: time; derivatives and event indicators only */
     DFMI_EVALUATE_OUTPUTS,         /* args: time; outputs only (everything in initialization) */
     DFMI_ACTIVATE_MODEL_PARTITION, /* args: Clock index (0-based), activation time (Scheduled Execution) */
+    DFMI_CS_PREPARE,               /* a step in C needs the solver: none */
+    DFMI_CS_EVENT,                 /* a step in C reached an event at the time in DfmiCs: none */
+    DFMI_CS_FAILED,                /* CVODE failed in a step in C: flag, time, retry allowed */
     DFMI_N_OPS
 } DfmiOp;
 

@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "core.h"
+#include "cs_step.h"
 #include "process_lock.h"
 #include "python_start.h"
 
@@ -617,6 +618,7 @@ int dfmi_do_step(Instance *c, const char *function, double t, double h, DfmiStep
         bridge_time_moved(c->py, t + h); /* the compiled step took it: no Python */
         return DFMI_OK;
     }
+    if (dfmi_cs_takes_step(c)) return dfmi_settle(c, dfmi_cs_step(c, t, h, events)); /* CVODE from C */
     double args[3] = {t, h, (double)events};
     return bridge_call(c->py, DFMI_DO_STEP, args, events == DFMI_EVENTS_INSIDE ? 2 : 3);
 }
