@@ -117,6 +117,7 @@ def group_of(nodeid: str) -> str | None:
     return "serial" if module in SERIAL else module if module in OWN_GROUP else None
 
 
+@pytest.hookimpl(optionalhook=True)  # a hook of xdist's: none without it (-p no:xdist)
 def pytest_xdist_make_scheduler(config, log):
     """``--dist loadgroup`` with the groups taken from the tables above by the scheduler itself: xdist
     3.8 finds a test's group in the ``@group`` its workers append to the node id, which pytest 9
