@@ -21,7 +21,15 @@ def interrupt_when(command: Sequence[str], ready: Callable[[], bool], signum: in
     """
     popen.setdefault("stdout", subprocess.PIPE)
     popen.setdefault("stderr", subprocess.PIPE)
-    process = subprocess.Popen(list(command), text=True, **popen)
+    given = popen.pop("preexec_fn", None)
+
+    def start() -> None:  # the signal's default handling, whatever was inherited (nohup ignores SIGHUP)
+        if signum != signal.SIGKILL:
+            signal.signal(signum, signal.SIG_DFL)
+        if given is not None:
+            given()
+
+    process = subprocess.Popen(list(command), text=True, preexec_fn=start, **popen)
     try:
         deadline = time.monotonic() + timeout
         while not ready():
