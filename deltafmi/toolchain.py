@@ -7,6 +7,10 @@ per-user cache ``$DELTAFMI_CACHE`` (default ``~/.cache/deltafmi``), then ``delta
 which an installed wheel carries (``deltafmi.builder.prebuild`` fills it at wheel build time). Only
 when both miss is it compiled, and only then is a C compiler needed. The keys name no compiler
 and no machine path, so that what the wheel's build machine compiled is found on the user's.
+
+``$DELTAFMI_CACHE_SEED`` may name another cache of this machine (read only): a piece found there
+under its key is copied instead of compiled again (the wheel test builds its wheel's prebuilt layer
+from the pieces its own session has compiled).
 """
 from __future__ import annotations
 
@@ -141,10 +145,15 @@ def single_file_library(source: Path, name: str, includes: Sequence[Callable[[],
 
 def build_into(target: Path, build: Callable[[str], object]) -> None:
     """Run ``build(directory)`` in a fresh directory and move it to ``target`` atomically (a
-    concurrent build of the same target may win; its result is then used)."""
+    concurrent build of the same target may win; its result is then used). A ``target`` in the
+    cache that the seed cache (``$DELTAFMI_CACHE_SEED``) holds is copied from there instead."""
     target.parent.mkdir(parents=True, exist_ok=True)
+    seeded = _seeded(target)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-        build(tmp)
+        if seeded is not None:
+            shutil.copytree(seeded, tmp, dirs_exist_ok=True)
+        else:
+            build(tmp)
         try:
             os.rename(tmp, target)  # atomic: parallel builds race harmlessly
         except OSError:
@@ -152,6 +161,20 @@ def build_into(target: Path, build: Callable[[str], object]) -> None:
                 raise
         else:
             os.makedirs(tmp)  # let TemporaryDirectory clean up the (now empty) name
+
+
+def _seeded(target: Path) -> Optional[Path]:
+    """``target``'s folder in the seed cache ``$DELTAFMI_CACHE_SEED`` (same key, same relative
+    path), or None: no seed, ``target`` outside the cache, or not in the seed."""
+    seed = os.environ.get("DELTAFMI_CACHE_SEED")
+    if not seed:
+        return None
+    try:
+        relative = target.resolve().relative_to(cache_dir().resolve())
+    except ValueError:
+        return None
+    found = Path(seed) / relative
+    return found if found.is_dir() and any(found.iterdir()) else None
 
 
 def strip_unneeded(library: Path) -> None:

@@ -76,8 +76,13 @@ SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_joysti
           "test_study_dashboard", "test_study_rough_edges", "test_peg_robustness", "test_troubleshooting_docs",
           "test_examples", "test_rough_edges", "test_study_metrics", "test_reliability_results",
           "test_reliability_sweep", "test_reliability_limits", "test_parallel_units", "test_reliability_signals_tools"}
+#: modules whose tests share an expensive fixture of their own (a wheel, fresh virtual environments): each
+#: runs on one worker (an xdist_group of its own), so that the fixture is made once, and early (xdist hands
+#: out the groups with the most tests first, then the ungrouped tests one by one)
+OWN_GROUP = {"test_wheel_install", "test_python_hosts", "test_export_fmu"}
 #: modules that start other processes (a C host, another Python, a CLI, a Dask process)
-SUBPROCESS = {"test_reliability_signals_tools", "test_component_docs", "test_live_scope", "test_rough_edges", "test_study_cluster", "test_study_dask",
+SUBPROCESS = {"test_reliability_signals_tools", "test_component_docs", "test_live_scope", "test_rough_edges",
+              "test_study_cluster", "test_study_dask",
               "test_study_rough_edges", "test_study_tls", "test_troubleshooting_docs", "test_compiler_messages",
               "test_fmi3_clocks", "test_fmu_contents", "test_fmu_requirements", "test_native_kernels",
               "test_native_projection", "test_portable_fmus", "test_python_hosts", "test_wheel_install",
@@ -91,13 +96,48 @@ SUBPROCESS = {"test_reliability_signals_tools", "test_component_docs", "test_liv
 #: what a module that builds FMUs (or runs scenarios, which build theirs) says somewhere
 _BUILDS = re.compile(r"build_fmu|build_cached|_fmu\b|_fmu\(|simulate|resolve_system|\[\"(run|build|sweep|linearize)\"")
 #: modules with a test over 10 s on this kind of machine (2 cores; `--durations=25` shows them)
-SLOW = {"test_reliability_signals_tools", "test_wheel_install", "test_python_hosts", "test_peg_robustness", "test_study_dask", "test_study_cluster",
+SLOW = {"test_reliability_signals_tools", "test_wheel_install", "test_python_hosts", "test_peg_robustness",
+        "test_study_dask", "test_study_cluster",
         "test_study_tls", "test_assembly_portable", "test_portable_fmus", "test_memory", "test_insertion_mpc",
         "test_third_party_masters", "test_fmu_threads", "test_symbol_isolation", "test_joystick_tracking",
         "test_component_docs", "test_mpc_controller", "test_peg_estimator", "test_fmu_without_fmpy_scipy",
         "test_export_fmu", "test_assembly_hold"}
 
 
+def pytest_configure(config) -> None:
+    """Where ``PYTHONDONTWRITEBYTECODE`` is set, no process writes the bytecode of what it imports, and
+    each of the suite's processes (workers, CLIs, Dask workers, FMU hosts) would compile the package
+    from source again: the controller compiles it once, before the workers start."""
+    if sys.dont_write_bytecode and not hasattr(config, "workerinput"):
+        import compileall
+
+        for folder in (ROOT / "deltafmi", FMU_SRC):
+            compileall.compile_dir(folder, quiet=1)
+
+
+def group_of(nodeid: str) -> str | None:
+    """The xdist group of the test ``nodeid`` ("serial", a module of :data:`OWN_GROUP`), or None."""
+    module = Path(nodeid.split("::")[0]).stem
+    return "serial" if module in SERIAL else module if module in OWN_GROUP else None
+
+
+@pytest.hookimpl(optionalhook=True)  # a hook of xdist's: none without it (-p no:xdist)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadgroup`` with the groups taken from the tables above by the scheduler itself: xdist
+    3.8 finds a test's group in the ``@group`` its workers append to the node id, which pytest 9
+    ignores (``Item.nodeid`` no longer reads ``_nodeid``), so that every test would go its own way."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    class SuiteScheduling(LoadGroupScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return group_of(nodeid) or super()._split_scope(nodeid)
+
+    return SuiteScheduling(config, log)
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's, which reads the xdist_group marks given here
 def pytest_collection_modifyitems(config, items) -> None:
     builds: dict[Path, bool] = {}
     for item in items:
@@ -107,6 +147,8 @@ def pytest_collection_modifyitems(config, items) -> None:
             builds[path] = path.suffix == ".py" and bool(_BUILDS.search(path.read_text()))
         if module in SERIAL:
             item.add_marker(pytest.mark.xdist_group("serial"))
+        elif module in OWN_GROUP:
+            item.add_marker(pytest.mark.xdist_group(module))
         if module in SUBPROCESS:
             item.add_marker(pytest.mark.subprocess)
         if module in SLOW:

@@ -19,7 +19,7 @@ def start_process(command: list, folder: Path, env: Optional[dict] = None) -> su
                             stderr=subprocess.STDOUT, start_new_session=True)
 
 
-def scheduler_address(info: Path, log: Path, timeout: float = 60.0) -> str:
+def scheduler_address(info: Path, log: Path, timeout: float = 600.0) -> str:
     """The address the scheduler writes to its ``--scheduler-file`` once it listens (the file may
     be partial while it is written)."""
     deadline = time.monotonic() + timeout

@@ -13,7 +13,7 @@ DELTAFMI = (sys.executable, "-c", "from deltafmi.apps.cli import main; main()")
 
 
 def interrupt_when(command: Sequence[str], ready: Callable[[], bool], signum: int = signal.SIGINT,
-                   timeout: float = 120.0, **popen) -> tuple[int, str, str]:
+                   timeout: float = 600.0, **popen) -> tuple[int, str, str]:
     """Start ``command``, send it ``signum`` once ``ready()`` holds, and wait for it to end.
 
     Fails the test if the command ends before it is ready or ``ready`` takes longer than
@@ -21,14 +21,22 @@ def interrupt_when(command: Sequence[str], ready: Callable[[], bool], signum: in
     """
     popen.setdefault("stdout", subprocess.PIPE)
     popen.setdefault("stderr", subprocess.PIPE)
-    process = subprocess.Popen(list(command), text=True, **popen)
+    given = popen.pop("preexec_fn", None)
+
+    def start() -> None:  # the signal's default handling, whatever was inherited (nohup ignores SIGHUP)
+        if signum != signal.SIGKILL:
+            signal.signal(signum, signal.SIG_DFL)
+        if given is not None:
+            given()
+
+    process = subprocess.Popen(list(command), text=True, preexec_fn=start, **popen)
     try:
         deadline = time.monotonic() + timeout
         while not ready():
             assert process.poll() is None and time.monotonic() < deadline, process.communicate()
             time.sleep(0.05)
         process.send_signal(signum)
-        stdout, stderr = process.communicate(timeout=60)
+        stdout, stderr = process.communicate(timeout=600)  # a hang guard: a loaded machine is slow
     finally:
         if process.poll() is None:
             process.kill()

@@ -7,7 +7,9 @@ value access, the packaged models' compiled kernels (C generated from their Pyth
 pieces of the master and the CSV writer, and the starter of portable FMUs: native C only. An
 installed wheel finds them there, so that its user needs no C compiler or Python headers to build and run the packaged models, nor their edited copies (their FMUs carry
 the same binary and kernels). Anything that cannot be built is an error: a wheel without a piece
-would compile it on the user's machine, the thing the layer is there to avoid.
+would compile it on the user's machine, the thing the layer is there to avoid. Pieces that the
+cache named by ``$DELTAFMI_CACHE_SEED`` holds are copied from it rather than compiled again (see
+:mod:`deltafmi.toolchain`).
 """
 from __future__ import annotations
 
@@ -30,12 +32,21 @@ def prebuild(target: Path) -> list[Path]:
     target.mkdir(parents=True)
     os.environ["DELTAFMI_CACHE"] = str(target)  # the functions below build into "the cache"
     from deltafmi import toolchain
+
+    if toolchain.PREBUILT_DIR.exists():  # an installed wheel's layer would be found, not rebuilt
+        raise SystemExit(f"prebuild: run it from a source tree ({toolchain.PREBUILT_DIR} exists)")
+    build_pieces()
+    return sorted(path for path in target.rglob("*") if path.is_file())
+
+
+def build_pieces() -> None:
+    """Build every piece of the prebuilt layer into the build cache (``$DELTAFMI_CACHE``), where
+    those already there are found rather than built again."""
+    from deltafmi import toolchain
     from . import compiler
     from .packager import PLAIN_C_SOURCES, VALUE_ACCESS_SOURCE
     from .portable import starter_library
 
-    if toolchain.PREBUILT_DIR.exists():  # an installed wheel's layer would be found, not rebuilt
-        raise SystemExit(f"prebuild: run it from a source tree ({toolchain.PREBUILT_DIR} exists)")
     package = Path(compiler.__file__).resolve().parent.parent
     for fmi_version in compiler.VERSION_FILES:
         compiler.fmu_binary(fmi_version)
@@ -51,7 +62,6 @@ def prebuild(target: Path) -> list[Path]:
             continue
         if component_library(getattr(models, name)) is None:
             raise SystemExit(f"prebuild: {name}'s kernels were not compiled")
-    return sorted(path for path in target.rglob("*") if path.is_file())
 
 
 def _this_trees_models():

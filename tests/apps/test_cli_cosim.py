@@ -158,7 +158,7 @@ def test_interrupted_run_keeps_its_rows_and_says_where(build_fmu_from_src, tmp_p
     out = tmp_path / "long.csv"
     returncode, stdout, stderr = interrupt_when(
         [*DELTAFMI, "run", str(path), "-o", str(out)],
-        lambda: rows_in(out) > 2, signum, timeout=60)  # header and two rows
+        lambda: rows_in(out) > 2, signum)  # header and two rows
     assert returncode == code, stderr
     assert "Traceback" not in stderr and stdout == ""
     last = stderr.strip().splitlines()[-1]

@@ -27,7 +27,7 @@ def _build_wheel(tmp_path: Path, *args: str, python: str = sys.executable) -> su
     if git and not (bare / "git").exists():
         (bare / "git").symlink_to(git)
     return subprocess.run([python, str(ROOT / "tools" / "build_wheel.py"), "-o", str(tmp_path / "dist"), *args],
-                          capture_output=True, text=True, env={**os.environ, "PATH": str(bare)}, timeout=120)
+                          capture_output=True, text=True, env={**os.environ, "PATH": str(bare)}, timeout=600)
 
 
 def test_the_wheel_build_names_a_missing_python_before_it_builds(tmp_path):

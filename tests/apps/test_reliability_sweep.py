@@ -57,7 +57,7 @@ def _no_sigint() -> None:
 def test_a_stopped_sweep_keeps_the_same_cases_in_its_table_and_its_journal(study, tmp_path, signum, background):
     journal = tmp_path / "osc_study.journal.jsonl"
     code, output, _ = interrupt_when([str(DELTAFMI), "sweep", str(study), "--workers", "1"],
-                                     lambda: len(_journal(journal)) >= 2, signum, timeout=180, cwd=tmp_path,
+                                     lambda: len(_journal(journal)) >= 2, signum, cwd=tmp_path,
                                      stderr=subprocess.STDOUT, preexec_fn=_no_sigint if background else None)
     assert code == 128 + signum, output
     assert "Traceback" not in output

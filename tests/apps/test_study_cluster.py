@@ -54,8 +54,8 @@ def cluster(tmp_path_factory):
                                     root / name, {**os.environ, "DELTAFMI_CACHE": str(cache)}))
         from distributed import Client
 
-        with Client(address, timeout="30s") as client:
-            client.wait_for_workers(2, timeout=60)
+        with Client(address, timeout="600s") as client:
+            client.wait_for_workers(2, timeout=600)
         yield address, caches
     finally:
         for process in processes:

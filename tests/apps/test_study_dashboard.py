@@ -54,7 +54,7 @@ def free_port() -> int:
 def health(host: str, port: int) -> str:
     """The body of Dask's /health page at host:port ("ok"), or the connection error's name."""
     try:
-        with urllib.request.urlopen(f"http://{host}:{port}/health", timeout=5) as response:
+        with urllib.request.urlopen(f"http://{host}:{port}/health", timeout=600) as response:
             return response.read().decode()
     except urllib.error.URLError as exc:
         return type(exc.reason).__name__

@@ -162,7 +162,7 @@ def _workers(address: str, wait_for: int = 0):
 
     with Client(address) as client:
         if wait_for:
-            client.wait_for_workers(wait_for, timeout=60)
+            client.wait_for_workers(wait_for, timeout=600)
         return list(client.scheduler_info(n_workers=-1)["workers"])
 
 
@@ -232,7 +232,7 @@ def test_interrupted_sweep_resumes_without_redoing_cases(cluster, tmp_path):
     assert list(temporary.rglob("deltafmi-pool*")) == []  # the workers' FMU folders went with them
     # the same command again (the same interpreter builds the same FMUs), on the test's cluster
     again = subprocess.run([str(deltafmi), "sweep", str(study), "--scheduler", cluster], cwd=tmp_path,
-                           capture_output=True, text=True, timeout=120)
+                           capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stdout + again.stderr
     assert f"12/12 cases done, 12 ok, 0 failed ({len(first)} from an earlier run); ran {12 - len(first)}" \
         in again.stdout

@@ -73,8 +73,8 @@ def tls_cluster(tmp_path_factory):
 
         security = Security(tls_ca_file=str(certs / "ca.pem"), tls_client_cert=str(certs / "client.pem"),
                             tls_client_key=str(certs / "client.key"), require_encryption=True)
-        with Client(address, security=security, timeout="30s") as client:
-            client.wait_for_workers(1, timeout=60)
+        with Client(address, security=security, timeout="600s") as client:
+            client.wait_for_workers(1, timeout=600)
         yield address, certs
     finally:
         for process in processes:

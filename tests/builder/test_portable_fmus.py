@@ -115,7 +115,7 @@ def start_failure(host: Path, directory: Path, **env: str) -> str:
     md = fmpy.read_model_description(str(directory))
     identifier = md.coSimulation.modelIdentifier
     out = subprocess.run([str(host), str(directory), identifier, md.guid, "cs", "0.1", "0.01", "0"],
-                         capture_output=True, text=True, env=clean_env(**env), timeout=120)
+                         capture_output=True, text=True, env=clean_env(**env), timeout=600)
     assert out.returncode == 4, f"host exited with {out.returncode}:\n{out.stdout[-2000:]}\n{out.stderr[-3000:]}"
     assert out.stdout == ""
     lines = out.stderr.splitlines()

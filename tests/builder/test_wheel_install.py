@@ -2,8 +2,9 @@
 environment outside the checkout, run from an empty folder by a user without a C compiler.
 
 ``tools/build_wheel.py`` builds the wheel (git's files only, setup.py's prebuilt layer, auditwheel's
-manylinux tag); pip installs it and its dependencies into a new venv (from the registry or pip's
-cache). The commands then run with ``PATH`` holding only that venv's ``bin`` (no ``cc``, ``gcc``
+manylinux tag; the layer's pieces are compiled into this session's build cache first, and the
+wheel's build copies them from there: ``$DELTAFMI_CACHE_SEED``); pip installs it and its
+dependencies into a new venv (from the registry or pip's cache). The commands then run with ``PATH`` holding only that venv's ``bin`` (no ``cc``, ``gcc``
 or ``$CC``: deltafmi looks the compiler up on ``PATH``, as setuptools does) and ``HOME``
 a fresh folder (so the per-user cache is ``$HOME/.cache/deltafmi``, empty). Marked ``wheel``
 (``-m "not wheel"`` leaves it out); about 2 minutes, most of it pip, which needs the registry or
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import re
 import shutil
 import subprocess
@@ -31,9 +33,15 @@ G = 9.81
 
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> Path:
+    from deltafmi.builder.prebuild import build_pieces
+    from deltafmi.toolchain import cache_dir
+
+    # the prebuilt layer's pieces into this session's build cache (other tests use them too), from
+    # which the wheel's build copies them rather than compiling them a second time
+    build_pieces()
     out = tmp_path_factory.mktemp("dist")
     result = subprocess.run([sys.executable, str(ROOT / "tools" / "build_wheel.py"), "-o", str(out)],
-                            capture_output=True, text=True)
+                            capture_output=True, text=True, env={**os.environ, "DELTAFMI_CACHE_SEED": str(cache_dir())})
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     return Path(result.stdout.strip().splitlines()[-1])
 
@@ -43,9 +51,11 @@ def user(wheel, tmp_path_factory):
     """(run, venv): ``run(*args, cwd=...)`` runs ``deltafmi args`` as the wheel's user."""
     base = tmp_path_factory.mktemp("user")
     venv = base / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-    install = subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", str(wheel)],
-                             capture_output=True, text=True)
+    # a venv without pip, into which this environment's pip installs (pip >= 22.3: --python), with
+    # no bytecode compiled ahead: Python compiles what the commands import
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
+    install = subprocess.run([sys.executable, "-m", "pip", "--python", str(venv / "bin" / "python"), "install", "-q",
+                              "--no-compile", str(wheel)], capture_output=True, text=True)
     assert install.returncode == 0, install.stderr[-3000:]
     home = base / "home"
     home.mkdir()

@@ -103,15 +103,16 @@ def test_sigterm_stops_a_paced_run_between_points_with_its_rows(tmp_path):
 
 def test_a_stop_signal_ends_a_long_wait_at_once(tmp_path):
     """At 1e-5x a point is due every 100 s: SIGTERM during that wait ends the run then, not at
-    the deadline (the bound is a thousand times what it takes, yet 3 % of one wait). The run
-    streams its first row once the clock starts: the signal comes in the wait."""
+    the deadline (the bound, half of one wait, holds on a machine slowed down a hundredfold,
+    and fails a run that waits the point out). The run streams its first row once the clock
+    starts: the signal comes in the wait."""
     import socket
 
     from deltafmi.shipped import SCENARIOS_DIR
 
     listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     listener.bind(("127.0.0.1", 0))
-    listener.settimeout(120)
+    listener.settimeout(600)
     scenario = tmp_path / "slow.yaml"
     scenario.write_text((SCENARIOS_DIR / "delta_tracking.yaml").read_text()
                         + f"streams:\n  - {{udp: '127.0.0.1:{listener.getsockname()[1]}', signals: [plant.residual]}}\n")
@@ -123,14 +124,14 @@ def test_a_stop_signal_ends_a_long_wait_at_once(tmp_path):
         time.sleep(0.2)
         sent = time.monotonic()
         process.send_signal(signal.SIGTERM)
-        _, stderr = process.communicate(timeout=60)
+        _, stderr = process.communicate(timeout=600)
         took = time.monotonic() - sent
     finally:
         listener.close()
         if process.poll() is None:
             process.kill()
     assert process.returncode == 143, stderr
-    assert took < 3.0, took
+    assert took < 50.0, took
     assert "warning: live run up to t = 0.001 s: real time at 1e-05x" in stderr, stderr
 
 

@@ -16,15 +16,6 @@ from deltafmi.master.stepping.master import Master
 SCENARIOS = Path(__file__).parents[2] / "scenarios"
 
 
-@pytest.fixture(scope="module", autouse=True)
-def build_cache(tmp_path_factory):
-    """Scenario sources are built on demand into a cache of this test session."""
-    patch = pytest.MonkeyPatch()
-    patch.setenv("DELTAFMI_CACHE", str(tmp_path_factory.mktemp("cache")))
-    yield
-    patch.undo()
-
-
 def system(name: str):
     return resolve_system(load_scenario(SCENARIOS / f"{name}.yaml"), check_fmus=True)
 

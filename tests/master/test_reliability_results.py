@@ -106,7 +106,7 @@ def test_every_catchable_signal_leaves_a_readable_parquet_in_place(scenarios, tm
     out = tmp_path / "r.parquet"
     out.write_bytes(b"an earlier result")
     code, stdout, stderr = interrupt_when([*DELTAFMI, "run", str(scenarios["long"]), "-o", str(out)],
-                                          lambda: bytes_in(out) > 4, signum, timeout=60)
+                                          lambda: bytes_in(out) > 4, signum)
     assert code == 128 + signum, stderr
     assert "Traceback" not in stderr
     assert stderr.strip().splitlines()[-1].startswith("interrupted at t = ")
@@ -121,7 +121,7 @@ def test_sighup_is_left_alone_under_nohup(scenarios, tmp_path):
     process = subprocess.Popen(["nohup", *DELTAFMI, "run", str(scenarios["long"]), "-o", str(out)],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 600
         while bytes_in(out) < 100:
             assert process.poll() is None and time.monotonic() < deadline
             time.sleep(0.05)
@@ -129,7 +129,7 @@ def test_sighup_is_left_alone_under_nohup(scenarios, tmp_path):
         time.sleep(1.0)
         assert process.poll() is None  # still running
         process.send_signal(signal.SIGTERM)
-        _, stderr = process.communicate(timeout=60)
+        _, stderr = process.communicate(timeout=600)
     finally:
         if process.poll() is None:
             process.kill()
@@ -141,7 +141,7 @@ def test_a_killed_run_leaves_the_earlier_result_intact(scenarios, tmp_path):
     out = tmp_path / "r.csv"
     out.write_text("time,osc.x\n0,1\n")
     code, _, _ = interrupt_when([*DELTAFMI, "run", str(scenarios["long"]), "-o", str(out)],
-                                lambda: bytes_in(out) > 1000, signal.SIGKILL, timeout=60)
+                                lambda: bytes_in(out) > 1000, signal.SIGKILL)
     assert code == -signal.SIGKILL
     assert out.read_text() == "time,osc.x\n0,1\n"
     left = growing(out)  # the killed run's rows, hidden beside it

@@ -71,7 +71,7 @@ class Opened:
 
     def host(self, exe: Path, mode: str, stop: float, step: float, *variables: str, **env) -> list[list[str]]:
         run = subprocess.run([str(exe), str(self.dir), self.identifier, self.md.guid, mode, str(stop), str(step),
-                              *variables], capture_output=True, text=True, timeout=120,
+                              *variables], capture_output=True, text=True, timeout=600,
                              env={"PATH": "/usr/bin:/bin", **env})
         assert run.returncode == 0, run.stderr
         return [line.split(",") for line in run.stdout.split()]

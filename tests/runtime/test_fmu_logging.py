@@ -59,7 +59,7 @@ def host_run(c_host: Path, unzipped: tuple[Path, str], mode: str = "cs", step: f
     messages (status, category, text), checking that stderr holds nothing else."""
     directory, guid = unzipped
     run = subprocess.run([str(c_host), str(directory), "Chatty", guid, mode, "1.0", str(step), "4"],
-                         capture_output=True, text=True, env=clean_env(HOST_NX="1", **env), timeout=60)
+                         capture_output=True, text=True, env=clean_env(HOST_NX="1", **env), timeout=600)
     assert run.returncode == 0, run.stderr
     messages = []
     for line in run.stderr.splitlines():
@@ -215,7 +215,7 @@ def test_fmpy_host_two_threads_each_instance_gets_its_own_messages(unzipped, tmp
     directory, _ = unzipped
     script = tmp_path / "fmpy_host.py"
     script.write_text(FMPY_HOST)
-    run = subprocess.run([sys.executable, str(script), str(directory)], capture_output=True, text=True, timeout=120)
+    run = subprocess.run([sys.executable, str(script), str(directory)], capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr
     assert run.stderr == ""  # the FMUs printed nothing
     out = json.loads(run.stdout)  # and stdout is the script's one line
@@ -322,7 +322,7 @@ def test_a_component_that_steps_itself_ends_at_the_end_of_its_step(c_host, tmp_p
     directory = unzip(fmu, tmp_path / "stopper")
     guid = ET.parse(directory / "modelDescription.xml").getroot().get("guid")
     run = subprocess.run([str(c_host), str(directory), "Stopper", guid, "cs", "1.0", "0.1"], capture_output=True,
-                         text=True, env=clean_env(), timeout=60)
+                         text=True, env=clean_env(), timeout=600)
     assert run.returncode == 0, run.stderr
     lines = run.stdout.splitlines()  # rows of t only (no variables asked), then the end
     assert [float(t) for t in lines[:-1]] == pytest.approx([0.0, 0.1, 0.2, 0.3], abs=1e-15)

@@ -139,7 +139,7 @@ for index, directory in enumerate(directories):  # fmpy's model description read
 def run(index, directory):
     fmu, vrs = fmus[index]
     if mode == "parallel":
-        barrier.wait(timeout=120)
+        barrier.wait(timeout=600)
     fmu.instantiate()  # a NULL instance raises; the thread's result stays None
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()

@@ -71,7 +71,7 @@ def _site_with(tmp: Path, *packages: str) -> Path:
 
 def _run(resources: Path, out: Path, *paths: Path) -> dict:
     result = subprocess.run([sys.executable, "-I", "-S", "-c", _RUN, str(resources), str(out), *map(str, paths)],
-                            capture_output=True, text=True, timeout=120)
+                            capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-3000:]
     assert result.stdout == "", result.stdout[-2000:]  # the FMU prints nothing
     return json.loads(out.read_text())
@@ -131,7 +131,7 @@ json.dump({"directory": str(sundials.library_directory()), "decay": float(decay.
 def _solve(tmp: Path, *paths: Path) -> tuple[subprocess.CompletedProcess, Path]:
     out = tmp / "solve.json"
     result = subprocess.run([sys.executable, "-I", "-S", "-c", _SOLVE, str(out), *map(str, paths)],
-                            capture_output=True, text=True, timeout=120)
+                            capture_output=True, text=True, timeout=600)
     return result, out
 
 
