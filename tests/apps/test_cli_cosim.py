@@ -140,7 +140,9 @@ def test_build_into_a_directory_names_the_fmu_after_its_model(tmp_path, target):
     source = Path(__file__).parents[2] / "fmu_src" / "oscillator.py"
     result = CliRunner().invoke(main, ["build", str(source), "-o", f"{tmp_path}/{target}", "--no-validate"])
     assert result.exit_code == 0, result.output
-    assert result.output.strip() == f"built {folder / 'Oscillator.fmu'}"
+    assert result.stdout.strip() == f"built {folder / 'Oscillator.fmu'}"
+    made = f"made the folder {folder} (it did not exist)"
+    assert result.stderr.strip() == ("" if target == "existing" else made)
     assert [p.name for p in folder.iterdir()] == ["Oscillator.fmu"]
     # written through a private temporary file, the FMU still gets the user's usual permissions
     assert (folder / "Oscillator.fmu").stat().st_mode & 0o777 == USER_FILE_MODE

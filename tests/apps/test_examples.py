@@ -153,7 +153,7 @@ def test_a_copied_study_names_its_copied_scenario(tmp_path):
     assert result.exit_code == 0, result.output
     study = yaml.safe_load((tmp_path / "study" / "gain_payload.yaml").read_text())
     assert study["scenario"] == "delta_tracking.yaml" and (tmp_path / "study" / "delta_tracking.yaml").is_file()
-    assert result.output.strip().splitlines()[-1].startswith("run it: deltafmi sweep ")
+    assert result.stdout.strip().splitlines()[-1].startswith("run it: deltafmi sweep ")
 
 
 def test_a_bare_name_runs_the_copy_in_this_folder_else_the_example(tmp_path, monkeypatch):

@@ -19,12 +19,10 @@ from .pacing import Pacer, RealtimeReport
 from .streams import Stream, open_stream
 from deltafmi.master.live.input_units import LiveInputUnit
 
-__all__ = ["C_LONGEST_WAIT", "C_SAMPLE_WALL", "LiveRun", "LiveReport"]
+__all__ = ["C_LONGEST_WAIT", "LiveRun", "LiveReport"]
 
 #: a paced step longer than this [s of wall time] is paced in Python (which looks at stop signals while it waits)
 C_LONGEST_WAIT = 0.05
-#: live sources are sampled at least this often [s of wall time] in a run paced by the C loop
-C_SAMPLE_WALL = 1e-3
 
 
 class LiveReport:
@@ -137,13 +135,12 @@ class LiveRun:
 
     def points_between_samples(self) -> int:
         """Communication points the C loop steps between two samples of the sources (and looks
-        at stop signals): a replay samples at every point (it reproduces the recorded run); a
-        live source at least every :data:`C_SAMPLE_WALL` of wall time; with no source but the
-        clock, every :data:`C_LONGEST_WAIT`."""
-        if self._replayed or self.pacer is None:
+        at stop signals): a replay or a live source samples at every point (what arrived before
+        a point is what the step from it takes, as the recording says and a replay repeats);
+        with no source but the clock, every :data:`C_LONGEST_WAIT` of wall time."""
+        if self._replayed or self.pacer is None or self.sources:
             return 1
-        every = C_SAMPLE_WALL if self.sources else C_LONGEST_WAIT
-        return max(1, int(every / self.pacer.period))
+        return max(1, int(C_LONGEST_WAIT / self.pacer.period))
 
     def clock_slots(self) -> List[Optional[int]]:
         """The Real bus addresses of the pacing measurements (lateness, busy, behind; None where
