@@ -5,6 +5,7 @@
  * generated library), so a step without events runs no Python. Python runs where the model's
  * Python must: the event iteration (its update()), the solver's creation, the explanation of a
  * failure, and an evaluation the kernels do not cover. */
+#include "glibc_floor.h"
 #include <math.h>
 #include <string.h>
 

@@ -26,6 +26,13 @@
  * are looked at in the group's order afterwards, so the first failing unit in stepping order is
  * the one reported (the others of its group have taken the step too).
  */
+/* the oldest versions of what moved into libc in glibc 2.34 (dlsym, the pthreads), so that the
+ * library loads on old systems and a wheel's prebuilt copy passes as manylinux2014 */
+#if defined(__x86_64__) && defined(__linux__)
+__asm__(".symver dlsym,dlsym@GLIBC_2.2.5");
+__asm__(".symver pthread_create,pthread_create@GLIBC_2.2.5");
+__asm__(".symver pthread_join,pthread_join@GLIBC_2.2.5");
+#endif
 #include <dlfcn.h>
 #include <pthread.h>
 #include <stdbool.h>
