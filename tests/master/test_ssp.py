@@ -53,7 +53,9 @@ def cli(*args: str, code: int = 0) -> str:
 
 
 def export(scenario: Path, ssp: Path) -> Path:
-    assert cli("export-ssp", scenario, "-o", ssp).splitlines()[-1].startswith(f"wrote {ssp} (")
+    result = CliRunner().invoke(main, ["export-ssp", str(scenario), "-o", str(ssp)])
+    assert result.exit_code == 0, result.output
+    assert result.stdout.splitlines()[-1].startswith(f"wrote {ssp} (")  # (stderr may say it made the folder)
     return ssp
 
 
