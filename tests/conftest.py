@@ -79,7 +79,7 @@ SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_joysti
 #: modules whose tests share an expensive fixture of their own (a wheel, fresh virtual environments): each
 #: runs on one worker (an xdist_group of its own), so that the fixture is made once, and early (xdist hands
 #: out the groups with the most tests first, then the ungrouped tests one by one)
-OWN_GROUP = {"test_wheel_install", "test_python_hosts", "test_export_fmu"}
+OWN_GROUP = {"test_wheel_install", "test_python_hosts", "test_export_fmu", "test_assembly_hold"}
 #: modules that start other processes (a C host, another Python, a CLI, a Dask process)
 SUBPROCESS = {"test_reliability_signals_tools", "test_component_docs", "test_live_scope", "test_rough_edges",
               "test_study_cluster", "test_study_dask",
