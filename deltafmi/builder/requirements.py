@@ -87,36 +87,27 @@ def read_config(fmu: Path) -> dict[str, str]:
     return dict(line.split("=", 1) for line in text.splitlines() if "=" in line)
 
 
-def _source_text(fmu: Path) -> str:
-    """The first 200 characters of the model source the FMU carries ("" if none)."""
-    with zipfile.ZipFile(fmu) as archive:
-        try:
-            source = json.loads(archive.read("resources/deltafmi.json")).get("source", "")
-            return archive.read(f"resources/model/{source}")[:200].decode(errors="replace") if source else ""
-        except (KeyError, ValueError):
-            return ""
-
-
-def _source(fmu: Path) -> tuple[str, int]:
+def _source(fmu: Path) -> tuple[str, int, str]:
     """What ``deltafmi build`` takes to build the FMU again: a packaged model's class name when the
     FMU carries that model's source unchanged, else the name of the source file it was built from;
-    and the FMI version it was built for."""
+    the FMI version it was built for; the first 200 characters of that source ("" if none)."""
     with zipfile.ZipFile(fmu) as archive:
         try:
             recorded = json.loads(archive.read("resources/deltafmi.json"))
             source = recorded.get("source", "")
             text = archive.read(f"resources/model/{source}") if source else b""
         except (KeyError, ValueError):
-            return "", 2
+            return "", 2, ""
     fmi_version = 3 if recorded.get("fmi_version") == 3 else 2
+    start = text[:200].decode(errors="replace")
     from deltafmi import models
 
     class_name = recorded.get("class_name", "")
     if models.MODELS.get(class_name, "") + ".py" == source:
         packaged = Path(models.__file__).parent / source
         if packaged.is_file() and packaged.read_bytes() == text:
-            return class_name, fmi_version
-    return source, fmi_version
+            return class_name, fmi_version, start
+    return source, fmi_version, start
 
 
 def _version_tuple(text: str) -> tuple[int, ...]:
@@ -139,9 +130,9 @@ def runtime_requirement(fmu: Path) -> RuntimeRequirement:
         return requirement
     library = os.environ.get("DELTAFMI_LIBPYTHON") or cfg.get("library", "")
     executable = os.environ.get("DELTAFMI_PYTHON") or cfg.get("executable", "")
-    source, fmi_version = _source(fmu)
+    source, fmi_version, source_text = _source(fmu)
     requirement = RuntimeRequirement(False, version, library=library, executable=executable, source=source,
-                                     source_text=_source_text(fmu),
+                                     source_text=source_text,
                                      fmi_version=fmi_version)
     if not library or not Path(library).is_file():
         requirement.missing.append(f"no Python library {library or '(none recorded)'}")

@@ -10,7 +10,6 @@ variables. FMU states are the master's snapshots (every unit's FMU state and the
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any, ClassVar, Dict, List, Optional, Tuple
 
@@ -20,7 +19,7 @@ from deltafmi.component import Component
 from deltafmi.master.scenario.overrides import with_overrides
 from deltafmi.master.scenario.resolve import resolve_system
 from deltafmi.master.scenario.spec import load_scenario
-from deltafmi.master.scenario.system import Port
+from deltafmi.master.scenario.system import Port, bus_type
 from deltafmi.master.stepping.master import Master
 
 __all__ = ["SystemComponent"]
@@ -77,7 +76,7 @@ class _Run:
             name, _, variable = ref.partition(".")
             info = units[name].info
             var = info.variables[variable]
-            self.inputs.append((attribute, Port(name, variable, var.valueReference, _bus(var.type))))
+            self.inputs.append((attribute, Port(name, variable, var.valueReference, bus_type(var.type))))
         self.applied = {attribute: given[ref] for attribute, ref in cls.inputs_exported}
         self.master.open()
         self.master.begin_fixed_steps()
@@ -142,10 +141,6 @@ class _Snapshot:
             self.run.master.release(self.saved)
         except Exception:  # noqa: BLE001
             pass
-
-
-def _bus(fmi_type: str) -> str:
-    return {"Enumeration": "Integer"}.get(fmi_type, fmi_type)
 
 
 class SystemComponent(Component):
@@ -220,4 +215,4 @@ def _plain(value: Any) -> Any:
         return bool(value)
     if isinstance(value, (int, np.integer)):
         return int(value)
-    return float(value) if not math.isnan(float(value)) else value
+    return float(value)
