@@ -55,6 +55,10 @@ class Oscillator(Component):
         event_indicators=Kernel(wall_gap, "x", "wall"),
         outputs=Kernel(oscillator_energy, "x", "v", "m", "k", returns=("energy",)))
 
+    def initialize(self, t: float) -> None:
+        if not self.m > 0.0:
+            raise ValueError(f"m must be > 0 (the mass divides the force), got {self.m}")
+
     def derivatives(self, t: float) -> list:
         return list(oscillator_derivatives(self.x, self.v, self.F, self.F_step, self.force_on, self.m, self.k, self.c))
 

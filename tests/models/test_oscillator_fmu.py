@@ -9,6 +9,8 @@ import pytest
 from fmpy.fmi2 import FMU2Model
 from fmpy.validation import validate_fmu
 
+import deltafmi
+
 from conftest import clean_env, start_model_exchange, unzip
 from host_loops import as_pointer, co_simulation, host_rows, me_env, model_exchange_euler, run_c_host
 from oscillator_analytic import solution
@@ -122,3 +124,16 @@ def test_getters_after_new_states_are_fresh(oscillator_dir):
         assert fmu.getReal([vr["der(v)"], vr["der(x)"]]) == pytest.approx([(-k * x - c * v) / m, v], rel=1e-15)
     fmu.terminate()
     fmu.freeInstance()
+
+
+
+@pytest.mark.parametrize("interface", ["CS", "ME"])
+def test_a_massless_oscillator_is_refused_at_initialization(tmp_path, interface):
+    # m = 0 passes the declared min (inclusive) but divides the force: initialization names it
+    # instead of the first derivative raising ZeroDivisionError (Python) or returning inf (C).
+    scenario = tmp_path / "massless.yaml"
+    scenario.write_text("experiment: {start: 0.0, stop: 0.01, step: 1.0e-3}\n"
+                        "components:\n  osc: {source: deltafmi.models:Oscillator, interface: %s,"
+                        " parameters: {m: 0.0, F: 0.0}}\n" % interface)
+    with pytest.raises(deltafmi.DeltaFmiError, match=r"m must be > 0 \(the mass divides the force\), got 0\.0"):
+        deltafmi.simulate(scenario)
