@@ -201,3 +201,12 @@ def test_a_failed_case_leaves_no_pool_folder(tmp_path):
     for row in (rows[0], rows[2]):
         assert row["final"] == pytest.approx(math.exp(-0.1), rel=1e-8)
     assert list(temporary.rglob("deltafmi-pool*")) == []
+
+
+@pytest.mark.parametrize(("output", "table"), [("t.csv", "t.parquet"), ("t.parquet", "t.parquet"),
+                                                ("runs/t", "runs/t.parquet"), ("t.v2", "t.v2.parquet")])
+def test_the_output_name_gives_the_table_beside_its_csv_copy(output, table):
+    # -o t.csv used to write t.csv.parquet and its CSV copy t.csv.csv
+    from deltafmi.apps.studies.commands import _table_path
+
+    assert _table_path(None, output) == Path(table)
