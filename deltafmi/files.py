@@ -27,8 +27,9 @@ USER_FILE_MODE = _user_file_mode()
 @contextmanager
 def replaced_atomically(path: Path) -> Iterator[Path]:
     """A temporary file next to ``path`` to write; it replaces ``path`` when the block ends
-    without an error, with the user's usual permissions, and is removed when it raises."""
-    path = Path(path)
+    without an error, with the user's usual permissions, and is removed when it raises. A symbolic
+    link is written through: its target is replaced, the link stays."""
+    path = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     name = ""
     # a signal (Ctrl-C, SIGTERM) between making the file and the try below would leave it behind:

@@ -1,0 +1,52 @@
+"""Result files are replaced whole: a failed write leaves the earlier file, a link is written through."""
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from deltafmi.files import USER_FILE_MODE, replaced_atomically
+
+
+def _write(path, text):
+    with replaced_atomically(path) as temporary:
+        temporary.write_text(text)
+
+
+def test_a_file_is_replaced_with_the_user_s_permissions(tmp_path):
+    target = tmp_path / "out" / "run.csv"
+    _write(target, "1\n")
+    _write(target, "2\n")
+    assert target.read_text() == "2\n"
+    assert target.stat().st_mode & 0o777 == USER_FILE_MODE
+    assert sorted(p.name for p in target.parent.iterdir()) == ["run.csv"]
+
+
+def test_a_failed_write_keeps_the_earlier_file_and_leaves_no_part_file(tmp_path):
+    target = tmp_path / "run.csv"
+    target.write_text("earlier\n")
+    with pytest.raises(RuntimeError):
+        with replaced_atomically(target) as temporary:
+            temporary.write_text("half")
+            raise RuntimeError("the run failed")
+    assert target.read_text() == "earlier\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["run.csv"]
+
+
+def test_a_symbolic_link_is_written_through_and_stays_a_link(tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "run.csv").write_text("old\n")
+    link = tmp_path / "run.csv"
+    link.symlink_to(data / "run.csv")
+    _write(link, "new\n")
+    assert link.is_symlink() and os.readlink(link) == str(data / "run.csv")
+    assert (data / "run.csv").read_text() == "new\n"
+    assert sorted(p.name for p in data.iterdir()) == ["run.csv"]  # the temporary was made beside the target
+
+
+def test_a_dangling_link_makes_its_target(tmp_path):
+    link = tmp_path / "run.csv"
+    link.symlink_to(tmp_path / "elsewhere.csv")
+    _write(link, "new\n")
+    assert link.is_symlink() and (tmp_path / "elsewhere.csv").read_text() == "new\n"
