@@ -3,8 +3,8 @@ layer (``native/cs_step.c``), which takes a component's steps from C when it has
 compiled kernels.
 
 One C struct holds what a step reads and writes between steps (the time, the communication grid,
-the next time event, the inputs the last step saw, the derivatives at its end, whether the solver
-must restart) and the solver's addresses once it exists (CVODE's memory, its state vector, the
+the next time event, the inputs the last step saw, the derivatives and event indicators at its
+end, whether the solver must restart) and the solver's addresses once it exists (CVODE's memory, its state vector, the
 SUNDIALS functions a step calls). Python reads and writes the same fields (the instance's
 attributes are views of them), so the Python step (``DELTAFMI_NATIVE_CS=0``, components without
 compiled kernels) and the C step are one state machine, and either may take any step.
@@ -32,11 +32,13 @@ class CsShared(ctypes.Structure):
                 ("next_time_event", c_double), ("event_time", c_double),
                 ("restart_solver", c_int), ("jump_kept", c_int), ("after_valid", c_int), ("inputs_valid", c_int),
                 ("after", c_void_p), ("inputs", c_void_p), ("real_inputs", c_void_p), ("int_inputs", c_void_p),
-                ("n_real_inputs", c_int64), ("n_int_inputs", c_int64), ("enabled", c_int)]
+                ("n_real_inputs", c_int64), ("n_int_inputs", c_int64), ("enabled", c_int),
+                ("pre_indicators", c_void_p), ("pre_indicators_valid", c_int)]
 
-    def setup(self, nx: int, real_inputs: np.ndarray, int_inputs: np.ndarray) -> None:
+    def setup(self, nx: int, nz: int, real_inputs: np.ndarray, int_inputs: np.ndarray) -> None:
         """Arrays the struct points into, kept alive by it (one per instance, for its whole life)."""
         self._arrays = {"after": np.zeros(max(nx, 1)), "atol": np.zeros(max(nx, 1)),
+                        "pre_indicators": np.zeros(max(nz, 1)),
                         "inputs": np.zeros(max(len(real_inputs) + len(int_inputs), 1)),
                         "real_inputs": np.ascontiguousarray(real_inputs, dtype=np.int64),
                         "int_inputs": np.ascontiguousarray(int_inputs, dtype=np.int64)}
@@ -46,6 +48,7 @@ class CsShared(ctypes.Structure):
         self.after_view = self._arrays["after"][:nx]
         self.atol_view = self._arrays["atol"][:nx]
         self.inputs_view = self._arrays["inputs"][:len(real_inputs) + len(int_inputs)]
+        self.pre_indicators_view = self._arrays["pre_indicators"][:nz]
         self.next_time_event = self.event_time = float("nan")
 
     def attach_solver(self, solver: Any) -> None:

@@ -137,7 +137,7 @@ class FmuInstance:
         self._int_inputs = np.array([s.value_reference - layout.n_real for s in layout.scalars
                                      if s.causality == "input" and s.fmi_type not in ("Real", "String")],
                                     dtype=np.intp)
-        self._cs.setup(self.nx, self._real_inputs, self._int_inputs)
+        self._cs.setup(self.nx, self.nz, self._real_inputs, self._int_inputs)
         # the communication grid: where it starts, its step (see _communication_point)
         self.start_time, self._grid_step = 0.0, 0.0
         self._jump_tolerance = _INPUT_JUMP_TOLERANCE
@@ -274,6 +274,7 @@ class FmuInstance:
         In FMI 3.0 Co-Simulation with ``event_mode_used`` the FMU goes to Event Mode instead, and
         the importer's fmi3UpdateDiscreteStates calls do the event iteration (as in ME)."""
         self.evaluate(self.time)
+        self._keep_indicators()
         self.in_initialization = False
         if self.fmu_type == CO_SIMULATION and not event_mode_used:
             self._event_iteration()
@@ -334,6 +335,7 @@ class FmuInstance:
         again = bool(comp.update(t))
         self._pack_kernels()  # the compiled kernels evaluate after the update with its attributes
         self.evaluate(t)
+        self._keep_indicators()
         # A mode switch that leaves the states but changes their derivatives (a ball that starts
         # touching) is reported as changed states too: an importer that restarts its integrator
         # only on that flag (the Reference FMUs' fmusim) would otherwise go on with the solver's
@@ -404,16 +406,18 @@ class FmuInstance:
         comp = self.component
         t_end = self._communication_point(t, h)
         self.control[2] = 0.0
-        if self._solver is not None:
-            if self._restart_for_inputs(t_end) or self._restart_solver:
-                # a zero-order-hold input jumped too far for CVODE's history (the right-hand side
-                # is discontinuous at t), or the importer handled an event here
-                self._reinit(self.time, comp._real[: self.nx])
-        elif self.nx:
-            self._inputs_changed()  # a fresh solver: the next step compares with these inputs
+        inputs_changed = self._inputs_changed()  # a fresh solver: the next step compares with these inputs
+        if self._solver is not None and ((inputs_changed and self._restart_for_inputs(t_end)) or self._restart_solver):
+            # a zero-order-hold input jumped too far for CVODE's history (the right-hand side is
+            # discontinuous at t), or the importer handled an event here
+            self._reinit(self.time, comp._real[: self.nx])
         if self._restart_solver:
             self._cs.event_time = self.time  # the solver starts here after the importer's Event Mode
         self._restart_solver = False
+        if inputs_changed and self._indicators_crossed():
+            # the inputs set at t moved an event indicator across zero (a `when` on an input, a
+            # relay's threshold): an event at t, before anything moves
+            self._event_iteration()
         while self.time < t_end and not self.terminate_requested:
             nte = None if events != EVENTS_INSIDE and self._clock_driven else self._next_time_event
             t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
@@ -423,7 +427,10 @@ class FmuInstance:
             elif self.nx:
                 root = self._integrate_to(t_stop)
             else:
+                # no states, no solver to find roots: an indicator that crossed zero over the step
+                # (with time) is an event at its end
                 self.time = t_stop
+                root = self._indicators_crossed()
             time_event = nte is not None and self.time >= nte - _TINY * max(1.0, abs(nte))
             at_end = self.time >= t_end - _TINY * max(1.0, abs(t_end))
             # a root within round-off of the event the solver restarted at is that event's own
@@ -435,6 +442,7 @@ class FmuInstance:
                     events == EVENTS_EARLY_RETURN or (events == EVENTS_AT_STEP_END and at_end)):
                 self.control[1:] = self.time, 1.0  # fmi3DoStep: eventHandlingNeeded here
                 self.evaluate(self.time)
+                self._keep_indicators()
                 self._derivatives_after_step = None  # the event restarts the solver
                 return OK
             if root or time_event:
@@ -444,6 +452,7 @@ class FmuInstance:
         else:
             self.time = t_end  # remove round-off so the next doStep matches exactly
         self.evaluate(self.time)
+        self._keep_indicators()
         if self.nx:
             self._derivatives_after_step = comp._real[self.nx: 2 * self.nx].tolist()
         return DISCARD if self.terminate_requested else OK
@@ -508,6 +517,24 @@ class FmuInstance:
         self._solver.reinit(t, x)
         self._cs.solver_t = t
 
+    def _keep_indicators(self) -> None:
+        """The event indicators as they stand now (after a step or an event), for the next step to
+        tell whether its inputs or its time moved one across zero."""
+        if self.nz:
+            self._cs.pre_indicators_view[:] = self.event_indicators[: self.nz]
+            self._cs.pre_indicators_valid = 1
+
+    def _indicators_crossed(self) -> bool:
+        """Whether an event indicator, evaluated now, is on the other side of zero than where the
+        last step or event left it (the FMI domain: ``z > 0`` or ``z <= 0``)."""
+        if not self.nz or not self._cs.pre_indicators_valid:
+            return False
+        self._pull_kernels()
+        now = self.component.event_indicators(self.time)
+        self._store_event_indicators(now)
+        before = self._cs.pre_indicators_view.tolist()
+        return any((a > 0.0) != (b > 0.0) for a, b in zip(before, self.event_indicators[: self.nz].tolist()))
+
     def _restart_for_inputs(self, t_end: float) -> bool:
         """Whether CVODE must restart because the held inputs changed since the last step.
 
@@ -521,9 +548,7 @@ class FmuInstance:
         (default 10; 0 restarts at every change). CVODE's error test then takes the kink in its
         stride (at worst it retries with a smaller step); a larger jump (a step input, a
         switching controller's torque) restarts as before. docs/components.md has the figures.
-        """
-        if not self._inputs_changed():
-            return False
+        Asked only when the inputs changed (:meth:`_inputs_changed`)."""
         before = self._derivatives_after_step
         if self._jump_tolerance <= 0 or before is None or self._restart_solver:
             restart = True
@@ -650,6 +675,7 @@ class FmuInstance:
             "internal": comp.internal_state(), "time": self.time,
             "next_time_event": self._next_time_event, "in_initialization": self.in_initialization,
             "terminate_requested": self.terminate_requested,
+            "pre_indicators": self._cs.pre_indicators_view.copy() if self._cs.pre_indicators_valid else None,
         }
 
     def set_state(self, state: dict) -> int:
@@ -664,6 +690,10 @@ class FmuInstance:
         self._next_time_event = state["next_time_event"]
         self.in_initialization = state["in_initialization"]
         self.terminate_requested = state["terminate_requested"]
+        pre_indicators = state.get("pre_indicators")  # a snapshot from an older runtime has none
+        if pre_indicators is not None:
+            self._cs.pre_indicators_view[:] = pre_indicators
+        self._cs.pre_indicators_valid = int(pre_indicators is not None)
         self._drop_solver()  # a fresh solver, as in get_state()
         self._pack_kernels()
         return OK
@@ -693,6 +723,7 @@ class FmuInstance:
         self.time, self.stop_time, self.tolerance = 0.0, math.inf, None
         self.in_initialization = self.terminate_requested = False
         self._drop_solver()
+        self._cs.pre_indicators_valid = 0
         self._next_time_event = None
         self._pack_kernels()  # the fresh component's (C runs the kernels only after initialization)
         return OK

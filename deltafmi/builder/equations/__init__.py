@@ -7,6 +7,7 @@ only when an equation model is compiled, so that other builds do not pay for it)
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from deltafmi.runtime.equations import component as _component
@@ -37,13 +38,18 @@ def compile_to_cache(cls: type, flat: FlatModel, name: str) -> Path:
 
 
 def generated_files(cls: type) -> list[tuple[Path, str]]:
-    """(file, archive name) of the generated module an equation component's FMU carries (none
-    for other components)."""
-    found = _component.generated_file(cls)
-    if found is None:
-        return []
-    path, module = found
-    return [(Path(path), "resources/python/" + module.replace(".", "/") + ".py")]
+    """(file, archive name) of the generated modules the FMU of ``cls`` carries: those of every
+    equation component its module defines or imports (the FMU imports that module, and each of
+    them is compiled as its class is made), ``cls``'s first; none for other components."""
+    namespace = vars(sys.modules[cls.__module__]) if cls.__module__ in sys.modules else {}
+    classes = [cls] + [c for c in namespace.values() if isinstance(c, type) and c is not cls]
+    files: dict = {}
+    for c in classes:
+        found = _component.generated_file(c) if "_equations" in vars(c) else None
+        if found is not None:
+            path, module = found
+            files.setdefault(Path(path), "resources/python/" + module.replace(".", "/") + ".py")
+    return list(files.items())
 
 
 if not _component.COMPILER:

@@ -300,7 +300,9 @@ class ModuleWriter:
                     self.names[self.S.var[v.name]] = ident if v.index is None else f"{ident}[{v.index}]"
         for k, v in enumerate(self.discrete):
             self.names[self.S.var[v.name]] = f"d[{k}]"
-        self.args = ["t", "x"] + ["u_" + _ident(g) for g in self.inputs] + ["p_" + _ident(g) for g in self.params]
+        # a model without states takes no state vector (an empty sequence has no C type)
+        self.args = ["t"] + (["x"] if compiler.states else []) + ["u_" + _ident(g) for g in self.inputs] \
+            + ["p_" + _ident(g) for g in self.params]
         if self.discrete:
             self.args.append("d")
         self.relations: list = []  # (sympy relation, indicator expr)

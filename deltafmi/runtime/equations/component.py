@@ -78,7 +78,9 @@ class EquationComponent(Component):
 
     def _args(self, t: float, x: Any = None) -> list:
         info = self._equations.INFO
-        args = [t, self.states.tolist() if x is None else x]
+        args: list = [t]
+        if info["states"]:  # a model without states takes no state vector
+            args.append(self.states.tolist() if x is None else x)
         args += [_value(getattr(self, _attribute(g))) for g in info["inputs"]]
         args += [_value(getattr(self, _attribute(g))) for g in info["parameters"]]
         if info["discrete"]:
@@ -228,12 +230,13 @@ def _declare(cls: type, info: dict) -> None:
         decl.fmi_name = group
     cls.n_event_indicators = info["n_indicators"]
     module = cls._equations
-    args = ["t", "states"] + [_attribute(g) for g in info["inputs"]] + [_attribute(g) for g in info["parameters"]]
+    args = ["t"] + (["states"] if info["states"] else []) + [_attribute(g) for g in info["inputs"]] \
+        + [_attribute(g) for g in info["parameters"]]
     attributes = {}
     if info["discrete"]:
         args.append("_d")
         attributes["_d"] = tuple.__class_getitem__((float,) * len(info["discrete"]))
-    kernels = dict(derivatives=Kernel(module.derivatives, *args))
+    kernels = dict(derivatives=Kernel(module.derivatives, *args)) if info["states"] else {}
     if info["outputs"]:
         kernels["outputs"] = Kernel(module.outputs, *args, returns=tuple(_attribute(g) for g, _ in info["outputs"]))
     if info["n_indicators"]:

@@ -38,6 +38,9 @@ typedef struct {
     const int64_t *real_inputs, *int_inputs; /* their indices in the real and int buffers */
     int64_t n_real_inputs, n_int_inputs;
     int enabled;
+    double *pre_indicators; /* nz: the event indicators where the last step or event left them,
+                             * with the inputs of then (valid: pre_indicators_valid) */
+    int pre_indicators_valid;
 } DfmiCs;
 
 /* Buffers owned by the Python instance and read/written in place by the loader. */

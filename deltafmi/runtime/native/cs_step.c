@@ -63,7 +63,6 @@ static void reinit(DfmiCs *s, size_t nx, double t, const double *x) {
 
 /* FmuInstance._restart_for_inputs: whether CVODE restarts because the held inputs changed. */
 static int restart_for_inputs(const DfmiLayout *L, DfmiCs *s, double t_end) {
-    if (!inputs_changed(L, s)) return 0;
     int restart = 1;
     size_t nx = L->nx;
     if (s->jump_tolerance > 0 && s->after_valid && !s->restart_solver &&
@@ -135,6 +134,30 @@ static int integrate_to(Instance *c, double t_stop, int *root) {
     return DFMI_OK;
 }
 
+/* FmuInstance._keep_indicators */
+static void keep_indicators(const DfmiLayout *L, DfmiCs *s) {
+    if (!L->nz) return;
+    memcpy(s->pre_indicators, L->event_indicators, L->nz * sizeof(double));
+    s->pre_indicators_valid = 1;
+}
+
+/* FmuInstance._indicators_crossed: an event indicator now on the other side of zero (z > 0 or
+ * z <= 0) than where the last step or event left it; < 0: a status (Python failed). */
+static int indicators_crossed(Instance *c) {
+    const DfmiLayout *L = &c->L;
+    DfmiCs *s = L->cs;
+    if (!L->nz || !s->pre_indicators_valid) return 0;
+    double t = s->time;
+    if (!(*L->kernels_ready && L->kernel_indicators &&
+          L->kernel_indicators(L->kernel_attributes, t, L->real, L->ints, L->event_indicators) == 0)) {
+        int status = bridge_call(c->py, DFMI_EVALUATE_DERIVATIVES, &t, 1);
+        if (status >= DFMI_ERROR) return -status;
+    }
+    for (size_t i = 0; i < L->nz; i++)
+        if ((s->pre_indicators[i] > 0.0) != (L->event_indicators[i] > 0.0)) return 1;
+    return 0;
+}
+
 /* FmuInstance.evaluate at the step's end: by the kernels where they cover it, else in Python. */
 static int evaluate(Instance *c) {
     const DfmiLayout *L = &c->L;
@@ -155,14 +178,21 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
     size_t nx = L->nx;
     double t_end = communication_point(s, t, h);
     control[2] = 0.0;
-    if (s->mem) {
-        /* a zero-order-hold input jumped too far for CVODE's history, or the importer handled an event here */
-        if (restart_for_inputs(L, s, t_end) || s->restart_solver) reinit(s, nx, s->time, L->real + L->x_offset);
-    } else {
-        inputs_changed(L, s); /* a fresh solver: the next step compares with these inputs */
-    }
+    int changed = inputs_changed(L, s); /* a fresh solver: the next step compares with these inputs */
+    /* a zero-order-hold input jumped too far for CVODE's history, or the importer handled an event here */
+    if (s->mem && ((changed && restart_for_inputs(L, s, t_end)) || s->restart_solver))
+        reinit(s, nx, s->time, L->real + L->x_offset);
     if (s->restart_solver) s->event_time = s->time; /* the solver starts here after the importer's Event Mode */
     s->restart_solver = 0;
+    if (changed) {
+        /* the inputs set at t moved an event indicator across zero: an event at t (instance.py) */
+        int crossed = indicators_crossed(c);
+        if (crossed < 0) return -crossed;
+        if (crossed) {
+            int status = bridge_call(c->py, DFMI_CS_EVENT, NULL, 0);
+            if (status >= DFMI_ERROR) return status;
+        }
+    }
     while (s->time < t_end && !dfmi_terminated(c)) {
         /* Python drops the time event of a clock-driven component in event mode (its Clocks'
          * ticks are the importer's): one stepped here has states, so it is never clock-driven */
@@ -186,6 +216,7 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
             control[1] = s->time; /* fmi3DoStep: eventHandlingNeeded here */
             control[2] = 1.0;
             int status = evaluate(c);
+            keep_indicators(L, s);
             s->after_valid = 0; /* the event restarts the solver */
             return status;
         }
@@ -199,6 +230,7 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
     else s->time = t_end;            /* remove round-off so the next doStep matches exactly */
     int status = evaluate(c);
     if (status >= DFMI_ERROR) return status;
+    keep_indicators(L, s);
     memcpy(s->after, L->real + L->dx_offset, nx * sizeof(double));
     s->after_valid = 1;
     return ended ? DFMI_DISCARD : status;
