@@ -33,7 +33,7 @@ class CsShared(ctypes.Structure):
                 ("restart_solver", c_int), ("jump_kept", c_int), ("after_valid", c_int), ("inputs_valid", c_int),
                 ("after", c_void_p), ("inputs", c_void_p), ("real_inputs", c_void_p), ("int_inputs", c_void_p),
                 ("n_real_inputs", c_int64), ("n_int_inputs", c_int64), ("enabled", c_int),
-                ("pre_indicators", c_void_p), ("pre_indicators_valid", c_int)]
+                ("pre_indicators", c_void_p), ("pre_indicators_valid", c_int), ("handled_reported", c_int)]
 
     def setup(self, nx: int, nz: int, real_inputs: np.ndarray, int_inputs: np.ndarray) -> None:
         """Arrays the struct points into, kept alive by it (one per instance, for its whole life)."""

@@ -327,15 +327,22 @@ class FmuInstance:
         self.partials.invalidate()
         self._pull_kernels()
         self._restart_solver = self.fmu_type == CO_SIMULATION
+        handled_reported, self._cs.handled_reported = self._cs.handled_reported, 0
         states_before = comp._real[:nx].copy() if nx else None  # none: a sampled component's tick
         if self.fmu_type == MODEL_EXCHANGE and comp.needs_projection(t):
             comp.project(t)
         self.evaluate(t)
         derivatives_before = comp._real[nx: 2 * nx].copy() if nx else None
+        values_before = (comp._real.copy(), comp._int.copy()) if handled_reported else None
         again = bool(comp.update(t))
         self._pack_kernels()  # the compiled kernels evaluate after the update with its attributes
         self.evaluate(t)
         self._keep_indicators()
+        if values_before is not None and not again and np.array_equal(values_before[0], comp._real) \
+                and np.array_equal(values_before[1], comp._int):
+            # the Event Mode after events the step handled and reported: nothing left to do, and
+            # the solver goes on as it would have without event mode
+            self._restart_solver = False
         # A mode switch that leaves the states but changes their derivatives (a ball that starts
         # touching) is reported as changed states too: an importer that restarts its integrator
         # only on that flag (the Reference FMUs' fmusim) would otherwise go on with the solver's
@@ -387,8 +394,10 @@ class FmuInstance:
           the first one without handling it.
         - ``EVENTS_AT_STEP_END`` (FMI 3.0, eventModeUsed without earlyReturnAllowed): it must
           reach ``t + h``, so it handles the events before that inside, as ``EVENTS_INSIDE``
-          (the importer could no longer handle them at their time), and leaves one at ``t + h``
-          itself (a time event on the communication point, a root found there) to the importer.
+          (the importer could no longer handle them at their time), and reports them at ``t + h``
+          (eventHandlingNeeded: the importer's Event Mode there finds them handled, and the
+          solver goes on unless it changes something); one at ``t + h`` itself (a time event on
+          the communication point, a root found there) it leaves to the importer.
 
         The contract with the native layer, in ``control`` (any loop that replaces this one, in C
         too, keeps it): [0] nonzero when the component ended the simulation, [1] then the time it
@@ -414,10 +423,12 @@ class FmuInstance:
         if self._restart_solver:
             self._cs.event_time = self.time  # the solver starts here after the importer's Event Mode
         self._restart_solver = False
+        handled = False
         if inputs_changed and self._indicators_crossed():
             # the inputs set at t moved an event indicator across zero (a `when` on an input, a
             # relay's threshold): an event at t, before anything moves
             self._event_iteration()
+            handled = True
         while self.time < t_end and not self.terminate_requested:
             nte = None if events != EVENTS_INSIDE and self._clock_driven else self._next_time_event
             t_stop = min(t_end, nte) if nte is not None and nte > self.time else t_end
@@ -447,12 +458,16 @@ class FmuInstance:
                 return OK
             if root or time_event:
                 self._event_iteration()
+                handled = True
         if self.terminate_requested:
             self.control[1] = self.time  # fmi2LastSuccessfulTime
         else:
             self.time = t_end  # remove round-off so the next doStep matches exactly
         self.evaluate(self.time)
         self._keep_indicators()
+        if handled and events == EVENTS_AT_STEP_END and not self.terminate_requested:
+            self.control[1:] = self.time, 1.0  # eventHandlingNeeded for the events handled inside
+            self._cs.handled_reported = 1
         if self.nx:
             self._derivatives_after_step = comp._real[self.nx: 2 * self.nx].tolist()
         return DISCARD if self.terminate_requested else OK

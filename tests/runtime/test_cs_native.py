@@ -260,8 +260,9 @@ def test_fmi3_event_modes_the_c_step_equals_the_python_step(early_return, tmp_pa
     the Oscillator (wall impacts: state events; the force step at t = 2.5 s: a time event on a
     communication point) and the BouncingBall. With early return the Oscillator's steps stop once
     at each impact, at its closed-form time (to 1e-6 s), and at the force step; without it the
-    impacts are handled inside the steps and only the force step, on the communication point, is
-    left to the importer (no early return), and the values on the grid are the early-return run's."""
+    impacts are handled inside the steps and reported at the steps' ends, the force step, on a
+    communication point, is left to the importer (no early return either way), and the values on
+    the grid are the early-return run's."""
     host = _events_host(tmp_path)
     runs = {}
     for source, names in (("oscillator.py", ["x", "v", "impacts"]), ("bouncing_ball.py", ["q", "v", "contact"])):
@@ -280,7 +281,8 @@ def test_fmi3_event_modes_the_c_step_equals_the_python_step(early_return, tmp_pa
         np.testing.assert_allclose(early, impacts, rtol=0, atol=1e-6)
         assert events == sorted(early + [2.5])
     else:
-        assert early == [] and events == [2.5]
+        step_ends = [round(math.ceil(t / 0.01) * 0.01, 12) for t in impacts]
+        assert early == [] and events == pytest.approx(sorted(step_ends + [2.5]), abs=1e-12)
         with_early_return = _event_mode_rows(host, "oscillator.py", ["x", "v", "impacts"], True, True, tmp_path)
         on_grid = [row[1:2] + row[4:] for row in with_early_return if row[0] == "step" and row[3] == "0"]
         assert [row[1:2] + row[4:] for row in steps] == on_grid

@@ -115,13 +115,25 @@ def test_with_early_return_every_impact_comes_back_at_its_model_exchange_time(ba
     np.testing.assert_allclose(grid[:, 3:], fmi2_cs[:, 1:], rtol=0, atol=1e-12)
 
 
-def test_without_early_return_the_impacts_are_handled_inside_the_steps(ball3, host, me_events, fmi2_cs):
+def _step_ends(event_times: np.ndarray) -> np.ndarray:
+    """The communication points that end the steps holding these events."""
+    return np.ceil(event_times / H - 1e-9) * H
+
+
+def test_without_early_return_the_impacts_are_handled_inside_and_reported_at_the_step_end(
+        ball3, host, me_events, fmi2_cs):
     """eventModeUsed without earlyReturnAllowed: the FMU must reach each communication point, so
     an impact inside a step is over when the step returns; the FMU handles it at its time inside
-    the step and reports no event there (as the Reference FMUs do). The values equal the FMI 2.0
-    CS run's, and the early-return run's on the grid, where the importer handled each event."""
+    the step and returns eventHandlingNeeded at the step's end (no earlyReturn). The importer's
+    Event Mode there finds nothing left (the contact state is the same after it), and the values
+    equal the FMI 2.0 CS run's, and the early-return run's on the grid, where the importer
+    handled each event at its time."""
     steps, events = ball3.run(host, True, False, STOP, H, *BALL_OUTPUTS)
-    assert len(events) == 0 and not steps[:, 1:3].any()
+    reported = steps[steps[:, 1] == 1]
+    np.testing.assert_allclose(reported[:, 0], _step_ends(me_events[:, 0]), rtol=0, atol=1e-12)
+    assert len(reported) == 14 and not steps[:, 2].any()
+    np.testing.assert_array_equal(events[:, 0], reported[:, 0])  # the host's Event Mode at each
+    np.testing.assert_array_equal(events[:, 3], reported[:, 5])  # which had nothing left to do
     np.testing.assert_array_equal(steps[:, 0], fmi2_cs[:, 0])
     np.testing.assert_allclose(steps[:, 3:], fmi2_cs[:, 1:], rtol=0, atol=1e-12)
     # the same trajectory as where the importer handled each event at its time
@@ -174,8 +186,9 @@ def test_without_event_mode_nothing_changes(ball3, host, fmi2_cs, early_return_a
 def test_fmpy_simulate_fmu_with_event_mode(ball3, me_events, fmi2_cs, early_return_allowed):
     """fmpy's simulate_fmu runs FMI 3.0 Co-Simulation with event mode (use_event_mode,
     early_return_allowed) in fmusim's loop and records a row before and after each Event Mode.
-    With early return: a pair at each Model Exchange event time (to 1e-6 s); without it none
-    (the events were handled inside the steps). The rows on the grid are the FMI 2.0 CS run's."""
+    With early return: a pair at each Model Exchange event time (to 1e-6 s); without it a pair
+    at the end of each step that handled an impact inside. The rows on the grid (after any Event
+    Mode there) are the FMI 2.0 CS run's."""
     result = fmpy.simulate_fmu(str(ball3.fmu), fmi_type="CoSimulation", stop_time=STOP, output_interval=H,
                                output=BALL_OUTPUTS, use_event_mode=True, early_return_allowed=early_return_allowed)
     t = result["time"]
@@ -183,8 +196,8 @@ def test_fmpy_simulate_fmu_with_event_mode(ball3, me_events, fmi2_cs, early_retu
     if early_return_allowed:
         np.testing.assert_allclose(events, me_events[:, 0], rtol=0, atol=1e-6)
     else:
-        assert len(events) == 0
-    on_grid = np.isin(t, fmi2_cs[:, 0])
+        np.testing.assert_allclose(events, _step_ends(me_events[:, 0]), rtol=0, atol=1e-12)
+    on_grid = np.isin(t, fmi2_cs[:, 0]) & np.r_[t[1:] != t[:-1], True]  # the row after an Event Mode
     assert on_grid.sum() == len(fmi2_cs)
     table = np.column_stack([result[name] for name in BALL_OUTPUTS])[on_grid]
     np.testing.assert_allclose(table, fmi2_cs[:, 1:], rtol=0, atol=1e-12)

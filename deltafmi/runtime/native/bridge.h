@@ -41,6 +41,9 @@ typedef struct {
     double *pre_indicators; /* nz: the event indicators where the last step or event left them,
                              * with the inputs of then (valid: pre_indicators_valid) */
     int pre_indicators_valid;
+    int handled_reported; /* FMI 3.0, eventModeUsed without early return: the step handled events
+                           * inside and reported them at its end; the importer's Event Mode that
+                           * follows restarts the solver only where it changes something */
 } DfmiCs;
 
 /* Buffers owned by the Python instance and read/written in place by the loader. */

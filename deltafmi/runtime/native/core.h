@@ -154,9 +154,10 @@ int dfmi_terminated(const Instance *c);
  *                             FMI 3.0 without eventModeUsed);
  *   DFMI_EVENTS_EARLY_RETURN  stops at the first event and leaves it pending (FMI 3.0 with
  *                             eventModeUsed and earlyReturnAllowed);
- *   DFMI_EVENTS_AT_STEP_END   reaches t + h, handling the events before it inside, and leaves one
- *                             at t + h itself pending (FMI 3.0 with eventModeUsed only: the
- *                             FMU may not return early, and an event inside the step has passed).
+ *   DFMI_EVENTS_AT_STEP_END   reaches t + h, handling the events before it inside and reporting
+ *                             them there, and leaves one at t + h itself pending (FMI 3.0 with
+ *                             eventModeUsed only: the FMU may not return early, and an event
+ *                             inside the step has passed).
  * The step reports through the layout's control array (whoever runs the loop, Python or C):
  *   control[0] nonzero: the component ended the simulation, at control[1];
  *   control[2] = 1: the step left an event pending at the time it reached, control[1]; the

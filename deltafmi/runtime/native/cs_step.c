@@ -184,6 +184,7 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
         reinit(s, nx, s->time, L->real + L->x_offset);
     if (s->restart_solver) s->event_time = s->time; /* the solver starts here after the importer's Event Mode */
     s->restart_solver = 0;
+    int handled = 0;
     if (changed) {
         /* the inputs set at t moved an event indicator across zero: an event at t (instance.py) */
         int crossed = indicators_crossed(c);
@@ -191,6 +192,7 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
         if (crossed) {
             int status = bridge_call(c->py, DFMI_CS_EVENT, NULL, 0);
             if (status >= DFMI_ERROR) return status;
+            handled = 1;
         }
     }
     while (s->time < t_end && !dfmi_terminated(c)) {
@@ -223,6 +225,7 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
         if (root || time_event) {
             int status = bridge_call(c->py, DFMI_CS_EVENT, NULL, 0);
             if (status >= DFMI_ERROR) return status;
+            handled = 1;
         }
     }
     int ended = dfmi_terminated(c);
@@ -231,6 +234,11 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
     int status = evaluate(c);
     if (status >= DFMI_ERROR) return status;
     keep_indicators(L, s);
+    if (handled && events == DFMI_EVENTS_AT_STEP_END && !ended) {
+        control[1] = s->time; /* eventHandlingNeeded for the events handled inside */
+        control[2] = 1.0;
+        s->handled_reported = 1;
+    }
     memcpy(s->after, L->real + L->dx_offset, nx * sizeof(double));
     s->after_valid = 1;
     return ended ? DFMI_DISCARD : status;

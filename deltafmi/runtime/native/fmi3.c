@@ -966,9 +966,10 @@ fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
  *   say where (an event at the step's end is no early return);
  * - otherwise the FMU must reach the communication point. An event inside the step has passed
  *   when the step returns, and the importer could only handle it too late, so the FMU handles
- *   it inside, as without event mode (the FMI 3.0 Reference FMUs do the same, and report no
- *   event they handled); an event at the communication point itself (a time event there, a root
- *   found there) is left to the importer with eventHandlingNeeded.
+ *   it inside, as without event mode, and returns eventHandlingNeeded at the communication
+ *   point (the importer's Event Mode there finds it handled; the solver goes on unless that
+ *   changes something); an event at the communication point itself (a time event there, a root
+ *   found there) is left to the importer.
  * Without eventModeUsed every event is handled inside the step, as in FMI 2.0, whether or not
  * early return is allowed. A component that ended the simulation returns fmi3OK with
  * terminateSimulation = true and lastSuccessfulTime where it ended. */
