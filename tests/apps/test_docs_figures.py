@@ -1,0 +1,39 @@
+"""benchmarks/docs_figures.py, the list of where every figure of the assembly and robot-contact
+docs comes from, still quotes what the docs say: a figure changed in a doc without the list (or the
+other way round) fails here, and every row names a source that exists."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import docs_figures  # noqa: E402
+
+KINDS = {"printed", "asserted", "parameter", "derived", "owned", "historical"}
+
+
+def test_every_listed_figure_is_quoted_where_the_list_says():
+    assert [f"{f.file}: {f.text!r}" for f in docs_figures.missing()] == []
+
+
+@pytest.mark.parametrize("figure", docs_figures.FIGURES, ids=lambda f: f"{f.file}:{f.text[:30]}")
+def test_every_row_names_its_kind_and_a_source_file_that_exists(figure):
+    assert figure.kind in KINDS
+    named = figure.source.split("::")[0].split(" ")[0]
+    if figure.kind in {"printed", "asserted"} and "/" in named:
+        assert (ROOT / named).is_file(), named
+    if "::" in figure.source and figure.source.split(" ")[0].startswith("tests/"):
+        name = figure.source.split("::")[1].split(" ")[0]
+        assert name in (ROOT / named).read_text(), f"{named} has no {name}"
+
+
+def test_a_changed_figure_is_reported(tmp_path, monkeypatch):
+    doc = tmp_path / "doc.md"
+    doc.write_text("the peg is 9.2 mm\nbelow the top\n")
+    monkeypatch.setattr(docs_figures, "ROOT", tmp_path)
+    kept = docs_figures.Figure("doc.md", "9.2 mm below the top", "printed", "x")
+    changed = docs_figures.Figure("doc.md", "9.3 mm below the top", "printed", "x")
+    assert docs_figures.missing([kept, changed]) == [changed]
