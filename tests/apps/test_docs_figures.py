@@ -3,6 +3,7 @@ docs comes from, still quotes what the docs say: a figure changed in a doc witho
 other way round) fails here, and every row names a source that exists."""
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -26,7 +27,7 @@ def test_every_row_names_its_kind_and_a_source_file_that_exists(figure):
     if figure.kind in {"printed", "asserted"} and "/" in named:
         assert (ROOT / named).is_file(), named
     if "::" in figure.source and figure.source.split(" ")[0].startswith("tests/"):
-        name = figure.source.split("::")[1].split(" ")[0]
+        name = re.match(r"\w+", figure.source.split("::")[1]).group()
         assert name in (ROOT / named).read_text(), f"{named} has no {name}"
 
 
@@ -37,3 +38,12 @@ def test_a_changed_figure_is_reported(tmp_path, monkeypatch):
     kept = docs_figures.Figure("doc.md", "9.2 mm below the top", "printed", "x")
     changed = docs_figures.Figure("doc.md", "9.3 mm below the top", "printed", "x")
     assert docs_figures.missing([kept, changed]) == [changed]
+
+
+def test_the_insertion_model_has_the_documented_size():
+    """docs/assembly.md, section 7: the insertion MPC's model, the loop impedance + robot, has 36
+    states, of which the MPC keeps 6 (its stage: tip, tip velocity and the reference's position and
+    velocity along the hole's three axes, reduced; asserted in tests/models/test_insertion_mpc.py)."""
+    from deltafmi.physics.control.model_file import LinearModelFile
+    model = LinearModelFile.read(str(ROOT / "scenarios" / "peg_in_hole_mpc_model.npz"))
+    assert model.A.shape == (36, 36)
