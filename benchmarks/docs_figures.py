@@ -125,7 +125,7 @@ FIGURES = [
     # 7. MPC
     Figure(A, "a Hessian of condition ~70 solved in a median of 5 iterations, where the sparse form took 325-525", "owned",
            "contactest (solver)"),
-    Figure(A, "Riccati gain (1e-11)", "asserted", "tests/physics/test_mpc.py"),
+    Figure(A, "gain (to 1e-6 of its size", "asserted", "tests/physics/test_mpc.py::test_unconstrained_mpc_is_the_finite_horizon_lqr"),
     Figure(A, "torque limit 22 N m, contact-force limit 25 N", "parameter", f"{PRESS} mpc.torque_limit, force_limit"),
     Figure(A, "peak contact force 20.05 N (limit 25) vs 115.1 N, settling to +-0.4 N 0.055 s vs 1.275 s", "printed",
            f"{MPCC_T}::test_mpc_presses_within_its_limits_beside_the_impedance_controller"),
