@@ -14,6 +14,13 @@ from deltafmi.shipped import SCENARIOS_DIR
 from deltafmi.physics.assembly.rotation import TOOL_DOWN, orientation_reference, rotation_vector
 
 T = 1e-3  # controller sample period (s)
+ASSEMBLY_DOC = Path(__file__).resolve().parents[2] / "docs" / "assembly.md"
+
+
+def _documented(figure: str) -> None:
+    """The run's figure, as docs/assembly.md quotes it, is there: a changed result fails until the
+    doc says it (benchmarks/docs_figures.py lists where every figure of the doc comes from)."""
+    assert figure in " ".join(ASSEMBLY_DOC.read_text().split()), f"docs/assembly.md does not say {figure!r}"
 
 
 def _columns(result, name: str, n: int) -> np.ndarray:
@@ -40,8 +47,9 @@ def test_the_six_dof_loop_tracks_a_tip_path_and_a_tilt_path():
     # makes the held torque's mean second-order accurate, leaving an acceleration error of order
     # T^2 times the reference's snap; the error dynamics pass it with their static gain 1 / wn^2
     # (wn = 31.6 rad/s): |e| <= T^2 snap_max / wn^2 (7.0e-7 m for 5 cm in 0.4 s, 2.8e-6 rad for
-    # 0.2 rad in 0.4 s; measured 2.0e-7 m and 8.7e-7 rad).
+    # 0.2 rad in 0.4 s).
     wn2 = 5000.0 / 5.0
+    print(f"\ntracking: tip {np.abs(tip - r).max():.1e} m, orientation {np.abs(rot_err).max():.1e} rad")
     assert np.abs(tip - r).max() <= T ** 2 * _snap(0.05, 0.4) / wn2
     assert np.abs(rot_err).max() <= T ** 2 * _snap(0.2, 0.4) / wn2
     # the controller's estimate (Newton forward kinematics of the measured angles, recorded in the
@@ -99,9 +107,12 @@ def test_the_peg_goes_into_a_hole_off_by_two_mm_and_one_degree():
     assert lateral[0] > 20 * (D_BORE - D_PEG) / 2 and angular[0] == pytest.approx(0.01745)
     assert res["plant.success"][-1] == 1 and depth[-1] >= 0.03
     engaged = depth[-1] - BORE_EDGE
-    print(f"final misalignment: lateral {lateral[-1]:.3e} m, angular {angular[-1]:.5f} rad (docs/assembly.md)")
+    print(f"\nmisalignment: lateral {lateral[0]:.3e} -> {lateral[-1]:.3e} m, angular {angular[0]:.5f} -> "
+          f"{angular[-1]:.5f} rad (docs/assembly.md)")
     assert lateral[-1] <= (D_BORE - D_PEG) / 2 + 1e-5
     assert angular[-1] <= (D_BORE - D_PEG) / engaged + 1e-4
+    _documented(f"lateral misalignment {lateral[0] * 1e3:.1f} mm -> {lateral[-1] * 1e3:.2f} mm (the clearance), "
+                f"angular {angular[0]:.4f} -> {angular[-1]:.4f} rad")
     assert set(res["controller.phase"]) == {1, 2, 3} and set(res["controller.status"]) == {0}
 
 
@@ -118,7 +129,8 @@ def test_a_stiff_wrist_wedges_where_a_compliant_one_inserts():
     res, depth, _, angular = _insert(**tilted, **{"controller.rot_stiffness": [500.0] * 3,
                                                   "controller.inertia": [0.05] * 3})
     assert res["plant.success"][-1] == 0
-    print(f"wedged: {depth[-1] * 1e3:.2f} mm below the top at the end (docs/assembly.md)")
+    print(f"\nwedged: {depth[-1] * 1e3:.2f} mm below the top at the end (docs/assembly.md)")
+    _documented(f"{depth[-1] * 1e3:.1f} mm below the top at {res['time'][-1]:g} s")
     assert depth[-1] - BORE_EDGE < 0.5 * D_PEG and angular[-1] > 0.05
     assert res["controller.depth_ref"][-1] - depth[-1] == pytest.approx(20.0 / 1500.0, rel=0.05)
     # and the fixture takes that push: the contact force along the (3-degree) hole axis is K e = 20 N

@@ -91,6 +91,7 @@ def test_mpc_holds_the_force_limit_against_a_larger_command(tmp_path, linear_mod
     slack stays inside OSQP's tolerance: status 0, not 2)."""
     c = run_press(tmp_path, linear_model, force=30.0, impedance=False)
     fn = c["mpc_plant.fn"]
+    print(f"\ncommanded 30 N, limit {F_MAX} N: peak {fn.max():.3f} N, final {fn[-1]:.3f} N")
     assert fn.max() <= F_MAX + FORCE_TOLERANCE
     assert fn[-1] == pytest.approx(F_MAX, abs=FORCE_TOLERANCE)
     assert c["mpc.status"][-1] == 0

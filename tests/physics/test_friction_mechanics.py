@@ -120,6 +120,7 @@ def test_a_block_above_the_friction_angle_slides_with_the_kinetic_acceleration(f
     assert [(tr.before, tr.after) for tr in system.log] == [(STICK, SLIP_POSITIVE)]
     exact = np.array([incline_position(t, STEEP, FRICTION) for t in r.t])
     got = np.array([along(x) for x in r.x])
+    print(f"\nincline ({frame}): position {np.abs(got - exact).max() / exact[-1]:.1e} of the closed form's")
     assert got[-1] == pytest.approx(exact[-1], rel=1e-10)
     assert np.abs(got - exact).max() < 1e-10 * exact[-1]
     lam_n, lam_t = r.forces[-1]
@@ -193,6 +194,8 @@ def test_the_stick_slip_oscillator_settles_on_the_closed_form_limit_cycle():
     omega = math.sqrt(k / m)
     slipping = (r.modes[:, 0] == SLIP_NEGATIVE) & (r.t > sticks[0])
     radius = np.hypot(r.x[slipping, 0] - cycle.centre, r.x[slipping, 2] / omega)
+    print(f"\nstick-slip: period {np.abs(np.diff(sticks[1:]) / cycle.period - 1).max():.1e}, amplitude "
+          f"{np.abs(radius / cycle.amplitude - 1).max():.1e}")
     np.testing.assert_allclose(radius, cycle.amplitude, rtol=1e-8)
     assert r.x[r.t > sticks[0], 0].max() <= cycle.centre + cycle.amplitude * (1 + 1e-8)
     assert r.x[r.t > sticks[0], 0].max() > cycle.centre + cycle.amplitude * 0.99
@@ -242,6 +245,7 @@ def test_on_a_level_plane_a_block_slides_straight_and_stops_at_the_closed_form_t
     r = run(system, x0)
     stop = 1.0 / (FRICTION.mu_k * G)
     assert [(tr.before, tr.after) for tr in system.log] == [(SLIP_POSITIVE, STICK)]
+    print(f"\nlevel plane: stop time {abs(system.log[0].t / stop - 1):.1e}")
     assert system.log[0].t == pytest.approx(stop, rel=1e-11)
     np.testing.assert_allclose(r.x[-1][:2], v0 * stop / 2, rtol=1e-12)
     assert not r.x[-1][3:].any() and not r.forces[-1][1:].any()

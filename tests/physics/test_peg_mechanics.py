@@ -84,6 +84,7 @@ def test_point_sliding_down_the_chamfer_force_ratio(mu, alpha_deg):
     ratio = -cw.force[0] / cw.force[2]
     closed = (math.sin(a) - mu * math.cos(a)) / (math.cos(a) + mu * math.sin(a))
     e = regularisation_error_bound(fn, V, FrictionParams(mu, mu), law.v_eps)
+    print(f"\nchamfer {alpha_deg:g} deg, mu {mu}: force ratio off the closed form by {abs(ratio - closed):.1e}")
     assert abs(ratio - closed) <= e / (fn * math.cos(a) ** 2) + 1e-12
     assert abs(cw.force[1]) < 1e-9 * fn
 
@@ -156,6 +157,7 @@ def test_force_is_continuous_over_rounded_edges(edge_radius, sweep):
     jumps = np.linalg.norm(np.diff(forces, axis=0), axis=1)
     active = np.maximum([r.active for r in results[:-1]], [r.active for r in results[1:]])
     assert max(r.max_normal for r in results) > 5.0  # it pressed through both faces of the edge
+    print(f"\nedge radius {edge_radius * 1e3:g} mm, {sweep}: largest force jump between steps {jumps.max():.2f} N")
     if edge_radius > 0.0:
         assert np.all(jumps <= active * law.stiffness * edge_radius / (edge_radius - delta) * dx * (1 + 1e-9))
     else:
@@ -232,6 +234,7 @@ def test_wedged_peg_does_not_go_in():
     start, mid, end = (rigid.contact(sol.sol(t), wrench) for t in (0.0, 0.5 * T, T))
     f_max = max(rigid.contact(sol.sol(t), wrench).max_normal for t in np.linspace(0.0, T, 41))
     assert end.active >= 2 and f_max > 10.0
+    print(f"\nwedged: the depth changes by {abs(end.depth - start.depth) * 1e6:.1f} um in {T * 1e3:g} ms")
     assert abs(end.depth - start.depth) <= 2.0 * f_max / 1e6
     assert abs(end.depth - mid.depth) <= 1e-5 * 0.5 * T  # creep, v_eps = 1e-5 m/s
 
@@ -244,6 +247,7 @@ def test_same_squeeze_below_the_wedging_bound_slides_in():
     T = 0.03
     sol = integrate(rigid, wrench, y0, T, method="LSODA", rtol=1e-7, atol=1e-10)
     start, end = rigid.contact(y0, wrench), rigid.contact(sol.sol(T), wrench)
+    print(f"\nnot wedged: in by {(end.depth - start.depth) * 1e3:.2f} mm in {T * 1e3:g} ms")
     assert end.depth - start.depth > 2e-3
     assert end.angular < 0.6 * start.angular
 
@@ -290,6 +294,7 @@ def test_elastic_frictionless_drop_conserves_energy():
     impact = rigid.mass * rigid.g * 0.003  # kinetic energy at the chamfer, ~7 mJ
     samples = [sol.sol(t) for t in np.linspace(0.0, T, 200)]
     assert max(rigid.contact(y, wrench).max_normal for y in samples) > 10.0  # it hit the chamfer
+    print(f"\nelastic drop: energy {max(abs(rigid.energy(y, wrench) - E0) for y in samples) / impact:.1e} of the impact's")
     assert max(abs(rigid.energy(y, wrench) - E0) for y in samples) <= 1e-8 * impact
 
 
