@@ -166,12 +166,12 @@ class Pacer:
         # a point changes the episodes only where the run falls behind or catches up: one call
         # for the first point of each stretch of points late by more than a step or not (a whole
         # C run's points one by one took a millisecond of Python between two paced points)
-        firsts = np.flatnonzero(np.diff(over, prepend=not over[0]))
-        ends = np.append(firsts[1:], len(over))
-        for first, end in zip(firsts.tolist(), ends.tolist()):
-            self._episode(float(times[first]), float(lateness[first]))
-            if over[first] and end - first > 1:
-                self._episode(float(times[first]), float(lateness[first:end].max()))
+        firsts = np.flatnonzero(np.diff(over, prepend=not over[0])).tolist()
+        late, at = lateness.tolist(), times.tolist()
+        for first, end in zip(firsts, firsts[1:] + [len(late)]):
+            self._episode(at[first], late[first])
+            if late[first] > self.period and end - first > 1:
+                self._episode(at[first], max(late[first:end]))
 
     def _episode(self, t: float, late: float) -> None:
         """A run falling behind (a point later than a whole step) and catching up again."""
