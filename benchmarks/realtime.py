@@ -14,17 +14,24 @@
   same way (``LiveRun.paced_in_c`` off), in the same run: on a loaded machine, where other
   processes' turns make points late, the busy time against the paced step says whether a run
   can keep up.
+- The machine's floor at ``--target-speed``, measured beside each of those runs: a C loop paced
+  exactly as the master's (benchmarks/native/paced_floor.c) around a step that only spends the
+  flagship's median busy time; what it counts late is the machine's (other processes' turns,
+  scheduler ticks, a virtual machine's host), not the master's. The load average is printed
+  with it. ``--target-only`` measures this and the line above only.
 - UDP round trip: a datagram sent to a live UDP input comes back on a UDP stream of the same
   signal (the run at 1 kHz paced, and unpaced); wall time from sendto to recv, median and 99th
   percentile over ``--pings``. Baseline in the same run: a plain Python echo over loopback (one
   thread receives and sends back), the floor of any round trip through Python sockets.
 
-Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300]
+Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only]
 """
 from __future__ import annotations
 
 import argparse
+import ctypes
 import logging
+import os
 import random
 import signal
 import socket
@@ -84,6 +91,57 @@ def highest_speed() -> float:
         middle = (good + bad) / 2
         good, bad = (middle, bad) if keeps_up(middle) else (good, middle)
     return good
+
+
+class PacedFloor:
+    """benchmarks/native/paced_floor.c compiled (``cc -std=c99 -O2``) and loaded."""
+
+    def __init__(self, directory: Path) -> None:
+        from deltafmi.toolchain import require_compiler
+
+        source = Path(__file__).resolve().parent / "native" / "paced_floor.c"
+        library = directory / "paced_floor.so"
+        subprocess.run([*require_compiler(source), "-std=c99", "-O2", "-shared", "-fPIC", str(source), "-o",
+                        str(library)], check=True, capture_output=True)
+        self._floor = ctypes.CDLL(str(library)).paced_floor
+        self._floor.argtypes = [ctypes.c_long, ctypes.c_double, ctypes.c_double, ctypes.c_double,
+                                ctypes.POINTER(ctypes.c_long), ctypes.POINTER(ctypes.c_long)]
+        self._floor.restype = ctypes.c_double
+
+    def __call__(self, points: int, period: float, busy: float) -> dict:
+        """Overruns (later than a quarter period, as the Pacer's tolerance), fell-behind episodes
+        and the largest lateness of ``points`` paced points around ``busy`` seconds of work."""
+        overruns, behind = ctypes.c_long(), ctypes.c_long()
+        worst = self._floor(points, period, busy, period / 4, ctypes.byref(overruns), ctypes.byref(behind))
+        return {"overruns": overruns.value, "behind": behind.value, "max": worst, "points": points}
+
+
+def target_speed(seconds: float, repeats: int, speed: float) -> list:
+    """The flagship paced at ``speed`` and, right after each run, the machine's floor with its
+    median busy time (:class:`PacedFloor`): (flagship figures, floor figures, load average)."""
+    with tempfile.TemporaryDirectory() as folder:
+        floor = PacedFloor(Path(folder))
+        runs = []
+        for _ in range(repeats):
+            load = os.getloadavg()[0]
+            flagship = lateness_figures(seconds, speed)
+            runs.append((flagship, floor(flagship["points"], 1e-3 / speed, flagship["busy"]), load))
+    return runs
+
+
+def print_target(runs: list, speed: float, seconds: float) -> None:
+    def share(figures: dict) -> str:
+        return f"{figures['overruns']} of {figures['points']} ({figures['overruns'] / figures['points']:.1%})"
+    print(f"flagship at {speed:g}x real time, {seconds:g} s, {len(runs)} runs (target: never behind, overruns <= 1 %); "
+          f"beside each, the machine's floor (a C loop paced the same way around the same busy time):")
+    for flagship, floor, load in runs:
+        print(f"  load {load:5.2f}: flagship overruns {share(flagship)}, fell behind {flagship['behind']}, max late "
+              f"{_us(flagship['max'])}, busy median {_us(flagship['busy'])} | floor overruns {share(floor)}, fell "
+              f"behind {floor['behind']}, max late {_us(floor['max'])}")
+    fraction = statistics.median(f["overruns"] / f["points"] for f, _, _ in runs)
+    floor_fraction = statistics.median(f["overruns"] / f["points"] for _, f, _ in runs)
+    print(f"  medians: overruns flagship {fraction:.2%}, floor {floor_fraction:.2%}; fell behind flagship "
+          f"{statistics.median(f['behind'] for f, _, _ in runs):g}, floor {statistics.median(f['behind'] for _, f, _ in runs):g}")
 
 
 def _echo_scenario(folder: Path, port: int, back: int) -> Path:
@@ -187,10 +245,15 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pings", type=int, default=300)
     parser.add_argument("--target-speed", type=float, default=50.0)
+    parser.add_argument("--target-only", action="store_true",
+                        help="only the flagship at --target-speed and the machine's floor beside it")
     args = parser.parse_args()
 
     logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)  # "fell behind" while probing speeds
     deltafmi.simulate("delta_tracking", stop=0.01)  # builds the FMUs once
+    if args.target_only:
+        print_target(target_speed(args.seconds, args.repeats, args.target_speed), args.target_speed, args.seconds)
+        return
     runs = [lateness_figures(args.seconds) for _ in range(args.repeats)]
     med = {key: statistics.median(run[key] for run in runs) for key in runs[0]}
     print(f"flagship at 1 kHz, real time, {args.seconds:g} s x {args.repeats} (medians of the runs):")
@@ -198,16 +261,10 @@ def main() -> None:
     print(f"  overruns (> 250 us) {med['overruns']:g} of {med['points']:g} points; fell behind {med['behind']:g} times")
     print(f"  busy (one step computing) median {_us(med['busy'])} = {med['busy'] / 1e-3:.1%} of the 1 ms step")
 
-    fast, python_busy = [], []
-    for _ in range(args.repeats):
-        fast.append(lateness_figures(args.seconds, args.target_speed))
-        python_busy.append(python_loop_busy(args.seconds, args.target_speed))
-    print(f"flagship at {args.target_speed:g}x real time, {args.seconds:g} s x {args.repeats}: overruns "
-          + ", ".join(f"{run['overruns']} of {run['points']}" for run in fast) + "; fell behind "
-          + ", ".join(str(run["behind"]) for run in fast) + " times; lateness median "
-          + ", ".join(_us(run["median"]) for run in fast) + "; busy median "
-          + ", ".join(_us(run["busy"]) for run in fast)
-          + " (target: never behind, overruns <= 1 %)")
+    runs = target_speed(args.seconds, args.repeats, args.target_speed)
+    print_target(runs, args.target_speed, args.seconds)
+    fast = [flagship for flagship, _, _ in runs]
+    python_busy = [python_loop_busy(args.seconds, args.target_speed) for _ in range(args.repeats)]
     c_busy = statistics.median(run["busy"] for run in fast)
     print(f"  busy per point, medians: C loop {_us(c_busy)}, Python loop {_us(statistics.median(python_busy))} "
           f"(paced step {_us(1e-3 / args.target_speed)}); Python / C {statistics.median(python_busy) / c_busy:.1f}x")

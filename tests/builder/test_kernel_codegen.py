@@ -279,6 +279,10 @@ def grow(x: float, y: float) -> float:
 
 def branch(x: float) -> float:
     return 1.0 / x if x != 0.0 else math.sin(x)
+
+
+def turn(x: float, y: float) -> float:
+    return math.sin(x) * y + math.cos(x)
 """
 
 
@@ -287,10 +291,10 @@ def test_where_python_raises_the_kernel_returns_the_line(tmp_path):
     inf or nan; the generated C records the line as a raise's (the FMU then runs the Python,
     which raises with its message), and computes the same bits everywhere else."""
     module, lib = user_kernels(tmp_path, "user_raising", RAISING_KERNELS, ratio=[D, D], root=[D], grow=[D, D],
-                               branch=[D])
+                               branch=[D], turn=[D, D])
     cases = [("ratio", (1.0, 0.0), 5), ("ratio", (0.0, 0.0), 5), ("root", (-1.0,), 9), ("root", (0.0,), 9),
              ("grow", (710.0, 1.0), 13), ("grow", (-2.0, 0.5), 13), ("grow", (0.0, -1.0), 13),
-             ("grow", (10.0, 400.0), 13)]
+             ("grow", (10.0, 400.0), 13), ("turn", (math.inf, 1.0), 21), ("turn", (-math.inf, 0.0), 21)]
     for name, args, line in cases:
         with pytest.raises(ArithmeticError, match=f"at line {line}$"):
             lib.call(name, *args)
@@ -299,5 +303,6 @@ def test_where_python_raises_the_kernel_returns_the_line(tmp_path):
             if isinstance(value, complex):  # (-2.0) ** 0.5: Python's value is complex, no float
                 raise TypeError(value)
     for name, args in [("ratio", (1.0, 3.0)), ("ratio", (1.0, math.inf)), ("root", (math.inf,)), ("root", (2.0,)),
-                       ("grow", (1.0, 2.5)), ("grow", (math.inf, 1.0)), ("branch", (0.0,)), ("branch", (4.0,))]:
+                       ("grow", (1.0, 2.5)), ("grow", (math.inf, 1.0)), ("branch", (0.0,)), ("branch", (4.0,)),
+                       ("turn", (math.nan, 1.0)), ("turn", (1e300, 2.0)), ("turn", (-0.0, 1.0)), ("turn", (0.7, math.inf))]:
         assert bits(lib.call(name, *args)) == bits(getattr(module, name)(*args)), (name, args)

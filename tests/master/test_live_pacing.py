@@ -140,3 +140,29 @@ def test_pacing_options_are_checked():
         deltafmi.simulate("delta_tracking", stop=0.01, speed=-1)
     with pytest.raises(BadInput, match="no live source to take from it"):
         deltafmi.simulate("delta_tracking", stop=0.01, replay=Path(__file__))
+
+
+def test_points_released_in_c_make_the_episodes_one_by_one_would():
+    """The C loop's points, noted at once (Pacer.note_released, which looks only at where the run
+    falls behind or catches up), give the episodes and warnings of the same points noted one at
+    a time, whatever pieces a run hands back."""
+    from deltafmi.master.live.pacing import Pacer
+
+    rng = np.random.default_rng(7)
+    period = 1e-3 / 50.0
+    for trial in range(40):
+        n = int(rng.integers(1, 400))
+        lateness = np.where(rng.random(n) < rng.choice([0.02, 0.3, 0.9]), rng.uniform(period, 5 * period, n),
+                            rng.uniform(0.0, period, n))
+        lateness[rng.random(n) < 0.05] = period  # a whole step exactly: not behind
+        times = np.arange(1, n + 1) * 1e-3
+        warned: list = [[], []]
+        at_once, one_by_one = (Pacer(50.0, 1e-3, n, warn=warned[i].append, behind="error" if trial % 2 else "warn")
+                               for i in range(2))
+        cuts = sorted({0, n, *rng.integers(0, n, 3).tolist()})
+        for a, b in zip(cuts, cuts[1:]):
+            at_once.note_released(times[a:b], lateness[a:b])
+        for t, late in zip(times.tolist(), lateness.tolist()):
+            one_by_one._episode(t, late)
+        assert at_once.report().behind == one_by_one.report().behind and warned[0] == warned[1]
+        assert str(at_once.failure) == str(one_by_one.failure)

@@ -928,6 +928,8 @@ class _Function:
             return f"({fname}({values}) != 0)", B
         if fname == "fabs":  # never raises
             return f"fabs({values})", D
+        if fname in ("sin", "cos"):  # raise for an infinite argument only: see py_trig
+            return f"py_trig(err, {e.lineno}, {fname}, {values})", D
         return f"py_math{len(args)}(err, {e.lineno}, {fname}, {values})", D
 
     def construct(self, cls: type, e: ast.Call, out: list[str], ind: int) -> tuple[str, Any]:
@@ -1023,6 +1025,14 @@ static inline double py_math1(int *err, int line, double (*f)(double), double x)
     double r = f(x);
     if (!*err && ((isnan(r) && !isnan(x)) || (isinf(r) && isfinite(x)))) *err = line;
     return r;
+}
+/* sin and cos: Python raises for an infinite argument, nothing else. The check reads the argument
+ * only and does not branch, so that the compiler computes sin and cos of one angle by one call of
+ * libm's sincos (the same bits as sin and cos, at little more than the cost of one of them). */
+static inline double py_trig(int *err, int line, double (*f)(double), double x)
+{
+    *err += (*err == 0) * (isinf(x) ? line : 0);
+    return f(x);
 }
 static inline double py_math2(int *err, int line, double (*f)(double, double), double x, double y)
 {

@@ -160,10 +160,18 @@ class Pacer:
     def note_released(self, times: np.ndarray, lateness: np.ndarray) -> None:
         """Points released elsewhere (the master's C loop, which waited as :meth:`wait` does and
         wrote their lateness into the record): at ``times``, ``lateness`` late."""
-        if not (self._behind and self._behind[-1][1] is None) and not (lateness > self.period).any():
+        over = lateness > self.period
+        if not len(over) or (not (self._behind and self._behind[-1][1] is None) and not over.any()):
             return
-        for t, late in zip(times.tolist(), lateness.tolist()):
-            self._episode(t, late)
+        # a point changes the episodes only where the run falls behind or catches up: one call
+        # for the first point of each stretch of points late by more than a step or not (a whole
+        # C run's points one by one took a millisecond of Python between two paced points)
+        firsts = np.flatnonzero(np.diff(over, prepend=not over[0])).tolist()
+        late, at = lateness.tolist(), times.tolist()
+        for first, end in zip(firsts, firsts[1:] + [len(late)]):
+            self._episode(at[first], late[first])
+            if late[first] > self.period and end - first > 1:
+                self._episode(at[first], max(late[first:end]))
 
     def _episode(self, t: float, late: float) -> None:
         """A run falling behind (a point later than a whole step) and catching up again."""

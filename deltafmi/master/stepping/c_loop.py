@@ -328,7 +328,7 @@ class NativeLoop:
         """The pacer's record of the points the C run released at ``times``."""
         pacer = self._paced
         first, pacer._count = pacer._count, int(self._count[0])
-        pacer.released = self._pace.released
+        pacer.released, pacer._wall0 = self._pace.released, self._pace.wall0  # C anchors the clock at its first point
         lateness = pacer._lateness[first:pacer._count]
         if len(lateness):
             pacer.late, pacer.busy = float(lateness[-1]), self._pace.last_busy

@@ -169,30 +169,53 @@ static const char DIGIT_PAIRS[200] =
     "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
     "8081828384858687888990919293949596979899";
 
-/* the decimal digits of v (> 0, at most 20 of them) */
+/* the decimal digits of v (> 0, at most 20 of them): compared from the most, the common case of a
+ * double's shortest digits (15 to 17 of them) in a few comparisons */
+static const uint64_t POWERS_OF_TEN[20] = {
+    1ull, 10ull, 100ull, 1000ull, 10000ull, 100000ull, 1000000ull, 10000000ull, 100000000ull, 1000000000ull,
+    10000000000ull, 100000000000ull, 1000000000000ull, 10000000000000ull, 100000000000000ull,
+    1000000000000000ull, 10000000000000000ull, 100000000000000000ull, 1000000000000000000ull,
+    10000000000000000000ull};
+
 static inline int decimal_length(uint64_t v)
 {
-    int n = 1;
-    for (uint64_t bound = 10; n < 20 && v >= bound; bound *= 10) n++;
+    int n = 20;
+    while (n > 1 && v < POWERS_OF_TEN[n - 1]) n--;
     return n;
 }
 
-/* v's nd decimal digits into out[0 .. nd - 1] */
+/* "dddd": w (< 10000) as exactly four digits */
+static inline void write_four(uint32_t w, char *out)
+{
+    memcpy(out, DIGIT_PAIRS + 2 * (w / 100), 2);
+    memcpy(out + 2, DIGIT_PAIRS + 2 * (w % 100), 2);
+}
+
+/* v's nd decimal digits into out[0 .. nd - 1]: eight at a time while there are more, as two
+ * groups of four that do not wait for one another, then two at a time */
 static inline void write_digits(uint64_t v, char *out, int nd)
 {
     char *end = out + nd;
-    while (v >= 100) {
-        const uint64_t q = v / 100;
-        const unsigned r = (unsigned)(v - 100 * q);
-        end -= 2;
-        memcpy(end, DIGIT_PAIRS + 2 * r, 2);
+    while (v >= 100000000) {
+        const uint64_t q = v / 100000000;
+        const uint32_t r = (uint32_t)(v - 100000000 * q);
+        end -= 8;
+        write_four(r / 10000, end);
+        write_four(r % 10000, end + 4);
         v = q;
     }
-    if (v >= 10) {
+    uint32_t w = (uint32_t)v;
+    while (w >= 100) {
+        const uint32_t q = w / 100;
         end -= 2;
-        memcpy(end, DIGIT_PAIRS + 2 * v, 2);
+        memcpy(end, DIGIT_PAIRS + 2 * (w - 100 * q), 2);
+        w = q;
+    }
+    if (w >= 10) {
+        end -= 2;
+        memcpy(end, DIGIT_PAIRS + 2 * w, 2);
     } else {
-        *--end = (char)('0' + v);
+        *--end = (char)('0' + w);
     }
 }
 

@@ -196,12 +196,18 @@ static double now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static void sleep_for(double seconds)
+/* sleep until wall time `until` (CLOCK_MONOTONIC seconds): an absolute deadline, so that the time
+ * between reading the clock and going to sleep does not add to the wait */
+static void sleep_until(double until)
 {
     struct timespec ts;
-    ts.tv_sec = (time_t)seconds;
-    ts.tv_nsec = (long)((seconds - (double)ts.tv_sec) * 1e9);
-    while (nanosleep(&ts, &ts) != 0 && errno == EINTR) {
+    ts.tv_sec = (time_t)until;
+    ts.tv_nsec = (long)((until - (double)ts.tv_sec) * 1e9);
+    if (ts.tv_nsec >= 1000000000L) {
+        ts.tv_sec++;
+        ts.tv_nsec -= 1000000000L;
+    }
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
     }
 }
 
@@ -215,7 +221,7 @@ static int pace_to(Pace *c, double t)
     double deadline = c->wall0 + (t - c->t0) / c->speed;
     while (deadline - now_ > c->spin + 1e-6) {
         double left = deadline - now_ - c->spin;
-        sleep_for(left < 0.05 ? left : 0.05);
+        sleep_until(now_ + (left < 0.05 ? left : 0.05));
         now_ = now();
     }
     while (now_ < deadline) now_ = now();
@@ -607,6 +613,10 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
         p->ops[i].holds_end = 0; /* Python may have called the FMUs since the last run */
     if (!p->pool) p->pool = pool_start(p);
     Pool *pool = p->pool;
+    if (p->pace && *p->pace->count == 0) { /* Pacer.restart: the paced clock starts with the stepping */
+        p->pace->wall0 = now();
+        p->pace->released = p->pace->wall0;
+    }
     for (; k < k_end; k++) {
         long next = k + 1;
         int due = next % p->every == 0 || next == p->n_steps;
