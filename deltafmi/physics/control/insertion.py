@@ -94,7 +94,9 @@ class InsertionTask:
     polish: bool = True              #: solve the active set's equality QP after ADMM (.mpc)
     relaxation: float = 1.0          #: OSQP's alpha (1: no over-relaxation; measured, fewer iterations
                                      #: at the worst samples than OSQP's 1.6 on this QP)
-    modes: int = 8                   #: stage sequences whose OSQP solvers are kept (.mpc)
+    modes: int = 8                   #: stage sequences whose QP solvers are kept (.mpc)
+    solver: str = "daqp"             #: "daqp" (dual active set, .active_set) or "osqp" (ADMM; tolerance,
+                                     #: max_iterations, polish and relaxation are its settings)
 
     def validate(self) -> None:
         """Raise ValueError naming the first value out of range."""
@@ -183,7 +185,9 @@ class InsertionMpc:
                              u_max=np.full(3, amax), H=H, h=self.h, lo=self.lo, hi=self.hi_free,
                              rho_l=task.limit_penalty, rho_q=0.01 * task.limit_penalty, eps=task.tolerance,
                              polish=task.polish, max_iter=task.max_iterations, modes=task.modes,
-                             alpha=task.relaxation)
+                             alpha=task.relaxation, solver=task.solver)
+        if task.modes > 1:  # both modes' solvers set up before the first sample
+            self.mpc.prepare([self.blocked] * task.horizon)
         self.H = H
         self._plan: Optional[MpcSolution] = None
 
