@@ -41,7 +41,7 @@ import numpy as np
 from ..delta.dynamics import project_to_constraints
 from ..delta.kinematics import forward_kinematics, inverse_kinematics, wrist_position
 from ..delta.params import DeltaParams
-from .delta_process import process_linearization, propagate, tangent_basis, wrist_jacobians
+from .delta_process import arm_jacobians, process_linearization, propagate, tangent_basis, wrist_jacobians
 from .kalman import joseph_update, transition_matrix, white_acceleration_noise
 
 __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
@@ -183,7 +183,7 @@ class ContactEKF:
         T = st.sample_period
         A, rate = process_linearization(p, q, v, u, f, st.pole)
         Phi = transition_matrix(A, T)  # of [q, v, f]; s is constant (its row of the 22 is e_s)
-        Tz = tangent_basis(p, q)
+        Tz = tangent_basis(p, q, self._kinematics()[3])
         Qd = self._Qd.copy()
         Qd[:18, :18] = np.kron(self._W, Tz @ Tz.T)  # [[W00 TT, W01 TT], [W10 TT, W11 TT]]
         self.x[_Q], self.x[_V] = propagate(p, q, v, u, f, T, st.pole, st.substeps, rate)
@@ -199,7 +199,7 @@ class ContactEKF:
     def estimate(self) -> ContactEstimate:
         """The current estimate and its standard deviations."""
         v, P = self.x[_V], self.P
-        z, Jv, D = self._kinematics()
+        z, Jv, D, _ = self._kinematics()
         G = np.hstack([D, Jv])  # d zd / d[q, v]
         n = self._n
         f = self.x[_F].copy()
@@ -213,19 +213,21 @@ class ContactEKF:
         return self._contact_terms()[0]
 
     # ------------------------------------------------------------------------------ helpers
-    def _kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """z(q), Jv(q) and D(q, v) (:func:`.delta_process.wrist_jacobians`) at the current state,
-        computed once per state (the estimate, the gap and the contact row all need them)."""
+    def _kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """z(q), Jv(q), D(q, v) (:func:`.delta_process.wrist_jacobians`) and the arms' Jacobians
+        at the current state, computed once per state (the estimate, the gap, the contact row and
+        the next prediction's tangent basis all need them)."""
         key = self.x[:18].tobytes()
         if key != self._kinematics_at:
             q, v = self.x[_Q], self.x[_V]
-            self._wrist = (wrist_position(self.params, q), *wrist_jacobians(self.params, q, v))
+            arms = arm_jacobians(self.params, q)
+            self._wrist = (wrist_position(self.params, q), *wrist_jacobians(self.params, q, v, arms), arms)
             self._kinematics_at = key
         return self._wrist
 
     def _contact_terms(self) -> tuple[float, float, np.ndarray, np.ndarray]:
         v, n = self.x[_V], self._n
-        z, Jv, D = self._kinematics()
+        z, Jv, D, _ = self._kinematics()
         gap = float(n @ z) + self._tool_along - n[2] * float(self.x[_S])
         return gap, float(n @ Jv @ v), n @ Jv, n @ D
 

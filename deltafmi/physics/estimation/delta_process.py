@@ -30,7 +30,7 @@ from ..delta.jacobian import plant_jacobian
 from ..delta.kinematics import arm_jacobian
 from ..delta.params import ARM_ROTATIONS, DeltaParams
 
-__all__ = ["arm_jacobian_rate", "wrist_jacobians", "tangent_basis", "propagate", "process_jacobian",
+__all__ = ["arm_jacobian_rate", "arm_jacobians", "wrist_jacobians", "tangent_basis", "propagate", "process_jacobian",
            "process_linearization"]
 
 ArrayLike = Sequence[float] | np.ndarray
@@ -55,24 +55,33 @@ def arm_jacobian_rate(p: DeltaParams, qi: ArrayLike, vi: ArrayLike) -> np.ndarra
     ])
 
 
-def wrist_jacobians(p: DeltaParams, q: ArrayLike, v: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+def arm_jacobians(p: DeltaParams, q: ArrayLike) -> np.ndarray:
+    """R_i dpsi/dq(q_i) of the three arms (3, 3, 3): each arm's wrist point against its angles,
+    world frame (what :func:`wrist_jacobians` and :func:`tangent_basis` are made of)."""
+    q = np.asarray(q, float)
+    return np.stack([rot @ arm_jacobian(p, q[3 * i:3 * i + 3]) for i, rot in enumerate(ARM_ROTATIONS)])
+
+
+def wrist_jacobians(p: DeltaParams, q: ArrayLike, v: ArrayLike,
+                    arms: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Jv = dz/dq and D = d(Jv v)/dq = dJv/dt (both (3, 9)), z the wrist (the mean of the arms'
-    wrist points), from the arms' Jacobians and their rates (:func:`arm_jacobian_rate`)."""
+    wrist points), from the arms' Jacobians (``arms``: :func:`arm_jacobians` at q, when the caller
+    has them) and their rates (:func:`arm_jacobian_rate`)."""
     q, v = np.asarray(q, float), np.asarray(v, float)
+    arms = arm_jacobians(p, q) if arms is None else arms
     Jv, D = np.empty((3, 9)), np.empty((3, 9))
     for i, rot in enumerate(ARM_ROTATIONS):
         arm = slice(3 * i, 3 * i + 3)
-        Jv[:, arm] = rot @ arm_jacobian(p, q[arm]) / 3.0
+        Jv[:, arm] = arms[i] / 3.0
         D[:, arm] = rot @ arm_jacobian_rate(p, q[arm], v[arm]) / 3.0
     return Jv, D
 
 
-def tangent_basis(p: DeltaParams, q: ArrayLike) -> np.ndarray:
+def tangent_basis(p: DeltaParams, q: ArrayLike, arms: np.ndarray | None = None) -> np.ndarray:
     """dq/dz (9, 3): the joint motion that moves every arm's wrist point, hence the closed loop,
-    by dz (arm i: (R_i dpsi/dq(q_i))^-1). Also dv/dzd at fixed q."""
-    q = np.asarray(q, float)
-    return np.linalg.inv(np.stack([rot @ arm_jacobian(p, q[3 * i:3 * i + 3])
-                                   for i, rot in enumerate(ARM_ROTATIONS)])).reshape(9, 3)
+    by dz (arm i: (R_i dpsi/dq(q_i))^-1; ``arms``: :func:`arm_jacobians` at q, when the caller
+    has them). Also dv/dzd at fixed q."""
+    return np.linalg.inv(arm_jacobians(p, q) if arms is None else arms).reshape(9, 3)
 
 
 def propagate(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike, T: float,
