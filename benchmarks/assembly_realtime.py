@@ -152,7 +152,7 @@ def mpc(folder: Path, stop: float) -> None:
     labels = list(plans)
     gap = np.abs(plans[labels[-1]] - plans[labels[-2]])
     print(f"planned push, DAQP against OSQP polished: median difference {np.median(gap):.2e} N, largest {gap.max():.2e} N "
-          f"(where OSQP's polish failed, its plan is ADMM's inexact iterate)")
+          f"(where OSQP's polish failed its plan is ADMM's iterate, and each replay moves its own reference on)")
 
 
 # ----------------------------------------------------------------------------------- estimators

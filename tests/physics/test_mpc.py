@@ -7,6 +7,7 @@ import scipy.linalg
 from scipy.optimize import minimize
 
 from deltafmi.physics.control import LinearMPC, controllable_subspace, finite_horizon_lqr, spring_contact, zoh
+from deltafmi.physics.control.active_set import DenseActiveSetQP
 from deltafmi.physics.control.contact_mpc import PlaneContactMpc, PressTask
 from deltafmi.master.linearize.linear_model import LinearModel
 
@@ -239,3 +240,16 @@ def test_a_polished_plan_does_not_depend_on_the_iteration_path(solver):
     second = warm.solve(x0, r, stages=stages)
     assert cold.polished and second.polished and cold.iterations != second.iterations
     np.testing.assert_allclose(second.u, cold.u, rtol=0.0, atol=1e-9 * 0.6)
+
+
+@pytest.mark.parametrize("c, want", [((3.0, -5.0), (1.5, -5.0)), ((1.0, 1.0), (0.5, 0.5)), ((-3.0, 0.0), (-1.0, 0.0))])
+def test_active_set_qp_reads_single_entry_rows_as_bounds(c, want):
+    """min 1/2 |x - c|^2 s.t. -4 <= -2 x0 <= 2 (a scaled, negative bound row), x0 <= 1.5 (a second
+    bound on x0: the two intersect), x0 + x1 <= 1 (a general row): the closed form is c clipped to
+    x0 in [-1, 1.5] or, when x0 + x1 <= 1 binds, c projected onto the line x0 + x1 = 1."""
+    A = np.array([[-2.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
+    l, u = np.array([-4.0, -np.inf, -np.inf]), np.array([2.0, 1.5, 1.0])
+    qp = DenseActiveSetQP(np.eye(2), -np.asarray(c), A, l, u)
+    found = qp.solve()
+    assert found.solved and found.status == "solved"
+    np.testing.assert_allclose(found.x, want, rtol=0.0, atol=1e-12)

@@ -27,8 +27,9 @@ DAE linearisations per sample for little gain without inequality constraints to 
 Cycle per sample t_k (:meth:`ContactEKF.step`): predict from t_(k-1) with u(t_(k-1)), the
 torque held over that period, then update with y(t_k) (Joseph form) and the gated contact update.
 The published estimate is the posterior at t_k: it uses y(t_k) and is time-aligned with it.
-Cost: about 0.5 ms per sample in Python, 0.6 ms with the contact update (numpy; one exact DAE
-Jacobian, four DAE evaluations, two projections onto the loops; measured on the 2-core box).
+Cost per sample (Python with numpy): one exact DAE Jacobian (whose accelerations are the
+Runge-Kutta step's first stage), three more DAE evaluations, one or two projections onto the
+loops, and the wrist kinematics once per state; benchmarks/assembly_realtime.py times it.
 """
 from __future__ import annotations
 
