@@ -34,14 +34,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import TYPE_CHECKING, Optional, Sequence
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from .active_set import DenseActiveSetQP
 from .models import AffineStage
+
+if TYPE_CHECKING:
+    from .active_set import DenseActiveSetQP
 
 __all__ = ["LinearMPC", "MpcSolution"]
 
@@ -240,7 +242,9 @@ class LinearMPC:
     def _new_solver(self) -> "osqp.OSQP | DenseActiveSetQP":
         """The QP solver set up with the current matrices (the bounds and q are set before every solve)."""
         n = self.N * (self.nu + self.ns)
-        if self.solver == "daqp":
+        if self.solver == "daqp":  # imported here: an OSQP-only controller (its FMU) needs no daqp
+            from .active_set import DenseActiveSetQP
+
             return DenseActiveSetQP(self._P.matrix(self._p_blocks()), np.zeros(n), self._A.matrix(self._a_blocks()),
                                     *self._bounds(np.zeros(self.nx), np.zeros(self.nx)),
                                     max_iter=self._options["max_iter"], primal_tol=self._options["eps_abs"])
