@@ -253,3 +253,26 @@ def test_active_set_qp_reads_single_entry_rows_as_bounds(c, want):
     found = qp.solve()
     assert found.solved and found.status == "solved"
     np.testing.assert_allclose(found.x, want, rtol=0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("solver", ["osqp", "daqp"])
+def test_a_copy_keeps_a_solver_for_every_mode(solver):
+    """A deep copy (fmi2GetFMUstate) and a pickled copy set up a solver for each mode the original
+    kept, keyed by the copy's own stages, and plan both modes as the original does (to OSQP's
+    tolerance, eps 1e-6 relative; DAQP's plans are exact) without condensing again."""
+    import copy
+    import pickle
+
+    free, pushed, kw = _two_mode_problem()
+    sequences = ([free] * 8, [free if k % 3 else pushed for k in range(8)])
+    mpc = LinearMPC(free, solver=solver, **kw)
+    x0, r = np.array([0.2, -0.1, 0.3]), np.array([1.5, -1.0])
+    mpc.solve(x0, r, stages=sequences[1])
+    mpc.solve(x0, r, stages=sequences[0])
+    for other in (copy.deepcopy((mpc, sequences)), pickle.loads(pickle.dumps((mpc, sequences)))):
+        twin, their = other
+        assert len(twin._modes) == 2
+        twin._condense = None  # a copy that condensed again would fail here
+        for k in (1, 0, 1):
+            want = mpc.solve(x0 * (1 + k), r, stages=sequences[k]).u
+            np.testing.assert_allclose(twin.solve(x0 * (1 + k), r, stages=their[k]).u, want, rtol=1e-6, atol=1e-6)

@@ -34,16 +34,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Optional, Sequence
+from typing import Optional, Sequence
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
+from .active_set import DenseActiveSetQP
 from .models import AffineStage
-
-if TYPE_CHECKING:
-    from .active_set import DenseActiveSetQP
 
 __all__ = ["LinearMPC", "MpcSolution"]
 
@@ -242,9 +240,7 @@ class LinearMPC:
     def _new_solver(self) -> "osqp.OSQP | DenseActiveSetQP":
         """The QP solver set up with the current matrices (the bounds and q are set before every solve)."""
         n = self.N * (self.nu + self.ns)
-        if self.solver == "daqp":  # imported here: an OSQP-only controller (its FMU) needs no daqp
-            from .active_set import DenseActiveSetQP
-
+        if self.solver == "daqp":
             return DenseActiveSetQP(self._P.matrix(self._p_blocks()), np.zeros(n), self._A.matrix(self._a_blocks()),
                                     *self._bounds(np.zeros(self.nx), np.zeros(self.nx)),
                                     max_iter=self._options["max_iter"], primal_tol=self._options["eps_abs"])
@@ -253,17 +249,30 @@ class LinearMPC:
                      *self._bounds(np.zeros(self.nx), np.zeros(self.nx)), **self._options)
         return solver
 
-    # an FMU's state (fmi2GetFMUstate) is a deep copy of its component: OSQP's solver is no Python
-    # value, so a copy sets up its own from the same matrices (and warm-starts from the same plan)
-    # (the cached modes are keyed by the stages' identities, which a copy does not keep: dropped)
+    # an FMU's state (fmi2GetFMUstate) is a deep copy of its component: a solver is no Python value,
+    # so a copy sets up its own for every kept mode from the same matrices (OSQP: and warm-starts
+    # from the same plan); the modes are keyed by the stages' identities, which a copy keeps among
+    # its own objects (copy and pickle keep shared references shared), so the keys are made anew
     def __getstate__(self) -> dict:
-        return {key: value for key, value in self.__dict__.items() if key not in ("_solver", "_modes", "_last")}
+        state = {key: value for key, value in self.__dict__.items() if key not in ("_solver", "_modes", "_last")}
+        state["_kept"] = [condensed for condensed, _solver in self._modes.values()]
+        return state
 
     def __setstate__(self, state: dict) -> None:
+        kept = state.pop("_kept", [])
         self.__dict__.update(state)
         self._last = None
-        self._solver = self._new_solver()
-        self._modes = {self._key(): (self._condensed(), self._solver)}
+        current = self._key()
+        self._modes = {}
+        for condensed in kept:  # least recently used first, as they were
+            self.__dict__.update(condensed)
+            self._modes[self._key()] = (condensed, self._new_solver())
+        if current not in self._modes:
+            self.__dict__.update(state)
+            self._modes[current] = (self._condensed(), self._new_solver())
+        condensed, self._solver = self._modes.pop(current)
+        self.__dict__.update(condensed)
+        self._modes[current] = (condensed, self._solver)
 
     def _key(self) -> tuple:
         return tuple(id(s) for s in self._stages) + tuple(id(w) for w in self._weights)
