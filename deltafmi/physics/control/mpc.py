@@ -1,4 +1,5 @@
-"""Linear MPC over affine, possibly time-varying stages, with input bounds and soft output limits, by OSQP.
+"""Linear MPC over affine, possibly time-varying stages, with input bounds and soft output limits, by OSQP
+or DAQP.
 
 Problem at each sample, for the measured state x̂ (horizon N):
 
@@ -29,6 +30,12 @@ The slacks make every problem feasible (the state at k = 0 is given, the limits 
 rho_l above the largest multiplier makes the penalty exact: the limits hold whenever they can
 (Kerrigan & Maciejowski, "Soft constraints and exact penalty functions in MPC", UKACC 2000).
 Warm start: the previous solution, primal and dual, shifted by one sample.
+
+``solver="daqp"`` solves the same condensed QP by a dual active-set method (:mod:`.active_set`):
+each mode's solver keeps its factorization, every solve starts from the last active set (after
+a mode switch, the other mode's: the rows are the same), and the result is the exact solution of
+the active set it ends on (``MpcSolution.polished``), decided by the active set, not by an
+iteration count or a tolerance met on the way.
 """
 from __future__ import annotations
 
@@ -382,10 +389,10 @@ class LinearMPC:
             result = self._solver.solve(raise_error=False)
             status, v = str(result.info.status), result.x
             iterations, polished = int(result.info.iter), int(result.info.status_polish) == 1
-            if v is not None:
-                self._previous = (v.copy(), result.y.copy())
         if v is None or not np.all(np.isfinite(v)):
             raise RuntimeError(f"{self.solver.upper()} found no solution: {status}")
+        if self.solver == "osqp":
+            self._previous = (v.copy(), result.y.copy())
         U = v[:N * self.nu]
         xs = (self._Phi @ x0 + self._G @ U + self._c + self._M @ d).reshape(N + 1, self.nx)
         slack = float(np.max(v[N * self.nu:])) if self.ns else 0.0
