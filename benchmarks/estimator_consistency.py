@@ -18,7 +18,9 @@ default).
 ContactEstimator (--estimator contact): scenarios/contact_estimation.yaml recorded once without
 the estimator, ContactEKF replayed from 0.2 s before the touch to the end (the press at rest),
 noise y_std (1e-5 rad); the truth is the plane's force on the tool (normal_force +
-friction_force; the estimator knows the payload) and the plant's surface height.
+friction_force; the estimator knows the payload) and the plant's surface height; ``--set``
+takes ContactEKFSettings names. On data from the filter's own model (a random-walk force, no
+model error) tests/physics/test_contact_estimator_consistency.py asserts the force's NEES.
 
 Usage: python benchmarks/estimator_consistency.py [--estimator peg|contact] [--runs 50] [--noise RAD]
        [--start 0.9] [--stop 1.6]
@@ -81,14 +83,14 @@ def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
               + f"; over the bore {bore:.3g}; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
 
 
-def contact_replay(d: dict, c: "ContactEstimator", noise: float, seed: int, start: float) -> tuple:
+def contact_replay(d: dict, c: "ContactEstimator", settings, noise: float, seed: int, start: float) -> tuple:
     readout, ekf, t = Readout(noise, 0.0, seed), None, d["time"]
     rows = []
     for k in range(int(round(start / 1e-3)), int(round(t[-1] / 1e-3)) + 1):
         i = int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1
         y = [readout.read(float(v), k, j) for j, v in enumerate(d["y"][i])]
         if ekf is None:
-            ekf = ContactEKF(c.robot_params(), c._settings, y)
+            ekf = ContactEKF(c.robot_params(), settings, y)
         est = ekf.step(y, d["u"][i])
         ef, es = est.force - d["force"][i], est.surface_height - d["surface"][i]
         rows.append((t[i], ef @ np.linalg.solve(ekf.P[18:21, 18:21], ef), es * es / ekf.P[21, 21]))
@@ -102,15 +104,16 @@ def contact_monte_carlo(args) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         d = contact_truth(Path(tmp))
     touch = float(d["time"][np.argmax(d["mode"] > 0)])
+    settings = replace(c._settings, **{k: float(v) for k, v in (s.split("=", 1) for s in args.set)})
     F, S = [], []
     began = time.perf_counter()
     for r in range(args.runs):
-        t, f, s = contact_replay(d, c, noise, 1000 + r, touch - 0.2)
+        t, f, s = contact_replay(d, c, settings, noise, 1000 + r, touch - 0.2)
         F.append(f)
         S.append(s)
     F, S, R = np.array(F), np.array(S), args.runs
     print(f"ContactEstimator: {R} runs from {touch - 0.2:.3f} s (touch {touch:.3f} s), noise {noise:g} rad, "
-          f"{time.perf_counter() - began:.0f} s")
+          f"{time.perf_counter() - began:.0f} s; settings changed: {args.set or 'none'}")
     phases = {"free": t < touch, "impact (0.3 s)": (t >= touch) & (t < touch + 0.3), "pressing": t >= touch + 0.3,
               "last second": t > t[-1] - 1.0}
     for name, nees, dof in (("force", F, 3), ("surface", S, 1)):

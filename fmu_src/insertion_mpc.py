@@ -1,5 +1,5 @@
 """Insertion MPC FMU: plans the tool tip reference of an impedance-controlled peg insertion
-(a thin sampled component over deltafmi.physics.control.insertion, OSQP)."""
+(a thin sampled component over deltafmi.physics.control.insertion, DAQP or OSQP)."""
 import math
 
 from deltafmi.component import Experiment, Input, Output, Parameter, SampledComponent
@@ -58,11 +58,14 @@ class InsertionMpc(hole_parameters("nominal", names=("hole_position", "hole_tilt
     contact_zone = Parameter([0.002, 0.003], unit="m",
                              description="Contact zone: from this far above the nominal top to this far below it")
     acceleration_limit = Parameter(2.0, unit="m/s2", min=0.0, description="Bound on each component of rdd")
-    qp_tolerance = Parameter(1e-5, min=0.0, description="OSQP's absolute and relative tolerance")
-    qp_iterations = Parameter(4000, type=int, min=1, description="OSQP's iteration cap per sample")
+    qp_tolerance = Parameter(1e-5, min=0.0,
+                             description="The QP's tolerance: DAQP's primal feasibility, OSQP's absolute and relative")
+    qp_iterations = Parameter(4000, type=int, min=1, description="The QP solver's iteration cap per sample")
     qp_polish = Parameter(True, type=bool,
-                          description="Polish each QP's solution (the active set's exact solution: the same on any "
-                          "machine)")
+                          description="OSQP: polish each QP's solution (the active set's exact solution: the same on "
+                          "any machine)")
+    qp_solver = Parameter("daqp", type=str,
+                          description="daqp (dual active set: the active set's exact solution) or osqp (ADMM)")
 
     tip = Input([0.0, 0.0, -1.17], unit="m", description="Measured tool tip (world)")
     tip_velocity = Input([0.0] * 3, unit="m/s", description="Measured tool tip velocity (world)")
@@ -80,7 +83,7 @@ class InsertionMpc(hole_parameters("nominal", names=("hole_position", "hole_tilt
     time_qp = Parameter(False, type=bool,
                         description="Put the wall-clock time of each QP in solve_time (off: 0; a clock makes runs differ)")
     solve_time = Output(unit="s", variability="discrete", description="Wall-clock time of the last QP (time_qp)")
-    iterations = Output(0, type=int, description="OSQP iterations of the last QP")
+    iterations = Output(0, type=int, description="The QP solver's iterations of the last QP")
     status = Output(0, type=int, description="0 solved, 1 solved inaccurately or at the iteration limit")
 
     def setup(self) -> None:
@@ -99,7 +102,7 @@ class InsertionMpc(hole_parameters("nominal", names=("hole_position", "hole_tilt
             acceleration_limit=self.acceleration_limit, sample_period=self.sample_period, horizon=int(self.horizon),
             bottom_depth=self.hole_depth, bottom_speed=self.bottom_speed, contact_force=self.contact_force,
             tolerance=self.qp_tolerance, max_iterations=int(self.qp_iterations),
-            polish=bool(self.qp_polish))
+            polish=bool(self.qp_polish), solver=str(self.qp_solver))
         self._mpc = Planner(LinearModelFile.read(find_model_file(self.linear_model, self.resources_dir,
                                                                       "`python -m deltafmi.apps.insertion_mpc_model SCENARIO -o NAME`")), task)
         self._ref = ([float(c) for c in self.start], [0.0] * 3, [0.0] * 3)

@@ -168,6 +168,7 @@ def test_the_shipped_model_is_what_the_tool_makes_now(model):
     ({"contact_speed": 0.0}, r"^contact_speed must be a finite number > 0, got 0.0$"),
     ({"horizon": 0}, r"^horizon must be >= 1 sample, got 0$"),
     ({"sample_period": 0.0105}, r"^sample_period 0.0105 s must be a multiple of the linearization's step 0.001 s$"),
+    ({"solver": "qpoases"}, r"^solver must be 'daqp' or 'osqp', got 'qpoases'$"),
 ])
 def test_bad_settings_are_one_line_naming_the_setting(model, change, message):
     with pytest.raises(ValueError, match=message):

@@ -7,6 +7,7 @@ import scipy.linalg
 from scipy.optimize import minimize
 
 from deltafmi.physics.control import LinearMPC, controllable_subspace, finite_horizon_lqr, spring_contact, zoh
+from deltafmi.physics.control.active_set import DenseActiveSetQP
 from deltafmi.physics.control.contact_mpc import PlaneContactMpc, PressTask
 from deltafmi.master.linearize.linear_model import LinearModel
 
@@ -94,10 +95,12 @@ def _reference_first_move(stages, x0, C, D, g, Q, R, r, u_lo, u_hi, H, h, hi):
     return result.x[:nu], result.x
 
 
+@pytest.mark.parametrize("solver", ["osqp", "daqp"])
 @pytest.mark.parametrize("soft", [False, True])
-def test_constrained_first_move_equals_a_second_qp_solver(soft):
+def test_constrained_first_move_equals_a_second_qp_solver(soft, solver):
     """Box inputs and an output limit, both active, on time-varying affine stages: OSQP's first
-    move (tolerance 1e-9, polished) equals SLSQP's on the independently written problem with hard
+    move (tolerance 1e-9, polished), and DAQP's (its active set's exact solution), equal SLSQP's
+    on the independently written problem with hard
     limits; the soft limits' exact penalty (rho_l = 1e3 above the multiplier) gives the same move.
     SLSQP stops when the cost (~10) changes by under 1e-14: its moves are right to ~1e-7; asserted
     to 1e-6 of the input scale."""
@@ -109,7 +112,7 @@ def test_constrained_first_move_equals_a_second_qp_solver(soft):
     H, h, hi = np.array([C[0]]), np.array([0.1]), np.array([0.5])  # unconstrained, it reaches 0.626
     x0, u_max = np.array([0.2, -0.1, 0.3]), 0.6
     mpc = LinearMPC(free, C, D, g, Q, R, 8, u_min=[-u_max] * 2, u_max=[u_max] * 2, H=H, h=h, hi=hi,
-                    eps=1e-9, rho_l=1e3, rho_q=1e3, soft=soft, max_iter=20000)
+                    eps=1e-9, rho_l=1e3, rho_q=1e3, soft=soft, max_iter=20000, solver=solver)
     plan = mpc.solve(x0, r, stages=stages)
     assert plan.status == "solved"
     first, U = _reference_first_move(stages, x0, C, D, g, Q, R, r, -u_max, u_max, H, h, hi)
@@ -173,16 +176,17 @@ def test_contact_mpc_names_what_the_linearization_lacks():
         PlaneContactMpc(model, task)
 
 
-def test_a_copy_of_the_mpc_plans_as_the_original():
-    """fmi2GetFMUstate deep-copies the component: the copy (and a pickled one) sets up its own OSQP
-    from the same matrices and warm start, and plans the next move as the original does, to OSQP's
-    tolerance (1e-6 relative on the input, eps 1e-6)."""
+@pytest.mark.parametrize("solver", ["osqp", "daqp"])
+def test_a_copy_of_the_mpc_plans_as_the_original(solver):
+    """fmi2GetFMUstate deep-copies the component: the copy (and a pickled one) sets up its own
+    solver from the same matrices (OSQP: and warm start), and plans the next move as the original
+    does, to OSQP's tolerance (1e-6 relative on the input, eps 1e-6; DAQP's plan is exact)."""
     import copy
     import pickle
 
     stage = zoh(np.array([[0.0, 1.0], [0.0, 0.0]]), np.array([[0.0], [1.0]]), 0.01)
     mpc = LinearMPC(stage, np.eye(2), np.zeros((2, 1)), np.zeros(2), np.diag([100.0, 1.0]), np.eye(1) * 0.01, 50,
-                    u_min=[-2.0], u_max=[2.0], H=np.array([[1.0, 0.0]]), hi=[0.8], eps=1e-6)
+                    u_min=[-2.0], u_max=[2.0], H=np.array([[1.0, 0.0]]), hi=[0.8], eps=1e-6, solver=solver)
     x = np.array([0.1, 0.2])
     mpc.solve(x, np.array([1.0, 0.0]))
     copies = (copy.deepcopy(mpc), pickle.loads(pickle.dumps(mpc)))
@@ -203,14 +207,15 @@ def _two_mode_problem():
     return free, pushed, kw
 
 
-def test_a_kept_mode_solver_plans_as_a_fresh_one():
+@pytest.mark.parametrize("solver", ["osqp", "daqp"])
+def test_a_kept_mode_solver_plans_as_a_fresh_one(solver):
     """Switching between two stage sequences back and forth: the solver kept for each mode (set up
     once) gives, at every switch, the plan that a solver set up afresh for that sequence gives
     (``modes=1`` condenses and factorizes again at every switch), both polished: to 1e-9 of the
     input scale (the active set's equality QP, solved twice, agrees to rounding)."""
     free, pushed, kw = _two_mode_problem()
     sequences = ([free] * 8, [free if k % 3 else pushed for k in range(8)])
-    kept, fresh = LinearMPC(free, **kw), LinearMPC(free, modes=1, **kw)
+    kept, fresh = LinearMPC(free, solver=solver, **kw), LinearMPC(free, modes=1, solver=solver, **kw)
     rng = np.random.default_rng(3)
     for k in range(8):
         x0, r = 0.3 * rng.normal(size=3), np.array([1.5, -1.0])
@@ -220,7 +225,8 @@ def test_a_kept_mode_solver_plans_as_a_fresh_one():
     assert len(kept._modes) == 2 and len(fresh._modes) == 1
 
 
-def test_a_polished_plan_does_not_depend_on_the_iteration_path():
+@pytest.mark.parametrize("solver", ["osqp", "daqp"])
+def test_a_polished_plan_does_not_depend_on_the_iteration_path(solver):
     """The same problem solved cold and warm-started from an unrelated plan: ADMM takes other
     iterates (and counts), polishing lands both on the active set's solution, equal to 1e-9 of the
     input scale, far below OSQP's 1e-6 tolerance: what another machine's rounding would change
@@ -228,9 +234,45 @@ def test_a_polished_plan_does_not_depend_on_the_iteration_path():
     free, pushed, kw = _two_mode_problem()
     stages = [free if k % 3 else pushed for k in range(8)]
     x0, r = np.array([0.2, -0.1, 0.3]), np.array([1.5, -1.0])
-    cold = LinearMPC(free, **kw).solve(x0, r, stages=stages)
-    warm = LinearMPC(free, **kw)
+    cold = LinearMPC(free, solver=solver, **kw).solve(x0, r, stages=stages)
+    warm = LinearMPC(free, solver=solver, **kw)
     warm.solve(-x0, -r, stages=stages)  # a plan elsewhere to start the next solve from
     second = warm.solve(x0, r, stages=stages)
     assert cold.polished and second.polished and cold.iterations != second.iterations
     np.testing.assert_allclose(second.u, cold.u, rtol=0.0, atol=1e-9 * 0.6)
+
+
+@pytest.mark.parametrize("c, want", [((3.0, -5.0), (1.5, -5.0)), ((1.0, 1.0), (0.5, 0.5)), ((-3.0, 0.0), (-1.0, 0.0))])
+def test_active_set_qp_reads_single_entry_rows_as_bounds(c, want):
+    """min 1/2 |x - c|^2 s.t. -4 <= -2 x0 <= 2 (a scaled, negative bound row), x0 <= 1.5 (a second
+    bound on x0: the two intersect), x0 + x1 <= 1 (a general row): the closed form is c clipped to
+    x0 in [-1, 1.5] or, when x0 + x1 <= 1 binds, c projected onto the line x0 + x1 = 1."""
+    A = np.array([[-2.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
+    l, u = np.array([-4.0, -np.inf, -np.inf]), np.array([2.0, 1.5, 1.0])
+    qp = DenseActiveSetQP(np.eye(2), -np.asarray(c), A, l, u)
+    found = qp.solve()
+    assert found.solved and found.status == "solved"
+    np.testing.assert_allclose(found.x, want, rtol=0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("solver", ["osqp", "daqp"])
+def test_a_copy_keeps_a_solver_for_every_mode(solver):
+    """A deep copy (fmi2GetFMUstate) and a pickled copy set up a solver for each mode the original
+    kept, keyed by the copy's own stages, and plan both modes as the original does (to OSQP's
+    tolerance, eps 1e-6 relative; DAQP's plans are exact) without condensing again."""
+    import copy
+    import pickle
+
+    free, pushed, kw = _two_mode_problem()
+    sequences = ([free] * 8, [free if k % 3 else pushed for k in range(8)])
+    mpc = LinearMPC(free, solver=solver, **kw)
+    x0, r = np.array([0.2, -0.1, 0.3]), np.array([1.5, -1.0])
+    mpc.solve(x0, r, stages=sequences[1])
+    mpc.solve(x0, r, stages=sequences[0])
+    for other in (copy.deepcopy((mpc, sequences)), pickle.loads(pickle.dumps((mpc, sequences)))):
+        twin, their = other
+        assert len(twin._modes) == 2
+        twin._condense = None  # a copy that condensed again would fail here
+        for k in (1, 0, 1):
+            want = mpc.solve(x0 * (1 + k), r, stages=sequences[k]).u
+            np.testing.assert_allclose(twin.solve(x0 * (1 + k), r, stages=their[k]).u, want, rtol=1e-6, atol=1e-6)

@@ -3,8 +3,8 @@
 ``models`` turns a continuous linearization (``deltafmi linearize -o``) into discrete affine stage
 models: reduction to the controllable subspace, zero-order-hold discretisation, closing a
 spring-damper between outputs and inputs (a compliant contact as a mode). ``mpc`` is the
-constrained linear MPC over such stages, solved by OSQP; ``lqr`` the finite-horizon Riccati
-recursion it reduces to without constraints. ``contact_mpc`` assembles a hybrid MPC of a
+constrained linear MPC over such stages, solved by OSQP or (``active_set``) DAQP; ``lqr`` the
+finite-horizon Riccati recursion it reduces to without constraints. ``contact_mpc`` assembles a hybrid MPC of a
 mechanical system pressing on a plane (free and contact modes along the horizon); ``model_file``
 reads a linearization file with numpy alone (what an FMU can carry). ``reduction`` lifts a
 closed loop's one-step linearization to an MPC's sample and balances and truncates it;

@@ -40,9 +40,11 @@ thinks the tip stopped short of it stops pushing.)
 Cost: the reference at the goal (goal_depth below the nominal hole top on its axis) and the
 tip's depth at the goal's (not its lateral position: the chamfer and the bore centre it on the
 true hole, and a cost would make the reference push sideways against them), their rates at
-zero, a small cost on rdd. OSQP (:class:`.mpc.LinearMPC`), warm-started, one solver per mode
-(free, blocked) set up once, polished: the plan is the active set's exact solution, not where the
-iterations stopped, so it is the same on any machine to rounding.
+zero, a small cost on rdd. The QP (:class:`.mpc.LinearMPC`, condensed: 90 inputs, 60 slacks) is
+solved by DAQP, a dual active-set method (:mod:`.active_set`), one solver per mode (free,
+blocked) set up when the planner is made, each solve starting from the last active set: the plan
+is the active set's exact solution, decided by the active set and not by where iterations
+stopped, so it is the same on any machine to rounding. ``solver="osqp"`` keeps ADMM (polished).
 """
 from __future__ import annotations
 
@@ -89,12 +91,14 @@ class InsertionTask:
     velocity_weight: float = 10.0    #: (s/m)^2, their rates
     acceleration_weight: float = 1e-3  #: (s^2/m)^2, on rdd
     limit_penalty: float = 10.0      #: cost per N of planned excess (exact penalty)
-    tolerance: float = 1e-5          #: OSQP's absolute and relative tolerance
-    max_iterations: int = 4000
+    tolerance: float = 1e-5          #: DAQP's primal tolerance; OSQP's absolute and relative one
+    max_iterations: int = 4000       #: the QP solver's iteration limit per sample
     polish: bool = True              #: solve the active set's equality QP after ADMM (.mpc)
     relaxation: float = 1.0          #: OSQP's alpha (1: no over-relaxation; measured, fewer iterations
                                      #: at the worst samples than OSQP's 1.6 on this QP)
-    modes: int = 8                   #: stage sequences whose OSQP solvers are kept (.mpc)
+    modes: int = 8                   #: stage sequences whose QP solvers are kept (.mpc)
+    solver: str = "daqp"             #: "daqp" (dual active set, .active_set) or "osqp" (ADMM; tolerance,
+                                     #: max_iterations, polish and relaxation are its settings)
 
     def validate(self) -> None:
         """Raise ValueError naming the first value out of range."""
@@ -108,6 +112,8 @@ class InsertionTask:
         if len(self.contact_zone) != 2 or min(self.contact_zone) < 0.0:
             raise ValueError(f"contact_zone must be two distances >= 0 (above, below the top), got "
                              f"{list(self.contact_zone)}")
+        if self.solver not in ("daqp", "osqp"):
+            raise ValueError(f"solver must be 'daqp' or 'osqp', got {self.solver!r}")
         if not np.linalg.norm(np.asarray(self.hole_axis, float)) > 0.0:
             raise ValueError(f"hole_axis must be a nonzero vector, got {list(self.hole_axis)}")
 
@@ -183,7 +189,9 @@ class InsertionMpc:
                              u_max=np.full(3, amax), H=H, h=self.h, lo=self.lo, hi=self.hi_free,
                              rho_l=task.limit_penalty, rho_q=0.01 * task.limit_penalty, eps=task.tolerance,
                              polish=task.polish, max_iter=task.max_iterations, modes=task.modes,
-                             alpha=task.relaxation)
+                             alpha=task.relaxation, solver=task.solver)
+        if task.modes > 1:  # both modes' solvers set up before the first sample
+            self.mpc.prepare([self.blocked] * task.horizon)
         self.H = H
         self._plan: Optional[MpcSolution] = None
 

@@ -1,4 +1,5 @@
-"""Linear MPC over affine, possibly time-varying stages, with input bounds and soft output limits, by OSQP.
+"""Linear MPC over affine, possibly time-varying stages, with input bounds and soft output limits, by OSQP
+or DAQP.
 
 Problem at each sample, for the measured state x̂ (horizon N):
 
@@ -29,6 +30,12 @@ The slacks make every problem feasible (the state at k = 0 is given, the limits 
 rho_l above the largest multiplier makes the penalty exact: the limits hold whenever they can
 (Kerrigan & Maciejowski, "Soft constraints and exact penalty functions in MPC", UKACC 2000).
 Warm start: the previous solution, primal and dual, shifted by one sample.
+
+``solver="daqp"`` solves the same condensed QP by a dual active-set method (:mod:`.active_set`):
+each mode's solver keeps its factorization, every solve starts from the last active set (after
+a mode switch, the other mode's: the rows are the same), and the result is the exact solution of
+the active set it ends on (``MpcSolution.polished``), decided by the active set, not by an
+iteration count or a tolerance met on the way.
 """
 from __future__ import annotations
 
@@ -40,6 +47,7 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
+from .active_set import DenseActiveSetQP
 from .models import AffineStage
 
 __all__ = ["LinearMPC", "MpcSolution"]
@@ -128,6 +136,9 @@ class LinearMPC:
             problem that converges at once stops after 5, not 25).
         modes: stage sequences whose solvers are kept (module docstring; 1: every new sequence
             condenses and factorizes again).
+        solver: ``"osqp"`` (ADMM) or ``"daqp"`` (a dual active-set method on the same dense QP,
+            :mod:`.active_set`: the exact solution of the active set it ends on; ``max_iter`` its
+            iteration limit, ``eps`` its primal tolerance, the OSQP-only options unused).
     """
 
     #: the condensed arrays of one stage sequence (what a cached mode restores)
@@ -140,7 +151,7 @@ class LinearMPC:
                  h: Optional[np.ndarray] = None, lo: Optional[np.ndarray] = None, hi: Optional[np.ndarray] = None,
                  rho_l: float = 1e3, rho_q: float = 10.0, eps: float = 1e-6, polish: bool = True,
                  max_iter: int = 4000, check_termination: int = 5, soft: bool = True, modes: int = 8,
-                 alpha: float = 1.6) -> None:
+                 alpha: float = 1.6, solver: str = "osqp") -> None:
         if N < 1:
             raise ValueError(f"horizon N must be >= 1, got {N}")
         nx, nu = stage.B.shape
@@ -168,8 +179,12 @@ class LinearMPC:
         self._stages = [stage] * N
         self._weights = [self.Q] * N + [self.Q_N]
         self._previous: Optional[tuple[np.ndarray, np.ndarray]] = None
+        self._last = None  # the solver of the last solve (DAQP: its active set starts another mode's)
         if modes < 1:
             raise ValueError(f"modes must be >= 1, got {modes}")
+        if solver not in ("osqp", "daqp"):
+            raise ValueError(f"solver must be 'osqp' or 'daqp', got {solver!r}")
+        self.solver = solver
         self.max_modes = int(modes)
         self._modes: dict = {}   # mode key -> (condensed arrays, solver), least recently used first
         self._condense()
@@ -229,24 +244,42 @@ class LinearMPC:
                              adaptive_rho_interval=25, time_limit=1e10)
         self._solver = self._new_solver()
 
-    def _new_solver(self) -> "osqp.OSQP":
-        """OSQP set up with the current matrices (the bounds and q are set before every solve)."""
+    def _new_solver(self) -> "osqp.OSQP | DenseActiveSetQP":
+        """The QP solver set up with the current matrices (the bounds and q are set before every solve)."""
         n = self.N * (self.nu + self.ns)
+        if self.solver == "daqp":
+            return DenseActiveSetQP(self._P.matrix(self._p_blocks()), np.zeros(n), self._A.matrix(self._a_blocks()),
+                                    *self._bounds(np.zeros(self.nx), np.zeros(self.nx)),
+                                    max_iter=self._options["max_iter"], primal_tol=self._options["eps_abs"])
         solver = osqp.OSQP()
         solver.setup(self._P.matrix(self._p_blocks()), np.zeros(n), self._A.matrix(self._a_blocks()),
                      *self._bounds(np.zeros(self.nx), np.zeros(self.nx)), **self._options)
         return solver
 
-    # an FMU's state (fmi2GetFMUstate) is a deep copy of its component: OSQP's solver is no Python
-    # value, so a copy sets up its own from the same matrices (and warm-starts from the same plan)
-    # (the cached modes are keyed by the stages' identities, which a copy does not keep: dropped)
+    # an FMU's state (fmi2GetFMUstate) is a deep copy of its component: a solver is no Python value,
+    # so a copy sets up its own for every kept mode from the same matrices (OSQP: and warm-starts
+    # from the same plan); the modes are keyed by the stages' identities, which a copy keeps among
+    # its own objects (copy and pickle keep shared references shared), so the keys are made anew
     def __getstate__(self) -> dict:
-        return {key: value for key, value in self.__dict__.items() if key not in ("_solver", "_modes")}
+        state = {key: value for key, value in self.__dict__.items() if key not in ("_solver", "_modes", "_last")}
+        state["_kept"] = [condensed for condensed, _solver in self._modes.values()]
+        return state
 
     def __setstate__(self, state: dict) -> None:
+        kept = state.pop("_kept", [])
         self.__dict__.update(state)
-        self._solver = self._new_solver()
-        self._modes = {self._key(): (self._condensed(), self._solver)}
+        self._last = None
+        current = self._key()
+        self._modes = {}
+        for condensed in kept:  # least recently used first, as they were
+            self.__dict__.update(condensed)
+            self._modes[self._key()] = (condensed, self._new_solver())
+        if current not in self._modes:
+            self.__dict__.update(state)
+            self._modes[current] = (self._condensed(), self._new_solver())
+        condensed, self._solver = self._modes.pop(current)
+        self.__dict__.update(condensed)
+        self._modes[current] = (condensed, self._solver)
 
     def _key(self) -> tuple:
         return tuple(id(s) for s in self._stages) + tuple(id(w) for w in self._weights)
@@ -270,6 +303,15 @@ class LinearMPC:
             self.__dict__.update(mode[0])
             self._solver = mode[1]
         self._modes[key] = mode
+
+    def prepare(self, stages: Sequence[AffineStage], weights: Optional[Sequence[np.ndarray]] = None) -> None:
+        """Condense and set up the solver of this stage sequence now (a mode the controller will
+        meet), so that its first solve costs a solve; the current sequence stays current."""
+        if len(stages) != self.N or (weights is not None and len(weights) != self.N + 1):
+            raise ValueError(f"expected {self.N} stages and {self.N + 1} weights")
+        current = (self._stages, self._weights)
+        self._switch(list(stages), list(self._weights if weights is None else weights))
+        self._switch(*current)
 
     def _p_blocks(self) -> dict:
         return {"uu": self._Puu, "ss": np.full(self.N * self.ns, self.rho_q)}
@@ -330,24 +372,32 @@ class LinearMPC:
         x0 = np.asarray(x0, float).reshape(self.nx)
         d = np.zeros(self.nx) if disturbance is None else np.asarray(disturbance, float).reshape(self.nx)
         z_free = self._Zx @ x0 + self._zc + self._Zd @ d
-        q_u = self._S.T @ (self._W @ (z_free - r)) - np.kron(np.eye(N), self.R) @ ur
+        q_u = self._S.T @ (self._W @ (z_free - r)) - (ur.reshape(N, self.nu) @ self.R.T).ravel()
         q = np.concatenate([q_u, np.full(N * self.ns, self.rho_l)])
         lower, upper = self._bounds(x0, d, lo, hi)
         self._solver.update(q=q, l=lower, u=upper)
-        if self._previous is not None:
-            self._solver.warm_start(x=self._shift(self._previous[0], (self.nu, self.ns)),
-                                    y=self._shift(self._previous[1], (self.nu, self.nc, self.nc, self.ns)))
-        result = self._solver.solve(raise_error=False)
-        status = str(result.info.status)
-        v = result.x
+        if self.solver == "daqp":
+            if self._last is not None and self._last is not self._solver:  # a mode switch: its active set
+                self._solver.start_from(self._last.active)
+            self._last = self._solver
+            found = self._solver.solve()
+            v, status, iterations, polished = found.x, found.status, found.iterations, found.solved
+        else:
+            if self._previous is not None:
+                self._solver.warm_start(x=self._shift(self._previous[0], (self.nu, self.ns)),
+                                        y=self._shift(self._previous[1], (self.nu, self.nc, self.nc, self.ns)))
+            result = self._solver.solve(raise_error=False)
+            status, v = str(result.info.status), result.x
+            iterations, polished = int(result.info.iter), int(result.info.status_polish) == 1
         if v is None or not np.all(np.isfinite(v)):
-            raise RuntimeError(f"OSQP found no solution: {status}")
-        self._previous = (v.copy(), result.y.copy())
+            raise RuntimeError(f"{self.solver.upper()} found no solution: {status}")
+        if self.solver == "osqp":
+            self._previous = (v.copy(), result.y.copy())
         U = v[:N * self.nu]
         xs = (self._Phi @ x0 + self._G @ U + self._c + self._M @ d).reshape(N + 1, self.nx)
         slack = float(np.max(v[N * self.nu:])) if self.ns else 0.0
         return MpcSolution(U[:self.nu].copy(), xs, U.reshape(N, self.nu), max(slack, 0.0), status,
-                           int(result.info.iter), time.perf_counter() - start, int(result.info.status_polish) == 1)
+                           iterations, time.perf_counter() - start, polished)
 
     def _shift(self, v: np.ndarray, sizes: tuple[int, ...]) -> np.ndarray:
         """A vector of per-stage blocks (N blocks of each size in turn) one sample on: every block

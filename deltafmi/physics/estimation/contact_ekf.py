@@ -27,8 +27,9 @@ DAE linearisations per sample for little gain without inequality constraints to 
 Cycle per sample t_k (:meth:`ContactEKF.step`): predict from t_(k-1) with u(t_(k-1)), the
 torque held over that period, then update with y(t_k) (Joseph form) and the gated contact update.
 The published estimate is the posterior at t_k: it uses y(t_k) and is time-aligned with it.
-Cost: about 0.5 ms per sample in Python, 0.6 ms with the contact update (numpy; one exact DAE
-Jacobian, four DAE evaluations, two projections onto the loops; measured on the 2-core box).
+Cost per sample (Python with numpy): one exact DAE Jacobian (whose accelerations are the
+Runge-Kutta step's first stage), three more DAE evaluations, one or two projections onto the
+loops, and the wrist kinematics once per state; benchmarks/assembly_realtime.py times it.
 """
 from __future__ import annotations
 
@@ -41,7 +42,7 @@ import numpy as np
 from ..delta.dynamics import project_to_constraints
 from ..delta.kinematics import forward_kinematics, inverse_kinematics, wrist_position
 from ..delta.params import DeltaParams
-from .delta_process import process_jacobian, propagate, tangent_basis, wrist_jacobians
+from .delta_process import arm_jacobians, process_linearization, propagate, tangent_basis, wrist_jacobians
 from .kalman import joseph_update, transition_matrix, white_acceleration_noise
 
 __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
@@ -147,6 +148,12 @@ class ContactEKF:
         self._Ry = settings.y_std ** 2 * np.eye(3)
         self._Hy = np.zeros((3, _N))
         self._Hy[[0, 1, 2], _SERVOS] = 1.0
+        T = settings.sample_period
+        self._W = settings.acceleration_std ** 2 * white_acceleration_noise(T)
+        self._Qd = np.zeros((_N, _N))  # the process noise but for the joint block, which moves with q
+        self._Qd[_F, _F] = settings.force_rate_std ** 2 * T * np.eye(3)
+        self._Qd[_S, _S] = settings.surface_drift_std ** 2 * T
+        self._kinematics_at: bytes = b""  # the (q, v) that _kinematics holds
 
     # --------------------------------------------------------------------------------- cycle
     def step(self, y: Sequence[float], u: Sequence[float]) -> ContactEstimate:
@@ -175,29 +182,30 @@ class ContactEKF:
         st, p = self.settings, self.params
         q, v, f = self.x[_Q], self.x[_V], self.x[_F]
         T = st.sample_period
-        Phi = np.eye(_N)
-        Phi[:21, :21] = transition_matrix(process_jacobian(p, q, v, u, f, st.pole), T)
-        Tz = tangent_basis(p, q)
-        TT = Tz @ Tz.T
-        Qd = np.zeros((_N, _N))
-        W = st.acceleration_std ** 2 * white_acceleration_noise(T)
-        Qd[_Q, _Q], Qd[_Q, _V], Qd[_V, _Q], Qd[_V, _V] = W[0, 0] * TT, W[0, 1] * TT, W[1, 0] * TT, W[1, 1] * TT
-        Qd[_F, _F] = st.force_rate_std ** 2 * T * np.eye(3)
-        Qd[_S, _S] = st.surface_drift_std ** 2 * T
-        self.x[_Q], self.x[_V] = propagate(p, q, v, u, f, T, st.pole, st.substeps)
-        P = Phi @ self.P @ Phi.T + Qd
+        A, rate = process_linearization(p, q, v, u, f, st.pole)
+        Phi = transition_matrix(A, T)  # of [q, v, f]; s is constant (its row of the 22 is e_s)
+        Tz = tangent_basis(p, q, self._kinematics()[3])
+        Qd = self._Qd.copy()
+        Qd[:18, :18] = np.kron(self._W, Tz @ Tz.T)  # [[W00 TT, W01 TT], [W10 TT, W11 TT]]
+        self.x[_Q], self.x[_V] = propagate(p, q, v, u, f, T, st.pole, st.substeps, rate)
+        P = np.empty((_N, _N))
+        PhiP = Phi @ self.P[:21]
+        P[:21, :21] = PhiP[:, :21] @ Phi.T
+        P[:21, _S] = P[_S, :21] = PhiP[:, _S]
+        P[_S, _S] = self.P[_S, _S]
+        P += Qd
         self.P = 0.5 * (P + P.T)
 
     # ------------------------------------------------------------------------------ outputs
     def estimate(self) -> ContactEstimate:
         """The current estimate and its standard deviations."""
-        q, v, P = self.x[_Q], self.x[_V], self.P
-        Jv, D = wrist_jacobians(self.params, q, v)
+        v, P = self.x[_V], self.P
+        z, Jv, D, _ = self._kinematics()
         G = np.hstack([D, Jv])  # d zd / d[q, v]
         n = self._n
         f = self.x[_F].copy()
         return ContactEstimate(
-            wrist_position(self.params, q), Jv @ v, f, float(n @ f), float(self.x[_S]),
+            z.copy(), Jv @ v, f, float(n @ f), float(self.x[_S]),
             _std(Jv @ P[_Q, _Q] @ Jv.T), _std(G @ P[:18, :18] @ G.T), _std(P[_F, _F]),
             math.sqrt(max(float(n @ P[_F, _F] @ n), 0.0)), math.sqrt(max(P[_S, _S], 0.0)), self.in_contact)
 
@@ -206,10 +214,22 @@ class ContactEKF:
         return self._contact_terms()[0]
 
     # ------------------------------------------------------------------------------ helpers
+    def _kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """z(q), Jv(q), D(q, v) (:func:`.delta_process.wrist_jacobians`) and the arms' Jacobians
+        at the current state, computed once per state (the estimate, the gap, the contact row and
+        the next prediction's tangent basis all need them)."""
+        key = self.x[:18].tobytes()
+        if key != self._kinematics_at:
+            q, v = self.x[_Q], self.x[_V]
+            arms = arm_jacobians(self.params, q)
+            self._wrist = (wrist_position(self.params, q), *wrist_jacobians(self.params, q, v, arms), arms)
+            self._kinematics_at = key
+        return self._wrist
+
     def _contact_terms(self) -> tuple[float, float, np.ndarray, np.ndarray]:
-        q, v, n = self.x[_Q], self.x[_V], self._n
-        Jv, D = wrist_jacobians(self.params, q, v)
-        gap = float(n @ wrist_position(self.params, q)) + self._tool_along - n[2] * float(self.x[_S])
+        v, n = self.x[_V], self._n
+        z, Jv, D, _ = self._kinematics()
+        gap = float(n @ z) + self._tool_along - n[2] * float(self.x[_S])
         return gap, float(n @ Jv @ v), n @ Jv, n @ D
 
     def _contact_row(self) -> tuple[np.ndarray, float]:

@@ -30,7 +30,8 @@ from ..delta.jacobian import plant_jacobian
 from ..delta.kinematics import arm_jacobian
 from ..delta.params import ARM_ROTATIONS, DeltaParams
 
-__all__ = ["arm_jacobian_rate", "wrist_jacobians", "tangent_basis", "propagate", "process_jacobian"]
+__all__ = ["arm_jacobian_rate", "arm_jacobians", "wrist_jacobians", "tangent_basis", "propagate", "process_jacobian",
+           "process_linearization"]
 
 ArrayLike = Sequence[float] | np.ndarray
 
@@ -54,35 +55,45 @@ def arm_jacobian_rate(p: DeltaParams, qi: ArrayLike, vi: ArrayLike) -> np.ndarra
     ])
 
 
-def wrist_jacobians(p: DeltaParams, q: ArrayLike, v: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+def arm_jacobians(p: DeltaParams, q: ArrayLike) -> np.ndarray:
+    """R_i dpsi/dq(q_i) of the three arms (3, 3, 3): each arm's wrist point against its angles,
+    world frame (what :func:`wrist_jacobians` and :func:`tangent_basis` are made of)."""
+    q = np.asarray(q, float)
+    return np.stack([rot @ arm_jacobian(p, q[3 * i:3 * i + 3]) for i, rot in enumerate(ARM_ROTATIONS)])
+
+
+def wrist_jacobians(p: DeltaParams, q: ArrayLike, v: ArrayLike,
+                    arms: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Jv = dz/dq and D = d(Jv v)/dq = dJv/dt (both (3, 9)), z the wrist (the mean of the arms'
-    wrist points), from the arms' Jacobians and their rates (:func:`arm_jacobian_rate`)."""
+    wrist points), from the arms' Jacobians (``arms``: :func:`arm_jacobians` at q, when the caller
+    has them) and their rates (:func:`arm_jacobian_rate`)."""
     q, v = np.asarray(q, float), np.asarray(v, float)
+    arms = arm_jacobians(p, q) if arms is None else arms
     Jv, D = np.empty((3, 9)), np.empty((3, 9))
     for i, rot in enumerate(ARM_ROTATIONS):
         arm = slice(3 * i, 3 * i + 3)
-        Jv[:, arm] = rot @ arm_jacobian(p, q[arm]) / 3.0
+        Jv[:, arm] = arms[i] / 3.0
         D[:, arm] = rot @ arm_jacobian_rate(p, q[arm], v[arm]) / 3.0
     return Jv, D
 
 
-def tangent_basis(p: DeltaParams, q: ArrayLike) -> np.ndarray:
+def tangent_basis(p: DeltaParams, q: ArrayLike, arms: np.ndarray | None = None) -> np.ndarray:
     """dq/dz (9, 3): the joint motion that moves every arm's wrist point, hence the closed loop,
-    by dz (arm i: (R_i dpsi/dq(q_i))^-1). Also dv/dzd at fixed q."""
-    q = np.asarray(q, float)
-    return np.vstack([np.linalg.inv(rot @ arm_jacobian(p, q[3 * i:3 * i + 3]))
-                      for i, rot in enumerate(ARM_ROTATIONS)])
+    by dz (arm i: (R_i dpsi/dq(q_i))^-1; ``arms``: :func:`arm_jacobians` at q, when the caller
+    has them). Also dv/dzd at fixed q."""
+    return np.linalg.inv(arm_jacobians(p, q) if arms is None else arms).reshape(9, 3)
 
 
 def propagate(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike, T: float,
-              pole: float = 5.0, substeps: int = 1) -> tuple[np.ndarray, np.ndarray]:
+              pole: float = 5.0, substeps: int = 1, rate: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(q, v) after T under held u and f: classical Runge-Kutta (substeps steps of T / substeps)
-    of the DAE, then projected onto the closed loops."""
+    of the DAE, then projected onto the closed loops. ``rate``: the state derivative at (q, v),
+    when the caller has it (:func:`process_linearization`), as the first stage."""
     x = np.concatenate([np.asarray(q, float), np.asarray(v, float)])
     u, f = list(map(float, u)), list(map(float, f))
     h = T / substeps
-    for _ in range(substeps):
-        k1 = np.array(state_derivative(p, x, u, f, pole))
+    for step in range(substeps):
+        k1 = np.asarray(rate, float) if step == 0 and rate is not None else np.array(state_derivative(p, x, u, f, pole))
         k2 = np.array(state_derivative(p, x + 0.5 * h * k1, u, f, pole))
         k3 = np.array(state_derivative(p, x + 0.5 * h * k2, u, f, pole))
         k4 = np.array(state_derivative(p, x + h * k3, u, f, pole))
@@ -94,8 +105,15 @@ def process_jacobian(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f
                      pole: float = 5.0) -> np.ndarray:
     """d[q'; v'; f']/d[q; v; f] (21, 21), exact: [[A, B_f], [0, 0]] from plant_jacobian (the
     wrist force a random walk, f' = 0 but for noise)."""
+    return process_linearization(p, q, v, u, f, pole)[0]
+
+
+def process_linearization(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,
+                          pole: float = 5.0) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`process_jacobian` and the state derivative [v; a] at the same point (18,), from one
+    plant_jacobian (its accelerations are state_derivative's, to the bit)."""
     jac = plant_jacobian(p, q, v, u, f, pole)
     A = np.zeros((21, 21))
     A[:18, :18] = jac.A
     A[:18, 18:] = jac.dx[:, 21:24]
-    return A
+    return A, np.concatenate([np.asarray(v, float), jac.vdot])
