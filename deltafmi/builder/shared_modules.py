@@ -13,7 +13,9 @@ physics module) gets another key, and is imported apart as before.
 
 Packages (``__init__.py``) are never shared: importing a submodule binds it as an attribute of
 its package, and a shared package would hand one FMU's submodule to another FMU whose copy of
-that submodule differs.
+that submodule differs. Only the runtime, the component API, the physics and the models are
+shared: the master's modules a scenario exported as one FMU carries find their compiled loops
+beside themselves (``__file__``), in the unpacked folder of the FMU that imported them first.
 """
 from __future__ import annotations
 
@@ -23,10 +25,12 @@ from typing import Dict, Iterable, Set, Tuple
 
 from .reach import absolute_imports_of
 
-__all__ = ["PYTHON_PREFIX", "module_keys"]
+__all__ = ["PYTHON_PREFIX", "SHAREABLE", "module_keys"]
 
 #: where an FMU carries its deltafmi modules
 PYTHON_PREFIX = "resources/python/"
+#: the packages whose modules may be shared (those that look for no file beside themselves)
+SHAREABLE = ("deltafmi.runtime.", "deltafmi.component.", "deltafmi.physics.", "deltafmi.models.")
 
 
 def module_keys(files: Iterable[Tuple[Path, str]]) -> Dict[str, str]:
@@ -53,7 +57,7 @@ def module_keys(files: Iterable[Tuple[Path, str]]) -> Dict[str, str]:
     extra = "\0".join(sorted(others))
     keys = {}
     for name, (_, package) in sorted(sources.items()):
-        if package:
+        if package or not name.startswith(SHAREABLE):
             continue
         closure, pending = {name}, [name]
         while pending:

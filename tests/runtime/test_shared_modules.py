@@ -57,13 +57,17 @@ def test_the_keys_follow_what_a_module_reaches(tmp_path):
     (package / "runtime" / "low.py").write_text("X = 1\n")
     (package / "runtime" / "mid.py").write_text("from .low import X\n")
     (package / "runtime" / "apart.py").write_text("Y = 2\n")
+    (package / "master").mkdir()
+    (package / "master" / "__init__.py").write_text("")
+    (package / "master" / "loop.py").write_text("from deltafmi.runtime.low import X\n")  # finds files beside it
 
     def keys() -> dict:
         return module_keys([(path, PYTHON_PREFIX + path.relative_to(tmp_path).as_posix())
                             for path in sorted(package.rglob("*.py"))])
 
     before = keys()
-    assert set(before) == {"deltafmi.runtime.low", "deltafmi.runtime.mid", "deltafmi.runtime.apart"}  # no packages
+    # no packages, and none of the master's modules (a scenario exported as one FMU carries them)
+    assert set(before) == {"deltafmi.runtime.low", "deltafmi.runtime.mid", "deltafmi.runtime.apart"}
     assert len(set(before.values())) == 3  # one key per module, even for modules of the same closure
     (package / "runtime" / "low.py").write_text("X = 3\n")
     after = keys()
