@@ -9,7 +9,8 @@ style: plain C, no Python inside, built here with ``cc``) on its default experim
 --help`` is the baseline of ``deltafmi --help`` and ``deltafmi examples``. The commands run
 interleaved, --rounds times; printed: each command's median and minimum, and its ratio to its
 baseline: the median over the rounds of the ratio within a round (a command and its baseline run
-seconds apart, under much the same load), and the ratios of the medians and of the minima.
+seconds apart, under much the same load), and the ratios of the medians and of the minima; then
+the same for each command's CPU time (user + system), which a loaded machine moves much less.
 
 Usage: python benchmarks/startup.py [--rounds 15] [--scenario delta_tracking]
 """
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -31,13 +33,26 @@ sys.path.insert(0, str(ROOT / "tests" / "third_party"))
 from build import build_fmu  # noqa: E402  (the C FMUs of tests/third_party)
 
 
-def wall(command: List[str], env: Dict[str, str]) -> float:
-    """Seconds from start to exit of ``command`` (output discarded); exits on a failure."""
+#: CPU seconds (user + system) of each command, beside its wall time (filled by :func:`wall`)
+CPU: Dict[str, List[float]] = {}
+
+
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def wall(command: List[str], env: Dict[str, str], name: str = "") -> float:
+    """Seconds from start to exit of ``command`` (output discarded), its CPU seconds recorded in
+    :data:`CPU` under ``name``; exits on a failure."""
+    cpu = _children_cpu()
     start = time.perf_counter()
     done = subprocess.run(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     elapsed = time.perf_counter() - start
     if done.returncode != 0:
         raise SystemExit(f"{' '.join(command)} failed ({done.returncode}):\n{done.stderr}")
+    if name:
+        CPU.setdefault(name, []).append(_children_cpu() - cpu)
     return elapsed
 
 
@@ -64,7 +79,7 @@ def main() -> None:
         times: Dict[str, List[float]] = {name: [] for name in commands}
         for _ in range(args.rounds):
             for name, command in commands.items():
-                times[name].append(wall(command, env))
+                times[name].append(wall(command, env, name))
     load = os.getloadavg()
     print(f"start-up, wall time of each command ({args.rounds} interleaved rounds; "
           f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} cores)")
@@ -80,6 +95,13 @@ def main() -> None:
         else:
             ratios = " " * 23
         print(f"{name:<30} {statistics.median(values):9.3f} {min(values):7.3f} {ratios}  {base or ''}")
+    # CPU time (user + system of the command's process): what the command itself costs, much less
+    # moved by a loaded machine than its wall time, which waits for a core
+    print("CPU seconds of each command: median, and the median over the rounds of (command / its baseline)")
+    for name, values in CPU.items():
+        base = baseline.get(name)
+        paired = f"{statistics.median(v / b for v, b in zip(values, CPU[base])):7.2f}" if base else " " * 7
+        print(f"{name:<30} {statistics.median(values):9.3f} {paired}  {base or ''}")
 
 
 if __name__ == "__main__":

@@ -9,7 +9,10 @@ machine, all with the same cases:
 2. the sweep on a LocalCluster of 1 worker process and of 2 (the cluster already started: its
    start-up is printed apart; FMU shipping, loading and every case's metrics included);
 3. the per-case overhead of the sweep against the simulation itself (the master's stepping loop
-   on the worker): reset + initialization, and everything else (Dask, metrics, transfer);
+   on the worker): reset + initialization, and everything else (Dask, metrics, transfer); and in
+   all, the sweep's time per case minus those cases' stepping (target <= 1 ms); and the CPU time
+   of the same on a worker without Dask (this process, thread CPU time: what a loaded machine
+   moves least);
 4. the scaling from 1 to 2 workers, against what two plain processes running the same cases at
    once (no Dask) get done on this machine against one alone: the hardware's own ceiling.
 
@@ -21,6 +24,7 @@ Usage: python benchmarks/sweep.py [--cases 24] [--repeats 1]
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import statistics
 import subprocess
@@ -132,11 +136,53 @@ def per_case(rows: List[dict], wall: float, once: float) -> Dict[str, float]:
     metrics); and Dask plus the client: the time the worker spent outside the cases, per case."""
     first = max(rows, key=lambda r: r["setup_time"])
     steady = [r for r in rows if r is not first]
+    # what a case costs the sweep beyond its own stepping: the sweep's time per case (its first
+    # case, which loads the FMUs, left out) minus the stepping of the same cases, same run
+    per_case_time = (wall - once - first["wall_time"]) / max(1, len(steady))
     return {"simulation": statistics.median(r["sim_time"] for r in steady),
+            "overhead": per_case_time - statistics.fmean(r["sim_time"] for r in steady),
             "reset": statistics.median(r["setup_time"] for r in steady),
             "worker_rest": statistics.median(r["wall_time"] - r["setup_time"] - r["sim_time"] for r in steady),
             "dask": (wall - once - sum(r["wall_time"] for r in rows)) / len(rows),
             "load": first["setup_time"]}
+
+
+def worker_cpu(planned: PlannedStudy, cases: List[Case]) -> Dict[str, float]:
+    """CPU milliseconds per case (this thread's: a loaded machine moves it much less than wall
+    time) of what a worker does for a case, the cases run one after another in this process on
+    one FmuPool as a worker runs them (no Dask): the whole case, its stepping (the master's
+    fixed-step loop) and the rest (reset, start values, initialization, wiring, metrics); medians
+    over the cases after the first (which loads the FMUs)."""
+    from deltafmi.apps.studies.pool import FmuPool
+    from deltafmi.apps.studies.runner import CaseTemplate, run_case
+    from deltafmi.master.stepping.master import Master
+
+    stepping: List[float] = []
+    original = Master._run_fixed
+
+    def timed(master: Master) -> None:  # the stepping's CPU time, around the master's own loop
+        start = time.thread_time()
+        try:
+            original(master)
+        finally:
+            stepping.append(time.thread_time() - start)
+
+    template = CaseTemplate(planned.plan, planned.fmu_files)
+    pool = FmuPool()
+    whole: List[float] = []
+    Master._run_fixed = timed  # type: ignore[method-assign]
+    try:
+        for case in cases:
+            start = time.thread_time()
+            result = run_case(template, pool, case.id, case.values)
+            whole.append(time.thread_time() - start)
+            assert result.status == "ok", result.error
+    finally:
+        Master._run_fixed = original  # type: ignore[method-assign]
+        pool.close()
+    rest = [w - s for w, s in zip(whole[1:], stepping[1:])]
+    return {"case": 1e3 * statistics.median(whole[1:]), "stepping": 1e3 * statistics.median(stepping[1:]),
+            "rest": 1e3 * statistics.median(rest)}
 
 
 def main() -> None:
@@ -187,6 +233,13 @@ def main() -> None:
               f"{steady / stats['simulation']:.1%} of it (target <= 5 %): reset + initialization "
               f"{1e3 * stats['reset']:.1f} ms, case set-up + metrics + closing on the worker "
               f"{1e3 * stats['worker_rest']:.1f} ms, Dask and the client {1e3 * stats['dask']:.1f} ms")
+        print(f"  per-case overhead, 1 worker (the sweep's time per case minus the same cases' stepping, same run): "
+              f"{1e3 * stats['overhead']:.2f} ms (target <= 1 ms; load average {os.getloadavg()[0]:.1f} "
+              f"on {os.cpu_count()} cores)")
+        cpu = worker_cpu(planned, cases)
+        print(f"  per-case CPU on a worker (no Dask, this process, medians): {cpu['case']:.2f} ms a case, of which "
+              f"stepping {cpu['stepping']:.2f} ms; the rest (reset, start values, initialization, wiring, "
+              f"metrics) {cpu['rest']:.2f} ms")
         print(f"  once per sweep: registration (FMUs shipped, stored, scenario resolved on the worker) "
               f"{1e3 * best[1].registration:.0f} ms; wrap-up (study removed from the workers, final tables) "
               f"{1e3 * best[1].wrapup:.0f} ms; per worker, its first case loads and instantiates the FMUs: "

@@ -30,6 +30,8 @@ from .build_stamps import Stamp, file_request, recorded, remember, stamps_of
 from .bytecode import unchecked_hash_pyc
 from .equations import SOURCES as EQUATION_COMPILER, generated_files
 from .reach import BOOT_SOURCE, module_archive_name, module_source, reached_modules
+from .shared_modules import module_keys
+from . import shared_modules as _shared_modules
 from .source_error import import_failure
 from .sources import ComponentSourceError, find_component, split_file_reference
 
@@ -202,7 +204,7 @@ def _keyed(source: Path, class_name: Optional[str], fmi_version: int,
     codegen = PACKAGE_DIR / "builder" / "codegen"
     generator = sorted([*codegen.glob("*.py"), *codegen.glob("*.c")])  # writes the compiled kernels' C
     generator += EQUATION_COMPILER  # writes an equation model's kernels
-    hashed = native_source_files(fmi_version) + writers + generator + [Path(__file__), BOOT_SOURCE]
+    hashed = native_source_files(fmi_version) + writers + generator + [Path(__file__), BOOT_SOURCE, SHARED_MODULES]
     # folders where reached modules were found: a module added to one may be reached (from P import name)
     folders = sorted({path.parent for path, _ in carried} | {path.parent for path in writers} | {codegen})
     stamps = stamps_of([source, *(path for path, _ in carried), *hashed, *folders])
@@ -219,6 +221,9 @@ def _keyed(source: Path, class_name: Optional[str], fmi_version: int,
     digest.update(re.sub(r"(?m)^executable=.*$", f"prefix={sys.prefix}", python_runtime_config()).encode())
     return digest.hexdigest(), stamps
 
+
+#: writes the keys of the modules an FMU may share (recorded in its deltafmi.json)
+SHARED_MODULES = Path(_shared_modules.__file__)
 
 #: where :func:`build_cached` says, at INFO, that it builds an FMU (silent when the FMU is cached);
 #: the commands show it on stderr (``-q``: not), the API leaves it to the user's logging set-up
@@ -253,8 +258,11 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
     key = content_key(source, class_name, fmi_version, resources)
     guid = "{" + str(uuid.uuid5(_GUID_NAMESPACE, key)) + "}"
     binary = _fmu_binary_for(source, fmi_version)
+    carried = runtime_files(source) + generated_files(cls)
     info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
-            "guid": guid, "fmi_version": fmi_version, "deltafmi_version": deltafmi.__version__}
+            "guid": guid, "fmi_version": fmi_version, "deltafmi_version": deltafmi.__version__,
+            # what boot.py may share with another FMU in the process (see .shared_modules)
+            "shared_modules": module_keys(carried + binary_files(source))}
     writer = model_description_xml if fmi_version == 2 else model_description3_xml
     kernels = component_library(cls)
     with replaced_atomically(output) as tmp:
@@ -266,7 +274,7 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
             fmu.writestr("resources/deltafmi.json", json.dumps(info, indent=2))
             fmu.writestr("resources/python.cfg", python_runtime_config())
             fmu.writestr("resources/README.txt", _readme(identifier, fmi_version, _interfaces(cls, fmi_version)))
-            for path, arcname in runtime_files(source) + generated_files(cls):
+            for path, arcname in carried:
                 fmu.write(path, arcname)
                 fmu.writestr(importlib.util.cache_from_source(arcname), unchecked_hash_pyc(path, arcname))
             for path, arcname in binary_files(source) + resource_files(resources):

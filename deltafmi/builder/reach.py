@@ -32,8 +32,8 @@ from typing import Iterable, Iterator, Optional
 import deltafmi
 from deltafmi.shipped import MODELS_DIR
 
-__all__ = ["BOOT_SOURCE", "absolute_imports", "direct_imports", "module_archive_name", "module_source",
-           "reached_modules"]
+__all__ = ["BOOT_SOURCE", "absolute_imports", "absolute_imports_of", "direct_imports", "module_archive_name",
+           "module_source", "reached_modules"]
 
 PACKAGE = "deltafmi"
 PACKAGE_DIR = Path(deltafmi.__file__).parent
@@ -93,6 +93,12 @@ def absolute_imports(path: Path) -> list[str]:
     """Every absolute module name the import statements of the file at ``path`` name, inside or
     outside deltafmi (``from a import b`` gives ``a`` and ``a.b``: ``b`` may be a submodule)."""
     return list(_imports(Path(path), None))
+
+
+def absolute_imports_of(path: Path, package: Optional[str]) -> list[str]:
+    """:func:`absolute_imports` of the file at ``path`` as module of ``package`` (relative imports
+    resolved against it): the file need not be in deltafmi's own folder (a copy in an FMU)."""
+    return list(_imports(Path(path), package))
 
 
 def direct_imports(name: str) -> set[str]:

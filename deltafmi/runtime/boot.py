@@ -38,29 +38,107 @@ class _Bundle:
     Only the modules the FMU carries are swapped: the host's other deltafmi modules stay in
     sys.modules meanwhile, so that the host's other threads keep finding them (a Dask worker
     unpickles tasks that name deltafmi.apps.studies while an FMU starts in its executor thread; had they
-    been hidden, its import would have run again, half in the FMU's copy)."""
+    been hidden, its import would have run again, half in the FMU's copy).
 
-    def __init__(self, python_dir: str) -> None:
+    ``shared`` ({module name: key}, recorded at build time by deltafmi.builder.shared_modules)
+    names the modules another FMU in the process may lend: one whose key an earlier FMU's module
+    has is taken from it (:class:`_ModulePool`) instead of being imported again."""
+
+    def __init__(self, python_dir: str, shared: "dict | None" = None) -> None:
         self.python_dir = python_dir
         self.modules: dict = {}
         self.names = _carried_modules(python_dir)
+        self.shared = {name: key for name, key in (shared or {}).items() if name in self.names}
 
     @contextlib.contextmanager
     def active(self):
         """Make ``import deltafmi...`` resolve to this FMU's copy inside the block (one thread at a time)."""
         with _LOCK:
+            pool = _module_pool() if self.shared else None
             # list() copies the keys without running Python code, so no other thread's import can
             # change sys.modules under the iteration (holding the lock does not stop other imports)
             saved = {k: sys.modules.pop(k) for k in self.names.intersection(list(sys.modules))}
             sys.modules.update(self.modules)
             sys.path.insert(0, self.python_dir)
+            lending = pool.lend(self.shared) if pool is not None else None
             try:
                 yield
             finally:
+                if pool is not None:
+                    pool.stop_lending(lending)
                 sys.path.remove(self.python_dir)
                 for k in self.names.intersection(list(sys.modules)):
                     self.modules[k] = sys.modules.pop(k)
                 sys.modules.update(saved)
+                if pool is not None:
+                    pool.keep({key: self.modules[name] for name, key in self.shared.items() if name in self.modules})
+
+
+class _ModulePool:
+    """First on ``sys.meta_path``: deltafmi modules lent from one FMU to another (one per process).
+
+    ``modules`` maps a closure key to the module object first imported with it. While a bundle is
+    active on a thread (:meth:`lend`), an import of a module that bundle may share, made on that
+    thread, gets the pooled module with the same key instead of executing the FMU's own copy:
+    the import system binds it in ``sys.modules`` and as an attribute of the bundle's own package,
+    as for a module it loaded. Imports on other threads, and of names the bundle does not share,
+    are left to the other finders."""
+
+    def __init__(self) -> None:
+        self.modules: dict = {}  # closure key -> module
+        self.lending: dict = {}  # thread -> {module name: key} of the bundle active on it
+
+    def lend(self, shared: dict):
+        """Serve ``shared`` on this thread until :meth:`stop_lending` (nests); returns what to restore."""
+        thread = _thread.get_ident()
+        previous = self.lending.get(thread)
+        self.lending[thread] = shared
+        return thread, previous
+
+    def stop_lending(self, lending) -> None:
+        thread, previous = lending
+        if previous is None:
+            self.lending.pop(thread, None)
+        else:
+            self.lending[thread] = previous
+
+    def keep(self, modules: dict) -> None:
+        """Pool ``modules`` ({key: module}) where no module has their key yet."""
+        for key, module in modules.items():
+            self.modules.setdefault(key, module)
+
+    def find_spec(self, name, path=None, target=None):
+        shared = self.lending.get(_thread.get_ident())
+        module = self.modules.get(shared.get(name)) if shared else None
+        if module is None:
+            return None
+        return importlib.machinery.ModuleSpec(name, _Lent(module), origin=getattr(module.__spec__, "origin", None))
+
+    def invalidate_caches(self) -> None:
+        pass
+
+
+class _Lent:
+    """Loader of a pooled module: hands out the module as it is, runs nothing."""
+
+    def __init__(self, module) -> None:
+        self.module = module
+        self.spec = module.__spec__
+
+    def create_module(self, spec):
+        return self.module
+
+    def exec_module(self, module) -> None:
+        module.__spec__ = self.spec  # the import system set the lending spec: the module keeps its own
+
+
+def _module_pool() -> _ModulePool:
+    """The process-wide pool (one for every FMU and every copy of this file), first on sys.meta_path."""
+    pool = _REGISTRY.__dict__.get("module_pool")
+    if pool is None:
+        pool = _REGISTRY.__dict__.setdefault("module_pool", _ModulePool())
+        sys.meta_path.insert(0, pool)
+    return pool
 
 
 def _carried_modules(python_dir: str) -> frozenset:
@@ -164,10 +242,19 @@ def _running_version() -> str:
     return f"{sys.version_info.major}.{sys.version_info.minor}"
 
 
+def _shareable(info: dict, resources_dir: str) -> dict:
+    """The modules this FMU may share with other FMUs in the process ({name: key}); none for a
+    portable FMU (its modules find the libraries it carries beside themselves)."""
+    shared = info.get("shared_modules")
+    if _python_config(resources_dir).get("portable") == "1" or not isinstance(shared, dict):
+        return {}
+    return shared
+
+
 def _import_model(resources_dir: str) -> tuple:
     with open(os.path.join(resources_dir, "deltafmi.json"), encoding="utf-8") as f:
         info = json.load(f)
-    bundle = _Bundle(os.path.join(resources_dir, "python"))
+    bundle = _Bundle(os.path.join(resources_dir, "python"), _shareable(info, resources_dir))
     digest = hashlib.sha1(resources_dir.encode()).hexdigest()[:12]
     unique = f"_deltafmi_fmu_{info['model_identifier']}_{digest}"
     with bundle.active():

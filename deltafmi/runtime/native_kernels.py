@@ -205,10 +205,14 @@ def unpack(desc: Any, value: Any, classes: dict, path: str = "") -> Any:
     raise TypeError(f"a kernel does not update {desc}")
 
 
+_SCALAR_TYPES = frozenset((float, int, bool, str, type(None)))
+
+
 def _immutable(value: Any) -> bool:
     """Whether ``value`` cannot change in place (a tuple of such, a frozen dataclass, a number)."""
     if isinstance(value, tuple):
-        return all(_immutable(item) for item in value)
+        # the scalars of a long tuple (a path's samples) checked without a call each
+        return all(type(item) in _SCALAR_TYPES or _immutable(item) for item in value)
     params = getattr(type(value), "__dataclass_params__", None)
     return params.frozen if params is not None else isinstance(value, (int, float, str, type(None)))
 

@@ -22,6 +22,10 @@ import json, sys
 from deltafmi.apps.cli import main
 main(sys.argv[1:], standalone_mode=False)
 print(json.dumps(sorted(sys.modules)), file=sys.__stderr__)
+registry = sys.modules.get("_deltafmi_fmu_registry")
+loaded = registry.loaded.values() if registry is not None else ()
+# the FMUs' own module objects: their FmuInstance classes, one per copy of the runtime imported
+print(json.dumps(len({id(entry[2]) for entry in loaded})) + " runtime copies of " + str(len(loaded)), file=sys.__stderr__)
 """
 
 
@@ -30,7 +34,16 @@ def loaded_by(*argv: str) -> set[str]:
     done = subprocess.run([sys.executable, "-c", _PROBE, *argv], capture_output=True, text=True,
                           env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}, timeout=600)
     assert done.returncode == 0, done.stderr
-    return set(json.loads(done.stderr.strip().splitlines()[-1]))
+    return set(json.loads(done.stderr.strip().splitlines()[-2]))
+
+
+def runtime_copies(*argv: str) -> tuple[int, int]:
+    """(runtime copies imported, FMUs loaded) in a fresh interpreter by ``deltafmi ARGV``."""
+    done = subprocess.run([sys.executable, "-c", _PROBE, *argv], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}, timeout=600)
+    assert done.returncode == 0, done.stderr
+    copies, *_, fmus = done.stderr.strip().splitlines()[-1].split()
+    return int(copies), int(fmus)
 
 
 def test_each_listed_help_is_the_commands_own_first_paragraph():
@@ -74,6 +87,14 @@ def test_a_cached_run_imports_only_what_it_uses(tmp_path):
     loaded = loaded_by(*argv)
     unused = ["scipy", "dask", "distributed", "matplotlib", "jsonschema", "deltafmi.apps.compat",
               "deltafmi.apps.studies", "deltafmi.builder.packager", "deltafmi.builder.codegen",
-              "deltafmi.models.delta_robot"]
+              "deltafmi.models.delta_robot", "yaml", "concurrent.futures"]  # a scenario parsed before: no YAML
     assert [name for name in unused if name in loaded] == []
     assert "deltafmi.master.stepping.master" in loaded
+
+
+def test_the_fmus_of_a_run_import_one_runtime(tmp_path):
+    """The flagship's three FMUs, built by this deltafmi, carry byte-identical runtime modules:
+    the first FMU imports them, the others get the same module objects (boot.py's module pool)."""
+    argv = ("run", "delta_tracking", "-q", "--stop", "0.01", "-o", str(tmp_path / "r.csv"))
+    loaded_by(*argv)  # builds (or finds) the FMUs
+    assert runtime_copies(*argv) == (1, 3)

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 from deltafmi.shipped import is_shipped
 from deltafmi.master.scenario.schema_check import load_mapping, read_document, schema_diagnostics
-from deltafmi.master.scenario.yaml_lines import LineMap
+from deltafmi.master.scenario.line_map import LineMap
 
 if TYPE_CHECKING:
     import jsonschema

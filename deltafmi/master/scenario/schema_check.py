@@ -10,7 +10,8 @@ from typing import TYPE_CHECKING, Any, Callable, Dict, List, Optional, Tuple
 from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 from deltafmi.toolchain import cache_dir
 
-from .yaml_lines import LineMap, YamlSyntaxError, load_yaml
+from .line_map import LineMap, YamlSyntaxError
+from .parsed_documents import plain, recall, remember
 
 if TYPE_CHECKING:
     import jsonschema
@@ -38,11 +39,18 @@ def read_document(path: Path, document: str) -> str:
 
 def load_mapping(text: str, file: str, document: str) -> Tuple[Dict[str, Any], LineMap]:
     """``text`` parsed as a YAML mapping with its line map; :class:`ScenarioError` at the line of a
-    syntax error, or if the top level is not a mapping."""
-    try:
-        data, lines = load_yaml(text)
-    except YamlSyntaxError as exc:
-        raise ScenarioError([Diagnostic(file, exc.line, str(exc))])
+    syntax error, or if the top level is not a mapping. A text parsed before comes from the
+    parsed-document cache (:mod:`.parsed_documents`), without the YAML parser."""
+    cached = recall(text)
+    if cached is not None:
+        data, lines = cached
+    else:
+        from .yaml_lines import load_yaml  # here: a document parsed before needs no YAML
+        try:
+            data, lines = load_yaml(text)
+        except YamlSyntaxError as exc:
+            raise ScenarioError([Diagnostic(file, exc.line, str(exc))])
+        remember(text, data, lines)
     if not isinstance(data, dict):
         raise ScenarioError([Diagnostic(file, lines.line(()), f"a {document} must be a YAML mapping")])
     return data, lines
@@ -78,7 +86,7 @@ def schema_diagnostics(data: Any, lines: LineMap, file: str, schema: Dict[str, A
 def _valid_mark(data: Any, schema: Dict[str, Any]) -> Optional[Path]:
     """The cache file that says ``data`` is valid under ``schema`` (None: data JSON cannot hold,
     never remembered: a date, a key that is not a string, which JSON would write as another value)."""
-    if not _plain(data):
+    if not plain(data):
         return None
     try:
         text = json.dumps([schema, data], sort_keys=True, allow_nan=True)
@@ -100,15 +108,6 @@ def _describe(error: "jsonschema.ValidationError", lines: LineMap, file: str, do
         hint = did_you_mean(str(error.instance), choices) or f" (one of {', '.join(choices)})"
         return [Diagnostic(file, lines.line(path), f"{where}: '{error.instance}' is not allowed{hint}")]
     return [Diagnostic(file, lines.line(path), f"{where}: {error.message}")]
-
-
-def _plain(value: Any) -> bool:
-    """Whether ``value`` is made of JSON's types only, every mapping keyed by strings."""
-    if isinstance(value, dict):
-        return all(isinstance(k, str) and _plain(v) for k, v in value.items())
-    if isinstance(value, list):
-        return all(map(_plain, value))
-    return value is None or isinstance(value, (str, int, float, bool))
 
 
 def dotted(path: Tuple[Any, ...]) -> str:

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 from deltafmi.errors import Diagnostic, ScenarioError
 
 from .schema_check import dotted, load_mapping, read_document, schema_diagnostics
-from .yaml_lines import LineMap
+from .line_map import LineMap
 
 if TYPE_CHECKING:
     import jsonschema

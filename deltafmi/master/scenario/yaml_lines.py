@@ -10,11 +10,9 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import yaml
 
-from deltafmi.errors import DeltaFmiError
+from .line_map import LineMap, Path, YamlSyntaxError
 
 __all__ = ["LineMap", "YamlSyntaxError", "load_yaml"]
-
-Path = Tuple[Any, ...]
 
 #: values a document may expand to: YAML aliases (``*a`` repeats what ``&a`` names) let a few
 #: lines stand for billions of values ("billion laughs"), which no scenario or study needs
@@ -36,28 +34,6 @@ for _loader in {_Loader, _FastLoader}:
     )
 
 
-class LineMap:
-    """Line numbers (1-based) of the values and keys of a YAML document, by key path."""
-
-    def __init__(self) -> None:
-        self.value_lines: Dict[Path, int] = {}
-        self.key_lines: Dict[Path, int] = {}
-
-    def line(self, path: Path) -> Optional[int]:
-        """Line of the value at ``path``, or of its nearest ancestor that has one."""
-        path = tuple(path)
-        while True:
-            if path in self.value_lines:
-                return self.value_lines[path]
-            if not path:
-                return None
-            path = path[:-1]
-
-    def key_line(self, path: Path) -> Optional[int]:
-        """Line of the mapping key that ends ``path`` (falls back to :meth:`line`)."""
-        return self.key_lines.get(tuple(path)) or self.line(path)
-
-
 def _missing_colon(lines: list, line: int) -> str:
     """A hint when the key line above ``line`` (1-based) lacks its ':': YAML reads it as text
     running on into ``line`` and notices only there."""
@@ -66,16 +42,6 @@ def _missing_colon(lines: list, line: int) -> str:
     if previous is None or ":" in lines[previous - 1]:
         return ""
     return f" (is the ':' missing on line {previous}, '{lines[previous - 1].strip()}'?)"
-
-
-class YamlSyntaxError(DeltaFmiError, ValueError):
-    """The text is not YAML (or repeats a key); ``line`` is 1-based."""
-
-    exit_code = 2  # bad input
-
-    def __init__(self, message: str, line: Optional[int]) -> None:
-        super().__init__(message)
-        self.line = line
 
 
 def load_yaml(text: str) -> Tuple[Any, LineMap]:

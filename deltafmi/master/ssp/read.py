@@ -31,7 +31,7 @@ from deltafmi.errors import Diagnostic, ScenarioError, did_you_mean
 
 from . import is_ssp
 from ..scenario.spec import ResultSettings, Scenario, scenario_from_data
-from ..scenario.yaml_lines import LineMap
+from ..scenario.line_map import LineMap
 from .format import (ANNOTATION_TYPE, FMU_MIME_TYPE, NAMESPACES, OSP_ANNOTATION_TYPE,
                          PARAMETER_SET_MIME_TYPE, SSD_NAME, schema_problems, tag)
 

@@ -25,9 +25,11 @@ stepping order), except that the others of its group have taken the step too.
 """
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Sequence, Tuple
+
+if TYPE_CHECKING:
+    from concurrent.futures import ThreadPoolExecutor
 
 __all__ = ["StepPool", "group_actions", "pooled", "runs_python"]
 
@@ -110,8 +112,10 @@ class StepPool:
 
     def __init__(self, threads: int) -> None:
         self.threads = threads
-        self._executor: Optional[ThreadPoolExecutor] = ThreadPoolExecutor(
-            max_workers=threads - 1, thread_name_prefix="deltafmi-step") if threads > 1 else None
+        self._executor: Optional[ThreadPoolExecutor] = None
+        if threads > 1:  # imported here: a run on one thread does without
+            from concurrent.futures import ThreadPoolExecutor
+            self._executor = ThreadPoolExecutor(max_workers=threads - 1, thread_name_prefix="deltafmi-step")
 
     def step(self, units: Sequence[Any], t: float, steps: Sequence[float]) -> None:
         """``unit.do_step(t, step)`` for each unit and its step, at once; the first exception in

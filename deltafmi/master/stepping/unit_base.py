@@ -334,9 +334,16 @@ class Unit:
         self.call(self.fmu.setupExperiment, tolerance=tolerance, startTime=start, stopTime=stop)
 
     def apply_start_values(self) -> None:
-        """Set the scenario's parameters and start values (before initialization mode)."""
+        """Set the scenario's parameters and start values (before initialization mode): one set
+        call per FMI type, each variable once with the last value given for it (a study case's
+        value comes after the scenario's)."""
+        given: Dict[str, Dict[int, Any]] = {}
         for port, value in self.component.start_values:
-            self.set_value(port, value)
+            given.setdefault(port.type, {})[port.vr] = value
+        setters = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
+                   "Boolean": self.fmu.setBoolean, "String": self.fmu.setString}
+        for kind, values in given.items():
+            self.call(setters[kind], list(values), list(values.values()))
 
     def enter_initialization(self) -> None:
         """fmi2EnterInitializationMode."""
