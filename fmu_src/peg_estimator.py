@@ -22,7 +22,7 @@ EstimatorHoleModel = hole_parameters("nominal", "as the estimator models it")
 _SETTINGS = ("sample_period", "y_std", "qw_std", "acceleration_std", "angular_acceleration_std", "force_rate_std",
              "moment_rate_std", "velocity_std0", "rate_std0", "force_std0", "moment_std0", "hole_std0", "tilt_std0",
              "contact_force_std", "contact_moment_std", "contact_threshold", "contact_samples", "reject_samples",
-             "hole_drift_std", "tilt_drift_std", "pole", "substeps")
+             "hole_drift_std", "tilt_drift_std", "pole", "substeps", "contact_iterations", "jacobian_columns")
 
 
 class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel, SampledComponent):
@@ -84,6 +84,12 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     reject_samples = Parameter(50, type=int, min=1,
                                description="Contact-law updates refused in a row (the estimate locked in a wrong "
                                "hole) after which the hole's uncertainty goes back to its prior")
+    contact_iterations = Parameter(10, type=int, min=1,
+                                   description="Largest number of Gauss-Newton iterations of a contact-law update "
+                                   "(1: the extended filter's single linearisation)")
+    jacobian_columns = Parameter(3, type=int, min=1, max=18,
+                                 description="Columns of the process Jacobian (of 18) evaluated again per sample, "
+                                 "in turn (18: all of them every sample)")
     pole = Parameter(5.0, unit="1/s", min=0.0, description="Baumgarte pole of the process model")
     substeps = Parameter(1, type=int, min=1, description="Runge-Kutta steps per sample period in the prediction")
     sensor_noise = Parameter(0.0, unit="rad", min=0.0,
