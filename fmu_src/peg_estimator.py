@@ -36,12 +36,13 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     the contact multipliers' resultant) as a random walk; the hole's x, y and tilt are constants
     tied to the wrench by the peg's contact law (the plant's, with the parameters below as the
     estimator models them) while the estimated force exceeds contact_threshold for
-    contact_samples samples; a contact the law cannot place at the current hole estimate moves
-    the estimate first along the felt lateral force (deltafmi/physics/estimation/peg_contact.py).
+    contact_samples samples, in an iterated (Gauss-Newton) update of at most contact_iterations
+    linearisations; a contact the law cannot place at the current hole estimate moves the estimate
+    first along the felt lateral force (deltafmi/physics/estimation/peg_contact.py).
     hole_position and hole_tilt are the NOMINAL hole, the prior's mean. The filter starts at the
     first y and qw, at rest. sensor_noise adds seeded Gaussian noise to y and qw before the
     filter sees them. The first sample is one sample_period after the start. Pure Python with
-    numpy: about 4 ms per sample (0.25x real time). Co-Simulation: doStep(t, h) takes the samples
+    numpy, slower than real time at 1 kHz (benchmarks/assembly_realtime.py). Co-Simulation: doStep(t, h) takes the samples
     due in [t, t + h) with the inputs at t (use h = sample_period and list it after the plant and
     the controller in a Gauss-Seidel scenario, so that the angles and torques are of the same
     instant); Model Exchange: time events at the samples.
