@@ -22,7 +22,7 @@ EstimatorHoleModel = hole_parameters("nominal", "as the estimator models it")
 _SETTINGS = ("sample_period", "y_std", "qw_std", "acceleration_std", "angular_acceleration_std", "force_rate_std",
              "moment_rate_std", "velocity_std0", "rate_std0", "force_std0", "moment_std0", "hole_std0", "tilt_std0",
              "contact_force_std", "contact_moment_std", "contact_threshold", "contact_samples", "reject_samples",
-             "hole_drift_std", "tilt_drift_std", "pole", "substeps")
+             "hole_drift_std", "tilt_drift_std", "pole", "substeps", "contact_iterations", "jacobian_columns")
 
 
 class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel, SampledComponent):
@@ -36,12 +36,13 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     the contact multipliers' resultant) as a random walk; the hole's x, y and tilt are constants
     tied to the wrench by the peg's contact law (the plant's, with the parameters below as the
     estimator models them) while the estimated force exceeds contact_threshold for
-    contact_samples samples; a contact the law cannot place at the current hole estimate moves
-    the estimate first along the felt lateral force (deltafmi/physics/estimation/peg_contact.py).
+    contact_samples samples, in an iterated (Gauss-Newton) update of at most contact_iterations
+    linearisations; a contact the law cannot place at the current hole estimate moves the estimate
+    first along the felt lateral force (deltafmi/physics/estimation/peg_contact.py).
     hole_position and hole_tilt are the NOMINAL hole, the prior's mean. The filter starts at the
     first y and qw, at rest. sensor_noise adds seeded Gaussian noise to y and qw before the
     filter sees them. The first sample is one sample_period after the start. Pure Python with
-    numpy: about 4 ms per sample (0.25x real time). Co-Simulation: doStep(t, h) takes the samples
+    numpy, slower than real time at 1 kHz (benchmarks/assembly_realtime.py). Co-Simulation: doStep(t, h) takes the samples
     due in [t, t + h) with the inputs at t (use h = sample_period and list it after the plant and
     the controller in a Gauss-Seidel scenario, so that the angles and torques are of the same
     instant); Model Exchange: time events at the samples.
@@ -84,6 +85,12 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     reject_samples = Parameter(50, type=int, min=1,
                                description="Contact-law updates refused in a row (the estimate locked in a wrong "
                                "hole) after which the hole's uncertainty goes back to its prior")
+    contact_iterations = Parameter(10, type=int, min=1,
+                                   description="Largest number of Gauss-Newton iterations of a contact-law update "
+                                   "(1: the extended filter's single linearisation)")
+    jacobian_columns = Parameter(3, type=int, min=1, max=18,
+                                 description="Columns of the process Jacobian (of 18) evaluated again per sample, "
+                                 "in turn (18: all of them every sample)")
     pole = Parameter(5.0, unit="1/s", min=0.0, description="Baumgarte pole of the process model")
     substeps = Parameter(1, type=int, min=1, description="Runge-Kutta steps per sample period in the prediction")
     sensor_noise = Parameter(0.0, unit="rad", min=0.0,

@@ -107,13 +107,17 @@ def test_without_noise_the_estimates_match_the_plant(clean):
     assert clean["steady_force"] < 0.01 and clean["steady_moment"] < 5e-4
 
 
-@pytest.mark.xfail(strict=True, reason="known defect (issue 44 item 3): since the controller's force feedback "
-                   "lost its half-sample lead the first chamfer bounces differ, the estimator linearises the "
-                   "contact law at the wrong hole and its gate refuses the corrections: hole 43 um, tilt 2.2 mrad "
-                   "off (measured; were 1.0 um and 0.3 mrad), the worst impact error 0.72 of the peak")
+@pytest.mark.xfail(strict=True, reason="known defect (issue 44 item 3): where the first chamfer bounces leave the "
+                   "hole estimate depends on differences at the plant's integration tolerance; in this run the "
+                   "iterated contact update ends 76 um and 9.8 mrad off (replayed on a recording of the same "
+                   "scenario 8.7 um, 1.2 mrad; benchmarks/assembly_realtime.py), the worst impact error 0.72 of "
+                   "the peak (the force's random walk on 5 ms bounces)")
 def test_without_noise_the_hole_and_the_impact_are_found(clean):
     """The hole, 1.8 mm off the nominal, to within 5 um and its 1-degree tilt to 1 mrad; the worst
     force error during the bounces within 0.7 of their peak."""
+    print(f"hole error {clean['hole'] * 1e6:.1f} um (std {clean['hole_std'] * 1e6:.2f} um), tilt error "
+          f"{clean['tilt'] * 1e3:.2f} mrad, worst impact error {clean['impact_error'] / clean['impact_peak']:.2f} "
+          f"of the peak")
     assert clean["hole"] < 5e-6 and clean["tilt"] < 1e-3
     assert clean["impact_error"] < 0.7 * clean["impact_peak"]
 

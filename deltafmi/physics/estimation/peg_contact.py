@@ -56,13 +56,16 @@ def _wrench(c: PegWrench) -> np.ndarray:
 
 
 def wrench_jacobian(nominal: Hole, peg: Peg, law: PegContact, w: WristConstants, m: WristMount, s: Sequence[float],
-                    h: Sequence[float]) -> tuple[np.ndarray, np.ndarray, float]:
-    """(c (6), dc/d[s, h] (6, 16) by forward differences, active contacts at (s, h))."""
+                    h: Sequence[float], hole_only: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+    """(c (6), dc/d[s, h] (6, 16) by forward differences, active contacts at (s, h)); with
+    ``hole_only`` the columns of s are left zero (not evaluated)."""
     s, h = np.asarray(s, float), np.asarray(h, float)
     c0 = contact_wrench(nominal, peg, law, w, m, s, h)
     w0 = _wrench(c0)
     J = np.zeros((6, N_REDUCED + HOLE_STATES))
     for k, step in enumerate(np.concatenate([STEPS, HOLE_STEPS])):
+        if hole_only and k < N_REDUCED:
+            continue
         ds, dh = s.copy(), h.copy()
         if k < N_REDUCED:
             ds[k] += step

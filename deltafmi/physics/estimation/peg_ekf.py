@@ -30,10 +30,21 @@ wrench is to come from the joint angles and torques, and a contact law evaluated
 still wrong (its tilt unknown at first) would otherwise bend it (measured: 3 N of error in the
 bore when the law corrected W too, 0.003 N when it does not).
 
-The law is applied only while it is consistent with the estimate: its normalised innovation
-r^T S^-1 r (chi-square with 6 degrees of freedom for a right model) at most contact_gate
-(22.46: the 0.999 quantile). It is not at an impact, where the wrench's random walk lags the
-truth by newtons, and the hole would be moved to explain a wrench the peg does not feel.
+The update is iterated (an iterated extended Kalman filter: Gauss-Newton on the update's
+least-squares problem; Bell and Cathey, IEEE Trans. Automatic Control 38(2), 1993): the law is
+linearised at the current iterate h_i, h_(i+1) = h_prior + K_i (c(h_i) - W - H_i (h_prior - h_i)),
+until an iteration moves h by less than contact_tolerance prior standard deviations or after
+contact_iterations; the covariance takes the last linearisation (Joseph form). The stiff law
+(2e5 N/m a point) is linear over micrometres only: a single linearisation at a hole estimate
+tens of micrometres off predicts the wrong contacts, and its update is confident about them.
+Each iteration re-evaluates the law and its hole columns (5 evaluations); the columns of s stay
+the first linearisation's (they enter only the innovation covariance, through s's micrometres).
+
+The law is applied only while it is consistent with the estimate: the normalised innovation
+r^T S^-1 r of its last iteration (chi-square with 6 degrees of freedom for a right model) at
+most contact_gate (22.46: the 0.999 quantile). It is not at an impact, where the wrench's random
+walk lags the truth by newtons, and the hole would be moved to explain a wrench the peg does not
+feel.
 Where c(h, s) has no contact while the robot feels one and h is still about as uncertain as its
 prior (standard deviation above half of hole_std0), the estimate of h is first moved to where the
 law explains the felt wrench (:func:`.peg_contact.locate_hole`); the updates then refine it.
@@ -41,27 +52,23 @@ A contact constrains h along its normals only: in a bore with clearance, the hol
 across the contact normal stays at what the chamfer told (its standard deviation says so).
 
 Consistency (benchmarks/estimator_consistency.py, Monte Carlo over seeded encoder noise): the
-law is a penalty contact, stiff (2e5 N/m a point) and switching with its active points, so the
-update linearised at a hole estimate tens of micrometres off can be confident about the wrong
-contact, and the gate then refuses every correction: the estimate locks in with a covariance of
-micrometres against an error of a tenth of a millimetre. The hole's random walk (when set) keeps
-its covariance from shrinking below what the linearisation can support; a lock-in shows as the
-gate
-refusing the law reject_samples times in a row while in contact; the hole's covariance then goes
-back to its prior's about the current mean (its correlations dropped), and the law's updates
-start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that detects its
-innovations are inconsistent raises its uncertainty instead of refusing the data). This lowers
-the hole's mean NEES by orders of magnitude but does not make it consistent: see
-docs/assembly.md.
+iterated update removes the lock-in of the noise-free run (a first chamfer contact linearised at
+the wrong hole, then every correction refused), but with encoder noise the filter is still far
+from consistent: the impacts' wrench errors (newtons, correlated over milliseconds) and the
+contact law's many near-equivalent contact configurations move the hole by tens to hundreds of
+micrometres while its covariance says micrometres (docs/assembly.md has the figures). A lock-in
+shows as the gate refusing the law reject_samples times in a row while in contact; the hole's
+covariance then goes back to its prior's about the current mean (its correlations dropped), and
+the law's updates start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that
+detects its innovations are inconsistent raises its uncertainty instead of refusing the data).
 
 Cycle per sample t_k (:meth:`PegEKF.step`), as ContactEKF: predict from t_(k-1) with the torques
-held since then, update with y(t_k), qw(t_k), then the gated contact update. Cost (measured on
-the shared 2-core box, plain Python): 3.6 to 5.7 ms a sample over peg_estimation.yaml, of which
-the process Jacobian 2.0 ms (23 evaluations of the plant's accelerations), the Runge-Kutta step
-0.6 ms, a contact update 3 ms (17 contact-law evaluations); with delta_wrist.dynamics and
-wrist.kernels compiled ahead of time (measured once, not shipped) the plant's derivative drops
-from 53 to 15 us but a sample only to about 3 ms: numpy's small-matrix calls (Jv, D, dq/dz) then
-dominate.
+held since then, update with y(t_k), qw(t_k), then the gated contact update. The prediction's
+transition matrix needs the process Jacobian (18 columns, each an evaluation of the plant's
+accelerations): jacobian_columns of them are evaluated again per sample, in turn, the others kept
+from the samples before (a Jacobian a few milliseconds old, as a stiff solver reuses its Newton
+matrix; it enters only the covariance's propagation, the mean is the Runge-Kutta step's). Cost:
+benchmarks/assembly_realtime.py (plain Python with numpy; far from the 1 ms of real time).
 """
 from __future__ import annotations
 
@@ -111,11 +118,14 @@ class PegEKFSettings:
     contact_threshold: float = 0.2  #: estimated contact force above which the peg touches (N)
     contact_samples: int = 5  #: samples in a row above contact_threshold before the law applies
     contact_gate: float = 22.46  #: largest normalised innovation r^T S^-1 r of an applied contact update
+    contact_iterations: int = 10  #: largest number of Gauss-Newton iterations of a contact-law update (1: EKF)
+    contact_tolerance: float = 1e-3  #: an iteration's largest hole change, in prior standard deviations, that ends them
     reject_samples: int = 50  #: contact updates refused in a row after which the hole's covariance reopens
     hole_drift_std: float = 0.0  #: random walk of the hole's x, y (m/sqrt(s)): forgets old contacts
     tilt_drift_std: float = 0.0  #: random walk of the hole's tilt (rad/sqrt(s))
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
+    jacobian_columns: int = 3  #: process-Jacobian columns (of 18) evaluated again per sample, in turn
 
     def __post_init__(self) -> None:
         for name in ("sample_period", "y_std", "qw_std", "position_std0", "angle_std0", "velocity_std0", "rate_std0",
@@ -124,12 +134,15 @@ class PegEKFSettings:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "angular_acceleration_std", "force_rate_std", "moment_rate_std",
-                     "hole_drift_std", "tilt_drift_std", "contact_threshold", "contact_gate", "pole"):
+                     "hole_drift_std", "tilt_drift_std", "contact_threshold", "contact_gate", "pole",
+                     "contact_tolerance"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
-        for name in ("substeps", "contact_samples", "reject_samples"):
+        for name in ("substeps", "contact_samples", "reject_samples", "contact_iterations", "jacobian_columns"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
+        if int(self.jacobian_columns) > 18:
+            raise ValueError(f"estimator setting jacobian_columns must be <= 18, got {self.jacobian_columns}")
 
 
 class PegEstimate(NamedTuple):
@@ -172,6 +185,8 @@ class PegEKF:
         self._rejected = 0  # contact updates in a row the gate refused
         self.reopened = 0  #: times the hole's covariance went back to its prior (_reopen_hole)
         self._inputs: tuple[list, list] | None = None  # torques held since the last sample
+        self._A: np.ndarray | None = None  # the process Jacobian d s'/d[s, W] (12, 18) as last evaluated
+        self._column = 0  # the next of its columns to evaluate again
         self._R = np.diag([st.y_std ** 2] * 3 + [st.qw_std ** 2] * 3)
         self._Rc = np.diag([st.contact_force_std ** 2] * 3 + [st.contact_moment_std ** 2] * 3)
         T = st.sample_period
@@ -198,7 +213,14 @@ class PegEKF:
         st = self.settings
         s, W = self.x[_S], self.x[_W]
         A = np.zeros((18, 18))
-        A[:12] = process_jacobian(self.p, self.w, self.m, s, u, tau, W, st.pole)
+        if self._A is None:
+            self._A = process_jacobian(self.p, self.w, self.m, s, u, tau, W, st.pole)
+        else:  # the next jacobian_columns columns, in turn (the rest as last evaluated)
+            n = st.jacobian_columns
+            columns = [(self._column + i) % 18 for i in range(n)]
+            self._column = (self._column + n) % 18
+            process_jacobian(self.p, self.w, self.m, s, u, tau, W, st.pole, columns, self._A)
+        A[:12] = self._A
         Phi = np.eye(N_STATES)
         Phi[:18, :18] = transition_matrix(A, st.sample_period)
         self.x[_S] = propagate(self.p, self.w, self.m, s, u, tau, W, st.sample_period, st.pole, st.substeps)
@@ -212,8 +234,9 @@ class PegEKF:
         H[0:3, 0:3] = tangent_basis(self.p, q)[_SERVOS]
         H[3:6, 3:6] = np.eye(3)
         residual = np.concatenate([np.asarray(y, float) - q[_SERVOS], np.asarray(qw, float) - self.x[3:6]])
+        st = self.settings
         self._correct(H, residual, self._R)
-        touching = float(np.linalg.norm(self.x[12:15])) > self.settings.contact_threshold
+        touching = float(np.linalg.norm(self.x[12:15])) > st.contact_threshold
         self._touching = self._touching + 1 if touching else 0
         self.in_contact = self._touching >= self.settings.contact_samples
         if self.in_contact:
@@ -232,8 +255,9 @@ class PegEKF:
     # ------------------------------------------------------------------------------ helpers
     def _contact_update(self) -> None:
         args = (self.hole, self.peg, self.law, self.w, self.m)
+        st = self.settings
         c, J, active = wrench_jacobian(*args, self.x[_S], self.x[_H])
-        unplaced = float(np.sqrt(self.P[18:20, 18:20].diagonal()).max()) > 0.5 * self.settings.hole_std0
+        unplaced = float(np.sqrt(self.P[18:20, 18:20].diagonal()).max()) > 0.5 * st.hole_std0
         if not active > 0.0 and unplaced:
             weights = np.sqrt(np.diag(self._Rc))
             found = locate_hole(*args, self.x[_S], self.x[_H], self.x[_W], weights)
@@ -244,16 +268,29 @@ class PegEKF:
         H = np.zeros((6, N_STATES))
         H[:, _W] = np.eye(6)
         H[:, _S] = -J[:, :N_REDUCED]
-        H[:, _H] = -J[:, N_REDUCED:]
-        residual = c - self.x[_W]
-        S = H @ self.P @ H.T + self._Rc
-        self.consistency = float(residual @ np.linalg.solve(S, residual))
-        if self.consistency <= self.settings.contact_gate:
+        prior = self.x[_H].copy()
+        scale = np.sqrt(np.diag(self.P)[_H])
+        hi = prior
+        for iteration in range(st.contact_iterations):
+            if iteration:
+                c, J, active = wrench_jacobian(*args, self.x[_S], hi, hole_only=True)
+            H[:, _H] = -J[:, N_REDUCED:]
+            # the law linearised at hi, its innovation taken about the prior (Gauss-Newton step)
+            innovation = c - self.x[_W] - H[:, _H] @ (prior - hi)
+            PHt = self.P[_H] @ H.T
+            S = H @ self.P @ H.T + self._Rc
+            new = prior + PHt @ np.linalg.solve(S, innovation)
+            done = float(np.max(np.abs(new - hi) / scale)) < st.contact_tolerance
+            hi = new
+            if done:
+                break
+        self.consistency = float(innovation @ np.linalg.solve(S, innovation))
+        if self.consistency <= st.contact_gate:
             self._rejected = 0
-            self._correct(H, residual, self._Rc, _H)
+            self._correct(H, innovation, self._Rc, _H)
             return
         self._rejected += 1
-        if self._rejected >= self.settings.reject_samples:
+        if self._rejected >= st.reject_samples:
             self._reopen_hole()
 
     def _reopen_hole(self) -> None:

@@ -93,16 +93,21 @@ def propagate(p: DeltaParams, w: WristConstants, m: WristMount, s: ArrayLike, u:
 
 
 def process_jacobian(p: DeltaParams, w: WristConstants, m: WristMount, s: ArrayLike, u: ArrayLike,
-                     tau: ArrayLike, W: ArrayLike, pole: float = 5.0) -> np.ndarray:
+                     tau: ArrayLike, W: ArrayLike, pole: float = 5.0, columns: Sequence[int] | None = None,
+                     out: np.ndarray | None = None) -> np.ndarray:
     """d s'/d[s, W] (12, 18): state columns by forward differences (positions through the inverse
-    kinematics, rates through v = T zd at fixed q), wrench columns exact by linearity."""
+    kinematics, rates through v = T zd at fixed q), wrench columns exact by linearity. With
+    ``columns`` only those are evaluated, into ``out`` (the other columns keep its values)."""
     s, W = np.asarray(s, float), np.asarray(W, float)
     ul, tl = list(map(float, u)), list(map(float, tau))
     x0, T = full_state(p, s)
     a0 = _accelerations(p, w, m, x0, ul, tl, W, pole)
-    J = np.zeros((N_REDUCED, 18))
+    J = np.zeros((N_REDUCED, 18)) if out is None else out
     J[0:6, 6:12] = np.eye(6)
-    for k in range(N_REDUCED):
+    for k in range(18) if columns is None else columns:
+        if k >= N_REDUCED:
+            J[6:12, k] = _accelerations(p, w, m, x0, ul, tl, W + np.eye(6)[k - N_REDUCED], pole) - a0
+            continue
         h = STEPS[k]
         if k < 3:
             ds = s.copy()
@@ -117,6 +122,4 @@ def process_jacobian(p: DeltaParams, w: WristConstants, m: WristMount, s: ArrayL
             else:
                 x[12 + k] += h  # vw
         J[6:12, k] = (_accelerations(p, w, m, x, ul, tl, W, pole) - a0) / h
-    for i in range(6):
-        J[6:12, 12 + i] = _accelerations(p, w, m, x0, ul, tl, W + np.eye(6)[i], pole) - a0
     return J
