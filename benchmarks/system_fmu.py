@@ -6,17 +6,19 @@ Both run ``delta_tracking`` (3.5 s, 1 ms steps), rounds interleaved in one proce
 - run: :func:`deltafmi.simulate` (the master's C loop, 64 steps per call, rows kept in memory);
   its stepping time from the run's summary (loading and writing apart);
 - system FMU in fmpy: ``doStep`` of 1 ms and ``getReal`` of the wrist position, 3500 times,
-  on an instance initialized beforehand;
+  on an instance initialized beforehand: its doStep going from the FMU's C layer straight into
+  the master's C loop (the default), and the same through the FMU's Python layer
+  (``DELTAFMI_SYSTEM_C_STEP=0`` at its instantiation, the path every doStep took before);
 
-and prints the cost per step (medians of ``--repeats`` rounds) and their ratio. The system FMU
-takes one master step per ``doStep`` and crosses the FMU's Python layer each time; the run takes
-64 steps per call into C.
+and prints the cost per step (medians of ``--repeats`` rounds) and their ratios. The system FMU
+takes one master step per ``doStep``; the run takes up to 64 steps per call into C.
 
 Usage: python benchmarks/system_fmu.py [--repeats 5]
 """
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import tempfile
 import time
@@ -30,8 +32,13 @@ import deltafmi
 STEPS, STEP = 3500, 1e-3
 
 
-def system_step_cost(fmu: Path, unzipped: str) -> float:
-    """Seconds per doStep (with one getReal) over the whole run."""
+def system_step_cost(fmu: Path, unzipped: str, c_step: bool = True) -> float:
+    """Seconds per doStep (with one getReal) over the whole run; ``c_step`` False: every doStep
+    through the FMU's Python layer."""
+    if c_step:
+        os.environ.pop("DELTAFMI_SYSTEM_C_STEP", None)
+    else:
+        os.environ["DELTAFMI_SYSTEM_C_STEP"] = "0"  # read when the instance is made
     md = fmpy.read_model_description(str(fmu))
     vrs = [v.valueReference for v in md.modelVariables if v.name in ("plant.z[1]", "plant.z[2]", "plant.z[3]")]
     slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier)
@@ -46,6 +53,7 @@ def system_step_cost(fmu: Path, unzipped: str) -> float:
     seconds = time.perf_counter() - start
     slave.terminate()
     slave.freeInstance()
+    os.environ.pop("DELTAFMI_SYSTEM_C_STEP", None)
     return seconds / STEPS
 
 
@@ -61,15 +69,17 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         fmu = deltafmi.export_fmu("delta_tracking", Path(tmp) / "Tracking.fmu")
         unzipped = fmpy.extract(str(fmu), str(Path(tmp) / "unzipped"))
-        runs, systems = [], []
+        runs, systems, pythons = [], [], []
         for _ in range(args.repeats):
             runs.append(run_step_cost())
             systems.append(system_step_cost(fmu, unzipped))
-    run, system = statistics.median(runs), statistics.median(systems)
+            pythons.append(system_step_cost(fmu, unzipped, c_step=False))
+    run, system, python = statistics.median(runs), statistics.median(systems), statistics.median(pythons)
     print(f"delta_tracking, {STEPS} steps of {STEP * 1e3:g} ms, medians of {args.repeats} interleaved rounds")
-    print(f"  deltafmi run (master, C loop)  {run * 1e6:8.1f} us per step")
-    print(f"  system FMU in fmpy             {system * 1e6:8.1f} us per step")
-    print(f"  system FMU / run               {system / run:8.2f}x")
+    print(f"  deltafmi run (master, C loop)             {run * 1e6:8.1f} us per step")
+    print(f"  system FMU in fmpy, doStep C to C         {system * 1e6:8.1f} us per step   {system / run:6.2f}x run")
+    print(f"  system FMU in fmpy, doStep through Python {python * 1e6:8.1f} us per step   {python / run:6.2f}x run")
+    print(f"  through Python / C to C                   {python / system:8.2f}x")
 
 
 if __name__ == "__main__":

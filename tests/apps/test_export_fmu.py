@@ -7,6 +7,7 @@ that cannot run inside an FMU is refused with one line."""
 from __future__ import annotations
 
 import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -324,3 +325,81 @@ def test_libcosim_and_ecos_step_the_system_fmu_from_their_threads(exported):
             rows.append([sim.get_real(f"cell::{n}") for n in TRACKED[:3]])
         sim.terminate()
     np.testing.assert_array_equal(np.array(rows), expected)
+
+
+def _python_steps(slave, steps):
+    """Run ``steps`` (a callable) and count the calls of the system component's Python ``do_step``
+    it made in this thread (the FMU runs in this interpreter: fmpy calls it from this thread)."""
+    calls = []
+
+    def profile(frame, event, arg):
+        code = frame.f_code
+        if event == "call" and code.co_name == "do_step" and code.co_filename.endswith("system_fmu/inside.py"):
+            calls.append(frame.f_locals.get("t"))
+
+    sys.setprofile(profile)
+    try:
+        rows = steps()
+    finally:
+        sys.setprofile(None)
+    return rows, len(calls)
+
+
+def test_the_c_step_runs_no_python_and_hands_back_what_it_cannot_take(exported, tmp_path, monkeypatch):
+    """doStep goes from the FMU's C layer into the master's C loop with no Python call, and gives
+    the rows of the same FMU stepped through its Python layer bit for bit: single and multiple
+    master steps, an input the importer changes (that step through Python), an FMU state restored."""
+    fmu = exported("delta_tracking")
+    md = fmpy.read_model_description(str(fmu))
+    vrs = [v.valueReference for v in md.modelVariables if v.name in TRACKED[:3]]
+    force = next(v.valueReference for v in md.modelVariables if v.name == "plant.f[3]")
+    unzipped = fmpy.extract(str(fmu), str(tmp_path / "x"))
+
+    def started(c_step: bool):
+        if c_step:
+            monkeypatch.delenv("DELTAFMI_SYSTEM_C_STEP", raising=False)
+        else:
+            monkeypatch.setenv("DELTAFMI_SYSTEM_C_STEP", "0")  # read when the instance is made
+        slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,
+                          instanceName=f"cell{int(c_step)}")
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0, stopTime=3.5)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        return slave
+
+    def script(slave):
+        rows = []
+        for k in range(200):  # one master step per doStep
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(vrs))
+        for k in range(200, 400, 5):  # five
+            slave.doStep(k * 1e-3, 5e-3)
+            rows.append(slave.getReal(vrs))
+        slave.setReal([force], [-20.0])  # the payload lands: one step through Python sets it
+        for k in range(400, 450):
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(vrs))
+        state = slave.getFMUstate()
+        for k in range(450, 500):
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(vrs))
+        slave.setFMUstate(state)
+        slave.freeFMUstate(state)
+        rows.append(slave.getReal(vrs))  # the outputs as of the state
+        for k in range(450, 500):
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(vrs))
+        return np.array(rows)
+
+    reference = started(c_step=False)
+    expected, python_calls = _python_steps(reference, lambda: script(reference))
+    reference.terminate()
+    reference.freeInstance()
+    direct = started(c_step=True)
+    rows, c_calls = _python_steps(direct, lambda: script(direct))
+    direct.terminate()
+    direct.freeInstance()
+    assert python_calls == 200 + 40 + 50 + 50 + 50
+    assert c_calls == 1  # the step after the input changed
+    np.testing.assert_array_equal(rows, expected)
