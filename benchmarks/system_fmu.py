@@ -9,6 +9,8 @@ Both run ``delta_tracking`` (3.5 s, 1 ms steps), rounds interleaved in one proce
   on an instance initialized beforehand: its doStep going from the FMU's C layer straight into
   the master's C loop (the default), and the same through the FMU's Python layer
   (``DELTAFMI_SYSTEM_C_STEP=0`` at its instantiation, the path every doStep took before);
+- the same C to C steps with fmi2DoStep and fmi2GetReal called through bare ctypes (the
+  arguments made once), as a C host calls them: without fmpy's Python around every call;
 
 and prints the cost per step (medians of ``--repeats`` rounds) and their ratios. The system FMU
 takes one master step per ``doStep``; the run takes up to 64 steps per call into C.
@@ -18,6 +20,7 @@ Usage: python benchmarks/system_fmu.py [--repeats 5]
 from __future__ import annotations
 
 import argparse
+import ctypes
 import os
 import statistics
 import tempfile
@@ -32,9 +35,10 @@ import deltafmi
 STEPS, STEP = 3500, 1e-3
 
 
-def system_step_cost(fmu: Path, unzipped: str, c_step: bool = True) -> float:
+def system_step_cost(fmu: Path, unzipped: str, c_step: bool = True, bare: bool = False) -> float:
     """Seconds per doStep (with one getReal) over the whole run; ``c_step`` False: every doStep
-    through the FMU's Python layer."""
+    through the FMU's Python layer; ``bare``: fmi2DoStep and fmi2GetReal called through ctypes
+    with their arguments made once (what the FMU costs without fmpy's Python around each call)."""
     if c_step:
         os.environ.pop("DELTAFMI_SYSTEM_C_STEP", None)
     else:
@@ -47,9 +51,16 @@ def system_step_cost(fmu: Path, unzipped: str, c_step: bool = True) -> float:
     slave.enterInitializationMode()
     slave.exitInitializationMode()
     start = time.perf_counter()
-    for k in range(STEPS):
-        slave.doStep(k * STEP, STEP)
-        slave.getReal(vrs)
+    if bare:  # the FMI functions called through ctypes alone, without fmpy's wrappers around them
+        do_step, get_real, component = slave.dll.fmi2DoStep, slave.dll.fmi2GetReal, slave.component
+        refs, values = (ctypes.c_uint * len(vrs))(*vrs), (ctypes.c_double * len(vrs))()
+        for k in range(STEPS):
+            if do_step(component, k * STEP, STEP, 1) or get_real(component, refs, len(vrs), values):
+                raise RuntimeError(f"the system FMU failed at step {k}")
+    else:
+        for k in range(STEPS):
+            slave.doStep(k * STEP, STEP)
+            slave.getReal(vrs)
     seconds = time.perf_counter() - start
     slave.terminate()
     slave.freeInstance()
@@ -69,15 +80,18 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         fmu = deltafmi.export_fmu("delta_tracking", Path(tmp) / "Tracking.fmu")
         unzipped = fmpy.extract(str(fmu), str(Path(tmp) / "unzipped"))
-        runs, systems, pythons = [], [], []
+        runs, systems, bares, pythons = [], [], [], []
         for _ in range(args.repeats):
             runs.append(run_step_cost())
             systems.append(system_step_cost(fmu, unzipped))
+            bares.append(system_step_cost(fmu, unzipped, bare=True))
             pythons.append(system_step_cost(fmu, unzipped, c_step=False))
     run, system, python = statistics.median(runs), statistics.median(systems), statistics.median(pythons)
+    bare = statistics.median(bares)
     print(f"delta_tracking, {STEPS} steps of {STEP * 1e3:g} ms, medians of {args.repeats} interleaved rounds")
     print(f"  deltafmi run (master, C loop)             {run * 1e6:8.1f} us per step")
     print(f"  system FMU in fmpy, doStep C to C         {system * 1e6:8.1f} us per step   {system / run:6.2f}x run")
+    print(f"  system FMU, bare ctypes host, C to C      {bare * 1e6:8.1f} us per step   {bare / run:6.2f}x run")
     print(f"  system FMU in fmpy, doStep through Python {python * 1e6:8.1f} us per step   {python / run:6.2f}x run")
     print(f"  through Python / C to C                   {python / system:8.2f}x")
 

@@ -348,7 +348,8 @@ def _python_steps(slave, steps):
 def test_the_c_step_runs_no_python_and_hands_back_what_it_cannot_take(exported, tmp_path, monkeypatch):
     """doStep goes from the FMU's C layer into the master's C loop with no Python call, and gives
     the rows of the same FMU stepped through its Python layer bit for bit: single and multiple
-    master steps, an input the importer changes (that step through Python), an FMU state restored."""
+    master steps, an input the importer changes (set on its unit in C), an FMU state restored;
+    a step off the master's grid goes to Python, which says what is wrong."""
     fmu = exported("delta_tracking")
     md = fmpy.read_model_description(str(fmu))
     vrs = [v.valueReference for v in md.modelVariables if v.name in TRACKED[:3]]
@@ -376,8 +377,8 @@ def test_the_c_step_runs_no_python_and_hands_back_what_it_cannot_take(exported, 
         for k in range(200, 400, 5):  # five
             slave.doStep(k * 1e-3, 5e-3)
             rows.append(slave.getReal(vrs))
-        slave.setReal([force], [-20.0])  # the payload lands: one step through Python sets it
-        for k in range(400, 450):
+        for k in range(400, 450):  # the payload lands, with a force the importer changes every step
+            slave.setReal([force], [-20.0 - 0.1 * (k - 400)])
             slave.doStep(k * 1e-3, 1e-3)
             rows.append(slave.getReal(vrs))
         state = slave.getFMUstate()
@@ -390,16 +391,16 @@ def test_the_c_step_runs_no_python_and_hands_back_what_it_cannot_take(exported, 
         for k in range(450, 500):
             slave.doStep(k * 1e-3, 1e-3)
             rows.append(slave.getReal(vrs))
+        with pytest.raises(fmpy.fmi1.FMICallException):  # a step that is no multiple of the scenario's
+            slave.doStep(0.5, 1.5e-3)
         return np.array(rows)
 
     reference = started(c_step=False)
     expected, python_calls = _python_steps(reference, lambda: script(reference))
-    reference.terminate()
     reference.freeInstance()
     direct = started(c_step=True)
     rows, c_calls = _python_steps(direct, lambda: script(direct))
-    direct.terminate()
     direct.freeInstance()
-    assert python_calls == 200 + 40 + 50 + 50 + 50
-    assert c_calls == 1  # the step after the input changed
+    assert python_calls == 200 + 40 + 50 + 50 + 50 + 1
+    assert c_calls == 1  # the step off the grid
     np.testing.assert_array_equal(rows, expected)

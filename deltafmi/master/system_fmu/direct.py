@@ -19,7 +19,9 @@ from typing import Any, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from deltafmi.master.scenario.system import Port
 from deltafmi.master.stepping.c_loop import NativeLoop
+from deltafmi.master.stepping.unit_base import Unit, function_address
 from deltafmi.toolchain import BuildError, plain_c_library
 
 __all__ = ["DirectStep", "compiled_step"]
@@ -36,6 +38,7 @@ class _SystemStep(ctypes.Structure):
                 ("run_k", c_long), ("done", c_long), ("n_rows", c_long), ("k_end", c_long),
                 ("recorded_until", c_double),
                 ("n_inputs", c_long), ("input_index", c_void_p), ("input_is_int", c_void_p), ("applied", c_void_p),
+                ("set_kind", c_void_p), ("setter", c_void_p), ("unit", c_void_p), ("vr", c_void_p),
                 ("n_outputs", c_long), ("source", c_void_p), ("source_int", c_void_p), ("target", c_void_p),
                 ("target_int", c_void_p), ("real_bus", c_void_p), ("n_real_bus", c_long),
                 ("real_columns", c_void_p), ("n_real_columns", c_long), ("messages", c_void_p),
@@ -43,6 +46,30 @@ class _SystemStep(ctypes.Structure):
 
 
 _library: List[Any] = []
+#: system_step.c's ways of setting an input on its unit
+SET_PYTHON, SET_REAL2, SET_INT2, SET_REAL3, SET_INT3, SET_BOOL3 = range(6)
+_SET3 = {"Float64": ("fmi3SetFloat64", SET_REAL3), "Int32": ("fmi3SetInt32", SET_INT3),
+         "Boolean": ("fmi3SetBoolean", SET_BOOL3)}
+_SET2 = {"Real": ("fmi2SetReal", SET_REAL2), "Integer": ("fmi2SetInteger", SET_INT2),
+         "Boolean": ("fmi2SetBoolean", SET_INT2)}
+
+
+def _setter(unit: Any, port: Port) -> Tuple[int, int, int, int]:
+    """(kind, FMI setter, component, value reference) that set ``port`` of ``unit`` in C as
+    :meth:`.Unit.set_value` does: one scalar of FMI 2.0, or of an FMI 3.0 Float64, Int32 or Boolean
+    variable that is no array; (SET_PYTHON, 0, 0, 0) for what Python sets."""
+    if not isinstance(unit, Unit):
+        return SET_PYTHON, 0, 0, 0
+    if unit.fmi3:
+        variable = unit._variable(port.vr)
+        name, kind = _SET3.get(variable.type, ("", SET_PYTHON))
+        if unit._size(port.vr) != 1:
+            kind = SET_PYTHON
+    else:
+        name, kind = _SET2.get(port.type, ("", SET_PYTHON))
+    if kind == SET_PYTHON:
+        return SET_PYTHON, 0, 0, 0
+    return kind, function_address(unit.fmu, name), unit.fmu.component, port.vr
 
 
 def compiled_step() -> Optional[Tuple[int, int, int]]:
@@ -67,20 +94,27 @@ class DirectStep:
     """The C step of one master run inside a system FMU (see the module docstring).
 
     ``slot``: the instance's :class:`~deltafmi.runtime.instance.CompiledStep`; ``inputs``: per
-    exported input, its (real or int) buffer index and whether it is an int; ``outputs``: per
-    exported output, in the order of the master's recorded variables, the same; ``messages``: the
-    counter the master's message callback increments.
+    exported input, its (real or int) buffer index, whether it is an int, and its unit's port;
+    ``outputs``: per exported output, in the order of the master's recorded variables, its buffer
+    index and whether it is an int; ``messages``: the counter the master's message callback
+    increments.
     """
 
-    def __init__(self, slot: Any, master: Any, inputs: Sequence[Tuple[int, bool]],
+    def __init__(self, slot: Any, master: Any, inputs: Sequence[Tuple[int, bool, Port]],
                  outputs: Sequence[Tuple[int, bool]], messages: np.ndarray) -> None:
         self.slot, self.master = slot, master
         native: NativeLoop = master._fixed_native
         self.native = native
         grid = master._fixed_grid
         self.applied = np.zeros(max(1, len(inputs)))
-        self._input_index = np.array([i for i, _ in inputs] or [0], dtype=np.int64)
-        self._input_is_int = np.array([int(b) for _, b in inputs] or [0], dtype=np.int32)
+        self._input_index = np.array([i for i, _, _ in inputs] or [0], dtype=np.int64)
+        self._input_is_int = np.array([int(b) for _, b, _ in inputs] or [0], dtype=np.int32)
+        units = {unit.name: unit for unit in master.units}
+        setters = [_setter(units[port.component], port) for _, _, port in inputs] or [(SET_PYTHON, 0, 0, 0)]
+        self._set_kind = np.array([kind for kind, _, _, _ in setters], dtype=np.int32)
+        self._setter = np.array([function for _, function, _, _ in setters], dtype=np.uintp)
+        self._unit = np.array([handle for _, _, handle, _ in setters], dtype=np.uintp)
+        self._vr = np.array([vr for _, _, _, vr in setters], dtype=np.uint32)
         column_source = {}
         for bus, index, columns in master.sampler._parts:
             for slot_index, column in zip(index, columns):
@@ -101,6 +135,8 @@ class DirectStep:
             recorded_until=float("nan"), pending=0,
             n_inputs=len(inputs), input_index=self._input_index.ctypes.data,
             input_is_int=self._input_is_int.ctypes.data, applied=self.applied.ctypes.data,
+            set_kind=self._set_kind.ctypes.data, setter=self._setter.ctypes.data, unit=self._unit.ctypes.data,
+            vr=self._vr.ctypes.data,
             n_outputs=len(outputs), source=self._source.ctypes.data, source_int=self._source_int.ctypes.data,
             target=self._target.ctypes.data, target_int=self._target_int.ctypes.data,
             real_bus=real_bus.ctypes.data, n_real_bus=len(real_bus),
@@ -128,10 +164,12 @@ class DirectStep:
         self.applied[:len(applied)] = applied
         self.slot.ready[0] = 1
 
-    def catch_up(self) -> None:
-        """Python takes over: the master where the C steps left it (the steps taken, the time)."""
+    def catch_up(self) -> Optional[List[float]]:
+        """Python takes over: the master where the C steps left it (the steps taken, the time);
+        returns the inputs' values their units have now (C may have set some), None when the C
+        layer had nothing to take."""
         if not self.slot.ready[0] or self.context.plan != ctypes.addressof(self.native.plan):
-            return  # not armed, or armed by a later run of the instance
+            return None  # not armed, or armed by a later run of the instance
         self.slot.ready[0] = 0
         self.native.leave()
         context, master = self.context, self.master
@@ -141,6 +179,7 @@ class DirectStep:
             master.time = master.step_end = grid.start + k * grid.h if k < grid.n_steps else grid.stop
         if context.recorded_until == context.recorded_until:
             master.recorded_until = context.recorded_until
+        return self.applied[:context.n_inputs].tolist()
 
     def pending(self) -> bool:
         """Whether the C step left a run of the C loop for :meth:`finish`."""

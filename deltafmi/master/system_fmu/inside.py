@@ -100,7 +100,7 @@ class _Run:
                 declaration = where[attribute]
                 return declaration.offset, declaration.type is not float
 
-            self.direct = DirectStep(slot, self.master, [place(a) for a, _ in self.inputs],
+            self.direct = DirectStep(slot, self.master, [(*place(a), port) for a, port in self.inputs],
                                      [place(a) for a, _ in cls.outputs_exported], self.messages)
 
     def _message(self, component: "SystemComponent", unit: str, status: int, text: str) -> None:
@@ -110,7 +110,10 @@ class _Run:
     def catch_up(self) -> None:
         """The master where the C layer's steps left it (before Python touches it)."""
         if self.direct is not None:
-            self.direct.catch_up()
+            applied = self.direct.catch_up()
+            for (attribute, _), value in zip(self.inputs, applied or ()):
+                if value != self.applied[attribute]:  # set on its unit by the C step
+                    self.applied[attribute] = _plain_as(self.applied[attribute], value)
 
     def arm(self) -> None:
         """The next steps to the C layer where it can take them."""
@@ -260,6 +263,11 @@ class SystemComponent(Component):
         if run is not None:
             with self.own_modules():
                 run.close()
+
+
+def _plain_as(like: Any, value: float) -> Any:
+    """``value`` (a float from C) as the Python type of ``like`` (an input's bool, int or float)."""
+    return bool(value) if isinstance(like, bool) else int(value) if isinstance(like, int) else value
 
 
 def _plain(value: Any) -> Any:
