@@ -264,6 +264,14 @@ components:
 outputs: [osc.x, osc.v, osc.energy]
 """)
     fmu = export_fmu(scenario, work / "Spring.fmu", portable=True)
+    names = zipfile.ZipFile(fmu).namelist()
+    # its doStep goes from C to C: the step's C is prebuilt in the bundle
+    assert any("/_prebuilt/" in n and n.endswith("/system_step.so") for n in names)
+    # what only a run from the command line imports (plots, data frames, Parquet and MAT files) stays
+    # out, and the loop solver's scipy where the scenario has no algebraic loop
+    carried = {n.split("/")[3] for n in names if n.startswith("resources/python/site-packages/")}
+    assert {"numpy", "fmpy", "yaml"} <= carried
+    assert not carried & {"matplotlib", "pandas", "pyarrow", "PIL", "scipy"}, sorted(carried)
     unpacked = work / "unpacked"  # outside every hidden folder
     with zipfile.ZipFile(fmu) as archive:
         archive.extractall(unpacked)
