@@ -97,7 +97,8 @@ class DirectStep:
     exported input, its (real or int) buffer index, whether it is an int, and its unit's port;
     ``outputs``: per exported output, in the order of the master's recorded variables, its buffer
     index and whether it is an int; ``messages``: the counter the master's message callback
-    increments.
+    increments. Raises ValueError where an output cannot be read from the buses (Python then
+    takes every step).
     """
 
     def __init__(self, slot: Any, master: Any, inputs: Sequence[Tuple[int, bool, Port]],
@@ -120,6 +121,8 @@ class DirectStep:
             for slot_index, column in zip(index, columns):
                 column_source[int(column)] = (bus.ctypes.data + int(slot_index) * bus.itemsize,
                                               int(bus.dtype != np.float64))
+        if any(c not in column_source for c in range(len(outputs))):
+            raise ValueError("an exported output is not on the master's buses")
         self._source = np.array([column_source[c][0] for c in range(len(outputs))] or [0], dtype=np.intp)
         self._source_int = np.array([column_source[c][1] for c in range(len(outputs))] or [0], dtype=np.int32)
         self._target = np.array([i for i, _ in outputs] or [0], dtype=np.int64)

@@ -100,8 +100,11 @@ class _Run:
                 declaration = where[attribute]
                 return declaration.offset, declaration.type is not float
 
-            self.direct = DirectStep(slot, self.master, [(*place(a), port) for a, port in self.inputs],
-                                     [place(a) for a, _ in cls.outputs_exported], self.messages)
+            try:
+                self.direct = DirectStep(slot, self.master, [(*place(a), port) for a, port in self.inputs],
+                                         [place(a) for a, _ in cls.outputs_exported], self.messages)
+            except ValueError:  # an output the C step cannot read: Python takes every step
+                self.direct = None
 
     def _message(self, component: "SystemComponent", unit: str, status: int, text: str) -> None:
         self.messages[0] += 1
