@@ -10,7 +10,10 @@ Both run ``delta_tracking`` (3.5 s, 1 ms steps), rounds interleaved in one proce
   the master's C loop (the default), and the same through the FMU's Python layer
   (``DELTAFMI_SYSTEM_C_STEP=0`` at its instantiation, the path every doStep took before);
 - the same C to C steps with fmi2DoStep and fmi2GetReal called through bare ctypes (the
-  arguments made once), as a C host calls them: without fmpy's Python around every call;
+  arguments made once): without fmpy's Python around every call;
+- a C host with no Python of its own (tests/c_host/host.c ``bench``; the FMU starts the
+  interpreter it was built with): 3500 fmi2DoStep alone, then 3500 of fmi2SetReal of the payload
+  force (a new value every step), fmi2DoStep and fmi2GetReal, C to C and through Python;
 
 and prints the cost per step (medians of ``--repeats`` rounds) and their ratios. The system FMU
 takes one master step per ``doStep``; the run takes up to 64 steps per call into C.
@@ -23,6 +26,7 @@ import argparse
 import ctypes
 import os
 import statistics
+import subprocess
 import tempfile
 import time
 from pathlib import Path
@@ -32,6 +36,7 @@ from fmpy.fmi2 import FMU2Slave
 
 import deltafmi
 
+ROOT = Path(__file__).resolve().parents[1]
 STEPS, STEP = 3500, 1e-3
 
 
@@ -68,6 +73,26 @@ def system_step_cost(fmu: Path, unzipped: str, c_step: bool = True, bare: bool =
     return seconds / STEPS
 
 
+def c_host(workdir: Path) -> Path:
+    """tests/c_host/host.c compiled into ``workdir``."""
+    host = workdir / "host"
+    subprocess.run(["cc", "-O2", f"-I{ROOT / 'deltafmi/runtime/native'}", str(ROOT / "tests/c_host/host.c"),
+                    "-o", str(host), "-ldl", "-lm"], check=True)
+    return host
+
+
+def c_host_step_costs(host: Path, fmu: Path, unzipped: str, c_step: bool = True) -> tuple[float, float]:
+    """Seconds per fmi2DoStep alone, and per fmi2SetReal + fmi2DoStep + fmi2GetReal, in the C host."""
+    md = fmpy.read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    env = {**os.environ, "DELTAFMI_SYSTEM_C_STEP": "1" if c_step else "0"}
+    out = subprocess.run([str(host), unzipped, md.coSimulation.modelIdentifier, md.guid, "bench", str(STEPS),
+                          str(vr["plant.f[3]"]), str(vr["plant.z[1]"])], capture_output=True, text=True, check=True,
+                         env=env).stdout
+    figures = dict(line.split("=") for line in out.split())
+    return float(figures["dostep_us"]) * 1e-6, float(figures["step_us"]) * 1e-6
+
+
 def run_step_cost() -> float:
     summary = deltafmi.simulate("delta_tracking").summary
     return (summary.wall_time - summary.setup_time - summary.close_time) / summary.steps
@@ -80,20 +105,31 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         fmu = deltafmi.export_fmu("delta_tracking", Path(tmp) / "Tracking.fmu")
         unzipped = fmpy.extract(str(fmu), str(Path(tmp) / "unzipped"))
-        runs, systems, bares, pythons = [], [], [], []
+        host = c_host(Path(tmp))
+        runs, systems, bares, pythons, hosts, host_pythons = [], [], [], [], [], []
         for _ in range(args.repeats):
             runs.append(run_step_cost())
             systems.append(system_step_cost(fmu, unzipped))
             bares.append(system_step_cost(fmu, unzipped, bare=True))
             pythons.append(system_step_cost(fmu, unzipped, c_step=False))
+            hosts.append(c_host_step_costs(host, fmu, unzipped))
+            host_pythons.append(c_host_step_costs(host, fmu, unzipped, c_step=False))
     run, system, python = statistics.median(runs), statistics.median(systems), statistics.median(pythons)
     bare = statistics.median(bares)
+    host_step, host_loop = (statistics.median(h[i] for h in hosts) for i in (0, 1))
+    host_python_step, host_python_loop = (statistics.median(h[i] for h in host_pythons) for i in (0, 1))
     print(f"delta_tracking, {STEPS} steps of {STEP * 1e3:g} ms, medians of {args.repeats} interleaved rounds")
     print(f"  deltafmi run (master, C loop)             {run * 1e6:8.1f} us per step")
     print(f"  system FMU in fmpy, doStep C to C         {system * 1e6:8.1f} us per step   {system / run:6.2f}x run")
     print(f"  system FMU, bare ctypes host, C to C      {bare * 1e6:8.1f} us per step   {bare / run:6.2f}x run")
     print(f"  system FMU in fmpy, doStep through Python {python * 1e6:8.1f} us per step   {python / run:6.2f}x run")
     print(f"  through Python / C to C                   {python / system:8.2f}x")
+    print(f"  C host, doStep C to C                     {host_step * 1e6:8.1f} us per step   {host_step / run:6.2f}x run")
+    print(f"  C host, set + doStep + get, C to C        {host_loop * 1e6:8.1f} us per step   {host_loop / run:6.2f}x run")
+    print(f"  C host, doStep through Python             {host_python_step * 1e6:8.1f} us per step   "
+          f"{host_python_step / run:6.2f}x run")
+    print(f"  C host, set + doStep + get through Python {host_python_loop * 1e6:8.1f} us per step   "
+          f"{host_python_loop / run:6.2f}x run")
 
 
 if __name__ == "__main__":
