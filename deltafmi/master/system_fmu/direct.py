@@ -2,10 +2,11 @@
 
 ``native/system_step.c`` is the component's compiled step (:meth:`.Component._compiled_step`):
 while the component arms it (:meth:`DirectStep.arm`), the FMU's ``fmi2DoStep``/``fmi3DoStep``
-calls it, and it runs the master's fixed steps through the C loop's plan of this run, with no
-Python, writing the exported outputs from the buses. Whatever the Python step would do more (an
-input the importer changed, a step off the master's grid, an event, a failure, a NaN, a unit's
-message to pass on) it leaves to Python: untouched, or with the C loop's return pending, which
+calls it, and it sets the inputs the importer changed on their units and runs the master's fixed
+steps through the C loop's plan of this run, with no Python, writing the exported outputs from
+the buses. Whatever the Python step would do more (an input C cannot set, a step off the master's
+grid, an event, a failure, a NaN, a unit's message to pass on) it leaves to Python: untouched,
+or with the C loop's return pending, which
 :meth:`DirectStep.finish` completes as the master's own loop does. Python takes the master's
 position back (:meth:`DirectStep.catch_up`) before anything else touches the master.
 """

@@ -6,7 +6,9 @@ inputs as start values (the path of ``deltafmi run --set``), resolves it and ope
 :class:`~deltafmi.master.stepping.master.Master` on it: the same initialization, stepping
 order, loop solving and units as ``deltafmi run``. Each ``doStep`` takes the master's fixed
 steps that make it up, the unconnected inputs set first; the outputs are the recorded
-variables. FMU states are the master's snapshots (every unit's FMU state and the buses).
+variables. Where the units fit the master's C loop the FMU's C layer takes those steps itself,
+with no Python (:mod:`.direct`), and hands Python what only Python does. FMU states are the
+master's snapshots (every unit's FMU state and the buses).
 """
 from __future__ import annotations
 
