@@ -412,3 +412,51 @@ def test_the_c_step_runs_no_python_and_hands_back_what_it_cannot_take(exported, 
     assert python_calls == 200 + 40 + 50 + 50 + 50 + 1
     assert c_calls == 1  # the step off the grid
     np.testing.assert_array_equal(rows, expected)
+
+
+def test_the_c_step_hands_each_step_with_an_event_to_python(tmp_path):
+    """Two balls on a fixed-step Runge-Kutta method fit the master's C loop: the C step takes
+    every communication step but those with an impact inside, which Python finishes exactly as
+    the master's own loop does (one Python doStep per such step); the rows equal ``deltafmi run``."""
+    scenario = tmp_path / "balls.yaml"
+    scenario.write_text("""experiment: {start: 0.0, stop: 3.0, step: 1.0e-3}
+components:
+  talk: {source: deltafmi.models:BouncingBall, interface: ME, solver: {method: rk4}}
+  restitution:
+    source: deltafmi.models:BouncingBallRestitution
+    interface: ME
+    solver: {method: rk4}
+    parameters: {e: 0.8, F: 0.0}
+outputs: ['*.q', '*.v', talk.contact, restitution.mode]
+""")
+    fmu = export_fmu(scenario, tmp_path / "Balls.fmu")
+    md = fmpy.read_model_description(str(fmu))
+    outputs = [v for v in md.modelVariables if v.causality == "output"]
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu), str(tmp_path / "x")),
+                      modelIdentifier=md.coSimulation.modelIdentifier)
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0, stopTime=3.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    reals = [v.valueReference for v in outputs if v.type == "Real"]
+    others = [v.valueReference for v in outputs if v.type != "Real"]
+
+    def steps():
+        rows = []
+        for k in range(3000):
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(reals) + [float(x) for x in slave.getInteger(others)])
+        return np.array(rows)
+
+    rows, python_calls = _python_steps(slave, steps)
+    slave.freeInstance()
+    run = deltafmi.simulate(scenario)
+    t = np.asarray(run["time"])
+    grid = grid_rows(run, 1e-3)
+    names = [v.name for v in outputs if v.type == "Real"] + [v.name for v in outputs if v.type != "Real"]
+    for i, name in enumerate(names):
+        np.testing.assert_array_equal(rows[:, i], np.asarray(run[name], float)[grid[1:]], err_msg=name)
+    off_grid = np.setdiff1d(np.arange(len(t)), grid)
+    event_steps = set(np.floor(t[off_grid] / 1e-3 + 1e-9).astype(int))
+    assert len(event_steps) > 10  # both balls bounce
+    assert python_calls == len(event_steps)
