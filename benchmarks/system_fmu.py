@@ -124,8 +124,10 @@ def main() -> None:
     print(f"  system FMU, bare ctypes host, C to C      {bare * 1e6:8.1f} us per step   {bare / run:6.2f}x run")
     print(f"  system FMU in fmpy, doStep through Python {python * 1e6:8.1f} us per step   {python / run:6.2f}x run")
     print(f"  through Python / C to C                   {python / system:8.2f}x")
-    print(f"  C host, doStep C to C                     {host_step * 1e6:8.1f} us per step   {host_step / run:6.2f}x run")
-    print(f"  C host, set + doStep + get, C to C        {host_loop * 1e6:8.1f} us per step   {host_loop / run:6.2f}x run")
+    print(f"  C host, doStep C to C                     {host_step * 1e6:8.1f} us per step   "
+          f"{host_step / run:6.2f}x run")
+    print(f"  C host, set + doStep + get, C to C        {host_loop * 1e6:8.1f} us per step   "
+          f"{host_loop / run:6.2f}x run")
     print(f"  C host, doStep through Python             {host_python_step * 1e6:8.1f} us per step   "
           f"{host_python_step / run:6.2f}x run")
     print(f"  C host, set + doStep + get through Python {host_python_loop * 1e6:8.1f} us per step   "
