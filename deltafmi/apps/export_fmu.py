@@ -43,8 +43,10 @@ def export_fmu(scenario: str | Path, output: Optional[str | Path] = None, *, fmi
     system = resolve_system(loaded)
     with tempfile.TemporaryDirectory(prefix="deltafmi-system-") as folder:
         source, resources = write_system(system, Path(folder), name)
+        # the master imports scipy only to solve algebraic loops: a portable FMU without any does without it
+        unused = () if system.loops or system.init_loops else ("scipy",)
         return build_fmu(source, target, portable=portable, class_name=name, fmi_version=fmi_version,
-                         resources=resources)
+                         resources=resources, leave_out=unused)
 
 
 @click.command("export-fmu")

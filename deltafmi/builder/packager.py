@@ -131,7 +131,8 @@ def runtime_files(source: Path) -> list[tuple[Path, str]]:
 #: the plain C the master compiles when it runs (package-relative source -> the module that loads it)
 PLAIN_C_SOURCES = {"master/stepping/native/fixed_step.c": "deltafmi.master.stepping.c_loop",
                    "master/stepping/native/erk.c": "deltafmi.master.stepping.explicit_rk",
-                   "master/results/native/csv_rows.c": "deltafmi.master.results.csv_file"}
+                   "master/results/native/csv_rows.c": "deltafmi.master.results.csv_file",
+                   "master/system_fmu/native/system_step.c": "deltafmi.master.system_fmu.direct"}
 #: the data files the master reads when it runs (package-relative file -> the module that reads it)
 MASTER_DATA = {"master/scenario/scenario.schema.json": "deltafmi.master.scenario.spec"}
 
@@ -231,7 +232,8 @@ BUILD_LOG = logging.getLogger("deltafmi.build")
 
 
 def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool = False,
-              class_name: Optional[str] = None, fmi_version: int = 2, resources: Sequence[Path | str] = ()) -> Path:
+              class_name: Optional[str] = None, fmi_version: int = 2, resources: Sequence[Path | str] = (),
+              leave_out: Sequence[str] = ()) -> Path:
     """Build the FMU for the component in ``source`` (the class ``class_name``, needed only when
     the file defines several; ``source`` may also name a component as ``deltafmi build`` takes
     it: ``"DeltaRobot"``, ``"package.module:Class"``, ``"file.py:Class"``); returns the ``.fmu`` path.
@@ -241,7 +243,9 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
     ``resources/`` folder, each under its name (:func:`resource_files`): the component reads
     them from its ``resources_dir``. A ``portable`` FMU also carries the interpreter, standard
     library and packages its model imports (see :mod:`deltafmi.builder.portable`), so that it runs
-    where no Python is installed."""
+    where no Python is installed; ``leave_out`` names packages it does without where only the
+    functions of deltafmi's own modules import them (a scenario exported as one FMU that has no
+    algebraic loop never calls the loop solver's scipy)."""
     _check_version(fmi_version)
     source, class_name = _component(source, class_name)
     resources = resources or _shipped_resources(source)
@@ -250,7 +254,7 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
         cls = load_component_class(source, class_name)
         output = Path(output) if output else Path("build") / "fmus" / f"{cls.fmi_model_name()}.fmu"
         make_portable(build_cached(source, class_name=class_name, fmi_version=fmi_version, resources=resources),
-                      output)
+                      output, leave_out)
         return output
     cls = load_component_class(source, class_name)
     identifier = cls.fmi_model_name()

@@ -32,7 +32,7 @@ import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping, Optional
+from typing import Mapping, Optional, Sequence
 
 from deltafmi.toolchain import BuildError, abi_tag, build_into, cache_dir, python_include, single_file_library, strip_unneeded
 from .compiler import NATIVE_DIR
@@ -57,6 +57,12 @@ _SKIPPED_DIRS = {"tests", "test", "__pycache__", "include", "_pyinstaller"}
 #: development tools that libraries import if they happen to be installed and run without
 #: (scipy's test utilities try Cython): a trace on the builder's machine sees them, no model needs them
 _OPPORTUNISTIC = {"Cython", "cython", "pyximport"}
+#: packages deltafmi's own modules import (inside functions) only for what a run from the command
+#: line does, which no FMU does: plots and the live display (matplotlib), data frames (pandas),
+#: Parquet and MAT result files (pyarrow, scipy.io). A scenario exported as one FMU carries the
+#: master's modules with those functions; the FMU bundles these packages only where its trace
+#: imports them when it runs, or its model's own files name them.
+HOST_ONLY = ("matplotlib", "pandas", "pyarrow", "scipy.io")
 _STDLIB_SKIPPED = {"test", "idlelib", "tkinter", "turtledemo", "ensurepip", "lib2to3", "pydoc_data",
                    "site-packages", "lib-dynload", "config-" + sysconfig.get_config_var("LDVERSION") + "-x86_64-linux-gnu"}
 
@@ -380,19 +386,30 @@ def static_imports(python_files: list[Path]) -> list[str]:
     return sorted(n for n in names if n.split(".")[0] != "deltafmi" and not n.startswith("_deltafmi"))
 
 
-def traced_modules(fmu: Path) -> dict[str, Optional[str]]:
+def _left_out(name: str, packages: Sequence[str]) -> bool:
+    """Whether module ``name`` is one of ``packages`` or inside one."""
+    return any(name == package or name.startswith(package + ".") for package in packages)
+
+
+def traced_modules(fmu: Path, leave_out: Sequence[str] = ()) -> dict[str, Optional[str]]:
     """Modules (name -> file) the FMU's Python side imports: its boot code loads the model in a
     fresh interpreter of this Python, which steps it in CS and evaluates it in ME, then imports what
     the import statements of the FMU's Python files name (a runtime trace alone misses the
-    branches that did not run: a lazily imported module, an ``except ImportError`` fallback)."""
+    branches that did not run: a lazily imported module, an ``except ImportError`` fallback), but
+    for the :data:`HOST_ONLY` packages, and those in ``leave_out``, that the FMU's copy of deltafmi
+    names (the model's own files keep every name)."""
     import json
     with tempfile.TemporaryDirectory() as tmp:
         with zipfile.ZipFile(fmu) as archive:
             archive.extractall(tmp)
         out = Path(tmp) / "modules.json"
-        sources = sorted((Path(tmp) / "resources" / "python").rglob("*.py"))
+        python = Path(tmp) / "resources" / "python"
+        own = sorted((python / "deltafmi").rglob("*.py"))
+        sources = sorted(set(python.rglob("*.py")) - set(own))
         sources += sorted((Path(tmp) / "resources" / "model").glob("*.py"))
-        env = {**os.environ, "DELTAFMI_STATIC_IMPORTS": json.dumps(static_imports(sources))}
+        unused = (*HOST_ONLY, *leave_out)
+        static = static_imports(sources) + [n for n in static_imports(own) if not _left_out(n, unused)]
+        env = {**os.environ, "DELTAFMI_STATIC_IMPORTS": json.dumps(sorted(set(static)))}
         result = subprocess.run([sys.executable, "-I", "-S", "-c", _TRACE, f"{tmp}/resources", str(out),
                                  *map(str, _site_dirs())], capture_output=True, text=True, env=env)
         if result.returncode != 0:
@@ -411,11 +428,12 @@ def bundle_key() -> str:
     return digest.hexdigest()
 
 
-def make_portable(fmu: Path, output: Path) -> PortableBundle:
-    """Write ``output``: the non-portable ``fmu`` plus the interpreter and packages it runs on."""
+def make_portable(fmu: Path, output: Path, leave_out: Sequence[str] = ()) -> PortableBundle:
+    """Write ``output``: the non-portable ``fmu`` plus the interpreter and packages it runs on
+    (``leave_out``: see :func:`traced_modules`)."""
     from importlib.util import find_spec
     from ..files import replaced_atomically
-    modules = traced_modules(fmu)
+    modules = traced_modules(fmu, leave_out)
     spec = find_spec("fmpy")
     sundials = Path(spec.submodule_search_locations[0]) / "sundials" / "x86_64-linux" if spec else None
     with zipfile.ZipFile(fmu) as archive:  # the runtime imports its solver only when a component integrates

@@ -7,7 +7,7 @@ import math
 import struct
 from operator import methodcaller
 from contextlib import nullcontext
-from typing import Any, Callable, ClassVar, ContextManager, Optional, Sequence
+from typing import Any, Callable, ClassVar, ContextManager, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -20,7 +20,7 @@ __all__ = ["Component"]
 #: attributes the runtime keeps on a component (its value buffers, log sink, ...): not its own state
 RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
                                 "_int_items", "_str", "_str_items", "_log_sink", "_control", "resources_dir",
-                                "own_modules"})
+                                "own_modules", "_c_step"})
 
 #: Component.log levels -> (FMI status, log category)
 LOG_LEVELS = {"debug": (0, "logComponent"), "info": (0, "logComponent"), "warning": (1, "logStatusWarning"),
@@ -291,6 +291,17 @@ class Component(ValueHolder):
     def provides_jacobian(cls) -> bool:
         """True when the component gives exact partial derivatives (:meth:`jacobian`)."""
         return cls.jacobian is not Component.jacobian
+
+    @classmethod
+    def _compiled_step(cls) -> Optional[Tuple[int, int, int]]:
+        """None, or a Co-Simulation step the component takes in C: the addresses of its step
+        ``int step(void *context, double t, double h, double *real, int *ints)`` (the step's
+        outputs written too) and outputs ``int outputs(const void *context, double t, double
+        *real, int *ints, double *unused)``, each returning 0 when it did the work (otherwise
+        :meth:`do_step` or :meth:`outputs` runs), and the size in bytes of their context. In an
+        FMU the instance gives the component ``self._c_step`` (:class:`.instance.CompiledStep`):
+        the context's bytes, and the flag under which the FMU's C layer calls the functions."""
+        return None
 
     @classmethod
     def overrides_do_step(cls) -> bool:

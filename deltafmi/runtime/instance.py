@@ -26,7 +26,7 @@ from .partials import DirectionalDerivatives
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
     from .cvode import Cvode
 
-__all__ = ["CO_SIMULATION", "EVENTS_AT_STEP_END", "EVENTS_EARLY_RETURN", "EVENTS_INSIDE", "FmuInstance"]
+__all__ = ["CO_SIMULATION", "CompiledStep", "EVENTS_AT_STEP_END", "EVENTS_EARLY_RETURN", "EVENTS_INSIDE", "FmuInstance"]
 
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 MODEL_EXCHANGE, CO_SIMULATION, SCHEDULED_EXECUTION = 0, 1, 2
@@ -40,6 +40,24 @@ _INPUT_JUMP_TOLERANCE = 10.0
 EVENTS_INSIDE = 0        #: handles every event inside the step (FMI 2.0; FMI 3.0 without eventModeUsed)
 EVENTS_EARLY_RETURN = 1  #: stops at the first event and leaves it pending (eventModeUsed, earlyReturnAllowed)
 EVENTS_AT_STEP_END = 2   #: handles the events inside the step, leaves one at its end pending (eventModeUsed)
+
+
+class CompiledStep:
+    """A component's own Co-Simulation step in C (:meth:`Component._compiled_step`): the FMU's C
+    layer calls ``step`` as a compiled step kernel (``outputs`` as its outputs kernel) with
+    :attr:`context`, while :attr:`ready` is set."""
+
+    def __init__(self, step: int, outputs: int, size: int) -> None:
+        self.step, self.outputs = step, outputs
+        #: the functions' context, laid out by the component
+        self.context = np.zeros(max(size, 8), dtype=np.uint8)
+        #: [0] nonzero: the C layer calls the functions (the component sets it)
+        self.ready = np.zeros(1, dtype=np.intc)
+
+    def layout(self) -> tuple:
+        """The kernels' fields of :meth:`FmuInstance.native_layout`."""
+        return (0, 0, self.outputs, self.step, 0, self.context.ctypes.data, self.ready.ctypes.data,
+                *(0,) * len(TRAILING_ROLES))
 
 
 def _cvode_class(module_context: Callable[[], ContextManager]) -> type[Cvode]:
@@ -124,6 +142,9 @@ class FmuInstance:
             self._hooks.adopt(self._module)
         self.event_indicators = np.zeros(max(self.nz, 1))
         self._cs = CsShared()
+        compiled = component_class._compiled_step()
+        #: the component's own step in C (Component._compiled_step), None without one
+        self.compiled_step = CompiledStep(*compiled) if compiled is not None else None
         self._new_component()
         self.time = 0.0
         self.stop_time = math.inf
@@ -191,6 +212,9 @@ class FmuInstance:
 
     def _new_component(self, buffers: Optional[tuple] = None) -> None:
         comp = self.component = self.component_class.__new__(self.component_class)
+        if self.compiled_step is not None:
+            self.compiled_step.ready[0] = 0  # the new component arms it when it can step in C
+            comp._c_step = self.compiled_step
         comp._attach(self.resources_dir, self.pending_logs, buffers, self.control, self._module_context)
 
     @property
@@ -254,7 +278,8 @@ class FmuInstance:
                 bool(self.nx or self.nz or self._has_outputs), self.control.ctypes.data,
                 layout.sizes3.ctypes.data, layout.n_clocks, layout.clock_period_index.ctypes.data,
                 layout.clock_interval.ctypes.data, self._clock_driven,
-                *(self.native.layout() if self.native is not None else (0,) * (7 + len(TRAILING_ROLES))),
+                *(self.native.layout() if self.native is not None else
+                  self.compiled_step.layout() if self.compiled_step is not None else (0,) * (7 + len(TRAILING_ROLES))),
                 ctypes.addressof(self._cs) if self._cs.enabled else 0)
 
     # --- initialization ---------------------------------------------------------------------

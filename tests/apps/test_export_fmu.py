@@ -7,6 +7,7 @@ that cannot run inside an FMU is refused with one line."""
 from __future__ import annotations
 
 import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -263,6 +264,14 @@ components:
 outputs: [osc.x, osc.v, osc.energy]
 """)
     fmu = export_fmu(scenario, work / "Spring.fmu", portable=True)
+    names = zipfile.ZipFile(fmu).namelist()
+    # its doStep goes from C to C: the step's C is prebuilt in the bundle
+    assert any("/_prebuilt/" in n and n.endswith("/system_step.so") for n in names)
+    # what only a run from the command line imports (plots, data frames, Parquet and MAT files) stays
+    # out, and the loop solver's scipy where the scenario has no algebraic loop
+    carried = {n.split("/")[3] for n in names if n.startswith("resources/python/site-packages/")}
+    assert {"numpy", "fmpy", "yaml"} <= carried
+    assert not carried & {"matplotlib", "pandas", "pyarrow", "PIL", "scipy"}, sorted(carried)
     unpacked = work / "unpacked"  # outside every hidden folder
     with zipfile.ZipFile(fmu) as archive:
         archive.extractall(unpacked)
@@ -324,3 +333,130 @@ def test_libcosim_and_ecos_step_the_system_fmu_from_their_threads(exported):
             rows.append([sim.get_real(f"cell::{n}") for n in TRACKED[:3]])
         sim.terminate()
     np.testing.assert_array_equal(np.array(rows), expected)
+
+
+def _python_steps(slave, steps):
+    """Run ``steps`` (a callable) and count the calls of the system component's Python ``do_step``
+    it made in this thread (the FMU runs in this interpreter: fmpy calls it from this thread)."""
+    calls = []
+
+    def profile(frame, event, arg):
+        code = frame.f_code
+        if event == "call" and code.co_name == "do_step" and code.co_filename.endswith("system_fmu/inside.py"):
+            calls.append(frame.f_locals.get("t"))
+
+    sys.setprofile(profile)
+    try:
+        rows = steps()
+    finally:
+        sys.setprofile(None)
+    return rows, len(calls)
+
+
+def test_the_c_step_runs_no_python_and_hands_back_what_it_cannot_take(exported, tmp_path, monkeypatch):
+    """doStep goes from the FMU's C layer into the master's C loop with no Python call, and gives
+    the rows of the same FMU stepped through its Python layer bit for bit: single and multiple
+    master steps, an input the importer changes (set on its unit in C), an FMU state restored;
+    a step off the master's grid goes to Python, which says what is wrong."""
+    fmu = exported("delta_tracking")
+    md = fmpy.read_model_description(str(fmu))
+    vrs = [v.valueReference for v in md.modelVariables if v.name in TRACKED[:3]]
+    force = next(v.valueReference for v in md.modelVariables if v.name == "plant.f[3]")
+    unzipped = fmpy.extract(str(fmu), str(tmp_path / "x"))
+
+    def started(c_step: bool):
+        if c_step:
+            monkeypatch.delenv("DELTAFMI_SYSTEM_C_STEP", raising=False)
+        else:
+            monkeypatch.setenv("DELTAFMI_SYSTEM_C_STEP", "0")  # read when the instance is made
+        slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,
+                          instanceName=f"cell{int(c_step)}")
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0, stopTime=3.5)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        return slave
+
+    def script(slave):
+        rows = []
+        for k in range(200):  # one master step per doStep
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(vrs))
+        for k in range(200, 400, 5):  # five
+            slave.doStep(k * 1e-3, 5e-3)
+            rows.append(slave.getReal(vrs))
+        for k in range(400, 450):  # the payload lands, with a force the importer changes every step
+            slave.setReal([force], [-20.0 - 0.1 * (k - 400)])
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(vrs))
+        state = slave.getFMUstate()
+        for k in range(450, 500):
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(vrs))
+        slave.setFMUstate(state)
+        slave.freeFMUstate(state)
+        rows.append(slave.getReal(vrs))  # the outputs as of the state
+        for k in range(450, 500):
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(vrs))
+        with pytest.raises(fmpy.fmi1.FMICallException):  # a step that is no multiple of the scenario's
+            slave.doStep(0.5, 1.5e-3)
+        return np.array(rows)
+
+    reference = started(c_step=False)
+    expected, python_calls = _python_steps(reference, lambda: script(reference))
+    reference.freeInstance()
+    direct = started(c_step=True)
+    rows, c_calls = _python_steps(direct, lambda: script(direct))
+    direct.freeInstance()
+    assert python_calls == 200 + 40 + 50 + 50 + 50 + 1
+    assert c_calls == 1  # the step off the grid
+    np.testing.assert_array_equal(rows, expected)
+
+
+def test_the_c_step_hands_each_step_with_an_event_to_python(tmp_path):
+    """Two balls on a fixed-step Runge-Kutta method fit the master's C loop: the C step takes
+    every communication step but those with an impact inside, which Python finishes exactly as
+    the master's own loop does (one Python doStep per such step); the rows equal ``deltafmi run``."""
+    scenario = tmp_path / "balls.yaml"
+    scenario.write_text("""experiment: {start: 0.0, stop: 3.0, step: 1.0e-3}
+components:
+  talk: {source: deltafmi.models:BouncingBall, interface: ME, solver: {method: rk4}}
+  restitution:
+    source: deltafmi.models:BouncingBallRestitution
+    interface: ME
+    solver: {method: rk4}
+    parameters: {e: 0.8, F: 0.0}
+outputs: ['*.q', '*.v', talk.contact, restitution.mode]
+""")
+    fmu = export_fmu(scenario, tmp_path / "Balls.fmu")
+    md = fmpy.read_model_description(str(fmu))
+    outputs = [v for v in md.modelVariables if v.causality == "output"]
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu), str(tmp_path / "x")),
+                      modelIdentifier=md.coSimulation.modelIdentifier)
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0, stopTime=3.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    reals = [v.valueReference for v in outputs if v.type == "Real"]
+    others = [v.valueReference for v in outputs if v.type != "Real"]
+
+    def steps():
+        rows = []
+        for k in range(3000):
+            slave.doStep(k * 1e-3, 1e-3)
+            rows.append(slave.getReal(reals) + [float(x) for x in slave.getInteger(others)])
+        return np.array(rows)
+
+    rows, python_calls = _python_steps(slave, steps)
+    slave.freeInstance()
+    run = deltafmi.simulate(scenario)
+    t = np.asarray(run["time"])
+    grid = grid_rows(run, 1e-3)
+    names = [v.name for v in outputs if v.type == "Real"] + [v.name for v in outputs if v.type != "Real"]
+    for i, name in enumerate(names):
+        np.testing.assert_array_equal(rows[:, i], np.asarray(run[name], float)[grid[1:]], err_msg=name)
+    off_grid = np.setdiff1d(np.arange(len(t)), grid)
+    event_steps = set(np.floor(t[off_grid] / 1e-3 + 1e-9).astype(int))
+    assert len(event_steps) > 10  # both balls bounce
+    assert python_calls == len(event_steps)

@@ -90,7 +90,7 @@ def test_the_wheel_is_a_manylinux_wheel_with_prebuilt_binaries_models_and_exampl
                         wheel.name), wheel.name
     names = zipfile.ZipFile(wheel).namelist()
     prebuilt = [n for n in names if n.startswith("deltafmi/_prebuilt/")]
-    for piece in ("/fmu.so", "/_values.abi3.so", "/fixed_step.so", "/erk.so", "/csv_rows.so",
+    for piece in ("/fmu.so", "/_values.abi3.so", "/fixed_step.so", "/erk.so", "/csv_rows.so", "/system_step.so",
                   "/DeltaRobot_kernels.so", "/DeltaController_kernels.so"):
         assert any(piece in n for n in prebuilt), piece
     # native C only: the one Python extension module is the runtime's value access (stable ABI)

@@ -356,16 +356,12 @@ class NativeLoop:
     def run(self, k: int, k_end: int) -> Tuple[int, int, int]:
         """Steps ``k`` ... ``k_end - 1`` in C: (why it stopped, first step not completed, rows in
         :attr:`rows`). The Model Exchange units' solvers are up to date on return."""
-        for unit, _, box in self._me:
-            box[0] = unit.solver.t
-            self._indicators[unit.name].take(unit.solver)
+        self.enter()
         if self._paced is not None:
             self._before_paced()
         why = self._run(ctypes.byref(self.plan), k, k_end, self.rows.ctypes.data, len(self.rows),
                         ctypes.byref(self._k_done), ctypes.byref(self._n_rows))
-        for unit, _, box in self._me:
-            unit.solver.t = float(box[0])
-            self._indicators[unit.name].give(unit.solver)
+        self.leave()
         done = self._k_done.value
         if self._paced is not None:
             plan = self.plan
@@ -373,6 +369,23 @@ class NativeLoop:
             times = np.where(points < plan.n_steps, plan.start + points * plan.h, plan.stop)
             self._after_paced(times)
         return why, done, self._n_rows.value
+
+    def enter(self) -> None:
+        """Before C takes steps: the Model Exchange units' solvers (time, last event indicators)
+        handed to the plan."""
+        for unit, _, box in self._me:
+            box[0] = unit.solver.t
+            self._indicators[unit.name].take(unit.solver)
+
+    def leave(self) -> None:
+        """After C took steps: the Model Exchange units' solvers brought up to date from the plan."""
+        for unit, _, box in self._me:
+            unit.solver.t = float(box[0])
+            self._indicators[unit.name].give(unit.solver)
+
+    def entry(self) -> int:
+        """The address of the C loop's entry (``deltafmi_fixed_steps``) this plan runs through."""
+        return ctypes.cast(self._run, c_void_p).value
 
     def close(self) -> None:
         """Stop the threads that stepped groups of units (see :mod:`.parallel`); call once the run is over."""

@@ -600,6 +600,12 @@ class Master:
         """Steps ``k`` ... ``k_end - 1`` in C as far as they go, the step where C stopped (an
         event, a failure, a termination) finished here; returns the next step to take."""
         why, done, rows = native.run(k, k_end)
+        return self.after_c_run(native, grid, k, why, done, rows)
+
+    def after_c_run(self, native: NativeLoop, grid: "_FixedGrid", k: int, why: int, done: int, rows: int) -> int:
+        """What follows a run of the C loop from step ``k`` that returned ``why``, ``done`` and
+        ``rows`` (:meth:`NativeLoop.run`): its rows recorded, the master moved to where it
+        stopped and the step where it stopped finished here; returns the next step to take."""
         live = self.live
         if live is not None and done > k:
             t_done = grid.start + done * grid.h if done < grid.n_steps else grid.stop

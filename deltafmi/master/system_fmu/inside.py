@@ -6,7 +6,9 @@ inputs as start values (the path of ``deltafmi run --set``), resolves it and ope
 :class:`~deltafmi.master.stepping.master.Master` on it: the same initialization, stepping
 order, loop solving and units as ``deltafmi run``. Each ``doStep`` takes the master's fixed
 steps that make it up, the unconnected inputs set first; the outputs are the recorded
-variables. FMU states are the master's snapshots (every unit's FMU state and the buses).
+variables. Where the units fit the master's C loop the FMU's C layer takes those steps itself,
+with no Python (:mod:`.direct`), and hands Python what only Python does. FMU states are the
+master's snapshots (every unit's FMU state and the buses).
 """
 from __future__ import annotations
 
@@ -21,6 +23,8 @@ from deltafmi.master.scenario.resolve import resolve_system
 from deltafmi.master.scenario.spec import load_scenario
 from deltafmi.master.scenario.system import Port, bus_type
 from deltafmi.master.stepping.master import Master
+
+from .direct import DirectStep, compiled_step
 
 __all__ = ["SystemComponent"]
 
@@ -66,10 +70,12 @@ class _Run:
                                   origin="the FMU's start values")
         system = resolve_system(scenario)
         self.given = given
+        #: the units' messages so far (the C step leaves a step with one to Python, which passes it on)
+        self.messages = np.zeros(1, dtype=np.int64)
         self.master = Master(system, result=Path("<system FMU>"), writer_class=_NoRows,
                              warn=lambda text: component.log(text, "warning"),
-                             on_message=lambda unit, status, category, text: component.log(
-                                 f"{unit}: {text}", _LEVELS[status] if 0 <= status < len(_LEVELS) else "info"))
+                             on_message=lambda unit, status, category, text: self._message(
+                                 component, unit, status, text))
         units = {unit.name: unit for unit in system.components}
         self.inputs: List[Tuple[str, Port]] = []
         for attribute, ref in cls.inputs_exported:
@@ -87,10 +93,44 @@ class _Run:
         self.reals = np.array([i for i, kind in enumerate(kinds) if kind == "Real"], dtype=np.intp)
         self.real_names = tuple(cls.outputs_exported[i][0] for i in self.reals)
         self.others = [(cls.outputs_exported[i][0], i) for i, kind in enumerate(kinds) if kind != "Real"]
+        slot = getattr(component, "_c_step", None)
+        self.direct: Optional[DirectStep] = None
+        if slot is not None and DirectStep.possible(self.master):
+            where = {d.name: d for d in cls._layout.declarations}
+
+            def place(attribute: str) -> Tuple[int, bool]:
+                declaration = where[attribute]
+                return declaration.offset, declaration.type is not float
+
+            try:
+                self.direct = DirectStep(slot, self.master, [(*place(a), port) for a, port in self.inputs],
+                                         [place(a) for a, _ in cls.outputs_exported], self.messages)
+            except ValueError:  # an output the C step cannot read: Python takes every step
+                self.direct = None
+
+    def _message(self, component: "SystemComponent", unit: str, status: int, text: str) -> None:
+        self.messages[0] += 1
+        component.log(f"{unit}: {text}", _LEVELS[status] if 0 <= status < len(_LEVELS) else "info")
+
+    def catch_up(self) -> None:
+        """The master where the C layer's steps left it (before Python touches it)."""
+        if self.direct is not None:
+            applied = self.direct.catch_up()
+            for (attribute, _), value in zip(self.inputs, applied or ()):
+                if value != self.applied[attribute]:  # set on its unit by the C step
+                    self.applied[attribute] = _plain_as(self.applied[attribute], value)
+
+    def arm(self) -> None:
+        """The next steps to the C layer where it can take them."""
+        if self.direct is not None:
+            self.direct.arm([self.applied[attribute] for attribute, _ in self.inputs])
 
     def step_to(self, component: "SystemComponent", t: float, h: float) -> None:
         """The master's steps from ``t`` to ``t + h``, with the FMU's inputs as they are now."""
         master = self.master
+        if self.direct is not None and self.direct.pending():
+            self.direct.finish()
+            return
         if abs(t - master.time) > 1e-9 * max(1.0, abs(t)):
             raise ValueError(f"doStep from t = {t!r} s, but the system is at t = {master.time!r} s")
         n = round(h / self.step)
@@ -112,6 +152,7 @@ class _Run:
             setattr(component, attribute, values[i])
 
     def close(self) -> None:
+        self.catch_up()
         self.master.close()
 
     def __del__(self) -> None:
@@ -155,6 +196,10 @@ class SystemComponent(Component):
     inputs_exported: ClassVar[Tuple[Tuple[str, str], ...]] = ()
     parameters_exported: ClassVar[Tuple[Tuple[str, str], ...]] = ()
 
+    @classmethod
+    def _compiled_step(cls) -> Optional[Tuple[int, int, int]]:
+        return compiled_step()
+
     def setup(self) -> None:
         self._run: Optional[_Run] = None
         self._start, self._stop = 0.0, None
@@ -174,18 +219,32 @@ class SystemComponent(Component):
             self._close()
             with self.own_modules():
                 self._run = _Run(self, given, self._start, self._stop)
+        self._run.catch_up()
+        self._run.arm()
+
+    # The C layer takes the steps it can (direct.py): every method here that touches the master
+    # takes its position back first (catch_up) and hands the steps back to C when done (arm).
 
     def outputs(self, t: float) -> None:
         if self._run is not None:
+            self._run.catch_up()
             self._run.set_outputs(self)
+            self._run.arm()
 
     def do_step(self, t: float, h: float) -> None:
         if self._run is None:
             raise RuntimeError("doStep before initialization")
+        self._run.catch_up()
         self._run.step_to(self, t, h)
+        self._run.arm()
 
     def internal_state(self) -> Any:
-        return _Snapshot(self._run) if self._run is not None else None
+        if self._run is None:
+            return None
+        self._run.catch_up()
+        snapshot = _Snapshot(self._run)
+        self._run.arm()
+        return snapshot
 
     def restore_internal_state(self, state: Any) -> None:
         if state is None:
@@ -194,8 +253,10 @@ class SystemComponent(Component):
             raise RuntimeError("this FMU state belongs to an earlier run of the system (before a reset or a new "
                                "initialization)")
         else:
+            self._run.catch_up()
             with self.own_modules():
                 state.restore()
+            self._run.arm()
 
     def _given(self) -> Dict[str, Any]:
         """The FMU's parameters and inputs as start values of the scenario's components."""
@@ -207,6 +268,11 @@ class SystemComponent(Component):
         if run is not None:
             with self.own_modules():
                 run.close()
+
+
+def _plain_as(like: Any, value: float) -> Any:
+    """``value`` (a float from C) as the Python type of ``like`` (an input's bool, int or float)."""
+    return bool(value) if isinstance(like, bool) else int(value) if isinstance(like, int) else value
 
 
 def _plain(value: Any) -> Any:
