@@ -479,10 +479,24 @@ static void record(const Plan *p, double t, double *row)
     }
 }
 
-/* --- parallel units -------------------------------------------------------------------------- */
+/* --- parallel units --------------------------------------------------------------------------
+ * A group step is a round: the calling thread publishes the ops [first, end) with a ticket (the
+ * round's number and the next op's index in one atomic word) and every thread, the calling one
+ * too, claims ops from it one at a time (compare-and-swap: a claim of a round already over fails)
+ * until none are left; the calling thread then waits for the ops claimed to finish, never for a
+ * worker that has not woken yet (on a loaded machine it may not run for milliseconds: the calling
+ * thread takes its share instead). A step of a compiled unit takes microseconds, less than a
+ * condition variable's round trip, so a worker spins a while for the next round and the calling
+ * thread for the last op, both bounded (SPIN_SECONDS: a spinning thread takes the core from the
+ * other processes of a loaded machine), then sleep on the pool's condition variables; the one
+ * who makes the other's condition true wakes it only when it sleeps. */
 enum { MAX_THREADS = 256 };
+static const double SPIN_SECONDS = 50e-6;
 typedef void *(*SaveThread)(void);
 typedef void (*RestoreThread)(void *);
+typedef int (*GilCheck)(void);
+typedef void *(*ThisThreadState)(void);
+typedef void (*GilRelease)(int);
 
 typedef struct {
     Plan *p;
@@ -490,31 +504,60 @@ typedef struct {
     pthread_t workers[MAX_THREADS];
     pthread_mutex_t lock;
     pthread_cond_t wake, done;
-    unsigned long round;     /* one per group step: the workers wait for the next */
-    int busy;                /* workers not yet through this round */
-    int quit;
-    size_t end;              /* the group: ops [next, end) */
-    size_t next;             /* the next op to take (atomic) */
-    long k;
+    unsigned long round;     /* atomic: one per group step; the workers wait for the next */
+    uint64_t ticket;         /* atomic: (round << 32) | the next op to claim */
+    size_t end;              /* this round: ops [.., end), at step k (time t); */
+    long k;                  /* written before the ticket is published, read after a claim */
     double t;
+    size_t finished, total;  /* atomic: ops of this round done; how many it has */
+    int sleepers;            /* atomic: workers asleep on `wake` */
+    int waiting;             /* atomic: the calling thread asleep on `done` */
+    int quit;                /* atomic */
     SaveThread save_thread;  /* Python's */
     RestoreThread restore_thread;
+    GilCheck gil_check;      /* PyGILState_Check */
+    ThisThreadState this_thread_state; /* PyGILState_GetThisThreadState */
+    GilRelease gil_release;  /* PyGILState_Release */
 } Pool;
 
-static void take_steps(Pool *pool)
+static inline void spin_pause(void)
+{
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#elif defined(__aarch64__)
+    __asm__ __volatile__("yield");
+#endif
+}
+
+/* Claims and steps the round's ops until none is left (`round`: the round this thread takes part in). */
+static void take_steps(Pool *pool, unsigned long round)
 {
     Plan *p = pool->p;
+    uint64_t mine = (uint64_t)(uint32_t)round << 32;
     for (;;) {
-        size_t i = __atomic_fetch_add(&pool->next, 1, __ATOMIC_RELAXED);
-        if (i >= pool->end) return;
+        uint64_t ticket = __atomic_load_n(&pool->ticket, __ATOMIC_ACQUIRE);
+        if ((ticket & ~(uint64_t)UINT32_MAX) != mine) return; /* that round is over */
+        size_t i = (size_t)(ticket & UINT32_MAX);
+        if (i >= __atomic_load_n(&pool->end, __ATOMIC_RELAXED)) return; /* (a newer round's end: the claim fails) */
+        if (!__atomic_compare_exchange_n(&pool->ticket, &ticket, ticket + 1, false, __ATOMIC_ACQ_REL,
+                                         __ATOMIC_ACQUIRE))
+            continue;
+        size_t total = pool->total; /* the round stays until this op is finished */
         Op *o = &p->ops[i];
         o->group_status = 0;
-        if (pool->k % o->multiple) continue;
-        double begin = p->op_seconds ? now() : 0.0;
-        long m = o->multiple;
-        double step = pool->k + m < p->last ? (double)m * p->h : p->stop - pool->t;
-        o->group_status = ((DoStep)o->function)(o->component, pool->t, step, o->no_prior_state);
-        if (p->op_seconds) p->op_seconds[i] += now() - begin;
+        if (pool->k % o->multiple == 0) {
+            double begin = p->op_seconds ? now() : 0.0;
+            long m = o->multiple;
+            double step = pool->k + m < p->last ? (double)m * p->h : p->stop - pool->t;
+            o->group_status = ((DoStep)o->function)(o->component, pool->t, step, o->no_prior_state);
+            if (p->op_seconds) p->op_seconds[i] += now() - begin;
+        }
+        if (__atomic_add_fetch(&pool->finished, 1, __ATOMIC_SEQ_CST) == total &&
+            __atomic_load_n(&pool->waiting, __ATOMIC_SEQ_CST)) {
+            pthread_mutex_lock(&pool->lock);
+            pthread_cond_signal(&pool->done);
+            pthread_mutex_unlock(&pool->lock);
+        }
     }
 }
 
@@ -522,17 +565,38 @@ static void *pool_worker(void *arg)
 {
     Pool *pool = arg;
     unsigned long seen = 0;
-    pthread_mutex_lock(&pool->lock);
     for (;;) {
-        while (pool->round == seen && !pool->quit) pthread_cond_wait(&pool->wake, &pool->lock);
-        if (pool->quit) break;
-        seen = pool->round;
-        pthread_mutex_unlock(&pool->lock);
-        take_steps(pool);
-        pthread_mutex_lock(&pool->lock);
-        if (--pool->busy == 0) pthread_cond_signal(&pool->done);
+        unsigned long round = __atomic_load_n(&pool->round, __ATOMIC_ACQUIRE);
+        if (round == seen && !__atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE)) {
+            double until = now() + SPIN_SECONDS;
+            for (unsigned n = 1;; n++) {
+                round = __atomic_load_n(&pool->round, __ATOMIC_ACQUIRE);
+                if (round != seen || __atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE)) break;
+                spin_pause();
+                if (n % 64 == 0 && now() > until) break;
+            }
+        }
+        if (round == seen && !__atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE)) {
+            pthread_mutex_lock(&pool->lock);
+            __atomic_add_fetch(&pool->sleepers, 1, __ATOMIC_SEQ_CST);
+            while ((round = __atomic_load_n(&pool->round, __ATOMIC_SEQ_CST)) == seen &&
+                   !__atomic_load_n(&pool->quit, __ATOMIC_SEQ_CST))
+                pthread_cond_wait(&pool->wake, &pool->lock);
+            __atomic_sub_fetch(&pool->sleepers, 1, __ATOMIC_SEQ_CST);
+            pthread_mutex_unlock(&pool->lock);
+        }
+        if (__atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE)) break;
+        seen = round;
+        take_steps(pool, round);
     }
-    pthread_mutex_unlock(&pool->lock);
+    /* A worker that ran an FMU's Python has the thread state the FMU made for it and keeps for the
+     * thread's life (its first PyGILState_Ensure, never released: bridge.c): give it back, or
+     * every run would leave one per worker. (Not in the FMU: its library may be unloaded first.) */
+    void *state = pool->this_thread_state && pool->gil_release ? pool->this_thread_state() : NULL;
+    if (state) {
+        pool->restore_thread(state);
+        pool->gil_release(1 /* PyGILState_UNLOCKED: that Ensure found the lock not held */);
+    }
     return NULL;
 }
 
@@ -549,6 +613,9 @@ static Pool *pool_start(Plan *p)
     pool->p = p;
     pool->save_thread = (SaveThread)dlsym(RTLD_DEFAULT, "PyEval_SaveThread");
     pool->restore_thread = (RestoreThread)dlsym(RTLD_DEFAULT, "PyEval_RestoreThread");
+    pool->gil_check = (GilCheck)dlsym(RTLD_DEFAULT, "PyGILState_Check");
+    pool->this_thread_state = (ThisThreadState)dlsym(RTLD_DEFAULT, "PyGILState_GetThisThreadState");
+    pool->gil_release = (GilRelease)dlsym(RTLD_DEFAULT, "PyGILState_Release");
     pthread_mutex_init(&pool->lock, NULL);
     pthread_cond_init(&pool->wake, NULL);
     pthread_cond_init(&pool->done, NULL);
@@ -562,10 +629,14 @@ static void pool_stop(Pool *pool)
 {
     if (!pool) return;
     pthread_mutex_lock(&pool->lock);
-    pool->quit = 1;
+    __atomic_store_n(&pool->quit, 1, __ATOMIC_SEQ_CST);
     pthread_cond_broadcast(&pool->wake);
     pthread_mutex_unlock(&pool->lock);
+    /* a worker that entered an FMU's Python gives its thread state back as it exits (bridge.c),
+     * which takes Python's lock: not held here meanwhile */
+    void *state = pool->gil_check && pool->gil_check() ? pool->save_thread() : NULL;
     for (int i = 0; i < pool->n_workers; i++) pthread_join(pool->workers[i], NULL);
+    if (state) pool->restore_thread(state);
     pthread_cond_destroy(&pool->done);
     pthread_cond_destroy(&pool->wake);
     pthread_mutex_destroy(&pool->lock);
@@ -576,20 +647,38 @@ static void pool_stop(Pool *pool)
  * the calling thread lets go of Python's lock meanwhile where it holds it (gil_held). */
 static void group_step(Pool *pool, size_t first, size_t end, long k, double t, bool gil_held)
 {
-    pthread_mutex_lock(&pool->lock);
-    pool->next = first;
-    pool->end = end;
+    /* the last round's ops are all finished: nobody reads these until the new ticket is out */
+    unsigned long round = pool->round + 1;
+    __atomic_store_n(&pool->end, end, __ATOMIC_RELAXED);
     pool->k = k;
     pool->t = t;
-    pool->busy = pool->n_workers;
-    pool->round++;
-    pthread_cond_broadcast(&pool->wake);
-    pthread_mutex_unlock(&pool->lock);
+    pool->total = end - first;
+    __atomic_store_n(&pool->finished, 0, __ATOMIC_RELAXED);
+    __atomic_store_n(&pool->ticket, ((uint64_t)(uint32_t)round << 32) | first, __ATOMIC_RELEASE);
+    __atomic_store_n(&pool->round, round, __ATOMIC_SEQ_CST);
+    if (__atomic_load_n(&pool->sleepers, __ATOMIC_SEQ_CST)) {
+        pthread_mutex_lock(&pool->lock);
+        pthread_cond_broadcast(&pool->wake);
+        pthread_mutex_unlock(&pool->lock);
+    }
     void *state = gil_held ? pool->save_thread() : NULL;
-    take_steps(pool);
-    pthread_mutex_lock(&pool->lock);
-    while (pool->busy) pthread_cond_wait(&pool->done, &pool->lock);
-    pthread_mutex_unlock(&pool->lock);
+    take_steps(pool, round);
+    if (__atomic_load_n(&pool->finished, __ATOMIC_ACQUIRE) != pool->total) {
+        /* a worker is on the last ops: they take microseconds, unless it was preempted */
+        double until = now() + SPIN_SECONDS;
+        for (unsigned n = 1; __atomic_load_n(&pool->finished, __ATOMIC_ACQUIRE) != pool->total; n++) {
+            spin_pause();
+            if (n % 64 == 0 && now() > until) break;
+        }
+        if (__atomic_load_n(&pool->finished, __ATOMIC_ACQUIRE) != pool->total) {
+            pthread_mutex_lock(&pool->lock);
+            __atomic_store_n(&pool->waiting, 1, __ATOMIC_SEQ_CST);
+            while (__atomic_load_n(&pool->finished, __ATOMIC_SEQ_CST) != pool->total)
+                pthread_cond_wait(&pool->done, &pool->lock);
+            __atomic_store_n(&pool->waiting, 0, __ATOMIC_SEQ_CST);
+            pthread_mutex_unlock(&pool->lock);
+        }
+    }
     if (gil_held) pool->restore_thread(state);
 }
 
