@@ -190,3 +190,25 @@ def test_a_co_simulation_run_gives_the_python_bits(monkeypatch):
         assert bits(results[0][name]) == bits(results[1][name])
     # it moved: the wrist fell and the servo torque turned arm 1
     assert results[0]["z[3]"][-1] < results[0]["z[3]"][0] - 0.01
+
+
+def test_the_co_simulation_newton_matrix_calls_no_python(tmp_path, monkeypatch):
+    """With the FMU's Python jacobian() made to raise, a Co-Simulation run on the compiled kernels
+    still runs (CVODE's Newton matrix is the state_jacobian kernel's), and on the Python methods it fails."""
+    fmu = str(build_cached("DeltaRobot"))
+    edited = tmp_path / "edited"
+    fmpy.extract(fmu, str(edited))
+    assert "state_jacobian" in json.loads((edited / "resources/native_kernels.json").read_text())["kernels"]
+    model = edited / "resources" / "model" / "delta_robot.py"
+    call = "return _jacobian_blocks(np.array(jacobian_values("
+    model.write_text(model.read_text().replace(call, "raise RuntimeError('no Python here')\n        " + call))
+
+    def run():
+        return fmpy.simulate_fmu(str(edited), fmi_type="CoSimulation", stop_time=0.3, output_interval=1e-3,
+                                 start_values={"u[1]": 20.0, "f[3]": -5.0}, output=["z[3]"])
+
+    monkeypatch.delenv("DELTAFMI_NATIVE", raising=False)
+    assert run()["z[3]"][-1] < -1.01  # it fell
+    monkeypatch.setenv("DELTAFMI_NATIVE", "0")
+    with pytest.raises(Exception, match="fmi2DoStep"):
+        run()
