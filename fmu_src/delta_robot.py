@@ -4,7 +4,7 @@ import numpy as np
 from deltafmi.component import Component, Experiment, Input, Kernel, NativeKernels, Output, Parameter, State
 from deltafmi.physics import delta
 from deltafmi.physics.delta import dynamics
-from deltafmi.physics.delta.jacobian import jacobian_from_values, jacobian_values
+from deltafmi.physics.delta.jacobian import jacobian_from_values, jacobian_values, state_jacobian
 from deltafmi.physics.delta.params import DeltaParams
 from deltafmi.models.robot_parameters import RobotParameters
 
@@ -77,7 +77,9 @@ class DeltaRobot(RobotParameters, Component):
         project=Kernel(dynamics.project_state, "_plant", "q", "v", returns=("q", "v")),
         jacobian=Kernel(jacobian_values, "_plant", "q", "v", "u", "f", "pole", then=_jacobian_blocks),
         drift=Kernel(dynamics.loop_drifted, "_plant", "q", "loop_tolerance"),
-        attributes={"_plant": DeltaParams})
+        attributes={"_plant": DeltaParams},
+        # CVODE's Newton matrix in Co-Simulation: jacobian()'s state block, its KKT solve in C too
+        state_jacobian=Kernel(state_jacobian, "_plant", "states", "u", "f", "pole"))
 
     def setup(self) -> None:
         self._plant = None  # DeltaParams, built from the parameters at initialization

@@ -30,11 +30,12 @@ Roots = Callable[[float, np.ndarray, np.ndarray], None]
 Project = Callable[[float, np.ndarray, np.ndarray], None]
 Jacobian = Callable[[float, np.ndarray, np.ndarray], None]
 #: (addresses of the Python right-hand side, root and projection functions (0: none), of
-#: N_VGetArrayPointer) -> (addresses of a C right-hand side, of C root functions and of a C
-#: projection function (0: the Python ones) with CVODE's signatures, their user data): compiled
+#: N_VGetArrayPointer, of the Python Jacobian function (0: none), of SUNDenseMatrix_Data) ->
+#: (addresses of a C right-hand side, of C root functions, of a C projection function and of a C
+#: Jacobian function (0: the Python ones) with CVODE's signatures, their user data): compiled
 #: callbacks that call the Python ones themselves when they cannot compute (see
 #: deltafmi/runtime/native_kernels.py)
-NativeCallbacks = Callable[[int, int, int, int], tuple[int, int, int, int]]
+NativeCallbacks = Callable[[int, int, int, int, int, int], tuple[int, int, int, int, int]]
 
 
 class CvodeError(DeltaFmiError, RuntimeError):
@@ -84,14 +85,18 @@ class Cvode:
         self._f = _sun.RhsFn(self._f_callback)
         self._g = _sun.RhsFn(self._g_callback)
         self._p = _sun.ProjFn(self._p_callback) if project is not None else None
+        self._j = _sun.JacFn(self._j_callback) if jacobian is not None else None
         if native is not None:
-            self._fallbacks = self._f, self._g, self._p  # the compiled callbacks call these: keep them alive
-            rhs, roots, projection, user_data = native(
+            self._fallbacks = self._f, self._g, self._p, self._j  # the compiled callbacks call these: keep them alive
+            rhs, roots, projection, jac, user_data = native(
                 ctypes.cast(self._f, c_void_p).value, ctypes.cast(self._g, c_void_p).value,
                 ctypes.cast(self._p, c_void_p).value if self._p is not None else 0,
-                ctypes.cast(_sun.N_VGetArrayPointer, c_void_p).value)
+                ctypes.cast(_sun.N_VGetArrayPointer, c_void_p).value,
+                ctypes.cast(self._j, c_void_p).value if self._j is not None else 0,
+                ctypes.cast(_sun.SUNDenseMatrix_Data, c_void_p).value)
             self._f, self._g = _sun.RhsFn(rhs), _sun.RhsFn(roots) if roots else self._g
             self._p = _sun.ProjFn(projection) if projection else self._p
+            self._j = _sun.JacFn(jac) if jac else self._j
         _check(_sun.CVodeInit(self._mem, self._f, t0, self._y), "CVodeInit")
         if native is not None:
             _check(_sun.CVodeSetUserData(self._mem, user_data), "CVodeSetUserData")
@@ -106,7 +111,6 @@ class Cvode:
         if jacobian is not None:
             # CVODE hands the Jacobian function the matrix given to the linear solver: view it once
             self._J = np.ctypeslib.as_array(_sun.SUNDenseMatrix_Data(self._A), (n * n,)).reshape((n, n), order="F")
-            self._j = _sun.JacFn(self._j_callback)
             _check(_sun.CVodeSetJacFn(self._mem, self._j), "CVodeSetJacFn")
         if max_step > 0:
             _check(_sun.CVodeSetMaxStep(self._mem, max_step), "CVodeSetMaxStep")

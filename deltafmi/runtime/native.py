@@ -27,7 +27,10 @@ watches its states for drift (:meth:`~deltafmi.runtime.Component.needs_projectio
 a step event), ``jacobian`` for the float part of :meth:`~deltafmi.runtime.Component.jacobian`
 (Model Exchange's directional derivatives, the Co-Simulation solver's Newton matrix): Python
 calls it (ctypes) and hands its floats to the kernel's ``then``, which builds the matrices
-(numpy). The component's Python methods stay, and must
+(numpy), and ``state_jacobian`` for CVODE's Newton matrix in Co-Simulation (``d derivatives / d
+states``, the ``nx * nx`` floats column by column: column j the derivatives with respect to state j;
+a component with a ``jacobian()`` and a derivatives kernel: the solver then calls no Python for
+it). The component's Python methods stay, and must
 compute the same numbers with the same kernels: they serve initialization, events, whatever the
 C cannot, and the tests that compare the two. Attributes are copied to C after initialization,
 after every event update and after every step Python takes; an attribute that does not fit its
@@ -101,6 +104,7 @@ class NativeKernels:
     drift: Optional[Kernel] = None
     attributes: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "required"
+    state_jacobian: Optional[Kernel] = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -111,9 +115,9 @@ class NativeKernels:
 
     def kernels(self) -> dict[str, Kernel]:
         """The declared kernels by role (``derivatives``, ``event_indicators``, ``outputs``, ``step``,
-        ``update``, ``project``, ``jacobian``, ``drift``)."""
+        ``update``, ``project``, ``jacobian``, ``drift``, ``state_jacobian``)."""
         return {role: k for role, k in (("derivatives", self.derivatives), ("event_indicators", self.event_indicators),
                                         ("outputs", self.outputs), ("step", self.step), ("update", self.update),
                                         ("project", self.project), ("jacobian", self.jacobian),
-                                        ("drift", self.drift))
+                                        ("drift", self.drift), ("state_jacobian", self.state_jacobian))
                 if k is not None}

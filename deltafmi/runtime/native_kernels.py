@@ -34,7 +34,7 @@ DESCRIPTION = "native_kernels.json"
 #: the kernels' roles, in the order the loader's layout takes their addresses
 ROLES = ("derivatives", "event_indicators", "outputs", "step", "update")
 #: the roles only CVODE calls (through :meth:`NativeKernelsRuntime.cvode_callbacks`), not the loader
-CVODE_ROLES = ("project",)
+CVODE_ROLES = ("project", "state_jacobian")
 #: the roles the Python side calls itself (:meth:`NativeKernelsRuntime.jacobian_values`)
 PYTHON_ROLES = ("jacobian",)
 #: kernels whose addresses trail the layout (after the attributes' struct and the ready flag)
@@ -240,7 +240,8 @@ class _CvodeData(ctypes.Structure):
                 ("ints", ctypes.c_void_p), ("nx", ctypes.c_long), ("x_offset", ctypes.c_long),
                 ("dx_offset", ctypes.c_long), ("nz", ctypes.c_long), ("array", ctypes.c_void_p),
                 ("fallback", ctypes.c_void_p), ("roots_fallback", ctypes.c_void_p),
-                ("project_fallback", ctypes.c_void_p)]
+                ("project_fallback", ctypes.c_void_p), ("jacobian_fallback", ctypes.c_void_p),
+                ("matrix", ctypes.c_void_p)]
 
 
 class NativeKernelsRuntime:
@@ -349,24 +350,29 @@ class NativeKernelsRuntime:
         return bool(self.addresses[ROLES.index(role)])
 
     def cvode_callbacks(self, x_offset: int, dx_offset: int, nx: int,
-                        nz: int) -> Callable[[int, int, int, int], tuple[int, int, int, int]]:
-        """The compiled derivatives (event indicators, projection) as CVODE's right-hand side
-        (root functions, projection function) over the value buffers (``Cvode``'s ``native``):
-        they call the Python ones while the kernels are off or when they raise. The projection
-        stays Python without a project kernel or with ``DELTAFMI_NATIVE_PROJECT=0``."""
+                        nz: int) -> Callable[..., tuple[int, int, int, int, int]]:
+        """The compiled derivatives (event indicators, projection, state Jacobian) as CVODE's
+        right-hand side (root functions, projection function, Jacobian function) over the value
+        buffers (``Cvode``'s ``native``): they call the Python ones while the kernels are off or
+        when they raise. The projection stays Python without a project kernel or with
+        ``DELTAFMI_NATIVE_PROJECT=0``; the Jacobian without a state_jacobian kernel or a Python one."""
         project_native = self.has("project") and os.environ.get("DELTAFMI_NATIVE_PROJECT", "1") != "0"
 
-        def bind(rhs: int, roots: int, project: int, array: int) -> tuple[int, int, int, int]:
+        def bind(rhs: int, roots: int, project: int, array: int, jacobian: int = 0,
+                 matrix: int = 0) -> tuple[int, int, int, int, int]:
             real, ints, _ = self._buffers
             data = _CvodeData(ctypes.addressof(self.struct), self.ready.ctypes.data, real, ints, nx, x_offset,
-                              dx_offset, nz, array, rhs, roots, project)
+                              dx_offset, nz, array, rhs, roots, project, jacobian, matrix)
             # CVODE holds its address; an instance has one solver at a time (a new one only after
             # the old is freed), so only the newest is kept: appending grew ~230 B per fmi2Reset
             self._cvode_data[:] = [data]
             roots_address = (self._address("dfmi_kernel_cvode_roots")
                              if nz and self.has("event_indicators") else 0)
             project_address = self._address("dfmi_kernel_cvode_project") if project and project_native else 0
-            return (self._address("dfmi_kernel_cvode_rhs"), roots_address, project_address, ctypes.addressof(data))
+            jacobian_address = (self._address("dfmi_kernel_cvode_jacobian")
+                                if jacobian and matrix and self.has("state_jacobian") else 0)
+            return (self._address("dfmi_kernel_cvode_rhs"), roots_address, project_address, jacobian_address,
+                    ctypes.addressof(data))
 
         return bind
 

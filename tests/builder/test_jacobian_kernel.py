@@ -22,7 +22,8 @@ from deltafmi.builder.codegen.build import compile_unit
 from deltafmi.builder.codegen.kernel_types import D, Entry, Obj, Vec
 from deltafmi.toolchain import NoCompilerError
 from deltafmi.physics import delta as d
-from deltafmi.physics.delta.jacobian import N_VALUES, jacobian_from_values, jacobian_values, plant_jacobian
+from deltafmi.physics.delta.jacobian import (N_VALUES, jacobian_from_values, jacobian_values, plant_jacobian,
+                                             state_jacobian)
 from deltafmi.physics.delta.params import DeltaParams
 
 
@@ -43,8 +44,9 @@ def points(seed: int, n: int = 4):
 @pytest.fixture(scope="module")
 def compiled(tmp_path_factory):
     entry = Entry("jacobian_values", jacobian_values, [Obj(DeltaParams), Vec(9), Vec(9), Vec(3), Vec(3), D])
+    state = Entry("state_jacobian", state_jacobian, [Obj(DeltaParams), Vec(18), Vec(3), Vec(3), D])
     try:
-        return compile_unit([entry], tmp_path_factory.mktemp("jacobian_kernel"), identities=("_as_list",))
+        return compile_unit([entry, state], tmp_path_factory.mktemp("jacobian_kernel"), identities=("_as_list",))
     except NoCompilerError as exc:
         pytest.skip(f"no C compiler: {exc}")
 
@@ -54,6 +56,37 @@ def test_generated_c_gives_the_python_bits(compiled):
         python = jacobian_values(d.RL5, q, v, u, f, 5.0)
         assert len(python) == N_VALUES
         assert bits(compiled.call("jacobian_values", d.RL5, q, v, u, f, 5.0)) == bits(python)
+        state = state_jacobian(d.RL5, q + v, u, f, 5.0)
+        assert bits(compiled.call("state_jacobian", d.RL5, q + v, u, f, 5.0)) == bits(state)
+
+
+def test_the_state_jacobian_is_the_state_block_column_by_column():
+    """state_jacobian (CVODE's Newton matrix, column-major) is plant_jacobian's d x'/d x bit for bit."""
+    for q, v, u, f in points(3, n=3):
+        pj = plant_jacobian(d.RL5, np.array(q), np.array(v), np.array(u), np.array(f), 5.0)
+        matrix = np.array(state_jacobian(d.RL5, q + v, u, f, 5.0)).reshape(18, 18).T
+        assert bits(matrix.ravel()) == bits(pj.dx[:, :18].ravel())
+
+
+def test_every_column_is_the_derivative_of_the_dynamics():
+    """All 24 columns of d[a; lam] (states, torques, wrist force) against central differences of
+    the dynamics (an independent formulation: no KKT system), to 1e-6 relative."""
+    for q, v, u, f in points(4, n=2):
+        pj = plant_jacobian(d.RL5, np.array(q), np.array(v), np.array(u), np.array(f), 5.0)
+        known = np.array(q + v + u + f)
+        h = 1e-6
+
+        def evaluate(z):
+            a, lam = d.accelerations(d.RL5, z[:9], z[9:18], z[18:21], z[21:])
+            return np.concatenate([a, lam])
+
+        for j in range(24):
+            plus, minus = known.copy(), known.copy()
+            plus[j] += h
+            minus[j] -= h
+            column = (evaluate(plus) - evaluate(minus)) / (2 * h)
+            exact = np.concatenate([pj.dx[9:, j], pj.dlam[:, j]])
+            np.testing.assert_allclose(exact, column, rtol=1e-6, atol=1e-6 * max(1.0, np.max(np.abs(column))))
 
 
 def test_the_matrices_from_the_values_are_plant_jacobians():
@@ -157,3 +190,25 @@ def test_a_co_simulation_run_gives_the_python_bits(monkeypatch):
         assert bits(results[0][name]) == bits(results[1][name])
     # it moved: the wrist fell and the servo torque turned arm 1
     assert results[0]["z[3]"][-1] < results[0]["z[3]"][0] - 0.01
+
+
+def test_the_co_simulation_newton_matrix_calls_no_python(tmp_path, monkeypatch):
+    """With the FMU's Python jacobian() made to raise, a Co-Simulation run on the compiled kernels
+    still runs (CVODE's Newton matrix is the state_jacobian kernel's), and on the Python methods it fails."""
+    fmu = str(build_cached("DeltaRobot"))
+    edited = tmp_path / "edited"
+    fmpy.extract(fmu, str(edited))
+    assert "state_jacobian" in json.loads((edited / "resources/native_kernels.json").read_text())["kernels"]
+    model = edited / "resources" / "model" / "delta_robot.py"
+    call = "return _jacobian_blocks(np.array(jacobian_values("
+    model.write_text(model.read_text().replace(call, "raise RuntimeError('no Python here')\n        " + call))
+
+    def run():
+        return fmpy.simulate_fmu(str(edited), fmi_type="CoSimulation", stop_time=0.3, output_interval=1e-3,
+                                 start_values={"u[1]": 20.0, "f[3]": -5.0}, output=["z[3]"])
+
+    monkeypatch.delenv("DELTAFMI_NATIVE", raising=False)
+    assert run()["z[3]"][-1] < -1.01  # it fell
+    monkeypatch.setenv("DELTAFMI_NATIVE", "0")
+    with pytest.raises(Exception, match="fmi2DoStep"):
+        run()

@@ -205,3 +205,38 @@ def test_the_threads_end_with_the_run(c_fmus, tmp_path):
     for native in (True, False):
         run(tmp_path, text, 4, native=native)
         assert len(os.listdir("/proc/self/task")) == before, native
+
+
+def _thread_states() -> int:
+    """The interpreter's thread states (CPython's C API through ctypes)."""
+    import ctypes
+
+    api = ctypes.pythonapi
+    api.PyInterpreterState_Get.restype = ctypes.c_void_p
+    api.PyInterpreterState_ThreadHead.restype = ctypes.c_void_p
+    api.PyInterpreterState_ThreadHead.argtypes = [ctypes.c_void_p]
+    api.PyThreadState_Next.restype = ctypes.c_void_p
+    api.PyThreadState_Next.argtypes = [ctypes.c_void_p]
+    count, state = 0, api.PyInterpreterState_ThreadHead(api.PyInterpreterState_Get())
+    while state:
+        count, state = count + 1, api.PyThreadState_Next(state)
+    return count
+
+
+def test_a_worker_that_ran_an_fmus_python_leaves_no_thread_state(tmp_path):
+    """Bouncing balls stepped in C on the threads run their Python at every bounce, on whichever
+    thread steps them: the pool's workers get thread states there, and give them back as they end
+    with the run (they were kept for good, one per worker per run)."""
+    lines = ["experiment: {start: 0.0, stop: 1.5, step: 1.0e-3}", "master: {algorithm: jacobi, threads: 2}",
+             "components:"]
+    lines += [f"  b{i}: {{source: deltafmi.models:BouncingBall, interface: CS}}" for i in range(4)]
+    lines.append("outputs: [b0.q, b0.contact, b3.contact]")
+    text = "\n".join(lines) + "\n"
+    run(tmp_path, text, 2)  # built, loaded, the interpreter's own threads started
+    before = _thread_states()
+    for _ in range(3):
+        run(tmp_path, text, 2)
+    assert _thread_states() == before
+    # the balls reached the table (the contact events ran)
+    result = columns(tmp_path / "run-2-True.csv")
+    assert result["b0.contact"].max() > 0 and result["b3.contact"].max() > 0 and result["b0.q"].min() < 0.01

@@ -75,6 +75,9 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
     if native.project is not None and native.derivatives is None:
         raise CodegenError(f"{cls.__name__}.native: a project kernel is CVODE's projection, which runs with the "
                            f"compiled right-hand side: declare the derivatives kernel too")
+    if native.state_jacobian is not None and native.derivatives is None:
+        raise CodegenError(f"{cls.__name__}.native: a state_jacobian kernel is CVODE's Newton matrix, which runs "
+                           f"with the compiled right-hand side: declare the derivatives kernel too")
     attributes = {name: _attribute_type(cls, name, spec) for name, spec in native.attributes.items()}
     entries, glue = [], []
     for role, kernel in native.kernels().items():
@@ -95,8 +98,10 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
         parts.append(_glue(cls, role, kernel, args, returns[f"dfk_{role}"], attributes))
     if native.derivatives is not None:
         indicators, project = int(native.event_indicators is not None), int(native.project is not None)
+        state_jacobian = int(native.state_jacobian is not None)
         parts.append(f"#define EXPORT {EXPORT}\n#define DFMI_KERNEL_INDICATORS {indicators}\n"
-                     f"#define DFMI_KERNEL_PROJECT {project}\n{CVODE_RHS.read_text()}")
+                     f"#define DFMI_KERNEL_PROJECT {project}\n#define DFMI_KERNEL_STATE_JACOBIAN {state_jacobian}\n"
+                     f"{CVODE_RHS.read_text()}")
     description = {"kernels": list(native.kernels()),
                    "attributes": [[name, describe(t)] for name, t in attributes.items()],
                    "updates": list(native.step.updates) if native.step is not None else []}
@@ -108,7 +113,7 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
 #: the method each role's kernel stands for
 _METHODS = {"derivatives": "derivatives", "event_indicators": "event_indicators", "outputs": "outputs",
             "step": "do_step", "update": "update", "project": "project",
-            "jacobian": "jacobian", "drift": "needs_projection"}
+            "jacobian": "jacobian", "drift": "needs_projection", "state_jacobian": "jacobian"}
 
 
 def _check_inherited(cls: type[Component]) -> None:
@@ -299,7 +304,8 @@ def _updates(cls: type[Component], role: str, kernel: Kernel, result: Any, attri
 
 def _glue(cls: type[Component], role: str, kernel: Kernel, args: list, result: Any, attributes: dict) -> str:
     where = f"{cls.__name__}.native.{role} ({kernel.func.__qualname__})"
-    targets = [] if role == "jacobian" else _targets(cls, role, kernel)
+    floats_out = role in ("jacobian", "state_jacobian")
+    targets = [] if floats_out else _targets(cls, role, kernel)
     checks, updates, outputs = _updates(cls, role, kernel, result, attributes, where)
     if result == D:
         declare, out, leaves = "double out;", "&out", [("out", D)]
@@ -311,9 +317,13 @@ def _glue(cls: type[Component], role: str, kernel: Kernel, args: list, result: A
         declare, out = f"dfk_{role}_result out;", "&out"
         leaves = [leaf for k, item in enumerate(outputs.items) for leaf in _leaves(item, f"out.f{first + k}", where)] \
             if first else _leaves(result, "out", where)
-    if role == "jacobian":  # floats for Python (the caller's array), not variables
+    if floats_out:  # floats for Python or CVODE (the caller's array), not variables
         if any(t != D for _, t in leaves):
-            raise CodegenError(f"{where}: a jacobian kernel returns floats only")
+            raise CodegenError(f"{where}: a {role} kernel returns floats only")
+        nx = cls._layout.nx
+        if role == "state_jacobian" and len(leaves) != nx * nx:
+            raise CodegenError(f"{where}: a state_jacobian kernel returns nx * nx = {nx * nx} floats "
+                               f"(d derivatives / d states, column by column), this one {len(leaves)}")
         targets = [(f"values[{k}]", True) for k in range(len(leaves))]
     if len(leaves) != len(targets):
         raise CodegenError(f"{where}: the kernel returns {len(leaves)} numbers for {len(targets)} scalars")
@@ -327,7 +337,8 @@ def _glue(cls: type[Component], role: str, kernel: Kernel, args: list, result: A
     results = [*kernel.updates, *(["(defer)"] if kernel.defer else []),
                *(["(next time event)"] if role == "update" else []), *kernel.returns]
     last = {"step": "double h, double *real, int *ints", "update": "double *real, int *ints, double *next_event_time",
-            "jacobian": "double *real, int *ints, double *values", "drift": "double *real, int *ints, double *drifted"}
+            "jacobian": "double *real, int *ints, double *values",
+            "state_jacobian": "double *real, int *ints, double *values", "drift": "double *real, int *ints, double *drifted"}
     return (f"/* {role}: {kernel.func.__qualname__}({', '.join(kernel.args)})"
             + (f" -> {', '.join(results)}" if results else "") + " */\n"
             f"{EXPORT} int dfmi_kernel_{role}({'' if changes else 'const '}void *attributes, double time, "

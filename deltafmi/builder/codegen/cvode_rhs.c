@@ -1,12 +1,14 @@
 /* ---- CVODE's right-hand side, root and projection functions over the kernels (deltafmi/builder/codegen/cvode_rhs.c) ----
  * A Co-Simulation step integrates with CVODE driven from Python (deltafmi/runtime/cvode.py); its
  * right-hand side (and root functions, with an event-indicator kernel, and the projection after
- * every internal step, with a project kernel) are these, so CVODE's many evaluations per step run
- * no Python. They write the solver's state into the value buffer as the Python callbacks do, and
+ * every internal step, with a project kernel, and the Newton matrix, with a state_jacobian kernel)
+ * are these, so CVODE's many evaluations per step run no Python. They write the solver's state into the value buffer as the Python callbacks do, and
  * call those (fallback) while the kernels are off or when a kernel raised: Python then explains. */
 typedef int (*DfmiCvodeFn)(double t, void *y, void *out, void *user_data);
 /* CVProjFn: (t, ycur, corr, epsProj, err, user_data) */
 typedef int (*DfmiCvodeProjFn)(double t, void *y, void *corr, double eps, void *err, void *user_data);
+/* CVLsJacFn: (t, y, fy, Jac, user_data, tmp1, tmp2, tmp3) */
+typedef int (*DfmiCvodeJacFn)(double t, void *y, void *fy, void *jac, void *user_data, void *t1, void *t2, void *t3);
 typedef struct {
     const DfmiAttributes *attributes;
     const int *ready;
@@ -16,6 +18,8 @@ typedef struct {
     double *(*array)(void *vector); /* SUNDIALS' N_VGetArrayPointer */
     DfmiCvodeFn fallback, roots_fallback;
     DfmiCvodeProjFn project_fallback;
+    DfmiCvodeJacFn jacobian_fallback;
+    double *(*matrix)(void *matrix); /* SUNDIALS' SUNDenseMatrix_Data: column-major, nx rows */
 } DfmiCvodeData;
 
 EXPORT int dfmi_kernel_cvode_rhs(double t, void *y, void *ydot, void *user_data)
@@ -62,4 +66,19 @@ EXPORT int dfmi_kernel_cvode_project(double t, void *y, void *corr, double eps, 
     }
 #endif
     return r->project_fallback(t, y, corr, eps, err, user_data);
+}
+
+/* the Newton matrix d rhs / d x: the state_jacobian kernel writes it column by column straight
+ * into CVODE's dense matrix (the fallback: the Python jacobian, as without the kernel) */
+EXPORT int dfmi_kernel_cvode_jacobian(double t, void *y, void *fy, void *jac, void *user_data, void *t1, void *t2,
+                                      void *t3)
+{
+    const DfmiCvodeData *r = user_data;
+#if DFMI_KERNEL_STATE_JACOBIAN
+    if (*r->ready) {
+        memcpy(r->real + r->x_offset, r->array(y), (size_t)r->nx * sizeof(double));
+        if (dfmi_kernel_state_jacobian(r->attributes, t, r->real, r->ints, r->matrix(jac)) == 0) return 0;
+    }
+#endif
+    return r->jacobian_fallback(t, y, fy, jac, user_data, t1, t2, t3);
 }

@@ -15,7 +15,8 @@ where every d on the right-hand side differentiates with a and lam held fixed. E
 the right is closed form per arm, in plain floats like the dynamics kernels: the derivatives of
 the arm's wrist point psi(q_i) up to the third order (Jv, H, the velocity part of gamma), of its
 mass block and of the closed-form C(q, v) of :mod:`.dynamics`, and the Hessian of the potential.
-One 15 x 15 solve with 24 right-hand sides gives every column.
+One KKT solve with 24 right-hand sides gives every column (by the dynamics' Schur complement,
+in plain floats: a kernel the code generator translates whole).
 
 Columns ("knowns") are ordered [q (9), v (9), u (3), f (3)], the order of the DeltaRobot FMU's
 states and inputs. No FMI here: the FMU's component hands these matrices to the runtime.
@@ -28,11 +29,13 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from .dynamics import _as_list, _constants, _evaluate
+from .dynamics import (_arm_response, _as_list, _constants, _evaluate, _schur_factor, _schur_solve, _subtract_response,
+                       _sym3_inv)
 from .kinematics import ARM_COS_SIN
 from .params import DeltaParams
 
-__all__ = ["PlantJacobian", "plant_jacobian", "jacobian_values", "jacobian_from_values", "N_KNOWNS", "N_VALUES"]
+__all__ = ["PlantJacobian", "plant_jacobian", "jacobian_values", "jacobian_from_values", "state_jacobian", "N_KNOWNS",
+           "N_VALUES"]
 
 ArrayLike = Sequence[float] | np.ndarray
 F3 = tuple[float, float, float]
@@ -40,8 +43,11 @@ F9 = tuple[float, float, float, float, float, float, float, float, float]
 
 #: columns of every matrix below: q (9), v (9), u (3), f (3)
 N_KNOWNS = 24
-#: the floats of :func:`jacobian_values`: accelerations, multipliers, three arms' 69
-N_VALUES = 9 + 6 + 3 * 69
+#: where :func:`jacobian_values`' solved columns begin: after the accelerations, the multipliers
+#: and three arms' 69
+_SENSITIVITIES = 9 + 6 + 3 * 69
+#: the floats of :func:`jacobian_values`: those, then per known [da; dlam] (15)
+N_VALUES = _SENSITIVITIES + N_KNOWNS * 15
 
 
 class PlantJacobian(NamedTuple):
@@ -198,8 +204,9 @@ def plant_jacobian(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: 
 def jacobian_values(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f: ArrayLike,
                     pole: float) -> list[float]:
     """The float part of :func:`plant_jacobian`, :data:`N_VALUES` plain floats: the accelerations
-    (9), the multipliers (6) and each arm's share of the KKT system (see :func:`_arm`). A kernel:
-    the DeltaRobot FMU runs it as C generated from this source (deltafmi/builder/codegen)."""
+    (9), the multipliers (6), each arm's share of the KKT system (see :func:`_arm`) and the KKT
+    system solved (:func:`_sensitivities`). A kernel: the DeltaRobot FMU runs it as C generated
+    from this source (deltafmi/builder/codegen)."""
     ql, vl, fl = _as_list(q), _as_list(v), _as_list(f)
     vdot, lam, _ = _evaluate(p, ql, vl, u, fl, pole)
     la0, la1, la2, lb0, lb1, lb2 = lam
@@ -214,20 +221,111 @@ def jacobian_values(p: DeltaParams, q: ArrayLike, v: ArrayLike, u: ArrayLike, f:
                 vdot[3], vdot[4], vdot[5], fx + wB[0], fy + wB[1], fz + wB[2])
     arm3 = _arm(consts, damping, pole, cC, sC, l1, l2, ql[6], ql[7], ql[8], vl[6], vl[7], vl[8],
                 vdot[6], vdot[7], vdot[8], fx + wC[0], fy + wC[1], fz + wC[2])
-    return vdot + list(lam) + list(arm1) + list(arm2) + list(arm3)
+    return vdot + list(lam) + list(arm1) + list(arm2) + list(arm3) + _sensitivities(arm1, arm2, arm3)
+
+
+def _arm_blocks(arm: Sequence[float]) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+    """An arm's inverse mass block (6 unique entries), W = Ht m^-1 Ht^T (6) and Y = m^-1 Ht^T (9)
+    from its :func:`_arm` values."""
+    minv = _sym3_inv(arm[0], arm[1], arm[2], arm[4], arm[5], arm[8])
+    W, Y = _arm_response(minv[0], minv[1], minv[2], minv[3], minv[4], minv[5], arm[9], arm[10], arm[11],
+                         arm[12], arm[13], arm[14], arm[15], arm[16], arm[17])
+    return minv, W, Y
+
+
+def _mass_solve(m: Sequence[float], r1: float, r2: float, r3: float) -> F3:
+    """m^-1 r for an arm's inverse mass block (6 unique entries)."""
+    return (m[0] * r1 + m[1] * r2 + m[2] * r3, m[1] * r1 + m[3] * r2 + m[4] * r3, m[2] * r1 + m[4] * r2 + m[5] * r3)
+
+
+def _ht_times(arm: Sequence[float], y: F3) -> F3:
+    """Ht y: an arm's world wrist Jacobian (its values 9..17, row-major) times joint rates."""
+    return (arm[9] * y[0] + arm[10] * y[1] + arm[11] * y[2], arm[12] * y[0] + arm[13] * y[1] + arm[14] * y[2],
+            arm[15] * y[0] + arm[16] * y[1] + arm[17] * y[2])
+
+
+def _sensitivities(arm1: Sequence[float], arm2: Sequence[float], arm3: Sequence[float]) -> list[float]:
+    """The KKT solve of the module docstring from the arms' :func:`_arm` values: per known
+    [q (9), v (9), u (3), f (3)] its column [da (9); dlam (6)], 24 x 15 floats.
+
+    Solved as the dynamics solve theirs (closed-form 3x3 algebra, no dense factorization): with
+    x = M^-1 R1 and the Schur complement S = H M^-1 H^T of :mod:`.dynamics`,
+    S dlam = R2 - H x and da = x + M^-1 H^T dlam. Equal to a dense LU solve up to rounding.
+
+    Raises:
+        ArithmeticError: H or a mass block lost rank (a direct-kinematic or gimbal singularity).
+    """
+    arms = (arm1, arm2, arm3)
+    minv1, W1, Y1 = _arm_blocks(arm1)
+    minv2, W2, Y2 = _arm_blocks(arm2)
+    minv3, W3, Y3 = _arm_blocks(arm3)
+    minv = (minv1, minv2, minv3)
+    factors = _schur_factor(W1, W2, W3)
+    out = []
+    for j in range(24):
+        # R1 (9) and R2 (6) of column j, from the scatter of jacobian_from_values' template
+        r1 = []
+        r2 = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        for i in range(3):
+            arm = arms[i]
+            if j < 18:
+                block, col, kappa = 18, j - 3 * i, 36  # r1q, kq
+                if j >= 9:
+                    block, col, kappa = 27, j - 9 - 3 * i, 45  # r1v, kv
+                if col >= 0 and col < 3:
+                    r1 += [arm[block + col], arm[block + 3 + col], arm[block + 6 + col]]
+                    k1, k2, k3 = arm[kappa + col], arm[kappa + 3 + col], arm[kappa + 6 + col]
+                    # -sign * kappa in the rows of arm i's constraints (arm 1: both, +; arms 2, 3: -)
+                    if i == 0:
+                        r2 = [-k1, -k2, -k3, -k1, -k2, -k3]
+                    elif i == 1:
+                        r2 = [k1, k2, k3, 0.0, 0.0, 0.0]
+                    else:
+                        r2 = [0.0, 0.0, 0.0, k1, k2, k3]
+                else:
+                    r1 += [0.0, 0.0, 0.0]
+            elif j < 21:
+                r1 += [1.0, 0.0, 0.0] if j - 18 == i else [0.0, 0.0, 0.0]  # B u: the servo's joint
+            else:
+                r = j - 21  # Jv^T f: the arm's world wrist Jacobian's row r, over 3
+                r1 += [arm[9 + 3 * r] / 3.0, arm[10 + 3 * r] / 3.0, arm[11 + 3 * r] / 3.0]
+        x1 = _mass_solve(minv[0], r1[0], r1[1], r1[2])
+        x2 = _mass_solve(minv[1], r1[3], r1[4], r1[5])
+        x3 = _mass_solve(minv[2], r1[6], r1[7], r1[8])
+        g1, g2, g3 = _ht_times(arm1, x1), _ht_times(arm2, x2), _ht_times(arm3, x3)
+        # R2 - H x, H = [Ht1, -Ht2, 0; Ht1, 0, -Ht3]
+        la1, la2, la3, lb1, lb2, lb3 = _schur_solve(factors, (
+            r2[0] - (g1[0] - g2[0]), r2[1] - (g1[1] - g2[1]), r2[2] - (g1[2] - g2[2]),
+            r2[3] - (g1[0] - g3[0]), r2[4] - (g1[1] - g3[1]), r2[5] - (g1[2] - g3[2])))
+        da = _subtract_response([x1[0], x1[1], x1[2], x2[0], x2[1], x2[2], x3[0], x3[1], x3[2]], Y1, Y2, Y3,
+                                (-la1, -la2, -la3, -lb1, -lb2, -lb3))
+        out += da + [la1, la2, la3, lb1, lb2, lb3]
+    return out
+
+
+def state_jacobian(p: DeltaParams, x: ArrayLike, u: ArrayLike, f: ArrayLike, pole: float) -> list[float]:
+    """d [q'; v'] / d [q; v] at the 18-vector x = [q; v], column-major (18 x 18, column j the
+    derivatives with respect to x_j): what an implicit integrator's Newton matrix needs, the
+    state block of :func:`plant_jacobian` bit for bit. A kernel (the DeltaRobot FMU's
+    Co-Simulation CVODE calls it as generated C).
+
+    Raises:
+        ArithmeticError: H or a mass block lost rank (a direct-kinematic or gimbal singularity).
+    """
+    xl = _as_list(x)
+    values = jacobian_values(p, xl[:9], xl[9:], u, f, pole)
+    out = []
+    for j in range(18):  # d / d x_j: q' = v on top, then da / d x_j
+        out += [1.0 if r + 9 == j else 0.0 for r in range(9)]
+        out += [values[_SENSITIVITIES + 15 * j + r] for r in range(9)]
+    return out
 
 
 def jacobian_from_values(values: np.ndarray) -> PlantJacobian:
-    """:func:`plant_jacobian` from :func:`jacobian_values`' floats: the KKT solve and the scatter
-    into the matrices (numpy)."""
-    flat = values[15:]
-    system = _SYSTEM_TEMPLATE.copy()  # [[M, -H^T, R1], [H, 0, R2]], 15 x (15 + 24)
-    system.flat[_SYSTEM_INDEX] = flat[_SYSTEM_SOURCE] * _SYSTEM_SCALE
-    try:
-        sens = np.linalg.solve(system[:, :15], system[:, 15:])
-    except np.linalg.LinAlgError:
-        raise ArithmeticError("the KKT matrix is singular: the delta robot is in a direct-kinematic "
-                              "singularity (or a gimbal one, sin q_i2 = 0)") from None
+    """:func:`plant_jacobian` from :func:`jacobian_values`' floats: their scatter into the
+    matrices (numpy); the KKT system comes solved."""
+    flat = values[15:_SENSITIVITIES]
+    sens = values[_SENSITIVITIES:].reshape(N_KNOWNS, 15).T
     dx = _DX_TEMPLATE.copy()  # q' = v on top
     dx[9:] = sens[:9]
     out = np.zeros((7, N_KNOWNS))  # dz, dzd, denergy
@@ -241,48 +339,27 @@ _ARM_VALUES = 69
 
 
 def _scatter_layout() -> tuple:
-    """Where each kernel value goes in the augmented KKT system and in the output derivatives:
-    (flat target index, source index, scale) arrays for both, and the system's constant part."""
-    system: list[tuple[int, int, float]] = []
+    """Where each kernel value goes in the output derivatives: (flat target index, source index,
+    scale) arrays."""
     output: list[tuple[int, int, float]] = []
-    width = 15 + N_KNOWNS
 
     def put(target: list, row: int, col: int, ncols: int, arm: int, block: str, entry: int,
             scale: float) -> None:
         target.append((row * ncols + col, _ARM_VALUES * arm + _BLOCKS[block] + entry, scale))
 
     for i in range(3):
-        # constraint rows [arm 1 - arm 2; arm 1 - arm 3]: arm 1 enters both with +, arms 2, 3 with -
-        rows_sign = [(9, 1.0), (12, 1.0)] if i == 0 else [(9 + 3 * (i - 1), -1.0)]
         for r in range(3):
             for c in range(3):
                 e = 3 * r + c
-                put(system, 3 * i + r, 3 * i + c, width, i, "mass", e, 1.0)
-                put(system, 3 * i + r, 15 + 3 * i + c, width, i, "r1q", e, 1.0)
-                put(system, 3 * i + r, 15 + 9 + 3 * i + c, width, i, "r1v", e, 1.0)
-                put(system, 3 * i + c, 15 + 21 + r, width, i, "Ht", e, 1.0 / 3.0)  # Jv^T f
-                for c0, sign in rows_sign:
-                    put(system, c0 + r, 3 * i + c, width, i, "Ht", e, sign)  # H
-                    put(system, 3 * i + c, c0 + r, width, i, "Ht", e, -sign)  # -H^T
-                    put(system, c0 + r, 15 + 3 * i + c, width, i, "kq", e, -sign)
-                    put(system, c0 + r, 15 + 9 + 3 * i + c, width, i, "kv", e, -sign)
                 put(output, r, 3 * i + c, N_KNOWNS, i, "Ht", e, 1.0 / 3.0)  # dz/dq = Jv
                 put(output, 3 + r, 3 * i + c, N_KNOWNS, i, "pv", e, 1.0 / 3.0)  # dzd/dq
                 put(output, 3 + r, 9 + 3 * i + c, N_KNOWNS, i, "Ht", e, 1.0 / 3.0)  # dzd/dv = Jv
         for c in range(3):
             put(output, 6, 3 * i + c, N_KNOWNS, i, "grad", c, 1.0)
             put(output, 6, 9 + 3 * i + c, N_KNOWNS, i, "grad", 3 + c, 1.0)
-    template = np.zeros((15, width))
-    for i in range(3):
-        template[3 * i, 15 + 18 + i] = 1.0  # B u: the servo torque drives the arm's first joint
-
-    def arrays(entries: list) -> tuple:
-        index, source, scale = zip(*entries)
-        return np.array(index), np.array(source), np.array(scale)
-
-    return arrays(system) + arrays(output) + (template,)
+    index, source, scale = zip(*output)
+    return np.array(index), np.array(source), np.array(scale)
 
 
-(_SYSTEM_INDEX, _SYSTEM_SOURCE, _SYSTEM_SCALE, _OUTPUT_INDEX, _OUTPUT_SOURCE, _OUTPUT_SCALE,
- _SYSTEM_TEMPLATE) = _scatter_layout()
+_OUTPUT_INDEX, _OUTPUT_SOURCE, _OUTPUT_SCALE = _scatter_layout()
 _DX_TEMPLATE = np.hstack([np.zeros((18, 9)), np.vstack([np.eye(9), np.zeros((9, 9))]), np.zeros((18, 6))])

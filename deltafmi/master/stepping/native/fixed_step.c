@@ -485,60 +485,165 @@ static void record(const Plan *p, double t, double *row)
     }
 }
 
-/* --- parallel units -------------------------------------------------------------------------- */
+/* --- parallel units --------------------------------------------------------------------------
+ * A group step is a round: the calling thread publishes the ops [first, end) in contiguous blocks,
+ * one per thread, each with a ticket (the round's number and the block's next op in one atomic
+ * word), and every thread, the calling one too, claims ops one at a time (compare-and-swap: a claim
+ * of a round already over fails), from its own block (the same units every step) and then from the
+ * others, until none are left; the calling thread then waits for the ops claimed to finish, never for a
+ * worker that has not woken yet (on a loaded machine it may not run for milliseconds: the calling
+ * thread takes its share instead). A step of a compiled unit takes microseconds, less than a
+ * condition variable's round trip, so a worker spins a while for the next round and the calling
+ * thread for the last op, both bounded (SPIN_SECONDS: a spinning thread takes the core from the
+ * other processes of a loaded machine), then sleep on the pool's condition variables; the one
+ * who makes the other's condition true wakes it only when it sleeps.
+ * Whether the threads pay is measured, not assumed: a round waits for the slowest thread, and on a
+ * loaded machine a thread preempted in the middle of an op holds the round up for milliseconds. The
+ * group steps take turns on the threads and on the calling thread alone (PROBE_STEPS each, after
+ * WARM_STEPS on the threads), then go on the faster way for EXPLOIT_STEPS before measuring both
+ * again. Either way each op takes the
+ * step it takes in turn: the results are the same bit for bit. */
 enum { MAX_THREADS = 256 };
+static const double SPIN_SECONDS = 50e-6;
+enum { WARM_STEPS = 8, PROBE_STEPS = 64, EXPLOIT_STEPS = 1024 };
 typedef void *(*SaveThread)(void);
 typedef void (*RestoreThread)(void *);
+typedef int (*GilCheck)(void);
+typedef void *(*ThisThreadState)(void);
+typedef void (*GilRelease)(int);
 
+/* A thread's share of a round: ops [.., end) claimed through ticket, (round << 32) | the next op. */
 typedef struct {
+    uint64_t ticket;         /* atomic */
+    size_t end;              /* atomic */
+    char pad[64 - sizeof(uint64_t) - sizeof(size_t)]; /* one cache line each */
+} Block;
+
+typedef struct Pool Pool;
+typedef struct {
+    Pool *pool;
+    int id;                  /* its block: 1, 2, ... (the calling thread's is 0) */
+} Worker;
+
+struct Pool {
     Plan *p;
     int n_workers;
+    Worker worker_args[MAX_THREADS];
     pthread_t workers[MAX_THREADS];
     pthread_mutex_t lock;
     pthread_cond_t wake, done;
-    unsigned long round;     /* one per group step: the workers wait for the next */
-    int busy;                /* workers not yet through this round */
-    int quit;
-    size_t end;              /* the group: ops [next, end) */
-    size_t next;             /* the next op to take (atomic) */
-    long k;
+    unsigned long round;     /* atomic: one per group step; the workers wait for the next */
+    Block blocks[MAX_THREADS + 1]; /* this round's ops, one block per thread (the calling thread's first) */
+    int n_blocks;
+    long k;                  /* written before the ticket is published, read after a claim */
     double t;
+    size_t finished, total;  /* atomic: ops of this round done; how many it has */
+    int sleepers;            /* atomic: workers asleep on `wake` */
+    int waiting;             /* atomic: the calling thread asleep on `done` */
+    int quit;                /* atomic */
     SaveThread save_thread;  /* Python's */
     RestoreThread restore_thread;
-} Pool;
+    int threaded;            /* the group steps on the threads now (else on the calling thread alone) */
+    long left;               /* group steps left this way before the next decision */
+    int probing;             /* 0: exploiting; 1, 2: the first, the second way measured */
+    double spent[2];         /* seconds per group step measured alone [0] and on the threads [1] */
+    double window;           /* seconds of this probe so far */
+    GilCheck gil_check;      /* PyGILState_Check */
+    ThisThreadState this_thread_state; /* PyGILState_GetThisThreadState */
+    GilRelease gil_release;  /* PyGILState_Release */
+};
 
-static void take_steps(Pool *pool)
+static inline void spin_pause(void)
+{
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#elif defined(__aarch64__)
+    __asm__ __volatile__("yield");
+#endif
+}
+
+/* Op i of a group steps at step k (time t); its status into group_status. */
+static void step_op(Plan *p, size_t i, long k, double t)
+{
+    Op *o = &p->ops[i];
+    o->group_status = 0;
+    if (k % o->multiple) return;
+    double begin = p->op_seconds ? now() : 0.0;
+    long m = o->multiple;
+    double step = k + m < p->last ? (double)m * p->h : p->stop - t;
+    o->group_status = ((DoStep)o->function)(o->component, t, step, o->no_prior_state);
+    if (p->op_seconds) p->op_seconds[i] += now() - begin;
+}
+
+/* Claims and steps the ops of one block of the round until none is left (`round`: the round this
+ * thread takes part in). */
+static void take_block(Pool *pool, Block *b, unsigned long round)
 {
     Plan *p = pool->p;
+    uint64_t mine = (uint64_t)(uint32_t)round << 32;
     for (;;) {
-        size_t i = __atomic_fetch_add(&pool->next, 1, __ATOMIC_RELAXED);
-        if (i >= pool->end) return;
-        Op *o = &p->ops[i];
-        o->group_status = 0;
-        if (pool->k % o->multiple) continue;
-        double begin = p->op_seconds ? now() : 0.0;
-        long m = o->multiple;
-        double step = pool->k + m < p->last ? (double)m * p->h : p->stop - pool->t;
-        o->group_status = ((DoStep)o->function)(o->component, pool->t, step, o->no_prior_state);
-        if (p->op_seconds) p->op_seconds[i] += now() - begin;
+        uint64_t ticket = __atomic_load_n(&b->ticket, __ATOMIC_ACQUIRE);
+        if ((ticket & ~(uint64_t)UINT32_MAX) != mine) return; /* that round is over */
+        size_t i = (size_t)(ticket & UINT32_MAX);
+        if (i >= __atomic_load_n(&b->end, __ATOMIC_RELAXED)) return; /* (a newer round's end: the claim fails) */
+        if (!__atomic_compare_exchange_n(&b->ticket, &ticket, ticket + 1, false, __ATOMIC_ACQ_REL,
+                                         __ATOMIC_ACQUIRE))
+            continue;
+        size_t total = pool->total; /* the round stays until this op is finished */
+        step_op(p, i, pool->k, pool->t);
+        if (__atomic_add_fetch(&pool->finished, 1, __ATOMIC_SEQ_CST) == total &&
+            __atomic_load_n(&pool->waiting, __ATOMIC_SEQ_CST)) {
+            pthread_mutex_lock(&pool->lock);
+            pthread_cond_signal(&pool->done);
+            pthread_mutex_unlock(&pool->lock);
+        }
     }
+}
+
+/* This thread's own block first (the same units every step: their memory stays in its core's
+ * cache), then what is left of the others' (a thread late to the round leaves its share). */
+static void take_steps(Pool *pool, unsigned long round, int id)
+{
+    for (int j = 0; j < pool->n_blocks; j++) take_block(pool, &pool->blocks[(id + j) % pool->n_blocks], round);
 }
 
 static void *pool_worker(void *arg)
 {
-    Pool *pool = arg;
+    Pool *pool = ((Worker *)arg)->pool;
+    int id = ((Worker *)arg)->id;
     unsigned long seen = 0;
-    pthread_mutex_lock(&pool->lock);
     for (;;) {
-        while (pool->round == seen && !pool->quit) pthread_cond_wait(&pool->wake, &pool->lock);
-        if (pool->quit) break;
-        seen = pool->round;
-        pthread_mutex_unlock(&pool->lock);
-        take_steps(pool);
-        pthread_mutex_lock(&pool->lock);
-        if (--pool->busy == 0) pthread_cond_signal(&pool->done);
+        unsigned long round = __atomic_load_n(&pool->round, __ATOMIC_ACQUIRE);
+        if (round == seen && !__atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE)) {
+            double until = now() + SPIN_SECONDS;
+            for (unsigned n = 1;; n++) {
+                round = __atomic_load_n(&pool->round, __ATOMIC_ACQUIRE);
+                if (round != seen || __atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE)) break;
+                spin_pause();
+                if (n % 64 == 0 && now() > until) break;
+            }
+        }
+        if (round == seen && !__atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE)) {
+            pthread_mutex_lock(&pool->lock);
+            __atomic_add_fetch(&pool->sleepers, 1, __ATOMIC_SEQ_CST);
+            while ((round = __atomic_load_n(&pool->round, __ATOMIC_SEQ_CST)) == seen &&
+                   !__atomic_load_n(&pool->quit, __ATOMIC_SEQ_CST))
+                pthread_cond_wait(&pool->wake, &pool->lock);
+            __atomic_sub_fetch(&pool->sleepers, 1, __ATOMIC_SEQ_CST);
+            pthread_mutex_unlock(&pool->lock);
+        }
+        if (__atomic_load_n(&pool->quit, __ATOMIC_ACQUIRE)) break;
+        seen = round;
+        take_steps(pool, round, id);
     }
-    pthread_mutex_unlock(&pool->lock);
+    /* A worker that ran an FMU's Python has the thread state the FMU made for it and keeps for the
+     * thread's life (its first PyGILState_Ensure, never released: bridge.c): give it back, or
+     * every run would leave one per worker. (Not in the FMU: its library may be unloaded first.) */
+    void *state = pool->this_thread_state && pool->gil_release ? pool->this_thread_state() : NULL;
+    if (state) {
+        pool->restore_thread(state);
+        pool->gil_release(1 /* PyGILState_UNLOCKED: that Ensure found the lock not held */);
+    }
     return NULL;
 }
 
@@ -555,12 +660,23 @@ static Pool *pool_start(Plan *p)
     pool->p = p;
     pool->save_thread = (SaveThread)dlsym(RTLD_DEFAULT, "PyEval_SaveThread");
     pool->restore_thread = (RestoreThread)dlsym(RTLD_DEFAULT, "PyEval_RestoreThread");
+    pool->gil_check = (GilCheck)dlsym(RTLD_DEFAULT, "PyGILState_Check");
+    pool->this_thread_state = (ThisThreadState)dlsym(RTLD_DEFAULT, "PyGILState_GetThisThreadState");
+    pool->gil_release = (GilRelease)dlsym(RTLD_DEFAULT, "PyGILState_Release");
     pthread_mutex_init(&pool->lock, NULL);
     pthread_cond_init(&pool->wake, NULL);
     pthread_cond_init(&pool->done, NULL);
+    pool->threaded = 1;
+    pool->probing = 0; /* first steps make the solvers (Python, milliseconds): not measured */
+    pool->left = WARM_STEPS;
     int wanted = p->threads - 1 < MAX_THREADS ? p->threads - 1 : MAX_THREADS;
-    for (int i = 0; i < wanted; i++)
-        if (pthread_create(&pool->workers[pool->n_workers], NULL, pool_worker, pool) == 0) pool->n_workers++;
+    for (int i = 0; i < wanted; i++) {
+        Worker *w = &pool->worker_args[pool->n_workers];
+        w->pool = pool;
+        w->id = pool->n_workers + 1;
+        if (pthread_create(&pool->workers[pool->n_workers], NULL, pool_worker, w) == 0) pool->n_workers++;
+    }
+    pool->n_blocks = pool->n_workers + 1;
     return pool; /* no worker started: the calling thread steps the group alone */
 }
 
@@ -568,10 +684,14 @@ static void pool_stop(Pool *pool)
 {
     if (!pool) return;
     pthread_mutex_lock(&pool->lock);
-    pool->quit = 1;
+    __atomic_store_n(&pool->quit, 1, __ATOMIC_SEQ_CST);
     pthread_cond_broadcast(&pool->wake);
     pthread_mutex_unlock(&pool->lock);
+    /* a worker that entered an FMU's Python gives its thread state back as it exits (bridge.c),
+     * which takes Python's lock: not held here meanwhile */
+    void *state = pool->gil_check && pool->gil_check() ? pool->save_thread() : NULL;
     for (int i = 0; i < pool->n_workers; i++) pthread_join(pool->workers[i], NULL);
+    if (state) pool->restore_thread(state);
     pthread_cond_destroy(&pool->done);
     pthread_cond_destroy(&pool->wake);
     pthread_mutex_destroy(&pool->lock);
@@ -580,23 +700,76 @@ static void pool_stop(Pool *pool)
 
 /* Steps ops [first, end) of one group at step k (time t) on the pool, the calling thread too;
  * the calling thread lets go of Python's lock meanwhile where it holds it (gil_held). */
-static void group_step(Pool *pool, size_t first, size_t end, long k, double t, bool gil_held)
+static void threaded_step(Pool *pool, size_t first, size_t end, long k, double t, bool gil_held)
 {
-    pthread_mutex_lock(&pool->lock);
-    pool->next = first;
-    pool->end = end;
+    /* the last round's ops are all finished: nobody reads these until the new ticket is out */
+    unsigned long round = pool->round + 1;
+    size_t n = end - first;
     pool->k = k;
     pool->t = t;
-    pool->busy = pool->n_workers;
-    pool->round++;
-    pthread_cond_broadcast(&pool->wake);
-    pthread_mutex_unlock(&pool->lock);
+    pool->total = n;
+    __atomic_store_n(&pool->finished, 0, __ATOMIC_RELAXED);
+    for (int j = 0; j < pool->n_blocks; j++) { /* contiguous blocks, as even as they come */
+        Block *b = &pool->blocks[j];
+        __atomic_store_n(&b->end, first + n * (size_t)(j + 1) / (size_t)pool->n_blocks, __ATOMIC_RELAXED);
+        __atomic_store_n(&b->ticket, ((uint64_t)(uint32_t)round << 32) | (first + n * (size_t)j / (size_t)pool->n_blocks),
+                         __ATOMIC_RELEASE);
+    }
+    __atomic_store_n(&pool->round, round, __ATOMIC_SEQ_CST);
+    if (__atomic_load_n(&pool->sleepers, __ATOMIC_SEQ_CST)) {
+        pthread_mutex_lock(&pool->lock);
+        pthread_cond_broadcast(&pool->wake);
+        pthread_mutex_unlock(&pool->lock);
+    }
     void *state = gil_held ? pool->save_thread() : NULL;
-    take_steps(pool);
-    pthread_mutex_lock(&pool->lock);
-    while (pool->busy) pthread_cond_wait(&pool->done, &pool->lock);
-    pthread_mutex_unlock(&pool->lock);
+    take_steps(pool, round, 0);
+    if (__atomic_load_n(&pool->finished, __ATOMIC_ACQUIRE) != pool->total) {
+        /* a worker is on the last ops: they take microseconds, unless it was preempted */
+        double until = now() + SPIN_SECONDS;
+        for (unsigned n = 1; __atomic_load_n(&pool->finished, __ATOMIC_ACQUIRE) != pool->total; n++) {
+            spin_pause();
+            if (n % 64 == 0 && now() > until) break;
+        }
+        if (__atomic_load_n(&pool->finished, __ATOMIC_ACQUIRE) != pool->total) {
+            pthread_mutex_lock(&pool->lock);
+            __atomic_store_n(&pool->waiting, 1, __ATOMIC_SEQ_CST);
+            while (__atomic_load_n(&pool->finished, __ATOMIC_SEQ_CST) != pool->total)
+                pthread_cond_wait(&pool->done, &pool->lock);
+            __atomic_store_n(&pool->waiting, 0, __ATOMIC_SEQ_CST);
+            pthread_mutex_unlock(&pool->lock);
+        }
+    }
     if (gil_held) pool->restore_thread(state);
+}
+
+/* Steps ops [first, end) of one group at step k (time t): on the threads or on the calling thread
+ * alone, whichever was faster when last measured (see the section's comment). */
+static void group_step(Pool *pool, size_t first, size_t end, long k, double t, bool gil_held)
+{
+    double begin = now();
+    if (pool->threaded) {
+        threaded_step(pool, first, end, k, t, gil_held);
+    } else {
+        for (size_t i = first; i < end; i++) step_op(pool->p, i, k, t);
+    }
+    if (pool->probing) pool->window += now() - begin;
+    if (--pool->left > 0) return;
+    if (pool->probing) {
+        pool->spent[pool->threaded] = pool->window / PROBE_STEPS;
+        pool->window = 0.0;
+        if (pool->probing == 1) { /* now the other way */
+            pool->probing = 2;
+            pool->threaded = !pool->threaded;
+            pool->left = PROBE_STEPS;
+            return;
+        }
+        pool->probing = 0;
+        pool->threaded = pool->spent[1] < pool->spent[0];
+        pool->left = EXPLOIT_STEPS;
+        return;
+    }
+    pool->probing = 1; /* measure both again, the way taken now first */
+    pool->left = PROBE_STEPS;
 }
 
 /* Steps k_begin, k_begin + 1, ... before k_end, every recorded row into `rows` (room for
