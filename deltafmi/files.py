@@ -8,7 +8,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["USER_FILE_MODE", "replaced_atomically"]
+__all__ = ["USER_FILE_MODE", "replaced_atomically", "written_through"]
 
 
 def _user_file_mode() -> int:
@@ -24,12 +24,18 @@ _STOPS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP} if hasattr(signal, "pthr
 USER_FILE_MODE = _user_file_mode()
 
 
+def written_through(path: Path) -> Path:
+    """Where writing ``path`` puts the file: the target of a symbolic link (the link stays a link),
+    else ``path`` itself."""
+    return Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
+
+
 @contextmanager
 def replaced_atomically(path: Path) -> Iterator[Path]:
     """A temporary file next to ``path`` to write; it replaces ``path`` when the block ends
     without an error, with the user's usual permissions, and is removed when it raises. A symbolic
     link is written through: its target is replaced, the link stays."""
-    path = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
+    path = written_through(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     name = ""
     # a signal (Ctrl-C, SIGTERM) between making the file and the try below would leave it behind:

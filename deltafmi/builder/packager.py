@@ -30,7 +30,7 @@ from .build_stamps import Stamp, file_request, recorded, remember, stamps_of
 from .bytecode import unchecked_hash_pyc
 from .equations import SOURCES as EQUATION_COMPILER, generated_files
 from .reach import BOOT_SOURCE, module_archive_name, module_source, reached_modules
-from .shared_modules import module_keys
+from .shared_modules import carried_digests, module_keys
 from . import shared_modules as _shared_modules
 from .source_error import import_failure
 from .sources import ComponentSourceError, find_component, split_file_reference
@@ -263,10 +263,11 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
     guid = "{" + str(uuid.uuid5(_GUID_NAMESPACE, key)) + "}"
     binary = _fmu_binary_for(source, fmi_version)
     carried = runtime_files(source) + generated_files(cls)
+    python_files = carried + binary_files(source)
     info = {"model_identifier": identifier, "class_name": cls.__name__, "source": source.name,
             "guid": guid, "fmi_version": fmi_version, "deltafmi_version": deltafmi.__version__,
             # what boot.py may share with another FMU in the process (see .shared_modules)
-            "shared_modules": module_keys(carried + binary_files(source))}
+            "shared_modules": module_keys(python_files), "shared_files": carried_digests(python_files)}
     writer = model_description_xml if fmi_version == 2 else model_description3_xml
     kernels = component_library(cls)
     with replaced_atomically(output) as tmp:

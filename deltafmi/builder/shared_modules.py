@@ -25,7 +25,7 @@ from typing import Dict, Iterable, Set, Tuple
 
 from .reach import absolute_imports_of
 
-__all__ = ["PYTHON_PREFIX", "SHAREABLE", "module_keys"]
+__all__ = ["PYTHON_PREFIX", "SHAREABLE", "carried_digests", "module_keys"]
 
 #: where an FMU carries its deltafmi modules
 PYTHON_PREFIX = "resources/python/"
@@ -69,6 +69,15 @@ def module_keys(files: Iterable[Tuple[Path, str]]) -> Dict[str, str]:
         text = f"{name}\0\0{members}\0\0{extra}"  # one closure may hold several modules: the name too
         keys[name] = hashlib.sha256(text.encode()).hexdigest()
     return keys
+
+
+def carried_digests(files: Iterable[Tuple[Path, str]]) -> Dict[str, str]:
+    """``{path under resources/python: sha256}`` of the deltafmi files among ``files`` (every file
+    the keys of :func:`module_keys` cover). The keys are recorded at build time: boot.py checks
+    these digests first, and an FMU whose files were edited since shares nothing, neither lending
+    its modules under keys that no longer describe them nor borrowing in place of its own."""
+    return {arcname[len(PYTHON_PREFIX):]: _digest(Path(path)) for path, arcname in files
+            if arcname.startswith(PYTHON_PREFIX + "deltafmi/")}
 
 
 def _digest(path: Path) -> str:

@@ -244,11 +244,28 @@ def _running_version() -> str:
 
 def _shareable(info: dict, resources_dir: str) -> dict:
     """The modules this FMU may share with other FMUs in the process ({name: key}); none for a
-    portable FMU (its modules find the libraries it carries beside themselves)."""
+    portable FMU (its modules find the libraries it carries beside themselves), nor for one whose
+    carried files differ from what the build recorded the keys of (edited since)."""
     shared = info.get("shared_modules")
-    if _python_config(resources_dir).get("portable") == "1" or not isinstance(shared, dict):
+    if _python_config(resources_dir).get("portable") == "1" or not isinstance(shared, dict) \
+            or not _as_built(os.path.join(resources_dir, "python"), info.get("shared_files")):
         return {}
     return shared
+
+
+def _as_built(python_dir: str, digests) -> bool:
+    """Whether every file of ``digests`` ({path under python_dir: sha256}, recorded at build
+    time) is still as the build wrote it."""
+    if not isinstance(digests, dict) or not digests:
+        return False
+    for relative, digest in digests.items():
+        try:
+            with open(os.path.join(python_dir, *relative.split("/")), "rb") as f:
+                if hashlib.sha256(f.read()).hexdigest() != digest:
+                    return False
+        except OSError:
+            return False
+    return True
 
 
 def _import_model(resources_dir: str) -> tuple:

@@ -440,7 +440,7 @@ class FmuInstance:
         comp = self.component
         t_end = self._communication_point(t, h)
         self.control[2] = 0.0
-        inputs_changed = self._inputs_changed()  # a fresh solver: the next step compares with these inputs
+        inputs_changed = self._inputs_changed()  # since the last step (kept: the next step compares with these)
         if self._solver is not None and ((inputs_changed and self._restart_for_inputs(t_end)) or self._restart_solver):
             # a zero-order-hold input jumped too far for CVODE's history (the right-hand side is
             # discontinuous at t), or the importer handled an event here

@@ -204,7 +204,8 @@ def test_a_failed_case_leaves_no_pool_folder(tmp_path):
 
 
 @pytest.mark.parametrize(("output", "table"), [("t.csv", "t.parquet"), ("t.parquet", "t.parquet"),
-                                                ("runs/t", "runs/t.parquet"), ("t.v2", "t.v2.parquet")])
+                                                ("runs/t", "runs/t.parquet"), ("t.v2", "t.v2.parquet"),
+                                                ("T.CSV", "T.parquet"), ("T.Parquet", "T.Parquet")])
 def test_the_output_name_gives_the_table_beside_its_csv_copy(output, table):
     # -o t.csv used to write t.csv.parquet and its CSV copy t.csv.csv
     from deltafmi.apps.studies.commands import _table_path

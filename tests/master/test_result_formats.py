@@ -15,7 +15,7 @@ import scipy.io
 from click.testing import CliRunner
 
 from deltafmi.apps.cli import main
-from deltafmi.master.results.csv_file import columns
+from deltafmi.master.results.csv_file import columns, read_units
 from deltafmi.master.results.writers import matlab_names
 from signal_runs import DELTAFMI, bytes_in, interrupt_when
 
@@ -198,3 +198,27 @@ def test_interrupted_run_leaves_a_readable_parquet(oscillator, tmp_path):
     assert t[-1] > 0 and float(match[2]) == pytest.approx(t[-1], rel=1e-9)
     assert np.array_equal(t, np.arange(len(t)) * 1e-3)  # every step up to there
     assert pq.read_schema(out).field("osc.x").metadata == {b"unit": b"m"}
+
+
+@pytest.mark.parametrize("suffix", ["csv", "parquet", "mat"])
+def test_a_run_writes_through_a_symbolic_link(scenario, results, tmp_path, suffix):
+    """``-o link`` where link points to an earlier result: the file it points to gets the run's
+    rows (the same as a plain run's), the link stays a link, and the CSV's units are found
+    through the link."""
+    (tmp_path / "kept").mkdir()
+    target = tmp_path / "kept" / f"r.{suffix}"
+    target.write_text("an earlier result")
+    link = tmp_path / f"link.{suffix}"
+    link.symlink_to(target)
+    result = CliRunner().invoke(main, ["run", str(scenario), "-o", str(link), "-q"])
+    assert result.exit_code == 0, result.output
+    assert link.is_symlink() and link.resolve() == target.resolve()
+    if suffix == "csv":
+        assert target.read_bytes() == results["csv"].read_bytes()
+        assert read_units(link) == read_units(results["csv"]) and read_units(link)
+    elif suffix == "parquet":
+        assert pq.read_table(target).to_pydict() == pq.read_table(results["parquet"]).to_pydict()
+    else:
+        mine, plain = scipy.io.loadmat(target), scipy.io.loadmat(results["mat"])
+        names = [name for name in plain if not name.startswith("__")]
+        assert names and all(np.array_equal(mine[name], plain[name]) for name in names)

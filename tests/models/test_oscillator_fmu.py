@@ -126,7 +126,6 @@ def test_getters_after_new_states_are_fresh(oscillator_dir):
     fmu.freeInstance()
 
 
-
 @pytest.mark.parametrize("interface", ["CS", "ME"])
 def test_a_massless_oscillator_is_refused_at_initialization(tmp_path, interface):
     # m = 0 passes the declared min (inclusive) but divides the force: initialization names it

@@ -1,7 +1,8 @@
 """Co-Simulation events that no solver can find: an input set at a communication point that moves
 an event indicator across zero (a `when` on an input), and the indicators of a component without
 states (no CVODE, no root finding). Each is an event at the step where it happens, in the C step
-and the Python step alike; an equation component without states builds and runs."""
+and the Python step alike; an equation component without states builds and runs, with a when
+clause too."""
 from __future__ import annotations
 
 import math
@@ -31,6 +32,17 @@ SOURCE = textwrap.dedent('''
 
         def equations(self):
             return [der(self.x) == self.u, when(self.u > self.level, assign(self.count, pre(self.count) + 1))]
+
+
+    class StatelessCounter(EquationComponent):
+        """RisingCounter without its state: the when clause alone."""
+        default_experiment = Experiment(start=0.0, stop=1.0, step=1e-3)
+        level = Parameter(0.5)
+        u = Input(0.0)
+        count = Output(0, type=int)
+
+        def equations(self):
+            return [when(self.u > self.level, assign(self.count, pre(self.count) + 1))]
 
 
     class Gain(EquationComponent):
@@ -101,6 +113,22 @@ def test_model_exchange_counts_the_same_crossings(source):
     result = simulate_fmu(fmu, fmi_type="ModelExchange", solver="Euler", step_size=1e-3, input=_sine_input(),
                           output=["count"], stop_time=1.0, output_interval=1e-3)
     assert result["count"][-1] == 3
+
+
+@pytest.mark.parametrize("fmi_type, native_cs", [("CoSimulation", "1"), ("CoSimulation", "0"),
+                                                 ("ModelExchange", "1")])
+def test_a_when_on_an_input_without_states(source, monkeypatch, fmi_type, native_cs):
+    """Equations with a when clause and no state (no state vector to pass the event pass) count the
+    crossings RisingCounter counts."""
+    monkeypatch.setenv("DELTAFMI_NATIVE_CS", native_cs)
+    fmu = build_cached(source, class_name="StatelessCounter")
+    signal = _sine_input()
+    options = dict(solver="Euler", step_size=1e-3) if fmi_type == "ModelExchange" else {}
+    result = simulate_fmu(fmu, fmi_type=fmi_type, input=signal, output=["count"], stop_time=1.0,
+                          output_interval=1e-3, **options)
+    u = signal["u"]
+    crossed = signal["time"][1:][(u[1:] > 0.5) & (u[:-1] <= 0.5)]
+    assert result["count"][-1] == len(crossed) == 3
 
 
 @pytest.mark.parametrize("fmi_type", ["CoSimulation", "ModelExchange"])

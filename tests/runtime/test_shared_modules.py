@@ -6,7 +6,8 @@ the FMU's own copy again. Checked here, in one process through fmpy: two differe
 by this deltafmi share their runtime modules and compute what they compute alone (the oscillator
 against its closed form); a copy whose runtime module differs (as one built by another deltafmi
 version) shares none of the modules that reach the differing file, and every module whose key is
-unchanged still is shared; a portable FMU shares nothing.
+unchanged still is shared; a copy edited after its build (its recorded keys stale) and a portable
+FMU share nothing.
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import numpy as np
 import pytest
 
 from conftest import unzip
-from deltafmi.builder.shared_modules import PYTHON_PREFIX, module_keys
+from deltafmi.builder.shared_modules import PYTHON_PREFIX, carried_digests, module_keys
 from oscillator_analytic import solution
 
 # the registry the boot code of every FMU shares (see deltafmi/runtime/boot.py)
@@ -115,9 +116,9 @@ def test_a_differing_runtime_file_is_never_shared(build_fmu_from_src, tmp_path):
     for stale in (changed.parent / "__pycache__").glob("partials.*"):
         stale.unlink()  # the FMU's bytecode is unchecked: it would run the old file
     info = json.loads((other / "resources" / "deltafmi.json").read_text())
-    info["shared_modules"] = module_keys([(path, f"resources/python/{path.relative_to(python).as_posix()}")
-                                          for path in python.rglob("*") if path.is_file()
-                                          and "__pycache__" not in path.parts])
+    files = [(path, f"resources/python/{path.relative_to(python).as_posix()}") for path in python.rglob("*")
+             if path.is_file() and "__pycache__" not in path.parts]
+    info["shared_modules"], info["shared_files"] = module_keys(files), carried_digests(files)
     (other / "resources" / "deltafmi.json").write_text(json.dumps(info))
     fmus = [instantiate(same, "same"), instantiate(other, "other")]
     try:
@@ -133,6 +134,27 @@ def test_a_differing_runtime_file_is_never_shared(build_fmu_from_src, tmp_path):
     finally:
         for fmu in fmus:
             fmu.freeInstance()
+
+
+@pytest.mark.parametrize("edited_first", [False, True])
+def test_a_file_edited_after_the_build_is_never_shared(build_fmu_from_src, tmp_path, edited_first):
+    """An FMU whose carried runtime file was edited after the build (its keys left as recorded)
+    runs its edit, whichever FMU starts first, and lends none of it to an unedited copy."""
+    fmu = build_fmu_from_src("oscillator.py")
+    clean = unzip(fmu, tmp_path / "clean")
+    edited = unzip(fmu, tmp_path / "edited")
+    changed = edited / "resources" / "python" / "deltafmi" / "runtime" / "partials.py"
+    changed.write_text(changed.read_text() + "\nEDITED = True\n")
+    for stale in (changed.parent / "__pycache__").glob("partials.*"):
+        stale.unlink()  # the FMU's bytecode is unchecked: it would run the old file
+    order = [(edited, "edited"), (clean, "clean")] if edited_first else [(clean, "clean"), (edited, "edited")]
+    fmus = [instantiate(directory, name) for directory, name in order]
+    try:
+        assert getattr(modules_of(edited)["deltafmi.runtime.partials"], "EDITED", False)
+        assert not hasattr(modules_of(clean)["deltafmi.runtime.partials"], "EDITED")
+    finally:
+        for instance in fmus:
+            instance.freeInstance()
 
 
 def test_a_portable_fmu_shares_nothing(build_fmu_from_src, tmp_path):

@@ -36,16 +36,18 @@ def _with_threads(planned, threads: int):
 
 def _table_path(planned, output: Optional[str]) -> Path:
     path = Path(output) if output else planned.study.result_file
-    if path.suffix == ".csv":  # the CSV is the table's copy: -o t.csv gives t.parquet and t.csv
+    suffix = path.suffix.lower()  # as deltafmi run reads a result's format: T.CSV is a CSV
+    if suffix == ".csv":  # the CSV is the table's copy: -o t.csv gives t.parquet and t.csv
         return path.with_suffix(".parquet")
-    return path if path.suffix == ".parquet" else path.with_name(path.name + ".parquet")
+    return path if suffix == ".parquet" else path.with_name(path.name + ".parquet")
 
 
 @click.command()
 @click.argument("study")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), callback=output_folders,
-              help="Results table (.parquet; a .csv name gives the .parquet table beside its CSV copy; default: result.file of the study, else <study>.parquet here). "
-                   "The CSV copy, the journal and the time series go next to it.")
+              help="Results table (.parquet; a .csv name gives the .parquet table beside its CSV copy; "
+                   "default: result.file of the study, else <study>.parquet here). The CSV copy, the journal "
+                   "and the time series go next to it.")
 @click.option("--scheduler", metavar="ADDRESS",
               help="A running Dask scheduler, e.g. tcp://host:8786 or tls://host:8786 (default: a local cluster).")
 @click.option("--connect-timeout", type=click.FloatRange(min=0, min_open=True), default=10.0, show_default=True,

@@ -267,7 +267,8 @@ class _Events:
         lines = [f"def event_pass({', '.join(self.w.args if self.w.discrete else self.w.args + ['d'])}, pre_x, "
                  f"pre_d, b, pre_b, c_pre, fire):",
                  '    """One pass of the when clauses and the algorithm at an event: (states, discrete values, '
-                 'when conditions)."""', "    x = list(x)", "    d = list(d)"]
+                 'when conditions)."""', "    x = list(x)" if self.c.states else "    x = []",  # none: no state vector
+                 "    d = list(d)"]
         conditions = []
         for k, (cond, body, where) in enumerate(self.whens):
             lines.append(f"    c{k} = bool({self._print(cond)})  # {where}")

@@ -24,6 +24,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from deltafmi.errors import ResultWriteError
+from deltafmi.files import written_through
 from deltafmi.toolchain import plain_c_library
 
 from .safe_file import ResultFile
@@ -65,8 +66,9 @@ def _ryu_tables() -> List[np.ndarray]:
 
 def units_file(path: str | Path) -> Path:
     """The file beside a CSV result that holds its units (a CSV has no place for them):
-    ``r.csv`` -> ``r.csv.units.json``, ``{"time": "s", "plant.z[3]": "m", ...}``."""
-    path = Path(path)
+    ``r.csv`` -> ``r.csv.units.json``, ``{"time": "s", "plant.z[3]": "m", ...}``; beside the file
+    a symbolic link points to (where a run given the link writes the rows)."""
+    path = written_through(Path(path))
     return path.with_name(path.name + ".units.json")
 
 

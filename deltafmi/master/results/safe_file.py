@@ -6,6 +6,8 @@ a whole, readable file; a run that fails leaves the target as it was and keeps i
 the failed name (``r.csv`` -> ``r.failed.csv``), which the failure's message names. A process
 killed outright (SIGKILL, power loss) leaves the target untouched and the temporary file
 (``.r.csv.<pid>-<n>.tmp``, hidden) behind. The rename is atomic (``os.replace`` on one file system).
+A target that is a symbolic link is written through: the file it points to is replaced (the
+temporary file beside it), the link stays.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from pathlib import Path
 from typing import Optional
 
 from deltafmi.errors import BadInput
+from deltafmi.files import written_through
 
 __all__ = ["ResultFile", "failed_name", "check_writable"]
 
@@ -57,7 +60,10 @@ class ResultFile:
     """The temporary file a writer writes, and where it goes when the writer closes."""
 
     def __init__(self, target: str | Path) -> None:
-        self.target = Path(target)
+        # a symbolic link is written through: its target replaced beside itself, the link kept
+        self.target = written_through(Path(target))
+        if self.target != Path(target):
+            self.target.parent.mkdir(parents=True, exist_ok=True)
         # the process and a count: two writers of one target (two threads) never share a file
         self.temporary = self.target.with_name(f".{self.target.name}.{os.getpid()}-{next(_COUNT)}.tmp")
         #: set by :meth:`fail`: the rows go to :func:`failed_name` instead of the target

@@ -83,7 +83,19 @@ def _build(node: yaml.Node, path: Path, lines: LineMap, left: List[int]) -> Any:
     lines.value_lines[path] = node.start_mark.line + 1
     if isinstance(node, yaml.MappingNode):
         out: Dict[Any, Any] = {}
-        for key_node, value_node in node.value:
+        pairs = [(k, v) for k, v in node.value if k.tag != _MERGE]
+        merges = [(k, v) for k, v in node.value if k.tag == _MERGE]
+        if len(merges) > 1:
+            raise YamlSyntaxError("duplicate key '<<' (merge several mappings as <<: [*a, *b])",
+                                  merges[1][0].start_mark.line + 1)
+        merged = _merged_pairs([v for _, v in merges])
+        explicit = {_scalar(k) for k, _ in pairs}
+        for key_node, value_node in merged:  # merged first, as PyYAML orders them; explicit keys win
+            key = _scalar(key_node)
+            if key not in out and key not in explicit:
+                lines.key_lines[path + (key,)] = key_node.start_mark.line + 1
+                out[key] = _build(value_node, path + (key,), lines, left)
+        for key_node, value_node in pairs:
             key = _scalar(key_node)
             if key in out:
                 raise YamlSyntaxError(f"duplicate key '{key}'", key_node.start_mark.line + 1)
@@ -96,6 +108,23 @@ def _build(node: yaml.Node, path: Path, lines: LineMap, left: List[int]) -> Any:
             items.append(_build(item, path + (i,), lines, left))
         return items
     return _scalar(node)
+
+
+_MERGE = "tag:yaml.org,2002:merge"
+
+
+def _merged_pairs(sources: List[yaml.Node]) -> List[Tuple[yaml.Node, yaml.Node]]:
+    """The (key, value) nodes a mapping's merge keys (``<<: *a`` or ``<<: [*a, *b]``) bring in,
+    the earlier source's first (YAML's merge key type: an earlier mapping's key wins)."""
+    pairs: List[Tuple[yaml.Node, yaml.Node]] = []
+    for source in sources:
+        for mapping in source.value if isinstance(source, yaml.SequenceNode) else [source]:
+            if not isinstance(mapping, yaml.MappingNode):
+                raise YamlSyntaxError("'<<' merges a mapping or a list of mappings (<<: *name, <<: [*a, *b])",
+                                      mapping.start_mark.line + 1)
+            pairs += [(k, v) for k, v in mapping.value if k.tag != _MERGE]
+            pairs += _merged_pairs([v for k, v in mapping.value if k.tag == _MERGE])
+    return pairs
 
 
 def _scalar(node: yaml.Node) -> Any:

@@ -142,11 +142,12 @@ class EquationComponent(Component):
             z = self.event_indicators(t) if info["n_indicators"] else []
             b = [(z[i] > 0.0) if kind == "gt" else (z[i] <= 0.0) for i, kind in info["relations"]]
             args = self._args(t)
+            states = args[1] if info["states"] else []  # a model without states takes none
             x, d, c = module.event_pass(*args, pre_x, list(self._d), b, self._pre_b, self._c_pre, fire)
-            changed = tuple(d) != self._d or x != args[1]
+            changed = tuple(d) != self._d or x != states
             self._pre_b, self._c_pre = b, c
             self._d = tuple(float(v) for v in d)
-            if x != args[1]:
+            if x != states:
                 self.states[:] = x
             if not changed:
                 break

@@ -178,7 +178,7 @@ int dfmi_cs_step(Instance *c, double t, double h, DfmiStepEvents events) {
     size_t nx = L->nx;
     double t_end = communication_point(s, t, h);
     control[2] = 0.0;
-    int changed = inputs_changed(L, s); /* a fresh solver: the next step compares with these inputs */
+    int changed = inputs_changed(L, s); /* since the last step (kept: the next step compares with these) */
     /* a zero-order-hold input jumped too far for CVODE's history, or the importer handled an event here */
     if (s->mem && ((changed && restart_for_inputs(L, s, t_end)) || s->restart_solver))
         reinit(s, nx, s->time, L->real + L->x_offset);
