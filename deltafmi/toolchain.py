@@ -22,10 +22,11 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, Optional, Sequence
+from typing import Callable, Iterator, Optional, Sequence
 
-__all__ = ["BuildError", "NoCompilerError", "PREBUILT_DIR", "abi_tag", "build_into", "cache_dir", "compiler_available",
+__all__ = ["BuildError", "NoCompilerError", "PREBUILT_DIR", "abi_tag", "build_into", "building", "cache_dir", "compiler_available",
            "compiler_name", "compiler_output", "find_built", "no_compiler_message", "plain_c_library",
            "python_extension", "python_include", "require_compiler", "run_compiler", "single_file_library", "strip_unneeded"]
 
@@ -148,6 +149,13 @@ def build_into(target: Path, build: Callable[[str], object]) -> None:
     concurrent build of the same target may win; its result is then used). A ``target`` in the
     cache that the seed cache (``$DELTAFMI_CACHE_SEED``) holds is copied from there instead."""
     target.parent.mkdir(parents=True, exist_ok=True)
+    with building(target):
+        if target.exists():  # another process built it while this one waited
+            return
+        _build_into(target, build)
+
+
+def _build_into(target: Path, build: Callable[[str], object]) -> None:
     seeded = _seeded(target)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         if seeded is not None:
@@ -161,6 +169,30 @@ def build_into(target: Path, build: Callable[[str], object]) -> None:
                 raise
         else:
             os.makedirs(tmp)  # let TemporaryDirectory clean up the (now empty) name
+
+
+@contextmanager
+def building(target: Path) -> Iterator[None]:
+    """Hold the lock of ``target``'s build: processes that build the same piece at once (the
+    test suite's workers, a study's) wait for the first one and find its result, rather than
+    compiling it side by side. The lock files live in the temporary directory, never in the cache
+    (a wheel's prebuilt layer is a cache). Where locks cannot be taken, builds run unlocked and
+    race harmlessly (see :func:`build_into`)."""
+    try:
+        import fcntl
+        folder = Path(tempfile.gettempdir()) / "deltafmi-build-locks"
+        folder.mkdir(exist_ok=True)
+        name = hashlib.sha256(str(Path(target).resolve()).encode()).hexdigest()[:32]
+        handle = open(folder / name, "a")
+    except (ImportError, OSError):
+        yield
+        return
+    with handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        yield  # closing the file releases the lock
 
 
 def _seeded(target: Path) -> Optional[Path]:

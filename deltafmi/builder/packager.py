@@ -22,7 +22,7 @@ from deltafmi.runtime.clocks import clock_driven
 from deltafmi.runtime.model_description3 import model_description3_xml
 from deltafmi.runtime.native_kernels import DESCRIPTION as NATIVE_KERNELS
 from ..files import replaced_atomically
-from deltafmi.toolchain import (BuildError, NoCompilerError, cache_dir, compiler_available, no_compiler_message,
+from deltafmi.toolchain import (BuildError, NoCompilerError, building, cache_dir, compiler_available, no_compiler_message,
                                 plain_c_library, python_extension)
 from .compiler import CFLAGS, fmu_binary, native_source_files, python_runtime_config
 from .codegen.component_kernels import component_library
@@ -335,10 +335,15 @@ def _cached_or_built(source: Path, portable: bool, class_name: Optional[str], fm
     existing = list(target.glob("*.fmu")) if target.is_dir() else []
     if existing:
         return existing[0], stamps
-    cls = load_component_class(source, class_name)
-    BUILD_LOG.info("building %s FMU (cached afterwards in %s) ...", cls.__name__, _home_relative(cache_dir() / "fmus"))
-    return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable, class_name=class_name,
-                     fmi_version=fmi_version, resources=resources), stamps
+    with building(target):
+        existing = list(target.glob("*.fmu")) if target.is_dir() else []
+        if existing:  # another process built it while this one waited
+            return existing[0], stamps
+        cls = load_component_class(source, class_name)
+        BUILD_LOG.info("building %s FMU (cached afterwards in %s) ...", cls.__name__,
+                       _home_relative(cache_dir() / "fmus"))
+        return build_fmu(source, target / f"{cls.fmi_model_name()}.fmu", portable=portable, class_name=class_name,
+                         fmi_version=fmi_version, resources=resources), stamps
 
 
 def _shipped_resources(source: Path) -> list[Path]:

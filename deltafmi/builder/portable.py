@@ -187,16 +187,18 @@ def _soname(binary: Path) -> str:
     return found.group(1) if found else binary.name
 
 
+@functools.lru_cache(maxsize=None)
 def _resolved(binary: Path) -> dict[str, str]:
     """soname -> path, as the dynamic linker of this machine resolves ``binary``'s dependencies."""
     result = subprocess.run(["ldd", str(binary)], capture_output=True, text=True)
     return dict(re.findall(r"^\s*(\S+) => (/\S+)", result.stdout, re.M))
 
 
-def glibc_versions(binary: Path) -> set[tuple[int, ...]]:
+@functools.lru_cache(maxsize=None)
+def glibc_versions(binary: Path) -> frozenset[tuple[int, ...]]:
     """The GLIBC_x.y symbol versions ``binary`` requires."""
     result = subprocess.run(["readelf", "-V", "-W", str(binary)], capture_output=True, text=True)
-    return {tuple(int(x) for x in v.split(".")) for v in re.findall(r"Name: GLIBC_([0-9.]+)", result.stdout)}
+    return frozenset(tuple(int(x) for x in v.split(".")) for v in re.findall(r"Name: GLIBC_([0-9.]+)", result.stdout))
 
 
 def _is_elf(path: Path) -> bool:
@@ -329,21 +331,33 @@ def _python_licenses() -> list[tuple[Path, str]]:
 
 def _system_licenses(libraries: list[Path]) -> list[tuple[Path, str]]:
     """Debian's copyright file of the package that installed each library (dpkg -S)."""
+    # merged /usr: dpkg may know the file as /lib/... or /usr/lib/..., by its soname link or real name
+    candidates = {library: sorted({str(library), str(library.resolve()), str(library.resolve()).removeprefix("/usr"),
+                                   "/usr" + str(library)}) for library in libraries}
+    owners = _dpkg_owners(tuple(sorted({c for names in candidates.values() for c in names})))
     out = []
-    for library in libraries:
-        real = str(library.resolve())
-        # merged /usr: dpkg may know the file as /lib/... or /usr/lib/..., by its soname link or real name
-        candidates = {str(library), real, real.removeprefix("/usr"), "/usr" + str(library)}
-        package = ""
-        for candidate in sorted(candidates):
-            result = subprocess.run(["dpkg", "-S", candidate], capture_output=True, text=True)
-            if result.returncode == 0:
-                package = result.stdout.split(":")[0].strip()
-                break
+    for library, names in candidates.items():
+        package = next((owners[name] for name in names if name in owners), "")
         copyright_file = Path("/usr/share/doc") / package / "copyright"
         if package and copyright_file.exists():
             out.append((copyright_file, f"{library.name}/copyright"))
     return out
+
+
+@functools.lru_cache(maxsize=None)
+def _dpkg_owners(paths: tuple[str, ...]) -> dict[str, str]:
+    """Absolute path -> the Debian package that installed it, for those of ``paths`` dpkg knows: one
+    ``dpkg -S`` for all (it prints ``package[:arch]: path`` for each it knows, and exits 1 when
+    it does not know one)."""
+    if not paths or not shutil.which("dpkg"):
+        return {}
+    result = subprocess.run(["dpkg", "-S", *paths], capture_output=True, text=True)
+    owners = {}
+    for line in result.stdout.splitlines():
+        package, sep, path = line.partition(": ")
+        if sep and path in paths and not package.startswith("diversion by"):
+            owners[path] = package.split(":")[0].strip()
+    return owners
 
 
 _TRACE = r'''
