@@ -94,7 +94,9 @@ def test_oscillator_carries_no_mechanics_and_no_kernels(build_fmu_from_src):
     assert not [n for n in names if "mechanics" in n]
     assert not [n for n in names if n.endswith(EXT_SUFFIX)]  # (_values.abi3.so is the runtime's)
     assert _archive_modules(fmu) == set(runtime_modules(FMU_SRC / "oscillator.py"))
-    assert fmu.stat().st_size <= 300_000, f"{fmu.stat().st_size} bytes"
+    # the runtime's sources, their bytecode and the binary: 306 kB (the budget grew with the
+    # runtime: events from inputs, a component's own C step, modules shared between FMUs)
+    assert fmu.stat().st_size <= 320_000, f"{fmu.stat().st_size} bytes"
 
 
 @pytest.mark.parametrize("source", [s for s in SOURCES if not any(
