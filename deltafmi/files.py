@@ -1,9 +1,10 @@
 """Writing result files atomically: readers (another process, a crash) never see half a file."""
 from __future__ import annotations
 
+import atexit
 import os
+import secrets
 import signal
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
@@ -24,6 +25,23 @@ _STOPS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP} if hasattr(signal, "pthr
 USER_FILE_MODE = _user_file_mode()
 
 
+#: temporary files made and not yet replaced or removed: a signal's KeyboardInterrupt can land
+#: between a ``with`` statement's ``__enter__`` and its block (in contextlib's own code), where no
+#: ``finally`` of ours runs; the process then ends and removes them here (only its own: a forked
+#: child that exits must not remove its parent's)
+_UNFINISHED: set = set()
+
+
+@atexit.register
+def _remove_unfinished() -> None:
+    for pid, name in list(_UNFINISHED):
+        if pid == os.getpid():
+            try:
+                os.unlink(name)
+            except OSError:
+                pass
+
+
 def written_through(path: Path) -> Path:
     """Where writing ``path`` puts the file: the target of a symbolic link (the link stays a link),
     else ``path`` itself."""
@@ -42,7 +60,17 @@ def replaced_atomically(path: Path) -> Iterator[Path]:
     # held back until its name is known here
     held = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS) if _STOPS else None
     try:
-        handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
+        # the name is known before the file exists: the block above holds the signals back in
+        # this thread only, and another thread's receiving one lets its KeyboardInterrupt land
+        # anywhere here (in mkstemp it came after the file was made, before its name was returned)
+        while True:
+            name = str(path.parent / f".{path.name}.{secrets.token_hex(6)}.part")
+            try:
+                handle = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+                break
+            except FileExistsError:  # another's: never ours to remove
+                name = ""
+        _UNFINISHED.add((os.getpid(), name))
         os.close(handle)
         if held is not None:
             signal.pthread_sigmask(signal.SIG_SETMASK, held)
@@ -55,3 +83,4 @@ def replaced_atomically(path: Path) -> Iterator[Path]:
             signal.pthread_sigmask(signal.SIG_SETMASK, held)
         if name and os.path.exists(name):
             os.unlink(name)
+        _UNFINISHED.discard((os.getpid(), name))

@@ -50,3 +50,19 @@ def test_a_dangling_link_makes_its_target(tmp_path):
     link.symlink_to(tmp_path / "elsewhere.csv")
     _write(link, "new\n")
     assert link.is_symlink() and (tmp_path / "elsewhere.csv").read_text() == "new\n"
+
+
+def test_a_temporary_file_left_between_enter_and_block_is_removed_when_the_process_ends(tmp_path):
+    # a signal's KeyboardInterrupt can land in contextlib's __enter__ after the file was made and
+    # before the block (and its finally) starts: the process's exit removes the file
+    import subprocess
+    import sys
+
+    target = tmp_path / "run.csv"
+    code = ("import sys; from pathlib import Path; from deltafmi.files import replaced_atomically\n"
+            "manager = replaced_atomically(Path(sys.argv[1])); part = manager.__enter__()\n"
+            "assert part.exists(); print(part); raise SystemExit(130)")
+    done = subprocess.run([sys.executable, "-c", code, str(target)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 130, done.stderr
+    assert done.stdout.strip().endswith(".part")
+    assert list(tmp_path.iterdir()) == []

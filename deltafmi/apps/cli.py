@@ -7,12 +7,13 @@ input, 1 a failure, 128 + the signal for an interruption).
 """
 from __future__ import annotations
 
+import contextlib
 import errno
 import importlib
 import os
 import signal
 import sys
-from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
+from typing import TYPE_CHECKING, Any, Dict, Iterator, List, Optional, Tuple
 
 import click
 
@@ -125,8 +126,13 @@ class _Commands(click.Group):
 
         signals = InterruptOnSignals(again=True)  # SIGTERM, SIGHUP outside a run's own handling: one line too
         try:
-            with signals:
-                return super().invoke(ctx)
+            with signals, _quiet_swallowed_interrupts():
+                result = super().invoke(ctx)
+            if signals.received:
+                # the KeyboardInterrupt was swallowed where Python cannot pass it on (a __del__,
+                # a callback from C): the command went on, but it was asked to stop
+                raise KeyboardInterrupt
+            return result
         except KeyboardInterrupt:  # Ctrl-C (or a signal) while an FMU was built, a file read or written
             name = signal.Signals(signals.received).name if signals.received else "Ctrl-C"
             click.echo(f"interrupted ({name})", err=True)
@@ -135,6 +141,24 @@ class _Commands(click.Group):
             raise
         except Exception as error:  # noqa: BLE001 - the last line of defence: no traceback for a user
             raise click.exceptions.Exit(_reported(error)) from None
+
+
+@contextlib.contextmanager
+def _quiet_swallowed_interrupts() -> Iterator[None]:
+    """No "Exception ignored ... Traceback ... KeyboardInterrupt" for a signal that arrived in a
+    ``__del__`` or a callback from C: the command's signal handling has noted it and ends the
+    command as interrupted; other unraisable exceptions are reported as before."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable: Any) -> None:
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            previous(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous
 
 
 def _reported(error: Exception) -> int:
