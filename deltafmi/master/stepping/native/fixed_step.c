@@ -525,7 +525,7 @@ static void record(const Plan *p, double t, double *row)
 enum { MAX_THREADS = 256 };
 static const double SPIN_SECONDS = 50e-6;
 enum { WARM_STEPS = 8, PROBE_STEPS = 64, EXPLOIT_STEPS = 1024 };
-enum { BLOCK_STEPS = 64 }; /* see "blocks of steps" */
+enum { BLOCK_STEPS = 64, BLOCK_PROBE_STEPS = 64, BLOCK_EXPLOIT_STEPS = 4096 }; /* see "blocks of steps" */
 typedef void *(*SaveThread)(void);
 typedef void (*RestoreThread)(void *);
 typedef int (*GilCheck)(void);
@@ -538,6 +538,16 @@ typedef struct {
     size_t end;              /* atomic */
     char pad[64 - sizeof(uint64_t) - sizeof(size_t)]; /* one cache line each */
 } Block;
+
+/* Which way rounds go, on the threads or on the calling thread alone (see choose()); counted in steps */
+typedef struct {
+    int threaded;            /* on the threads now (else on the calling thread alone) */
+    long left;               /* steps left this way before the next decision */
+    int probing;             /* 0: exploiting; 1, 2: the first, the second way measured */
+    double spent[2];         /* seconds per step measured alone [0] and on the threads [1] */
+    double window;           /* seconds of this probe so far */
+    long probe, exploit;     /* steps measured each way; steps the faster way goes before measuring again */
+} Choice;
 
 typedef struct Pool Pool;
 typedef struct {
@@ -563,11 +573,8 @@ struct Pool {
     int quit;                /* atomic */
     SaveThread save_thread;  /* Python's */
     RestoreThread restore_thread;
-    int threaded;            /* the group steps on the threads now (else on the calling thread alone) */
-    long left;               /* group steps left this way before the next decision */
-    int probing;             /* 0: exploiting; 1, 2: the first, the second way measured */
-    double spent[2];         /* seconds per group step measured alone [0] and on the threads [1] */
-    double window;           /* seconds of this probe so far */
+    Choice groups;           /* the group steps' way */
+    Choice in_blocks;        /* the blocks of steps' way */
     /* blocks of steps (Plan.components): this round's kind and, for mode 1, its steps and rows */
     int mode;                /* 0: the ops [first, end) of a group at step k; 1: components through [k, k_end) */
     long k_end;
@@ -738,9 +745,10 @@ static Pool *pool_start(Plan *p)
     pthread_mutex_init(&pool->lock, NULL);
     pthread_cond_init(&pool->wake, NULL);
     pthread_cond_init(&pool->done, NULL);
-    pool->threaded = 1;
-    pool->probing = 0; /* first steps make the solvers (Python, milliseconds): not measured */
-    pool->left = WARM_STEPS;
+    /* first steps make the solvers (Python, milliseconds): not measured */
+    pool->groups = (Choice){.threaded = 1, .left = WARM_STEPS, .probe = PROBE_STEPS, .exploit = EXPLOIT_STEPS};
+    pool->in_blocks = (Choice){.threaded = 1, .left = BLOCK_STEPS, .probe = BLOCK_PROBE_STEPS,
+                            .exploit = BLOCK_EXPLOIT_STEPS};
     int wanted = p->threads - 1 < MAX_THREADS ? p->threads - 1 : MAX_THREADS;
     for (int i = 0; i < wanted; i++) {
         Worker *w = &pool->worker_args[pool->n_workers];
@@ -814,35 +822,42 @@ static void threaded_step(Pool *pool, size_t first, size_t end, long k, double t
     if (gil_held) pool->restore_thread(state);
 }
 
+/* After a round of `steps` steps that took `seconds` the way c->threaded says: the way of the next
+ * rounds (see the section's comment). */
+static void choose(Choice *c, double seconds, long steps)
+{
+    if (c->probing) c->window += seconds;
+    if ((c->left -= steps) > 0) return;
+    if (c->probing) {
+        c->spent[c->threaded] = c->window / (double)(c->probe - c->left);
+        c->window = 0.0;
+        if (c->probing == 1) { /* now the other way */
+            c->probing = 2;
+            c->threaded = !c->threaded;
+            c->left = c->probe;
+            return;
+        }
+        c->probing = 0;
+        c->threaded = c->spent[1] < c->spent[0];
+        c->left = c->exploit;
+        return;
+    }
+    c->probing = 1; /* measure both again, the way taken now first */
+    c->left = c->probe;
+}
+
 /* Steps ops [first, end) of one group at step k (time t): on the threads or on the calling thread
  * alone, whichever was faster when last measured (see the section's comment). */
 static void group_step(Pool *pool, size_t first, size_t end, long k, double t, bool gil_held)
 {
     double begin = now();
     pool->mode = 0;
-    if (pool->threaded) {
+    if (pool->groups.threaded) {
         threaded_step(pool, first, end, k, t, gil_held);
     } else {
         for (size_t i = first; i < end; i++) step_op(pool->p, i, k, t);
     }
-    if (pool->probing) pool->window += now() - begin;
-    if (--pool->left > 0) return;
-    if (pool->probing) {
-        pool->spent[pool->threaded] = pool->window / PROBE_STEPS;
-        pool->window = 0.0;
-        if (pool->probing == 1) { /* now the other way */
-            pool->probing = 2;
-            pool->threaded = !pool->threaded;
-            pool->left = PROBE_STEPS;
-            return;
-        }
-        pool->probing = 0;
-        pool->threaded = pool->spent[1] < pool->spent[0];
-        pool->left = EXPLOIT_STEPS;
-        return;
-    }
-    pool->probing = 1; /* measure both again, the way taken now first */
-    pool->left = PROBE_STEPS;
+    choose(&pool->groups, now() - begin, 1);
 }
 
 /* --- blocks of steps -----------------------------------------------------------------------
@@ -856,7 +871,10 @@ static void group_step(Pool *pool, size_t first, size_t end, long k, double t, b
  * values no op writes (unchanged within the run). A component that stops (a failure, a termination)
  * at some step leaves the rows before it complete: the others go on up to that step, and the stop
  * reported is the first in stepping order; a component further on when it stopped has taken those
- * steps too, as a group's units take the step one of them failed in. */
+ * steps too, as a group's units take the step one of them failed in. The blocks go on the threads
+ * or on the calling thread alone as group steps do (the first block on the threads, then
+ * BLOCK_PROBE_STEPS each way, then the faster for BLOCK_EXPLOIT_STEPS): on a loaded machine a
+ * worker preempted in the middle of a component's block holds the block up. */
 static int block_steps(Plan *p, Pool *pool, long k, long k_end, double *rows, long max_rows, long *k_done,
                        long *n_rows)
 {
@@ -881,7 +899,14 @@ static int block_steps(Plan *p, Pool *pool, long k, long k_end, double *rows, lo
         pool->stop_k = LONG_MAX;
         pool->stop_op = LONG_MAX;
         pool->mode = 1;
-        threaded_step(pool, 0, p->n_components, k, p->start + (double)k * p->h, !p->gil_released);
+        pool->k = k;
+        double begin = now();
+        if (pool->in_blocks.threaded) {
+            threaded_step(pool, 0, p->n_components, k, p->start + (double)k * p->h, !p->gil_released);
+        } else {
+            for (size_t c = 0; c < p->n_components; c++) component_steps(pool, c);
+        }
+        choose(&pool->in_blocks, now() - begin, kb - k);
         long stop = __atomic_load_n(&pool->stop_k, __ATOMIC_ACQUIRE);
         long last = stop < kb ? stop : kb;
         for (long j = k; j < last; j++) { /* the rows of the steps completed */
