@@ -1,8 +1,8 @@
 """Parallel units (``master: {threads: N}``): the plain-C FMUs of tests/third_party step on several
 threads, in the master's C loop and in its Python loop, and every result is the one of
 ``threads: 1`` bit for bit; Gauss-Seidel groups only units that take no input from one another; a
-deltafmi FMU whose step runs Python steps on the master's thread; a bad ``threads`` is bad input
-at its file and line."""
+deltafmi FMU whose step runs Python steps on the master's thread; units that exchange nothing step
+through blocks of steps with the same results; a bad ``threads`` is bad input at its file and line."""
 from __future__ import annotations
 
 import shutil

@@ -20,7 +20,9 @@ Which steps may run at once without changing a single bit of the results:
 
 Each step has the arguments it has with one thread; only who runs it differs. The C loop steps a
 group on its own POSIX threads (``native/fixed_step.c``); the Python loop on a
-:class:`StepPool`. A failing step is reported as it would be one after the other (the first in
+:class:`StepPool`. When every unit is pooled and they fall into components that exchange no
+values, the C loop's threads take whole components through blocks of steps instead
+(:meth:`.NativeLoop._plan_components`). A failing step is reported as it would be one after the other (the first in
 stepping order), except that the others of its group have taken the step too.
 """
 from __future__ import annotations
