@@ -273,6 +273,20 @@ def test_units_that_exchange_nothing_step_in_blocks_with_the_results_of_one_thre
     assert len(result["time"]) == 76 and np.allclose(np.diff(result["time"]), 4e-3)  # 0, 4 ms, ..., 0.3 s
 
 
+def test_blocks_of_steps_end_where_the_rows_are_full(c_fmus, tmp_path, monkeypatch):
+    """Room for 64 rows a call of the C loop (the least it takes): a call of more steps stops in a
+    block when the rows are full (ROWS_FULL) and the next goes on from there, as with one thread."""
+    from deltafmi.master.stepping import master as master_module
+
+    made = components_of_runs(monkeypatch)
+    monkeypatch.setattr(master_module, "_C_ROWS_BYTES", 1)
+    monkeypatch.setattr(master_module, "_C_STEPS", 100)  # the first call already more steps than rows
+    text = oscillators(c_fmus["Oscillator"], "jacobi", stop=0.5)
+    one = run(tmp_path, text, 1)
+    assert run(tmp_path, text, 2) == one and len(made[1]) == 3
+    assert len(one.decode().splitlines()) == 1 + 501
+
+
 def test_a_unit_ending_the_run_inside_a_block(c_fmus, tmp_path, monkeypatch):
     """A Ticker ends the run at its 25th tick (fmi2Discard, fmi2Terminated) in the middle of a block: the
     rows before are those of one thread, and so are the run's end and the Ticker's last row."""
