@@ -304,15 +304,13 @@ def contact_run(d: dict, c: "ContactEstimator", rows: List[int], kernels) -> tup
             parts[_n].append(time.thread_time() - start)
             return out
         setattr(ekf, name, wrapped)
-    estimates: List[np.ndarray] = []
+    estimates: list = []
 
     def sample(y, u):
-        est = ekf.step(y, u)
-        ekf.gap()
-        estimates.append(np.hstack([np.ravel(value) for value in est]))
+        estimates.append((ekf.step(y, u), ekf.gap()))
     cpu: List[float] = []
     times = timed(sample, [(d["y"][i], d["u"][i]) for i in rows], cpu)
-    return times, cpu, parts, np.array(estimates)
+    return times, cpu, parts, np.array([np.hstack([np.ravel(value) for value in (*est, gap)]) for est, gap in estimates])
 
 
 def contact(folder: Path) -> None:

@@ -45,7 +45,7 @@ from ..delta.jacobian import _SENSITIVITIES
 from ..delta.kinematics import forward_kinematics, inverse_kinematics
 from ..delta.params import DeltaParams
 from .delta_process_kernels import PYTHON_KERNELS, ProcessKernels
-from .kalman import transition_matrix, white_acceleration_noise
+from .kalman import white_acceleration_noise
 
 __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
 
@@ -153,7 +153,7 @@ class ContactEKF:
         self._tool_along = float(n @ np.array(settings.tool))
         self._Ry = settings.y_std ** 2 * np.eye(3)
         self._Rc = settings.contact_model_std ** 2
-        self._I = np.eye(_N)
+        self._I, self._I21 = np.eye(_N), np.eye(21)
         self._G = np.zeros((6, 18))
         T = settings.sample_period
         self._W = settings.acceleration_std ** 2 * white_acceleration_noise(T)
@@ -195,18 +195,23 @@ class ContactEKF:
         A = self._A
         A[_V, :18] = columns[:18, :9].T
         A[_V, _F] = columns[21:24, :9].T
-        Phi = transition_matrix(A, T)  # of [q, v, f]; s is constant (its row of the 22 is e_s)
-        Qd = self._Qd.copy()
-        TT = Tz @ Tz.T
-        (w00, w01), (w10, w11) = self._W
-        Qd[_Q, _Q], Qd[_Q, _V], Qd[_V, _Q], Qd[_V, _V] = w00 * TT, w01 * TT, w10 * TT, w11 * TT
+        # Phi = exp(A T) of [q, v, f] (s is constant: its row of the 22 is e_s) to (A T)^4 / 24, as
+        # kalman.transition_matrix, by Horner's rule: I + AT (I + AT/2 (I + AT/3 (I + AT/4)))
+        AT, I = A * T, self._I21
+        Phi = I + AT / 4.0
+        for k in (3.0, 2.0):
+            Phi = I + AT @ Phi / k
+        Phi = I + AT @ Phi
+        TT = Tz @ Tz.T  # the process noise of [q, v]: kron(W, TT) = [[W00 TT, W01 TT], [W10 TT, W11 TT]]
+        noise = (self._W[:, None, :, None] * TT[None, :, None, :]).reshape(18, 18)
         self.x[:18] = out[:18]
         P = np.empty((_N, _N))
         PhiP = Phi @ self.P[:21]
         P[:21, :21] = PhiP[:, :21] @ Phi.T
         P[:21, _S] = P[_S, :21] = PhiP[:, _S]
         P[_S, _S] = self.P[_S, _S]
-        P += Qd
+        P += self._Qd
+        P[:18, :18] += noise
         self.P = 0.5 * (P + P.T)
 
     # ------------------------------------------------------------------------------ outputs
@@ -265,7 +270,7 @@ class ContactEKF:
         """The Joseph update (:func:`.kalman.joseph_update`) with the servo angles, whose H selects
         three states: P H^T and H P H^T are columns and entries of P, I - K H is I but for them."""
         PHt = self.P[:, _SERVOS]
-        K = np.linalg.solve(PHt[_SERVOS] + self._Ry, PHt.T).T
+        K = PHt @ _inverse3(PHt[_SERVOS] + self._Ry)
         IKH = self._I.copy()
         IKH[:, _SERVOS] -= K
         self._correct(IKH, K @ self._Ry @ K.T, K @ residual)
@@ -282,3 +287,13 @@ class ContactEKF:
         self.x += dx
         self.x[:18] = self._kernels.project(self.params, self.x[_Q], self.x[_V])
 
+
+
+def _inverse3(m: np.ndarray) -> np.ndarray:
+    """The inverse of a regular 3 x 3 matrix by its adjugate (a fraction of numpy.linalg's call cost)."""
+    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
+    c00, c01, c02 = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * c00 + b * c01 + c * c02
+    return np.array([[c00, c * h - b * i, b * f - c * e],
+                     [c01, a * i - c * g, c * d - a * f],
+                     [c02, b * g - a * h, a * e - b * d]]) / det
