@@ -153,3 +153,12 @@ def test_in_the_fmu_the_compiled_functions_run_and_equal_python(fmu, interface, 
     x_ss = u / omega ** 2
     x = x_ss + (1.0 - x_ss) * np.exp(-zeta * omega * t) * (np.cos(wd * t) + zeta * omega / wd * np.sin(wd * t))
     assert np.max(np.abs(compiled["x[1]"] - x)) < 1e-6
+
+
+def test_the_master_knows_that_an_fmu_with_functions_only_steps_in_python(fmu, tmp_path):
+    """Its kernel library has no role the C layer calls: every step runs Python (it holds the GIL)."""
+    from fmpy import extract
+
+    from deltafmi.master.stepping.parallel import runs_python
+
+    assert runs_python(extract(str(fmu), str(tmp_path / "unzipped")))
