@@ -162,3 +162,14 @@ def test_the_master_knows_that_an_fmu_with_functions_only_steps_in_python(fmu, t
     from deltafmi.master.stepping.parallel import runs_python
 
     assert runs_python(extract(str(fmu), str(tmp_path / "unzipped")))
+
+
+def test_info_lists_the_compiled_functions(fmu):
+    from click.testing import CliRunner
+
+    from deltafmi.apps.cli import main
+
+    result = CliRunner().invoke(main, ["info", str(fmu)])
+    assert result.exit_code == 0, result.output
+    assert "compiled functions (C its Python calls): rate, energy_parts, root" in result.output
+    assert "compiled kernels" not in result.output
