@@ -52,7 +52,7 @@ __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
 #: slices of the estimator state X = [q, v, f, s]
 _Q, _V, _F, _S = slice(0, 9), slice(9, 18), slice(18, 21), 21
 _N = 22
-_SERVOS = [0, 3, 6]
+_SERVOS = slice(0, 9, 3)  # q_11, q_21, q_31: the servo angles
 
 
 @dataclass(frozen=True)
@@ -152,6 +152,7 @@ class ContactEKF:
         self._n = n
         self._tool_along = float(n @ np.array(settings.tool))
         self._Ry = settings.y_std ** 2 * np.eye(3)
+        self._ry = settings.y_std ** 2
         self._Rc = settings.contact_model_std ** 2
         self._I, self._I21 = np.eye(_N), np.eye(21)
         self._G = np.zeros((6, 18))
@@ -273,7 +274,7 @@ class ContactEKF:
         K = PHt @ _inverse3(PHt[_SERVOS] + self._Ry)
         IKH = self._I.copy()
         IKH[:, _SERVOS] -= K
-        self._correct(IKH, K @ self._Ry @ K.T, K @ residual)
+        self._correct(IKH, self._ry * (K @ K.T), K @ residual)
 
     def _correct_row(self, h: np.ndarray, residual: float) -> None:
         """The Joseph update with one scalar measurement of gradient h (the contact law)."""
