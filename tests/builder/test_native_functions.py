@@ -173,3 +173,28 @@ def test_info_lists_the_compiled_functions(fmu):
     assert result.exit_code == 0, result.output
     assert "compiled functions (C its Python calls): rate, energy_parts, root" in result.output
     assert "compiled kernels" not in result.output
+
+
+def test_functions_beside_kernel_roles_share_the_library(model):
+    """A component with a derivatives kernel and a function: one library has both, each works."""
+    from deltafmi.component import Component, Function, Kernel, NativeKernels, State
+
+    def decay(x):
+        return [-x[0]]
+
+    class Both(Component):
+        x = State([1.0])
+        native = NativeKernels(derivatives=Kernel(decay, "states"),
+                               functions={"root": Function(model.root, float)})
+
+        def derivatives(self, t):
+            return decay(self.x)
+
+    description = generate_component(Both).description
+    assert description["kernels"] == ["derivatives"] and list(description["functions"]) == ["root"]
+    try:
+        assert use_compiled_functions(Both)
+        functions = Both().native_functions
+        assert functions.compiled and functions.root(2.25) == 1.5
+    finally:
+        register_library(Both, None)
