@@ -139,6 +139,9 @@ class NativeKernels:
             if not (name.isidentifier() and name.isascii()) or not isinstance(function, Function):
                 raise ValueError(f"NativeKernels functions: {name!r} must be an ASCII identifier naming a "
                                  f"Function(func, *argument types)")
+            if name.startswith("_") or name == "compiled":
+                raise ValueError(f"NativeKernels functions: {name!r} is taken (names starting with '_' and "
+                                 f"'compiled' are the function set's own)")
         if self.mode not in MODES:
             raise ValueError(f"NativeKernels mode {self.mode!r} must be one of {', '.join(MODES)}")
         if self.jacobian is not None and self.jacobian.then is None:

@@ -119,6 +119,8 @@ def test_a_function_name_must_be_an_identifier(model):
 
     with pytest.raises(ValueError, match="'my rate' must be an ASCII identifier"):
         NativeKernels(functions={"my rate": Function(model.root, float)})
+    with pytest.raises(ValueError, match="'compiled' is taken"):
+        NativeKernels(functions={"compiled": Function(model.root, float)})
 
 
 @pytest.fixture(scope="module")
