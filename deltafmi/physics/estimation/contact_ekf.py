@@ -233,7 +233,8 @@ class ContactEKF:
 
     def gap(self) -> float:
         """The estimated gap n . (z + tool) - n_z s (m) of the tool tip from the surface."""
-        return self._contact_terms()[0]
+        n = self._n
+        return float(n @ self._kinematics()[0]) + self._tool_along - n[2] * float(self.x[_S])
 
     # ------------------------------------------------------------------------------ helpers
     def _kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -251,9 +252,9 @@ class ContactEKF:
 
     def _contact_terms(self) -> tuple[float, float, np.ndarray, np.ndarray]:
         v, n = self.x[_V], self._n
-        z, Jv, D, _ = self._kinematics()
-        gap = float(n @ z) + self._tool_along - n[2] * float(self.x[_S])
-        return gap, float(n @ Jv @ v), n @ Jv, n @ D
+        _, Jv, D, _ = self._kinematics()
+        nJv = n @ Jv
+        return self.gap(), float(nJv @ v), nJv, n @ D
 
     def _contact_row(self) -> tuple[np.ndarray, float]:
         """h_c(X) = n . f + k gap + c gap' and its gradient (22,)."""
