@@ -106,8 +106,13 @@ class SweepRun(NamedTuple):
     wrapup: float  #: after the last result reached the client
 
 
-def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) -> SweepRun:
-    """The cases on a LocalCluster of ``workers``."""
+def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path, streamed: bool = True) -> SweepRun:
+    """The cases on a LocalCluster of ``workers``; ``streamed``: each case's result sent to the
+    client as it finishes (the default), else only with its task's (the earlier way, with batches
+    of at most MAX_BATCH cases)."""
+    from deltafmi.apps.studies import driver
+
+    driver.STREAM_RESULTS = streamed
     started = time.perf_counter()
     last = 0.0  # when the last result reached the client
 
@@ -125,6 +130,7 @@ def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) 
                            on_result=arrived)
         end = time.perf_counter()
         store.close()
+    driver.STREAM_RESULTS = True
     assert report.failed == 0, "a benchmark case failed"
     return SweepRun(startup, end - wall, [store.rows[c.key] for c in cases], report.setup_time, end - last)
 
@@ -147,12 +153,14 @@ def per_case(rows: List[dict], wall: float, once: float) -> Dict[str, float]:
             "load": first["setup_time"]}
 
 
-def worker_cpu(planned: PlannedStudy, cases: List[Case]) -> Dict[str, float]:
+def worker_cpu(planned: PlannedStudy, cases: List[Case], snapshots: bool = True) -> Dict[str, float]:
     """CPU milliseconds per case (this thread's: a loaded machine moves it much less than wall
     time) of what a worker does for a case, the cases run one after another in this process on
     one FmuPool as a worker runs them (no Dask): the whole case, its stepping (the master's
     fixed-step loop) and the rest (reset, start values, initialization, wiring, metrics); medians
-    over the cases after the first (which loads the FMUs)."""
+    over the cases after the first (which loads the FMUs). ``snapshots``: units whose
+    initialization repeats the case before's are restored from an FMU state snapshot (the
+    default), else every unit is reset and initialized."""
     from deltafmi.apps.studies.pool import FmuPool
     from deltafmi.apps.studies.runner import CaseTemplate, run_case
     from deltafmi.master.stepping.master import Master
@@ -168,7 +176,7 @@ def worker_cpu(planned: PlannedStudy, cases: List[Case]) -> Dict[str, float]:
             stepping.append(time.thread_time() - start)
 
     template = CaseTemplate(planned.plan, planned.fmu_files)
-    pool = FmuPool()
+    pool = FmuPool(snapshots=snapshots)
     whole: List[float] = []
     Master._run_fixed = timed  # type: ignore[method-assign]
     try:
@@ -236,10 +244,27 @@ def main() -> None:
         print(f"  per-case overhead, 1 worker (the sweep's time per case minus the same cases' stepping, same run): "
               f"{1e3 * stats['overhead']:.2f} ms (target <= 1 ms; load average {os.getloadavg()[0]:.1f} "
               f"on {os.cpu_count()} cores)")
-        cpu = worker_cpu(planned, cases)
-        print(f"  per-case CPU on a worker (no Dask, this process, medians): {cpu['case']:.2f} ms a case, of which "
-              f"stepping {cpu['stepping']:.2f} ms; the rest (reset, start values, initialization, wiring, "
-              f"metrics) {cpu['rest']:.2f} ms")
+        # the same sweep with results only per task (batches of at most MAX_BATCH), alternating
+        unstreamed, streamed_again = [], []
+        for _ in range(max(1, args.repeats)):
+            unstreamed.append(sweep(planned, cases, 1, folder, streamed=False))
+            streamed_again.append(sweep(planned, cases, 1, folder))
+        overhead = {}
+        for label, rs in (("per task", unstreamed), ("streamed", streamed_again + runs[1])):
+            overhead[label] = statistics.median(
+                per_case(r.rows, r.wall, r.registration + r.wrapup)["overhead"] for r in rs)
+        print(f"  per-case overhead, 1 worker, results streamed per case (larger tasks): "
+              f"{1e3 * overhead['streamed']:.2f} ms; results per task as before (same run): "
+              f"{1e3 * overhead['per task']:.2f} ms; {overhead['per task'] / overhead['streamed']:.2f}x "
+              f"(load average {os.getloadavg()[0]:.1f})")
+        # without snapshots, then with, alternating: the same spell of load hits both
+        pairs = [(worker_cpu(planned, cases, snapshots=False), worker_cpu(planned, cases)) for _ in range(3)]
+        cpu = {k: statistics.median(after[k] for _, after in pairs) for k in pairs[0][1]}
+        plain = {k: statistics.median(before[k] for before, _ in pairs) for k in pairs[0][0]}
+        print(f"  per-case CPU on a worker (no Dask, this process, medians of 3 x {n - 1} cases): {cpu['case']:.2f} ms "
+              f"a case, of which stepping {cpu['stepping']:.2f} ms; the rest (reset or snapshot, start values, "
+              f"initialization, wiring, metrics) {cpu['rest']:.2f} ms; every unit reset and initialized "
+              f"(no snapshots, same run): {plain['rest']:.2f} ms, {plain['rest'] / cpu['rest']:.2f}x")
         print(f"  once per sweep: registration (FMUs shipped, stored, scenario resolved on the worker) "
               f"{1e3 * best[1].registration:.0f} ms; wrap-up (study removed from the workers, final tables) "
               f"{1e3 * best[1].wrapup:.0f} ms; per worker, its first case loads and instantiates the FMUs: "

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Dict, List
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from deltafmi.apps.cli import main
@@ -53,7 +54,14 @@ def restored_on_workers(client) -> int:
     return sum(client.run(lambda: worker_cache().pool.restored).values())
 
 
-def test_snapshot_cases_equal_plain_runs_on_dask(tmp_path):
+@pytest.fixture(scope="module")
+def client():
+    """A local cluster of one worker process (cases run one after another, in order)."""
+    with dask_client(workers=1) as made:
+        yield made
+
+
+def test_snapshot_cases_equal_plain_runs_on_dask(client, tmp_path):
     study = tmp_path / "snapshots.yaml"
     study.write_text(f"""\
 scenario: {SCENARIO}
@@ -68,12 +76,12 @@ result: {{timeseries: true}}
 """)
     planned = plan_study(load_study(study))
     results: List[CaseResult] = []
-    with dask_client(workers=1) as client:
-        store = open_store(planned, tmp_path / "snapshots.parquet", timeseries=True)
-        todo = store.open(planned.cases, fresh=True)
-        report = run_study(planned, store, todo, client=client, on_result=results.append)
-        store.close()
-        restored = restored_on_workers(client)
+    before = restored_on_workers(client)
+    store = open_store(planned, tmp_path / "snapshots.parquet", timeseries=True)
+    todo = store.open(planned.cases, fresh=True)
+    report = run_study(planned, store, todo, client=client, workers=1, on_result=results.append)
+    store.close()
+    restored = restored_on_workers(client) - before
     assert report.failed == 0 and len(results) == 5
     # one worker ran the five cases in order: the trajectory was restored in the four after the
     # first, the controller in the two whose pole was the case before's (cases 1 and 3)
@@ -145,3 +153,52 @@ metrics:
         assert fresh.status == restored.status == OK
         for name, column in fresh.timeseries.items():
             assert np.array_equal(restored.timeseries[name], column), name
+
+
+def test_results_reach_the_files_while_their_batch_runs(client, tmp_path):
+    """Without time series each case's result is streamed to the client as it finishes: rows of a
+    batch are in the journal while the batch's task is still running, and stopping the study
+    there keeps them (a re-run does only the rest)."""
+    study = tmp_path / "streamed.yaml"
+    study.write_text(f"""\
+scenario: {SCENARIO}
+vary:
+  grid:
+    plant.payload: {{from: 0.0, to: 1.1, step: 0.1}}
+    controller.pole: [6, 7]
+metrics:
+  max_error: {{signal: plant.z - trajectory.r, statistic: max}}
+""")
+    planned = plan_study(load_study(study))
+    assert len(planned.cases) == 24
+    store = open_store(planned, tmp_path / "streamed.parquet", timeseries=False)
+    todo = store.open(planned.cases, fresh=True)
+    seen: List[tuple] = []
+
+    def arrived(result: CaseResult) -> None:
+        processing = {key for keys in client.processing().values() for key in keys}
+        lines = store.journal.read_text().count("\n") - 1  # the first line names the study
+        seen.append((result.case, processing, lines))
+        if len(seen) == 12:
+            raise KeyboardInterrupt  # as Ctrl-C does, in the middle of the study
+
+    report = run_study(planned, store, todo, client=client, workers=1, on_result=arrived)
+    store.close()
+    assert report.interrupted
+    # a worker runs one task at a time, tasks hold cases in order and are named after their first
+    # case: a case that arrived while a task of a first case at or before it was running arrived
+    # while its own task ran (the batches after the first two hold several cases)
+    def first_case(key: str) -> int:
+        return int(key.split("-")[3])
+
+    during = [(case, lines) for case, processing, lines in seen
+              if any(first_case(key) <= case for key in processing)]
+    assert len(during) >= 3, seen
+    # each in the journal when it came
+    assert all(lines == [c for c, _, _ in seen].index(case) + 1 for case, lines in during), seen
+    # stopped there: the twelve (and what arrived meanwhile) stay recorded, a re-run does the rest
+    again = open_store(planned, tmp_path / "streamed.parquet", timeseries=False)
+    left = again.open(planned.cases)
+    again.close()
+    done = {case for case, _, _ in seen}
+    assert len(done) == 12 and not done & {c.id for c in left} and len(left) <= 12

@@ -13,14 +13,15 @@ values, and at ``fmi2ExitInitializationMode`` the FMU is set to the snapshot
 (another start value, other copied inputs, another stop time) the instance is reset and the
 calls that matched are made for real, and from there it initializes as it always did (and
 records the new transcript): a unit whose parameters change is always initialized afresh.
-Values are compared bit for bit (``-0.0`` is not ``0.0``; a NaN matches the same NaN).
+Values are compared bit for bit (``-0.0`` is not ``0.0``; a NaN matches the same NaN), ``1`` is not ``1.0``.
 
 Only FMUs that declare ``canGetAndSetFMUstate`` take snapshots; any call of another FMI
 function before initialization ends makes the instance real first.
 """
 from __future__ import annotations
 
-import math
+import struct
+from array import array
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
@@ -34,8 +35,12 @@ RECORDED_CALLS = ("setupExperiment", "setReal", "setInteger", "setBoolean", "set
 def _exact(value: Any) -> Any:
     """``value`` in a form whose ``==`` is bit equality for floats (sign of zero, NaN payload)."""
     if isinstance(value, float):
-        return ("f", value.hex()) if not math.isnan(value) else ("nan", value.hex())
+        return ("f", struct.pack("<d", value))
     if isinstance(value, (list, tuple)):
+        if all(type(v) is float for v in value):  # start values: their bytes in one go
+            return ("d", array("d", value).tobytes())
+        if all(type(v) is int for v in value):  # value references
+            return ("i", tuple(value))
         return tuple(_exact(v) for v in value)
     if isinstance(value, (bool, int, str, bytes)) or value is None:
         return (type(value).__name__, value)
