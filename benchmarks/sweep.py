@@ -131,7 +131,8 @@ def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path, 
         end = time.perf_counter()
         store.close()
     driver.STREAM_RESULTS = True
-    assert report.failed == 0, "a benchmark case failed"
+    errors = [row["error"] for row in store.rows.values() if row["status"] != "ok"]
+    assert report.failed == 0, f"{report.failed} benchmark case(s) failed: {errors[:3]}"
     return SweepRun(startup, end - wall, [store.rows[c.key] for c in cases], report.setup_time, end - last)
 
 

@@ -60,6 +60,8 @@ def test_streamed_results_allow_long_tasks_and_one_worker_takes_the_rest_at_once
     from deltafmi.apps.studies.batches import STREAMED_BATCH, STREAMED_SECONDS
 
     one = Batcher(cases(100), workers=1, streamed=True)
+    assert len(one.next().cases) == 100  # nothing to balance with: no case timed first
+    one = Batcher(cases(100), workers=1, streamed=True)
     one.observe(STREAMED_SECONDS / 1000)
     assert len(one.next().cases) == 100  # no other worker to share the end with
     big = Batcher(cases(10_000), workers=1, streamed=True)

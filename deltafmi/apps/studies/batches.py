@@ -10,7 +10,8 @@ one case each, until results tell how long a case takes.
 When the workers stream each case's result to the client as it finishes (a study without time
 series), a batch loses nothing when the study stops, and batches grow up to
 :data:`STREAMED_BATCH` cases of about :data:`STREAMED_SECONDS`; with one worker the end needs no
-balancing, and a batch may take all the cases left.
+balancing and no case needs timing first: a batch takes all the cases left, up to
+:data:`STREAMED_BATCH` (a task stops between two cases when the study is stopped).
 
 A worker holds one task at a time (``worker-saturation`` 1.0), so a worker that dies takes down
 exactly one task. Its cases then run again one per task, which is the retry: a case that kills
@@ -68,12 +69,13 @@ class Batcher:
 
     def size(self) -> int:
         """Cases for the next batch of new cases."""
+        alone = self.streamed and self.workers == 1  # nothing to balance, nothing lost when stopped
         if not self._walls:
-            return 1
+            return min(len(self._waiting), STREAMED_BATCH) if alone else 1
         per_case = max(statistics.median(self._walls), 1e-4)
         seconds, most = (STREAMED_SECONDS, STREAMED_BATCH) if self.streamed else (TASK_SECONDS, MAX_BATCH)
         wanted = max(1, round(seconds / per_case))
-        share = len(self._waiting) if self.streamed and self.workers == 1 else len(self._waiting) // (2 * self.workers)
+        share = len(self._waiting) if alone else len(self._waiting) // (2 * self.workers)
         return max(1, min(wanted, most, share))
 
     def next(self) -> Batch:

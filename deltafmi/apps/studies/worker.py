@@ -145,10 +145,24 @@ def run_cases_task(fingerprint: str, cases: List[Tuple[int, Dict[str, Any]]],
     template = cache.template(fingerprint)
     results = []
     for case, values in cases:
+        if results and worker is not None and _cancelled(worker):
+            break  # the study was stopped: the client takes nothing more from this task
         results.append(run_case(template, cache.pool, case, values, keep_timeseries, address))
         if topic is not None and worker is not None:
             worker.log_event(topic, result_message(results[-1]))
     return results
+
+
+def _cancelled(worker: Any) -> bool:
+    """Whether the client cancelled the task this thread runs (Dask lets a cancelled task run on
+    and drops its result)."""
+    try:
+        from distributed.worker import thread_state
+
+        task = worker.state.tasks.get(thread_state.key)
+        return task is None or task.state == "cancelled"
+    except Exception:  # noqa: BLE001 - another Dask's internals: run on, as Dask would
+        return False
 
 
 def result_message(result: CaseResult) -> Dict[str, Any]:
