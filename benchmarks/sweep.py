@@ -10,9 +10,11 @@ machine, all with the same cases:
    start-up is printed apart; FMU shipping, loading and every case's metrics included);
 3. the per-case overhead of the sweep against the simulation itself (the master's stepping loop
    on the worker): reset + initialization, and everything else (Dask, metrics, transfer); and in
-   all, the sweep's time per case minus those cases' stepping (target <= 1 ms); and the CPU time
-   of the same on a worker without Dask (this process, thread CPU time: what a loaded machine
-   moves least);
+   all, the sweep's time per case minus those cases' stepping (target <= 1 ms); the CPU time of
+   the same on a worker without Dask (this process, thread CPU time: what a loaded machine moves
+   least), with and without FMU state snapshots; and the CPU time per case of a whole 1-worker
+   sweep (worker process, client and scheduler) minus the stepping's, with results streamed per
+   case and per task;
 4. the scaling from 1 to 2 workers, against what two plain processes running the same cases at
    once (no Dask) get done on this machine against one alone: the hardware's own ceiling.
 
@@ -136,6 +138,33 @@ def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path, 
     return SweepRun(startup, end - wall, [store.rows[c.key] for c in cases], report.setup_time, end - last)
 
 
+def sweep_cpu(planned: PlannedStudy, cases: List[Case], folder: Path, streamed: bool = True) -> Dict[str, float]:
+    """CPU milliseconds per case of a 1-worker sweep of ``cases`` once the worker has loaded the
+    FMUs (a first case run before, untimed): the worker process (all its threads: the cases, Dask's
+    messages and its own upkeep) and this process (the client and the local scheduler); what a
+    loaded machine moves far less than wall time. ``streamed`` as for :func:`sweep`."""
+    from deltafmi.apps.studies import driver
+
+    driver.STREAM_RESULTS = streamed
+    try:
+        with dask_client(workers=1) as client:
+            client.wait_for_workers(1)
+            warm = open_store(planned, folder / "warm.parquet", timeseries=False)
+            run_study(planned, warm, warm.open(cases[:1], fresh=True), client=client, workers=1)
+            warm.close()
+            store = open_store(planned, folder / "cpu.parquet", timeseries=False)
+            todo = store.open(cases, fresh=True)
+            worker0, client0 = sum(client.run(time.process_time).values()), time.process_time()
+            report = run_study(planned, store, todo, client=client, workers=1)
+            worker1, client1 = sum(client.run(time.process_time).values()), time.process_time()
+            store.close()
+    finally:
+        driver.STREAM_RESULTS = True
+    assert report.failed == 0, "a benchmark case failed"
+    n = len(cases)
+    return {"worker": 1e3 * (worker1 - worker0) / n, "client": 1e3 * (client1 - client0) / n}
+
+
 def per_case(rows: List[dict], wall: float, once: float) -> Dict[str, float]:
     """Per-case figures of a 1-worker sweep of ``wall`` seconds, ``once`` of them registration and
     wrap-up: medians over the cases after the first (which loads the FMUs) of the simulation (the
@@ -245,19 +274,6 @@ def main() -> None:
         print(f"  per-case overhead, 1 worker (the sweep's time per case minus the same cases' stepping, same run): "
               f"{1e3 * stats['overhead']:.2f} ms (target <= 1 ms; load average {os.getloadavg()[0]:.1f} "
               f"on {os.cpu_count()} cores)")
-        # the same sweep with results only per task (batches of at most MAX_BATCH), alternating
-        unstreamed, streamed_again = [], []
-        for _ in range(max(1, args.repeats)):
-            unstreamed.append(sweep(planned, cases, 1, folder, streamed=False))
-            streamed_again.append(sweep(planned, cases, 1, folder))
-        overhead = {}
-        for label, rs in (("per task", unstreamed), ("streamed", streamed_again + runs[1])):
-            overhead[label] = statistics.median(
-                per_case(r.rows, r.wall, r.registration + r.wrapup)["overhead"] for r in rs)
-        print(f"  per-case overhead, 1 worker, results streamed per case (larger tasks): "
-              f"{1e3 * overhead['streamed']:.2f} ms; results per task as before (same run): "
-              f"{1e3 * overhead['per task']:.2f} ms; {overhead['per task'] / overhead['streamed']:.2f}x "
-              f"(load average {os.getloadavg()[0]:.1f})")
         # without snapshots, then with, alternating: the same spell of load hits both
         pairs = [(worker_cpu(planned, cases, snapshots=False), worker_cpu(planned, cases)) for _ in range(3)]
         cpu = {k: statistics.median(after[k] for _, after in pairs) for k in pairs[0][1]}
@@ -266,6 +282,19 @@ def main() -> None:
               f"a case, of which stepping {cpu['stepping']:.2f} ms; the rest (reset or snapshot, start values, "
               f"initialization, wiring, metrics) {cpu['rest']:.2f} ms; every unit reset and initialized "
               f"(no snapshots, same run): {plain['rest']:.2f} ms, {plain['rest'] / cpu['rest']:.2f}x")
+        # the whole sweep's CPU, results streamed per case and per task as before, alternating
+        sides: Dict[bool, List[Dict[str, float]]] = {False: [], True: []}
+        for _ in range(3):
+            for streamed in (False, True):
+                sides[streamed].append(sweep_cpu(planned, cases, folder, streamed))
+        total = {s: statistics.median(r["worker"] + r["client"] for r in sides[s]) for s in sides}
+        worker = {s: statistics.median(r["worker"] for r in sides[s]) for s in sides}
+        print(f"  per-case CPU of a 1-worker sweep, FMUs loaded (worker process + client and scheduler, medians of 3 "
+              f"x {n} cases): {total[True]:.2f} ms (worker {worker[True]:.2f}); around the stepping "
+              f"{total[True] - cpu['stepping']:.2f} ms (target <= 1 ms); results per task as before (same run): "
+              f"{total[False]:.2f} ms (worker {worker[False]:.2f}), around the stepping "
+              f"{total[False] - cpu['stepping']:.2f} ms, {(total[False] - cpu['stepping']) / (total[True] - cpu['stepping']):.2f}x "
+              f"(load average {os.getloadavg()[0]:.1f})")
         print(f"  once per sweep: registration (FMUs shipped, stored, scenario resolved on the worker) "
               f"{1e3 * best[1].registration:.0f} ms; wrap-up (study removed from the workers, final tables) "
               f"{1e3 * best[1].wrapup:.0f} ms; per worker, its first case loads and instantiates the FMUs: "

@@ -191,12 +191,15 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None,
     # A worker holds one task at a time (saturation 1.0): Dask counts a death against every task
     # assigned to the worker, so a task queued behind a crashing one must not be there. A death
     # is reported at once (allowed-failures 0): run_study retries the task's cases one by one.
-    # Workers do not sample their own stacks every 10 ms for the dashboard's profile: on a
-    # machine whose every core runs a worker that is time taken from the cases.
+    # Workers do not sample their own stacks every 10 ms for the dashboard's profile, and the
+    # processes check that their event loop is not blocked every second instead of every 20 ms
+    # (the largest part of what an idle worker, client and scheduler cost): on a machine whose
+    # every core runs a worker that is time taken from the cases.
     host, port = dashboard_address(dashboard)
     with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                           "distributed.scheduler.worker-saturation": 1.0,
-                          "distributed.worker.profile.enabled": False}):
+                          "distributed.worker.profile.enabled": False,
+                          "distributed.admin.tick.interval": "1s"}):
         try:
             # a (host, port) pair: Dask's own parsing of a string splits IPv6 addresses at every colon
             cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
