@@ -138,30 +138,36 @@ def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path, 
     return SweepRun(startup, end - wall, [store.rows[c.key] for c in cases], report.setup_time, end - last)
 
 
-def sweep_cpu(planned: PlannedStudy, cases: List[Case], folder: Path, streamed: bool = True) -> Dict[str, float]:
-    """CPU milliseconds per case of a 1-worker sweep of ``cases`` once the worker has loaded the
-    FMUs (a first case run before, untimed): the worker process (all its threads: the cases, Dask's
+def sweep_cpu(planned: PlannedStudy, cases: List[Case], streamed: bool = True) -> Dict[str, float]:
+    """CPU milliseconds per case of a 1-worker sweep of ``cases``, from the first result (the first
+    case loads the FMUs) to the last: the worker process (all its threads: the cases, Dask's
     messages and its own upkeep) and this process (the client and the local scheduler); what a
     loaded machine moves far less than wall time. ``streamed`` as for :func:`sweep`."""
     from deltafmi.apps.studies import driver
 
+    marks: List[tuple] = []
+
+    def mark(result: object) -> None:
+        if not marks or len(marks) == 1 and done[0] == len(cases) - 1:
+            marks.append((sum(client.run(time.process_time).values()), time.process_time()))
+        done[0] += 1
+
+    done = [0]
     driver.STREAM_RESULTS = streamed
+    folder = Path(tempfile.mkdtemp(prefix="deltafmi-bench-cpu-"))
     try:
         with dask_client(workers=1) as client:
             client.wait_for_workers(1)
-            warm = open_store(planned, folder / "warm.parquet", timeseries=False)
-            run_study(planned, warm, warm.open(cases[:1], fresh=True), client=client, workers=1)
-            warm.close()
             store = open_store(planned, folder / "cpu.parquet", timeseries=False)
-            todo = store.open(cases, fresh=True)
-            worker0, client0 = sum(client.run(time.process_time).values()), time.process_time()
-            report = run_study(planned, store, todo, client=client, workers=1)
-            worker1, client1 = sum(client.run(time.process_time).values()), time.process_time()
+            report = run_study(planned, store, store.open(cases, fresh=True), client=client, workers=1,
+                               on_result=mark)
             store.close()
     finally:
         driver.STREAM_RESULTS = True
-    assert report.failed == 0, "a benchmark case failed"
-    n = len(cases)
+        shutil.rmtree(folder, ignore_errors=True)
+    assert report.failed == 0 and len(marks) == 2, "a benchmark case failed"
+    (worker0, client0), (worker1, client1) = marks
+    n = len(cases) - 1
     return {"worker": 1e3 * (worker1 - worker0) / n, "client": 1e3 * (client1 - client0) / n}
 
 
@@ -275,10 +281,10 @@ def main() -> None:
               f"{1e3 * stats['overhead']:.2f} ms (target <= 1 ms; load average {os.getloadavg()[0]:.1f} "
               f"on {os.cpu_count()} cores)")
         # without snapshots, then with, alternating: the same spell of load hits both
-        pairs = [(worker_cpu(planned, cases, snapshots=False), worker_cpu(planned, cases)) for _ in range(3)]
+        pairs = [(worker_cpu(planned, cases, snapshots=False), worker_cpu(planned, cases)) for _ in range(5)]
         cpu = {k: statistics.median(after[k] for _, after in pairs) for k in pairs[0][1]}
         plain = {k: statistics.median(before[k] for before, _ in pairs) for k in pairs[0][0]}
-        print(f"  per-case CPU on a worker (no Dask, this process, medians of 3 x {n - 1} cases): {cpu['case']:.2f} ms "
+        print(f"  per-case CPU on a worker (no Dask, this process, medians of 5 x {n - 1} cases): {cpu['case']:.2f} ms "
               f"a case, of which stepping {cpu['stepping']:.2f} ms; the rest (reset or snapshot, start values, "
               f"initialization, wiring, metrics) {cpu['rest']:.2f} ms; every unit reset and initialized "
               f"(no snapshots, same run): {plain['rest']:.2f} ms, {plain['rest'] / cpu['rest']:.2f}x")
@@ -286,11 +292,11 @@ def main() -> None:
         sides: Dict[bool, List[Dict[str, float]]] = {False: [], True: []}
         for _ in range(3):
             for streamed in (False, True):
-                sides[streamed].append(sweep_cpu(planned, cases, folder, streamed))
+                sides[streamed].append(sweep_cpu(planned, cases, streamed))
         total = {s: statistics.median(r["worker"] + r["client"] for r in sides[s]) for s in sides}
         worker = {s: statistics.median(r["worker"] for r in sides[s]) for s in sides}
-        print(f"  per-case CPU of a 1-worker sweep, FMUs loaded (worker process + client and scheduler, medians of 3 "
-              f"x {n} cases): {total[True]:.2f} ms (worker {worker[True]:.2f}); around the stepping "
+        print(f"  per-case CPU of a 1-worker sweep, first result to last (worker process + client and scheduler, "
+              f"medians of 3 x {n - 1} cases): {total[True]:.2f} ms (worker {worker[True]:.2f}); around the stepping "
               f"{total[True] - cpu['stepping']:.2f} ms (target <= 1 ms); results per task as before (same run): "
               f"{total[False]:.2f} ms (worker {worker[False]:.2f}), around the stepping "
               f"{total[False] - cpu['stepping']:.2f} ms, {(total[False] - cpu['stepping']) / (total[True] - cpu['stepping']):.2f}x "

@@ -351,11 +351,16 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
                 on_result(result)
 
             def handle(item: Any) -> None:
-                """A result streamed by a worker (a dict), or a finished task (its future)."""
-                if isinstance(item, dict):
-                    case = submitted.get(item.get("case"))
-                    if case is not None:
-                        record(from_message(item, case.values))
+                """Results streamed by a worker (a list of dicts), or a finished task (its future)."""
+                if isinstance(item, (list, tuple)):  # msgpack may hand a list back as a tuple
+                    for i, message in enumerate(item):
+                        case = submitted.get(message.get("case")) if isinstance(message, dict) else None
+                        try:
+                            if case is not None:
+                                record(from_message(message, case.values))
+                        except BaseException:  # Ctrl-C: the rest of the list is stored by the drain
+                            arrived.put(list(item[i + 1:]))
+                            raise
                 elif item in running and item.status != "cancelled":  # cancelled: its cases are not done
                     for result in _results(item, running.pop(item), batcher, recorded):
                         record(result)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import atexit
 import hashlib
 import threading
+import time as _time
 from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Tuple
 
@@ -89,6 +90,10 @@ class WorkerCache:
             self.pool.close()
 
 
+#: seconds between two sends of the results a task has finished (one event each: an event per case
+#: costs the worker more than the case's own set-up)
+STREAM_SECONDS = 0.25
+
 _CACHE: Optional[WorkerCache] = None
 _CACHE_LOCK = threading.Lock()
 
@@ -130,10 +135,10 @@ class StudyPlugin(WorkerPlugin):
 
 def run_cases_task(fingerprint: str, cases: List[Tuple[int, Dict[str, Any]]],
                    keep_timeseries: bool, topic: Optional[str] = None) -> List[CaseResult]:
-    """The Dask task of a batch of cases ``(id, values)`` (runs on a worker). With ``topic``, each
-    case's result is also sent to the client as it finishes, as a Dask event of that topic
-    (:func:`result_message`; the client subscribes): what a batch has done reaches the client's
-    result files before the batch ends."""
+    """The Dask task of a batch of cases ``(id, values)`` (runs on a worker). With ``topic``, the
+    cases' results are also sent to the client as they finish, as Dask events of that topic (a
+    list of :func:`result_message`, at most every :data:`STREAM_SECONDS`; the client subscribes):
+    what a batch has done reaches the client's result files before the batch ends."""
     from distributed import get_worker
 
     cache = worker_cache()
@@ -143,13 +148,27 @@ def run_cases_task(fingerprint: str, cases: List[Tuple[int, Dict[str, Any]]],
     except ValueError:  # not on a worker (called directly)
         worker, address = None, "local"
     template = cache.template(fingerprint)
-    results = []
+    results: List[CaseResult] = []
+    unsent: List[Dict[str, Any]] = []
+    sent = _time.monotonic()
+
+    def send() -> None:
+        nonlocal unsent, sent
+        if unsent:
+            worker.log_event(topic, unsent)
+        unsent, sent = [], _time.monotonic()
+
+    streaming = topic is not None and worker is not None
     for case, values in cases:
         if results and worker is not None and _cancelled(worker):
-            break  # the study was stopped: the client takes nothing more from this task
+            if streaming:
+                send()  # the client takes nothing from a cancelled task but its events
+            break
         results.append(run_case(template, cache.pool, case, values, keep_timeseries, address))
-        if topic is not None and worker is not None:
-            worker.log_event(topic, result_message(results[-1]))
+        if streaming:
+            unsent.append(result_message(results[-1]))
+            if _time.monotonic() - sent >= STREAM_SECONDS:
+                send()
     return results
 
 
