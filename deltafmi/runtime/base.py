@@ -26,8 +26,8 @@ _ATOMS = frozenset((float, int, bool, str, bytes, complex, type(None)))
 
 
 def _unchangeable(value: Any) -> bool:
-    """Whether ``value`` cannot change in place: a number, a string, None, a tuple of such (a
-    NamedTuple too), or a frozen dataclass whose attributes are all such."""
+    """Whether ``value`` cannot change in place: a number, a string, None, or a tuple of such (a
+    NamedTuple too). Not a frozen dataclass: ``object.__setattr__`` still changes one."""
     kind = type(value)
     if kind in _ATOMS:
         return True
@@ -36,10 +36,7 @@ def _unchangeable(value: Any) -> bool:
             return False
         # a long tuple of numbers (a path's samples) checked without a call each
         return all(type(item) in _ATOMS or _unchangeable(item) for item in value)
-    params = getattr(kind, "__dataclass_params__", None)
-    if params is None or not params.frozen or not hasattr(value, "__dict__") or hasattr(kind, "__slots__"):
-        return False
-    return all(_unchangeable(item) for item in vars(value).values())
+    return False
 
 
 def _copied(attributes: dict) -> dict:
