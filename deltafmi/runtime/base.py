@@ -23,6 +23,31 @@ RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_item
                                 "_int_items", "_str", "_str_items", "_log_sink", "_control", "resources_dir",
                                 "own_modules", "_c_step", "_native_functions"})
 
+_ATOMS = frozenset((float, int, bool, str, bytes, complex, type(None)))
+
+
+def _unchangeable(value: Any) -> bool:
+    """Whether ``value`` cannot change in place: a number, a string, None, or a tuple of such (a
+    NamedTuple too). Not a frozen dataclass: ``object.__setattr__`` still changes one."""
+    kind = type(value)
+    if kind in _ATOMS:
+        return True
+    if isinstance(value, tuple):
+        if kind is not tuple and hasattr(value, "__dict__"):
+            return False
+        # a long tuple of numbers (a path's samples) checked without a call each
+        return all(type(item) in _ATOMS or _unchangeable(item) for item in value)
+    return False
+
+
+def _copied(attributes: dict) -> dict:
+    """A deep copy of ``attributes`` in which values that cannot change in place are shared (the
+    others copied together, so that the references among them are kept)."""
+    keep = {k for k, v in attributes.items() if _unchangeable(v)}
+    fresh = copy.deepcopy({k: v for k, v in attributes.items() if k not in keep})
+    return {k: v if k in keep else fresh[k] for k, v in attributes.items()}
+
+
 #: Component.log levels -> (FMI status, log category)
 LOG_LEVELS = {"debug": (0, "logComponent"), "info": (0, "logComponent"), "warning": (1, "logStatusWarning"),
               "error": (3, "logStatusError")}
@@ -165,15 +190,16 @@ class Component(ValueHolder):
 
     def internal_state(self) -> Any:
         """What an FMU state saves besides the variables (``fmi2GetFMUstate``): by default a deep
-        copy of the component's own attributes. Override with :meth:`restore_internal_state`
+        copy of the component's own attributes (those that cannot change in place, numbers and
+        tuples of them, are kept as they are). Override with :meth:`restore_internal_state`
         when an attribute cannot be copied (a handle of another library)."""
-        return copy.deepcopy({k: v for k, v in vars(self).items() if k not in RUNTIME_ATTRIBUTES})
+        return _copied({k: v for k, v in vars(self).items() if k not in RUNTIME_ATTRIBUTES})
 
     def restore_internal_state(self, state: Any) -> None:
         """Restore what :meth:`internal_state` returned (which stays valid for another restore)."""
         for key in [k for k in vars(self) if k not in RUNTIME_ATTRIBUTES]:
             delattr(self, key)
-        vars(self).update(copy.deepcopy(state))
+        vars(self).update(_copied(state))
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` to ``t + h``. Override only for purely discrete components."""

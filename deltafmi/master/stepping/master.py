@@ -44,6 +44,7 @@ from ..scenario.system import ResolvedComponent, Port, System
 from ..scenario.spec import grid_steps, too_many_steps
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
+from .initial_links import copy_initial_links
 from deltafmi.master.stepping.algebraic_loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
                           STEP_RETURNED, TERMINATED, UNSETTLED, BEHIND, NativeLoop)
@@ -403,13 +404,7 @@ class Master:
             unit.enter_initialization()
         by_name = self._by_name
         loops = self.initial_loops = InitialLoops(self.system.init_loops, by_name, self.system.scenario.master.loops)
-        for link in self.system.init_links:
-            if loops.solve_with(link):  # solved with the rest of its loop
-                continue
-            value = by_name[link.source.component].get_value(link.source)
-            if link.source.type == "Real":
-                value = link.factor * value + link.offset
-            by_name[link.target.component].set_value(link.target, value)
+        copy_initial_links(self.system.init_links, by_name, loops)
         for unit in self.units:
             unit.exit_initialization(self.start)
         for unit in self.units:
