@@ -123,6 +123,8 @@ class PegEKFSettings:
     reject_samples: int = 50  #: contact updates refused in a row after which the hole's covariance reopens
     hole_drift_std: float = 0.0  #: random walk of the hole's x, y (m/sqrt(s)): forgets old contacts
     tilt_drift_std: float = 0.0  #: random walk of the hole's tilt (rad/sqrt(s))
+    law_hole_std: float = 0.0  #: the contact law's error as a constant offset of the hole's x, y (m), considered
+    law_tilt_std: float = 0.0  #: the contact law's error as a constant offset of the hole's tilt (rad), considered
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
     jacobian_columns: int = 3  #: process-Jacobian columns (of 18) evaluated again per sample, in turn
@@ -134,7 +136,7 @@ class PegEKFSettings:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "angular_acceleration_std", "force_rate_std", "moment_rate_std",
-                     "hole_drift_std", "tilt_drift_std", "contact_threshold", "contact_gate", "pole",
+                     "hole_drift_std", "tilt_drift_std", "law_hole_std", "law_tilt_std", "contact_threshold", "contact_gate", "pole",
                      "contact_tolerance"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
@@ -188,6 +190,9 @@ class PegEKF:
         self._A: np.ndarray | None = None  # the process Jacobian d s'/d[s, W] (12, 18) as last evaluated
         self._column = 0  # the next of its columns to evaluate again
         self._R = np.diag([st.y_std ** 2] * 3 + [st.qw_std ** 2] * 3)
+        # the law's offset b (consider states, never estimated): its covariance and cross-covariance
+        self._Pbb = np.diag([st.law_hole_std ** 2] * 2 + [st.law_tilt_std ** 2] * 2)
+        self._Pxb = np.zeros((N_STATES, HOLE_STATES))
         self._Rc = np.diag([st.contact_force_std ** 2] * 3 + [st.contact_moment_std ** 2] * 3)
         T = st.sample_period
         W = white_acceleration_noise(T)
@@ -226,6 +231,7 @@ class PegEKF:
         self.x[_S] = propagate(self.p, self.w, self.m, s, u, tau, W, st.sample_period, st.pole, st.substeps)
         P = Phi @ self.P @ Phi.T + self._Q
         self.P = 0.5 * (P + P.T)
+        self._Pxb = Phi @ self._Pxb
 
     def update(self, y: Sequence[float], qw: Sequence[float]) -> None:
         """Measurement update with the joint angles, then the gated contact-law update."""
@@ -275,10 +281,12 @@ class PegEKF:
             if iteration:
                 c, J, active = wrench_jacobian(*args, self.x[_S], hi, hole_only=True)
             H[:, _H] = -J[:, N_REDUCED:]
+            Hb = H[:, _H]  # the law sees the hole h + b
             # the law linearised at hi, its innovation taken about the prior (Gauss-Newton step)
             innovation = c - self.x[_W] - H[:, _H] @ (prior - hi)
-            PHt = self.P[_H] @ H.T
-            S = H @ self.P @ H.T + self._Rc
+            PHt = self.P[_H] @ H.T + self._Pxb[_H] @ Hb.T
+            HPb = H @ self._Pxb @ Hb.T
+            S = H @ self.P @ H.T + HPb + HPb.T + Hb @ self._Pbb @ Hb.T + self._Rc
             new = prior + PHt @ np.linalg.solve(S, innovation)
             done = float(np.max(np.abs(new - hi) / scale)) < st.contact_tolerance
             hi = new
@@ -287,7 +295,7 @@ class PegEKF:
         self.consistency = float(innovation @ np.linalg.solve(S, innovation))
         if self.consistency <= st.contact_gate:
             self._rejected = 0
-            self._correct(H, innovation, self._Rc, _H)
+            self._correct(H, innovation, self._Rc, _H, Hb)
             return
         self._rejected += 1
         if self._rejected >= st.reject_samples:
@@ -302,10 +310,22 @@ class PegEKF:
         self.P[_H, :] = 0.0
         self.P[:, _H] = 0.0
         self.P[_H, _H] = np.diag([st.hole_std0 ** 2] * 2 + [st.tilt_std0 ** 2] * 2)
+        self._Pxb[_H] = 0.0
         self._rejected = 0
         self.reopened += 1
 
-    def _correct(self, H: np.ndarray, residual: np.ndarray, R: np.ndarray, updated: slice | None = None) -> None:
-        dx, self.P = joseph_update(self.P, H, residual, R, updated)
-        self.x += dx
+    def _correct(self, H: np.ndarray, residual: np.ndarray, R: np.ndarray, updated: slice | None = None,
+                 Hb: np.ndarray | None = None) -> None:
+        """The Joseph update of the states (``updated``: only those), the law's offset b considered
+        (its columns Hb, none: the batch does not see it)."""
+        if not self._Pbb.any():
+            dx, self.P = joseph_update(self.P, H, residual, R, updated)
+            self.x += dx
+            return
+        n = N_STATES
+        Pa = np.block([[self.P, self._Pxb], [self._Pxb.T, self._Pbb]])
+        Ha = np.hstack([H, np.zeros((H.shape[0], HOLE_STATES)) if Hb is None else Hb])
+        dx, Pa = joseph_update(Pa, Ha, residual, R, slice(0, n) if updated is None else updated)
+        self.x += dx[:n]
+        self.P, self._Pxb = Pa[:n, :n], Pa[:n, n:]
 
