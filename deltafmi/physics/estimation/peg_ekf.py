@@ -90,6 +90,8 @@ from .wrist_process import N_REDUCED, process_jacobian, propagate, tool_pose
 __all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES"]
 
 _S, _W, _H = slice(0, 12), slice(12, 18), slice(18, 22)
+#: the standard normal quantile of the manoeuvre detector's chi-square gate (probability 0.999)
+MANOEUVRE_Z = 3.090
 N_STATES = N_REDUCED + 6 + HOLE_STATES
 _SERVOS = [0, 3, 6]
 
@@ -101,10 +103,10 @@ class PegEKFSettings:
     sample_period: float = 1e-3  #: s
     y_std: float = 1e-6  #: servo-angle noise (rad)
     qw_std: float = 1e-6  #: wrist-angle noise (rad)
-    acceleration_std: float = 0.01  #: white plate-acceleration noise (m/s^2/sqrt(Hz))
-    angular_acceleration_std: float = 0.5  #: white wrist-joint acceleration noise (rad/s^2/sqrt(Hz))
-    force_rate_std: float = 30.0  #: random walk of the contact force (N/s/sqrt(Hz))
-    moment_rate_std: float = 2.0  #: random walk of the contact moment (N m/s/sqrt(Hz))
+    acceleration_std: float = 1e-4  #: white plate-acceleration noise (m/s^2/sqrt(Hz))
+    angular_acceleration_std: float = 1e-3  #: white wrist-joint acceleration noise (rad/s^2/sqrt(Hz))
+    force_rate_std: float = 30.0  #: random walk of the contact force in a manoeuvre (N/s/sqrt(Hz))
+    moment_rate_std: float = 2.0  #: random walk of the contact moment in a manoeuvre (N m/s/sqrt(Hz))
     position_std0: float = 1e-5  #: initial plate position (m) about forward kinematics of y0
     angle_std0: float = 1e-5  #: initial wrist angles (rad) about qw0
     velocity_std0: float = 0.01  #: initial plate velocity (m/s) about rest
@@ -121,10 +123,13 @@ class PegEKFSettings:
     contact_iterations: int = 10  #: largest number of Gauss-Newton iterations of a contact-law update (1: EKF)
     contact_tolerance: float = 1e-3  #: an iteration's largest hole change, in prior standard deviations, that ends them
     reject_samples: int = 50  #: contact updates refused in a row after which the hole's covariance reopens
-    hole_drift_std: float = 0.0  #: random walk of the hole's x, y (m/sqrt(s)): forgets old contacts
-    tilt_drift_std: float = 0.0  #: random walk of the hole's tilt (rad/sqrt(s))
-    law_hole_std: float = 0.0  #: the contact law's error as a constant offset of the hole's x, y (m), considered
-    law_tilt_std: float = 0.0  #: the contact law's error as a constant offset of the hole's tilt (rad), considered
+    hole_drift_std: float = 1e-3  #: random walk of the hole's x, y (m/sqrt(s)): forgets old contacts
+    tilt_drift_std: float = 1e-2  #: random walk of the hole's tilt (rad/sqrt(s))
+    law_hole_std: float = 3e-5  #: the contact law's error as a constant offset of the hole's x, y (m), considered
+    law_tilt_std: float = 3e-3  #: the contact law's error as a constant offset of the hole's tilt (rad), considered
+    steady_force_rate_std: float = 1.0  #: the force's random walk while no manoeuvre is detected (0: force_rate_std)
+    steady_moment_rate_std: float = 0.05  #: the moment's random walk while no manoeuvre is detected (0: moment_rate_std)
+    manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
     jacobian_columns: int = 3  #: process-Jacobian columns (of 18) evaluated again per sample, in turn
@@ -136,15 +141,25 @@ class PegEKFSettings:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "angular_acceleration_std", "force_rate_std", "moment_rate_std",
-                     "hole_drift_std", "tilt_drift_std", "law_hole_std", "law_tilt_std", "contact_threshold", "contact_gate", "pole",
+                     "hole_drift_std", "tilt_drift_std", "law_hole_std", "law_tilt_std", "steady_force_rate_std",
+                     "steady_moment_rate_std", "contact_threshold", "contact_gate", "pole",
                      "contact_tolerance"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
-        for name in ("substeps", "contact_samples", "reject_samples", "contact_iterations", "jacobian_columns"):
+        for name in ("substeps", "contact_samples", "reject_samples", "contact_iterations", "jacobian_columns",
+                     "manoeuvre_samples"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
         if int(self.jacobian_columns) > 18:
             raise ValueError(f"estimator setting jacobian_columns must be <= 18, got {self.jacobian_columns}")
+
+
+def chi_square_quantile(dof: int, z: float) -> float:
+    """The chi-square quantile with dof degrees of freedom at the standard normal quantile z
+    (Wilson-Hilferty: dof (1 - 2 / (9 dof) + z sqrt(2 / (9 dof)))^3; relative error below 1e-3 for
+    dof >= 30 at z = 3.09)."""
+    a = 2.0 / (9.0 * dof)
+    return dof * (1.0 - a + z * np.sqrt(a)) ** 3
 
 
 class PegEstimate(NamedTuple):
@@ -202,6 +217,14 @@ class PegEKF:
         Q[_W, _W] = np.diag([st.force_rate_std ** 2] * 3 + [st.moment_rate_std ** 2] * 3) * T
         Q[_H, _H] = np.diag([st.hole_drift_std ** 2] * 2 + [st.tilt_drift_std ** 2] * 2) * T
         self._Q = Q
+        # the wrench's random walk between manoeuvres (the steady levels), and the detector's state
+        steady = [st.steady_force_rate_std or st.force_rate_std] * 3 + [st.steady_moment_rate_std or st.moment_rate_std] * 3
+        self._Q_steady = Q.copy()
+        self._Q_steady[_W, _W] = np.diag(np.square(steady)) * T
+        self._nis: list[float] = []  # the joint angles' last normalised innovations r^T S^-1 r
+        self._nis_gate = chi_square_quantile(6 * st.manoeuvre_samples, MANOEUVRE_Z)
+        self.manoeuvre = False  #: a manoeuvre (an impact: the wrench changing fast) is detected
+        self.manoeuvres = 0  #: manoeuvres detected so far
 
     # --------------------------------------------------------------------------------- cycle
     def step(self, y: Sequence[float], qw: Sequence[float], u: Sequence[float], tau: Sequence[float]) -> PegEstimate:
@@ -229,7 +252,7 @@ class PegEKF:
         Phi = np.eye(N_STATES)
         Phi[:18, :18] = transition_matrix(A, st.sample_period)
         self.x[_S] = propagate(self.p, self.w, self.m, s, u, tau, W, st.sample_period, st.pole, st.substeps)
-        P = Phi @ self.P @ Phi.T + self._Q
+        P = Phi @ self.P @ Phi.T + (self._Q if self.manoeuvre else self._Q_steady)
         self.P = 0.5 * (P + P.T)
         self._Pxb = Phi @ self._Pxb
 
@@ -241,6 +264,7 @@ class PegEKF:
         H[3:6, 3:6] = np.eye(3)
         residual = np.concatenate([np.asarray(y, float) - q[_SERVOS], np.asarray(qw, float) - self.x[3:6]])
         st = self.settings
+        self._detect_manoeuvre(H, residual)
         self._correct(H, residual, self._R)
         touching = float(np.linalg.norm(self.x[12:15])) > st.contact_threshold
         self._touching = self._touching + 1 if touching else 0
@@ -300,6 +324,25 @@ class PegEKF:
         self._rejected += 1
         if self._rejected >= st.reject_samples:
             self._reopen_hole()
+
+    def _detect_manoeuvre(self, H: np.ndarray, residual: np.ndarray) -> None:
+        """The wrench's process noise level from the joint angles' innovations (Bar-Shalom, Li,
+        Kirubarajan 2001, section 11.2: adjustable process noise): while the sum of the last
+        manoeuvre_samples normalised innovations stays within its chi-square 0.999 quantile the
+        wrench walks at the steady levels; above it, at force_rate_std and moment_rate_std, and the
+        wrench's covariance first gets what that walk would have added over the window."""
+        st = self.settings
+        if not (st.steady_force_rate_std or st.steady_moment_rate_std):
+            return
+        S = H @ self.P @ H.T + self._R
+        self._nis.append(float(residual @ np.linalg.solve(S, residual)))
+        del self._nis[:-st.manoeuvre_samples]
+        manoeuvre = len(self._nis) == st.manoeuvre_samples and sum(self._nis) > self._nis_gate
+        if manoeuvre and not self.manoeuvre:
+            window = st.manoeuvre_samples
+            self.P[_W, _W] += window * (self._Q[_W, _W] - self._Q_steady[_W, _W])
+            self.manoeuvres += 1
+        self.manoeuvre = manoeuvre
 
     def _reopen_hole(self) -> None:
         """The law has disagreed with the estimate for reject_samples samples in a row: the hole's
