@@ -89,10 +89,10 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
                                   description="Estimated contact force above which the peg is taken to touch")
     contact_samples = Parameter(5, type=int, min=1,
                                 description="Samples in a row above contact_threshold before the contact law applies")
-    hole_drift_std = Parameter(1e-3, unit="m", min=0.0,
+    hole_drift_std = Parameter(2e-3, unit="m", min=0.0,
                                description="Random walk of the hole's x, y (per sqrt(s); 0: constant): the filter "
                                "forgets old contacts, whose linearisation may have been wrong")
-    tilt_drift_std = Parameter(1e-2, unit="rad", min=0.0,
+    tilt_drift_std = Parameter(2e-2, unit="rad", min=0.0,
                                description="Random walk of the hole's tilt (per sqrt(s); 0: constant)")
     law_hole_std = Parameter(3e-5, unit="m", min=0.0,
                              description="The contact law's error as a constant offset of the hole's x, y, considered "

@@ -123,8 +123,8 @@ class PegEKFSettings:
     contact_iterations: int = 10  #: largest number of Gauss-Newton iterations of a contact-law update (1: EKF)
     contact_tolerance: float = 1e-3  #: an iteration's largest hole change, in prior standard deviations, that ends them
     reject_samples: int = 50  #: contact updates refused in a row after which the hole's covariance reopens
-    hole_drift_std: float = 1e-3  #: random walk of the hole's x, y (m/sqrt(s)): forgets old contacts
-    tilt_drift_std: float = 1e-2  #: random walk of the hole's tilt (rad/sqrt(s))
+    hole_drift_std: float = 2e-3  #: random walk of the hole's x, y (m/sqrt(s)): forgets old contacts
+    tilt_drift_std: float = 2e-2  #: random walk of the hole's tilt (rad/sqrt(s))
     law_hole_std: float = 3e-5  #: the contact law's error as a constant offset of the hole's x, y (m), considered
     law_tilt_std: float = 3e-3  #: the contact law's error as a constant offset of the hole's tilt (rad), considered
     steady_force_rate_std: float = 1.0  #: the force's random walk while no manoeuvre is detected (0: force_rate_std)
