@@ -205,3 +205,15 @@ def test_the_iterated_contact_update_explains_the_felt_wrench():
     assert abs(h[0] - 0.0018) < 1e-6 and abs(h[1]) < 1e-6
     single, h1 = contact_update(1, 20e-6)
     assert np.abs(single[:3]).max() > 0.1 and abs(h1[0] - 0.0018) > 5e-6
+
+
+def test_the_manoeuvre_gate_is_the_chi_square_quantile():
+    """The detector's gate, Wilson-Hilferty's chi-square quantile at z = 3.090, against scipy's
+    chi2.ppf(0.999, dof): within 2e-3 relative from 30 degrees of freedom (measured 1.7e-3 at 30,
+    7e-4 at 60; the detector sums 6 x manoeuvre_samples of them: 60 by default)."""
+    from scipy.stats import chi2
+
+    from deltafmi.physics.estimation.peg_ekf import MANOEUVRE_Z, chi_square_quantile
+
+    for dof in (30, 60, 120, 600):
+        assert chi_square_quantile(dof, MANOEUVRE_Z) == pytest.approx(chi2.ppf(0.999, dof), rel=2e-3)

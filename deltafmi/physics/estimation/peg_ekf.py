@@ -156,7 +156,7 @@ class PegEKFSettings:
 
 def chi_square_quantile(dof: int, z: float) -> float:
     """The chi-square quantile with dof degrees of freedom at the standard normal quantile z
-    (Wilson-Hilferty: dof (1 - 2 / (9 dof) + z sqrt(2 / (9 dof)))^3; relative error below 1e-3 for
+    (Wilson-Hilferty: dof (1 - 2 / (9 dof) + z sqrt(2 / (9 dof)))^3; relative error below 2e-3 for
     dof >= 30 at z = 3.09)."""
     a = 2.0 / (9.0 * dof)
     return dof * (1.0 - a + z * np.sqrt(a)) ** 3
