@@ -35,12 +35,15 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     Listens to the servo angles y, the wrist angles qw, the servo torques u and the wrist torques
     tau. Process model: the plant's DAE in its six coordinates (plate position, wrist angles) and
     rates, with the contact wrench on the peg (force at the tool tip and moment about it, world,
-    the contact multipliers' resultant) as a random walk; the hole's x, y and tilt are constants
-    tied to the wrench by the peg's contact law (the plant's, with the parameters below as the
+    the contact multipliers' resultant) as a random walk, slow between manoeuvres and fast in one
+    (an impact, detected from the joint angles' innovations); the hole's x, y and tilt are a slow
+    random walk tied to the wrench by the peg's contact law (the plant's, with the parameters below as the
     estimator models them) while the estimated force exceeds contact_threshold for
     contact_samples samples, in an iterated (Gauss-Newton) update of at most contact_iterations
     linearisations; a contact the law cannot place at the current hole estimate moves the estimate
-    first along the felt lateral force (deltafmi/physics/estimation/peg_contact.py).
+    first along the felt lateral force (deltafmi/physics/estimation/peg_contact.py); the law's own
+    error is a constant offset of the hole, considered (law_hole_std, law_tilt_std), so that the
+    hole's reported uncertainty covers its error.
     hole_position and hole_tilt are the NOMINAL hole, the prior's mean. The filter starts at the
     first y and qw, at rest. sensor_noise adds seeded Gaussian noise to y and qw before the
     filter sees them. The first sample is one sample_period after the start. Pure Python with

@@ -10,13 +10,25 @@ inputs: the servo torques u and the wrist torques tau, held over each sample per
   (acceleration_std on the plate, angular_acceleration_std on the wrist joints);
 - W = [F, M]: the contact wrench on the peg, force at the tool tip and moment about it, world
   frame (the resultant of the contact multipliers; the plant's contact_force, contact_moment),
-  a random walk (force_rate_std, moment_rate_std);
+  a random walk at two levels (Bar-Shalom, Li, Kirubarajan 2001, section 11.2: adjustable process
+  noise): steady_force_rate_std, steady_moment_rate_std while the joint angles' innovations are
+  consistent (a contact force sliding on the chamfer or in the bore changes slowly), and
+  force_rate_std, moment_rate_std in a manoeuvre (an impact): detected when the sum of the last
+  manoeuvre_samples normalised innovations r^T S^-1 r exceeds its chi-square 0.999 quantile, the
+  wrench's covariance then first given what the fast walk would have added over that window;
 - h = [x, y, tilt_x, tilt_y]: the hole (:mod:`.peg_contact`), with a prior (the nominal hole,
-  hole_std0, tilt_std0); constants by default, or a random walk (hole_drift_std, tilt_drift_std):
-  the hole does not move, but the law's updates are linearised at the estimate, and a walk makes
-  the filter forget the old ones (fading memory) instead of trusting each of thousands forever.
-  The price: it also forgets what the chamfer told across a bore contact's normal (measured in
-  docs/assembly.md), so it is off by default.
+  hole_std0, tilt_std0) and a slow random walk (hole_drift_std, tilt_drift_std): the hole does
+  not move, but the law's updates are linearised at the estimate, and a walk makes the filter
+  forget the old ones (fading memory) instead of trusting each of thousands forever, so that an
+  estimate the first chamfer contacts put in the wrong place can leave it;
+- b (4, not in the state: a Schmidt "consider" parameter, never estimated): the contact law's
+  error as a constant offset of the hole, the law seeing h + b (law_hole_std, law_tilt_std). The
+  law's errors (the wrench's estimate, the pose's, the linearisation over its switching contact
+  points) are correlated over the whole contact, not white: updates with white noise alone would
+  each be taken as new information, and the hole's covariance would shrink without bound while
+  its error does not. The considered offset keeps what all the updates together can tell at the
+  offset's level: the filter carries b's covariance and its cross-covariance with the state, so
+  that the Joseph form stays the exact covariance of its suboptimal gain (Simon 2006, section 7.4).
 
 The hole is tied in by the contact law as a pseudo-measurement, as :mod:`.contact_ekf` ties the
 surface height, applied while the filter believes the peg touches (|F| > contact_threshold for
@@ -51,15 +63,14 @@ law explains the felt wrench (:func:`.peg_contact.locate_hole`); the updates the
 A contact constrains h along its normals only: in a bore with clearance, the hole's position
 across the contact normal stays at what the chamfer told (its standard deviation says so).
 
-Consistency (benchmarks/estimator_consistency.py, Monte Carlo over seeded encoder noise): the
-iterated update removes the lock-in of the noise-free run (a first chamfer contact linearised at
-the wrong hole, then every correction refused), but with encoder noise the filter is still far
-from consistent: the impacts' wrench errors (newtons, correlated over milliseconds) and the
-contact law's many near-equivalent contact configurations move the hole by tens to hundreds of
-micrometres while its covariance says micrometres (docs/assembly.md has the figures). A lock-in
-shows as the gate refusing the law reject_samples times in a row while in contact; the hole's
-covariance then goes back to its prior's about the current mean (its correlations dropped), and
-the law's updates start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that
+Consistency (tests/models/test_peg_estimator_consistency.py, benchmarks/estimator_consistency.py:
+Monte Carlo over seeded encoder noise on the real plant; docs/assembly.md has the figures): with
+the wrench's two levels, the considered law offset and the hole's walk, the mean NEES of the hole
+(4 dof) and of the force over the contact lie within their chi-square intervals; with the wrench
+at its fast level throughout and no law error (the previous defaults) the hole's NEES was 1e4-1e5
+and the force's 0.1. A lock-in shows as the gate refusing the law reject_samples times in a row
+while in contact; the hole's covariance then goes back to its prior's about the current mean
+(its correlations dropped), and the law's updates start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that
 detects its innovations are inconsistent raises its uncertainty instead of refusing the data).
 
 Cycle per sample t_k (:meth:`PegEKF.step`), as ContactEKF: predict from t_(k-1) with the torques
@@ -128,7 +139,7 @@ class PegEKFSettings:
     law_hole_std: float = 3e-5  #: the contact law's error as a constant offset of the hole's x, y (m), considered
     law_tilt_std: float = 3e-3  #: the contact law's error as a constant offset of the hole's tilt (rad), considered
     steady_force_rate_std: float = 1.0  #: the force's random walk while no manoeuvre is detected (0: force_rate_std)
-    steady_moment_rate_std: float = 0.05  #: the moment's random walk while no manoeuvre is detected (0: moment_rate_std)
+    steady_moment_rate_std: float = 0.05  #: the moment's walk while no manoeuvre is detected (0: moment_rate_std)
     manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
@@ -218,7 +229,8 @@ class PegEKF:
         Q[_H, _H] = np.diag([st.hole_drift_std ** 2] * 2 + [st.tilt_drift_std ** 2] * 2) * T
         self._Q = Q
         # the wrench's random walk between manoeuvres (the steady levels), and the detector's state
-        steady = [st.steady_force_rate_std or st.force_rate_std] * 3 + [st.steady_moment_rate_std or st.moment_rate_std] * 3
+        steady = ([st.steady_force_rate_std or st.force_rate_std] * 3
+                  + [st.steady_moment_rate_std or st.moment_rate_std] * 3)
         self._Q_steady = Q.copy()
         self._Q_steady[_W, _W] = np.diag(np.square(steady)) * T
         self._nis: list[float] = []  # the joint angles' last normalised innovations r^T S^-1 r
