@@ -98,10 +98,9 @@ def test_without_noise_the_estimates_match_the_plant(clean):
     plant's BDF at rtol 1e-6 against the filter's RK4), moment 5e-12 N m, no false contact. The
     impact on the chamfer is a train of ~5 ms bounces up to 10.3 N (the controller's force
     feedback no longer takes the half-sample lead): the force's random walk smooths them, but the
-    momentum they exchange, the impulse over 0.3 s (0.458 N s), is right to 2.1 % (measured; 0.34 %
-    with the walk at its manoeuvre level, 30 N/s/sqrt(Hz), throughout: between detected manoeuvres
-    the walk's steady level, 1 N/s/sqrt(Hz), lags the force rising on the chamfer at ~8 N/s until
-    the joint angles' innovations flag it; bound 5 %). Sliding in the bore (0.57 N of wall and
+    momentum they exchange, the impulse over 0.3 s (0.458 N s), is right to 2.08 % (measured;
+    between detected manoeuvres the walk's steady level, 1 N/s/sqrt(Hz), lags the force rising on
+    the chamfer at ~8 N/s until the joint angles' innovations flag it; bound 5 %). Sliding in the bore (0.57 N of wall and
     friction forces): force error 0.0045 N rms, moment 1.8e-4 N m (measured); the bounds are 2 to 3
     times these."""
     print(f"free force error {clean['free_force']:.4f} N rms, impulse error "
@@ -118,7 +117,7 @@ def test_without_noise_the_hole_and_the_impact_are_found(clean):
     0.1 um and below 0.01 mrad: the law's updates on exact data, the hole's slow random walk
     letting the estimate leave where the first chamfer bounces put it); the worst force error
     during the bounces within 0.75 of their peak (measured 0.70: a 5 ms bounce is over before a
-    random walk follows it; 0.72 with the walk at 30 N/s/sqrt(Hz) throughout)."""
+    random walk follows it)."""
     print(f"hole error {clean['hole'] * 1e6:.2f} um (std {clean['hole_std'] * 1e6:.2f} um), tilt error "
           f"{clean['tilt'] * 1e3:.3f} mrad, worst impact error {clean['impact_error'] / clean['impact_peak']:.3f} "
           f"of the peak")
