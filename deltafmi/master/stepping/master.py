@@ -55,9 +55,11 @@ from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 __all__ = ["Master", "NativeLoop"]
 
-#: steps of the first call of the C loop; later calls take twice as many while a call is shorter
-#: than _C_SECONDS, up to _C_MAX_STEPS (stop signals and progress are looked at in between)
+#: steps of the first call of the C loop; while a call is shorter than _C_SECONDS the next takes as
+#: many steps as would fill _C_SECONDS at its pace, between twice and _C_GROWTH times as many, up to
+#: _C_MAX_STEPS (stop signals and progress are looked at in between)
 _C_STEPS = 64
+_C_GROWTH = 8
 _C_MAX_STEPS = 4096
 _C_SECONDS = 0.005
 _C_ROWS_BYTES = 8 << 20
@@ -530,21 +532,28 @@ class Master:
         n_steps = min(k_end, fixed.n_steps)
         stop_signals, progress = self.stop_signals, self.progress
         k, chunk, most = self.steps, self._fixed_chunk, self._fixed_most
+        background = isinstance(self.writer, BackgroundRows)
         while k < n_steps:
             if stop_signals.received:
                 raise KeyboardInterrupt
             if native is not None and native.ready():
-                begin = _time.perf_counter()
-                k = self._steps_in_c(native, fixed, k, min(n_steps, k + chunk))
-                if chunk < most and _time.perf_counter() - begin < _C_SECONDS:
-                    chunk = self._fixed_chunk = min(2 * chunk, most)
+                begin, k_begin = _time.perf_counter(), k
+                end = min(n_steps, k + chunk)
+                if background and end == n_steps and n_steps - k > 4 * _C_STEPS:
+                    # the last rows become text after the stepping: a short last call leaves few
+                    end = n_steps - max(_C_STEPS, (n_steps - k) // 8)
+                k = self._steps_in_c(native, fixed, k, end)
+                spent = _time.perf_counter() - begin
+                if chunk < most and spent < _C_SECONDS:
+                    fill = int((k - k_begin) * _C_SECONDS / max(spent, 1e-9))
+                    chunk = self._fixed_chunk = min(max(2 * chunk, min(fill, _C_GROWTH * chunk)), most)
                 progress.update(self.time)
             else:
                 self._step_in_python(actions, fixed, k)
                 if k & 63 == 0:
                     progress.update(self.time)
                 k += 1
-        if isinstance(self.writer, BackgroundRows):
+        if background:
             self.writer.drain()  # the stepping ends with its rows written
 
     def _step_pool(self) -> StepPool:
