@@ -178,7 +178,8 @@ def peg_truth(folder: Path, stop: float) -> dict:
                drop=("estimator",))
     return {"time": c["time"], "y": vector(c, "plant.y", 3), "qw": vector(c, "plant.qw", 3),
             "u": vector(c, "controller.u", 3), "tau": vector(c, "controller.tau", 3),
-            "force": vector(c, "plant.contact_force", 3), "hole": vector(c, "plant.hole_position", 3)}
+            "force": vector(c, "plant.contact_force", 3), "moment": vector(c, "plant.contact_moment", 3),
+            "hole": np.column_stack([vector(c, "plant.hole_position", 3)[:, :2], vector(c, "plant.hole_tilt", 2)])}
 
 
 def component() -> "PegEstimator":  # noqa: F821

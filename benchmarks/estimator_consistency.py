@@ -9,11 +9,14 @@ qw (the noise the filter assumes, ``--noise``, unless told otherwise), from ``--
 ``--stop`` s (the first touch of the chamfer is at ~1.015 s; starting shortly before it saves
 the free approach, the filter starting there at rest as it does at t = 0). For a consistent
 filter the mean NEES over R runs of a d-dimensional error is chi-square(d R) / R: within
-[chi2.ppf(0.025, d R), chi2.ppf(0.975, d R)] / R at 95 %. Printed at several instants and
-averaged over the bore, for the settings given (``--set name=value``, PegEKFSettings names) and
-for the baseline: the extended filter's single linearisation of the contact law and the whole
-process Jacobian every sample (contact_iterations 1, jacobian_columns 18); and with the hole's
-random walk set (hole_drift_std, tilt_drift_std; off by default).
+[chi2.ppf(0.025, d R), chi2.ppf(0.975, d R)] / R at 95 %. Printed at several instants, averaged
+over the contact (from 1.05 s) and over the bore (from 1.3 s), for the hole's x, y (d = 2), the
+hole with its tilt (d = 4) and the force (d = 3): for the defaults with the settings given
+(``--set name=value``, PegEKFSettings names), for the baseline, the previous defaults (the
+wrench a random walk at 30 N/s and 2 N m/s per sqrt(Hz) throughout, model-error accelerations
+0.01 m/s^2 and 0.5 rad/s^2 per sqrt(Hz), no law error considered, the hole constant), and for
+the defaults without each of their noise models in turn. First, what the tuning rests on: the
+plant's contact force and moment rates (rms of the change per sample / sqrt(T)) by phase.
 
 ContactEstimator (--estimator contact): scenarios/contact_estimation.yaml recorded once without
 the estimator, ContactEKF replayed from 0.2 s before the touch to the end (the press at rest),
@@ -23,7 +26,7 @@ takes ContactEKFSettings names. On data from the filter's own model (a random-wa
 model error) tests/physics/test_contact_estimator_consistency.py asserts the force's NEES.
 
 Usage: python benchmarks/estimator_consistency.py [--estimator peg|contact] [--runs 50] [--noise RAD]
-       [--start 0.9] [--stop 1.6]
+       [--start 0.9] [--stop 1.6] [--set NAME=VALUE ...] [--variants 6]
 """
 from __future__ import annotations
 
@@ -56,31 +59,50 @@ def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start:
             ekf = PegEKF(c.robot_params(), c._wrist, c._mount, c._hole, c._peg, c._law, settings, read[:3],
                          read[3:])
         est = ekf.step(read[:3], read[3:], d["u"][i], d["tau"][i])
-        eh, ef = est.hole[:2] - d["hole"][i][:2], est.force - d["force"][i]
-        rows.append((t[i], eh @ np.linalg.solve(ekf.P[18:20, 18:20], eh), ef @ np.linalg.solve(ekf.P[12:15, 12:15], ef),
-                     np.linalg.norm(eh)))
+        eh, ef = est.hole - d["hole"][i], est.force - d["force"][i]
+        rows.append((t[i], eh[:2] @ np.linalg.solve(ekf.P[18:20, 18:20], eh[:2]),
+                     ef @ np.linalg.solve(ekf.P[12:15, 12:15], ef), np.linalg.norm(eh[:2]),
+                     eh @ np.linalg.solve(ekf.P[18:22, 18:22], eh), np.abs(eh[2:]).max()))
     a = np.array(rows)
-    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened, a[:, 3]
+    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened, a[:, 3], a[:, 4], a[:, 5]
 
 
 def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
-    H, F, reopened, E = [], [], [], []
+    H, F, H4, reopened, E, A = [], [], [], [], [], []
     began = time.perf_counter()
     for r in range(args.runs):
-        t, h, f, n, e = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
+        t, h, f, n, e, h4, a = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
         E.append(e[-1])
+        A.append(a[-1])
         H.append(h)
         F.append(f)
+        H4.append(h4)
         reopened.append(n)
-    H, F, R = np.array(H), np.array(F), args.runs
+    H, F, H4, R = np.array(H), np.array(F), np.array(H4), args.runs
     print(f"  {R} runs in {time.perf_counter() - began:.0f} s; hole covariance reopened in {np.count_nonzero(reopened)} "
-          f"runs; hole error at the end: median {np.median(E) * 1e6:.1f} um, largest {np.max(E) * 1e6:.1f} um")
-    for name, nees, dof in (("hole x, y", H, 2), ("force", F, 3)):
+          f"runs; hole error at the end: x-y median {np.median(E) * 1e6:.1f} um, largest {np.max(E) * 1e6:.1f} um, "
+          f"tilt median {np.median(A) * 1e3:.2f} mrad, largest {np.max(A) * 1e3:.2f} mrad")
+    for name, nees, dof in (("hole x, y", H, 2), ("hole, tilt", H4, 4), ("force", F, 3)):
         lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
         at = [(q, nees[:, np.argmin(np.abs(t - q))].mean()) for q in (1.1, 1.2, 1.4, args.stop) if q <= args.stop]
-        bore = nees[:, t > 1.3].mean() if np.any(t > 1.3) else float("nan")
+        contact = nees[:, t >= 1.05].mean() if np.any(t >= 1.05) else float("nan")
+        bore = nees[:, t >= 1.3].mean() if np.any(t >= 1.3) else float("nan")
         print(f"  {name:10} mean NEES " + ", ".join(f"t={q:.1f} s: {v:.3g}" for q, v in at)
-              + f"; over the bore {bore:.3g}; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
+              + f"; in contact {contact:.3g}, in the bore {bore:.3g}; 95 % interval for dof {dof}: "
+              f"[{lo:.3f}, {hi:.3f}]")
+
+
+def force_rates(d: dict) -> None:
+    """The plant's contact force and moment rates by phase: rms of the change per sample / sqrt(T)."""
+    t = d["time"]
+    on_grid = np.abs(t / 1e-3 - np.round(t / 1e-3)) < 1e-6
+    t, F, M = t[on_grid], d["force"][on_grid], d["moment"][on_grid]
+    print("the plant's contact force rate (N/s per sqrt(Hz)) and moment rate (N m/s per sqrt(Hz)), rms over axes:")
+    for name, lo, hi in (("impact (1.0-1.05 s)", 1.0, 1.05), ("chamfer (1.05-1.2 s)", 1.05, 1.2),
+                         ("bore (from 1.3 s)", 1.3, t[-1])):
+        m = (t[1:] > lo) & (t[1:] <= hi)
+        f, n = (float(np.sqrt(np.mean(np.diff(X, axis=0)[m] ** 2) / 1e-3)) for X in (F, M))
+        print(f"  {name:22} force {f:.3g}, moment {n:.3g}")
 
 
 def contact_replay(d: dict, c: "ContactEstimator", settings, noise: float, seed: int, start: float) -> tuple:
@@ -130,6 +152,7 @@ def main() -> None:
     parser.add_argument("--start", type=float, default=0.9)
     parser.add_argument("--stop", type=float, default=1.6)
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--variants", type=int, default=6, help="how many of the settings variants to run (peg)")
     args = parser.parse_args()
     if args.estimator == "contact":
         contact_monte_carlo(args)
@@ -138,13 +161,22 @@ def main() -> None:
     args.noise = args.noise or c._settings.y_std
     with tempfile.TemporaryDirectory() as tmp:
         d = peg_truth(Path(tmp), args.stop)
-    integers = {"contact_iterations", "jacobian_columns", "reject_samples", "contact_samples", "substeps"}
+    integers = {"contact_iterations", "jacobian_columns", "reject_samples", "contact_samples", "substeps",
+                "manoeuvre_samples"}
     changes = {k: int(v) if k in integers else float(v) for k, v in (s.split("=", 1) for s in args.set)}
-    baseline = replace(c._settings, contact_iterations=1, jacobian_columns=18)
-    drift = replace(c._settings, hole_drift_std=3e-3, tilt_drift_std=3e-2)
-    for label, settings in (("baseline: the extended filter (one linearisation of the law, full Jacobian)", baseline),
-                            ("now (defaults, with --set)", replace(c._settings, **changes)),
-                            ("with the hole's random walk 3e-3 m, 3e-2 rad per sqrt(s)", drift)):
+    force_rates(d)
+    now = replace(c._settings, **changes)
+    baseline = replace(now, acceleration_std=0.01, angular_acceleration_std=0.5, steady_force_rate_std=0.0,
+                       steady_moment_rate_std=0.0, law_hole_std=0.0, law_tilt_std=0.0, hole_drift_std=0.0,
+                       tilt_drift_std=0.0)
+    variants = [("now (defaults, with --set)", now), ("baseline: the previous defaults", baseline),
+                ("without the manoeuvre detector (the wrench at 30 N/s, 2 N m/s throughout)",
+                 replace(now, steady_force_rate_std=0.0, steady_moment_rate_std=0.0)),
+                ("without the law's considered offset", replace(now, law_hole_std=0.0, law_tilt_std=0.0)),
+                ("without the hole's random walk", replace(now, hole_drift_std=0.0, tilt_drift_std=0.0)),
+                ("with the previous model-error accelerations (0.01, 0.5)",
+                 replace(now, acceleration_std=0.01, angular_acceleration_std=0.5))]
+    for label, settings in variants[:args.variants]:
         print(label)
         monte_carlo(d, c, settings, args)
 

@@ -22,7 +22,9 @@ EstimatorHoleModel = hole_parameters("nominal", "as the estimator models it")
 _SETTINGS = ("sample_period", "y_std", "qw_std", "acceleration_std", "angular_acceleration_std", "force_rate_std",
              "moment_rate_std", "velocity_std0", "rate_std0", "force_std0", "moment_std0", "hole_std0", "tilt_std0",
              "contact_force_std", "contact_moment_std", "contact_threshold", "contact_samples", "reject_samples",
-             "hole_drift_std", "tilt_drift_std", "pole", "substeps", "contact_iterations", "jacobian_columns")
+             "hole_drift_std", "tilt_drift_std", "law_hole_std", "law_tilt_std", "steady_force_rate_std",
+             "steady_moment_rate_std", "manoeuvre_samples", "pole", "substeps", "contact_iterations",
+             "jacobian_columns")
 
 
 class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel, SampledComponent):
@@ -33,12 +35,15 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     Listens to the servo angles y, the wrist angles qw, the servo torques u and the wrist torques
     tau. Process model: the plant's DAE in its six coordinates (plate position, wrist angles) and
     rates, with the contact wrench on the peg (force at the tool tip and moment about it, world,
-    the contact multipliers' resultant) as a random walk; the hole's x, y and tilt are constants
-    tied to the wrench by the peg's contact law (the plant's, with the parameters below as the
+    the contact multipliers' resultant) as a random walk, slow between manoeuvres and fast in one
+    (an impact, detected from the joint angles' innovations); the hole's x, y and tilt are a slow
+    random walk tied to the wrench by the peg's contact law (the plant's, with the parameters below as the
     estimator models them) while the estimated force exceeds contact_threshold for
     contact_samples samples, in an iterated (Gauss-Newton) update of at most contact_iterations
     linearisations; a contact the law cannot place at the current hole estimate moves the estimate
-    first along the felt lateral force (deltafmi/physics/estimation/peg_contact.py).
+    first along the felt lateral force (deltafmi/physics/estimation/peg_contact.py); the law's own
+    error is a constant offset of the hole, considered (law_hole_std, law_tilt_std), so that the
+    hole's reported uncertainty covers its error.
     hole_position and hole_tilt are the NOMINAL hole, the prior's mean. The filter starts at the
     first y and qw, at rest. sensor_noise adds seeded Gaussian noise to y and qw before the
     filter sees them. The first sample is one sample_period after the start. Pure Python with
@@ -56,15 +61,25 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     sample = Clock(period="sample_period", description="Sample instants: t_start + k * sample_period")
     y_std = Parameter(1e-6, unit="rad", min=0.0, description="Servo-angle noise (standard deviation)")
     qw_std = Parameter(1e-6, unit="rad", min=0.0, description="Wrist-angle noise (standard deviation)")
-    acceleration_std = Parameter(0.01, unit="m/s2", min=0.0,
+    acceleration_std = Parameter(1e-4, unit="m/s2", min=0.0,
                                  description="Model error as white plate-acceleration noise (per sqrt(Hz))")
-    angular_acceleration_std = Parameter(0.5, unit="rad/s2", min=0.0,
+    angular_acceleration_std = Parameter(1e-3, unit="rad/s2", min=0.0,
                                          description="Model error as white wrist-joint acceleration noise "
                                          "(per sqrt(Hz))")
     force_rate_std = Parameter(30.0, unit="N/s", min=0.0,
-                               description="Random walk of the contact force (per sqrt(Hz)): faster, noisier")
+                               description="Random walk of the contact force in a manoeuvre (an impact; per "
+                               "sqrt(Hz))")
     moment_rate_std = Parameter(2.0, unit="N.m/s", min=0.0,
-                                description="Random walk of the contact moment (per sqrt(Hz))")
+                                description="Random walk of the contact moment in a manoeuvre (per sqrt(Hz))")
+    steady_force_rate_std = Parameter(1.0, unit="N/s", min=0.0,
+                                      description="Random walk of the contact force between manoeuvres (per "
+                                      "sqrt(Hz); 0: force_rate_std always)")
+    steady_moment_rate_std = Parameter(0.05, unit="N.m/s", min=0.0,
+                                       description="Random walk of the contact moment between manoeuvres (per "
+                                       "sqrt(Hz); 0: moment_rate_std always)")
+    manoeuvre_samples = Parameter(10, type=int, min=1,
+                                  description="Samples of the joint angles' normalised innovations whose sum, above "
+                                  "its chi-square 0.999 quantile, detects a manoeuvre")
     velocity_std0 = Parameter(0.01, unit="m/s", min=0.0, description="Initial plate velocity uncertainty (about rest)")
     rate_std0 = Parameter(0.01, unit="rad/s", min=0.0, description="Initial wrist rate uncertainty (about rest)")
     force_std0 = Parameter(1.0, unit="N", min=0.0, description="Initial contact force uncertainty (about zero)")
@@ -77,11 +92,16 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
                                   description="Estimated contact force above which the peg is taken to touch")
     contact_samples = Parameter(5, type=int, min=1,
                                 description="Samples in a row above contact_threshold before the contact law applies")
-    hole_drift_std = Parameter(0.0, unit="m", min=0.0,
+    hole_drift_std = Parameter(2e-3, unit="m", min=0.0,
                                description="Random walk of the hole's x, y (per sqrt(s); 0: constant): the filter "
                                "forgets old contacts, whose linearisation may have been wrong")
-    tilt_drift_std = Parameter(0.0, unit="rad", min=0.0,
+    tilt_drift_std = Parameter(2e-2, unit="rad", min=0.0,
                                description="Random walk of the hole's tilt (per sqrt(s); 0: constant)")
+    law_hole_std = Parameter(3e-5, unit="m", min=0.0,
+                             description="The contact law's error as a constant offset of the hole's x, y, considered "
+                             "(not estimated): the least uncertainty the law leaves")
+    law_tilt_std = Parameter(3e-3, unit="rad", min=0.0,
+                             description="The contact law's error as a constant offset of the hole's tilt, considered")
     reject_samples = Parameter(50, type=int, min=1,
                                description="Contact-law updates refused in a row (the estimate locked in a wrong "
                                "hole) after which the hole's uncertainty goes back to its prior")

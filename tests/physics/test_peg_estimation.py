@@ -142,12 +142,13 @@ def test_the_filter_finds_a_constant_wrench_on_the_moving_robot():
     plant's, and a constant is what the random walk tracks without lag). The 2.3 N exceed the
     contact threshold, so the filter takes them for a contact, but no hole along the felt lateral
     force makes the contact law explain this wrench better than no contact at all (the locator's
-    test): the hole keeps its prior mean and standard deviations."""
+    test): the hole keeps its prior mean, and its standard deviations grow by its random walk alone,
+    sqrt(std0^2 + drift^2 t) over the 250 predictions."""
     u, tau = inputs(S0)
     times = np.arange(251) * T
     truth = dae_run(S0, u, tau, WRENCH, times)
-    ekf = PegEKF(RL5, W_CONST, MOUNT, Hole(x=0.5), Peg(), PegContact(), PegEKFSettings(velocity_std0=0.1,
-                 rate_std0=1.0, force_std0=5.0), truth[0, [0, 3, 6]], truth[0, 9:12])
+    settings = PegEKFSettings(velocity_std0=0.1, rate_std0=1.0, force_std0=5.0)
+    ekf = PegEKF(RL5, W_CONST, MOUNT, Hole(x=0.5), Peg(), PegContact(), settings, truth[0, [0, 3, 6]], truth[0, 9:12])
     for x in truth:
         est = ekf.step(x[[0, 3, 6]], x[9:12], u, tau)
     np.testing.assert_allclose(est.force, WRENCH[:3], atol=2e-3)
@@ -155,7 +156,8 @@ def test_the_filter_finds_a_constant_wrench_on_the_moving_robot():
     np.testing.assert_allclose(est.tip, plant_tool_pose(RL5, W_CONST, MOUNT, truth[-1])[0], atol=1e-8)
     assert est.in_contact  # any wrench above contact_threshold is taken for a contact ...
     np.testing.assert_array_equal(est.hole, [0.5, 0.0, 0.0, 0.0])  # ... but the law puts no hole here
-    np.testing.assert_array_equal(est.hole_std, [0.002, 0.002, 0.02, 0.02])
+    walk = 250 * T * np.array([settings.hole_drift_std] * 2 + [settings.tilt_drift_std] * 2) ** 2
+    np.testing.assert_allclose(est.hole_std, np.sqrt(np.array([0.002, 0.002, 0.02, 0.02]) ** 2 + walk), rtol=1e-12)
     assert forward_kinematics(RL5, truth[-1, [0, 3, 6]]) == pytest.approx(ekf.x[:3], abs=1e-8)
 
 
@@ -174,13 +176,14 @@ def test_process_jacobian_columns_in_turn_are_the_full_ones():
 def contact_update(iterations: int, offset: float) -> tuple[np.ndarray, np.ndarray]:
     """The chamfer contact of :func:`chamfer_contact` felt exactly (W the law's wrench at the true
     hole, s and W known to 1e-9), the hole's prior ``offset`` m off along x (standard deviations
-    200 um and 2 mrad): (the law's wrench at the updated hole - the felt one, the updated hole)."""
+    200 um and 2 mrad; no law error considered: the felt wrench is the law's): (the law's wrench at the
+    updated hole - the felt one, the updated hole)."""
     hole, peg, law, s = chamfer_contact()
     truth = [hole.x, hole.y, 0.0, 0.0]
     felt = np.array(contact_wrench(hole, peg, law, W_CONST, MOUNT, s, truth).force
                     + contact_wrench(hole, peg, law, W_CONST, MOUNT, s, truth).moment)
-    ekf = PegEKF(RL5, W_CONST, MOUNT, Hole(z=-1.2), peg, law, PegEKFSettings(contact_iterations=iterations),
-                 [0.0] * 3, [0.0] * 3)
+    exact = PegEKFSettings(contact_iterations=iterations, law_hole_std=0.0, law_tilt_std=0.0)  # the law is the truth's
+    ekf = PegEKF(RL5, W_CONST, MOUNT, Hole(z=-1.2), peg, law, exact, [0.0] * 3, [0.0] * 3)
     ekf.x[:12], ekf.x[12:18], ekf.x[18:22] = s, felt, [hole.x + offset, hole.y, 0.0, 0.0]
     ekf.P = np.diag([1e-18] * 18 + [2e-4 ** 2] * 2 + [2e-3 ** 2] * 2)
     ekf._contact_update()
@@ -202,3 +205,36 @@ def test_the_iterated_contact_update_explains_the_felt_wrench():
     assert abs(h[0] - 0.0018) < 1e-6 and abs(h[1]) < 1e-6
     single, h1 = contact_update(1, 20e-6)
     assert np.abs(single[:3]).max() > 0.1 and abs(h1[0] - 0.0018) > 5e-6
+
+
+def test_the_manoeuvre_gate_is_the_chi_square_quantile():
+    """The detector's gate, Wilson-Hilferty's chi-square quantile at z = 3.090, against scipy's
+    chi2.ppf(0.999, dof): within 2e-3 relative from 30 degrees of freedom (measured 1.7e-3 at 30,
+    7e-4 at 60; the detector sums 6 x manoeuvre_samples of them: 60 by default)."""
+    from scipy.stats import chi2
+
+    from deltafmi.physics.estimation.peg_ekf import MANOEUVRE_Z, chi_square_quantile
+
+    for dof in (30, 60, 120, 600):
+        assert chi_square_quantile(dof, MANOEUVRE_Z) == pytest.approx(chi2.ppf(0.999, dof), rel=2e-3)
+
+
+def test_a_wrench_the_steady_walk_cannot_explain_is_a_manoeuvre():
+    """The filter sure there is no wrench (force_std0 1e-3 N, moment 1e-4 N m) on the moving robot
+    of the test above: with no wrench no manoeuvre is detected in 0.25 s; with WRENCH (2.3 N, there
+    from the start, which the steady walk, 1 N/s/sqrt(Hz), would take seconds to reach) the sum
+    of the joint angles' normalised innovations exceeds its gate at the first full window (sample
+    9 of 10 samples), once, and the fast walk then finds the wrench (to 1e-6 N; measured 3e-8)."""
+    u, tau = inputs(S0)
+    times = np.arange(251) * T
+    for wrench, detected in ((np.zeros(6), None), (WRENCH, 9)):
+        truth = dae_run(S0, u, tau, wrench, times)
+        ekf = PegEKF(RL5, W_CONST, MOUNT, Hole(x=0.5), Peg(), PegContact(),
+                     PegEKFSettings(velocity_std0=0.1, rate_std0=1.0, force_std0=1e-3, moment_std0=1e-4),
+                     truth[0, [0, 3, 6]], truth[0, 9:12])
+        first = None
+        for k, x in enumerate(truth):
+            est = ekf.step(x[[0, 3, 6]], x[9:12], u, tau)
+            first = k if first is None and ekf.manoeuvre else first
+        assert first == detected and ekf.manoeuvres == (detected is not None)
+        np.testing.assert_allclose(est.force, wrench[:3], atol=1e-6)

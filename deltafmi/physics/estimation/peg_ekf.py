@@ -10,13 +10,25 @@ inputs: the servo torques u and the wrist torques tau, held over each sample per
   (acceleration_std on the plate, angular_acceleration_std on the wrist joints);
 - W = [F, M]: the contact wrench on the peg, force at the tool tip and moment about it, world
   frame (the resultant of the contact multipliers; the plant's contact_force, contact_moment),
-  a random walk (force_rate_std, moment_rate_std);
+  a random walk at two levels (Bar-Shalom, Li, Kirubarajan 2001, section 11.2: adjustable process
+  noise): steady_force_rate_std, steady_moment_rate_std while the joint angles' innovations are
+  consistent (a contact force sliding on the chamfer or in the bore changes slowly), and
+  force_rate_std, moment_rate_std in a manoeuvre (an impact): detected when the sum of the last
+  manoeuvre_samples normalised innovations r^T S^-1 r exceeds its chi-square 0.999 quantile, the
+  wrench's covariance then first given what the fast walk would have added over that window;
 - h = [x, y, tilt_x, tilt_y]: the hole (:mod:`.peg_contact`), with a prior (the nominal hole,
-  hole_std0, tilt_std0); constants by default, or a random walk (hole_drift_std, tilt_drift_std):
-  the hole does not move, but the law's updates are linearised at the estimate, and a walk makes
-  the filter forget the old ones (fading memory) instead of trusting each of thousands forever.
-  The price: it also forgets what the chamfer told across a bore contact's normal (measured in
-  docs/assembly.md), so it is off by default.
+  hole_std0, tilt_std0) and a slow random walk (hole_drift_std, tilt_drift_std): the hole does
+  not move, but the law's updates are linearised at the estimate, and a walk makes the filter
+  forget the old ones (fading memory) instead of trusting each of thousands forever, so that an
+  estimate the first chamfer contacts put in the wrong place can leave it;
+- b (4, not in the state: a Schmidt "consider" parameter, never estimated): the contact law's
+  error as a constant offset of the hole, the law seeing h + b (law_hole_std, law_tilt_std). The
+  law's errors (the wrench's estimate, the pose's, the linearisation over its switching contact
+  points) are correlated over the whole contact, not white: updates with white noise alone would
+  each be taken as new information, and the hole's covariance would shrink without bound while
+  its error does not. The considered offset keeps what all the updates together can tell at the
+  offset's level: the filter carries b's covariance and its cross-covariance with the state, so
+  that the Joseph form stays the exact covariance of its suboptimal gain (Simon 2006, section 7.4).
 
 The hole is tied in by the contact law as a pseudo-measurement, as :mod:`.contact_ekf` ties the
 surface height, applied while the filter believes the peg touches (|F| > contact_threshold for
@@ -51,15 +63,14 @@ law explains the felt wrench (:func:`.peg_contact.locate_hole`); the updates the
 A contact constrains h along its normals only: in a bore with clearance, the hole's position
 across the contact normal stays at what the chamfer told (its standard deviation says so).
 
-Consistency (benchmarks/estimator_consistency.py, Monte Carlo over seeded encoder noise): the
-iterated update removes the lock-in of the noise-free run (a first chamfer contact linearised at
-the wrong hole, then every correction refused), but with encoder noise the filter is still far
-from consistent: the impacts' wrench errors (newtons, correlated over milliseconds) and the
-contact law's many near-equivalent contact configurations move the hole by tens to hundreds of
-micrometres while its covariance says micrometres (docs/assembly.md has the figures). A lock-in
-shows as the gate refusing the law reject_samples times in a row while in contact; the hole's
-covariance then goes back to its prior's about the current mean (its correlations dropped), and
-the law's updates start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that
+Consistency (tests/models/test_peg_estimator_consistency.py, benchmarks/estimator_consistency.py:
+Monte Carlo over seeded encoder noise on the real plant; docs/assembly.md has the figures): with
+the wrench's two levels, the considered law offset and the hole's walk, the mean NEES of the hole
+(4 dof) and of the force over the contact lie within their chi-square intervals; with the wrench
+at its fast level throughout and no law error (the previous defaults) the hole's NEES was 1e4-1e5
+and the force's 0.1. A lock-in shows as the gate refusing the law reject_samples times in a row
+while in contact; the hole's covariance then goes back to its prior's about the current mean
+(its correlations dropped), and the law's updates start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that
 detects its innovations are inconsistent raises its uncertainty instead of refusing the data).
 
 Cycle per sample t_k (:meth:`PegEKF.step`), as ContactEKF: predict from t_(k-1) with the torques
@@ -90,6 +101,8 @@ from .wrist_process import N_REDUCED, process_jacobian, propagate, tool_pose
 __all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES"]
 
 _S, _W, _H = slice(0, 12), slice(12, 18), slice(18, 22)
+#: the standard normal quantile of the manoeuvre detector's chi-square gate (probability 0.999)
+MANOEUVRE_Z = 3.090
 N_STATES = N_REDUCED + 6 + HOLE_STATES
 _SERVOS = [0, 3, 6]
 
@@ -101,10 +114,10 @@ class PegEKFSettings:
     sample_period: float = 1e-3  #: s
     y_std: float = 1e-6  #: servo-angle noise (rad)
     qw_std: float = 1e-6  #: wrist-angle noise (rad)
-    acceleration_std: float = 0.01  #: white plate-acceleration noise (m/s^2/sqrt(Hz))
-    angular_acceleration_std: float = 0.5  #: white wrist-joint acceleration noise (rad/s^2/sqrt(Hz))
-    force_rate_std: float = 30.0  #: random walk of the contact force (N/s/sqrt(Hz))
-    moment_rate_std: float = 2.0  #: random walk of the contact moment (N m/s/sqrt(Hz))
+    acceleration_std: float = 1e-4  #: white plate-acceleration noise (m/s^2/sqrt(Hz))
+    angular_acceleration_std: float = 1e-3  #: white wrist-joint acceleration noise (rad/s^2/sqrt(Hz))
+    force_rate_std: float = 30.0  #: random walk of the contact force in a manoeuvre (N/s/sqrt(Hz))
+    moment_rate_std: float = 2.0  #: random walk of the contact moment in a manoeuvre (N m/s/sqrt(Hz))
     position_std0: float = 1e-5  #: initial plate position (m) about forward kinematics of y0
     angle_std0: float = 1e-5  #: initial wrist angles (rad) about qw0
     velocity_std0: float = 0.01  #: initial plate velocity (m/s) about rest
@@ -121,8 +134,13 @@ class PegEKFSettings:
     contact_iterations: int = 10  #: largest number of Gauss-Newton iterations of a contact-law update (1: EKF)
     contact_tolerance: float = 1e-3  #: an iteration's largest hole change, in prior standard deviations, that ends them
     reject_samples: int = 50  #: contact updates refused in a row after which the hole's covariance reopens
-    hole_drift_std: float = 0.0  #: random walk of the hole's x, y (m/sqrt(s)): forgets old contacts
-    tilt_drift_std: float = 0.0  #: random walk of the hole's tilt (rad/sqrt(s))
+    hole_drift_std: float = 2e-3  #: random walk of the hole's x, y (m/sqrt(s)): forgets old contacts
+    tilt_drift_std: float = 2e-2  #: random walk of the hole's tilt (rad/sqrt(s))
+    law_hole_std: float = 3e-5  #: the contact law's error as a constant offset of the hole's x, y (m), considered
+    law_tilt_std: float = 3e-3  #: the contact law's error as a constant offset of the hole's tilt (rad), considered
+    steady_force_rate_std: float = 1.0  #: the force's random walk while no manoeuvre is detected (0: force_rate_std)
+    steady_moment_rate_std: float = 0.05  #: the moment's walk while no manoeuvre is detected (0: moment_rate_std)
+    manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
     jacobian_columns: int = 3  #: process-Jacobian columns (of 18) evaluated again per sample, in turn
@@ -134,15 +152,25 @@ class PegEKFSettings:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "angular_acceleration_std", "force_rate_std", "moment_rate_std",
-                     "hole_drift_std", "tilt_drift_std", "contact_threshold", "contact_gate", "pole",
+                     "hole_drift_std", "tilt_drift_std", "law_hole_std", "law_tilt_std", "steady_force_rate_std",
+                     "steady_moment_rate_std", "contact_threshold", "contact_gate", "pole",
                      "contact_tolerance"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
-        for name in ("substeps", "contact_samples", "reject_samples", "contact_iterations", "jacobian_columns"):
+        for name in ("substeps", "contact_samples", "reject_samples", "contact_iterations", "jacobian_columns",
+                     "manoeuvre_samples"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
         if int(self.jacobian_columns) > 18:
             raise ValueError(f"estimator setting jacobian_columns must be <= 18, got {self.jacobian_columns}")
+
+
+def chi_square_quantile(dof: int, z: float) -> float:
+    """The chi-square quantile with dof degrees of freedom at the standard normal quantile z
+    (Wilson-Hilferty: dof (1 - 2 / (9 dof) + z sqrt(2 / (9 dof)))^3; relative error below 2e-3 for
+    dof >= 30 at z = 3.09)."""
+    a = 2.0 / (9.0 * dof)
+    return dof * (1.0 - a + z * np.sqrt(a)) ** 3
 
 
 class PegEstimate(NamedTuple):
@@ -188,6 +216,9 @@ class PegEKF:
         self._A: np.ndarray | None = None  # the process Jacobian d s'/d[s, W] (12, 18) as last evaluated
         self._column = 0  # the next of its columns to evaluate again
         self._R = np.diag([st.y_std ** 2] * 3 + [st.qw_std ** 2] * 3)
+        # the law's offset b (consider states, never estimated): its covariance and cross-covariance
+        self._Pbb = np.diag([st.law_hole_std ** 2] * 2 + [st.law_tilt_std ** 2] * 2)
+        self._Pxb = np.zeros((N_STATES, HOLE_STATES))
         self._Rc = np.diag([st.contact_force_std ** 2] * 3 + [st.contact_moment_std ** 2] * 3)
         T = st.sample_period
         W = white_acceleration_noise(T)
@@ -197,6 +228,15 @@ class PegEKF:
         Q[_W, _W] = np.diag([st.force_rate_std ** 2] * 3 + [st.moment_rate_std ** 2] * 3) * T
         Q[_H, _H] = np.diag([st.hole_drift_std ** 2] * 2 + [st.tilt_drift_std ** 2] * 2) * T
         self._Q = Q
+        # the wrench's random walk between manoeuvres (the steady levels), and the detector's state
+        steady = ([st.steady_force_rate_std or st.force_rate_std] * 3
+                  + [st.steady_moment_rate_std or st.moment_rate_std] * 3)
+        self._Q_steady = Q.copy()
+        self._Q_steady[_W, _W] = np.diag(np.square(steady)) * T
+        self._nis: list[float] = []  # the joint angles' last normalised innovations r^T S^-1 r
+        self._nis_gate = chi_square_quantile(6 * st.manoeuvre_samples, MANOEUVRE_Z)
+        self.manoeuvre = False  #: a manoeuvre (an impact: the wrench changing fast) is detected
+        self.manoeuvres = 0  #: manoeuvres detected so far
 
     # --------------------------------------------------------------------------------- cycle
     def step(self, y: Sequence[float], qw: Sequence[float], u: Sequence[float], tau: Sequence[float]) -> PegEstimate:
@@ -224,8 +264,9 @@ class PegEKF:
         Phi = np.eye(N_STATES)
         Phi[:18, :18] = transition_matrix(A, st.sample_period)
         self.x[_S] = propagate(self.p, self.w, self.m, s, u, tau, W, st.sample_period, st.pole, st.substeps)
-        P = Phi @ self.P @ Phi.T + self._Q
+        P = Phi @ self.P @ Phi.T + (self._Q if self.manoeuvre else self._Q_steady)
         self.P = 0.5 * (P + P.T)
+        self._Pxb = Phi @ self._Pxb
 
     def update(self, y: Sequence[float], qw: Sequence[float]) -> None:
         """Measurement update with the joint angles, then the gated contact-law update."""
@@ -235,6 +276,7 @@ class PegEKF:
         H[3:6, 3:6] = np.eye(3)
         residual = np.concatenate([np.asarray(y, float) - q[_SERVOS], np.asarray(qw, float) - self.x[3:6]])
         st = self.settings
+        self._detect_manoeuvre(H, residual)
         self._correct(H, residual, self._R)
         touching = float(np.linalg.norm(self.x[12:15])) > st.contact_threshold
         self._touching = self._touching + 1 if touching else 0
@@ -275,10 +317,12 @@ class PegEKF:
             if iteration:
                 c, J, active = wrench_jacobian(*args, self.x[_S], hi, hole_only=True)
             H[:, _H] = -J[:, N_REDUCED:]
+            Hb = H[:, _H]  # the law sees the hole h + b
             # the law linearised at hi, its innovation taken about the prior (Gauss-Newton step)
             innovation = c - self.x[_W] - H[:, _H] @ (prior - hi)
-            PHt = self.P[_H] @ H.T
-            S = H @ self.P @ H.T + self._Rc
+            PHt = self.P[_H] @ H.T + self._Pxb[_H] @ Hb.T
+            HPb = H @ self._Pxb @ Hb.T
+            S = H @ self.P @ H.T + HPb + HPb.T + Hb @ self._Pbb @ Hb.T + self._Rc
             new = prior + PHt @ np.linalg.solve(S, innovation)
             done = float(np.max(np.abs(new - hi) / scale)) < st.contact_tolerance
             hi = new
@@ -287,11 +331,30 @@ class PegEKF:
         self.consistency = float(innovation @ np.linalg.solve(S, innovation))
         if self.consistency <= st.contact_gate:
             self._rejected = 0
-            self._correct(H, innovation, self._Rc, _H)
+            self._correct(H, innovation, self._Rc, _H, Hb)
             return
         self._rejected += 1
         if self._rejected >= st.reject_samples:
             self._reopen_hole()
+
+    def _detect_manoeuvre(self, H: np.ndarray, residual: np.ndarray) -> None:
+        """The wrench's process noise level from the joint angles' innovations (Bar-Shalom, Li,
+        Kirubarajan 2001, section 11.2: adjustable process noise): while the sum of the last
+        manoeuvre_samples normalised innovations stays within its chi-square 0.999 quantile the
+        wrench walks at the steady levels; above it, at force_rate_std and moment_rate_std, and the
+        wrench's covariance first gets what that walk would have added over the window."""
+        st = self.settings
+        if not (st.steady_force_rate_std or st.steady_moment_rate_std):
+            return
+        S = H @ self.P @ H.T + self._R
+        self._nis.append(float(residual @ np.linalg.solve(S, residual)))
+        del self._nis[:-st.manoeuvre_samples]
+        manoeuvre = len(self._nis) == st.manoeuvre_samples and sum(self._nis) > self._nis_gate
+        if manoeuvre and not self.manoeuvre:
+            window = st.manoeuvre_samples
+            self.P[_W, _W] += window * (self._Q[_W, _W] - self._Q_steady[_W, _W])
+            self.manoeuvres += 1
+        self.manoeuvre = manoeuvre
 
     def _reopen_hole(self) -> None:
         """The law has disagreed with the estimate for reject_samples samples in a row: the hole's
@@ -302,10 +365,22 @@ class PegEKF:
         self.P[_H, :] = 0.0
         self.P[:, _H] = 0.0
         self.P[_H, _H] = np.diag([st.hole_std0 ** 2] * 2 + [st.tilt_std0 ** 2] * 2)
+        self._Pxb[_H] = 0.0
         self._rejected = 0
         self.reopened += 1
 
-    def _correct(self, H: np.ndarray, residual: np.ndarray, R: np.ndarray, updated: slice | None = None) -> None:
-        dx, self.P = joseph_update(self.P, H, residual, R, updated)
-        self.x += dx
+    def _correct(self, H: np.ndarray, residual: np.ndarray, R: np.ndarray, updated: slice | None = None,
+                 Hb: np.ndarray | None = None) -> None:
+        """The Joseph update of the states (``updated``: only those), the law's offset b considered
+        (its columns Hb, none: the batch does not see it)."""
+        if not self._Pbb.any():
+            dx, self.P = joseph_update(self.P, H, residual, R, updated)
+            self.x += dx
+            return
+        n = N_STATES
+        Pa = np.block([[self.P, self._Pxb], [self._Pxb.T, self._Pbb]])
+        Ha = np.hstack([H, np.zeros((H.shape[0], HOLE_STATES)) if Hb is None else Hb])
+        dx, Pa = joseph_update(Pa, Ha, residual, R, slice(0, n) if updated is None else updated)
+        self.x += dx[:n]
+        self.P, self._Pxb = Pa[:n, :n], Pa[:n, n:]
 
