@@ -48,7 +48,10 @@ def build_wheel(python: str, source: Path, output: Path, isolation: bool = True,
         command = [python, "-m", "pip", "wheel", "--no-deps", "-q", "-w", tmp, str(source)]
         if not isolation:
             command.insert(4, "--no-build-isolation")
-        subprocess.run(command, check=True)
+        # the isolated build environment (setuptools, numpy, sympy) is thrown away after the build:
+        # no bytecode for it. pip reads PIP_NO_COMPILE as the value of --no-compile's destination,
+        # "compile", so it is 0 that turns compiling off (as PIP_NO_CACHE_DIR's documented quirk)
+        subprocess.run(command, check=True, env={**os.environ, "PIP_NO_COMPILE": "0"})
         (raw,) = Path(tmp).glob("deltafmi-*.whl")
         before = set(output.glob("*.whl"))
         plat = plat or f"manylinux_2_17_{platform.machine()}"

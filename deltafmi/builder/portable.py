@@ -63,6 +63,8 @@ _OPPORTUNISTIC = {"Cython", "cython", "pyximport"}
 #: master's modules with those functions; the FMU bundles these packages only where its trace
 #: imports them when it runs, or its model's own files name them.
 HOST_ONLY = ("matplotlib", "pandas", "pyarrow", "scipy.io")
+#: bundle files from this size on (bytes) are compressed once into the build cache (:func:`_compressed_members`)
+_LARGE_MEMBER = 1 << 20
 _STDLIB_SKIPPED = {"test", "idlelib", "tkinter", "turtledemo", "ensurepip", "lib2to3", "pydoc_data",
                    "site-packages", "lib-dynload", "config-" + sysconfig.get_config_var("LDVERSION") + "-x86_64-linux-gnu"}
 
@@ -454,15 +456,19 @@ def make_portable(fmu: Path, output: Path, leave_out: Sequence[str] = ()) -> Por
         needs_sundials = _integrates(archive)
     bundle = portable_bundle(modules, needs_sundials=needs_sundials, sundials_dir=sundials)
     replaced = {"resources/python.cfg", "documentation/index.html", "resources/README.txt"}
+    large = [(path, name) for path, name in bundle.files if path.stat().st_size >= _LARGE_MEMBER]
+    in_large = set(large)
     with zipfile.ZipFile(fmu) as source, replaced_atomically(output) as tmp:
         version = _fmi_version(source.read("modelDescription.xml"))
-        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive:
+        shutil.copyfile(_compressed_members(large), tmp)
+        with zipfile.ZipFile(tmp, "a", zipfile.ZIP_DEFLATED) as archive:
             for item in source.infolist():
                 if item.filename not in replaced:
                     archive.writestr(item, source.read(item.filename))
             archive.writestr("resources/python.cfg", bundle.config)
             for path, name in bundle.files:
-                archive.write(path, name)
+                if (path, name) not in in_large:
+                    archive.write(path, name)
             for data, name in bundle.data:
                 archive.writestr(name, data)
             for path, name in bundle.licenses:
@@ -471,6 +477,26 @@ def make_portable(fmu: Path, output: Path, leave_out: Sequence[str] = ()) -> Por
             archive.writestr("documentation/index.html", _with_portable_section(
                 source.read("documentation/index.html").decode(), bundle, version))
     return bundle
+
+
+def _compressed_members(files: list[tuple[Path, str]]) -> Path:
+    """A zip archive of ``files`` (file on disk, archive name), deflated as the FMU's other members
+    are, from the build cache: the large shared libraries (numpy's, the interpreter) are most of a
+    bundle and of the time its compression takes, and every portable FMU of the same packages
+    carries the same ones. A portable FMU starts as a copy of it."""
+    import hashlib
+    digest = hashlib.sha256()
+    for path, name in files:
+        stat = path.stat()
+        digest.update(f"{name}\0{path.resolve()}\0{stat.st_size}\0{stat.st_mtime_ns}\0".encode())
+    target = cache_dir() / "portable" / "members" / digest.hexdigest()[:24]
+
+    def build(tmp: str) -> None:
+        with zipfile.ZipFile(Path(tmp) / "members.zip", "w", zipfile.ZIP_DEFLATED) as archive:
+            for path, name in files:
+                archive.write(path, name)
+    build_into(target, build)
+    return target / "members.zip"
 
 
 def _integrates(archive: zipfile.ZipFile) -> bool:

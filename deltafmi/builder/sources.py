@@ -77,8 +77,13 @@ def module_component(reference: str) -> ComponentSource:
     from deltafmi.runtime import Component
     cls = getattr(module, class_name, None)
     if not (isinstance(cls, type) and issubclass(cls, Component)):
-        names = [n for n in dir(module) if isinstance(getattr(module, n, None), type)
-                 and issubclass(getattr(module, n), Component) and getattr(module, n) is not Component]
+        if hasattr(module, "__getattr__") and hasattr(module, "__all__"):
+            # a module that imports its attributes when asked (deltafmi.models: a module per model)
+            # names them in __all__: suggest from those names rather than importing every one
+            names = list(module.__all__)
+        else:
+            names = [n for n in dir(module) if isinstance(getattr(module, n, None), type)
+                     and issubclass(getattr(module, n), Component) and getattr(module, n) is not Component]
         from deltafmi.errors import did_you_mean
         raise ComponentSourceError(f"'{reference}': {module_name} has no component class '{class_name}'"
                                    f"{did_you_mean(class_name, names)}")

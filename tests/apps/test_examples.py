@@ -89,6 +89,30 @@ def test_a_wrong_name_is_one_clear_line(tmp_path, monkeypatch, argv, message):
     assert result.exception is None or isinstance(result.exception, SystemExit)
 
 
+_WRONG_CLASS = """
+import sys
+from deltafmi.builder.sources import ComponentSourceError, module_component
+try:
+    module_component(sys.argv[1])
+except ComponentSourceError as exc:
+    print(exc)
+print(sorted(m for m in sys.modules if m.startswith("deltafmi.models.")))
+"""
+
+
+def test_a_wrong_class_of_the_packaged_models_is_named_without_importing_them(tmp_path):
+    """The models are imported one by one when asked for: the message that a class is not among
+    them (with the likeliest name) comes from their names alone, in a fresh process."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _WRONG_CLASS, "deltafmi.models:DeltaRobott"], capture_output=True,
+                         text=True, check=True, cwd=tmp_path).stdout.splitlines()
+    assert out[0] == ("'deltafmi.models:DeltaRobott': deltafmi.models has no component class 'DeltaRobott' "
+                      "(did you mean 'DeltaRobot' or 'DeltaRobotBox' or 'DeltaRobotContact'?)")
+    assert out[1] == "[]"
+
+
 def test_build_a_packaged_model_by_class_name_or_module_reference(tmp_path):
     for argument in ("Oscillator", "deltafmi.models:Oscillator"):
         out = tmp_path / f"{argument.replace(':', '_')}.fmu"

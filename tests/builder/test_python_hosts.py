@@ -103,12 +103,30 @@ def _fresh_fmpy_venv(version: str, root: Path) -> tuple[Optional[Path], str]:
     return python, ""
 
 
+def session_fmpy_venv(version: str, tmp_path_factory: pytest.TempPathFactory) -> tuple[Optional[Path], str]:
+    """:func:`_fresh_fmpy_venv` made once in this test session for all its xdist workers (in the
+    folder they share, under a lock): the first test to ask makes it, the others take it."""
+    import fcntl
+
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "fmpy_hosts"
+    root.mkdir(exist_ok=True)
+    with open(root / f"{version}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        made = root / f"{version}.json"
+        if made.exists():
+            python, why = json.loads(made.read_text())
+            return (Path(python) if python else None), why
+        python, why = _fresh_fmpy_venv(version, root)
+        made.write_text(json.dumps([str(python) if python else None, why]))
+        return python, why
+
+
 @pytest.fixture(scope="session")
 def fmpy_hosts(tmp_path_factory) -> dict:
     """version -> (python of a fresh venv with nothing but fmpy, or None; why not), made in parallel."""
-    root = tmp_path_factory.mktemp("fmpy_hosts")
     with ThreadPoolExecutor(len(VERSIONS)) as pool:
-        made = dict(zip(VERSIONS, pool.map(lambda v: _fresh_fmpy_venv(v, root), VERSIONS)))
+        made = dict(zip(VERSIONS, pool.map(lambda v: session_fmpy_venv(v, tmp_path_factory), VERSIONS)))
     return made
 
 

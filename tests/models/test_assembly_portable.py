@@ -41,7 +41,7 @@ from deltafmi.builder.packager import build_cached
 from host_loops import co_simulation, host_rows, me_env, model_exchange_euler, run_c_host
 from test_fmi3_binary import host3  # noqa: F401 (fixture)
 from test_portable_fmus import no_python, workspace  # noqa: F401 (fixtures)
-from test_python_hosts import BUILDER, TOLERANCE, _deviation, _fresh_fmpy_venv, _scalarized, _simulate
+from test_python_hosts import BUILDER, TOLERANCE, _deviation, _scalarized, _simulate, session_fmpy_venv
 
 EXAMPLES = ROOT / "scenarios"
 #: the linear model each MPC FMU reads, shipped in its resources (`deltafmi build X --resource F`)
@@ -349,13 +349,14 @@ def test_mpc_fmu_state_restores_the_run(model):
 
 # --- 5. another CPython ----------------------------------------------------------------------
 
-def test_another_cpython_with_only_fmpy_gives_the_builders_results(tmp_path):
-    """A fresh virtual environment of CPython 3.13 (else 3.12) with nothing but fmpy runs the plain
-    FMUs built here (DeltaWrist as FMI 2.0 and 3.0, DeltaWristPeg, AssemblyController) in CS and ME."""
+def test_another_cpython_with_only_fmpy_gives_the_builders_results(tmp_path, tmp_path_factory):
+    """A fresh virtual environment of CPython 3.13 (else 3.12) with nothing but fmpy (this session's,
+    which tests/builder/test_python_hosts.py uses too) runs the plain FMUs built here (DeltaWrist as
+    FMI 2.0 and 3.0, DeltaWristPeg, AssemblyController) in CS and ME."""
     python, why = None, "no CPython 3.12 or 3.13"
     for version in ("3.13", "3.12"):
         if version != BUILDER:
-            python, why = _fresh_fmpy_venv(version, tmp_path)
+            python, why = session_fmpy_venv(version, tmp_path_factory)
             if python is not None:
                 break
     if python is None:
