@@ -10,7 +10,7 @@ from typing import Optional, Tuple
 
 import pytest
 
-from deltafmi.master.records import record
+from deltafmi.master.scenario.records import record
 from deltafmi.master.scenario.spec import Experiment, MasterSettings, Realtime
 from deltafmi.master.scenario.system import Port
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from deltafmi.errors import SimulationError
 
-from ..records import record
+from ..scenario.records import record
 
 __all__ = ["Pacer", "RealtimeReport", "FellBehind"]
 

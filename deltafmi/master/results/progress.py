@@ -7,7 +7,7 @@ from dataclasses import field
 from pathlib import Path
 from typing import Any, Optional, TextIO
 
-from ..records import record
+from ..scenario.records import record
 
 __all__ = ["Progress", "Summary", "Termination"]
 

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 
 from deltafmi.errors import Diagnostic, ScenarioError
 
-from ..records import record
+from .records import record
 from .schema_check import dotted, load_mapping, read_document, schema_diagnostics
 from .line_map import LineMap
 

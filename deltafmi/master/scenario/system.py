@@ -13,7 +13,7 @@ from typing import Any, List, Optional, Tuple
 
 from deltafmi.errors import Diagnostic
 
-from ..records import record
+from .records import record
 from .modelinfo import ModelInfo
 from .spec import ComponentSpec, Scenario
 

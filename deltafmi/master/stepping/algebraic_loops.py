@@ -44,7 +44,7 @@ import numpy as np
 
 from deltafmi.errors import DeltaFmiError
 
-from ..records import record
+from ..scenario.records import record
 from ..scenario.system import AlgebraicLoop, Link, Port
 from ..scenario.spec import Loops
 from .unit_base import Unit
