@@ -13,11 +13,14 @@ Two systems of 8 independent Co-Simulation units, 1 ms communication steps:
   and the master steps it on its own thread whatever ``threads`` says (ratio near 1); one that
   takes its steps in C (Python at events only) steps on the threads. The line says which.
 
-Each is run by the master's C loop and by its Python loop (``Master(native=False)``), threads 1 and
-2 interleaved, --repeats times; printed: the median stepping wall time (set-up excluded), the
-ratio threads 1 / threads 2 (above 1: faster with two threads), and whether the results are equal
-bit for bit. The load average is printed: on a shared machine the ratio is what the other
-processes leave of the second core.
+Each is run by the master's C loop, by the C loop with its threads meeting at every step
+("C lockstep": what it did before units that exchange nothing stepped through blocks of steps; the
+Jacobi ring is one component and always steps in lockstep) and by the Python loop
+(``Master(native=False)``), threads 1 and 2 interleaved, --repeats times; printed: the median
+stepping wall time (set-up excluded), the ratio threads 1 / threads 2 (above 1: faster with two
+threads), the median CPU time of the process while stepping (all its threads: what the threads
+cost beyond the steps themselves), and whether the results are equal bit for bit. The load average
+is printed: on a shared machine the ratio is what the other processes leave of the second core.
 
 Usage: python benchmarks/parallel_units.py [--repeats 5] [--stop 2] [--substep 2e-7] [--systems c,delta]
 """
@@ -28,6 +31,7 @@ import os
 import statistics
 import sys
 import tempfile
+import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Dict, List, Tuple
@@ -39,7 +43,7 @@ from build import build_fmu  # noqa: E402  (the C FMUs of tests/third_party)
 import deltafmi.apps  # noqa: E402,F401  (the composition root: source: components are built)
 from deltafmi.master.scenario.resolve import resolve_system  # noqa: E402
 from deltafmi.master.scenario.spec import load_scenario  # noqa: E402
-from deltafmi.master.stepping.master import Master  # noqa: E402
+from deltafmi.master.stepping.master import Master, NativeLoop  # noqa: E402
 from deltafmi.master.stepping.parallel import pooled  # noqa: E402
 
 UNITS = 8
@@ -68,13 +72,31 @@ def delta_scenario(folder: Path, stop: float) -> Path:
     return path
 
 
-def stepping(path: Path, threads: int, native: bool) -> Tuple[float, bytes]:
-    """Stepping wall seconds of one run and its results file (CSV: every value as Python's repr)."""
+def stepping(path: Path, threads: int, native: bool, lockstep: bool = False) -> Tuple[float, float, bytes]:
+    """Stepping wall seconds of one run, the CPU seconds of the process meanwhile (every thread's)
+    and its results file (CSV: every value as Python's repr). ``lockstep``: the C loop's threads meet
+    at every step even where the units fall into components that exchange nothing (as before blocks
+    of steps)."""
     scenario = load_scenario(path)
     scenario = replace(scenario, master=replace(scenario.master, threads=threads))
     result = path.with_name(f"{path.stem}-{threads}.csv")
-    summary = Master(resolve_system(scenario), result=result, native=native).run()
-    return summary.wall_time - summary.setup_time, result.read_bytes()
+    run_fixed, plan_components, spent = Master._run_fixed, NativeLoop._plan_components, [0.0]
+
+    def timed(master):
+        begin = time.process_time()
+        try:
+            return run_fixed(master)
+        finally:
+            spent[0] += time.process_time() - begin
+
+    Master._run_fixed = timed
+    if lockstep:
+        NativeLoop._plan_components = lambda loop, sampler: None
+    try:
+        summary = Master(resolve_system(scenario), result=result, native=native).run()
+    finally:
+        Master._run_fixed, NativeLoop._plan_components = run_fixed, plan_components
+    return summary.wall_time - summary.setup_time, spent[0], result.read_bytes()
 
 
 def pooled_count(path: Path) -> int:
@@ -107,23 +129,30 @@ def main() -> None:
             cases.append((f"{UNITS} C Oscillators, cheap steps", cheap))
         if "delta" in args.systems.split(","):
             cases.append((f"{UNITS} DeltaRobot CS, free fall", delta_scenario(folder, args.stop)))
-        print(f"{args.stop:g} s of 1 ms steps; median stepping wall time of {args.repeats} interleaved runs; "
-              f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
-        print(f"{'system':<36} {'loop':<7} {'threads 1 s':>11} {'threads 2 s':>11} {'1/2':>6}  identical  pooled")
+        print(f"{args.stop:g} s of 1 ms steps; median stepping wall time (and CPU time of the process, all "
+              f"threads) of {args.repeats} interleaved runs; load average {os.getloadavg()[0]:.1f} on "
+              f"{os.cpu_count()} cores")
+        print(f"{'system':<36} {'loop':<10} {'threads 1 s':>11} {'threads 2 s':>11} {'1/2':>6} {'CPU 1 s':>8} "
+              f"{'CPU 2 s':>8}  identical  pooled")
+        loops = [("C", True, False), ("C lockstep", True, True), ("Python", False, False)]
         for name, path in cases:
             count = pooled_count(path)
-            for native in (True, False):
+            for loop, native, lockstep in loops:
                 stepping(path, 1, native)  # warm: FMUs built and unpacked
                 times: Dict[int, List[float]] = {1: [], 2: []}
+                cpu: Dict[int, List[float]] = {1: [], 2: []}
                 results: Dict[int, bytes] = {}
                 for _ in range(args.repeats):
                     for threads in (1, 2):
-                        seconds, results[threads] = stepping(path, threads, native)
+                        seconds, spent, results[threads] = stepping(path, threads, native, lockstep)
                         times[threads].append(seconds)
+                        cpu[threads].append(spent)
                 same = results[1] == results[2]
                 one, two = statistics.median(times[1]), statistics.median(times[2])
-                print(f"{name:<36} {'C' if native else 'Python':<7} {one:11.3f} {two:11.3f} {one / two:6.2f}  "
+                print(f"{name:<36} {loop:<10} {one:11.3f} {two:11.3f} {one / two:6.2f} "
+                      f"{statistics.median(cpu[1]):8.3f} {statistics.median(cpu[2]):8.3f}  "
                       f"{'yes' if same else 'NO':<9}  {count}/{UNITS}")
+        print(f"load average at the end {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

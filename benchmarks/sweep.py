@@ -10,9 +10,11 @@ machine, all with the same cases:
    start-up is printed apart; FMU shipping, loading and every case's metrics included);
 3. the per-case overhead of the sweep against the simulation itself (the master's stepping loop
    on the worker): reset + initialization, and everything else (Dask, metrics, transfer); and in
-   all, the sweep's time per case minus those cases' stepping (target <= 1 ms); and the CPU time
-   of the same on a worker without Dask (this process, thread CPU time: what a loaded machine
-   moves least);
+   all, the sweep's time per case minus those cases' stepping (target <= 1 ms); the CPU time of
+   the same on a worker without Dask (this process, thread CPU time: what a loaded machine moves
+   least), with and without FMU state snapshots; and the CPU time per case of a whole 1-worker
+   sweep (worker process, client and scheduler) minus the stepping's, with results streamed per
+   case and per task;
 4. the scaling from 1 to 2 workers, against what two plain processes running the same cases at
    once (no Dask) get done on this machine against one alone: the hardware's own ceiling.
 
@@ -106,8 +108,13 @@ class SweepRun(NamedTuple):
     wrapup: float  #: after the last result reached the client
 
 
-def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) -> SweepRun:
-    """The cases on a LocalCluster of ``workers``."""
+def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path, streamed: bool = True) -> SweepRun:
+    """The cases on a LocalCluster of ``workers``; ``streamed``: each case's result sent to the
+    client as it finishes (the default), else only with its task's (the earlier way, with batches
+    of at most MAX_BATCH cases)."""
+    from deltafmi.apps.studies import driver
+
+    driver.STREAM_RESULTS = streamed
     started = time.perf_counter()
     last = 0.0  # when the last result reached the client
 
@@ -125,8 +132,43 @@ def sweep(planned: PlannedStudy, cases: List[Case], workers: int, folder: Path) 
                            on_result=arrived)
         end = time.perf_counter()
         store.close()
-    assert report.failed == 0, "a benchmark case failed"
+    driver.STREAM_RESULTS = True
+    errors = [row["error"] for row in store.rows.values() if row["status"] != "ok"]
+    assert report.failed == 0, f"{report.failed} benchmark case(s) failed: {errors[:3]}"
     return SweepRun(startup, end - wall, [store.rows[c.key] for c in cases], report.setup_time, end - last)
+
+
+def sweep_cpu(planned: PlannedStudy, cases: List[Case], streamed: bool = True) -> Dict[str, float]:
+    """CPU milliseconds per case of a 1-worker sweep of ``cases``, from the first result (the first
+    case loads the FMUs) to the last: the worker process (all its threads: the cases, Dask's
+    messages and its own upkeep) and this process (the client and the local scheduler); what a
+    loaded machine moves far less than wall time. ``streamed`` as for :func:`sweep`."""
+    from deltafmi.apps.studies import driver
+
+    marks: List[tuple] = []
+
+    def mark(result: object) -> None:
+        if not marks or len(marks) == 1 and done[0] == len(cases) - 1:
+            marks.append((sum(client.run(time.process_time).values()), time.process_time()))
+        done[0] += 1
+
+    done = [0]
+    driver.STREAM_RESULTS = streamed
+    folder = Path(tempfile.mkdtemp(prefix="deltafmi-bench-cpu-"))
+    try:
+        with dask_client(workers=1) as client:
+            client.wait_for_workers(1)
+            store = open_store(planned, folder / "cpu.parquet", timeseries=False)
+            report = run_study(planned, store, store.open(cases, fresh=True), client=client, workers=1,
+                               on_result=mark)
+            store.close()
+    finally:
+        driver.STREAM_RESULTS = True
+        shutil.rmtree(folder, ignore_errors=True)
+    assert report.failed == 0 and len(marks) == 2, "a benchmark case failed"
+    (worker0, client0), (worker1, client1) = marks
+    n = len(cases) - 1
+    return {"worker": 1e3 * (worker1 - worker0) / n, "client": 1e3 * (client1 - client0) / n}
 
 
 def per_case(rows: List[dict], wall: float, once: float) -> Dict[str, float]:
@@ -147,12 +189,14 @@ def per_case(rows: List[dict], wall: float, once: float) -> Dict[str, float]:
             "load": first["setup_time"]}
 
 
-def worker_cpu(planned: PlannedStudy, cases: List[Case]) -> Dict[str, float]:
+def worker_cpu(planned: PlannedStudy, cases: List[Case], snapshots: bool = True) -> Dict[str, float]:
     """CPU milliseconds per case (this thread's: a loaded machine moves it much less than wall
     time) of what a worker does for a case, the cases run one after another in this process on
     one FmuPool as a worker runs them (no Dask): the whole case, its stepping (the master's
     fixed-step loop) and the rest (reset, start values, initialization, wiring, metrics); medians
-    over the cases after the first (which loads the FMUs)."""
+    over the cases after the first (which loads the FMUs). ``snapshots``: units whose
+    initialization repeats the case before's are restored from an FMU state snapshot (the
+    default), else every unit is reset and initialized."""
     from deltafmi.apps.studies.pool import FmuPool
     from deltafmi.apps.studies.runner import CaseTemplate, run_case
     from deltafmi.master.stepping.master import Master
@@ -168,7 +212,7 @@ def worker_cpu(planned: PlannedStudy, cases: List[Case]) -> Dict[str, float]:
             stepping.append(time.thread_time() - start)
 
     template = CaseTemplate(planned.plan, planned.fmu_files)
-    pool = FmuPool()
+    pool = FmuPool(snapshots=snapshots)
     whole: List[float] = []
     Master._run_fixed = timed  # type: ignore[method-assign]
     try:
@@ -236,10 +280,27 @@ def main() -> None:
         print(f"  per-case overhead, 1 worker (the sweep's time per case minus the same cases' stepping, same run): "
               f"{1e3 * stats['overhead']:.2f} ms (target <= 1 ms; load average {os.getloadavg()[0]:.1f} "
               f"on {os.cpu_count()} cores)")
-        cpu = worker_cpu(planned, cases)
-        print(f"  per-case CPU on a worker (no Dask, this process, medians): {cpu['case']:.2f} ms a case, of which "
-              f"stepping {cpu['stepping']:.2f} ms; the rest (reset, start values, initialization, wiring, "
-              f"metrics) {cpu['rest']:.2f} ms")
+        # without snapshots, then with, alternating: the same spell of load hits both
+        pairs = [(worker_cpu(planned, cases, snapshots=False), worker_cpu(planned, cases)) for _ in range(5)]
+        cpu = {k: statistics.median(after[k] for _, after in pairs) for k in pairs[0][1]}
+        plain = {k: statistics.median(before[k] for before, _ in pairs) for k in pairs[0][0]}
+        print(f"  per-case CPU on a worker (no Dask, this process, medians of 5 x {n - 1} cases): {cpu['case']:.2f} ms "
+              f"a case, of which stepping {cpu['stepping']:.2f} ms; the rest (reset or snapshot, start values, "
+              f"initialization, wiring, metrics) {cpu['rest']:.2f} ms; every unit reset and initialized "
+              f"(no snapshots, same run): {plain['rest']:.2f} ms, {plain['rest'] / cpu['rest']:.2f}x")
+        # the whole sweep's CPU, results streamed per case and per task as before, alternating
+        sides: Dict[bool, List[Dict[str, float]]] = {False: [], True: []}
+        for _ in range(3):
+            for streamed in (False, True):
+                sides[streamed].append(sweep_cpu(planned, cases, streamed))
+        total = {s: statistics.median(r["worker"] + r["client"] for r in sides[s]) for s in sides}
+        worker = {s: statistics.median(r["worker"] for r in sides[s]) for s in sides}
+        print(f"  per-case CPU of a 1-worker sweep, first result to last (worker process + client and scheduler, "
+              f"medians of 3 x {n - 1} cases): {total[True]:.2f} ms (worker {worker[True]:.2f}); around the stepping "
+              f"{total[True] - cpu['stepping']:.2f} ms (target <= 1 ms); results per task as before (same run): "
+              f"{total[False]:.2f} ms (worker {worker[False]:.2f}), around the stepping "
+              f"{total[False] - cpu['stepping']:.2f} ms, {(total[False] - cpu['stepping']) / (total[True] - cpu['stepping']):.2f}x "
+              f"(load average {os.getloadavg()[0]:.1f})")
         print(f"  once per sweep: registration (FMUs shipped, stored, scenario resolved on the worker) "
               f"{1e3 * best[1].registration:.0f} ms; wrap-up (study removed from the workers, final tables) "
               f"{1e3 * best[1].wrapup:.0f} ms; per worker, its first case loads and instantiates the FMUs: "

@@ -10,8 +10,8 @@ statements in :func:`__getattr__`, so every FMU carries these modules.
 """
 from typing import Any, List
 
-__all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Input", "Kernel", "NativeKernels", "Output",
-           "Parameter", "SampledComponent", "State"]
+__all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Function", "Input", "Kernel", "NativeKernels",
+           "Output", "Parameter", "SampledComponent", "State"]
 
 
 def __getattr__(name: str) -> Any:
@@ -20,13 +20,14 @@ def __getattr__(name: str) -> Any:
     from .base import Component
     from .clocks import Clock
     from .hybrid import HybridSystemComponent
-    from .native import Kernel, NativeKernels
+    from .native import Function, Kernel, NativeKernels
     from .sampled import SampledComponent
     from .variables import Experiment, Input, Output, Parameter, State
 
     globals().update(Clock=Clock, Component=Component, HybridSystemComponent=HybridSystemComponent,
-                     Experiment=Experiment, Input=Input, Kernel=Kernel, NativeKernels=NativeKernels, Output=Output,
-                     Parameter=Parameter, SampledComponent=SampledComponent, State=State)
+                     Experiment=Experiment, Function=Function, Input=Input, Kernel=Kernel,
+                     NativeKernels=NativeKernels, Output=Output, Parameter=Parameter,
+                     SampledComponent=SampledComponent, State=State)
     return globals()[name]
 
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from .layout import Layout, build_layout
 from .native_values import ValueDescriptor, ValueHolder
+from .native_functions import FunctionSet
 from .variables import _REAL_ARRAY, Experiment
 
 __all__ = ["Component"]
@@ -20,7 +21,32 @@ __all__ = ["Component"]
 #: attributes the runtime keeps on a component (its value buffers, log sink, ...): not its own state
 RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
                                 "_int_items", "_str", "_str_items", "_log_sink", "_control", "resources_dir",
-                                "own_modules", "_c_step"})
+                                "own_modules", "_c_step", "_native_functions"})
+
+_ATOMS = frozenset((float, int, bool, str, bytes, complex, type(None)))
+
+
+def _unchangeable(value: Any) -> bool:
+    """Whether ``value`` cannot change in place: a number, a string, None, or a tuple of such (a
+    NamedTuple too). Not a frozen dataclass: ``object.__setattr__`` still changes one."""
+    kind = type(value)
+    if kind in _ATOMS:
+        return True
+    if isinstance(value, tuple):
+        if kind is not tuple and hasattr(value, "__dict__"):
+            return False
+        # a long tuple of numbers (a path's samples) checked without a call each
+        return all(type(item) in _ATOMS or _unchangeable(item) for item in value)
+    return False
+
+
+def _copied(attributes: dict) -> dict:
+    """A deep copy of ``attributes`` in which values that cannot change in place are shared (the
+    others copied together, so that the references among them are kept)."""
+    keep = {k for k, v in attributes.items() if _unchangeable(v)}
+    fresh = copy.deepcopy({k: v for k, v in attributes.items() if k not in keep})
+    return {k: v if k in keep else fresh[k] for k, v in attributes.items()}
+
 
 #: Component.log levels -> (FMI status, log category)
 LOG_LEVELS = {"debug": (0, "logComponent"), "info": (0, "logComponent"), "warning": (1, "logStatusWarning"),
@@ -164,15 +190,16 @@ class Component(ValueHolder):
 
     def internal_state(self) -> Any:
         """What an FMU state saves besides the variables (``fmi2GetFMUstate``): by default a deep
-        copy of the component's own attributes. Override with :meth:`restore_internal_state`
+        copy of the component's own attributes (those that cannot change in place, numbers and
+        tuples of them, are kept as they are). Override with :meth:`restore_internal_state`
         when an attribute cannot be copied (a handle of another library)."""
-        return copy.deepcopy({k: v for k, v in vars(self).items() if k not in RUNTIME_ATTRIBUTES})
+        return _copied({k: v for k, v in vars(self).items() if k not in RUNTIME_ATTRIBUTES})
 
     def restore_internal_state(self, state: Any) -> None:
         """Restore what :meth:`internal_state` returned (which stays valid for another restore)."""
         for key in [k for k in vars(self) if k not in RUNTIME_ATTRIBUTES]:
             delattr(self, key)
-        vars(self).update(copy.deepcopy(state))
+        vars(self).update(_copied(state))
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` to ``t + h``. Override only for purely discrete components."""
@@ -307,6 +334,17 @@ class Component(ValueHolder):
     def overrides_do_step(cls) -> bool:
         """True when the component steps itself in Co-Simulation."""
         return cls.do_step is not Component.do_step
+
+    @property
+    def native_functions(self) -> FunctionSet:
+        """The functions ``native = NativeKernels(functions=...)`` declares, by name: compiled where
+        the FMU carries them (in-process: where the builder's ``use_compiled_functions`` registered
+        them), else the Python functions; the same results either way
+        (:mod:`.native_functions`)."""
+        functions = self.__dict__.get("_native_functions")
+        if functions is None:
+            functions = self._native_functions = FunctionSet.for_class(type(self))
+        return functions
 
     @property
     def states(self) -> np.ndarray:

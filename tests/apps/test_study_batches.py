@@ -54,3 +54,34 @@ def test_the_cases_of_a_task_whose_worker_died_run_again_first_and_alone():
     rest = drain(batcher)
     assert not any(b.alone for b in rest)
     assert sorted(c.id for b in [died, *rest] for c in b.cases) == list(range(40))
+
+
+def test_streamed_results_allow_long_tasks_and_one_worker_takes_the_rest_at_once():
+    from deltafmi.apps.studies.batches import STREAMED_BATCH, STREAMED_SECONDS
+
+    one = Batcher(cases(100), workers=1, streamed=True)
+    assert len(one.next().cases) == 100  # nothing to balance with: no case timed first
+    one = Batcher(cases(100), workers=1, streamed=True)
+    one.observe(STREAMED_SECONDS / 1000)
+    assert len(one.next().cases) == 100  # no other worker to share the end with
+    big = Batcher(cases(10_000), workers=1, streamed=True)
+    big.observe(1e-6)
+    assert len(big.next().cases) == STREAMED_BATCH
+    two = Batcher(cases(100), workers=2, streamed=True)
+    two.observe(STREAMED_SECONDS / 1000)
+    sizes = [len(b.cases) for b in drain(two)]
+    assert sizes[0] == 25 and sum(sizes) == 100 and sizes[-1] == 1  # each worker a share of the end
+
+
+def test_streamed_only_the_case_that_was_running_when_the_worker_died_runs_alone():
+    batcher = Batcher(cases(40), workers=1, streamed=True)
+    batcher.observe(0.5)  # ten cases per task of STREAMED_SECONDS
+    died = batcher.next()
+    assert len(died.cases) == 10
+    # the first three were streamed before the death: the driver hands back the other seven
+    batcher.run_again(type(died)(died.cases[3:]))
+    alone = batcher.next()
+    assert alone.alone and [c.id for c in alone.cases] == [died.cases[3].id]
+    rest = drain(batcher)
+    assert not any(b.alone for b in rest)
+    assert [c.id for b in rest for c in b.cases] == [c.id for c in died.cases[4:]] + list(range(10, 40))

@@ -1,8 +1,8 @@
 """Parallel units (``master: {threads: N}``): the plain-C FMUs of tests/third_party step on several
 threads, in the master's C loop and in its Python loop, and every result is the one of
 ``threads: 1`` bit for bit; Gauss-Seidel groups only units that take no input from one another; a
-deltafmi FMU whose step runs Python steps on the master's thread; a bad ``threads`` is bad input
-at its file and line."""
+deltafmi FMU whose step runs Python steps on the master's thread; units that exchange nothing step
+through blocks of steps with the same results; a bad ``threads`` is bad input at its file and line."""
 from __future__ import annotations
 
 import shutil
@@ -240,3 +240,71 @@ def test_a_worker_that_ran_an_fmus_python_leaves_no_thread_state(tmp_path):
     # the balls reached the table (the contact events ran)
     result = columns(tmp_path / "run-2-True.csv")
     assert result["b0.contact"].max() > 0 and result["b3.contact"].max() > 0 and result["b0.q"].min() < 0.01
+
+
+def components_of_runs(monkeypatch) -> list:
+    """The components of each C loop made from here on (unit names; none: the units step in lockstep)."""
+    from deltafmi.master.stepping import master as master_module
+
+    made = []
+
+    class Recorded(master_module.NativeLoop):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append(sorted(sorted(names) for names in self.components))
+
+    monkeypatch.setattr(master_module, "NativeLoop", Recorded)
+    return made
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_units_that_exchange_nothing_step_in_blocks_with_the_results_of_one_thread(c_fmus, tmp_path, monkeypatch,
+                                                                                     algorithm):
+    """The ring and the two free oscillators are three components: each steps through blocks of steps
+    on a thread of its own, its rows written there; every fourth row recorded (result.every)."""
+    made = components_of_runs(monkeypatch)
+    text = oscillators(c_fmus["Oscillator"], algorithm, stop=0.3) + "result: {every: 4}\n"
+    one = run(tmp_path, text, 1)
+    assert made == [[]]
+    for threads in (2, 3):
+        assert run(tmp_path, text, threads) == one, threads
+    assert made[1:] == [[["a", "b", "c", "d"], ["free1"], ["free2"]]] * 2
+    result = columns(tmp_path / "run-1-True.csv")
+    assert len(result["time"]) == 76 and np.allclose(np.diff(result["time"]), 4e-3)  # 0, 4 ms, ..., 0.3 s
+
+
+def test_blocks_of_steps_end_where_the_rows_are_full(c_fmus, tmp_path, monkeypatch):
+    """Room for 64 rows a call of the C loop (the least it takes): a call of more steps stops in a
+    block when the rows are full (ROWS_FULL) and the next goes on from there, as with one thread."""
+    from deltafmi.master.stepping import master as master_module
+
+    made = components_of_runs(monkeypatch)
+    monkeypatch.setattr(master_module, "_C_ROWS_BYTES", 1)
+    monkeypatch.setattr(master_module, "_C_STEPS", 100)  # the first call already more steps than rows
+    text = oscillators(c_fmus["Oscillator"], "jacobi", stop=0.5)
+    one = run(tmp_path, text, 1)
+    assert run(tmp_path, text, 2) == one and len(made[1]) == 3
+    assert len(one.decode().splitlines()) == 1 + 501
+
+
+def test_a_unit_ending_the_run_inside_a_block(c_fmus, tmp_path, monkeypatch):
+    """A Ticker ends the run at its 25th tick (fmi2Discard, fmi2Terminated) in the middle of a block: the
+    rows before are those of one thread, and so are the run's end and the Ticker's last row."""
+    folder = tmp_path / "fmus"
+    folder.mkdir()
+    ticker = build_fmu("Ticker", folder)
+    fmu = c_fmus["Oscillator"]
+    lines = ["experiment: {start: 0.0, stop: 1.0, step: 1.0e-3}", "master: {algorithm: jacobi}", "components:",
+             f"  ticker: {{fmu: '{ticker}', interface: CS, parameters: {{period: 0.0037, max_ticks: 25}}}}"]
+    lines += [f"  o{i}: {{fmu: '{fmu}', interface: CS, parameters: {{k: {1.0 + i}, substep: 1.0e-4}}}}"
+              for i in range(3)]
+    lines.append("outputs: [ticker.ticks, ticker.held, o0.x, o1.x, o2.x]")
+    text = "\n".join(lines) + "\n"
+    made = components_of_runs(monkeypatch)
+    one, two = (run(tmp_path, text, threads) for threads in (1, 2))
+    assert len(made[1]) == 4
+    first, second = one.decode().splitlines(), two.decode().splitlines()
+    assert len(first) == len(second) and first[:-1] == second[:-1]
+    last_one, last_two = first[-1].split(","), second[-1].split(",")
+    assert last_one[:3] == last_two[:3]  # time, ticker.ticks, ticker.held
+    assert float(last_one[0]) == pytest.approx(25 * 0.0037) and last_one[1] == "25"

@@ -25,7 +25,7 @@ import time as _time
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterator, List, Optional, TextIO, Tuple
+from typing import Any, Callable, Container, Dict, Iterator, List, Optional, TextIO, Tuple
 
 from distributed import WorkerPlugin
 
@@ -37,7 +37,7 @@ from .plan import PlannedStudy
 from .remote import CONNECT_TIMEOUT, connect
 from .runner import FAILED, OK, CaseResult
 from .store import ResultStore
-from .worker import StudyPlugin, run_cases_task
+from .worker import StudyPlugin, from_message, run_cases_task
 
 __all__ = ["LOCAL_DASHBOARD", "dashboard_address", "dashboard_link", "dask_client", "open_store", "run_study",
            "summary_lines", "sweep_study"]
@@ -46,6 +46,8 @@ __all__ = ["LOCAL_DASHBOARD", "dashboard_address", "dashboard_link", "dask_clien
 TABLE_EVERY = 10.0
 #: seconds between progress lines when the output is not a terminal
 LINE_EVERY = 30.0
+#: workers send each case's result as it finishes, when the study keeps no time series (see run_study)
+STREAM_RESULTS = True
 
 
 @dataclass
@@ -189,12 +191,15 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None,
     # A worker holds one task at a time (saturation 1.0): Dask counts a death against every task
     # assigned to the worker, so a task queued behind a crashing one must not be there. A death
     # is reported at once (allowed-failures 0): run_study retries the task's cases one by one.
-    # Workers do not sample their own stacks every 10 ms for the dashboard's profile: on a
-    # machine whose every core runs a worker that is time taken from the cases.
+    # Workers do not sample their own stacks every 10 ms for the dashboard's profile, and the
+    # processes check that their event loop is not blocked every second instead of every 20 ms
+    # (the largest part of what an idle worker, client and scheduler cost): on a machine whose
+    # every core runs a worker that is time taken from the cases.
     host, port = dashboard_address(dashboard)
     with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                           "distributed.scheduler.worker-saturation": 1.0,
-                          "distributed.worker.profile.enabled": False}):
+                          "distributed.worker.profile.enabled": False,
+                          "distributed.admin.tick.interval": "1s"}):
         try:
             # a (host, port) pair: Dask's own parsing of a string splits IPv6 addresses at every colon
             cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
@@ -281,7 +286,8 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
     Ctrl-C cancels what is left; the finished cases stay recorded (a re-run skips them).
     :func:`sweep_study` opens the store too, once the cluster answers.
     """
-    from distributed import as_completed
+    import queue
+    import uuid
 
     total = len(planned.cases)
     reused = total - len(todo)
@@ -295,6 +301,10 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
         plugin = StudyPlugin(planned.plan, planned.fmu_bytes)
         fingerprint = planned.plan.fingerprint
         keep = store.timeseries is not None
+        # each case's result streamed as a Dask event of a topic of this run's own (time series
+        # travel with the task's result only); the events and the finished tasks arrive in one queue
+        topic = None if keep or not STREAM_RESULTS else f"deltafmi-results-{fingerprint[:12]}-{uuid.uuid4().hex[:12]}"
+        arrived: "queue.SimpleQueue[Any]" = queue.SimpleQueue()
         with _client(client, scheduler, workers, dashboard, security, connect_timeout) as client:
             if client.cluster is None:  # a cluster given by address
                 threads = [w["nthreads"] for w in client.scheduler_info(n_workers=-1)["workers"].values()]
@@ -306,10 +316,13 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
                 client.register_plugin(plugin, name=plugin.name)
             except Exception as exc:  # noqa: BLE001 - e.g. a worker without deltafmi
                 raise SimulationError(f"the Dask workers could not set up the study: {exc}") from None
+            if topic is not None:
+                client.subscribe_topic(topic, lambda event: arrived.put(event[1]))
             setup = _time.perf_counter() - wall
-            batcher = Batcher(todo, slots)
+            batcher = Batcher(todo, slots, streamed=topic is not None)
             running: Dict[Any, Batch] = {}
-            finished = as_completed()
+            submitted: Dict[int, Case] = {}  # the cases of the tasks under way, by id
+            recorded: set = set()  # the cases of this run whose result is in the store
 
             def submit() -> None:
                 """Keep two tasks per worker thread submitted: one running, the next one waiting."""
@@ -317,21 +330,57 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
                     batch = batcher.next()
                     key = f"deltafmi-cases-{fingerprint[:12]}-{batch.cases[0].id}{'-alone' if batch.alone else ''}"
                     future = client.submit(run_cases_task, fingerprint, [(c.id, c.values) for c in batch.cases],
-                                           keep, key=key)
+                                           keep, topic, key=key)
                     running[future] = batch
-                    finished.add(future)
+                    submitted.update((c.id, c) for c in batch.cases)
+                    future.add_done_callback(arrived.put)
+
+            def record(result: CaseResult) -> None:
+                """Store a result (a case streamed already is not stored again)."""
+                nonlocal ran, failed
+                if result.case in recorded:
+                    return
+                store.add(result)
+                recorded.add(result.case)
+                submitted.pop(result.case, None)
+                if result.wall_time > 0:
+                    batcher.observe(result.wall_time)
+                ran += 1
+                failed += result.status == FAILED
+                bar.add(result)
+                on_result(result)
+
+            def handle(item: Any) -> None:
+                """Results streamed by a worker (a list of dicts), or a finished task (its future)."""
+                if isinstance(item, (list, tuple)):  # msgpack may hand a list back as a tuple
+                    for i, message in enumerate(item):
+                        case = submitted.get(message.get("case")) if isinstance(message, dict) else None
+                        try:
+                            if case is not None:
+                                record(from_message(message, case.values))
+                        except BaseException:  # Ctrl-C: the rest of the list is stored by the drain
+                            arrived.put(list(item[i + 1:]))
+                            raise
+                elif item in running and item.status != "cancelled":  # cancelled: its cases are not done
+                    for result in _results(item, running.pop(item), batcher, recorded):
+                        record(result)
+
+            def handle_arrived() -> None:
+                while True:
+                    try:
+                        handle(arrived.get_nowait())
+                    except queue.Empty:
+                        return
 
             submit()
             last_table = bar.start = _time.monotonic()  # rates and ETA from here, the cluster up
             bar.draw(force=True)
             try:
-                for future in finished:
-                    for result in _results(future, running.pop(future), batcher):
-                        store.add(result)
-                        ran += 1
-                        failed += result.status == FAILED
-                        bar.add(result)
-                        on_result(result)
+                while running:
+                    try:
+                        handle(arrived.get(timeout=1.0))
+                    except queue.Empty:
+                        continue
                     submit()
                     if _time.monotonic() - last_table > TABLE_EVERY:
                         store.write_tables(planned.cases)
@@ -339,10 +388,13 @@ def run_study(planned: PlannedStudy, store: ResultStore, todo: List[Case], *, sc
             except KeyboardInterrupt:
                 interrupted = True
                 client.cancel(list(running))
+                handle_arrived()  # what the workers finished and sent is kept too
                 store.sync_with_journal()  # the signal may have come between a case's journal line and its row
             finally:
                 bar.close()
                 try:
+                    if topic is not None:
+                        client.unsubscribe_topic(topic)
                     client.unregister_worker_plugin(plugin.name)
                 except Exception:  # noqa: BLE001 - the cluster may be going down already
                     pass
@@ -383,15 +435,16 @@ def _client(client: Any, scheduler: Optional[str], workers: Optional[int], dashb
         yield made
 
 
-def _results(future: Any, batch: Batch, batcher: Batcher) -> List[CaseResult]:
-    """The results of a finished task; none when its worker died and its cases run again."""
+def _results(future: Any, batch: Batch, batcher: Batcher, recorded: Container[int] = ()) -> List[CaseResult]:
+    """The results of a finished task; none when its worker died and its cases not ``recorded``
+    yet (streamed before the death) run again."""
     from distributed import KilledWorker
 
     try:
         results: List[CaseResult] = future.result()
     except KilledWorker:
         if not batch.alone:
-            batcher.run_again(batch)
+            batcher.run_again(Batch([c for c in batch.cases if c.id not in recorded]))
             return []
         case = batch.cases[0]
         return [CaseResult(case.id, case.values, {}, FAILED,
@@ -399,8 +452,6 @@ def _results(future: Any, batch: Batch, batcher: Batcher) -> List[CaseResult]:
                            "again when it ran alone; Dask restarted the worker each time (KilledWorker)")]
     except Exception as exc:  # noqa: BLE001 - a task that raised: record it, go on
         return [CaseResult(c.id, c.values, {}, FAILED, f"{type(exc).__name__}: {exc}") for c in batch.cases]
-    for result in results:
-        batcher.observe(result.wall_time)
     return results
 
 

@@ -59,21 +59,39 @@ class Metric:
         return self.spec.name
 
     def signal(self, columns: Mapping[str, np.ndarray]) -> np.ndarray:
-        """The metric's signal at every recorded row."""
-        values = np.column_stack([np.asarray(columns[c], dtype=float) for c in self.left])
+        """The metric's signal at every recorded row (computed once per set of ``columns`` that
+        keeps ``signals``, a dict: metrics of the same signal and norm share it)."""
+        kept = getattr(columns, "signals", None)
+        key = (self.left, self.right, self.spec.norm)
+        if kept is not None and key in kept:
+            return kept[key]
+        signal = reduce(self._values(columns), self.spec.norm)
+        if kept is not None:
+            kept[key] = signal
+        return signal
+
+    def _values(self, columns: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Rows x elements of the signal before its norm."""
+        values = _block(columns, self.left)
         if self.right:
-            values = values - np.column_stack([np.asarray(columns[c], dtype=float) for c in self.right])
-        return reduce(values, self.spec.norm)
+            values = values - _block(columns, self.right)
+        return values
 
     def value(self, columns: Mapping[str, np.ndarray]) -> float:
         """The metric of one run; ``columns`` holds ``time`` and the recorded variables."""
         time = np.asarray(columns["time"], dtype=float)
         if self.spec.statistic == "alternation":
-            values = np.column_stack([np.asarray(columns[c], dtype=float) for c in self.left])
-            if self.right:
-                values = values - np.column_stack([np.asarray(columns[c], dtype=float) for c in self.right])
-            return alternation(time, values, self.spec.norm, self.spec.window)
+            return alternation(time, self._values(columns), self.spec.norm, self.spec.window)
         return statistic(self.spec, time, self.signal(columns))
+
+
+def _block(columns: Mapping[str, np.ndarray], names: Tuple[str, ...]) -> np.ndarray:
+    """The named columns as rows x columns, floats (in one gather where ``columns`` offers
+    ``block``: the same numbers as stacking them one by one)."""
+    block = getattr(columns, "block", None)
+    if block is not None:
+        return block(names)
+    return np.column_stack([np.asarray(columns[c], dtype=float) for c in names])
 
 
 def reduce(values: np.ndarray, norm: str | None) -> np.ndarray:

@@ -9,6 +9,10 @@ of freeing it. The FMU keeps the logger it got when instantiated until it is fre
 hands it a logger of its own that forwards every message to the logger of whoever holds the FMU
 now. Instances of a run that failed are freed (:meth:`FmuPool.discard`): a case that went
 wrong leaves nothing behind.
+
+An FMI 2.0 instance whose FMU can get and set its state also keeps its last initialization
+(:mod:`deltafmi.apps.studies.snapshots`): a case that initializes it exactly as the case before
+did gets it from an FMU state snapshot instead of reset and initialized again.
 """
 from __future__ import annotations
 
@@ -24,6 +28,8 @@ from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from deltafmi.master.scenario.system import ResolvedComponent
+
+from .snapshots import RECORDED_CALLS, InitTranscript, Replay
 
 __all__ = ["FmuPool"]
 
@@ -72,6 +78,130 @@ class _Pooled:
 
 
 class _Pooled2(_Pooled):
+    """FMI 2.0: instantiate once, reset afterwards, and an initialization that repeats the last
+    one restored from its snapshot (see :mod:`deltafmi.apps.studies.snapshots`)."""
+
+    def __init__(self, pool: "FmuPool", key: Key, **kwargs: Any) -> None:
+        super().__init__(pool, key, **kwargs)
+        #: take snapshots (the FMU can get and set its state, and the pool wants them)
+        self.snapshots = False
+        #: initializations restored from a snapshot
+        self.restores = 0
+        self._kept: Optional[InitTranscript] = None  # the last initialization, with its snapshot
+        self._new: Optional[InitTranscript] = None  # the initialization under way, being recorded
+        self._replay: Optional[Replay] = None  # the initialization under way, checked against _kept
+        self._terminate_due = False  # fmi2Terminate held back (see terminate)
+
+    def instantiate(self, **kwargs: Any) -> None:
+        """As :meth:`_Pooled.instantiate`; with a snapshot kept, the reset waits for the first call
+        that differs from the last initialization."""
+        self._new = self._replay = None
+        if self.component is not None and self._kept is not None:
+            self._holder = kwargs.pop(self.logger_argument, None)
+            self._replay = Replay(self._kept)
+            return
+        self._terminate_now()
+        super().instantiate(**kwargs)
+        if self.snapshots:
+            self._new = InitTranscript()
+
+    def _through(self, name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Any:
+        """A call of :data:`RECORDED_CALLS`: answered from the last initialization while it matches,
+        else made (and recorded while initializing)."""
+        replay = self._replay
+        if replay is not None:
+            call = replay.next(name, args, kwargs)
+            if call is not None:
+                if name == "exitInitializationMode":
+                    self._restore(replay.transcript)
+                return list(call.result) if isinstance(call.result, list) else call.result
+            self._make_real()
+        live = getattr(super(_Pooled2, self), name)
+        new = self._new
+        if new is None:
+            return live(*args, **kwargs)
+        try:
+            result = new.record(name, args, kwargs, live)
+        except BaseException:
+            self._new = None
+            raise
+        if name == "exitInitializationMode":
+            self._new = None
+            self._keep(new)
+        return result
+
+    def terminate(self) -> int:
+        """fmi2Terminate, held back while the instance keeps a snapshot: made before the next reset
+        or before the instance is freed, and left out when the next case sets the FMU to its
+        snapshot (an FMU may restore the state machine's place with its state or not, and in
+        'terminated' it may take no step after fmi2SetFMUstate; the snapshot replaces everything)."""
+        if not self.snapshots:
+            self._unrecorded()
+            return super().terminate()  # type: ignore[misc]
+        self._terminate_due = True
+        return 0
+
+    def _terminate_now(self) -> None:
+        """The fmi2Terminate held back, if any."""
+        if self._terminate_due:
+            self._terminate_due = False
+            super().terminate()  # type: ignore[misc]
+
+    def _unrecorded(self) -> None:
+        """Before any other FMI call: the FMU must be real, and an initialization that made such a
+        call is not kept."""
+        if self._replay is not None:
+            self._make_real()
+        self._new = None
+
+    def _make_real(self) -> None:
+        """The case differs from the last initialization: reset, and make the calls that matched."""
+        assert self._replay is not None
+        matched, self._replay = self._replay.matched(), None
+        self._terminate_now()
+        self.reset()  # type: ignore[attr-defined]
+        self.resets += 1
+        new = self._new = InitTranscript()
+        for call in matched:
+            new.record(call.name, call.args, call.kwargs, getattr(super(_Pooled2, self), call.name))
+
+    def _restore(self, transcript: InitTranscript) -> None:
+        """The initialization repeats the kept one: set the FMU to its snapshot."""
+        self._replay = None
+        self._terminate_due = False  # the FMU goes back to where the snapshot was taken
+        super().setFMUstate(transcript.state)  # type: ignore[misc]
+        self.restores += 1
+        self.pool.restored += 1
+        for message in transcript.messages:
+            self._forward(*message)
+
+    def _keep(self, transcript: InitTranscript) -> None:
+        """Initialization done: its snapshot replaces the one kept (none if the FMU cannot give it)."""
+        self._drop_kept()
+        try:
+            transcript.state = super().getFMUstate()  # type: ignore[misc]
+        except Exception:  # noqa: BLE001 - no snapshot: the next case initializes as usual
+            return
+        self._kept = transcript
+
+    def _drop_kept(self) -> None:
+        kept, self._kept = self._kept, None
+        if kept is not None and kept.state is not None and self.component is not None:
+            try:
+                super().freeFMUstate(kept.state)  # type: ignore[misc]
+            except Exception:  # noqa: BLE001 - the instance is going anyway
+                pass
+
+    def free(self) -> None:
+        """Free the snapshot, then the instance."""
+        self._replay = self._new = None
+        try:
+            self._terminate_now()
+        except Exception:  # noqa: BLE001 - freed anyway
+            pass
+        self._drop_kept()
+        super().free()
+
     def _forwarder(self) -> fmi2CallbackFunctions:
         from fmpy import calloc, free
 
@@ -82,6 +212,8 @@ class _Pooled2(_Pooled):
         return callbacks
 
     def _forward(self, env: Any, instance: Any, status: int, category: Any, message: Any) -> None:
+        if self._new is not None:
+            self._new.messages.append((env, instance, status, category, message))
         holder = self._holder
         if holder is not None and holder.logger:
             holder.logger(env, instance, status, category, message)
@@ -97,6 +229,33 @@ class _Pooled3(_Pooled):
         holder = self._holder
         if holder is not None:
             holder(env, status, category, message)
+
+
+def _recorded(name: str) -> Callable[..., Any]:
+    def method(self: _Pooled2, *args: Any, **kwargs: Any) -> Any:
+        return self._through(name, args, kwargs)
+    method.__name__ = name
+    return method
+
+
+def _unrecorded(name: str) -> Callable[..., Any]:
+    def method(self: _Pooled2, *args: Any, **kwargs: Any) -> Any:
+        self._unrecorded()
+        return getattr(super(_Pooled2, self), name)(*args, **kwargs)
+    method.__name__ = name
+    return method
+
+
+for _name in RECORDED_CALLS:
+    setattr(_Pooled2, _name, _recorded(_name))
+# every other fmpy call the master may make on an FMI 2.0 instance
+for _name in ("doStep", "cancelStep", "getStatus", "getRealStatus", "getIntegerStatus",
+              "getBooleanStatus", "getStringStatus", "setRealInputDerivatives", "getRealOutputDerivatives",
+              "enterEventMode", "newDiscreteStates", "enterContinuousTimeMode", "completedIntegratorStep",
+              "setTime", "setContinuousStates", "getDerivatives", "getEventIndicators", "getContinuousStates",
+              "getNominalsOfContinuousStates", "getDirectionalDerivative", "getFMUstate", "setFMUstate",
+              "freeFMUstate", "serializeFMUstate", "deSerializeFMUstate", "setDebugLogging"):
+    setattr(_Pooled2, _name, _unrecorded(_name))
 
 
 # fmpy binds the fmi2 functions of classes whose name starts with "FMU2"
@@ -127,7 +286,10 @@ class FmuPool:
     first extraction and removed by :meth:`close`.
     """
 
-    def __init__(self, root: Optional[Path] = None) -> None:
+    def __init__(self, root: Optional[Path] = None, snapshots: bool = True) -> None:
+        """``snapshots``: FMI 2.0 instances whose FMU can get and set its state restore an
+        initialization that repeats the last one from a snapshot (:mod:`.snapshots`)."""
+        self.snapshots = snapshots
         self._own_root = root is None
         self._root: Optional[Path] = None if root is None else Path(root)
         self._idle: Dict[Key, List[_Pooled]] = {}
@@ -135,6 +297,8 @@ class FmuPool:
         self._lock = threading.Lock()
         self._extractions = 0
         self.created = 0
+        #: initializations restored from a snapshot (all instances, since the pool was made)
+        self.restored = 0
 
     @property
     def root(self) -> Path:
@@ -158,9 +322,13 @@ class FmuPool:
                 directory = self._extracted[key[0]] = fmpy.extract(key[0], unzipdir=str(target))
             cls = _CLASSES[component.info.fmi3, component.interface]
             self.created += 1
-            return cls(self, key, guid=component.info.md.guid, unzipDirectory=directory,
-                       modelIdentifier=component.info.model_identifier(component.interface),
-                       instanceName=component.name)
+            fmu = cls(self, key, guid=component.info.md.guid, unzipDirectory=directory,
+                      modelIdentifier=component.info.model_identifier(component.interface),
+                      instanceName=component.name)
+            if isinstance(fmu, _Pooled2):  # Co-Simulation: an ME unit's event iteration follows initialization
+                fmu.snapshots = (self.snapshots and component.interface == "CS"
+                                 and component.info.can_get_set_state(component.interface))
+            return fmu
 
     def give_back(self, fmu: _Pooled) -> None:
         """Make ``fmu`` available again (called by its ``freeInstance``)."""

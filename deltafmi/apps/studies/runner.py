@@ -86,6 +86,17 @@ class RecordedColumns(Mapping[str, np.ndarray]):
         self._index = {"time": 0, **{name: i + 1 for i, name in enumerate(names)}}
         self._strings = {name for name, kind in zip(names, kinds) if kind == "String"}
         self._copied: Dict[str, np.ndarray] = {}
+        #: metric signals computed from these rows, shared by the metrics of one signal (see metrics.py)
+        self.signals: Dict[Any, np.ndarray] = {}
+
+    def block(self, names: Sequence[str]) -> np.ndarray:
+        """Several numeric columns as one rows x columns float array (one gather from the rows)."""
+        if self._rows.dtype != object:
+            gathered = self._rows[:, [self._index[name] for name in names]]  # column-major
+            # numpy reduces a row of fewer than 8 elements one element after the other whatever
+            # the layout, and a longer one pairwise in C order: C order there, as stacking gives
+            return gathered if len(names) < 8 else np.ascontiguousarray(gathered)
+        return np.column_stack([self[name] for name in names])
 
     def __getitem__(self, name: str) -> np.ndarray:
         column = self._copied.get(name)

@@ -6,13 +6,15 @@ shared between the client and the workers but the installed ``deltafmi``. On the
 plugin stores each FMU once in a cache keyed by its sha256 (``$DELTAFMI_CACHE/study-fmus``) and
 the process keeps one :class:`WorkerCache`: the FMU pool (loaded FMUs, reset between cases) and
 the resolved case template of each study. :func:`run_cases_task` is the task: it carries only the
-study's fingerprint and a batch of case ids with their values.
+study's fingerprint and a batch of case ids with their values, and sends each case's result to the
+client as soon as it is done (a Dask event) besides returning them all at the end.
 """
 from __future__ import annotations
 
 import atexit
 import hashlib
 import threading
+import time as _time
 from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Tuple
 
@@ -25,7 +27,7 @@ from .plan import StudyPlan
 from .pool import FmuPool
 from .runner import CaseResult, CaseTemplate, run_case
 
-__all__ = ["StudyPlugin", "WorkerCache", "run_cases_task"]
+__all__ = ["StudyPlugin", "WorkerCache", "from_message", "result_message", "run_cases_task"]
 
 
 class WorkerCache:
@@ -88,6 +90,10 @@ class WorkerCache:
             self.pool.close()
 
 
+#: seconds between two sends of the results a task has finished (one event each: an event per case
+#: costs the worker more than the case's own set-up)
+STREAM_SECONDS = 0.25
+
 _CACHE: Optional[WorkerCache] = None
 _CACHE_LOCK = threading.Lock()
 
@@ -128,17 +134,68 @@ class StudyPlugin(WorkerPlugin):
 
 
 def run_cases_task(fingerprint: str, cases: List[Tuple[int, Dict[str, Any]]],
-                   keep_timeseries: bool) -> List[CaseResult]:
-    """The Dask task of a batch of cases ``(id, values)`` (runs on a worker)."""
+                   keep_timeseries: bool, topic: Optional[str] = None) -> List[CaseResult]:
+    """The Dask task of a batch of cases ``(id, values)`` (runs on a worker). With ``topic``, the
+    cases' results are also sent to the client as they finish, as Dask events of that topic (a
+    list of :func:`result_message`, at most every :data:`STREAM_SECONDS`; the client subscribes):
+    what a batch has done reaches the client's result files before the batch ends."""
     from distributed import get_worker
 
     cache = worker_cache()
     try:
-        address = get_worker().address
+        worker: Any = get_worker()
+        address = worker.address
     except ValueError:  # not on a worker (called directly)
-        address = "local"
+        worker, address = None, "local"
     template = cache.template(fingerprint)
-    return [run_case(template, cache.pool, case, values, keep_timeseries, address) for case, values in cases]
+    results: List[CaseResult] = []
+    unsent: List[Dict[str, Any]] = []
+    sent = _time.monotonic()
+
+    def send() -> None:
+        nonlocal unsent, sent
+        if unsent:
+            worker.log_event(topic, unsent)
+        unsent, sent = [], _time.monotonic()
+
+    streaming = topic is not None and worker is not None
+    for case, values in cases:
+        if results and worker is not None and _cancelled(worker):
+            if streaming:
+                send()  # the client takes nothing from a cancelled task but its events
+            break
+        results.append(run_case(template, cache.pool, case, values, keep_timeseries, address))
+        if streaming:
+            unsent.append(result_message(results[-1]))
+            if _time.monotonic() - sent >= STREAM_SECONDS:
+                send()
+    return results
+
+
+def _cancelled(worker: Any) -> bool:
+    """Whether the client cancelled the task this thread runs (Dask lets a cancelled task run on
+    and drops its result)."""
+    try:
+        from distributed.worker import thread_state
+
+        task = worker.state.tasks.get(thread_state.key)
+        return task is None or task.state == "cancelled"
+    except Exception:  # noqa: BLE001 - another Dask's internals: run on, as Dask would
+        return False
+
+
+def result_message(result: CaseResult) -> Dict[str, Any]:
+    """A case's result as a Dask event carries it (msgpack's types; no time series, no values: the
+    client has them)."""
+    return {"case": int(result.case), "metrics": {str(k): float(v) for k, v in result.metrics.items()},
+            "status": result.status, "error": result.error, "wall_time": result.wall_time,
+            "setup_time": result.setup_time, "sim_time": result.sim_time, "worker": result.worker}
+
+
+def from_message(message: Mapping[str, Any], values: Dict[str, Any]) -> CaseResult:
+    """The :class:`CaseResult` of a :func:`result_message` (``values``: the case's, as the client has them)."""
+    return CaseResult(message["case"], dict(values), dict(message["metrics"]), message["status"], message["error"],
+                      message["wall_time"], message["setup_time"], message["sim_time"], None, message["worker"])
 
 
 def _sha256(path: Path) -> str:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from itertools import product
 from pathlib import Path
-from typing import Dict, List, Optional, Set, Tuple
+from typing import Dict, FrozenSet, List, Optional, Set, Tuple
 
 from attrs import evolve
 from fmpy import read_model_description
@@ -78,6 +78,13 @@ class ModelInfo:
             for i, name in enumerate(element_names(v.name, v.shape)):
                 found[name] = evolve(v, name=name, start=starts[i] if i < len(starts) else None)
         return found
+
+    @cached_property
+    def discrete_real_inputs(self) -> FrozenSet[int]:
+        """Value references of the Real (Float32/64) inputs of variability discrete."""
+        return frozenset(v.valueReference for v in self.md.modelVariables
+                         if v.type in ("Real", "Float64", "Float32") and v.causality == "input"
+                         and v.variability == "discrete")
 
     @cached_property
     def positions(self) -> Dict[str, int]:

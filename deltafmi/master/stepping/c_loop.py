@@ -31,6 +31,7 @@ import numpy as np
 from deltafmi.toolchain import plain_c_library
 
 from .explicit_rk import ExplicitRungeKutta
+from .parallel import pooled
 from .unit_base import Unit, _Inputs, _Outputs, function_address
 
 __all__ = ["BEHIND", "CLOCK_INSIDE", "FETCH", "NativeLoop", "PULL", "RAN", "RK_FAILED", "ROWS_FULL", "STATE_EVENT",
@@ -73,6 +74,10 @@ class _RowPart(ctypes.Structure):
     _fields_ = [("bus", c_void_p), ("is_int", c_int), ("n", c_size_t), ("index", c_void_p), ("columns", c_void_p)]
 
 
+class _Component(ctypes.Structure):
+    _fields_ = [("ops", c_void_p), ("n_ops", c_size_t), ("parts", POINTER(_RowPart)), ("n_parts", c_size_t)]
+
+
 class _Pace(ctypes.Structure):
     _fields_ = [("t0", c_double), ("wall0", c_double), ("speed", c_double), ("spin", c_double), ("period", c_double),
                 ("released", c_double), ("lateness", c_void_p), ("count", c_void_p), ("capacity", c_long),
@@ -86,7 +91,9 @@ class _Plan(ctypes.Structure):
                 ("n_steps", c_long), ("last", c_long), ("every", c_long),
                 ("op", c_long), ("status", c_int), ("call", c_int), ("time", c_double), ("rk_time", c_double),
                 ("rk_step", c_double), ("op_seconds", c_void_p), ("pace", POINTER(_Pace)), ("threads", c_int),
-                ("pool", c_void_p), ("gil_released", c_int), ("step_start", c_void_p)]
+                ("pool", c_void_p), ("gil_released", c_int), ("step_start", c_void_p),
+                ("components", POINTER(_Component)), ("n_components", c_size_t), ("fixed_parts", POINTER(_RowPart)),
+                ("n_fixed_parts", c_size_t)]
 
 
 _kernels: dict = {}
@@ -209,6 +216,80 @@ class NativeLoop:
         self.step_start: Optional[np.ndarray] = None
         self._run = _steps_function()
         self._k_done, self._n_rows = c_long(0), c_long(0)
+        #: the units of each component stepped in blocks (:meth:`_plan_components`; empty: none)
+        self.components: List[List[str]] = []
+        if threads > 1:
+            self._plan_components(sampler)
+
+    def _plan_components(self, sampler: Any) -> None:
+        """Blocks of steps (``native/fixed_step.c``): when every unit steps on the threads
+        (:func:`.parallel.pooled`) and they fall into two or more components that exchange no
+        values (no unit's input reads a bus slot another component's outputs write), each
+        component's ops and the recorded values its outputs write; the recorded values no op
+        writes are the calling thread's."""
+        units = list(dict.fromkeys(unit for unit, _, _ in self.actions))
+        if len(units) < 2 or not all(pooled(u) for u in units):
+            return
+        parent = list(range(len(units)))
+
+        def root(i: int) -> int:
+            while parent[i] != i:
+                parent[i] = parent[parent[i]]
+                i = parent[i]
+            return i
+
+        writer: dict = {}  # (bus address, slot) -> the unit whose outputs write it
+        for u, unit in enumerate(units):
+            for outputs in unit.outputs:
+                for slot in range(outputs.slots.start, outputs.slots.stop):
+                    writer[(outputs.bus.ctypes.data, slot)] = u
+        for u, unit in enumerate(units):
+            for inputs in unit.inputs:
+                for slot in inputs.index.tolist():
+                    w = writer.get((inputs.bus.ctypes.data, slot))
+                    if w is not None:
+                        parent[root(w)] = root(u)
+        roots = list(dict.fromkeys(root(u) for u in range(len(units))))
+        if len(roots) < 2:
+            return
+        component_of = {unit.name: roots.index(root(u)) for u, unit in enumerate(units)}
+        ops: List[List[int]] = [[] for _ in roots]
+        for i, a in enumerate(self.op_action):
+            ops[component_of[self.actions[a][0].name]].append(i)
+        owned: List[List[Tuple[np.ndarray, List[int], List[int]]]] = [[] for _ in roots]
+        fixed: List[Tuple[np.ndarray, List[int], List[int]]] = []
+        for bus, index, columns in sampler._parts:
+            split: dict = {}
+            for slot, column in zip(index.tolist(), columns.tolist()):
+                w = writer.get((bus.ctypes.data, slot))
+                entry = split.setdefault(-1 if w is None else roots.index(root(w)), ([], []))
+                entry[0].append(slot)
+                entry[1].append(column)
+            for c, (slots, cols) in split.items():
+                (fixed if c < 0 else owned[c]).append((bus, slots, cols))
+
+        def row_parts(parts: Sequence[Tuple[np.ndarray, List[int], List[int]]]) -> Any:
+            made = []
+            for bus, slots, cols in parts:
+                index, columns = np.array(slots, dtype=np.intp), np.array(cols, dtype=np.intp)
+                self._keep += [index, columns]
+                made.append(_RowPart(_pointer(bus), int(bus.dtype != np.float64), len(index), _pointer(index),
+                                     _pointer(columns)))
+            return (_RowPart * max(1, len(made)))(*made), len(made)
+
+        components = []
+        for c in range(len(roots)):
+            indices = np.array(ops[c], dtype=np.int_)
+            parts, n = row_parts(owned[c])
+            self._keep += [indices, parts]
+            components.append(_Component(_pointer(indices), len(indices), parts, n))
+        self._components = (_Component * len(components))(*components)
+        fixed_parts, n_fixed = row_parts(fixed)
+        self._keep.append(fixed_parts)
+        self.plan.components, self.plan.n_components = self._components, len(components)
+        self.plan.fixed_parts, self.plan.n_fixed_parts = fixed_parts, n_fixed
+        self.components = [[unit.name for u, unit in enumerate(units) if roots.index(root(u)) == c]
+                           for c in range(len(roots))]
 
     @staticmethod
     def fits(units: Sequence[Any], sampler: Any) -> bool:

@@ -44,6 +44,7 @@ from ..scenario.system import ResolvedComponent, Port, System
 from ..scenario.spec import grid_steps, too_many_steps
 from .adaptive import run_adaptive
 from .explicit_rk import RungeKuttaError, step_failure
+from .initial_links import copy_initial_links
 from deltafmi.master.stepping.algebraic_loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
                           STEP_RETURNED, TERMINATED, UNSETTLED, BEHIND, NativeLoop)
@@ -55,9 +56,11 @@ from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 __all__ = ["Master", "NativeLoop"]
 
-#: steps of the first call of the C loop; later calls take twice as many while a call is shorter
-#: than _C_SECONDS, up to _C_MAX_STEPS (stop signals and progress are looked at in between)
+#: steps of the first call of the C loop; while a call is shorter than _C_SECONDS the next takes as
+#: many steps as would fill _C_SECONDS at its pace, between twice and _C_GROWTH times as many, up to
+#: _C_MAX_STEPS (stop signals and progress are looked at in between)
 _C_STEPS = 64
+_C_GROWTH = 8
 _C_MAX_STEPS = 4096
 _C_SECONDS = 0.005
 _C_ROWS_BYTES = 8 << 20
@@ -401,13 +404,7 @@ class Master:
             unit.enter_initialization()
         by_name = self._by_name
         loops = self.initial_loops = InitialLoops(self.system.init_loops, by_name, self.system.scenario.master.loops)
-        for link in self.system.init_links:
-            if loops.solve_with(link):  # solved with the rest of its loop
-                continue
-            value = by_name[link.source.component].get_value(link.source)
-            if link.source.type == "Real":
-                value = link.factor * value + link.offset
-            by_name[link.target.component].set_value(link.target, value)
+        copy_initial_links(self.system.init_links, by_name, loops)
         for unit in self.units:
             unit.exit_initialization(self.start)
         for unit in self.units:
@@ -530,21 +527,28 @@ class Master:
         n_steps = min(k_end, fixed.n_steps)
         stop_signals, progress = self.stop_signals, self.progress
         k, chunk, most = self.steps, self._fixed_chunk, self._fixed_most
+        background = isinstance(self.writer, BackgroundRows)
         while k < n_steps:
             if stop_signals.received:
                 raise KeyboardInterrupt
             if native is not None and native.ready():
-                begin = _time.perf_counter()
-                k = self._steps_in_c(native, fixed, k, min(n_steps, k + chunk))
-                if chunk < most and _time.perf_counter() - begin < _C_SECONDS:
-                    chunk = self._fixed_chunk = min(2 * chunk, most)
+                begin, k_begin = _time.perf_counter(), k
+                end = min(n_steps, k + chunk)
+                if background and end == n_steps and n_steps - k > 4 * _C_STEPS:
+                    # the last rows become text after the stepping: a short last call leaves few
+                    end = n_steps - max(_C_STEPS, (n_steps - k) // 8)
+                k = self._steps_in_c(native, fixed, k, end)
+                spent = _time.perf_counter() - begin
+                if chunk < most and spent < _C_SECONDS:
+                    fill = int((k - k_begin) * _C_SECONDS / max(spent, 1e-9))
+                    chunk = self._fixed_chunk = min(max(2 * chunk, min(fill, _C_GROWTH * chunk)), most)
                 progress.update(self.time)
             else:
                 self._step_in_python(actions, fixed, k)
                 if k & 63 == 0:
                     progress.update(self.time)
                 k += 1
-        if isinstance(self.writer, BackgroundRows):
+        if background:
             self.writer.drain()  # the stepping ends with its rows written
 
     def _step_pool(self) -> StepPool:

@@ -76,9 +76,7 @@ class ModelExchangeUnit(Unit):
         """Continuous inputs are set before every step; discrete ones (Integer, Boolean, String,
         and Real inputs of variability discrete) only in event mode, as FMI 2.0 ME requires:
         a change at a communication point is an event there."""
-        discrete_reals = {v.valueReference for v in self.info.md.modelVariables
-                          if v.type in ("Real", "Float64", "Float32") and v.causality == "input"
-                          and v.variability == "discrete"}
+        discrete_reals = self.info.discrete_real_inputs
         discrete = [kind != "Real" or vr in discrete_reals for vr in vrs]
         elements = list(elements) or [0] * len(vrs)
         for in_event_mode in (False, True):

@@ -20,11 +20,14 @@ Which steps may run at once without changing a single bit of the results:
 
 Each step has the arguments it has with one thread; only who runs it differs. The C loop steps a
 group on its own POSIX threads (``native/fixed_step.c``); the Python loop on a
-:class:`StepPool`. A failing step is reported as it would be one after the other (the first in
+:class:`StepPool`. When every unit is pooled and they fall into components that exchange no
+values, the C loop's threads take whole components through blocks of steps instead
+(:meth:`.NativeLoop._plan_components`). A failing step is reported as it would be one after the other (the first in
 stepping order), except that the others of its group have taken the step too.
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Dict, List, Optional, Sequence, Tuple
 
@@ -49,7 +52,12 @@ def runs_python(unzip_dir: str | Path) -> bool:
     folder = Path(unzip_dir)
     if not any((folder / marker).is_file() for marker in _PYTHON_MARKERS):
         return False
-    return not all((folder / marker).is_file() for marker in _STEPS_IN_C)
+    if not all((folder / marker).is_file() for marker in _STEPS_IN_C):
+        return True
+    try:  # kernels the C layer calls; functions alone (NativeKernels(functions=...)) are Python's
+        return not json.loads((folder / _STEPS_IN_C[0]).read_text()).get("kernels")
+    except (OSError, ValueError):
+        return True
 
 
 def pooled(unit: Any) -> bool:

@@ -31,17 +31,19 @@ typedef struct {
 static int erk_step(ErkPlan *p, double t, double h, double *x)
 {
     const size_t nx = p->nx;
-    double *stage_x = p->work + (size_t)p->stages * nx;
+    double *restrict stage_x = p->work + (size_t)p->stages * nx; /* apart from the stages' k and from x */
     int worst = 0;
+    /* the sums run over the stages in order for each state, as sum += a * k would state by state;
+     * the state is the inner loop (contiguous, no dependence between states) */
     for (int i = 0; i < p->stages; i++) {
         const double *point = x;
         if (i > 0) {
-            for (size_t n = 0; n < nx; n++) {
-                double sum = 0.0;
-                for (int j = 0; j < i; j++)
-                    sum += p->a[i * p->stages + j] * p->work[(size_t)j * nx + n];
-                stage_x[n] = x[n] + h * sum;
+            for (size_t n = 0; n < nx; n++) stage_x[n] = 0.0;
+            for (int j = 0; j < i; j++) {
+                const double a = p->a[i * p->stages + j], *restrict k = p->work + (size_t)j * nx;
+                for (size_t n = 0; n < nx; n++) stage_x[n] += a * k[n];
             }
+            for (size_t n = 0; n < nx; n++) stage_x[n] = x[n] + h * stage_x[n];
             point = stage_x;
         }
         int status;
@@ -62,12 +64,12 @@ static int erk_step(ErkPlan *p, double t, double h, double *x)
         if (status > worst) worst = status;
         if (worst > FMI2_WARNING) return worst;
     }
-    for (size_t n = 0; n < nx; n++) {
-        double sum = 0.0;
-        for (int i = 0; i < p->stages; i++)
-            sum += p->b[i] * p->work[(size_t)i * nx + n];
-        x[n] += h * sum;
+    for (size_t n = 0; n < nx; n++) stage_x[n] = 0.0;
+    for (int i = 0; i < p->stages; i++) {
+        const double b = p->b[i], *restrict k = p->work + (size_t)i * nx;
+        for (size_t n = 0; n < nx; n++) stage_x[n] += b * k[n];
     }
+    for (size_t n = 0; n < nx; n++) x[n] += h * stage_x[n];
     return worst;
 }
 

@@ -42,6 +42,7 @@ __asm__(".symver pthread_join,pthread_join@GLIBC_2.2.5");
 #include <stdlib.h>
 #include <time.h>
 #include <errno.h>
+#include <limits.h>
 
 typedef unsigned int fmi2ValueReference;
 typedef int (*SetReal)(void *, const fmi2ValueReference *, size_t, const double *);
@@ -147,6 +148,15 @@ typedef struct {
     const intptr_t *columns;
 } RowPart;
 
+/* Units that exchange no values with the others (a connected component of the plan's data flow):
+ * its ops in stepping order, and the recorded values its GET ops write (see "blocks of steps") */
+typedef struct {
+    const long *ops;
+    size_t n_ops;
+    const RowPart *parts;
+    size_t n_parts;
+} Component;
+
 /* A paced run's clock (Pacer's): point t is due at wall0 + (t - t0) / speed on CLOCK_MONOTONIC
  * (Python's time.perf_counter on Linux) */
 typedef struct {
@@ -187,6 +197,10 @@ typedef struct {
     int gil_released;        /* called without Python's lock (ctypes.CDLL): nothing to let go of */
     double *step_start;      /* NULL, or a row: the recorded values at the start of each step
                               * (what an event row inside the step shows of the other units) */
+    const Component *components; /* n_components > 1: every op belongs to one of them (blocks of steps) */
+    size_t n_components;
+    const RowPart *fixed_parts; /* with components: the recorded values no op writes */
+    size_t n_fixed_parts;
 } Plan;
 
 static double now(void)
@@ -471,11 +485,10 @@ static int run_op(Plan *p, Op *o, long k, double t)
     return RAN;
 }
 
-static void record(const Plan *p, double t, double *row)
+static void record_parts(const RowPart *parts, size_t n_parts, double *row)
 {
-    row[0] = t;
-    for (size_t j = 0; j < p->n_parts; j++) {
-        const RowPart *part = &p->parts[j];
+    for (size_t j = 0; j < n_parts; j++) {
+        const RowPart *part = &parts[j];
         if (part->is_int)
             for (size_t i = 0; i < part->n; i++)
                 row[1 + part->columns[i]] = (double)((const int *)part->bus)[part->index[i]];
@@ -483,6 +496,12 @@ static void record(const Plan *p, double t, double *row)
             for (size_t i = 0; i < part->n; i++)
                 row[1 + part->columns[i]] = ((const double *)part->bus)[part->index[i]];
     }
+}
+
+static void record(const Plan *p, double t, double *row)
+{
+    row[0] = t;
+    record_parts(p->parts, p->n_parts, row);
 }
 
 /* --- parallel units --------------------------------------------------------------------------
@@ -506,6 +525,7 @@ static void record(const Plan *p, double t, double *row)
 enum { MAX_THREADS = 256 };
 static const double SPIN_SECONDS = 50e-6;
 enum { WARM_STEPS = 8, PROBE_STEPS = 64, EXPLOIT_STEPS = 1024 };
+enum { BLOCK_STEPS = 64, BLOCK_PROBE_STEPS = 64, BLOCK_EXPLOIT_STEPS = 4096 }; /* see "blocks of steps" */
 typedef void *(*SaveThread)(void);
 typedef void (*RestoreThread)(void *);
 typedef int (*GilCheck)(void);
@@ -518,6 +538,16 @@ typedef struct {
     size_t end;              /* atomic */
     char pad[64 - sizeof(uint64_t) - sizeof(size_t)]; /* one cache line each */
 } Block;
+
+/* Which way rounds go, on the threads or on the calling thread alone (see choose()); counted in steps */
+typedef struct {
+    int threaded;            /* on the threads now (else on the calling thread alone) */
+    long left;               /* steps left this way before the next decision */
+    int probing;             /* 0: exploiting; 1, 2: the first, the second way measured */
+    double spent[2];         /* seconds per step measured alone [0] and on the threads [1] */
+    double window;           /* seconds of this probe so far */
+    long probe, exploit;     /* steps measured each way; steps the faster way goes before measuring again */
+} Choice;
 
 typedef struct Pool Pool;
 typedef struct {
@@ -543,11 +573,16 @@ struct Pool {
     int quit;                /* atomic */
     SaveThread save_thread;  /* Python's */
     RestoreThread restore_thread;
-    int threaded;            /* the group steps on the threads now (else on the calling thread alone) */
-    long left;               /* group steps left this way before the next decision */
-    int probing;             /* 0: exploiting; 1, 2: the first, the second way measured */
-    double spent[2];         /* seconds per group step measured alone [0] and on the threads [1] */
-    double window;           /* seconds of this probe so far */
+    Choice groups;           /* the group steps' way */
+    Choice in_blocks;        /* the blocks of steps' way */
+    /* blocks of steps (Plan.components): this round's kind and, for mode 1, its steps and rows */
+    int mode;                /* 0: the ops [first, end) of a group at step k; 1: components through [k, k_end) */
+    long k_end;
+    double *rows;            /* the run's rows; row_of[j]: step k + j's row in them, -1: none */
+    long row_of[BLOCK_STEPS];
+    long stop_k;             /* atomic, written under lock: the first step a component stopped in (LONG_MAX: none) */
+    long stop_op;            /* under lock: its op (the first in stepping order in that step) */
+    int stop_why, stop_status;
     GilCheck gil_check;      /* PyGILState_Check */
     ThisThreadState this_thread_state; /* PyGILState_GetThisThreadState */
     GilRelease gil_release;  /* PyGILState_Release */
@@ -575,6 +610,46 @@ static void step_op(Plan *p, size_t i, long k, double t)
     if (p->op_seconds) p->op_seconds[i] += now() - begin;
 }
 
+/* A component stopped (why, status) at op i of step k: kept when it is the first in stepping
+ * order (the earliest step, then the earliest op), the stop the loop on one thread would meet. */
+static void note_stop(Pool *pool, long k, long i, int why, int status)
+{
+    pthread_mutex_lock(&pool->lock);
+    if (k < pool->stop_k || (k == pool->stop_k && i < pool->stop_op)) {
+        pool->stop_op = i;
+        pool->stop_why = why;
+        pool->stop_status = status;
+        __atomic_store_n(&pool->stop_k, k, __ATOMIC_SEQ_CST);
+    }
+    pthread_mutex_unlock(&pool->lock);
+}
+
+/* Component c through the round's steps [k, k_end): its ops in stepping order each step, then its
+ * recorded values into the step's row; it goes no further than a step another one stopped in. */
+static void component_steps(Pool *pool, size_t c)
+{
+    const Plan *p = pool->p;
+    const Component *comp = &p->components[c];
+    Plan local = *p; /* run_op notes a failure's status in its plan: this thread's own */
+    const long k0 = pool->k;
+    for (long k = k0; k < pool->k_end; k++) {
+        if (k >= __atomic_load_n(&pool->stop_k, __ATOMIC_ACQUIRE)) return;
+        double t = p->start + (double)k * p->h;
+        for (size_t j = 0; j < comp->n_ops; j++) {
+            long i = comp->ops[j];
+            Op *o = &p->ops[i];
+            if (k % o->multiple) continue;
+            int why = run_op(&local, o, k, t);
+            if (why != RAN) {
+                note_stop(pool, k, i, why, local.status);
+                return;
+            }
+        }
+        long r = pool->row_of[k - k0];
+        if (r >= 0) record_parts(comp->parts, comp->n_parts, pool->rows + r * (long)(p->width + 1));
+    }
+}
+
 /* Claims and steps the ops of one block of the round until none is left (`round`: the round this
  * thread takes part in). */
 static void take_block(Pool *pool, Block *b, unsigned long round)
@@ -590,7 +665,10 @@ static void take_block(Pool *pool, Block *b, unsigned long round)
                                          __ATOMIC_ACQUIRE))
             continue;
         size_t total = pool->total; /* the round stays until this op is finished */
-        step_op(p, i, pool->k, pool->t);
+        if (pool->mode)
+            component_steps(pool, i);
+        else
+            step_op(p, i, pool->k, pool->t);
         if (__atomic_add_fetch(&pool->finished, 1, __ATOMIC_SEQ_CST) == total &&
             __atomic_load_n(&pool->waiting, __ATOMIC_SEQ_CST)) {
             pthread_mutex_lock(&pool->lock);
@@ -652,6 +730,7 @@ static Pool *pool_start(Plan *p)
 {
     int grouped = 0;
     for (size_t i = 0; i < p->n_ops; i++) grouped |= p->ops[i].group > 0;
+    grouped |= p->n_components > 1;
     /* without Python's lock to let go of (a host that embeds Python and hides its symbols), one at a time:
      * an FMU of the group that takes the lock would wait for this thread, which waits for it */
     if (!grouped || p->threads < 2 || !dlsym(RTLD_DEFAULT, "PyEval_SaveThread")) return NULL;
@@ -666,9 +745,10 @@ static Pool *pool_start(Plan *p)
     pthread_mutex_init(&pool->lock, NULL);
     pthread_cond_init(&pool->wake, NULL);
     pthread_cond_init(&pool->done, NULL);
-    pool->threaded = 1;
-    pool->probing = 0; /* first steps make the solvers (Python, milliseconds): not measured */
-    pool->left = WARM_STEPS;
+    /* first steps make the solvers (Python, milliseconds): not measured */
+    pool->groups = (Choice){.threaded = 1, .left = WARM_STEPS, .probe = PROBE_STEPS, .exploit = EXPLOIT_STEPS};
+    pool->in_blocks = (Choice){.threaded = 1, .left = BLOCK_STEPS, .probe = BLOCK_PROBE_STEPS,
+                            .exploit = BLOCK_EXPLOIT_STEPS};
     int wanted = p->threads - 1 < MAX_THREADS ? p->threads - 1 : MAX_THREADS;
     for (int i = 0; i < wanted; i++) {
         Worker *w = &pool->worker_args[pool->n_workers];
@@ -742,34 +822,113 @@ static void threaded_step(Pool *pool, size_t first, size_t end, long k, double t
     if (gil_held) pool->restore_thread(state);
 }
 
+/* After a round of `steps` steps that took `seconds` the way c->threaded says: the way of the next
+ * rounds (see the section's comment). */
+static void choose(Choice *c, double seconds, long steps)
+{
+    if (c->probing) c->window += seconds;
+    if ((c->left -= steps) > 0) return;
+    if (c->probing) {
+        c->spent[c->threaded] = c->window / (double)(c->probe - c->left);
+        c->window = 0.0;
+        if (c->probing == 1) { /* now the other way */
+            c->probing = 2;
+            c->threaded = !c->threaded;
+            c->left = c->probe;
+            return;
+        }
+        c->probing = 0;
+        c->threaded = c->spent[1] < c->spent[0];
+        c->left = c->exploit;
+        return;
+    }
+    c->probing = 1; /* measure both again, the way taken now first */
+    c->left = c->probe;
+}
+
 /* Steps ops [first, end) of one group at step k (time t): on the threads or on the calling thread
  * alone, whichever was faster when last measured (see the section's comment). */
 static void group_step(Pool *pool, size_t first, size_t end, long k, double t, bool gil_held)
 {
     double begin = now();
-    if (pool->threaded) {
+    pool->mode = 0;
+    if (pool->groups.threaded) {
         threaded_step(pool, first, end, k, t, gil_held);
     } else {
         for (size_t i = first; i < end; i++) step_op(pool->p, i, k, t);
     }
-    if (pool->probing) pool->window += now() - begin;
-    if (--pool->left > 0) return;
-    if (pool->probing) {
-        pool->spent[pool->threaded] = pool->window / PROBE_STEPS;
-        pool->window = 0.0;
-        if (pool->probing == 1) { /* now the other way */
-            pool->probing = 2;
-            pool->threaded = !pool->threaded;
-            pool->left = PROBE_STEPS;
-            return;
+    choose(&pool->groups, now() - begin, 1);
+}
+
+/* --- blocks of steps -----------------------------------------------------------------------
+ * When the plan's units fall into components that exchange no values with one another
+ * (Plan.components, all of them stepping on the threads: see c_loop.py), a component's steps need
+ * nothing of the others: each thread takes whole components through a block of steps (BLOCK_STEPS)
+ * (claimed as a group step's ops are, its own share first), every component's ops in their order at
+ * each step and its recorded values into that step's row, and the threads meet once a block instead
+ * of once a step. Each op makes the calls it makes with one thread, with the same arguments: the
+ * results are the same bit for bit. The calling thread then writes each row's time and the recorded
+ * values no op writes (unchanged within the run). A component that stops (a failure, a termination)
+ * at some step leaves the rows before it complete: the others go on up to that step, and the stop
+ * reported is the first in stepping order; a component further on when it stopped has taken those
+ * steps too, as a group's units take the step one of them failed in. The blocks go on the threads
+ * or on the calling thread alone as group steps do (the first block on the threads, then
+ * BLOCK_PROBE_STEPS each way, then the faster for BLOCK_EXPLOIT_STEPS): on a loaded machine a
+ * worker preempted in the middle of a component's block holds the block up. */
+static int block_steps(Plan *p, Pool *pool, long k, long k_end, double *rows, long max_rows, long *k_done,
+                       long *n_rows)
+{
+    long written = 0, *row_of = pool->row_of;
+    const size_t stride = p->width + 1;
+    pool->rows = rows;
+    while (k < k_end) {
+        long kb = k, count = 0; /* the block: steps [k, kb), its rows [written, written + count) */
+        while (kb < k_end && kb - k < BLOCK_STEPS) {
+            long next = kb + 1;
+            int due = next % p->every == 0 || next == p->n_steps;
+            if (due && written + count == max_rows) break;
+            row_of[kb - k] = due ? written + count++ : -1;
+            kb++;
         }
-        pool->probing = 0;
-        pool->threaded = pool->spent[1] < pool->spent[0];
-        pool->left = EXPLOIT_STEPS;
-        return;
+        if (kb == k) {
+            *k_done = k;
+            *n_rows = written;
+            return ROWS_FULL;
+        }
+        pool->k_end = kb;
+        pool->stop_k = LONG_MAX;
+        pool->stop_op = LONG_MAX;
+        pool->mode = 1;
+        pool->k = k;
+        double begin = now();
+        if (pool->in_blocks.threaded) {
+            threaded_step(pool, 0, p->n_components, k, p->start + (double)k * p->h, !p->gil_released);
+        } else {
+            for (size_t c = 0; c < p->n_components; c++) component_steps(pool, c);
+        }
+        choose(&pool->in_blocks, now() - begin, kb - k);
+        long stop = __atomic_load_n(&pool->stop_k, __ATOMIC_ACQUIRE);
+        long last = stop < kb ? stop : kb;
+        for (long j = k; j < last; j++) { /* the rows of the steps completed */
+            if (row_of[j - k] < 0) continue;
+            long next = j + 1;
+            double *row = rows + row_of[j - k] * (long)stride;
+            row[0] = next < p->n_steps ? p->start + (double)next * p->h : p->stop;
+            record_parts(p->fixed_parts, p->n_fixed_parts, row);
+            written++;
+        }
+        if (stop < kb) {
+            p->op = pool->stop_op;
+            p->status = pool->stop_status;
+            *k_done = stop;
+            *n_rows = written;
+            return pool->stop_why;
+        }
+        k = kb;
     }
-    pool->probing = 1; /* measure both again, the way taken now first */
-    pool->left = PROBE_STEPS;
+    *k_done = k;
+    *n_rows = written;
+    return RAN;
 }
 
 /* Steps k_begin, k_begin + 1, ... before k_end, every recorded row into `rows` (room for
@@ -786,6 +945,8 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
         p->ops[i].holds_end = 0; /* Python may have called the FMUs since the last run */
     if (!p->pool) p->pool = pool_start(p);
     Pool *pool = p->pool;
+    if (pool && p->n_components > 1 && !p->pace && !p->step_start && !p->op_seconds)
+        return block_steps(p, pool, k, k_end, rows, max_rows, k_done, n_rows);
     if (p->pace && *p->pace->count == 0) { /* Pacer.restart: the paced clock starts with the stepping */
         p->pace->wall0 = now();
         p->pace->released = p->pace->wall0;

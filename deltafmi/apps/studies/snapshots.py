@@ -1,0 +1,104 @@
+"""A pooled FMU instance that repeats its last initialization from an FMU state snapshot.
+
+Between ``instantiate`` (a reset, for a pooled instance) and ``fmi2ExitInitializationMode`` an FMU
+sees a short, fixed sequence of calls from the master: the experiment's set-up, the start values,
+initialization mode, the values copied in from other units and the values read out for them.
+When a case gives a unit exactly the calls of the case before (the trajectory of a study that
+varies the plant's mass), initializing it again would bring it to the same state, so
+:class:`InitTranscript` keeps the calls of the last initialization, with what the reads returned,
+the messages it logged and an FMU state taken right after it (``fmi2GetFMUstate``). The next case
+is checked against it call by call while the FMU is left alone: each read gets its recorded
+values, and at ``fmi2ExitInitializationMode`` the FMU is set to the snapshot
+(``fmi2SetFMUstate``) and the recorded messages are passed on. At the first call that differs
+(another start value, other copied inputs, another stop time) the instance is reset and the
+calls that matched are made for real, and from there it initializes as it always did (and
+records the new transcript): a unit whose parameters change is always initialized afresh.
+Values are compared bit for bit (``-0.0`` is not ``0.0``; a NaN matches the same NaN), ``1`` is not ``1.0``.
+
+Only FMUs that declare ``canGetAndSetFMUstate`` take snapshots; any call of another FMI
+function before initialization ends makes the instance real first.
+"""
+from __future__ import annotations
+
+import struct
+from array import array
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, List, Optional, Tuple
+
+__all__ = ["InitTranscript", "RECORDED_CALLS", "call_key"]
+
+#: the fmpy methods recorded between instantiation and the end of initialization
+RECORDED_CALLS = ("setupExperiment", "setReal", "setInteger", "setBoolean", "setString", "getReal", "getInteger",
+                  "getBoolean", "getString", "enterInitializationMode", "exitInitializationMode")
+
+
+def _exact(value: Any) -> Any:
+    """``value`` in a form whose ``==`` is bit equality for floats (sign of zero, NaN payload)."""
+    if isinstance(value, float):
+        return ("f", struct.pack("<d", value))
+    if isinstance(value, (list, tuple)):
+        if all(type(v) is float for v in value):  # start values: their bytes in one go
+            return ("d", array("d", value).tobytes())
+        if all(type(v) is int for v in value):  # value references
+            return ("i", tuple(value))
+        return tuple(_exact(v) for v in value)
+    if isinstance(value, (bool, int, str, bytes)) or value is None:
+        return (type(value).__name__, value)
+    return ("other", repr(value))
+
+
+def call_key(name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Any:
+    """What two calls must share to be the same call."""
+    return name, _exact(args), tuple(sorted((k, _exact(v)) for k, v in kwargs.items()))
+
+
+@dataclass
+class Call:
+    """One recorded call: its key, arguments (copies) and result."""
+
+    key: Any
+    name: str
+    args: Tuple[Any, ...]
+    kwargs: Dict[str, Any]
+    result: Any = None
+
+
+@dataclass
+class InitTranscript:
+    """The calls of one initialization, the messages the FMU logged meanwhile, and its state after."""
+
+    calls: List[Call] = field(default_factory=list)
+    messages: List[Tuple[Any, ...]] = field(default_factory=list)
+    #: the FMU state right after fmi2ExitInitializationMode (None until taken)
+    state: Any = None
+
+    def record(self, name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any],
+               live: Callable[..., Any]) -> Any:
+        """Make the call for real and keep it."""
+        args = tuple(list(a) if isinstance(a, (list, tuple)) else a for a in args)
+        result = live(*args, **kwargs)
+        self.calls.append(Call(call_key(name, args, kwargs), name, args, dict(kwargs),
+                               list(result) if isinstance(result, list) else result))
+        return result
+
+
+class Replay:
+    """A case being checked against an :class:`InitTranscript`, one call at a time."""
+
+    def __init__(self, transcript: InitTranscript) -> None:
+        self.transcript = transcript
+        self.at = 0
+
+    def next(self, name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Optional[Call]:
+        """The recorded call if this one is the same as the next recorded (then advance), else None."""
+        calls = self.transcript.calls
+        if self.at < len(calls):
+            call = calls[self.at]
+            if call.name == name and call.key == call_key(name, args, kwargs):
+                self.at += 1
+                return call
+        return None
+
+    def matched(self) -> List[Call]:
+        """The calls that matched so far."""
+        return self.transcript.calls[: self.at]

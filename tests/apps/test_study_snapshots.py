@@ -1,0 +1,204 @@
+"""A pooled unit whose initialization repeats the case before's is restored from an FMU state
+snapshot (fmi2GetFMUstate right after its initialization, fmi2SetFMUstate instead of reset and
+initialized again): the cases record exactly what a plain ``deltafmi run`` of each records, bit for
+bit, on a real Dask worker; and a unit whose parameters change is initialized afresh.
+
+The flagship's trajectory never changes in these studies, the controller only where its pole does
+(it is restored when the case before had the same pole: the values copied into it at
+initialization, from the trajectory and the plant, are the same), the plant (Model Exchange, its
+payload varied) is always initialized.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Dict, List
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from deltafmi.apps.cli import main
+from deltafmi.apps.studies.driver import dask_client, open_store, run_study
+from deltafmi.apps.studies.plan import plan_study
+from deltafmi.apps.studies.pool import FmuPool
+from deltafmi.apps.studies.runner import OK, CaseResult, CaseTemplate, run_case
+from deltafmi.apps.studies.spec import load_study
+from deltafmi.apps.studies.worker import worker_cache
+from deltafmi.master.results.csv_file import columns as read_columns
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIO = ROOT / "scenarios" / "delta_tracking.yaml"
+
+
+def plain_run(study: Path, case: int, folder: Path) -> Dict[str, np.ndarray]:
+    """The columns of ``deltafmi run`` of the case exported by ``deltafmi study-case``."""
+    scenario, csv = folder / f"case{case}.yaml", folder / f"case{case}.csv"
+    exported = CliRunner().invoke(main, ["study-case", str(study), str(case), "-o", str(scenario)])
+    assert exported.exit_code == 0, exported.output
+    ran = CliRunner().invoke(main, ["run", str(scenario), "-o", str(csv), "-q"])
+    assert ran.exit_code == 0, ran.output
+    return read_columns(csv)
+
+
+def assert_same_as_plain(study: Path, results: List[CaseResult], folder: Path) -> None:
+    plain = {case: plain_run(study, case, folder) for case in sorted({r.case for r in results})}
+    for result in results:
+        assert result.status == OK, result.error
+        expected = plain[result.case]
+        assert set(result.timeseries) == set(expected)
+        for name, column in expected.items():
+            assert np.array_equal(result.timeseries[name], column), (result.case, name)
+
+
+def restored_on_workers(client) -> int:
+    return sum(client.run(lambda: worker_cache().pool.restored).values())
+
+
+@pytest.fixture(scope="module")
+def client():
+    """A local cluster of one worker process (cases run one after another, in order)."""
+    with dask_client(workers=1) as made:
+        yield made
+
+
+def test_snapshot_cases_equal_plain_runs_on_dask(client, tmp_path):
+    study = tmp_path / "snapshots.yaml"
+    study.write_text(f"""\
+scenario: {SCENARIO}
+vary:
+  zip:
+    controller.pole: [5, 5, 8, 8, 5]
+    plant.payload: [0.0, 2.0, 2.0, 0.5, 0.0]
+    experiment.stop: [0.3, 0.3, 0.3, 0.3, 0.3]
+metrics:
+  max_error: {{signal: plant.z - trajectory.r, statistic: max}}
+result: {{timeseries: true}}
+""")
+    planned = plan_study(load_study(study))
+    results: List[CaseResult] = []
+    before = restored_on_workers(client)
+    store = open_store(planned, tmp_path / "snapshots.parquet", timeseries=True)
+    todo = store.open(planned.cases, fresh=True)
+    report = run_study(planned, store, todo, client=client, workers=1, on_result=results.append)
+    store.close()
+    restored = restored_on_workers(client) - before
+    assert report.failed == 0 and len(results) == 5
+    # one worker ran the five cases in order: the trajectory was restored in the four after the
+    # first, the controller in the two whose pole was the case before's (cases 1 and 3)
+    assert restored == 4 + 2
+    assert_same_as_plain(study, results, tmp_path)
+    by_case = {r.case: r for r in results}
+    assert not np.array_equal(by_case[0].timeseries["controller.u[1]"], by_case[2].timeseries["controller.u[1]"])
+
+
+def test_changed_parameters_initialize_afresh(tmp_path):
+    study = tmp_path / "trajectory.yaml"
+    study.write_text(f"""\
+scenario: {SCENARIO}
+vary:
+  zip:
+    trajectory.dwell: [0.1, 0.1, 0.25, 0.25]
+    plant.payload: [0.0, 1.0, 1.0, 1.0]
+    experiment.stop: [0.4, 0.4, 0.4, 0.4]
+metrics:
+  max_error: {{signal: plant.z - trajectory.r, statistic: max}}
+""")
+    planned = plan_study(load_study(study))
+    template = CaseTemplate(planned.plan, planned.fmu_files)
+    pool = FmuPool()
+    restored: List[int] = []
+    try:
+        results = []
+        for case in planned.cases:
+            results.append(run_case(template, pool, case.id, case.values, keep_timeseries=True))
+            restored.append(pool.restored)
+    finally:
+        pool.close()
+    # case 1: trajectory and controller as in case 0 (the plant's payload is not copied into the
+    # controller at initialization); case 2: the trajectory's dwell changed, so the trajectory is
+    # initialized, while the controller is restored: what the trajectory gives it at t = 0 (the
+    # first waypoint, at rest) does not depend on the dwell; case 3 repeats case 2 but for the plant
+    assert np.diff([0] + restored).tolist() == [0, 2, 1, 2]
+    assert_same_as_plain(study, results, tmp_path)
+    # the changed dwell holds the reference at its first waypoint longer: the trajectory did change
+    assert not np.array_equal(results[1].timeseries["trajectory.r[1]"], results[2].timeseries["trajectory.r[1]"])
+    assert np.array_equal(results[2].timeseries["trajectory.r[1]"], results[3].timeseries["trajectory.r[1]"])
+
+
+def test_without_snapshots_same_records(tmp_path):
+    """A pool without snapshots resets and initializes every unit, with the same records."""
+    study = tmp_path / "plain.yaml"
+    study.write_text(f"""\
+scenario: {SCENARIO}
+vary:
+  zip:
+    controller.pole: [6, 6]
+    plant.payload: [0.0, 1.5]
+    experiment.stop: [0.2, 0.2]
+metrics:
+  max_error: {{signal: plant.z - trajectory.r, statistic: max}}
+""")
+    planned = plan_study(load_study(study))
+    template = CaseTemplate(planned.plan, planned.fmu_files)
+    records = {}
+    for snapshots in (False, True):
+        pool = FmuPool(snapshots=snapshots)
+        try:
+            records[snapshots] = [run_case(template, pool, c.id, c.values, keep_timeseries=True)
+                                  for c in planned.cases]
+            assert pool.restored == (2 if snapshots else 0)
+        finally:
+            pool.close()
+    for fresh, restored in zip(records[False], records[True]):
+        assert fresh.status == restored.status == OK
+        for name, column in fresh.timeseries.items():
+            assert np.array_equal(restored.timeseries[name], column), name
+
+
+def test_results_reach_the_files_while_their_batch_runs(client, tmp_path):
+    """Without time series the cases' results are streamed to the client as they finish (a few at
+    a time): rows of a batch are in the journal while the batch's task is still running, and
+    stopping the study there keeps them (a re-run does only the rest)."""
+    study = tmp_path / "streamed.yaml"
+    study.write_text(f"""\
+scenario: {SCENARIO}
+vary:
+  grid:
+    plant.payload: {{from: 0.0, to: 1.1, step: 0.1}}
+    controller.pole: [6, 7]
+metrics:
+  max_error: {{signal: plant.z - trajectory.r, statistic: max}}
+""")
+    planned = plan_study(load_study(study))
+    assert len(planned.cases) == 24
+    store = open_store(planned, tmp_path / "streamed.parquet", timeseries=False)
+    todo = store.open(planned.cases, fresh=True)
+    seen: List[tuple] = []
+
+    def arrived(result: CaseResult) -> None:
+        processing = {key for keys in client.processing().values() for key in keys}
+        lines = store.journal.read_text().count("\n") - 1  # the first line names the study
+        seen.append((result.case, processing, lines))
+        if len(seen) == 12:
+            raise KeyboardInterrupt  # as Ctrl-C does, in the middle of the study
+
+    report = run_study(planned, store, todo, client=client, workers=1, on_result=arrived)
+    store.close()
+    assert report.interrupted
+    # a worker runs one task at a time, tasks hold cases in order and are named after their first
+    # case: a case that arrived while a task of a first case at or before it was running arrived
+    # while its own task ran (the batches after the first two hold several cases)
+    def first_case(key: str) -> int:
+        return int(key.split("-")[3])
+
+    during = [(case, lines) for case, processing, lines in seen
+              if any(first_case(key) <= case for key in processing)]
+    assert len(during) >= 3, seen
+    # each in the journal when it came
+    assert all(lines == [c for c, _, _ in seen].index(case) + 1 for case, lines in during), seen
+    # stopped there: the twelve, and what had arrived meanwhile, stay recorded; a re-run does the rest
+    again = open_store(planned, tmp_path / "streamed.parquet", timeseries=False)
+    left = again.open(planned.cases)
+    again.close()
+    done = {case for case, _, _ in seen}
+    assert len(done) >= 12 and {c.id for c in left} == {c.id for c in planned.cases} - done
