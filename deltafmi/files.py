@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import atexit
 import os
-import secrets
 import signal
 from contextlib import contextmanager
 from pathlib import Path
@@ -64,7 +63,7 @@ def replaced_atomically(path: Path) -> Iterator[Path]:
         # this thread only, and another thread's receiving one lets its KeyboardInterrupt land
         # anywhere here (in mkstemp it came after the file was made, before its name was returned)
         while True:
-            name = str(path.parent / f".{path.name}.{secrets.token_hex(6)}.part")
+            name = str(path.parent / f".{path.name}.{os.urandom(6).hex()}.part")
             try:
                 handle = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
                 break

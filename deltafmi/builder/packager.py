@@ -49,7 +49,7 @@ FMI_VERSIONS = (2, 3)
 _BINARY_DIR = {2: "binaries/linux64", 3: "binaries/x86_64-linux"}
 _GUID_NAMESPACE = uuid.UUID("6f1c8a52-4d0e-4f5e-9a53-0d3c5e2b7a11")
 #: the names build_fmu itself writes directly under resources/: a resource file may take none of them
-_RESERVED_RESOURCES = ("model", "python", "deltafmi_boot.py", "deltafmi.json", "python.cfg", "README.txt",
+_RESERVED_RESOURCES = ("model", "python", "deltafmi_boot.py", "__pycache__", "deltafmi.json", "python.cfg", "README.txt",
                        NATIVE_KERNELS)
 
 
@@ -276,6 +276,8 @@ def build_fmu(source: Path | str, output: Optional[Path] = None, portable: bool 
             fmu.write(binary, f"{_BINARY_DIR[fmi_version]}/{identifier}.so")
             fmu.write(source, f"resources/model/{source.name}")
             fmu.write(BOOT_SOURCE, "resources/deltafmi_boot.py")
+            fmu.writestr(importlib.util.cache_from_source("resources/deltafmi_boot.py"),
+                         unchecked_hash_pyc(BOOT_SOURCE, "resources/deltafmi_boot.py"))
             fmu.writestr("resources/deltafmi.json", json.dumps(info, indent=2))
             fmu.writestr("resources/python.cfg", python_runtime_config())
             fmu.writestr("resources/README.txt", _readme(identifier, fmi_version, _interfaces(cls, fmi_version)))

@@ -19,9 +19,12 @@ What counts, anywhere in a module (module level, functions, classes, ``try``/``e
 - not what is under ``if TYPE_CHECKING:`` (it never runs).
 
 Not seen: imports of computed names (``import_module(variable)``, ``__import__``); deltafmi's
-runtime and mechanics use none. Packages stay eager rather than lazy (PEP 562 ``__getattr__``):
-an import that runs when a model first touches an attribute runs after ``boot.py`` has taken the
-FMU's deltafmi out of ``sys.modules`` again, and would fail, or bind to a host's own deltafmi.
+runtime and mechanics use none. Packages an FMU carries stay eager rather than lazy (PEP 562
+``__getattr__``): an import that runs when a model first touches an attribute runs after
+``boot.py`` has taken the FMU's deltafmi out of ``sys.modules`` again, and would fail, or bind to
+a host's own deltafmi. The one exception is :mod:`deltafmi.runtime` itself, whose names
+``boot.py`` loads while the FMU's copy is active (its ``__getattr__`` imports them literally, and
+so are followed here).
 """
 from __future__ import annotations
 

@@ -276,6 +276,11 @@ def _import_model(resources_dir: str) -> tuple:
     unique = f"_deltafmi_fmu_{info['model_identifier']}_{digest}"
     with bundle.active():
         runtime = importlib.import_module("deltafmi.runtime.instance")
+        # the runtime package loads its public names on first use (PEP 562): load them now, from
+        # this FMU's copy, not when a model touches one after the copy left sys.modules again
+        package = sys.modules["deltafmi.runtime"]
+        for name in getattr(package, "__all__", ()):
+            getattr(package, name)
         spec = importlib.util.spec_from_file_location(unique, os.path.join(resources_dir, "model", info["source"]))
         module = importlib.util.module_from_spec(spec)
         sys.modules[unique] = module  # pickled FMU states name classes by this module

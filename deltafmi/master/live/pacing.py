@@ -18,12 +18,14 @@ import ctypes
 import ctypes.util
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Callable, List, Optional, Tuple
 
 import numpy as np
 
 from deltafmi.errors import SimulationError
+
+from ..scenario.records import record
 
 __all__ = ["Pacer", "RealtimeReport", "FellBehind"]
 
@@ -36,7 +38,7 @@ class FellBehind(SimulationError):
     """The run fell a whole communication step behind the wall clock and ``behind`` is "error"."""
 
 
-@dataclass
+@record(frozen=False)
 class RealtimeReport:
     """How a paced run kept up: lateness of every communication point after the first [s]."""
 

@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import sys
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any, Optional, TextIO
+
+from ..scenario.records import record
 
 __all__ = ["Progress", "Summary", "Termination"]
 
@@ -54,7 +56,7 @@ class Progress:
         self.enabled = False
 
 
-@dataclass(frozen=True)
+@record
 class Termination:
     """A component ended the run before its stop time (FMI 2.0: terminateSimulation in Model
     Exchange, fmi2Discard with fmi2Terminated in Co-Simulation)."""
@@ -69,7 +71,7 @@ class Termination:
         return text + (f" ({self.reason})" if self.reason else "")
 
 
-@dataclass
+@record(frozen=False)
 class Summary:
     """Figures of a finished run."""
 

@@ -7,13 +7,14 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import field
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 
 from deltafmi.errors import Diagnostic, ScenarioError
 
+from .records import record
 from .schema_check import dotted, load_mapping, read_document, schema_diagnostics
 from .line_map import LineMap
 
@@ -26,7 +27,7 @@ __all__ = ["Adaptive", "ComponentSpec", "ExportSpec", "ConnectionSpec", "Experim
            "parse_scenario", "scenario_from_data", "schema"]
 
 
-@dataclass(frozen=True)
+@record
 class Experiment:
     """Time span and communication step [s]; ``tolerance``: the relative tolerance of every
     component that gives no ``solver.rtol`` of its own (None: each FMU's default)."""
@@ -62,7 +63,7 @@ def grid_steps(start: float, stop: float, step: float) -> int:
     return max(1, math.ceil((stop - start) / step - 1e-9))
 
 
-@dataclass(frozen=True)
+@record
 class Adaptive:
     """Adaptive communication step with rollback (needs fmi2Get/SetFMUstate in every FMU)."""
 
@@ -74,7 +75,7 @@ class Adaptive:
     error_estimate: str = "double-step"
 
 
-@dataclass(frozen=True)
+@record
 class Loops:
     """How the master solves algebraic loops (see :mod:`deltafmi.master.stepping.algebraic_loops`)."""
 
@@ -85,7 +86,7 @@ class Loops:
     jacobian: str = "auto"
 
 
-@dataclass(frozen=True)
+@record
 class Realtime:
     """Pacing to the wall clock (see :mod:`deltafmi.master.live.pacing`)."""
 
@@ -100,7 +101,7 @@ class Realtime:
     spin: float = 2e-4
 
 
-@dataclass(frozen=True)
+@record
 class MasterSettings:
     """How the master steps the components."""
 
@@ -116,7 +117,7 @@ class MasterSettings:
     threads: int = 1
 
 
-@dataclass(frozen=True)
+@record
 class Parameter:
     """A start value given in the scenario; ``value`` may be a list for an array variable."""
 
@@ -127,7 +128,7 @@ class Parameter:
     origin: Optional[str] = None
 
 
-@dataclass(frozen=True)
+@record
 class ExportSpec:
     """``exports:``: patterns of the variables a scenario exported as one FMU offers, by kind;
     None keeps that kind's default (see :mod:`deltafmi.master.system_fmu`)."""
@@ -138,7 +139,7 @@ class ExportSpec:
     line: Optional[int] = None
 
 
-@dataclass(frozen=True)
+@record
 class ComponentSpec:
     """One FMU instance of the scenario, as written (paths not yet resolved)."""
 
@@ -157,7 +158,7 @@ class ComponentSpec:
     resources: Tuple[str, ...] = ()
 
 
-@dataclass(frozen=True)
+@record
 class ConnectionSpec:
     """``to = factor * from + offset``; ``from``/``to`` are ``comp.var`` references (ranges allowed)."""
 
@@ -177,7 +178,7 @@ class ConnectionSpec:
         return self.factor != 1.0 or self.offset != 0.0
 
 
-@dataclass(frozen=True)
+@record
 class OutputSpec:
     """A pattern of variables to record."""
 
@@ -187,7 +188,7 @@ class OutputSpec:
     origin: Optional[str] = None
 
 
-@dataclass(frozen=True)
+@record
 class LiveSignal:
     """One signal of a live source: a Real output of the scenario's ``live:`` component."""
 
@@ -200,7 +201,7 @@ class LiveSignal:
     options: Dict[str, Any] = field(default_factory=dict)
 
 
-@dataclass(frozen=True)
+@record
 class LiveSpec:
     """A live input source (``live:`` entry): ``kind`` "udp" or "joystick" and its settings."""
 
@@ -213,7 +214,7 @@ class LiveSpec:
     timeout: Optional[float] = None
 
 
-@dataclass(frozen=True)
+@record
 class StreamSpec:
     """A live output (``streams:`` entry): ``kind`` "udp" (to ``target``, host:port) or "plot"."""
 
@@ -228,7 +229,7 @@ class StreamSpec:
     window: float = 10.0
 
 
-@dataclass(frozen=True)
+@record
 class ResultSettings:
     """Where and how often results are written."""
 
@@ -237,7 +238,7 @@ class ResultSettings:
     every: int = 1
 
 
-@dataclass(frozen=True)
+@record
 class Scenario:
     """A parsed scenario file. ``path`` is the file as named by the user (used in diagnostics)."""
 

@@ -7,12 +7,13 @@ algebraic loops.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any, List, Optional, Tuple
 
 from deltafmi.errors import Diagnostic
 
+from .records import record
 from .modelinfo import ModelInfo
 from .spec import ComponentSpec, Scenario
 
@@ -32,7 +33,7 @@ def bus_type(fmi_type: str) -> str:
 
 
 
-@dataclass(frozen=True)
+@record
 class Port:
     """One scalar variable of one component."""
 
@@ -66,7 +67,7 @@ class Port:
         return _FMI2_EQUIVALENT.get(self.type_name, self.type_name)
 
 
-@dataclass(frozen=True)
+@record
 class Link:
     """A scalar connection ``target = factor * source + offset``."""
 
@@ -77,7 +78,7 @@ class Link:
     line: Optional[int] = None
 
 
-@dataclass(frozen=True)
+@record
 class AlgebraicLoop:
     """Connections that close a cycle of direct feedthrough: the master solves them together.
 
@@ -99,7 +100,7 @@ class AlgebraicLoop:
         return f"algebraic loop {connections} ({', '.join(self.members)}{where})"
 
 
-@dataclass
+@record(frozen=False)
 class ResolvedComponent:
     """A scenario component with its FMU located, read and its start values checked."""
 
@@ -115,7 +116,7 @@ class ResolvedComponent:
         return self.spec.name
 
 
-@dataclass(frozen=True)
+@record
 class SystemInterface:
     """The variables a scenario exported as one FMU offers (``exports:`` or the defaults):
     each a variable of one of its components, under the same name (``plant.z[1]``)."""
@@ -125,7 +126,7 @@ class SystemInterface:
     parameters: Tuple[Port, ...] = ()
 
 
-@dataclass
+@record(frozen=False)
 class System:
     """Everything the master needs: components, scalar links, recorded variables, orders."""
 

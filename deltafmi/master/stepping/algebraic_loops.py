@@ -38,13 +38,13 @@ the run with its connections and the residual named.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any, Callable, Dict, List, Optional, Protocol, Sequence, Tuple
 
 import numpy as np
 
 from deltafmi.errors import DeltaFmiError
 
+from ..scenario.records import record
 from ..scenario.system import AlgebraicLoop, Link, Port
 from ..scenario.spec import Loops
 from .unit_base import Unit
@@ -86,7 +86,7 @@ class EventHolder(Protocol):
     def release_events(self, mark: Any) -> None: ...
 
 
-@dataclass
+@record(frozen=False)
 class LoopStatistics:
     """How much solving the loops cost: solves, loop evaluations, the most in one solve."""
 

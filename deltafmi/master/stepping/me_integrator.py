@@ -14,18 +14,19 @@ iteration) raises :class:`~.unit_base.Terminated`: the master ends the run at th
 from __future__ import annotations
 
 from ctypes import POINTER, byref, c_bool, c_double
-from typing import Any, Callable, Dict, Optional, Sequence, Union
+from typing import TYPE_CHECKING, Any, Callable, Dict, Optional, Sequence, Tuple, Type, Union
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model, fmi2Boolean
 
-from deltafmi.runtime.cvode import Cvode, CvodeError
-
 from ..scenario.system import ResolvedComponent
 from .explicit_rk import TABLEAUS, ExplicitRungeKutta, FmuEvaluations, RungeKuttaError
 from .jacobians import FmuJacobian, computes_exact_derivatives
 from .unit_base import FmuFailure, Terminated, Unit, bare_function, instant_margin
+
+if TYPE_CHECKING:
+    from deltafmi.runtime.cvode import Cvode
 
 __all__ = ["ModelExchangeUnit"]
 
@@ -53,6 +54,9 @@ class ModelExchangeUnit(Unit):
         #: CVODE restarts after a failure (see :meth:`_advance`)
         self.restarts = 0
         self.solver: Optional[Union[Cvode, ExplicitRungeKutta]] = None
+        #: CVODE's error once this unit made a CVODE, none before (a unit on an explicit
+        #: Runge-Kutta method never loads the SUNDIALS binding, and nothing raises the error then)
+        self._cvode_errors: Tuple[Type[Exception], ...] = ()
         self._pointers: Dict[int, Any] = {}
         self._discrete_inputs: list = []
         self._x = np.zeros(max(self.nx, 1))
@@ -102,6 +106,9 @@ class ModelExchangeUnit(Unit):
         if method in TABLEAUS:
             return ExplicitRungeKutta(self.fmu, self._x[:self.nx], time, method, max_step,
                                       indicators=self._indicators if self.nz else None)
+        from deltafmi.runtime.cvode import Cvode, CvodeError  # here: loading SUNDIALS is for CVODE only
+
+        self._cvode_errors = (CvodeError,)
         default = self.info.md.defaultExperiment
         rtol = options.get("rtol") or (default.tolerance if default is not None and default.tolerance else 1e-6)
         rtol = float(rtol)
@@ -208,7 +215,7 @@ class ModelExchangeUnit(Unit):
                 t_previous = t
         except FMICallException as exc:
             raise self.failure(exc) from None
-        except (CvodeError, RungeKuttaError) as exc:
+        except (*self._cvode_errors, RungeKuttaError) as exc:
             raise FmuFailure(f"{self.name}: {exc}") from None
 
     def finish_step_event(self, t: float) -> None:
@@ -218,7 +225,7 @@ class ModelExchangeUnit(Unit):
             self._event(t)
         except FMICallException as exc:
             raise self.failure(exc) from None
-        except (CvodeError, RungeKuttaError) as exc:
+        except (*self._cvode_errors, RungeKuttaError) as exc:
             raise FmuFailure(f"{self.name}: {exc}") from None
 
     def _advance(self, t_stop: float) -> bool:
@@ -234,7 +241,7 @@ class ModelExchangeUnit(Unit):
         solver.log_errors = False  # a failure here is retried: only the retry's is an error
         try:
             return solver.advance(t_stop)
-        except CvodeError:
+        except self._cvode_errors:
             self._set_time(self._handle, t0)
             if self.nx:
                 self._set_states(self._handle, self._pointer(x0), self.nx)

@@ -312,19 +312,25 @@ static PyObject *run_boot(const char *resources_dir, const char *function, DfmiL
     Py_XDECREF(registry);
     py.PyErr_Clear();
     if (g_load) return g_load;
-    PyObject *runpy = py.PyImport_ImportModule("runpy");
-    PyObject *globals = runpy ? py.PyObject_CallMethod(runpy, "run_path", "s", path) : NULL;
-    if (globals) {
-        g_load = py.PyDict_GetItemString(globals, "load");
-        Py_XINCREF(g_load);
-    }
+    /* imported as a module, not run from its source text: the import system keeps the file's
+     * bytecode in resources/__pycache__ (where that is writable), so later processes do not parse
+     * and compile it again on every instantiation of every FMU */
+    PyObject *util = py.PyImport_ImportModule("importlib.util");
+    PyObject *spec = util ? py.PyObject_CallMethod(util, "spec_from_file_location", "ss", "_deltafmi_boot", path) : NULL;
+    PyObject *module = spec ? py.PyObject_CallMethod(util, "module_from_spec", "O", spec) : NULL;
+    PyObject *loader = module ? py.PyObject_GetAttrString(spec, "loader") : NULL;
+    PyObject *done = loader ? py.PyObject_CallMethod(loader, "exec_module", "O", module) : NULL;
+    if (done) g_load = py.PyObject_GetAttrString(module, "load"); /* a new reference, kept */
     if (!g_load) {
         char context[128];
         snprintf(context, sizeof context, "%s: loading resources/deltafmi_boot.py", function);
         report_exception(log, env, context);
     }
-    Py_XDECREF(globals);
-    Py_XDECREF(runpy);
+    Py_XDECREF(done);
+    Py_XDECREF(loader);
+    Py_XDECREF(module);
+    Py_XDECREF(spec);
+    Py_XDECREF(util);
     return g_load;
 }
 
