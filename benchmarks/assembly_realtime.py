@@ -15,8 +15,9 @@ in the same run, on the same inputs:
   every sample) against the defaults (iterated contact update, the Jacobian's columns refreshed
   in turn), in alternating passes, wall clock and the thread's CPU time;
 - ContactEstimator (contact_estimation.yaml, the filter's cycle with its estimate and gap as the
-  FMU takes them): Python with numpy, no compiled kernels yet: its figures against the 1 ms
-  budget (no before/after).
+  FMU takes them, in alternating passes): baseline the process model's kernels as Python (the
+  path without a C compiler) against the compiled functions its FMU calls (C generated from the
+  same Python), with their estimates compared.
 
 Prints median and 99th percentile per sample (ms), their ratios to the baseline and to the 1 ms
 budget, and the share of samples over 1 ms, and the thread's CPU time per sample, which a loaded
@@ -287,14 +288,12 @@ def peg(folder: Path, stop: float) -> None:
         print(f"{label}: hole error at {stop:g} s {hole * 1e6:.1f} um, tilt error {tilt * 1e3:.2f} mrad (noise-free)")
 
 
-def contact(folder: Path) -> None:
-    """ContactEKF on contact_estimation.yaml's recorded angles and torques, the whole run."""
+def contact_run(d: dict, c: "ContactEstimator", rows: List[int], kernels) -> tuple:  # noqa: F821
+    """ContactEKF with ``kernels`` through the recorded rows as the FMU's take_sample runs it (the
+    filter's cycle, its estimate and the gap): (wall, cpu, {part: cpu seconds}, estimates)."""
     from deltafmi.physics.estimation.contact_ekf import ContactEKF
 
-    d, c = contact_truth(folder), contact_component()
-    t = d["time"]
-    rows = [int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1 for k in range(1, int(round(t[-1] / 1e-3)) + 1)]
-    ekf = ContactEKF(c.robot_params(), c._settings, d["y"][rows[0]])
+    ekf = ContactEKF(c.robot_params(), c._settings, d["y"][rows[0]], kernels=kernels)
     parts: Dict[str, List[float]] = {"predict": [], "update": [], "estimate": []}
     for name in parts:
         method = getattr(ekf, name)
@@ -305,18 +304,52 @@ def contact(folder: Path) -> None:
             parts[_n].append(time.thread_time() - start)
             return out
         setattr(ekf, name, wrapped)
+    estimates: list = []
 
-    def sample(y, u):  # what the FMU's take_sample computes: the filter's cycle, its estimate and the gap
-        ekf.step(y, u)
-        ekf.gap()
+    def sample(y, u):
+        estimates.append((ekf.step(y, u), ekf.gap()))
     cpu: List[float] = []
     times = timed(sample, [(d["y"][i], d["u"][i]) for i in rows], cpu)
-    rows_ = {"per sample, wall clock": figures(times), "per sample, the thread's CPU time": figures(cpu)}
-    report(f"ContactEstimator, {len(times)} samples of 1 ms (contact_estimation.yaml; Python with numpy)",
-           {**rows_, "  prediction (CPU)": figures(parts["predict"]),
-            "  measurement + contact-law update (CPU)": figures(parts["update"]),
-            "  estimate and its deviations (CPU)": figures(parts["estimate"])}, ratios=False)
-    budget("ContactEstimator", rows_)
+    return times, cpu, parts, np.array([np.hstack([np.ravel(value) for value in (*est, gap)]) for est, gap in estimates])
+
+
+def contact(folder: Path) -> None:
+    """ContactEKF on contact_estimation.yaml's recorded angles and torques, the whole run, in turns
+    (baseline, now, baseline, now: the load falls on both alike). Baseline: the process model's
+    kernels as Python (the path without a C compiler); now: the compiled functions the FMU calls
+    (C generated from the same Python). Their estimates must be the same numbers."""
+    from deltafmi.builder.codegen import use_compiled_functions
+    from deltafmi.models.contact_estimator import ContactEstimator
+    from deltafmi.physics.estimation.delta_process_kernels import PYTHON_KERNELS
+
+    if not use_compiled_functions(ContactEstimator):
+        raise SystemExit("ContactEstimator: its functions could not be compiled (no C compiler?)")
+    d, c = contact_truth(folder), contact_component()
+    assert c.native_functions.compiled
+    t = d["time"]
+    rows = [int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1 for k in range(1, int(round(t[-1] / 1e-3)) + 1)]
+    variants = {"baseline: Python kernels": PYTHON_KERNELS, "now: compiled kernels": c.native_functions}
+    runs: Dict[str, list] = {label: [] for label in variants}
+    for _ in range(2):
+        for label, kernels in variants.items():
+            runs[label].append(contact_run(d, c, rows, kernels))
+    figure: Dict[str, Dict[str, float]] = {}
+    for label, done in runs.items():
+        times, cpu = [x for r in done for x in r[0]], [x for r in done for x in r[1]]
+        rows_ = {"per sample, wall clock": figures(times), "per sample, the thread's CPU time": figures(cpu)}
+        parts = {f"  {title} (CPU)": figures([x for r in done for x in r[2][name]])
+                 for name, title in (("predict", "prediction"), ("update", "measurement + contact-law update"),
+                                     ("estimate", "estimate and its deviations"))}
+        report(f"ContactEstimator {label}: {len(times)} samples of 1 ms (contact_estimation.yaml, whole run; 2 passes)",
+               {**rows_, **parts}, ratios=False)
+        budget(f"ContactEstimator {label}", rows_)
+        figure[label] = rows_["per sample, the thread's CPU time"]
+    base, now = figure.values()
+    print(f"\nnow against baseline (CPU time): median {base['median'] / now['median']:.2f}x, "
+          f"p99 {base['p99'] / now['p99']:.2f}x faster")
+    python, compiled = (runs[label][-1][3] for label in variants)
+    worst = np.max(np.abs(compiled - python) / np.maximum(np.abs(python), 1e-300))
+    print(f"estimates, compiled against Python: largest relative difference {worst:.1e} over {python.size} numbers")
 
 
 def main() -> None:

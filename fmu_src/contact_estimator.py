@@ -1,7 +1,10 @@
 """Contact estimator FMU: a thin sampled component over deltafmi.physics.estimation.contact_ekf."""
-from deltafmi.component import Clock, Experiment, Input, Output, Parameter, SampledComponent
+from deltafmi.component import Clock, Experiment, Function, Input, NativeKernels, Output, Parameter, SampledComponent
+from deltafmi.physics.delta.dynamics import project_state
+from deltafmi.physics.delta.params import DeltaParams
 from deltafmi.physics.delta.tactile import Readout
 from deltafmi.physics.estimation.contact_ekf import ContactEKF, ContactEKFSettings
+from deltafmi.physics.estimation.delta_process_kernels import prediction_values, wrist_kinematics
 from deltafmi.models.robot_parameters import robot_parameters
 
 __all__ = ["ContactEstimator"]
@@ -28,7 +31,10 @@ class ContactEstimator(EstimatorRobotModel, SampledComponent):
     then (held over the period), then updates with y(t_k); the outputs are this estimate at t_k
     and its standard deviations. The filter starts at the forward kinematics of the first y, at
     rest. sensor_noise adds seeded Gaussian noise to y before the filter sees it (a noisier
-    sensor, for studies). Pure Python with numpy: about 0.5 ms per sample. Co-Simulation:
+    sensor, for studies). The process model's kernels (the Runge-Kutta period with the exact
+    Jacobian, the projection onto the loops, the wrist kinematics) run as C generated from their
+    Python (``native``; the Python functions without a C compiler, the same numbers), the
+    covariance algebra in numpy. Co-Simulation:
     doStep(t, h) takes the samples due in [t, t + h) with the inputs at t (use h = sample_period;
     in a Gauss-Seidel scenario list it after the plant and the controller, so that y and u are
     of the same instant); Model Exchange: time events at the samples.
@@ -85,6 +91,12 @@ class ContactEstimator(EstimatorRobotModel, SampledComponent):
 
     first_sample = 1  # the start instant's event iteration may run before the importer has set u
 
+    #: the filter's process-model kernels, compiled (ContactEKF's ``kernels``: ProcessKernels)
+    native = NativeKernels(functions={
+        "predict": Function(prediction_values, DeltaParams, 9, 9, 3, 3, float, float, int),
+        "project": Function(project_state, DeltaParams, 9, 9),
+        "kinematics": Function(wrist_kinematics, DeltaParams, 9, 9)})
+
     def setup(self) -> None:
         self._ekf = None
 
@@ -99,7 +111,7 @@ class ContactEstimator(EstimatorRobotModel, SampledComponent):
         """One filter cycle with the inputs now; the filter starts at the first sample."""
         y = [self._readout.read(float(value), self.sample_index, i) for i, value in enumerate(self.y)]
         if self._ekf is None:
-            self._ekf = ContactEKF(self.robot_params(), self._settings, y)
+            self._ekf = ContactEKF(self.robot_params(), self._settings, y, kernels=self.native_functions)
         est = self._ekf.step(y, [float(value) for value in self.u])
         self.write_reals((*est.z, *est.zd, *est.force, est.fn, est.surface_height, self._ekf.gap(), *est.z_std,
                           *est.zd_std, *est.force_std, est.fn_std, est.surface_std),

@@ -24,7 +24,7 @@ TOP_LEVEL = [
 ]
 
 #: what a component's source imports: ``from deltafmi.component import ...``
-COMPONENT = ["Clock", "Component", "Experiment", "HybridSystemComponent", "Input", "Kernel", "NativeKernels", "Output",
+COMPONENT = ["Clock", "Component", "Experiment", "Function", "HybridSystemComponent", "Input", "Kernel", "NativeKernels", "Output",
              "Parameter", "SampledComponent", "State"]
 
 

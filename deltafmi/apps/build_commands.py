@@ -119,9 +119,11 @@ def info(target: str) -> None:
     clocks = _clocks(fmu)
     if clocks:
         click.echo(f"  clocks: {', '.join(clocks)}")
-    kernels = _compiled_kernels(fmu)
+    kernels, functions = _compiled_kernels(fmu)
     if kernels:
         click.echo(f"  compiled kernels (C, no Python between events): {', '.join(kernels)}")
+    if functions:
+        click.echo(f"  compiled functions (C its Python calls): {', '.join(functions)}")
     rows = [(v.name, v.causality, v.variability, _type_text(v), "" if v.start is None else str(v.start),
              v.unit or (v.declaredType.unit if v.declaredType else "") or "", v.description or "")
             for v in md.modelVariables
@@ -159,16 +161,18 @@ def _clocks(fmu: Path) -> list:
     return found
 
 
-def _compiled_kernels(fmu: Path) -> list:
-    """The roles of the compiled kernels ``fmu`` carries (deltafmi.runtime.native_kernels)."""
+def _compiled_kernels(fmu: Path) -> tuple[list, list]:
+    """The roles of the compiled kernels ``fmu`` carries (deltafmi.runtime.native_kernels) and the
+    names of its compiled functions (deltafmi.runtime.native_functions)."""
     import json
     import zipfile
 
     from deltafmi.runtime.native_kernels import DESCRIPTION
     with zipfile.ZipFile(fmu) as archive:
         if f"resources/{DESCRIPTION}" not in archive.namelist():
-            return []
-        return [role.replace("_", " ") for role in json.loads(archive.read(f"resources/{DESCRIPTION}"))["kernels"]]
+            return [], []
+        description = json.loads(archive.read(f"resources/{DESCRIPTION}"))
+    return [role.replace("_", " ") for role in description["kernels"]], list(description.get("functions", {}))
 
 
 def _fmu_of(target: str) -> Path:

@@ -4,8 +4,8 @@
 model (the packaged models in ``fmu_src/`` do it too); the classes live in :mod:`deltafmi.runtime`,
 the code that goes inside every FMU.
 """
-from deltafmi.runtime import (Clock, Component, Experiment, HybridSystemComponent, Input, Kernel, NativeKernels,
-                              Output, Parameter, SampledComponent, State)
+from deltafmi.runtime import (Clock, Component, Experiment, Function, HybridSystemComponent, Input, Kernel,
+                              NativeKernels, Output, Parameter, SampledComponent, State)
 
-__all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Input", "Kernel", "NativeKernels", "Output",
-           "Parameter", "SampledComponent", "State"]
+__all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Function", "Input", "Kernel", "NativeKernels",
+           "Output", "Parameter", "SampledComponent", "State"]

@@ -4,9 +4,9 @@ declarations, the FMI instance, the CVODE binding, logging, the boot code and th
 from .base import Component
 from .clocks import Clock
 from .hybrid import HybridSystemComponent
-from .native import Kernel, NativeKernels
+from .native import Function, Kernel, NativeKernels
 from .sampled import SampledComponent
 from .variables import Experiment, Input, Output, Parameter, State
 
-__all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Input", "Kernel", "NativeKernels", "Output",
-           "Parameter", "SampledComponent", "State"]
+__all__ = ["Clock", "Component", "HybridSystemComponent", "Experiment", "Function", "Input", "Kernel", "NativeKernels",
+           "Output", "Parameter", "SampledComponent", "State"]

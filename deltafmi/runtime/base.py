@@ -13,6 +13,7 @@ import numpy as np
 
 from .layout import Layout, build_layout
 from .native_values import ValueDescriptor, ValueHolder
+from .native_functions import FunctionSet
 from .variables import _REAL_ARRAY, Experiment
 
 __all__ = ["Component"]
@@ -20,7 +21,7 @@ __all__ = ["Component"]
 #: attributes the runtime keeps on a component (its value buffers, log sink, ...): not its own state
 RUNTIME_ATTRIBUTES = frozenset({"_real", "_real_view", "_real_item", "_real_items", "_int", "_int_item",
                                 "_int_items", "_str", "_str_items", "_log_sink", "_control", "resources_dir",
-                                "own_modules", "_c_step"})
+                                "own_modules", "_c_step", "_native_functions"})
 
 #: Component.log levels -> (FMI status, log category)
 LOG_LEVELS = {"debug": (0, "logComponent"), "info": (0, "logComponent"), "warning": (1, "logStatusWarning"),
@@ -307,6 +308,17 @@ class Component(ValueHolder):
     def overrides_do_step(cls) -> bool:
         """True when the component steps itself in Co-Simulation."""
         return cls.do_step is not Component.do_step
+
+    @property
+    def native_functions(self) -> FunctionSet:
+        """The functions ``native = NativeKernels(functions=...)`` declares, by name: compiled where
+        the FMU carries them (in-process: where the builder's ``use_compiled_functions`` registered
+        them), else the Python functions; the same results either way
+        (:mod:`.native_functions`)."""
+        functions = self.__dict__.get("_native_functions")
+        if functions is None:
+            functions = self._native_functions = FunctionSet.for_class(type(self))
+        return functions
 
     @property
     def states(self) -> np.ndarray:

@@ -20,6 +20,7 @@ from deltafmi.runtime import fmu_logging
 from .base import Component
 from .clocks import clock_driven
 from .cs_native import CsShared, native_cs_wanted
+from .native_functions import FunctionSet
 from .native_kernels import TRAILING_ROLES, NativeKernelsRuntime
 from .partials import DirectionalDerivatives
 
@@ -173,6 +174,7 @@ class FmuInstance:
         if self.native is not None:
             self.native.attach(self.component._real, self.component._int, self.event_indicators)
             self.partials.native = self.native
+        self._hand_functions()
         # the C layer takes the steps (cs_step.c) where it has the kernels a step needs
         self._cs.enabled = int(fmu_type == CO_SIMULATION and self.nx > 0 and not self._steps_itself
                                and self.native is not None and self.native.has("derivatives")
@@ -216,6 +218,22 @@ class FmuInstance:
             self.compiled_step.ready[0] = 0  # the new component arms it when it can step in C
             comp._c_step = self.compiled_step
         comp._attach(self.resources_dir, self.pending_logs, buffers, self.control, self._module_context)
+        self._hand_functions()
+
+    def _hand_functions(self) -> None:
+        """The compiled functions of the FMU's kernel library to the component (its
+        ``native_functions``), when the FMU carries them."""
+        native = getattr(self, "native", None)  # not yet loaded while the first component is made
+        declared = self.component_class.native.functions if native is not None else {}
+        if not declared:
+            return
+        try:
+            functions = FunctionSet.load(native.library, native.function_descriptions, declared)
+        except (AttributeError, KeyError, TypeError, ValueError) as exc:
+            self.pending_logs.append((WARNING, "logStatusWarning",
+                                      f"the compiled functions cannot be loaded, they run in Python: {exc}"))
+            functions = FunctionSet.python(declared)
+        self.component._native_functions = functions
 
     @property
     def terminate_requested(self) -> bool:

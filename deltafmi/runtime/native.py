@@ -38,6 +38,14 @@ declared type then (``None`` where it is not Optional, another type, an int beyo
 that instance on Python until the next copy. A step kernel's updates are copied back before
 Python next reads them.
 
+``functions`` names further kernels the component calls itself, from Python, mid-computation (a
+filter's process model inside its sample, say): ``functions={"step": Function(rk4_step, DeltaParams,
+18, 3, float)}`` with each argument's type (:class:`Function`). ``deltafmi build`` compiles them into the
+same library; the component calls ``self.native_functions.step(params, x, u, h)`` and gets the
+compiled function where the FMU (or, in-process, :func:`deltafmi.builder.codegen.use_compiled_functions`)
+has it, the Python function otherwise, with the same numbers (see
+:mod:`deltafmi.runtime.native_functions`).
+
 ``mode``: ``"required"`` (default) fails the build with the file and line of a construct the
 generator cannot translate; ``"fallback"`` warns with the same text instead and ships Python only;
 ``"off"`` skips the kernels.
@@ -47,7 +55,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Optional
 
-__all__ = ["Kernel", "NativeKernels"]
+__all__ = ["Function", "Kernel", "NativeKernels"]
 
 MODES = ("required", "fallback", "off")
 
@@ -91,6 +99,25 @@ class Kernel:
 
 
 @dataclass(frozen=True)
+class Function:
+    """A plain-float function the component calls itself, compiled: ``func`` and the type of each
+    of its parameters, in order.
+
+    A type is ``float``, ``int`` or ``bool``; an int ``n``: n floats (a sequence or a float64
+    array; the C reads a copy); a dataclass whose fields are all floats (parameters); a NamedTuple
+    class; or a fixed-length ``tuple[...]`` of these. The result: a number (returned as a Python
+    number) or any fixed-length nesting of tuples and lists of numbers, returned flattened as a new
+    float64 array (the compiled function and the Python one alike)."""
+
+    func: Callable
+    args: tuple
+
+    def __init__(self, func: Callable, *args: Any) -> None:
+        object.__setattr__(self, "func", func)
+        object.__setattr__(self, "args", tuple(args))
+
+
+@dataclass(frozen=True)
 class NativeKernels:
     """The kernels of a component compiled to C (see the module docstring)."""
 
@@ -105,8 +132,16 @@ class NativeKernels:
     attributes: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "required"
     state_jacobian: Optional[Kernel] = None
+    functions: Mapping[str, Function] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        for name, function in self.functions.items():
+            if not (name.isidentifier() and name.isascii()) or not isinstance(function, Function):
+                raise ValueError(f"NativeKernels functions: {name!r} must be an ASCII identifier naming a "
+                                 f"Function(func, *argument types)")
+            if name.startswith("_") or name == "compiled":
+                raise ValueError(f"NativeKernels functions: {name!r} is taken (names starting with '_' and "
+                                 f"'compiled' are the function set's own)")
         if self.mode not in MODES:
             raise ValueError(f"NativeKernels mode {self.mode!r} must be one of {', '.join(MODES)}")
         if self.jacobian is not None and self.jacobian.then is None:

@@ -250,6 +250,8 @@ class NativeKernelsRuntime:
     def __init__(self, library: Path, description: dict) -> None:
         self.library = ctypes.CDLL(str(library))
         self.attributes = description["attributes"]  # [[name, layout description], ...]
+        #: the functions the component calls itself (see native_functions.py), by name
+        self.function_descriptions = description.get("functions", {})
         self.updates = [(name, desc) for name, desc in self.attributes if name in description.get("updates", ())]
         fields = [("changed", ctypes.c_int)] + [(field_name(name), c_type(desc)) for name, desc in self.attributes]
         struct_type = type("Attributes", (ctypes.Structure,), {"_fields_": fields})

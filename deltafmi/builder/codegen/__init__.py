@@ -8,4 +8,11 @@ from .kernel_types import B, D, I, CodegenError, Entry, Obj, Opt, Tup, Vec, name
 from .translate import generate, signature_of
 
 __all__ = ["B", "CodegenError", "D", "Entry", "I", "Obj", "Opt", "Tup", "Vec", "generate", "named", "record",
-           "signature_of"]
+           "signature_of", "use_compiled_functions"]
+
+
+def use_compiled_functions(component_class: type) -> bool:
+    """See :func:`.component_kernels.use_compiled_functions`."""
+    from .component_kernels import use_compiled_functions as use
+
+    return use(component_class)

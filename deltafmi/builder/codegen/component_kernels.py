@@ -9,7 +9,11 @@ time, double h, double *real, int *ints)``, an update: ``(void *attributes, doub
 and writes its result into the buffers (a projection: the states) only when it succeeded (0;
 else the line of the ``raise`` it took: the loader then calls the Python method, which raises
 with its message). CVODE's projection (``project``) is called by CVODE alone (cvode_rhs.c).
-:func:`component_library` compiles it (cached) for ``deltafmi build``.
+The functions a component calls itself (``NativeKernels(functions=...)``) get one exported entry
+each, ``int dfmi_function_<name>(<arguments>, double *values)`` (see
+deltafmi/runtime/native_functions.py). :func:`component_library` compiles it (cached) for
+``deltafmi build``; :func:`use_compiled_functions` loads it for the component's instances in this
+process.
 """
 from __future__ import annotations
 
@@ -21,6 +25,7 @@ from typing import Any, NamedTuple, Optional
 
 from deltafmi.runtime import Component
 from deltafmi.runtime.native import Kernel
+from deltafmi.runtime.native_functions import register_library
 from deltafmi.runtime.native_kernels import field_name
 from deltafmi.runtime.variables import State
 from deltafmi.toolchain import BuildError, NoCompilerError, build_into, cache_dir, single_file_library
@@ -28,7 +33,7 @@ from .build import CFLAGS
 from .kernel_types import NONE, B, CodegenError, D, Entry, I, Obj, Opt, S, Tup, Vec, _type_of_hint, describe
 from .translate import generate
 
-__all__ = ["component_library", "generate_component"]
+__all__ = ["component_library", "generate_component", "use_compiled_functions"]
 
 #: helpers taken as the identity: list conversions that fixed-length C arrays make unnecessary
 IDENTITIES = ("_as_list", "_f3")
@@ -68,7 +73,7 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
     Raises :class:`CodegenError` naming the file and line of what cannot be translated, or the
     component and argument that is neither a variable nor a declared attribute."""
     native = getattr(cls, "native", None)
-    if native is None or native.mode == "off" or not native.kernels():
+    if native is None or native.mode == "off" or not (native.kernels() or native.functions):
         return None
     _check_inherited(cls)
     _check_step(cls)
@@ -84,6 +89,9 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
         args = [_argument(cls, role, name, attributes) for name in kernel.args]
         entries.append(Entry(f"dfk_{role}", kernel.func, [t for t, _ in args]))
         glue.append((role, kernel, args))
+    functions = {name: [_function_argument(cls, name, k, spec) for k, spec in enumerate(function.args)]
+                 for name, function in native.functions.items()}
+    entries += [Entry(f"dfn_{name}", native.functions[name].func, types) for name, types in functions.items()]
     returns: dict = {}
     type_names: dict = {t: "" for t in attributes.values()}
     unit = generate(entries, identities=IDENTITIES, returns=returns, type_names=type_names)
@@ -96,6 +104,10 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
              f"{EXPORT} const size_t dfmi_kernel_attributes_size = sizeof(DfmiAttributes);"]
     for role, kernel, args in glue:
         parts.append(_glue(cls, role, kernel, args, returns[f"dfk_{role}"], attributes))
+    described = {}
+    for name, types in functions.items():
+        code, described[name] = _function_glue(cls, name, native.functions[name].func, types, returns[f"dfn_{name}"])
+        parts.append(code)
     if native.derivatives is not None:
         indicators, project = int(native.event_indicators is not None), int(native.project is not None)
         state_jacobian = int(native.state_jacobian is not None)
@@ -105,6 +117,8 @@ def generate_component(cls: type[Component]) -> Optional[GeneratedKernels]:
     description = {"kernels": list(native.kernels()),
                    "attributes": [[name, describe(t)] for name, t in attributes.items()],
                    "updates": list(native.step.updates) if native.step is not None else []}
+    if described:
+        description["functions"] = described
     if native.jacobian is not None:
         description["jacobian_size"] = len(_leaves(returns["dfk_jacobian"], "out", f"{cls.__name__}.native.jacobian"))
     return GeneratedKernels("\n".join(parts) + "\n", description)
@@ -178,6 +192,20 @@ def component_library(cls: type[Component]) -> Optional[ComponentLibrary]:
     return ComponentLibrary(library, source, generated.description)
 
 
+def use_compiled_functions(cls: type[Component]) -> bool:
+    """Compile ``cls``'s kernels (from the cache when built before) and have its instances made from
+    now on in this process call the compiled functions it declares (``self.native_functions``),
+    as they do in its FMU: for tests, benchmarks and anything that runs the component directly.
+    False (its instances run the Python functions) when it declares none or no compiler is there
+    (a warning says so); BuildError as :func:`component_library`."""
+    kernels = component_library(cls)
+    if kernels is None or not kernels.description.get("functions"):
+        register_library(cls, None)
+        return False
+    register_library(cls, kernels.library, kernels.description)
+    return True
+
+
 def _attribute_type(cls: type, name: str, spec: Any) -> Any:
     scalars = {float: D, int: I, bool: B, str: S}
     if spec in scalars:
@@ -222,6 +250,64 @@ def _argument(cls: type[Component], role: str, name: str, attributes: dict) -> t
         raise CodegenError(f"{cls.__name__}.native: {role} argument {name!r}: kernels take Real variables, "
                            f"scalar Integer/Boolean ones and attributes, not this {decl.type.__name__} variable")
     return (B if decl.type is bool else I), f"ints[{decl.offset}]"
+
+
+def _function_argument(cls: type, name: str, k: int, spec: Any) -> Any:
+    """The kernel type of argument ``k`` of function ``name``, from its declared type."""
+    if isinstance(spec, int) and not isinstance(spec, bool):
+        if spec < 1:
+            raise CodegenError(f"{cls.__name__}.native.functions[{name!r}]: argument {k}: {spec} floats (at least 1)")
+        return Vec(spec)
+    t = _attribute_type(cls, f"functions[{name!r}] argument {k}", spec)
+    if t == S or _has_optional(t):
+        raise CodegenError(f"{cls.__name__}.native.functions[{name!r}]: argument {k}: {spec!r}: functions take "
+                           f"floats, ints, bools, n floats, dataclasses of floats, NamedTuples and tuples of these")
+    return t
+
+
+def _has_optional(t: Any) -> bool:
+    if isinstance(t, Opt):
+        return True
+    return isinstance(t, Tup) and any(_has_optional(item) for item in t.items)
+
+
+def _function_glue(cls: type, name: str, func: Any, types: list, result: Any) -> tuple[str, dict]:
+    """The exported entry of function ``name`` and its description (see
+    deltafmi/runtime/native_functions.py): the arguments as the generated entry takes them, the
+    result's numbers flattened into ``values``."""
+    where = f"{cls.__name__}.native.functions[{name!r}] ({func.__qualname__})"
+    params, codes, args = [], [], []
+    for k, t in enumerate(types):
+        if isinstance(t, Tup) and t.homogeneous:
+            params.append(f"const double *a{k}")
+            args.append({"floats": len(t.items)})
+        elif isinstance(t, Obj):
+            params.append(f"const void *a{k}")  # the entry's own struct type, laid out as the description's
+            args.append({"struct": describe(t)})
+        elif isinstance(t, Tup):
+            params.append(f"const void *a{k}")
+            args.append({"struct": describe(t)})
+        else:
+            params.append(f"{'double' if t == D else 'int'} a{k}")
+            args.append(describe(t))
+        codes.append(f"a{k}")
+    if result in (D, I, B):
+        declare, out, leaves, described = "double out;" if result == D else "int out;", "&out", [("out", result)], \
+            describe(result)
+    elif isinstance(result, Tup) and result.homogeneous:
+        declare, out = f"double out[{len(result.items)}];", "out"
+        leaves = [(f"out[{k}]", D) for k in range(len(result.items))]
+        described = {"floats": len(leaves)}
+    else:
+        declare, out = f"dfn_{name}_result out;", "&out"
+        leaves = _leaves(result, "out", where)
+        described = {"floats": len(leaves)}
+    stores = "".join(f"    values[{k}] = {code};\n" for k, (code, _) in enumerate(leaves))
+    code = (f"/* function {name}: {func.__module__}.{func.__qualname__} */\n"
+            f"{EXPORT} int dfmi_function_{name}({', '.join([*params, 'double *values'])})\n{{\n"
+            f"    {declare}\n    int err = dfn_{name}({', '.join([*codes, out])});\n    if (err) return err;\n"
+            f"{stores}    return 0;\n}}\n")
+    return code, {"args": args, "result": described}
 
 
 def _leaves(t: Any, code: str, where: str) -> list[tuple[str, Any]]:

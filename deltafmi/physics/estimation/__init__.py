@@ -4,6 +4,9 @@
   acceleration noise);
 - :mod:`.delta_process`: the delta robot's stabilised DAE as a process model in joint
   coordinates with the loop closures (exact Jacobians, tangent basis, propagation);
+- :mod:`.delta_process_kernels`: the same process model as plain-float kernels for a filter's
+  sample (a Runge-Kutta period with its Jacobian, the projection, the wrist kinematics), which a
+  component may hand the filter compiled;
 - :mod:`.contact_ekf`: the contact estimator: the wrist (contact) force as a random walk and the
   surface height as a constant tied to it by the contact law, from the servo angles and torques;
 - :mod:`.wrist_process`: the 6-DOF delta + wrist plant as a process model in its six coordinates;

@@ -27,9 +27,11 @@ DAE linearisations per sample for little gain without inequality constraints to 
 Cycle per sample t_k (:meth:`ContactEKF.step`): predict from t_(k-1) with u(t_(k-1)), the
 torque held over that period, then update with y(t_k) (Joseph form) and the gated contact update.
 The published estimate is the posterior at t_k: it uses y(t_k) and is time-aligned with it.
-Cost per sample (Python with numpy): one exact DAE Jacobian (whose accelerations are the
-Runge-Kutta step's first stage), three more DAE evaluations, one or two projections onto the
-loops, and the wrist kinematics once per state; benchmarks/assembly_realtime.py times it.
+Cost per sample: one exact DAE Jacobian (whose accelerations are the Runge-Kutta step's first
+stage), three more DAE evaluations, one or two projections onto the loops and the wrist kinematics
+once per state, all plain-float kernels (:mod:`.delta_process_kernels`; ``kernels`` may hand the
+filter compiled ones, as the ContactEstimator FMU does), and the covariance algebra in numpy;
+benchmarks/assembly_realtime.py times it.
 """
 from __future__ import annotations
 
@@ -39,18 +41,18 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..delta.dynamics import project_to_constraints
-from ..delta.kinematics import forward_kinematics, inverse_kinematics, wrist_position
+from ..delta.jacobian import _SENSITIVITIES
+from ..delta.kinematics import forward_kinematics, inverse_kinematics
 from ..delta.params import DeltaParams
-from .delta_process import arm_jacobians, process_linearization, propagate, tangent_basis, wrist_jacobians
-from .kalman import joseph_update, transition_matrix, white_acceleration_noise
+from .delta_process_kernels import PYTHON_KERNELS, ProcessKernels
+from .kalman import white_acceleration_noise
 
 __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
 
 #: slices of the estimator state X = [q, v, f, s]
 _Q, _V, _F, _S = slice(0, 9), slice(9, 18), slice(18, 21), 21
 _N = 22
-_SERVOS = [0, 3, 6]
+_SERVOS = slice(0, 9, 3)  # q_11, q_21, q_31: the servo angles
 
 
 @dataclass(frozen=True)
@@ -123,14 +125,18 @@ class ContactEKF:
         settings: noise levels, priors, contact model.
         y0: the first servo-angle measurement (rad); the filter starts at its forward kinematics.
         zd0: the assumed initial wrist velocity (m/s).
+        kernels: the process model's kernels (``predict``, ``project``, ``kinematics``: see
+            :class:`.delta_process_kernels.ProcessKernels`), compiled ones for speed; by default
+            the Python functions, which give the same numbers.
     """
 
     def __init__(self, params: DeltaParams, settings: ContactEKFSettings, y0: Sequence[float],
-                 zd0: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
+                 zd0: Sequence[float] = (0.0, 0.0, 0.0), kernels: ProcessKernels = PYTHON_KERNELS) -> None:
         self.params, self.settings = params, settings
+        self._kernels = kernels
         z0 = forward_kinematics(params, y0)
         q = inverse_kinematics(params, z0)
-        Tz = tangent_basis(params, q)
+        Tz = kernels.kinematics(params, q, np.zeros(9))[57:].reshape(9, 3)  # dq/dz
         self.x = np.zeros(_N)
         self.x[_Q], self.x[_V], self.x[_S] = q, Tz @ np.asarray(zd0, float), settings.surface_height0
         P = np.zeros((_N, _N))
@@ -146,14 +152,18 @@ class ContactEKF:
         self._n = n
         self._tool_along = float(n @ np.array(settings.tool))
         self._Ry = settings.y_std ** 2 * np.eye(3)
-        self._Hy = np.zeros((3, _N))
-        self._Hy[[0, 1, 2], _SERVOS] = 1.0
+        self._ry = settings.y_std ** 2
+        self._Rc = settings.contact_model_std ** 2
+        self._I, self._I21 = np.eye(_N), np.eye(21)
+        self._G = np.zeros((6, 18))
         T = settings.sample_period
         self._W = settings.acceleration_std ** 2 * white_acceleration_noise(T)
         self._Qd = np.zeros((_N, _N))  # the process noise but for the joint block, which moves with q
         self._Qd[_F, _F] = settings.force_rate_std ** 2 * T * np.eye(3)
         self._Qd[_S, _S] = settings.surface_drift_std ** 2 * T
         self._kinematics_at: bytes = b""  # the (q, v) that _kinematics holds
+        self._A = np.zeros((21, 21))  # d[q'; v'; f']/d[q; v; f]: q' = v, f' = 0 but for noise
+        self._A[_Q, _V] = np.eye(9)
 
     # --------------------------------------------------------------------------------- cycle
     def step(self, y: Sequence[float], u: Sequence[float]) -> ContactEstimate:
@@ -167,33 +177,42 @@ class ContactEKF:
 
     def update(self, y: Sequence[float]) -> None:
         """Measurement update with the servo angles, then the gated contact-law update."""
-        residual = np.asarray(y, float) - self.x[_SERVOS]
-        self._correct(self._Hy, residual, self._Ry)
+        self._correct_servos(np.asarray(y, float) - self.x[_SERVOS])
         pressing = float(self._n @ self.x[_F]) > self.settings.contact_threshold
         self._pressing = self._pressing + 1 if pressing else 0
         self.in_contact = self._pressing >= self.settings.contact_samples
         if self.in_contact:
             H, value = self._contact_row()
-            self._correct(H[None, :], np.array([-value]),
-                          np.array([[self.settings.contact_model_std ** 2]]))
+            self._correct_row(H, -value)
 
     def predict(self, u: Sequence[float]) -> None:
         """Propagate the state over one sample period with u held, and the covariance with it."""
         st, p = self.settings, self.params
-        q, v, f = self.x[_Q], self.x[_V], self.x[_F]
         T = st.sample_period
-        A, rate = process_linearization(p, q, v, u, f, st.pole)
-        Phi = transition_matrix(A, T)  # of [q, v, f]; s is constant (its row of the 22 is e_s)
-        Tz = tangent_basis(p, q, self._kinematics()[3])
-        Qd = self._Qd.copy()
-        Qd[:18, :18] = np.kron(self._W, Tz @ Tz.T)  # [[W00 TT, W01 TT], [W10 TT, W11 TT]]
-        self.x[_Q], self.x[_V] = propagate(p, q, v, u, f, T, st.pole, st.substeps, rate)
+        Tz = self._kinematics()[3]
+        # (q, v) after the period and the exact Jacobian at its start (jacobian_values' floats)
+        out = self._kernels.predict(p, self.x[_Q], self.x[_V], u, self.x[_F], T, st.pole, st.substeps)
+        columns = out[18 + _SENSITIVITIES:].reshape(24, 15)  # per known [q, v, u, f]: [da (9); dlam (6)]
+        A = self._A
+        A[_V, :18] = columns[:18, :9].T
+        A[_V, _F] = columns[21:24, :9].T
+        # Phi = exp(A T) of [q, v, f] (s is constant: its row of the 22 is e_s) to (A T)^4 / 24, as
+        # kalman.transition_matrix, by Horner's rule: I + AT (I + AT/2 (I + AT/3 (I + AT/4)))
+        AT, I = A * T, self._I21
+        Phi = I + AT / 4.0
+        for k in (3.0, 2.0):
+            Phi = I + AT @ Phi / k
+        Phi = I + AT @ Phi
+        TT = Tz @ Tz.T  # the process noise of [q, v]: kron(W, TT) = [[W00 TT, W01 TT], [W10 TT, W11 TT]]
+        noise = (self._W[:, None, :, None] * TT[None, :, None, :]).reshape(18, 18)
+        self.x[:18] = out[:18]
         P = np.empty((_N, _N))
         PhiP = Phi @ self.P[:21]
         P[:21, :21] = PhiP[:, :21] @ Phi.T
         P[:21, _S] = P[_S, :21] = PhiP[:, _S]
         P[_S, _S] = self.P[_S, _S]
-        P += Qd
+        P += self._Qd
+        P[:18, :18] += noise
         self.P = 0.5 * (P + P.T)
 
     # ------------------------------------------------------------------------------ outputs
@@ -201,36 +220,41 @@ class ContactEKF:
         """The current estimate and its standard deviations."""
         v, P = self.x[_V], self.P
         z, Jv, D, _ = self._kinematics()
-        G = np.hstack([D, Jv])  # d zd / d[q, v]
+        G = self._G  # rows: d z / d[q, v], d zd / d[q, v] = [D, Jv]
+        G[:3, _Q] = G[3:, _V] = Jv
+        G[3:, _Q] = D
+        deviations = np.sqrt(np.maximum((G @ P[:18, :18] * G).sum(axis=1), 0.0))  # diag(G P G^T)
         n = self._n
         f = self.x[_F].copy()
         return ContactEstimate(
-            z.copy(), Jv @ v, f, float(n @ f), float(self.x[_S]),
-            _std(Jv @ P[_Q, _Q] @ Jv.T), _std(G @ P[:18, :18] @ G.T), _std(P[_F, _F]),
-            math.sqrt(max(float(n @ P[_F, _F] @ n), 0.0)), math.sqrt(max(P[_S, _S], 0.0)), self.in_contact)
+            z.copy(), Jv @ v, f, float(n @ f), float(self.x[_S]), deviations[:3], deviations[3:],
+            np.sqrt(np.maximum(P.diagonal()[_F], 0.0)), math.sqrt(max(float(n @ P[_F, _F] @ n), 0.0)),
+            math.sqrt(max(P[_S, _S], 0.0)), self.in_contact)
 
     def gap(self) -> float:
         """The estimated gap n . (z + tool) - n_z s (m) of the tool tip from the surface."""
-        return self._contact_terms()[0]
+        n = self._n
+        return float(n @ self._kinematics()[0]) + self._tool_along - n[2] * float(self.x[_S])
 
     # ------------------------------------------------------------------------------ helpers
     def _kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """z(q), Jv(q), D(q, v) (:func:`.delta_process.wrist_jacobians`) and the arms' Jacobians
-        at the current state, computed once per state (the estimate, the gap, the contact row and
-        the next prediction's tangent basis all need them)."""
+        """z(q), Jv(q), D(q, v) (:func:`.delta_process.wrist_jacobians`) and the tangent basis
+        dq/dz (:func:`.delta_process.tangent_basis`) at the current state, computed once per state
+        (the estimate, the gap, the contact row and the next prediction's process noise need them)."""
         key = self.x[:18].tobytes()
         if key != self._kinematics_at:
-            q, v = self.x[_Q], self.x[_V]
-            arms = arm_jacobians(self.params, q)
-            self._wrist = (wrist_position(self.params, q), *wrist_jacobians(self.params, q, v, arms), arms)
+            values = self._kernels.kinematics(self.params, self.x[_Q], self.x[_V])
+            arms = values[3:30].reshape(3, 3, 3)
+            Jv = arms.transpose(1, 0, 2).reshape(3, 9) / 3.0  # [arm 1, arm 2, arm 3] / 3
+            self._wrist = (values[:3], Jv, values[30:57].reshape(3, 9), values[57:].reshape(9, 3))
             self._kinematics_at = key
         return self._wrist
 
     def _contact_terms(self) -> tuple[float, float, np.ndarray, np.ndarray]:
         v, n = self.x[_V], self._n
-        z, Jv, D, _ = self._kinematics()
-        gap = float(n @ z) + self._tool_along - n[2] * float(self.x[_S])
-        return gap, float(n @ Jv @ v), n @ Jv, n @ D
+        _, Jv, D, _ = self._kinematics()
+        nJv = n @ Jv
+        return self.gap(), float(nJv @ v), nJv, n @ D
 
     def _contact_row(self) -> tuple[np.ndarray, float]:
         """h_c(X) = n . f + k gap + c gap' and its gradient (22,)."""
@@ -244,11 +268,34 @@ class ContactEKF:
         H[_S] = -k * n[2]
         return H, float(n @ self.x[_F]) + k * gap + c * rate
 
-    def _correct(self, H: np.ndarray, residual: np.ndarray, R: np.ndarray) -> None:
-        dx, self.P = joseph_update(self.P, H, residual, R)
+    def _correct_servos(self, residual: np.ndarray) -> None:
+        """The Joseph update (:func:`.kalman.joseph_update`) with the servo angles, whose H selects
+        three states: P H^T and H P H^T are columns and entries of P, I - K H is I but for them."""
+        PHt = self.P[:, _SERVOS]
+        K = PHt @ _inverse3(PHt[_SERVOS] + self._Ry)
+        IKH = self._I.copy()
+        IKH[:, _SERVOS] -= K
+        self._correct(IKH, self._ry * (K @ K.T), K @ residual)
+
+    def _correct_row(self, h: np.ndarray, residual: float) -> None:
+        """The Joseph update with one scalar measurement of gradient h (the contact law)."""
+        PHt = self.P @ h
+        K = PHt / (h @ PHt + self._Rc)
+        self._correct(self._I - np.outer(K, h), self._Rc * np.outer(K, K), K * residual)
+
+    def _correct(self, IKH: np.ndarray, KRKt: np.ndarray, dx: np.ndarray) -> None:
+        P = IKH @ self.P @ IKH.T + KRKt
+        self.P = 0.5 * (P + P.T)
         self.x += dx
-        self.x[_Q], self.x[_V] = project_to_constraints(self.params, self.x[_Q], self.x[_V])
+        self.x[:18] = self._kernels.project(self.params, self.x[_Q], self.x[_V])
 
 
-def _std(cov: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.maximum(np.diag(cov), 0.0))
+
+def _inverse3(m: np.ndarray) -> np.ndarray:
+    """The inverse of a regular 3 x 3 matrix by its adjugate (a fraction of numpy.linalg's call cost)."""
+    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
+    c00, c01, c02 = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * c00 + b * c01 + c * c02
+    return np.array([[c00, c * h - b * i, b * f - c * e],
+                     [c01, a * i - c * g, c * d - a * f],
+                     [c02, b * g - a * h, a * e - b * d]]) / det
