@@ -78,12 +78,11 @@ from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from ..delta.kinematics import forward_kinematics, inverse_kinematics
+from ..delta.kinematics import forward_kinematics
 from ..delta.params import DeltaParams
 from ..delta_wrist.params import WristMount
 from ..peg.params import Hole, Peg, PegContact
 from ..wrist.kernels import WristConstants
-from .delta_process import tangent_basis
 from .kalman import joseph_update, transition_matrix, white_acceleration_noise
 from .peg_contact import HOLE_STATES, linearization_parts, located
 from .peg_kernels import FUNCTIONS, JACOBIAN_COLUMNS
@@ -93,7 +92,6 @@ __all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES", "PYTHON_FUNCTI
 
 _S, _W, _H = slice(0, 12), slice(12, 18), slice(18, 22)
 N_STATES = N_REDUCED + 6 + HOLE_STATES
-_SERVOS = [0, 3, 6]
 
 
 def _flat(func: Callable) -> Callable:
@@ -182,7 +180,7 @@ class PegEKF:
         settings: noise levels, priors, contact gate.
         y0, qw0: the first servo and wrist angles (rad); the filter starts there, at rest.
         functions: the kernels of :mod:`.peg_kernels` by name (prediction, contact_linearization,
-            hole_search), each returning its result as a flat float array: a component's
+            hole_search, servo_kinematics), each returning its result as a flat float array: a component's
             compiled ``native_functions``; default :data:`PYTHON_FUNCTIONS` (the same numbers).
     """
 
@@ -252,11 +250,11 @@ class PegEKF:
 
     def update(self, y: Sequence[float], qw: Sequence[float]) -> None:
         """Measurement update with the joint angles, then the gated contact-law update."""
-        q = inverse_kinematics(self.p, self.x[0:3])
+        servo = self.functions.servo_kinematics(self.p, self.x[0:3].tolist())  # angles, rows of dq/dz
         H = np.zeros((6, N_STATES))
-        H[0:3, 0:3] = tangent_basis(self.p, q)[_SERVOS]
+        H[0:3, 0:3] = servo[3:12].reshape(3, 3)
         H[3:6, 3:6] = np.eye(3)
-        residual = np.concatenate([np.asarray(y, float) - q[_SERVOS], np.asarray(qw, float) - self.x[3:6]])
+        residual = np.concatenate([np.asarray(y, float) - servo[0:3], np.asarray(qw, float) - self.x[3:6]])
         st = self.settings
         self._correct(H, residual, self._R)
         touching = float(np.linalg.norm(self.x[12:15])) > st.contact_threshold
@@ -311,12 +309,13 @@ class PegEKF:
             innovation = c - self.x[_W] - H[:, _H] @ (prior - hi)
             PHt = self.P[_H] @ H.T
             S = H @ self.P @ H.T + self._Rc
-            new = prior + PHt @ np.linalg.solve(S, innovation)
+            weighted = np.linalg.solve(S, innovation)
+            new = prior + PHt @ weighted
             done = float(np.max(np.abs(new - hi) / scale)) < st.contact_tolerance
             hi = new
             if done:
                 break
-        self.consistency = float(innovation @ np.linalg.solve(S, innovation))
+        self.consistency = float(innovation @ weighted)  # the last iteration's S^-1 innovation
         if self.consistency <= st.contact_gate:
             self._rejected = 0
             self._correct(H, innovation, self._Rc, _H)

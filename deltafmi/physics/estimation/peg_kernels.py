@@ -15,7 +15,8 @@ Layouts (flat float sequences, what a compiled function returns):
   (rows 6..11, the accelerations; 6 each, in column order), zeros for the columns not due;
 - :func:`contact_linearization`: the law's wrench c (6), the 16 columns of dc/d[s, h] (6 each,
   zeros for those of s with ``hole_only``), the number of active contacts (1);
-- :func:`hole_search`: 1.0 and the hole (4) that explains the felt wrench best, or five zeros.
+- :func:`hole_search`: 1.0 and the hole (4) that explains the felt wrench best, or five zeros;
+- :func:`servo_kinematics`: the servo angles (3) at the plate position and their rows of dq/dz (9).
 """
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ from ..peg.params import Hole, Peg, PegContact
 from ..wrist.kernels import WristConstants, cross, joint_axes, tip_position, tool_rotation
 
 __all__ = ["POSITION_STEP", "RATE_STEP", "HOLE_STEPS", "JACOBIAN_COLUMNS", "PREDICTION_SIZE", "LINEARIZATION_SIZE", "FUNCTIONS",
-           "joint_angles", "full_state", "tool_pose", "reduced_derivative", "prediction", "process_columns",
+           "joint_angles", "full_state", "servo_kinematics", "tool_pose", "reduced_derivative", "prediction", "process_columns",
            "contact_linearization",
            "hole_search"]
 
@@ -104,6 +105,17 @@ def full_state(p: DeltaParams, s: list[float]) -> tuple[list[float], tuple]:
          + _arm_inverse(p, cC, sC, q[6], q[7], q[8]))
     v = [T[3 * j] * s[6] + T[3 * j + 1] * s[7] + T[3 * j + 2] * s[8] for j in range(9)]
     return q + [s[3], s[4], s[5]] + v + [s[9], s[10], s[11]], T
+
+
+def servo_kinematics(p: DeltaParams, z: list[float]) -> list[float]:
+    """The servo angles at the plate centre z (3) and their rows of T = dq/dz (3 x 3 row-major):
+    the angle measurement's prediction and Jacobian (12 floats)."""
+    q = joint_angles(p, (z[0], z[1], z[2]))
+    (cA, sA), (cB, sB), (cC, sC) = _ARMS
+    t1 = _arm_inverse(p, cA, sA, q[0], q[1], q[2])
+    t2 = _arm_inverse(p, cB, sB, q[3], q[4], q[5])
+    t3 = _arm_inverse(p, cC, sC, q[6], q[7], q[8])
+    return [q[0], q[3], q[6], t1[0], t1[1], t1[2], t2[0], t2[1], t2[2], t3[0], t3[1], t3[2]]
 
 
 def _arm_acceleration(p: DeltaParams, c: float, s: float, q1: float, q2: float, q3: float, v1: float, v2: float,
@@ -359,4 +371,5 @@ FUNCTIONS = {
     "prediction": (prediction, (DeltaParams, WristConstants, WristMount, 12, 3, 3, 6, float, float, int, int, int)),
     "contact_linearization": (contact_linearization, (Hole, Peg, PegContact, WristConstants, WristMount, 12, 4, bool)),
     "hole_search": (hole_search, (Hole, Peg, PegContact, WristConstants, WristMount, 12, 4, 6, 6)),
+    "servo_kinematics": (servo_kinematics, (DeltaParams, 3)),
 }
