@@ -67,8 +67,11 @@ held since then, update with y(t_k), qw(t_k), then the gated contact update. The
 transition matrix needs the process Jacobian (18 columns, each an evaluation of the plant's
 accelerations): jacobian_columns of them are evaluated again per sample, in turn, the others kept
 from the samples before (a Jacobian a few milliseconds old, as a stiff solver reuses its Newton
-matrix; it enters only the covariance's propagation, the mean is the Runge-Kutta step's). Cost:
-benchmarks/assembly_realtime.py (plain Python with numpy; far from the 1 ms of real time).
+matrix; it enters only the covariance's propagation, the mean is the Runge-Kutta step's). The
+process model, the servo kinematics and the contact law are the float kernels of
+:mod:`.peg_kernels`, called through ``functions`` (compiled in the PegEstimator FMU, Python
+otherwise: the same numbers); the covariance algebra is numpy. Cost per sample, either way:
+benchmarks/assembly_realtime.py.
 """
 from __future__ import annotations
 
