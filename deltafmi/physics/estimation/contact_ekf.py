@@ -154,7 +154,7 @@ class ContactEKF:
         self._Ry = settings.y_std ** 2 * np.eye(3)
         self._ry = settings.y_std ** 2
         self._Rc = settings.contact_model_std ** 2
-        self._I, self._I21 = np.eye(_N), np.eye(21)
+        self._I21 = np.eye(21)
         self._G = np.zeros((6, 18))
         T = settings.sample_period
         self._W = settings.acceleration_std ** 2 * white_acceleration_noise(T)
@@ -270,25 +270,28 @@ class ContactEKF:
 
     def _correct_servos(self, residual: np.ndarray) -> None:
         """The Joseph update (:func:`.kalman.joseph_update`) with the servo angles, whose H selects
-        three states: P H^T and H P H^T are columns and entries of P, I - K H is I but for them."""
-        PHt = self.P[:, _SERVOS]
+        three states: P H^T and H P H^T are columns and entries of P, and (I - K H) P (I - K H)^T
+        is M - (M H^T) K^T with M = P - K (H P), two products of rank 3."""
+        P = self.P
+        PHt = P[:, _SERVOS]
         K = PHt @ _inverse3(PHt[_SERVOS] + self._Ry)
-        IKH = self._I.copy()
-        IKH[:, _SERVOS] -= K
-        self._correct(IKH, self._ry * (K @ K.T), K @ residual)
+        M = P - K @ P[_SERVOS]
+        self._correct(M - M[:, _SERVOS] @ K.T + self._ry * (K @ K.T), K @ residual)
 
     def _correct_row(self, h: np.ndarray, residual: float) -> None:
-        """The Joseph update with one scalar measurement of gradient h (the contact law)."""
-        PHt = self.P @ h
+        """The Joseph update with one scalar measurement of gradient h (the contact law), its
+        products of rank 1 as in :meth:`_correct_servos`."""
+        P = self.P
+        PHt = P @ h
         K = PHt / (h @ PHt + self._Rc)
-        self._correct(self._I - np.outer(K, h), self._Rc * np.outer(K, K), K * residual)
+        M = P - np.outer(K, h @ P)
+        self._correct(M - np.outer(M @ h, K) + self._Rc * np.outer(K, K), K * residual)
 
-    def _correct(self, IKH: np.ndarray, KRKt: np.ndarray, dx: np.ndarray) -> None:
-        P = IKH @ self.P @ IKH.T + KRKt
+    def _correct(self, P: np.ndarray, dx: np.ndarray) -> None:
+        """The corrected covariance (symmetrised) and state, projected onto the loops."""
         self.P = 0.5 * (P + P.T)
         self.x += dx
         self.x[:18] = self._kernels.project(self.params, self.x[_Q], self.x[_V])
-
 
 
 def _inverse3(m: np.ndarray) -> np.ndarray:
