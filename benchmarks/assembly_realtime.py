@@ -10,10 +10,13 @@ in the same run, on the same inputs:
   every mode switch (``modes=1``); OSQP with one solver per mode set up once, without and with
   polishing; and the default, DAQP (dual active set) with one solver per mode set up at
   construction, warm-started from the last active set;
-- PegEstimator (peg_estimation.yaml, 0.9-2.2 s: free, the chamfer, the bore; with its parts):
-  baseline the extended filter (one linearisation of the contact law, the whole process Jacobian
+- PegEstimator (peg_estimation.yaml, 0.9-2.2 s: free, the chamfer, the bore; with its parts, in
+  alternating passes, wall clock and the thread's CPU time): baseline its kernels (prediction,
+  contact law, hole locator) as Python (the path without a C compiler) against the compiled
+  functions its FMU calls (C generated from the same Python), with their estimates compared; and,
+  compiled, the extended filter (one linearisation of the contact law, the whole process Jacobian
   every sample) against the defaults (iterated contact update, the Jacobian's columns refreshed
-  in turn), in alternating passes, wall clock and the thread's CPU time;
+  in turn), with the hole's error each ends with;
 - ContactEstimator (contact_estimation.yaml, the filter's cycle with its estimate and gap as the
   FMU takes them, in alternating passes): baseline the process model's kernels as Python (the
   path without a C compiler) against the compiled functions its FMU calls (C generated from the
@@ -80,7 +83,7 @@ def figures(times: List[float], cpu: List[float] | None = None) -> Dict[str, flo
          "over": float(np.mean(t > 1.0))}
     if cpu is not None:
         c = np.asarray(cpu) * 1e3
-        f.update(cpu_median=float(np.median(c)), cpu_p99=float(np.percentile(c, 99)))
+        f.update(cpu_median=float(np.median(c)), cpu_p99=float(np.percentile(c, 99)), cpu_over=float(np.mean(c > 1.0)))
     return f
 
 
@@ -92,12 +95,12 @@ def report(title: str, rows: Dict[str, Dict[str, float]], ratios: bool = True) -
     base = next(iter(rows.values()))
     cpu = any("cpu_median" in f for f in rows.values())
     head = f"{'median x':>10}{'p99 x':>8}" if ratios else ""
-    head += f"{'cpu median':>11}{'cpu p99':>9}" if cpu else ""
+    head += f"{'cpu median':>11}{'cpu p99':>9}{'cpu > 1 ms':>11}" if cpu else ""
     print(f"\n{title}\n{'':44}{'median ms':>10}{'p99 ms':>9}{'max ms':>9}{'> 1 ms':>8}{'x budget':>9}{'p99 x b.':>9}"
           f"{head}")
     for label, f in rows.items():
         tail = f"{base['median'] / f['median']:10.2f}{base['p99'] / f['p99']:8.2f}" if ratios else ""
-        tail += f"{f['cpu_median']:11.3f}{f['cpu_p99']:9.3f}" if "cpu_median" in f else ""
+        tail += f"{f['cpu_median']:11.3f}{f['cpu_p99']:9.3f}{100 * f['cpu_over']:10.1f}%" if "cpu_median" in f else ""
         print(f"{label:44}{f['median']:10.3f}{f['p99']:9.3f}{f['max']:9.2f}{100 * f['over']:7.1f}%"
               f"{f['median'] / 1.0:9.2f}{f['p99'] / 1.0:9.2f}{tail}")
 
@@ -230,61 +233,86 @@ def budget(label: str, rows: Dict[str, Dict[str, float]], period: str = "the 1 m
         print(f"{label}: {name}: median {f['median']:.2f}, p99 {f['p99']:.2f} of {period}")
 
 
-def peg_run(d: dict, c: "PegEstimator", settings, rows: List[int]) -> tuple:  # noqa: F821
-    """PegEKF with ``settings`` through the recorded rows: (wall, cpu, predict, update) seconds per
-    sample, and the filter at the end."""
+def peg_run(d: dict, c: "PegEstimator", settings, rows: List[int], functions) -> tuple:  # noqa: F821
+    """PegEKF with ``settings`` and ``functions`` (its kernels) through the recorded rows: (wall, cpu,
+    predict, update) seconds per sample, the filter at the end, and its state and covariance's
+    diagonal after every sample."""
     from deltafmi.physics.estimation.peg_ekf import PegEKF
 
     ekf = PegEKF(c.robot_params(), c._wrist, c._mount, c._hole, c._peg, c._law, settings, d["y"][rows[0]],
-                 d["qw"][rows[0]])
+                 d["qw"][rows[0]], functions=functions)
     parts: Dict[str, List[float]] = {"predict": [], "update": []}
     for name in parts:
         method = getattr(ekf, name)
 
         def wrapped(*a, _m=method, _n=name):
-            start = time.perf_counter()
+            start = time.thread_time()
             _m(*a)
-            parts[_n].append(time.perf_counter() - start)
+            parts[_n].append(time.thread_time() - start)
         setattr(ekf, name, wrapped)
+    states: list = []
+
+    def sample(*args):
+        ekf.step(*args)
+        states.append(np.concatenate([ekf.x, np.diag(ekf.P)]))
     cpu: List[float] = []
-    times = timed(ekf.step, [(d["y"][i], d["qw"][i], d["u"][i], d["tau"][i]) for i in rows], cpu)
-    return times, cpu, parts["predict"], parts["update"], ekf
+    times = timed(sample, [(d["y"][i], d["qw"][i], d["u"][i], d["tau"][i]) for i in rows], cpu)
+    return times, cpu, parts["predict"], parts["update"], ekf, np.array(states)
 
 
 def peg(folder: Path, stop: float) -> None:
     """PegEKF on peg_estimation.yaml's recorded angles and torques (noise-free) from 0.9 s (before
-    the chamfer) to ``stop``, in turns (baseline, now, baseline, now, ...: the load falls on both
-    alike): per sample, and its parts (prediction: process Jacobian and Runge-Kutta; measurement
-    update with the contact law's). Baseline: the extended filter's single linearisation of the
-    contact law (contact_iterations 1) and the whole process Jacobian at every sample
-    (jacobian_columns 18); now: the defaults. The hole's error at the end says what each costs in
-    accuracy."""
+    the chamfer) to ``stop``, in turns (baseline, now, ...: the load falls on all alike): per
+    sample, and its parts (prediction: process Jacobian and Runge-Kutta; measurement update with
+    the contact law's). Before: the kernels as Python; now: compiled, as the FMU calls them
+    (their estimates must be the same numbers). The extended filter (contact_iterations 1,
+    jacobian_columns 18) against the defaults, both compiled: what the iterated update costs, and
+    the hole's error at the end says what each buys in accuracy."""
     from dataclasses import replace
 
+    from deltafmi.builder.codegen import use_compiled_functions
+    from deltafmi.models.peg_estimator import PegEstimator
+    from deltafmi.physics.estimation.peg_ekf import PYTHON_FUNCTIONS
+
+    if not use_compiled_functions(PegEstimator):
+        raise SystemExit("PegEstimator: its functions could not be compiled (no C compiler?)")
     d, c = peg_truth(folder, stop), component()
+    assert c.native_functions.compiled
     t = d["time"]
     rows = [int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1 for k in range(900, int(round(stop / 1e-3)) + 1)]
-    variants = {"baseline: EKF update, full Jacobian": replace(c._settings, contact_iterations=1, jacobian_columns=18),
-                "now: iterated update, 3 Jacobian columns": c._settings}
+    ekf_settings = replace(c._settings, contact_iterations=1, jacobian_columns=18)
+    variants = {"before: Python kernels": (c._settings, PYTHON_FUNCTIONS),
+                "now: compiled kernels (the FMU's)": (c._settings, c.native_functions),
+                "compiled, EKF update, full Jacobian": (ekf_settings, c.native_functions)}
     runs: Dict[str, list] = {label: [] for label in variants}
     for _ in range(2):
-        for label, settings in variants.items():
-            runs[label].append(peg_run(d, c, settings, rows))
+        for label, (settings, functions) in variants.items():
+            runs[label].append(peg_run(d, c, settings, rows, functions))
     table, accuracy = {}, {}
     for label, done in runs.items():
         times, cpu, predict, update = ([x for r in done for x in r[k]] for k in range(4))
-        table[f"{label}"] = figures(times, cpu)
-        table[f"  prediction"] = figures(predict)
-        table[f"  measurement + contact-law update"] = figures(update)
+        table[label] = figures(times, cpu)
+        table["  prediction (CPU)"] = figures(predict)
+        table["  measurement + contact-law update (CPU)"] = figures(update)
         ekf = done[-1][4]
         accuracy[label] = (np.linalg.norm(ekf.x[18:20] - d["hole"][rows[-1]][:2]),
                            np.abs(ekf.x[20:22] - np.array([0.01745, 0.0])).max())
         report(f"PegEstimator {label}: {len(times)} samples of 1 ms (peg_estimation.yaml, 0.9-{stop:g} s: free, "
                f"chamfer, bore; 2 passes)", dict(table), ratios=False)
         table.clear()
-    base, now = (figures([x for r in runs[k] for x in r[0]], [x for r in runs[k] for x in r[1]]) for k in variants)
-    print(f"\nnow against baseline: median {base['median'] / now['median']:.2f}x, p99 {base['p99'] / now['p99']:.2f}x "
-          f"faster (wall clock); CPU time median {base['cpu_median'] / now['cpu_median']:.2f}x")
+    labels = list(variants)
+    whole = {k: figures([x for r in runs[k] for x in r[0]], [x for r in runs[k] for x in r[1]]) for k in labels}
+    report(f"PegEstimator per sample, {len(rows)} samples x 2 passes, against the first row", whole)
+    base, now = whole[labels[0]], whole[labels[1]]
+    print(f"\ncompiled against Python kernels: CPU time median {base['cpu_median'] / now['cpu_median']:.2f}x, "
+          f"p99 {base['cpu_p99'] / now['cpu_p99']:.2f}x faster; wall clock median {base['median'] / now['median']:.2f}x")
+    budget("PegEstimator (now)", {"CPU time": {"median": now["cpu_median"], "p99": now["cpu_p99"]},
+                                  "wall clock": now})
+    python, compiled = runs[labels[0]][-1][5], runs[labels[1]][-1][5]
+    scale = np.maximum(np.abs(python).max(axis=0), 1e-300)
+    print(f"compiled against Python estimates (state and variances, every sample): largest difference "
+          f"{np.max(np.abs(compiled - python) / scale):.1e} of each one's range"
+          f"{' (identical)' if np.array_equal(compiled, python) else ''}")
     for label, (hole, tilt) in accuracy.items():
         print(f"{label}: hole error at {stop:g} s {hole * 1e6:.1f} um, tilt error {tilt * 1e3:.2f} mrad (noise-free)")
 

@@ -17,9 +17,10 @@ in a fresh process (so that each FMU imports its own copy of deltafmi):
   (``DELTAFMI_NATIVE=0``);
 - ``me dd``: DeltaRobot in Model Exchange, one ``fmi2GetDirectionalDerivative`` call per state
   (the derivatives' and the outputs' column), per call, after initialization;
-- ``PegEstimator`` / ``ContactEstimator`` / ``InsertionMpc`` (models without compiled kernels
-  that call the delta mechanics): Co-Simulation over their default experiments in 1 ms steps
-  (the estimators sample every ms), inputs at their defaults, time per ms.
+- ``PegEstimator`` / ``ContactEstimator`` / ``InsertionMpc`` (models whose samples run Python:
+  the estimators' numpy covariance algebra around their compiled functions, the MPC's QP):
+  Co-Simulation over their default experiments in 1 ms steps (the estimators sample every ms),
+  inputs at their defaults, time per ms.
 
 Printed: the medians over ``--repeats`` rounds for each tree, wall and CPU time, and the ratios
 this/baseline (medians of the rounds' ratios); above 1 this tree is slower.

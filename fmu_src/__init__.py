@@ -41,8 +41,8 @@ MODELS = {
 }
 
 #: the models that run only in Python, no compiled kernels (their cost per sample is in their
-#: docstrings): an EKF's numpy linear algebra, an MPC's QP (OSQP, which needs scipy)
-PYTHON_ONLY = ("InsertionMpc", "MpcController", "PegEstimator")
+#: docstrings): an MPC's QP (OSQP, which needs scipy)
+PYTHON_ONLY = ("InsertionMpc", "MpcController")
 
 #: module -> the shipped data files (scenarios/) its FMU carries in resources/ when built
 #: with none given: the MPCs' linear models, made by tools/make_mpc_model.py and

@@ -1,10 +1,11 @@
 """Peg contact estimator FMU: a thin sampled component over deltafmi.physics.estimation.peg_ekf."""
 import numpy as np
 
-from deltafmi.component import Clock, Experiment, Input, Output, Parameter, SampledComponent
+from deltafmi.component import Clock, Experiment, Function, Input, NativeKernels, Output, Parameter, SampledComponent
 from deltafmi.physics.delta.tactile import Readout
 from deltafmi.physics.delta_wrist.params import WristMount
 from deltafmi.physics.estimation.peg_ekf import PegEKF, PegEKFSettings
+from deltafmi.physics.estimation.peg_kernels import FUNCTIONS
 from deltafmi.physics.wrist.kernels import wrist_constants
 from deltafmi.models.robot_parameters import robot_parameters
 from deltafmi.models.wrist_declarations import hole_parameters, wrist_parameters
@@ -46,15 +47,20 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     hole's reported uncertainty covers its error.
     hole_position and hole_tilt are the NOMINAL hole, the prior's mean. The filter starts at the
     first y and qw, at rest. sensor_noise adds seeded Gaussian noise to y and qw before the
-    filter sees them. The first sample is one sample_period after the start. Pure Python with
-    numpy, slower than real time at 1 kHz (benchmarks/assembly_realtime.py). Co-Simulation: doStep(t, h) takes the samples
+    filter sees them. The first sample is one sample_period after the start. The process model
+    and the contact law run as C compiled from their Python (the prediction, the law's
+    linearisation, the hole locator: deltafmi/physics/estimation/peg_kernels.py), the covariance
+    algebra in numpy; the cost per sample against the 1 ms of 1 kHz: benchmarks/assembly_realtime.py.
+    Co-Simulation: doStep(t, h) takes the samples
     due in [t, t + h) with the inputs at t (use h = sample_period and list it after the plant and
     the controller in a Gauss-Seidel scenario, so that the angles and torques are of the same
     instant); Model Exchange: time events at the samples.
     """
 
     model_name = "PegEstimator"
-    default_experiment = Experiment(start=0.0, stop=0.25, step=1e-3, tolerance=1e-6)  # ~5 ms a sample
+    default_experiment = Experiment(start=0.0, stop=0.25, step=1e-3, tolerance=1e-6)
+    #: the filter's process model and contact law, compiled; PegEKF calls them through native_functions
+    native = NativeKernels(functions={name: Function(func, *types) for name, (func, types) in FUNCTIONS.items()})
 
     # the filter
     sample_period = Parameter(1e-3, unit="s", min=0.0, description="Estimator sample period")
@@ -157,7 +163,7 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
         read = [self._readout.read(float(v), self.sample_index, i) for i, v in enumerate(np.r_[self.y, self.qw])]
         if self._ekf is None:
             self._ekf = PegEKF(self.robot_params(), self._wrist, self._mount, self._hole, self._peg, self._law,
-                               self._settings, read[:3], read[3:])
+                               self._settings, read[:3], read[3:], functions=self.native_functions)
         est = self._ekf.step(read[:3], read[3:], [float(v) for v in self.u], [float(v) for v in self.tau])
         self.write_reals((*est.tip, *est.force, *est.moment, *est.hole, *est.force_std, *est.moment_std,
                           *est.hole_std), "tip", "force", "moment", "hole", "tilt", "force_std", "moment_std",

@@ -136,3 +136,107 @@ def test_with_encoder_noise_the_errors_stay_within_the_filter_noise(noisy):
     assert noisy["free_force"] < 0.3 and noisy["steady_force"] < 0.3 and noisy["steady_moment"] < 0.03
     assert noisy["within_3_std"] > 0.99
     assert noisy["hole"] < 3e-4 and noisy["tilt"] < 0.015
+
+
+@pytest.fixture(scope="module")
+def compiled_functions():
+    """The PegEstimator's functions compiled (C generated from peg_kernels' Python), as its FMU
+    calls them; the class goes back to Python afterwards."""
+    from deltafmi.builder.codegen import use_compiled_functions
+    from deltafmi.models.peg_estimator import PegEstimator
+    from deltafmi.runtime.native_functions import register_library
+
+    assert use_compiled_functions(PegEstimator)
+    try:
+        functions = PegEstimator().native_functions
+    finally:
+        register_library(PegEstimator, None)
+    assert functions.compiled and not PegEstimator().native_functions.compiled
+    return functions
+
+
+def _scene():
+    """The wrist of tests/physics/test_peg_estimation.py and the peg upright 0.31 mm below the top
+    plane of a hole 1.8 mm off along +x: one rim point on the chamfer (active contact)."""
+    from deltafmi.physics import delta_wrist as dw
+    from deltafmi.physics.peg import Hole, Peg, PegContact
+    from deltafmi.physics.wrist.kernels import tip_position, wrist_constants
+
+    w = wrist_constants(dw.wrist_params((3e-4, 2e-4, 1e-4), dw.peg_tool(0.25, 0.1, 0.01, 0.13), 9.81, 0.0))
+    z = np.array([0.0, 0.0, -1.2 - 0.00031]) - np.array(tip_position(w, (0.0, 0.0, 0.0))) - np.array([0.0, 0.0, -0.05])
+    s = np.concatenate([z, [0.01, -0.02, 0.0], [0.002, -0.001, -0.003, 0.05, -0.02, 0.1]])
+    return w, dw.MOUNT, Hole(x=0.0018, y=0.0, z=-1.2), Peg(), PegContact(), s
+
+
+def test_compiled_functions_give_the_python_functions_bits(compiled_functions):
+    """Each function at points that reach every branch: the prediction with all 18 Jacobian columns,
+    with columns in turn across the wrap (16, 17, 0) and 3 Runge-Kutta substeps; the contact
+    law's linearisation at an active chamfer contact, full and hole-only; the locator finding the
+    hole behind it, and finding none for an axial force; the servo angles' kinematics. The C keeps Python's operations and their
+    order (-ffp-contract=off): the same bits."""
+    from deltafmi.physics.delta.params import RL5
+    from deltafmi.physics.estimation.peg_ekf import PYTHON_FUNCTIONS
+
+    w, m, hole, peg, law, s = _scene()
+    u, tau, W = [12.0, -3.0, 5.0], [0.01, -0.02, 0.005], [1.0, -0.5, 2.0, 0.002, -0.001, 0.0005]
+    calls = [("prediction", (RL5, w, m, list(s), u, tau, W, 5.0, 1e-3, 1, 0, 18)),
+             ("prediction", (RL5, w, m, list(s), u, tau, W, 5.0, 1e-3, 3, 16, 3)),
+             ("contact_linearization", (hole, peg, law, w, m, list(s), [0.0018, 0.0, 0.0, 0.0], False)),
+             ("contact_linearization", (hole, peg, law, w, m, list(s), [0.00179, 1e-5, 0.001, 0.0], True))]
+    felt = compiled_functions.contact_linearization(hole, peg, law, w, m, list(s), [0.0018, 0.0, 0.0, 0.0], True)[:6]
+    assert felt[0] > 0.1  # the chamfer pushes the peg towards +x
+    weights = [0.05] * 3 + [0.005] * 3
+    calls += [("hole_search", (hole, peg, law, w, m, list(s), [0.0, 0.0, 0.0, 0.0], list(felt), weights)),
+              ("hole_search", (hole, peg, law, w, m, list(s), [0.0] * 4, [0.0, 0.0, 5.0, 0.0, 0.0, 0.0], weights)),
+              ("servo_kinematics", (RL5, list(s[:3])))]
+    results = []
+    for name, args in calls:
+        fast, python = getattr(compiled_functions, name)(*args), getattr(PYTHON_FUNCTIONS, name)(*args)
+        np.testing.assert_array_equal(fast, python, err_msg=name)
+        results.append(python)
+    evaluated = [set(np.flatnonzero(np.any(r[12:].reshape(18, 6) != 0.0, axis=1))) for r in results[:2]]
+    assert evaluated == [set(range(18)), {16, 17, 0}]
+    hole_only = np.any(results[3][6:102].reshape(16, 6) != 0.0, axis=1)
+    assert results[2][-1] >= 1.0 and not hole_only[:12].any() and hole_only[12:].all()
+    assert results[4][0] == 1.0 and results[5][0] == 0.0  # a hole found, and none
+
+
+def test_the_filter_compiled_estimates_what_it_estimates_in_python(compiled_functions):
+    """PegEKF with the compiled functions and with the Python ones through 40 samples of the scene
+    above (the robot held at rest, the chamfer's wrench as the filter's start, the hole's prior
+    10 um off: it predicts, updates with the angles and applies the iterated contact law):
+    estimates and covariances to 1e-12 relative (measured: the same bits)."""
+    from deltafmi.physics import delta_wrist as dw
+    from deltafmi.physics.delta.params import RL5
+    from deltafmi.physics.estimation.wrist_process import full_state
+    from deltafmi.physics.estimation.peg_ekf import PYTHON_FUNCTIONS, PegEKF, PegEKFSettings
+    from deltafmi.physics.estimation.peg_contact import contact_wrench
+
+    w, m, hole, peg, law, s = _scene()
+    s[6:] = 0.0
+    c = contact_wrench(hole, peg, law, w, m, s, [hole.x, hole.y, 0.0, 0.0])
+    felt = np.array(c.force + c.moment)
+    x = full_state(RL5, s)[0]
+    y = x[[0, 3, 6]]
+    u, tau = (list(v) for v in dw.holding_torques(RL5, w, x))
+    filters = []
+    for functions in (compiled_functions, PYTHON_FUNCTIONS):
+        ekf = PegEKF(RL5, w, m, replace_hole(hole, 0.00179), peg, law, PegEKFSettings(contact_samples=1), y, s[3:6],
+                     functions=functions)
+        ekf.x[12:18] = felt
+        ekf.P[18:20, 18:20] = np.diag([2e-5 ** 2] * 2)
+        filters.append(ekf)
+    contact = []
+    for _ in range(40):
+        fast, python = (np.hstack([np.ravel(v) for v in ekf.step(y, s[3:6], u, tau)])
+                        for ekf in filters)
+        np.testing.assert_allclose(fast, python, rtol=1e-12, atol=0.0)
+        contact.append(filters[0].in_contact)
+    np.testing.assert_allclose(filters[0].P, filters[1].P, rtol=1e-12, atol=0.0)
+    assert sum(contact) >= 10
+
+
+def replace_hole(hole, x: float):
+    from dataclasses import replace
+
+    return replace(hole, x=x)

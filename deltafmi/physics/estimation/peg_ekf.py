@@ -78,33 +78,48 @@ held since then, update with y(t_k), qw(t_k), then the gated contact update. The
 transition matrix needs the process Jacobian (18 columns, each an evaluation of the plant's
 accelerations): jacobian_columns of them are evaluated again per sample, in turn, the others kept
 from the samples before (a Jacobian a few milliseconds old, as a stiff solver reuses its Newton
-matrix; it enters only the covariance's propagation, the mean is the Runge-Kutta step's). Cost:
-benchmarks/assembly_realtime.py (plain Python with numpy; far from the 1 ms of real time).
+matrix; it enters only the covariance's propagation, the mean is the Runge-Kutta step's). The
+process model, the servo kinematics and the contact law are the float kernels of
+:mod:`.peg_kernels`, called through ``functions`` (compiled in the PegEstimator FMU, Python
+otherwise: the same numbers); the covariance algebra is numpy. Cost per sample, either way:
+benchmarks/assembly_realtime.py.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple, Sequence
+from types import SimpleNamespace
+from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from ..delta.kinematics import forward_kinematics, inverse_kinematics
+from ..delta.kinematics import forward_kinematics
 from ..delta.params import DeltaParams
 from ..delta_wrist.params import WristMount
 from ..peg.params import Hole, Peg, PegContact
 from ..wrist.kernels import WristConstants
-from .delta_process import tangent_basis
 from .kalman import joseph_update, transition_matrix, white_acceleration_noise
-from .peg_contact import HOLE_STATES, locate_hole, wrench_jacobian
-from .wrist_process import N_REDUCED, process_jacobian, propagate, tool_pose
+from .peg_contact import HOLE_STATES, linearization_parts, located
+from .peg_kernels import FUNCTIONS, JACOBIAN_COLUMNS
+from .wrist_process import N_REDUCED, tool_pose
 
-__all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES"]
+__all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES", "PYTHON_FUNCTIONS"]
 
 _S, _W, _H = slice(0, 12), slice(12, 18), slice(18, 22)
 #: the standard normal quantile of the manoeuvre detector's chi-square gate (probability 0.999)
 MANOEUVRE_Z = 3.090
 N_STATES = N_REDUCED + 6 + HOLE_STATES
-_SERVOS = [0, 3, 6]
+
+
+def _flat(func: Callable) -> Callable:
+    def call(*args: Any) -> np.ndarray:
+        return np.array(func(*args), dtype=float)
+    call.__name__ = func.__name__
+    return call
+
+
+#: the filter's kernels (:mod:`.peg_kernels`) as Python, each result a flat float array, as a
+#: component's compiled functions give it (``native_functions``)
+PYTHON_FUNCTIONS = SimpleNamespace(**{name: _flat(func) for name, (func, _) in FUNCTIONS.items()})
 
 
 @dataclass(frozen=True)
@@ -195,11 +210,16 @@ class PegEKF:
         peg, law: the peg and the contact law as the estimator models them.
         settings: noise levels, priors, contact gate.
         y0, qw0: the first servo and wrist angles (rad); the filter starts there, at rest.
+        functions: the kernels of :mod:`.peg_kernels` by name (prediction, contact_linearization,
+            hole_search, servo_kinematics), each returning its result as a flat float array: a component's
+            compiled ``native_functions``; default :data:`PYTHON_FUNCTIONS` (the same numbers).
     """
 
     def __init__(self, p: DeltaParams, w: WristConstants, m: WristMount, hole: Hole, peg: Peg, law: PegContact,
-                 settings: PegEKFSettings, y0: Sequence[float], qw0: Sequence[float]) -> None:
+                 settings: PegEKFSettings, y0: Sequence[float], qw0: Sequence[float],
+                 functions: Any = None) -> None:
         self.p, self.w, self.m, self.hole, self.peg, self.law, self.settings = p, w, m, hole, peg, law, settings
+        self.functions = PYTHON_FUNCTIONS if functions is None else functions
         st = settings
         self.x = np.zeros(N_STATES)
         self.x[0:3], self.x[3:6] = forward_kinematics(p, y0), np.asarray(qw0, float)
@@ -251,30 +271,34 @@ class PegEKF:
     def predict(self, u: Sequence[float], tau: Sequence[float]) -> None:
         """Propagate the state over one sample period with u and tau held, the covariance with it."""
         st = self.settings
-        s, W = self.x[_S], self.x[_W]
-        A = np.zeros((18, 18))
-        if self._A is None:
-            self._A = process_jacobian(self.p, self.w, self.m, s, u, tau, W, st.pole)
+        if self._A is None:  # all columns the first time
+            first, count = 0, JACOBIAN_COLUMNS
+            self._A = np.zeros((N_REDUCED, 18))
+            self._A[0:6, 6:12] = np.eye(6)
         else:  # the next jacobian_columns columns, in turn (the rest as last evaluated)
-            n = st.jacobian_columns
-            columns = [(self._column + i) % 18 for i in range(n)]
-            self._column = (self._column + n) % 18
-            process_jacobian(self.p, self.w, self.m, s, u, tau, W, st.pole, columns, self._A)
+            first, count = self._column, int(st.jacobian_columns)
+            self._column = (first + count) % 18
+        # the Runge-Kutta step and the columns due, from one call (:func:`.peg_kernels.prediction`)
+        values = self.functions.prediction(self.p, self.w, self.m, self.x[_S].tolist(), u, tau, self.x[_W].tolist(),
+                                           float(st.pole), float(st.sample_period), int(st.substeps), first, count)
+        due = [(first + i) % 18 for i in range(count)]
+        self._A[6:12, due] = np.reshape(values[12:], (18, 6)).T[:, due]
+        A = np.zeros((18, 18))
         A[:12] = self._A
         Phi = np.eye(N_STATES)
         Phi[:18, :18] = transition_matrix(A, st.sample_period)
-        self.x[_S] = propagate(self.p, self.w, self.m, s, u, tau, W, st.sample_period, st.pole, st.substeps)
+        self.x[_S] = values[:12]
         P = Phi @ self.P @ Phi.T + (self._Q if self.manoeuvre else self._Q_steady)
         self.P = 0.5 * (P + P.T)
         self._Pxb = Phi @ self._Pxb
 
     def update(self, y: Sequence[float], qw: Sequence[float]) -> None:
         """Measurement update with the joint angles, then the gated contact-law update."""
-        q = inverse_kinematics(self.p, self.x[0:3])
+        servo = self.functions.servo_kinematics(self.p, self.x[0:3].tolist())  # angles, rows of dq/dz
         H = np.zeros((6, N_STATES))
-        H[0:3, 0:3] = tangent_basis(self.p, q)[_SERVOS]
+        H[0:3, 0:3] = servo[3:12].reshape(3, 3)
         H[3:6, 3:6] = np.eye(3)
-        residual = np.concatenate([np.asarray(y, float) - q[_SERVOS], np.asarray(qw, float) - self.x[3:6]])
+        residual = np.concatenate([np.asarray(y, float) - servo[0:3], np.asarray(qw, float) - self.x[3:6]])
         st = self.settings
         self._detect_manoeuvre(H, residual)
         self._correct(H, residual, self._R)
@@ -295,18 +319,27 @@ class PegEKF:
                            std[15:18], std[_H], self.in_contact)
 
     # ------------------------------------------------------------------------------ helpers
+    def _wrench_jacobian(self, h: np.ndarray, hole_only: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+        """:func:`.peg_contact.wrench_jacobian` at the state's s and the hole h, by the filter's kernel."""
+        return linearization_parts(self.functions.contact_linearization(
+            self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), [float(v) for v in h], hole_only))
+
+    def _locate_hole(self, weights: np.ndarray) -> np.ndarray | None:
+        """:func:`.peg_contact.locate_hole` at the state's s, hole and wrench, by the filter's kernel."""
+        return located(self.functions.hole_search(self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(),
+                                                  self.x[_H].tolist(), self.x[_W].tolist(), weights.tolist()))
+
     def _contact_update(self) -> None:
-        args = (self.hole, self.peg, self.law, self.w, self.m)
         st = self.settings
-        c, J, active = wrench_jacobian(*args, self.x[_S], self.x[_H])
+        c, J, active = self._wrench_jacobian(self.x[_H])
         unplaced = float(np.sqrt(self.P[18:20, 18:20].diagonal()).max()) > 0.5 * st.hole_std0
         if not active > 0.0 and unplaced:
             weights = np.sqrt(np.diag(self._Rc))
-            found = locate_hole(*args, self.x[_S], self.x[_H], self.x[_W], weights)
+            found = self._locate_hole(weights)
             if found is None:
                 return
             self.x[_H] = found
-            c, J, active = wrench_jacobian(*args, self.x[_S], self.x[_H])
+            c, J, active = self._wrench_jacobian(self.x[_H])
         H = np.zeros((6, N_STATES))
         H[:, _W] = np.eye(6)
         H[:, _S] = -J[:, :N_REDUCED]
@@ -315,7 +348,7 @@ class PegEKF:
         hi = prior
         for iteration in range(st.contact_iterations):
             if iteration:
-                c, J, active = wrench_jacobian(*args, self.x[_S], hi, hole_only=True)
+                c, J, active = self._wrench_jacobian(hi, hole_only=True)
             H[:, _H] = -J[:, N_REDUCED:]
             Hb = H[:, _H]  # the law sees the hole h + b
             # the law linearised at hi, its innovation taken about the prior (Gauss-Newton step)
@@ -323,12 +356,13 @@ class PegEKF:
             PHt = self.P[_H] @ H.T + self._Pxb[_H] @ Hb.T
             HPb = H @ self._Pxb @ Hb.T
             S = H @ self.P @ H.T + HPb + HPb.T + Hb @ self._Pbb @ Hb.T + self._Rc
-            new = prior + PHt @ np.linalg.solve(S, innovation)
+            weighted = np.linalg.solve(S, innovation)
+            new = prior + PHt @ weighted
             done = float(np.max(np.abs(new - hi) / scale)) < st.contact_tolerance
             hi = new
             if done:
                 break
-        self.consistency = float(innovation @ np.linalg.solve(S, innovation))
+        self.consistency = float(innovation @ weighted)  # the last iteration's S^-1 innovation
         if self.consistency <= st.contact_gate:
             self._rejected = 0
             self._correct(H, innovation, self._Rc, _H, Hb)

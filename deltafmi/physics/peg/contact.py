@@ -52,7 +52,7 @@ from typing import NamedTuple
 
 from .params import Hole, Peg, PegContact
 
-__all__ = ["RIM_POINTS", "PegWrench", "peg_wrench", "hole_rotation"]
+__all__ = ["RIM_POINTS", "PegWrench", "peg_wrench", "placed_peg_wrench", "hole_rotation"]
 
 F3 = tuple[float, float, float]
 F7 = tuple[float, float, float, float, float, float, float]
@@ -81,8 +81,12 @@ class PegWrench(NamedTuple):
 
 def hole_rotation(hole: Hole) -> F9:
     """R_h = Ry(tilt_y) Rx(tilt_x), row-major: the hole frame's axes as columns in the world."""
-    ca, sa = math.cos(hole.tilt_x), math.sin(hole.tilt_x)
-    cb, sb = math.cos(hole.tilt_y), math.sin(hole.tilt_y)
+    return _tilt_rotation(hole.tilt_x, hole.tilt_y)
+
+
+def _tilt_rotation(tilt_x: float, tilt_y: float) -> F9:
+    ca, sa = math.cos(tilt_x), math.sin(tilt_x)
+    cb, sb = math.cos(tilt_y), math.sin(tilt_y)
     return (cb, sb * sa, sb * ca, 0.0, ca, -sa, -sb, cb * sa, cb * ca)
 
 
@@ -232,8 +236,15 @@ def peg_wrench(hole: Hole, peg: Peg, contact: PegContact, tip: F3, R: F9, v_tip:
             pointing from the peg into its tip, down at R = diag(1, -1, -1)).
         v_tip: velocity of the tip, world (m/s); omega: the peg's angular velocity, world (rad/s).
     """
-    Rh = hole_rotation(hole)
-    c = _to_local(Rh, tip[0] - hole.x, tip[1] - hole.y, tip[2] - hole.z)
+    return placed_peg_wrench(hole, (hole.x, hole.y, hole.tilt_x, hole.tilt_y), peg, contact, tip, R, v_tip, omega)
+
+
+def placed_peg_wrench(hole: Hole, placed: F4, peg: Peg, contact: PegContact, tip: F3, R: F9, v_tip: F3,
+                      omega: F3) -> PegWrench:
+    """:func:`peg_wrench` of the hole moved to x, y and tilted by tilt_x, tilt_y (``placed``), its
+    height and geometry ``hole``'s (an estimator's hole under test, without a new Hole)."""
+    Rh = _tilt_rotation(placed[2], placed[3])
+    c = _to_local(Rh, tip[0] - placed[0], tip[1] - placed[1], tip[2] - hole.z)
     e1 = _to_local(Rh, R[0], R[3], R[6])
     e2 = _to_local(Rh, R[1], R[4], R[7])
     a = _to_local(Rh, R[2], R[5], R[8])
