@@ -90,7 +90,8 @@ def test_model_exchange_in_a_host_with_its_own_sundials(source, hostile_host, ex
 
 @pytest.mark.parametrize("source", FMU_SOURCES)
 def test_binaries_export_only_what_their_loader_needs(source, extracted):
-    """The FMU binary: fmi2* only; its compiled kernels' library: dfmi_kernel_* only. Python
+    """The FMU binary: fmi2* only; its compiled kernels' library: dfmi_kernel_* and dfmi_function_*
+    (the compiled functions the component calls) only. Python
     extension modules in resources/: PyInit_* only."""
     directory = extracted(source)
     identifier = fmpy.read_model_description(str(directory)).coSimulation.modelIdentifier
@@ -99,7 +100,7 @@ def test_binaries_export_only_what_their_loader_needs(source, extracted):
     for library in shared_libraries(directory):
         symbols = exported_symbols(library)
         assert symbols, library
-        prefix = ("dfmi_kernel_" if library.name.endswith("_kernels.so")
+        prefix = (("dfmi_kernel_", "dfmi_function_") if library.name.endswith("_kernels.so")
                   else "fmi2" if "binaries" in library.relative_to(directory).parts else "PyInit_")
         strays = [name for name in symbols if not name.startswith(prefix)]
         assert not strays, f"{library.relative_to(directory)} exports {strays[:10]}"
