@@ -97,7 +97,7 @@ from ..delta.params import DeltaParams
 from ..delta_wrist.params import WristMount
 from ..peg.params import Hole, Peg, PegContact
 from ..wrist.kernels import WristConstants
-from .kalman import joseph_update, transition_matrix, white_acceleration_noise
+from .kalman import transition_matrix, white_acceleration_noise
 from .peg_contact import HOLE_STATES, linearization_parts, located
 from .peg_kernels import FUNCTIONS, JACOBIAN_COLUMNS
 from .wrist_process import N_REDUCED, tool_pose
@@ -236,6 +236,8 @@ class PegEKF:
         self._A: np.ndarray | None = None  # the process Jacobian d s'/d[s, W] (12, 18) as last evaluated
         self._column = 0  # the next of its columns to evaluate again
         self._R = np.diag([st.y_std ** 2] * 3 + [st.qw_std ** 2] * 3)
+        self._H_angles = np.eye(6)  # the angles' rows over [z, qw]: z's block set per sample
+        self._G_contact = np.hstack([np.zeros((6, N_REDUCED)), np.eye(6)])  # the law's rows over [s, W]
         # the law's offset b (consider states, never estimated): its covariance and cross-covariance
         self._Pbb = np.diag([st.law_hole_std ** 2] * 2 + [st.law_tilt_std ** 2] * 2)
         self._Pxb = np.zeros((N_STATES, HOLE_STATES))
@@ -285,23 +287,31 @@ class PegEKF:
         self._A[6:12, due] = np.reshape(values[12:], (18, 6)).T[:, due]
         A = np.zeros((18, 18))
         A[:12] = self._A
-        Phi = np.eye(N_STATES)
-        Phi[:18, :18] = transition_matrix(A, st.sample_period)
+        # Phi is the identity but for the rows of s (the wrench and the hole walk): Phi P Phi^T by
+        # those rows' block F = Phi[s, s W]
+        F = transition_matrix(A, st.sample_period)[:12]
         self.x[_S] = values[:12]
-        P = Phi @ self.P @ Phi.T + (self._Q if self.manoeuvre else self._Q_steady)
-        self.P = 0.5 * (P + P.T)
-        self._Pxb = Phi @ self._Pxb
+        P, Pxb = self.P, self._Pxb
+        FP = F @ P[:18]
+        FPF = FP[:, :18] @ F.T
+        P[:12, :12] = 0.5 * (FPF + FPF.T)
+        P[:12, 12:] = FP[:, 12:]
+        P[12:, :12] = FP[:, 12:].T
+        P += self._Q if self.manoeuvre else self._Q_steady
+        Pxb[:12] = F @ Pxb[:18]
 
     def update(self, y: Sequence[float], qw: Sequence[float]) -> None:
         """Measurement update with the joint angles, then the gated contact-law update."""
         servo = self.functions.servo_kinematics(self.p, self.x[0:3].tolist())  # angles, rows of dq/dz
-        H = np.zeros((6, N_STATES))
+        H = self._H_angles  # dh/d[z, qw]: the angles' rows touch those six states only
         H[0:3, 0:3] = servo[3:12].reshape(3, 3)
-        H[3:6, 3:6] = np.eye(3)
         residual = np.concatenate([np.asarray(y, float) - servo[0:3], np.asarray(qw, float) - self.x[3:6]])
         st = self.settings
-        self._detect_manoeuvre(H, residual)
-        self._correct(H, residual, self._R)
+        PHt = self.P[:, :6] @ H.T
+        S = H @ PHt[:6] + self._R
+        solved = np.linalg.solve(S, np.column_stack([residual, PHt.T]))  # S^-1 [r, H P]
+        self._detect_manoeuvre(float(residual @ solved[:, 0]))  # changes P's wrench block only, not H P
+        self._correct_angles(H, PHt, S, solved[:, 1:].T, residual)
         touching = float(np.linalg.norm(self.x[12:15])) > st.contact_threshold
         self._touching = self._touching + 1 if touching else 0
         self.in_contact = self._touching >= self.settings.contact_samples
@@ -340,23 +350,32 @@ class PegEKF:
                 return
             self.x[_H] = found
             c, J, active = self._wrench_jacobian(self.x[_H])
-        H = np.zeros((6, N_STATES))
-        H[:, _W] = np.eye(6)
-        H[:, _S] = -J[:, :N_REDUCED]
+        # the law's rows: H = [G, Hh] with G = [-dc/ds, I] over z = [s, W] (fixed over the iterations) and
+        # Hh = -dc/dh over the hole, which the law sees as h + b; S and P H^T by blocks, the parts
+        # that do not involve Hh formed once
+        P, Pxb, Pbb = self.P, self._Pxb, self._Pbb
+        G = self._G_contact
+        G[:, :N_REDUCED] = -J[:, :N_REDUCED]
+        GP = G @ P[:18]  # (6, 22)
+        GPxb = G @ Pxb[:18]
+        A0 = GP[:, :18] @ G.T + self._Rc
+        B = GP[:, 18:] + GPxb  # G cov(z, h + b)
+        D = P[_H, _H] + Pxb[_H]  # cov(h, h + b)
+        E = D + Pxb[_H].T + Pbb  # cov(h + b)
         prior = self.x[_H].copy()
-        scale = np.sqrt(np.diag(self.P)[_H])
+        scale = np.sqrt(np.diag(P)[_H])
         hi = prior
         for iteration in range(st.contact_iterations):
             if iteration:
                 c, J, active = self._wrench_jacobian(hi, hole_only=True)
-            H[:, _H] = -J[:, N_REDUCED:]
-            Hb = H[:, _H]  # the law sees the hole h + b
+            Hh = -J[:, N_REDUCED:]
             # the law linearised at hi, its innovation taken about the prior (Gauss-Newton step)
-            innovation = c - self.x[_W] - H[:, _H] @ (prior - hi)
-            PHt = self.P[_H] @ H.T + self._Pxb[_H] @ Hb.T
-            HPb = H @ self._Pxb @ Hb.T
-            S = H @ self.P @ H.T + HPb + HPb.T + Hb @ self._Pbb @ Hb.T + self._Rc
-            weighted = np.linalg.solve(S, innovation)
+            innovation = c - self.x[_W] - Hh @ (prior - hi)
+            BH = B @ Hh.T
+            S = A0 + BH + BH.T + Hh @ E @ Hh.T
+            PHt = GP[:, 18:].T + D @ Hh.T  # the hole's rows of P H^T (the law seeing h + b)
+            solved = np.linalg.solve(S, np.column_stack([innovation, PHt.T]))  # S^-1 [r, H P]
+            weighted = solved[:, 0]
             new = prior + PHt @ weighted
             done = float(np.max(np.abs(new - hi) / scale)) < st.contact_tolerance
             hi = new
@@ -365,23 +384,23 @@ class PegEKF:
         self.consistency = float(innovation @ weighted)  # the last iteration's S^-1 innovation
         if self.consistency <= st.contact_gate:
             self._rejected = 0
-            self._correct(H, innovation, self._Rc, _H, Hb)
+            self._correct_hole(GP, GPxb, Hh, S, solved[:, 1:].T, innovation)
             return
         self._rejected += 1
         if self._rejected >= st.reject_samples:
             self._reopen_hole()
 
-    def _detect_manoeuvre(self, H: np.ndarray, residual: np.ndarray) -> None:
+    def _detect_manoeuvre(self, nis: float) -> None:
         """The wrench's process noise level from the joint angles' innovations (Bar-Shalom, Li,
         Kirubarajan 2001, section 11.2: adjustable process noise): while the sum of the last
         manoeuvre_samples normalised innovations stays within its chi-square 0.999 quantile the
         wrench walks at the steady levels; above it, at force_rate_std and moment_rate_std, and the
-        wrench's covariance first gets what that walk would have added over the window."""
+        wrench's covariance first gets what that walk would have added over the window. ``nis``: the
+        angles' normalised innovation r^T S^-1 r at this sample."""
         st = self.settings
         if not (st.steady_force_rate_std or st.steady_moment_rate_std):
             return
-        S = H @ self.P @ H.T + self._R
-        self._nis.append(float(residual @ np.linalg.solve(S, residual)))
+        self._nis.append(nis)
         del self._nis[:-st.manoeuvre_samples]
         manoeuvre = len(self._nis) == st.manoeuvre_samples and sum(self._nis) > self._nis_gate
         if manoeuvre and not self.manoeuvre:
@@ -403,18 +422,31 @@ class PegEKF:
         self._rejected = 0
         self.reopened += 1
 
-    def _correct(self, H: np.ndarray, residual: np.ndarray, R: np.ndarray, updated: slice | None = None,
-                 Hb: np.ndarray | None = None) -> None:
-        """The Joseph update of the states (``updated``: only those), the law's offset b considered
-        (its columns Hb, none: the batch does not see it)."""
-        if not self._Pbb.any():
-            dx, self.P = joseph_update(self.P, H, residual, R, updated)
-            self.x += dx
-            return
-        n = N_STATES
-        Pa = np.block([[self.P, self._Pxb], [self._Pxb.T, self._Pbb]])
-        Ha = np.hstack([H, np.zeros((H.shape[0], HOLE_STATES)) if Hb is None else Hb])
-        dx, Pa = joseph_update(Pa, Ha, residual, R, slice(0, n) if updated is None else updated)
-        self.x += dx[:n]
-        self.P, self._Pxb = Pa[:n, :n], Pa[:n, n:]
+    def _correct_angles(self, H: np.ndarray, PHt: np.ndarray, S: np.ndarray, K: np.ndarray,
+                        residual: np.ndarray) -> None:
+        """The joint angles' Joseph update of all the states, the law's offset b considered (the
+        angles do not see it): with H over the first six states only (``H``: those columns), PHt =
+        P H^T, S and the gain K = P H^T S^-1, (I - K H) P (I - K H)^T + K R K^T as
+        P - K H P - (K H P)^T + K S K^T, and P_xb - K H P_xb."""
+        KHP = K @ PHt.T
+        P = self.P - KHP - KHP.T + (K @ S) @ K.T
+        self.P = 0.5 * (P + P.T)
+        self._Pxb -= K @ (H @ self._Pxb[:6])
+        self.x += K @ residual
 
+    def _correct_hole(self, GP: np.ndarray, GPxb: np.ndarray, Hh: np.ndarray, S: np.ndarray, K: np.ndarray,
+                      innovation: np.ndarray) -> None:
+        """The contact law's Joseph update of the hole only (Schmidt: the gain's other rows and b's
+        are zero), the law seeing h + b: H = [G, Hh] (``GP``, ``GPxb``: G P[z], G P_xb[z]), S and the
+        hole's gain K (4, 6). With H_a P_a = [L_x, L_b], the augmented Joseph form changes the hole's
+        rows and columns of P by -K L_x, its block by + K S K^T, and P_xb's hole rows by -K L_b."""
+        P, Pxb = self.P, self._Pxb
+        Lx = GP + Hh @ (P[_H] + Pxb.T)
+        Lb = GPxb + Hh @ (Pxb[_H] + self._Pbb)
+        KL = K @ Lx
+        KSK = (K @ S) @ K.T
+        P[_H] -= KL
+        P[:, _H] -= KL.T
+        P[_H, _H] += 0.5 * (KSK + KSK.T)
+        Pxb[_H] -= K @ Lb
+        self.x[_H] += K @ innovation
