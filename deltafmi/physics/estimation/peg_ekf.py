@@ -86,6 +86,7 @@ benchmarks/assembly_realtime.py.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any, Callable, NamedTuple, Sequence
@@ -97,7 +98,7 @@ from ..delta.params import DeltaParams
 from ..delta_wrist.params import WristMount
 from ..peg.params import Hole, Peg, PegContact
 from ..wrist.kernels import WristConstants
-from .kalman import transition_matrix, white_acceleration_noise
+from .kalman import white_acceleration_noise
 from .peg_contact import HOLE_STATES, linearization_parts, located
 from .peg_kernels import FUNCTIONS, JACOBIAN_COLUMNS
 from .wrist_process import N_REDUCED, tool_pose
@@ -108,6 +109,8 @@ _S, _W, _H = slice(0, 12), slice(12, 18), slice(18, 22)
 #: the standard normal quantile of the manoeuvre detector's chi-square gate (probability 0.999)
 MANOEUVRE_Z = 3.090
 N_STATES = N_REDUCED + 6 + HOLE_STATES
+#: terms of exp(A T)'s Taylor series in the prediction (:func:`.kalman.transition_matrix`'s default)
+TAYLOR_ORDER = 4
 
 
 def _flat(func: Callable) -> Callable:
@@ -236,6 +239,7 @@ class PegEKF:
         self._A: np.ndarray | None = None  # the process Jacobian d s'/d[s, W] (12, 18) as last evaluated
         self._column = 0  # the next of its columns to evaluate again
         self._R = np.diag([st.y_std ** 2] * 3 + [st.qw_std ** 2] * 3)
+        self._F0 = np.eye(N_REDUCED, 18)  # the identity's rows of s in the transition matrix
         self._H_angles = np.eye(6)  # the angles' rows over [z, qw]: z's block set per sample
         self._G_contact = np.hstack([np.zeros((6, N_REDUCED)), np.eye(6)])  # the law's rows over [s, W]
         # the law's offset b (consider states, never estimated): its covariance and cross-covariance
@@ -285,11 +289,15 @@ class PegEKF:
                                            float(st.pole), float(st.sample_period), int(st.substeps), first, count)
         due = [(first + i) % 18 for i in range(count)]
         self._A[6:12, due] = np.reshape(values[12:], (18, 6)).T[:, due]
-        A = np.zeros((18, 18))
-        A[:12] = self._A
-        # Phi is the identity but for the rows of s (the wrench and the hole walk): Phi P Phi^T by
-        # those rows' block F = Phi[s, s W]
-        F = transition_matrix(A, st.sample_period)[:12]
+        # Phi = exp(A T) (:func:`.kalman.transition_matrix`'s series) is the identity but for the rows
+        # of s (the wrench and the hole walk): those rows, F = Phi[s, [s, W]], as the series of
+        # A's nonzero rows, and Phi P Phi^T by them
+        AT = self._A * st.sample_period
+        term = AT
+        F = self._F0 + AT
+        for k in range(2, TAYLOR_ORDER + 1):
+            term = term[:, :N_REDUCED] @ AT / k
+            F += term
         self.x[_S] = values[:12]
         P, Pxb = self.P, self._Pxb
         FP = F @ P[:18]
@@ -309,10 +317,11 @@ class PegEKF:
         st = self.settings
         PHt = self.P[:, :6] @ H.T
         S = H @ PHt[:6] + self._R
-        solved = np.linalg.solve(S, np.column_stack([residual, PHt.T]))  # S^-1 [r, H P]
-        self._detect_manoeuvre(float(residual @ solved[:, 0]))  # changes P's wrench block only, not H P
-        self._correct_angles(H, PHt, S, solved[:, 1:].T, residual)
-        touching = float(np.linalg.norm(self.x[12:15])) > st.contact_threshold
+        Sinv = np.linalg.inv(S)
+        self._detect_manoeuvre(float(residual @ Sinv @ residual))  # changes P's wrench block only, not H P
+        self._correct_angles(H, PHt, S, PHt @ Sinv, residual)
+        force = self.x[12:15]
+        touching = math.sqrt(force @ force) > st.contact_threshold
         self._touching = self._touching + 1 if touching else 0
         self.in_contact = self._touching >= self.settings.contact_samples
         if self.in_contact:
@@ -332,7 +341,7 @@ class PegEKF:
     def _wrench_jacobian(self, h: np.ndarray, hole_only: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
         """:func:`.peg_contact.wrench_jacobian` at the state's s and the hole h, by the filter's kernel."""
         return linearization_parts(self.functions.contact_linearization(
-            self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), [float(v) for v in h], hole_only))
+            self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), np.asarray(h, float).tolist(), hole_only))
 
     def _locate_hole(self, weights: np.ndarray) -> np.ndarray | None:
         """:func:`.peg_contact.locate_hole` at the state's s, hole and wrench, by the filter's kernel."""
@@ -359,32 +368,34 @@ class PegEKF:
         GP = G @ P[:18]  # (6, 22)
         GPxb = G @ Pxb[:18]
         A0 = GP[:, :18] @ G.T + self._Rc
-        B = GP[:, 18:] + GPxb  # G cov(z, h + b)
         D = P[_H, _H] + Pxb[_H]  # cov(h, h + b)
+        minus_BD = -np.vstack([GP[:, 18:] + GPxb, D])  # -[G cov(z, h + b); cov(h, h + b)]
         E = D + Pxb[_H].T + Pbb  # cov(h + b)
+        C = GP[:, 18:].T  # P[h, z] G^T
         prior = self.x[_H].copy()
+        wrench = self.x[_W].copy()
         scale = np.sqrt(np.diag(P)[_H])
         hi = prior
         for iteration in range(st.contact_iterations):
             if iteration:
                 c, J, active = self._wrench_jacobian(hi, hole_only=True)
-            Hh = -J[:, N_REDUCED:]
+            Jh = J[:, N_REDUCED:]  # Hh = -Jh: the signs below flip exactly
             # the law linearised at hi, its innovation taken about the prior (Gauss-Newton step)
-            innovation = c - self.x[_W] - Hh @ (prior - hi)
-            BH = B @ Hh.T
-            S = A0 + BH + BH.T + Hh @ E @ Hh.T
-            PHt = GP[:, 18:].T + D @ Hh.T  # the hole's rows of P H^T (the law seeing h + b)
-            solved = np.linalg.solve(S, np.column_stack([innovation, PHt.T]))  # S^-1 [r, H P]
-            weighted = solved[:, 0]
+            innovation = c - wrench + Jh @ (prior - hi)
+            Y = minus_BD @ Jh.T  # [G cov(z, h + b) Hh^T; cov(h, h + b) Hh^T]
+            S = A0 + Y[:6] + Y[:6].T + Jh @ E @ Jh.T
+            PHt = C + Y[6:]  # the hole's rows of P H^T (the law seeing h + b)
+            Sinv = np.linalg.inv(S)
+            weighted = Sinv @ innovation
             new = prior + PHt @ weighted
-            done = float(np.max(np.abs(new - hi) / scale)) < st.contact_tolerance
+            done = float((np.abs(new - hi) / scale).max()) < st.contact_tolerance
             hi = new
             if done:
                 break
         self.consistency = float(innovation @ weighted)  # the last iteration's S^-1 innovation
         if self.consistency <= st.contact_gate:
             self._rejected = 0
-            self._correct_hole(GP, GPxb, Hh, S, solved[:, 1:].T, innovation)
+            self._correct_hole(GP, GPxb, -Jh, PHt @ Sinv, innovation)
             return
         self._rejected += 1
         if self._rejected >= st.reject_samples:
@@ -425,28 +436,30 @@ class PegEKF:
     def _correct_angles(self, H: np.ndarray, PHt: np.ndarray, S: np.ndarray, K: np.ndarray,
                         residual: np.ndarray) -> None:
         """The joint angles' Joseph update of all the states, the law's offset b considered (the
-        angles do not see it): with H over the first six states only (``H``: those columns), PHt =
-        P H^T, S and the gain K = P H^T S^-1, (I - K H) P (I - K H)^T + K R K^T as
-        P - K H P - (K H P)^T + K S K^T, and P_xb - K H P_xb."""
-        KHP = K @ PHt.T
-        P = self.P - KHP - KHP.T + (K @ S) @ K.T
+        angles do not see it; its rows of the gain are zero). H: the rows' columns of the first six
+        states (the others are zero), PHt = P H^T, S = H P H^T + R, K = P H^T S^-1. The Joseph
+        product (I - K H) P (I - K H)^T + K R K^T with (I - K H) X = X - K (H X): H touches six
+        columns, so each factor is a rank-6 correction; P_xb <- (I - K H) P_xb."""
+        M = self.P - K @ PHt.T  # (I - K H) P
+        P = M - (M[:, :6] @ H.T) @ K.T + (K @ self._R) @ K.T
         self.P = 0.5 * (P + P.T)
         self._Pxb -= K @ (H @ self._Pxb[:6])
         self.x += K @ residual
 
-    def _correct_hole(self, GP: np.ndarray, GPxb: np.ndarray, Hh: np.ndarray, S: np.ndarray, K: np.ndarray,
+    def _correct_hole(self, GP: np.ndarray, GPxb: np.ndarray, Hh: np.ndarray, K: np.ndarray,
                       innovation: np.ndarray) -> None:
         """The contact law's Joseph update of the hole only (Schmidt: the gain's other rows and b's
-        are zero), the law seeing h + b: H = [G, Hh] (``GP``, ``GPxb``: G P[z], G P_xb[z]), S and the
-        hole's gain K (4, 6). With H_a P_a = [L_x, L_b], the augmented Joseph form changes the hole's
-        rows and columns of P by -K L_x, its block by + K S K^T, and P_xb's hole rows by -K L_b."""
+        are zero), the law seeing h + b: rows H = [G, Hh] over [z, h] and Hh over b (``GP``,
+        ``GPxb``: G P[z], G P_xb[z]), the hole's gain K (4, 6). The augmented Joseph product
+        (I - K_a H_a) P_a (I - K_a H_a)^T + K_a R K_a^T with K_a nonzero in the hole's rows only:
+        the left factor changes the hole's rows of [P, P_xb] by -K (H_a P_a), the right one the
+        hole's columns of P by -(M H_a^T) K^T (M: the left product), then K R K^T in the hole's
+        block; P_xb keeps the left product's (b's gain rows are zero)."""
         P, Pxb = self.P, self._Pxb
-        Lx = GP + Hh @ (P[_H] + Pxb.T)
-        Lb = GPxb + Hh @ (Pxb[_H] + self._Pbb)
-        KL = K @ Lx
-        KSK = (K @ S) @ K.T
-        P[_H] -= KL
-        P[:, _H] -= KL.T
-        P[_H, _H] += 0.5 * (KSK + KSK.T)
-        Pxb[_H] -= K @ Lb
+        P[_H] -= K @ (GP + Hh @ (P[_H] + Pxb.T))  # H_a P_a's x columns: G P[z] + Hh (P[h] + P_xb^T)
+        Pxb[_H] -= K @ (GPxb + Hh @ (Pxb[_H] + self._Pbb))  # its b columns
+        MHt = P[:, :18] @ self._G_contact.T + (P[:, _H] + Pxb) @ Hh.T
+        P[:, _H] -= MHt @ K.T
+        P[_H, _H] += (K @ self._Rc) @ K.T
+        self.P = 0.5 * (P + P.T)
         self.x[_H] += K @ innovation
