@@ -343,6 +343,14 @@ class PegEKF:
         return linearization_parts(self.functions.contact_linearization(
             self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), np.asarray(h, float).tolist(), hole_only))
 
+    def _hole_linearization(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(c (6), dc/dh (6, 4)) at the state's s and the hole h: :meth:`_wrench_jacobian`'s
+        hole_only values, views of the kernel's flat result (module :mod:`.peg_kernels`' layout)."""
+        values = np.asarray(self.functions.contact_linearization(
+            self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), h.tolist(), True), float)
+        first = 6 + 6 * N_REDUCED
+        return values[:6], values[first:first + 6 * HOLE_STATES].reshape(HOLE_STATES, 6).T
+
     def _locate_hole(self, weights: np.ndarray) -> np.ndarray | None:
         """:func:`.peg_contact.locate_hole` at the state's s, hole and wrench, by the filter's kernel."""
         return located(self.functions.hole_search(self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(),
@@ -369,8 +377,8 @@ class PegEKF:
         GPxb = G @ Pxb[:18]
         A0 = GP[:, :18] @ G.T + self._Rc
         D = P[_H, _H] + Pxb[_H]  # cov(h, h + b)
-        minus_BD = -np.vstack([GP[:, 18:] + GPxb, D])  # -[G cov(z, h + b); cov(h, h + b)]
         E = D + Pxb[_H].T + Pbb  # cov(h + b)
+        Z = np.vstack([-(GP[:, 18:] + GPxb), -D, E])  # [-G cov(z, h + b); -cov(h, h + b); cov(h + b)]
         C = GP[:, 18:].T  # P[h, z] G^T
         prior = self.x[_H].copy()
         wrench = self.x[_W].copy()
@@ -378,13 +386,14 @@ class PegEKF:
         hi = prior
         for iteration in range(st.contact_iterations):
             if iteration:
-                c, J, active = self._wrench_jacobian(hi, hole_only=True)
-            Jh = J[:, N_REDUCED:]  # Hh = -Jh: the signs below flip exactly
+                c, Jh = self._hole_linearization(hi)
+            else:
+                Jh = J[:, N_REDUCED:]  # Hh = -Jh: the signs below flip exactly
             # the law linearised at hi, its innovation taken about the prior (Gauss-Newton step)
             innovation = c - wrench + Jh @ (prior - hi)
-            Y = minus_BD @ Jh.T  # [G cov(z, h + b) Hh^T; cov(h, h + b) Hh^T]
-            S = A0 + Y[:6] + Y[:6].T + Jh @ E @ Jh.T
-            PHt = C + Y[6:]  # the hole's rows of P H^T (the law seeing h + b)
+            Y = Z @ Jh.T  # [G cov(z, h + b) Hh^T; cov(h, h + b) Hh^T; cov(h + b) Jh^T]
+            S = A0 + Y[:6] + Y[:6].T + Jh @ Y[10:]
+            PHt = C + Y[6:10]  # the hole's rows of P H^T (the law seeing h + b)
             Sinv = np.linalg.inv(S)
             weighted = Sinv @ innovation
             new = prior + PHt @ weighted
