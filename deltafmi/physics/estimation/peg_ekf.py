@@ -341,7 +341,8 @@ class PegEKF:
     def _wrench_jacobian(self, h: np.ndarray, hole_only: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
         """:func:`.peg_contact.wrench_jacobian` at the state's s and the hole h, by the filter's kernel."""
         return linearization_parts(self.functions.contact_linearization(
-            self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), np.asarray(h, float).tolist(), hole_only))
+            self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), np.asarray(h, float).tolist(),
+            hole_only))
 
     def _hole_linearization(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(c (6), dc/dh (6, 4)) at the state's s and the hole h: :meth:`_wrench_jacobian`'s
