@@ -238,3 +238,81 @@ def test_a_wrench_the_steady_walk_cannot_explain_is_a_manoeuvre():
             first = k if first is None and ekf.manoeuvre else first
         assert first == detected and ekf.manoeuvres == (detected is not None)
         np.testing.assert_allclose(est.force, wrench[:3], atol=1e-6)
+
+
+def correlated_filter() -> tuple[PegEKF, np.ndarray]:
+    """A filter at :func:`chamfer_contact` (force felt: the law's at the true hole; its hole 2 um off
+    along x) with a dense covariance of the state and the law's offset b: a random correlation
+    matrix (seeded) scaled by standard deviations of the filter's orders. (filter, [P, P_xb; P_xb^T, P_bb])."""
+    hole, peg, law, s = chamfer_contact()
+    c = contact_wrench(hole, peg, law, W_CONST, MOUNT, s, [hole.x, hole.y, 0.0, 0.0])
+    ekf = PegEKF(RL5, W_CONST, MOUNT, Hole(z=-1.2), peg, law, PegEKFSettings(contact_iterations=1), [0.0] * 3,
+                 [0.0] * 3)
+    ekf.x[:12], ekf.x[12:18], ekf.x[18:22] = s, c.force + c.moment, [hole.x + 2e-6, hole.y, 0.0, 0.0]
+    rng = np.random.default_rng(3)
+    root = rng.standard_normal((26, 26))
+    cov = root @ root.T + 26 * np.eye(26)
+    std = np.array([1e-7] * 6 + [1e-4] * 6 + [0.05] * 3 + [0.005] * 3 + [2e-4] * 2 + [2e-3] * 2 + [3e-5] * 2
+                   + [3e-3] * 2)
+    Pa = cov / np.sqrt(np.outer(np.diag(cov), np.diag(cov))) * np.outer(std, std)
+    ekf.P, ekf._Pxb, ekf._Pbb = Pa[:22, :22].copy(), Pa[:22, 22:].copy(), Pa[22:, 22:].copy()
+    return ekf, Pa
+
+
+def assert_covariances(ekf: PegEKF, Pa: np.ndarray, prior: np.ndarray) -> None:
+    """The filter's [P, P_xb] equal to Pa's to 1e-11 of the prior's correlation scale sqrt(P_ii P_jj):
+    round-off of sums of terms of the prior's size (measured 1e-15 to 2e-12; the dense form's own
+    error against long double is 3e-13 in the contact update)."""
+    scale = np.sqrt(np.outer(np.diag(prior), np.diag(prior)))[:22]
+    assert np.max(np.abs(np.hstack([ekf.P, ekf._Pxb]) - Pa[:22]) / scale) < 1e-11
+
+
+def assert_correction(updated: np.ndarray, x: np.ndarray, dx: np.ndarray, prior: np.ndarray) -> None:
+    """updated = x + dx to 1e-11 prior standard deviations, beside x + dx's own round-off."""
+    error = np.abs(updated - (x + dx)) - 4 * np.finfo(float).eps * np.abs(x + dx)
+    assert np.max(error / np.sqrt(np.diag(prior)[:22])) < 1e-11
+
+
+def test_the_covariance_algebra_by_blocks_is_the_dense_one():
+    """The filter forms its covariance algebra by blocks (the transition matrix's nonzero rows, the
+    Joseph products as low-rank corrections); against the dense forms on the 26 x 26 covariance of
+    the state and the considered law offset b, with every entry correlated: Phi P Phi^T + Q with
+    Phi = exp(A T) (kalman.transition_matrix); the angles' update, joseph_update of the 22 states
+    (b's rows of the gain zero); the contact law's, joseph_update of the hole's 4 (law seeing h + b).
+    To round-off (:func:`assert_covariances`, :func:`assert_correction`)."""
+    from deltafmi.physics.estimation.kalman import transition_matrix
+
+    ekf, Pa = correlated_filter()  # the prediction, from the torques holding the pose
+    u, tau = inputs(ekf.x[:12])
+    ekf.predict(list(u), list(tau))
+    A = np.zeros((18, 18))
+    A[:12] = ekf._A
+    Phi = np.eye(26)
+    Phi[:18, :18] = transition_matrix(A, T)
+    predicted = Phi @ Pa @ Phi.T
+    predicted[:22, :22] += ekf._Q_steady
+    assert_covariances(ekf, predicted, Pa)
+
+    ekf, Pa = correlated_filter()  # the angles' update, out of contact
+    ekf.x[12:18] = 0.0
+    servo = ekf.functions.servo_kinematics(ekf.p, ekf.x[0:3].tolist())
+    y, qw = servo[:3] + [1e-6, -2e-6, 0.5e-6], ekf.x[3:6] + [1e-6, 0.0, -1e-6]  # innovations of a few std
+    H = np.zeros((6, 26))
+    H[:3, :3], H[3:, 3:6] = servo[3:12].reshape(3, 3), np.eye(3)
+    residual = np.concatenate([y - servo[:3], qw - ekf.x[3:6]])
+    x = ekf.x.copy()
+    ekf.update(y, qw)
+    dx, updated = joseph_update(Pa, H, residual, ekf._R, slice(0, 22))
+    assert not ekf.in_contact
+    assert_covariances(ekf, updated, Pa)
+    assert_correction(ekf.x, x, dx[:22], Pa)
+
+    ekf, Pa = correlated_filter()  # the contact law's update, one linearisation
+    c, J, active = ekf._wrench_jacobian(ekf.x[18:22])
+    H = np.hstack([-J[:, :12], np.eye(6), -J[:, 12:], -J[:, 12:]])  # over [s, W, h, b]
+    x = ekf.x.copy()
+    ekf._contact_update()
+    dx, updated = joseph_update(Pa, H, c - x[12:18], ekf._Rc, slice(18, 22))
+    assert active > 0.0 and ekf.consistency <= ekf.settings.contact_gate
+    assert_covariances(ekf, updated, Pa)
+    assert_correction(ekf.x, x, dx[:22], Pa)

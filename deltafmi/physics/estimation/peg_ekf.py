@@ -86,6 +86,7 @@ benchmarks/assembly_realtime.py.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any, Callable, NamedTuple, Sequence
@@ -97,7 +98,7 @@ from ..delta.params import DeltaParams
 from ..delta_wrist.params import WristMount
 from ..peg.params import Hole, Peg, PegContact
 from ..wrist.kernels import WristConstants
-from .kalman import joseph_update, transition_matrix, white_acceleration_noise
+from .kalman import white_acceleration_noise
 from .peg_contact import HOLE_STATES, linearization_parts, located
 from .peg_kernels import FUNCTIONS, JACOBIAN_COLUMNS
 from .wrist_process import N_REDUCED, tool_pose
@@ -108,6 +109,8 @@ _S, _W, _H = slice(0, 12), slice(12, 18), slice(18, 22)
 #: the standard normal quantile of the manoeuvre detector's chi-square gate (probability 0.999)
 MANOEUVRE_Z = 3.090
 N_STATES = N_REDUCED + 6 + HOLE_STATES
+#: terms of exp(A T)'s Taylor series in the prediction (:func:`.kalman.transition_matrix`'s default)
+TAYLOR_ORDER = 4
 
 
 def _flat(func: Callable) -> Callable:
@@ -236,6 +239,9 @@ class PegEKF:
         self._A: np.ndarray | None = None  # the process Jacobian d s'/d[s, W] (12, 18) as last evaluated
         self._column = 0  # the next of its columns to evaluate again
         self._R = np.diag([st.y_std ** 2] * 3 + [st.qw_std ** 2] * 3)
+        self._F0 = np.eye(N_REDUCED, 18)  # the identity's rows of s in the transition matrix
+        self._H_angles = np.eye(6)  # the angles' rows over [z, qw]: z's block set per sample
+        self._G_contact = np.hstack([np.zeros((6, N_REDUCED)), np.eye(6)])  # the law's rows over [s, W]
         # the law's offset b (consider states, never estimated): its covariance and cross-covariance
         self._Pbb = np.diag([st.law_hole_std ** 2] * 2 + [st.law_tilt_std ** 2] * 2)
         self._Pxb = np.zeros((N_STATES, HOLE_STATES))
@@ -283,26 +289,39 @@ class PegEKF:
                                            float(st.pole), float(st.sample_period), int(st.substeps), first, count)
         due = [(first + i) % 18 for i in range(count)]
         self._A[6:12, due] = np.reshape(values[12:], (18, 6)).T[:, due]
-        A = np.zeros((18, 18))
-        A[:12] = self._A
-        Phi = np.eye(N_STATES)
-        Phi[:18, :18] = transition_matrix(A, st.sample_period)
+        # Phi = exp(A T) (:func:`.kalman.transition_matrix`'s series) is the identity but for the rows
+        # of s (the wrench and the hole walk): those rows, F = Phi[s, [s, W]], as the series of
+        # A's nonzero rows, and Phi P Phi^T by them
+        AT = self._A * st.sample_period
+        term = AT
+        F = self._F0 + AT
+        for k in range(2, TAYLOR_ORDER + 1):
+            term = term[:, :N_REDUCED] @ AT / k
+            F += term
         self.x[_S] = values[:12]
-        P = Phi @ self.P @ Phi.T + (self._Q if self.manoeuvre else self._Q_steady)
-        self.P = 0.5 * (P + P.T)
-        self._Pxb = Phi @ self._Pxb
+        P, Pxb = self.P, self._Pxb
+        FP = F @ P[:18]
+        FPF = FP[:, :18] @ F.T
+        P[:12, :12] = 0.5 * (FPF + FPF.T)
+        P[:12, 12:] = FP[:, 12:]
+        P[12:, :12] = FP[:, 12:].T
+        P += self._Q if self.manoeuvre else self._Q_steady
+        Pxb[:12] = F @ Pxb[:18]
 
     def update(self, y: Sequence[float], qw: Sequence[float]) -> None:
         """Measurement update with the joint angles, then the gated contact-law update."""
         servo = self.functions.servo_kinematics(self.p, self.x[0:3].tolist())  # angles, rows of dq/dz
-        H = np.zeros((6, N_STATES))
+        H = self._H_angles  # dh/d[z, qw]: the angles' rows touch those six states only
         H[0:3, 0:3] = servo[3:12].reshape(3, 3)
-        H[3:6, 3:6] = np.eye(3)
         residual = np.concatenate([np.asarray(y, float) - servo[0:3], np.asarray(qw, float) - self.x[3:6]])
         st = self.settings
-        self._detect_manoeuvre(H, residual)
-        self._correct(H, residual, self._R)
-        touching = float(np.linalg.norm(self.x[12:15])) > st.contact_threshold
+        PHt = self.P[:, :6] @ H.T
+        S = H @ PHt[:6] + self._R
+        Sinv = np.linalg.inv(S)
+        self._detect_manoeuvre(float(residual @ Sinv @ residual))  # changes P's wrench block only, not H P
+        self._correct_angles(H, PHt, S, PHt @ Sinv, residual)
+        force = self.x[12:15]
+        touching = math.sqrt(force @ force) > st.contact_threshold
         self._touching = self._touching + 1 if touching else 0
         self.in_contact = self._touching >= self.settings.contact_samples
         if self.in_contact:
@@ -322,7 +341,16 @@ class PegEKF:
     def _wrench_jacobian(self, h: np.ndarray, hole_only: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
         """:func:`.peg_contact.wrench_jacobian` at the state's s and the hole h, by the filter's kernel."""
         return linearization_parts(self.functions.contact_linearization(
-            self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), [float(v) for v in h], hole_only))
+            self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), np.asarray(h, float).tolist(),
+            hole_only))
+
+    def _hole_linearization(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(c (6), dc/dh (6, 4)) at the state's s and the hole h: :meth:`_wrench_jacobian`'s
+        hole_only values, views of the kernel's flat result (module :mod:`.peg_kernels`' layout)."""
+        values = np.asarray(self.functions.contact_linearization(
+            self.hole, self.peg, self.law, self.w, self.m, self.x[_S].tolist(), h.tolist(), True), float)
+        first = 6 + 6 * N_REDUCED
+        return values[:6], values[first:first + 6 * HOLE_STATES].reshape(HOLE_STATES, 6).T
 
     def _locate_hole(self, weights: np.ndarray) -> np.ndarray | None:
         """:func:`.peg_contact.locate_hole` at the state's s, hole and wrench, by the filter's kernel."""
@@ -340,48 +368,60 @@ class PegEKF:
                 return
             self.x[_H] = found
             c, J, active = self._wrench_jacobian(self.x[_H])
-        H = np.zeros((6, N_STATES))
-        H[:, _W] = np.eye(6)
-        H[:, _S] = -J[:, :N_REDUCED]
+        # the law's rows: H = [G, Hh] with G = [-dc/ds, I] over z = [s, W] (fixed over the iterations) and
+        # Hh = -dc/dh over the hole, which the law sees as h + b; S and P H^T by blocks, the parts
+        # that do not involve Hh formed once
+        P, Pxb, Pbb = self.P, self._Pxb, self._Pbb
+        G = self._G_contact
+        G[:, :N_REDUCED] = -J[:, :N_REDUCED]
+        GP = G @ P[:18]  # (6, 22)
+        GPxb = G @ Pxb[:18]
+        A0 = GP[:, :18] @ G.T + self._Rc
+        D = P[_H, _H] + Pxb[_H]  # cov(h, h + b)
+        E = D + Pxb[_H].T + Pbb  # cov(h + b)
+        Z = np.vstack([-(GP[:, 18:] + GPxb), -D, E])  # [-G cov(z, h + b); -cov(h, h + b); cov(h + b)]
+        C = GP[:, 18:].T  # P[h, z] G^T
         prior = self.x[_H].copy()
-        scale = np.sqrt(np.diag(self.P)[_H])
+        wrench = self.x[_W].copy()
+        scale = np.sqrt(np.diag(P)[_H])
         hi = prior
         for iteration in range(st.contact_iterations):
             if iteration:
-                c, J, active = self._wrench_jacobian(hi, hole_only=True)
-            H[:, _H] = -J[:, N_REDUCED:]
-            Hb = H[:, _H]  # the law sees the hole h + b
+                c, Jh = self._hole_linearization(hi)
+            else:
+                Jh = J[:, N_REDUCED:]  # Hh = -Jh: the signs below flip exactly
             # the law linearised at hi, its innovation taken about the prior (Gauss-Newton step)
-            innovation = c - self.x[_W] - H[:, _H] @ (prior - hi)
-            PHt = self.P[_H] @ H.T + self._Pxb[_H] @ Hb.T
-            HPb = H @ self._Pxb @ Hb.T
-            S = H @ self.P @ H.T + HPb + HPb.T + Hb @ self._Pbb @ Hb.T + self._Rc
-            weighted = np.linalg.solve(S, innovation)
+            innovation = c - wrench + Jh @ (prior - hi)
+            Y = Z @ Jh.T  # [G cov(z, h + b) Hh^T; cov(h, h + b) Hh^T; cov(h + b) Jh^T]
+            S = A0 + Y[:6] + Y[:6].T + Jh @ Y[10:]
+            PHt = C + Y[6:10]  # the hole's rows of P H^T (the law seeing h + b)
+            Sinv = np.linalg.inv(S)
+            weighted = Sinv @ innovation
             new = prior + PHt @ weighted
-            done = float(np.max(np.abs(new - hi) / scale)) < st.contact_tolerance
+            done = float((np.abs(new - hi) / scale).max()) < st.contact_tolerance
             hi = new
             if done:
                 break
         self.consistency = float(innovation @ weighted)  # the last iteration's S^-1 innovation
         if self.consistency <= st.contact_gate:
             self._rejected = 0
-            self._correct(H, innovation, self._Rc, _H, Hb)
+            self._correct_hole(GP, GPxb, -Jh, PHt @ Sinv, innovation)
             return
         self._rejected += 1
         if self._rejected >= st.reject_samples:
             self._reopen_hole()
 
-    def _detect_manoeuvre(self, H: np.ndarray, residual: np.ndarray) -> None:
+    def _detect_manoeuvre(self, nis: float) -> None:
         """The wrench's process noise level from the joint angles' innovations (Bar-Shalom, Li,
         Kirubarajan 2001, section 11.2: adjustable process noise): while the sum of the last
         manoeuvre_samples normalised innovations stays within its chi-square 0.999 quantile the
         wrench walks at the steady levels; above it, at force_rate_std and moment_rate_std, and the
-        wrench's covariance first gets what that walk would have added over the window."""
+        wrench's covariance first gets what that walk would have added over the window. ``nis``: the
+        angles' normalised innovation r^T S^-1 r at this sample."""
         st = self.settings
         if not (st.steady_force_rate_std or st.steady_moment_rate_std):
             return
-        S = H @ self.P @ H.T + self._R
-        self._nis.append(float(residual @ np.linalg.solve(S, residual)))
+        self._nis.append(nis)
         del self._nis[:-st.manoeuvre_samples]
         manoeuvre = len(self._nis) == st.manoeuvre_samples and sum(self._nis) > self._nis_gate
         if manoeuvre and not self.manoeuvre:
@@ -403,18 +443,33 @@ class PegEKF:
         self._rejected = 0
         self.reopened += 1
 
-    def _correct(self, H: np.ndarray, residual: np.ndarray, R: np.ndarray, updated: slice | None = None,
-                 Hb: np.ndarray | None = None) -> None:
-        """The Joseph update of the states (``updated``: only those), the law's offset b considered
-        (its columns Hb, none: the batch does not see it)."""
-        if not self._Pbb.any():
-            dx, self.P = joseph_update(self.P, H, residual, R, updated)
-            self.x += dx
-            return
-        n = N_STATES
-        Pa = np.block([[self.P, self._Pxb], [self._Pxb.T, self._Pbb]])
-        Ha = np.hstack([H, np.zeros((H.shape[0], HOLE_STATES)) if Hb is None else Hb])
-        dx, Pa = joseph_update(Pa, Ha, residual, R, slice(0, n) if updated is None else updated)
-        self.x += dx[:n]
-        self.P, self._Pxb = Pa[:n, :n], Pa[:n, n:]
+    def _correct_angles(self, H: np.ndarray, PHt: np.ndarray, S: np.ndarray, K: np.ndarray,
+                        residual: np.ndarray) -> None:
+        """The joint angles' Joseph update of all the states, the law's offset b considered (the
+        angles do not see it; its rows of the gain are zero). H: the rows' columns of the first six
+        states (the others are zero), PHt = P H^T, S = H P H^T + R, K = P H^T S^-1. The Joseph
+        product (I - K H) P (I - K H)^T + K R K^T with (I - K H) X = X - K (H X): H touches six
+        columns, so each factor is a rank-6 correction; P_xb <- (I - K H) P_xb."""
+        M = self.P - K @ PHt.T  # (I - K H) P
+        P = M - (M[:, :6] @ H.T) @ K.T + (K @ self._R) @ K.T
+        self.P = 0.5 * (P + P.T)
+        self._Pxb -= K @ (H @ self._Pxb[:6])
+        self.x += K @ residual
 
+    def _correct_hole(self, GP: np.ndarray, GPxb: np.ndarray, Hh: np.ndarray, K: np.ndarray,
+                      innovation: np.ndarray) -> None:
+        """The contact law's Joseph update of the hole only (Schmidt: the gain's other rows and b's
+        are zero), the law seeing h + b: rows H = [G, Hh] over [z, h] and Hh over b (``GP``,
+        ``GPxb``: G P[z], G P_xb[z]), the hole's gain K (4, 6). The augmented Joseph product
+        (I - K_a H_a) P_a (I - K_a H_a)^T + K_a R K_a^T with K_a nonzero in the hole's rows only:
+        the left factor changes the hole's rows of [P, P_xb] by -K (H_a P_a), the right one the
+        hole's columns of P by -(M H_a^T) K^T (M: the left product), then K R K^T in the hole's
+        block; P_xb keeps the left product's (b's gain rows are zero)."""
+        P, Pxb = self.P, self._Pxb
+        P[_H] -= K @ (GP + Hh @ (P[_H] + Pxb.T))  # H_a P_a's x columns: G P[z] + Hh (P[h] + P_xb^T)
+        Pxb[_H] -= K @ (GPxb + Hh @ (Pxb[_H] + self._Pbb))  # its b columns
+        MHt = P[:, :18] @ self._G_contact.T + (P[:, _H] + Pxb) @ Hh.T
+        P[:, _H] -= MHt @ K.T
+        P[_H, _H] += (K @ self._Rc) @ K.T
+        self.P = 0.5 * (P + P.T)
+        self.x[_H] += K @ innovation
