@@ -306,3 +306,22 @@ def test_where_python_raises_the_kernel_returns_the_line(tmp_path):
                        ("grow", (1.0, 2.5)), ("grow", (math.inf, 1.0)), ("branch", (0.0,)), ("branch", (4.0,)),
                        ("turn", (math.nan, 1.0)), ("turn", (1e300, 2.0)), ("turn", (-0.0, 1.0)), ("turn", (0.7, math.inf))]:
         assert bits(lib.call(name, *args)) == bits(getattr(module, name)(*args)), (name, args)
+
+
+def test_a_large_kernel_called_from_several_places_is_left_to_the_compiler():
+    """Forced inlining copies a kernel into every caller: one of thousands of lines called twice is
+    KERNEL_SHARED (the compiler decides); a small one, or a large one called once, stays KERNEL."""
+    from deltafmi.builder.codegen.translate import _INLINE_LINES, _share_large_kernels
+
+    def kernel(name, lines, calls=()):
+        body = "".join(f"    x = {callee}(err, x);\n" for callee in calls) + "    x += 1.0;\n" * lines
+        return f"KERNEL double {name}(int *err, double x)", f"/* {name} */\nKERNEL double {name}(int *err, double x)\n{{\n{body}    return x;\n}}\n"
+
+    big = _INLINE_LINES + 10
+    pieces = [kernel("k_small_1", 5), kernel("k_big_2", big, ["k_small_1"]), kernel("k_once_3", big),
+              kernel("k_user_4", 3, ["k_big_2", "k_big_2", "k_once_3"])]
+    wrappers = ["int entry(double *x) { int err = 0; *x = k_user_4(&err, *x); return err; }"]
+    prototypes, defs = _share_large_kernels([p + ";" for p, _ in pieces], [d for _, d in pieces], wrappers)
+    shared = [p.split("(")[0].split()[-1] for p in prototypes if p.startswith("KERNEL_SHARED ")]
+    assert shared == ["k_big_2"]
+    assert sum(d.count("KERNEL_SHARED ") for d in defs) == 1

@@ -1128,8 +1128,41 @@ def generate(entries: list[Entry], identities: Iterable[str] = (), returns: Opti
             " * folded to x * x): bit for bit with the Python. */\n"
             "#include <math.h>\n#include <stdlib.h>\n#include <string.h>\n\n"
             "/* Kernels are inlined into the entry: small structs then stay in registers (measured:\n"
-            " * 0.89x the hand-written C's time, against 1.12x as plain static functions) */\n"
+            " * 0.89x the hand-written C's time, against 1.12x as plain static functions); a kernel\n"
+            " * that would be copied into several callers at thousands of lines (KERNEL_SHARED) is\n"
+            " * left to the compiler, which otherwise spends most of a build on the copies */\n"
             "#if defined(__GNUC__)\n#define KERNEL static inline __attribute__((always_inline))\n"
-            "#else\n#define KERNEL static inline\n#endif\n")
-    return "\n".join([head, HELPERS, *unit.struct_defs, "", *unit.const_defs, "", *unit.prototypes, "",
-                      *unit.function_defs, *wrappers])
+            "#else\n#define KERNEL static inline\n#endif\n#define KERNEL_SHARED static\n")
+    prototypes, function_defs = _share_large_kernels(unit.prototypes, unit.function_defs, wrappers)
+    return "\n".join([head, HELPERS, *unit.struct_defs, "", *unit.const_defs, "", *prototypes, "",
+                      *function_defs, *wrappers])
+
+
+#: a kernel called from more than one place is inlined only up to this many lines of C, counting
+#: the kernels inlined into it
+_INLINE_LINES = 2500
+
+
+def _share_large_kernels(prototypes: list[str], function_defs: list[str],
+                         wrappers: list[str]) -> tuple[list[str], list[str]]:
+    """The prototypes and definitions with KERNEL_SHARED for each kernel that is called from more
+    than one place and whose body, with the kernels inlined into it, exceeds _INLINE_LINES lines.
+    Inlining changes no result (the kernels are compiled without floating-point contraction)."""
+    names = [re.match(r"KERNEL .*? (k_\w+)\(", proto).group(1) for proto in prototypes]
+    calls = [{callee: len(re.findall(rf"\b{callee}\(", code)) for callee in names} for code in function_defs]
+    sites = {name: sum(c[name] for c in calls) - 1 + sum(len(re.findall(rf"\b{name}\(", w)) for w in wrappers)
+             for name in names}  # (- 1: its own definition)
+    lines: dict[str, int] = {}
+    shared: set[str] = set()
+    for name, code, called in zip(names, function_defs, calls):  # callees are defined before callers
+        lines[name] = code.count("\n") + sum(count * lines[callee] for callee, count in called.items()
+                                             if callee != name and count and callee not in shared)
+        if sites[name] > 1 and lines[name] > _INLINE_LINES:
+            shared.add(name)
+    if not shared:
+        return prototypes, function_defs
+
+    def mark(text: str, name: str) -> str:
+        return text.replace("KERNEL ", "KERNEL_SHARED ", 1) if name in shared else text
+    return ([mark(proto, name) for proto, name in zip(prototypes, names)],
+            [mark(code, name) for code, name in zip(function_defs, names)])
