@@ -498,6 +498,33 @@ static void record_parts(const RowPart *parts, size_t n_parts, double *row)
     }
 }
 
+/* A component's recorded values, one after the other (stage_parts, unstage_parts) */
+static size_t staged_width(const Component *comp)
+{
+    size_t n = 0;
+    for (size_t j = 0; j < comp->n_parts; j++) n += comp->parts[j].n;
+    return n;
+}
+
+static void stage_parts(const Component *comp, double *staged)
+{
+    for (size_t j = 0; j < comp->n_parts; j++) {
+        const RowPart *part = &comp->parts[j];
+        if (part->is_int)
+            for (size_t i = 0; i < part->n; i++) *staged++ = (double)((const int *)part->bus)[part->index[i]];
+        else
+            for (size_t i = 0; i < part->n; i++) *staged++ = ((const double *)part->bus)[part->index[i]];
+    }
+}
+
+static void unstage_parts(const Component *comp, const double *staged, double *row)
+{
+    for (size_t j = 0; j < comp->n_parts; j++) {
+        const RowPart *part = &comp->parts[j];
+        for (size_t i = 0; i < part->n; i++) row[1 + part->columns[i]] = *staged++;
+    }
+}
+
 static void record(const Plan *p, double t, double *row)
 {
     row[0] = t;
@@ -580,6 +607,10 @@ struct Pool {
     long k_end;
     double *rows;            /* the run's rows; row_of[j]: step k + j's row in them, -1: none */
     long row_of[BLOCK_STEPS];
+    /* each component's recorded values of a block's steps (BLOCK_STEPS rows of its own values, a
+     * cache line apart from the others'), copied into the rows by the calling thread after the
+     * block: threads writing their columns into the same rows at every step slowed each other */
+    double **staged;
     long stop_k;             /* atomic, written under lock: the first step a component stopped in (LONG_MAX: none) */
     long stop_op;            /* under lock: its op (the first in stepping order in that step) */
     int stop_why, stop_status;
@@ -645,8 +676,7 @@ static void component_steps(Pool *pool, size_t c)
                 return;
             }
         }
-        long r = pool->row_of[k - k0];
-        if (r >= 0) record_parts(comp->parts, comp->n_parts, pool->rows + r * (long)(p->width + 1));
+        if (pool->row_of[k - k0] >= 0) stage_parts(comp, pool->staged[comp - p->components] + (k - k0) * staged_width(comp));
     }
 }
 
@@ -726,6 +756,8 @@ static void *pool_worker(void *arg)
 }
 
 /* The plan's worker threads (threads - 1 of them; none when it has no group or one thread). */
+static void pool_stop(Pool *pool);
+
 static Pool *pool_start(Plan *p)
 {
     int grouped = 0;
@@ -757,6 +789,21 @@ static Pool *pool_start(Plan *p)
         if (pthread_create(&pool->workers[pool->n_workers], NULL, pool_worker, w) == 0) pool->n_workers++;
     }
     pool->n_blocks = pool->n_workers + 1;
+    if (p->n_components > 1) {
+        pool->staged = calloc(p->n_components, sizeof *pool->staged);
+        for (size_t c = 0; pool->staged && c < p->n_components; c++) {
+            size_t bytes = (BLOCK_STEPS * staged_width(&p->components[c]) * sizeof(double) + 63) / 64 * 64;
+            if (posix_memalign((void **)&pool->staged[c], 64, bytes ? bytes : 64)) pool->staged[c] = NULL;
+            if (!pool->staged[c]) {
+                pool_stop(pool);
+                return NULL;
+            }
+        }
+        if (!pool->staged) {
+            pool_stop(pool);
+            return NULL;
+        }
+    }
     return pool; /* no worker started: the calling thread steps the group alone */
 }
 
@@ -775,6 +822,9 @@ static void pool_stop(Pool *pool)
     pthread_cond_destroy(&pool->done);
     pthread_cond_destroy(&pool->wake);
     pthread_mutex_destroy(&pool->lock);
+    if (pool->staged)
+        for (size_t c = 0; c < pool->p->n_components; c++) free(pool->staged[c]);
+    free(pool->staged);
     free(pool);
 }
 
@@ -915,6 +965,10 @@ static int block_steps(Plan *p, Pool *pool, long k, long k_end, double *rows, lo
             double *row = rows + row_of[j - k] * (long)stride;
             row[0] = next < p->n_steps ? p->start + (double)next * p->h : p->stop;
             record_parts(p->fixed_parts, p->n_fixed_parts, row);
+            for (size_t c = 0; c < p->n_components; c++) {
+                const Component *comp = &p->components[c];
+                unstage_parts(comp, pool->staged[c] + (j - k) * staged_width(comp), row);
+            }
             written++;
         }
         if (stop < kb) {
