@@ -417,6 +417,8 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
         fig.setdefault("fmi step", []).append(1e6 * run.stepping_time / run.steps)
         fig.setdefault("fmi step cpu", []).append(1e6 * cpu / run.steps)
         fig.setdefault("fmi thread cpu", []).append(1e6 * own[0] / run.steps)
+        run, cpu = cpu_master_run(cosim, system, stop, out / "flagship.parquet")
+        fig.setdefault("fmi binary cpu", []).append(1e6 * cpu / run.steps)
         os.environ["DELTAFMI_NATIVE"] = "0"  # read when the FMUs are instantiated
         try:
             run = cosim.master_run(system, stop, out / "python.csv")
@@ -447,6 +449,8 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
     print(line("deltafmi: flagship stepping through FMI, CPU time of the process (rows written)", "fmi step cpu"))
     print(line("deltafmi: the same, CPU time of the stepping thread (the rows become text on another)",
                "fmi thread cpu"))
+    print(line("deltafmi: the same, CPU time of the process, rows recorded as binary (-o x.parquet)",
+               "fmi binary cpu"))
     same = (out / "flagship.csv").read_bytes() == (out / "python.csv").read_bytes()
     print(line(f"deltafmi: the same, FMUs on their Python methods (DELTAFMI_NATIVE=0; CSV "
                f"{'the same bits' if same else 'DIFFERENT'})", "py step"))
@@ -465,7 +469,8 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
         print(f"  {label:36s} {verdict(ratio, TARGETS[target])}")
     print(f"the flagship at the limit, rows written (target <= {LIMIT:g}x the C transcription):")
     for label, fmi, c in (("wall time", "fmi step", "c step"), ("CPU time", "fmi step cpu", "c step cpu"),
-                          ("CPU time of the stepping thread", "fmi thread cpu", "c step cpu")):
+                          ("CPU time of the stepping thread", "fmi thread cpu", "c step cpu"),
+                          ("CPU time, rows recorded as binary", "fmi binary cpu", "c step cpu")):
         ratio = statistics.median(a / b for a, b in zip(fig[fmi], fig[c]))
         print(f"  {label:36s} {verdict(ratio, LIMIT)}")
     print("the Python paths (before the compiled kernels), deltafmi / C:")
