@@ -51,6 +51,7 @@ import sys
 import textwrap
 import types
 import typing
+from collections import Counter
 from pathlib import Path
 from typing import Any, Callable, Iterable, Optional
 
@@ -1149,14 +1150,13 @@ def _share_large_kernels(prototypes: list[str], function_defs: list[str],
     than one place and whose body, with the kernels inlined into it, exceeds _INLINE_LINES lines.
     Inlining changes no result (the kernels are compiled without floating-point contraction)."""
     names = [re.match(r"KERNEL .*? (k_\w+)\(", proto).group(1) for proto in prototypes]
-    calls = [{callee: len(re.findall(rf"\b{callee}\(", code)) for callee in names} for code in function_defs]
-    sites = {name: sum(c[name] for c in calls) - 1 + sum(len(re.findall(rf"\b{name}\(", w)) for w in wrappers)
-             for name in names}  # (- 1: its own definition)
+    calls = [Counter(re.findall(r"\b(k_\w+)\(", code)) for code in function_defs]  # (each its own header too)
+    sites = sum(calls, Counter(re.findall(r"\b(k_\w+)\(", "\n".join(wrappers)))) - Counter(names)
     lines: dict[str, int] = {}
     shared: set[str] = set()
     for name, code, called in zip(names, function_defs, calls):  # callees are defined before callers
         lines[name] = code.count("\n") + sum(count * lines[callee] for callee, count in called.items()
-                                             if callee != name and count and callee not in shared)
+                                             if callee != name and callee in lines and callee not in shared)
         if sites[name] > 1 and lines[name] > _INLINE_LINES:
             shared.add(name)
     if not shared:
