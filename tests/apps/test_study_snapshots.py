@@ -11,33 +11,21 @@ payload varied) is always initialized.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Dict, List
+from typing import List
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from deltafmi.apps.cli import main
 from deltafmi.apps.studies.driver import dask_client, open_store, run_study
 from deltafmi.apps.studies.plan import plan_study
 from deltafmi.apps.studies.pool import FmuPool
 from deltafmi.apps.studies.runner import OK, CaseResult, CaseTemplate, run_case
 from deltafmi.apps.studies.spec import load_study
 from deltafmi.apps.studies.worker import worker_cache
-from deltafmi.master.results.csv_file import columns as read_columns
+from test_study_pooled_cases import plain_run  # a case exported by study-case, then deltafmi run
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "delta_tracking.yaml"
-
-
-def plain_run(study: Path, case: int, folder: Path) -> Dict[str, np.ndarray]:
-    """The columns of ``deltafmi run`` of the case exported by ``deltafmi study-case``."""
-    scenario, csv = folder / f"case{case}.yaml", folder / f"case{case}.csv"
-    exported = CliRunner().invoke(main, ["study-case", str(study), str(case), "-o", str(scenario)])
-    assert exported.exit_code == 0, exported.output
-    ran = CliRunner().invoke(main, ["run", str(scenario), "-o", str(csv), "-q"])
-    assert ran.exit_code == 0, ran.output
-    return read_columns(csv)
 
 
 def assert_same_as_plain(study: Path, results: List[CaseResult], folder: Path) -> None:
