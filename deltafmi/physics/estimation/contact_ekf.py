@@ -45,7 +45,7 @@ from ..delta.jacobian import _SENSITIVITIES
 from ..delta.kinematics import forward_kinematics, inverse_kinematics
 from ..delta.params import DeltaParams
 from .delta_process_kernels import PYTHON_KERNELS, ProcessKernels
-from .kalman import white_acceleration_noise
+from .kalman import MANOEUVRE_Z, chi_square_quantile, white_acceleration_noise
 
 __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
 
@@ -62,7 +62,10 @@ class ContactEKFSettings:
     sample_period: float = 1e-3  #: s
     y_std: float = 1e-5  #: servo-angle noise (rad)
     acceleration_std: float = 0.05  #: white wrist-acceleration noise, model error (m/s^2/sqrt(Hz))
-    force_rate_std: float = 100.0  #: random walk of the wrist force (N/s/sqrt(Hz))
+    force_rate_std: float = 100.0  #: random walk of the wrist force in a manoeuvre, every direction (N/s/sqrt(Hz))
+    steady_force_rate_std: float = 0.0  #: its walk along the normal between manoeuvres (0: force_rate_std throughout)
+    friction: float = 0.0  #: friction coefficient: the steady walk across the normal is friction times the one along it
+    manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
     surface_drift_std: float = 0.0  #: random walk of the surface height (m/sqrt(s))
     position_std0: float = 1e-3  #: initial wrist position (m), around forward kinematics of y0
     velocity_std0: float = 0.01  #: initial wrist velocity (m/s), around zd0
@@ -76,6 +79,7 @@ class ContactEKFSettings:
     contact_model_std: float = 5.0  #: noise of the contact-law pseudo-measurement (N)
     contact_threshold: float = 10.0  #: estimated normal force above which the tool presses (N)
     contact_samples: int = 10  #: samples in a row above contact_threshold before the contact law applies
+    contact_gate: float = 0.0  #: largest normalised innovation r^2 / s of an applied contact-law update (0: no gate)
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
 
@@ -85,11 +89,11 @@ class ContactEKFSettings:
         for name in positive:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
-        for name in ("acceleration_std", "force_rate_std", "surface_drift_std", "contact_stiffness",
-                     "contact_damping", "pole"):
+        for name in ("acceleration_std", "force_rate_std", "steady_force_rate_std", "friction", "surface_drift_std",
+                     "contact_stiffness", "contact_damping", "contact_gate", "pole"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
-        for name in ("substeps", "contact_samples"):
+        for name in ("substeps", "contact_samples", "manoeuvre_samples"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
         n = np.asarray(self.normal, dtype=float).reshape(-1)
@@ -161,6 +165,16 @@ class ContactEKF:
         self._Qd = np.zeros((_N, _N))  # the process noise but for the joint block, which moves with q
         self._Qd[_F, _F] = settings.force_rate_std ** 2 * T * np.eye(3)
         self._Qd[_S, _S] = settings.surface_drift_std ** 2 * T
+        # between manoeuvres the force walks along n at the steady level, across it at friction times that
+        steady = settings.steady_force_rate_std
+        self._Qd_steady = self._Qd.copy()
+        if steady:
+            nn = np.outer(n, n)
+            self._Qd_steady[_F, _F] = steady ** 2 * T * (nn + settings.friction ** 2 * (np.eye(3) - nn))
+        self._nis: list[float] = []  # the servo angles' last normalised innovations r^T S^-1 r
+        self._nis_gate = chi_square_quantile(3 * int(settings.manoeuvre_samples), MANOEUVRE_Z)
+        self.manoeuvre = False  #: a manoeuvre (an impact: the force changing fast) is detected
+        self.manoeuvres = 0  #: manoeuvres detected so far
         self._kinematics_at: bytes = b""  # the (q, v) that _kinematics holds
         self._A = np.zeros((21, 21))  # d[q'; v'; f']/d[q; v; f]: q' = v, f' = 0 but for noise
         self._A[_Q, _V] = np.eye(9)
@@ -180,10 +194,10 @@ class ContactEKF:
         self._correct_servos(np.asarray(y, float) - self.x[_SERVOS])
         pressing = float(self._n @ self.x[_F]) > self.settings.contact_threshold
         self._pressing = self._pressing + 1 if pressing else 0
-        self.in_contact = self._pressing >= self.settings.contact_samples
+        self.in_contact = self._pressing >= self.settings.contact_samples and not self.manoeuvre
         if self.in_contact:
             H, value = self._contact_row()
-            self._correct_row(H, -value)
+            self.in_contact = self._correct_row(H, -value)
 
     def predict(self, u: Sequence[float]) -> None:
         """Propagate the state over one sample period with u held, and the covariance with it."""
@@ -211,7 +225,7 @@ class ContactEKF:
         P[:21, :21] = PhiP[:, :21] @ Phi.T
         P[:21, _S] = P[_S, :21] = PhiP[:, _S]
         P[_S, _S] = self.P[_S, _S]
-        P += self._Qd
+        P += self._Qd if self.manoeuvre else self._Qd_steady
         P[:18, :18] += noise
         self.P = 0.5 * (P + P.T)
 
@@ -272,20 +286,45 @@ class ContactEKF:
         """The Joseph update (:func:`.kalman.joseph_update`) with the servo angles, whose H selects
         three states: P H^T and H P H^T are columns and entries of P, and (I - K H) P (I - K H)^T
         is M - (M H^T) K^T with M = P - K (H P), two products of rank 3."""
+        PHt = self.P[:, _SERVOS]
+        Sinv = _inverse3(PHt[_SERVOS] + self._Ry)
+        self._detect_manoeuvre(float(residual @ Sinv @ residual))  # changes P's force block only, not P H^T
         P = self.P
-        PHt = P[:, _SERVOS]
-        K = PHt @ _inverse3(PHt[_SERVOS] + self._Ry)
+        K = PHt @ Sinv
         M = P - K @ P[_SERVOS]
         self._correct(M - M[:, _SERVOS] @ K.T + self._ry * (K @ K.T), K @ residual)
 
-    def _correct_row(self, h: np.ndarray, residual: float) -> None:
+    def _detect_manoeuvre(self, nis: float) -> None:
+        """The force's process noise level from the servo angles' innovations (Bar-Shalom, Li,
+        Kirubarajan 2001, section 11.2: adjustable process noise; as :class:`.peg_ekf.PegEKF`): while
+        the sum of the last manoeuvre_samples normalised innovations stays within its chi-square
+        0.999 quantile the force walks at the steady level; above it at force_rate_std in every
+        direction, the force's covariance first given what that walk would have added over the
+        window. ``nis``: the angles' normalised innovation r^T S^-1 r at this sample."""
+        st = self.settings
+        if not st.steady_force_rate_std:
+            return
+        self._nis.append(nis)
+        del self._nis[:-st.manoeuvre_samples]
+        manoeuvre = len(self._nis) == st.manoeuvre_samples and sum(self._nis) > self._nis_gate
+        if manoeuvre and not self.manoeuvre:
+            self.P[_F, _F] += st.manoeuvre_samples * (self._Qd[_F, _F] - self._Qd_steady[_F, _F])
+            self.manoeuvres += 1
+        self.manoeuvre = manoeuvre
+
+    def _correct_row(self, h: np.ndarray, residual: float) -> bool:
         """The Joseph update with one scalar measurement of gradient h (the contact law), its
         products of rank 1 as in :meth:`_correct_servos`."""
         P = self.P
         PHt = P @ h
-        K = PHt / (h @ PHt + self._Rc)
+        S = h @ PHt + self._Rc
+        gate = self.settings.contact_gate
+        if gate and residual * residual > gate * S:
+            return False
+        K = PHt / S
         M = P - np.outer(K, h @ P)
         self._correct(M - np.outer(M @ h, K) + self._Rc * np.outer(K, K), K * residual)
+        return True
 
     def _correct(self, P: np.ndarray, dx: np.ndarray) -> None:
         """The corrected covariance (symmetrised) and state, projected onto the loops."""
