@@ -200,7 +200,8 @@ def contact_truth(folder: Path) -> dict:
                5.5, drop=("estimator",))
     return {"time": c["time"], "y": vector(c, "plant.y", 3), "u": vector(c, "controller.u", 3),
             "force": vector(c, "plant.normal_force", 3) + vector(c, "plant.friction_force", 3),
-            "surface": c["plant.surface_height"], "mode": c["plant.mode"]}
+            "surface": c["plant.surface_height"], "mode": c["plant.mode"], "fn": c["plant.fn"], "gap": c["plant.gap"],
+            "z": vector(c, "plant.z", 3), "zd": vector(c, "plant.zd", 3)}
 
 
 def contact_component() -> "ContactEstimator":  # noqa: F821

@@ -36,6 +36,7 @@ benchmarks/assembly_realtime.py times it.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
@@ -62,10 +63,11 @@ class ContactEKFSettings:
     sample_period: float = 1e-3  #: s
     y_std: float = 1e-5  #: servo-angle noise (rad)
     acceleration_std: float = 0.05  #: white wrist-acceleration noise, model error (m/s^2/sqrt(Hz))
-    force_rate_std: float = 100.0  #: random walk of the wrist force in a manoeuvre, every direction (N/s/sqrt(Hz))
-    steady_force_rate_std: float = 0.0  #: its walk along the normal between manoeuvres (0: force_rate_std throughout)
-    friction: float = 0.0  #: friction coefficient: the steady walk across the normal is friction times the one along it
+    force_rate_std: float = 100.0  #: random walk of the wrist force (in a manoeuvre, with two levels) (N/s/sqrt(Hz))
+    steady_force_rate_std: float = 0.0  #: its walk between manoeuvres (0: force_rate_std throughout, every direction)
+    friction: float = 0.0  #: with two levels: the walk across the normal is friction times the one along it
     manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
+    manoeuvre_hold: int = 0  #: samples a detected manoeuvre lasts at least (an impact's transient)
     surface_drift_std: float = 0.0  #: random walk of the surface height (m/sqrt(s))
     position_std0: float = 1e-3  #: initial wrist position (m), around forward kinematics of y0
     velocity_std0: float = 0.01  #: initial wrist velocity (m/s), around zd0
@@ -79,7 +81,6 @@ class ContactEKFSettings:
     contact_model_std: float = 5.0  #: noise of the contact-law pseudo-measurement (N)
     contact_threshold: float = 10.0  #: estimated normal force above which the tool presses (N)
     contact_samples: int = 10  #: samples in a row above contact_threshold before the contact law applies
-    contact_gate: float = 0.0  #: largest normalised innovation r^2 / s of an applied contact-law update (0: no gate)
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
 
@@ -90,12 +91,14 @@ class ContactEKFSettings:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "force_rate_std", "steady_force_rate_std", "friction", "surface_drift_std",
-                     "contact_stiffness", "contact_damping", "contact_gate", "pole"):
+                     "contact_stiffness", "contact_damping", "pole"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
         for name in ("substeps", "contact_samples", "manoeuvre_samples"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
+        if int(self.manoeuvre_hold) < 0:
+            raise ValueError(f"estimator setting manoeuvre_hold must be >= 0, got {self.manoeuvre_hold}")
         n = np.asarray(self.normal, dtype=float).reshape(-1)
         norm = float(np.linalg.norm(n)) if n.shape == (3,) else 0.0
         if not norm > 0.0 or abs(n[2]) < 1e-6 * norm:
@@ -165,16 +168,23 @@ class ContactEKF:
         self._Qd = np.zeros((_N, _N))  # the process noise but for the joint block, which moves with q
         self._Qd[_F, _F] = settings.force_rate_std ** 2 * T * np.eye(3)
         self._Qd[_S, _S] = settings.surface_drift_std ** 2 * T
-        # between manoeuvres the force walks along n at the steady level, across it at friction times that
+        # with two levels the force is the contact's: it walks along n, across it at friction times that
+        # (a contact force stays in its friction cone), fast in a manoeuvre, at the steady level between
         steady = settings.steady_force_rate_std
         self._Qd_steady = self._Qd.copy()
         if steady:
             nn = np.outer(n, n)
-            self._Qd_steady[_F, _F] = steady ** 2 * T * (nn + settings.friction ** 2 * (np.eye(3) - nn))
+            cone = T * (nn + settings.friction ** 2 * (np.eye(3) - nn))
+            self._Qd[_F, _F] = settings.force_rate_std ** 2 * cone
+            self._Qd_steady[_F, _F] = steady ** 2 * cone
         self._nis: list[float] = []  # the servo angles' last normalised innovations r^T S^-1 r
         self._nis_gate = chi_square_quantile(3 * int(settings.manoeuvre_samples), MANOEUVRE_Z)
         self.manoeuvre = False  #: a manoeuvre (an impact: the force changing fast) is detected
         self.manoeuvres = 0  #: manoeuvres detected so far
+        # the detector's window: (x, P, torques held, pressing count, y) before each of its samples
+        self._window: deque | None = deque(maxlen=int(settings.manoeuvre_samples)) if steady else None
+        self._refilter = False  # the detector fired at this sample: filter its window again
+        self._held = 0  # samples since the manoeuvre was detected
         self._kinematics_at: bytes = b""  # the (q, v) that _kinematics holds
         self._A = np.zeros((21, 21))  # d[q'; v'; f']/d[q; v; f]: q' = v, f' = 0 but for noise
         self._A[_Q, _V] = np.eye(9)
@@ -183,11 +193,22 @@ class ContactEKF:
     def step(self, y: Sequence[float], u: Sequence[float]) -> ContactEstimate:
         """One sample t_k: predict over the last period with the torques held since t_(k-1) (none
         at the first sample), update with y (rad) at t_k; u (N m) is held from now on."""
+        if self._window is not None:
+            self._window.append((self.x.copy(), self.P.copy(), self._u, self._pressing, y))
+        self._advance(y)
+        if self._refilter:  # a manoeuvre began within the window: filter it again at the fast walk
+            x, P, _, self._pressing, _ = self._window[0]
+            self.x, self.P = x.copy(), P.copy()
+            for _, _, self._u, _, earlier in self._window:
+                self._advance(earlier)
+            self._refilter = False
+        self._u = [float(value) for value in u]
+        return self.estimate()
+
+    def _advance(self, y: Sequence[float]) -> None:
         if self._u is not None:
             self.predict(self._u)
         self.update(y)
-        self._u = [float(value) for value in u]
-        return self.estimate()
 
     def update(self, y: Sequence[float]) -> None:
         """Measurement update with the servo angles, then the gated contact-law update."""
@@ -197,7 +218,7 @@ class ContactEKF:
         self.in_contact = self._pressing >= self.settings.contact_samples and not self.manoeuvre
         if self.in_contact:
             H, value = self._contact_row()
-            self.in_contact = self._correct_row(H, -value)
+            self._correct_row(H, -value)
 
     def predict(self, u: Sequence[float]) -> None:
         """Propagate the state over one sample period with u held, and the covariance with it."""
@@ -298,33 +319,33 @@ class ContactEKF:
         """The force's process noise level from the servo angles' innovations (Bar-Shalom, Li,
         Kirubarajan 2001, section 11.2: adjustable process noise; as :class:`.peg_ekf.PegEKF`): while
         the sum of the last manoeuvre_samples normalised innovations stays within its chi-square
-        0.999 quantile the force walks at the steady level; above it at force_rate_std in every
-        direction, the force's covariance first given what that walk would have added over the
-        window. ``nis``: the angles' normalised innovation r^T S^-1 r at this sample."""
+        0.999 quantile the force walks at the steady level; above it at force_rate_std, for at
+        least manoeuvre_hold samples. When it starts, :meth:`step` filters the window's samples again from the state
+        before them at the fast walk (the manoeuvre began somewhere within the window; raising the
+        force's covariance at the end only would have the force alone explain a motion the joints'
+        states had already taken up, and overshoot). ``nis``: the angles' normalised innovation
+        r^T S^-1 r at this sample."""
         st = self.settings
-        if not st.steady_force_rate_std:
+        if not st.steady_force_rate_std or self._refilter:
             return
         self._nis.append(nis)
         del self._nis[:-st.manoeuvre_samples]
         manoeuvre = len(self._nis) == st.manoeuvre_samples and sum(self._nis) > self._nis_gate
         if manoeuvre and not self.manoeuvre:
-            self.P[_F, _F] += st.manoeuvre_samples * (self._Qd[_F, _F] - self._Qd_steady[_F, _F])
+            self._refilter = True
             self.manoeuvres += 1
-        self.manoeuvre = manoeuvre
+            self._held = 0
+        self._held += 1
+        self.manoeuvre = manoeuvre or (self.manoeuvre and self._held < st.manoeuvre_hold)
 
-    def _correct_row(self, h: np.ndarray, residual: float) -> bool:
+    def _correct_row(self, h: np.ndarray, residual: float) -> None:
         """The Joseph update with one scalar measurement of gradient h (the contact law), its
         products of rank 1 as in :meth:`_correct_servos`."""
         P = self.P
         PHt = P @ h
-        S = h @ PHt + self._Rc
-        gate = self.settings.contact_gate
-        if gate and residual * residual > gate * S:
-            return False
-        K = PHt / S
+        K = PHt / (h @ PHt + self._Rc)
         M = P - np.outer(K, h @ P)
         self._correct(M - np.outer(M @ h, K) + self._Rc * np.outer(K, K), K * residual)
-        return True
 
     def _correct(self, P: np.ndarray, dx: np.ndarray) -> None:
         """The corrected covariance (symmetrised) and state, projected onto the loops."""
