@@ -9,7 +9,11 @@ inputs). Estimated, 22 states X = [q (9), v (9), f (3), s]:
   how the covariance stays on the closed loops), with white task-space acceleration noise
   (acceleration_std) for the model's errors;
 - f: the external force on the wrist, world frame, a random walk (force_rate_std): for the tool
-  on a plane with normal n, f = n lambda, lambda the contact multiplier (the plant's fn);
+  on a plane with normal n, f = n lambda, lambda the contact multiplier (the plant's fn). With
+  steady_force_rate_std the walk has two levels (:meth:`ContactEKF._detect_manoeuvre`: slow
+  between manoeuvres, force_rate_std in one, an impact detected from the servo angles'
+  innovations, its window filtered again) and follows the contact: along n, friction times
+  that across it;
 - s: the height at which the surface crosses the robot axis, a constant.
 
 s is tied to the rest by the contact law as a pseudo-measurement, applied only while the filter
