@@ -122,7 +122,7 @@ class CsvWriter:
         else:
             self._block = np.empty((chunk, len(names) + 1))
             self._integer = (ctypes.c_int * (len(names) + 1))(0, *[kind in _INTEGERS for kind in kinds])
-            self._text_out = ctypes.create_string_buffer(chunk * (len(names) + 1) * 33)
+            self._text_out = ctypes.create_string_buffer(chunk * (len(names) + 1) * 33 + 32)  # csv_rows.c's room
             self._format_rows = _rows_formatter()
         self._n = 0
         self._last_flush = _time.monotonic()
