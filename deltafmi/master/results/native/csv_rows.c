@@ -247,9 +247,10 @@ static int format_integer(double x, char *out)
     return n + nd;
 }
 
-/* repr(x) into out (room for 34 chars: it writes up to there, past the length it returns);
- * returns its length. The digits are written once, where they end up: write_digits fills from
- * the right, so a point inside them is made by moving the digits before it one place left. */
+/* repr(x) into out (room for 24 chars, the longest repr: it may write up to there, past the
+ * length it returns); returns its length. The digits are written once, where they end up:
+ * write_digits fills from the right, so a point inside them is made by moving the digits before
+ * it one place left. */
 static int repr_double(double x, char *out)
 {
     uint64_t bits;
@@ -315,7 +316,8 @@ static int repr_double(double x, char *out)
 }
 
 /* n_rows rows of `width` doubles (row-major) as lines "v,v,...\n" into out (room for
- * n_rows * width * 33 + 32 chars: a value's text is at most 24, and up to 34 are written at its start); integer[j] != 0 writes column j as an integer (truncated, as
+ * n_rows * width * 33 + 32 chars: a value and its comma take at most 25, and up to 32 are
+ * written where a value starts); integer[j] != 0 writes column j as an integer (truncated, as
  * Python's "%d" does; the master's Integer and Boolean buses hold 32-bit integers).
  * A value with the bits of the one above it in its column is copied from that one's text.
  * Returns the number of chars written. */
