@@ -105,10 +105,12 @@ from .wrist_process import N_REDUCED, tool_pose
 
 __all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES", "PYTHON_FUNCTIONS"]
 
-_S, _W, _H = slice(0, 12), slice(12, 18), slice(18, 22)
+_S, _W, _H, _V = slice(0, 12), slice(12, 18), slice(18, 22), slice(22, 28)
+#: the states the prediction's transition involves: s, W and W's rate V (the hole walks alone)
+_Z = np.r_[0:18, 22:28]
 #: the standard normal quantile of the manoeuvre detector's chi-square gate (probability 0.999)
 MANOEUVRE_Z = 3.090
-N_STATES = N_REDUCED + 6 + HOLE_STATES
+N_STATES = N_REDUCED + 6 + HOLE_STATES + 6
 #: terms of exp(A T)'s Taylor series in the prediction (:func:`.kalman.transition_matrix`'s default)
 TAYLOR_ORDER = 4
 
@@ -156,9 +158,13 @@ class PegEKFSettings:
     tilt_drift_std: float = 2e-2  #: random walk of the hole's tilt (rad/sqrt(s))
     law_hole_std: float = 3e-5  #: the contact law's error as a constant offset of the hole's x, y (m), considered
     law_tilt_std: float = 3e-3  #: the contact law's error as a constant offset of the hole's tilt (rad), considered
-    steady_force_rate_std: float = 1.0  #: the force's random walk while no manoeuvre is detected (0: force_rate_std)
-    steady_moment_rate_std: float = 0.05  #: the moment's walk while no manoeuvre is detected (0: moment_rate_std)
+    steady_force_rate_std: float = 0.01  #: the force's random walk while no manoeuvre is detected (0: force_rate_std)
+    steady_moment_rate_std: float = 3e-4  #: the moment's walk while no manoeuvre is detected (0: moment_rate_std)
     manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
+    force_acceleration_std: float = 0.7  #: white noise on the contact force's rate (N/s^2/sqrt(Hz)): its ramps
+    moment_acceleration_std: float = 0.02  #: white noise on the contact moment's rate (N m/s^2/sqrt(Hz))
+    force_ramp_std: float = 5.0  #: the contact force's rate (N/s) after a manoeuvre, about zero: a new contact's ramp
+    moment_ramp_std: float = 0.05  #: the contact moment's rate (N m/s) after a manoeuvre, about zero
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
     jacobian_columns: int = 3  #: process-Jacobian columns (of 18) evaluated again per sample, in turn
@@ -171,7 +177,8 @@ class PegEKFSettings:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "angular_acceleration_std", "force_rate_std", "moment_rate_std",
                      "hole_drift_std", "tilt_drift_std", "law_hole_std", "law_tilt_std", "steady_force_rate_std",
-                     "steady_moment_rate_std", "contact_threshold", "contact_gate", "pole",
+                     "steady_moment_rate_std", "force_acceleration_std", "moment_acceleration_std", "force_ramp_std",
+                     "moment_ramp_std", "contact_threshold", "contact_gate", "pole",
                      "contact_tolerance"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
@@ -228,7 +235,7 @@ class PegEKF:
         self.x[0:3], self.x[3:6] = forward_kinematics(p, y0), np.asarray(qw0, float)
         self.x[_H] = hole.x, hole.y, hole.tilt_x, hole.tilt_y
         std = ([st.position_std0] * 3 + [st.angle_std0] * 3 + [st.velocity_std0] * 3 + [st.rate_std0] * 3
-               + [st.force_std0] * 3 + [st.moment_std0] * 3 + [st.hole_std0] * 2 + [st.tilt_std0] * 2)
+               + [st.force_std0] * 3 + [st.moment_std0] * 3 + [st.hole_std0] * 2 + [st.tilt_std0] * 2 + [0.0] * 6)
         self.P = np.diag(np.square(std))
         self.in_contact = False
         self.consistency = 0.0  #: r^T S^-1 r of the last contact update (module docstring)
@@ -251,14 +258,22 @@ class PegEKF:
         Q = np.zeros((N_STATES, N_STATES))
         for i, a in enumerate([st.acceleration_std] * 3 + [st.angular_acceleration_std] * 3):
             Q[np.ix_([i, i + 6], [i, i + 6])] = a * a * W
-        Q[_W, _W] = np.diag([st.force_rate_std ** 2] * 3 + [st.moment_rate_std ** 2] * 3) * T
         Q[_H, _H] = np.diag([st.hole_drift_std ** 2] * 2 + [st.tilt_drift_std ** 2] * 2) * T
+        # the wrench's rate V: an integrated random walk of the wrench (W' = V, V' = white noise)
+        for i, a in enumerate([st.force_acceleration_std] * 3 + [st.moment_acceleration_std] * 3):
+            Q[np.ix_([12 + i, 22 + i], [12 + i, 22 + i])] = a * a * W
+        walk = Q.copy()
+        Q[_W, _W] += np.diag([st.force_rate_std ** 2] * 3 + [st.moment_rate_std ** 2] * 3) * T
         self._Q = Q
         # the wrench's random walk between manoeuvres (the steady levels), and the detector's state
         steady = ([st.steady_force_rate_std or st.force_rate_std] * 3
                   + [st.steady_moment_rate_std or st.moment_rate_std] * 3)
-        self._Q_steady = Q.copy()
-        self._Q_steady[_W, _W] = np.diag(np.square(steady)) * T
+        self._Q_steady = walk
+        self._Q_steady[_W, _W] += np.diag(np.square(steady)) * T
+        self._ramp = np.diag([st.force_ramp_std ** 2] * 3 + [st.moment_ramp_std ** 2] * 3)
+        self._Phi = np.zeros((18, 24))  # the transition's rows of [s, W] over [s, W, V]
+        self._Phi[12:18, 12:18] = np.eye(6)
+        self._Phi[12:18, 18:24] = T * np.eye(6)
         self._nis: list[float] = []  # the joint angles' last normalised innovations r^T S^-1 r
         self._nis_gate = chi_square_quantile(6 * st.manoeuvre_samples, MANOEUVRE_Z)
         self.manoeuvre = False  #: a manoeuvre (an impact: the wrench changing fast) is detected
@@ -289,24 +304,31 @@ class PegEKF:
                                            float(st.pole), float(st.sample_period), int(st.substeps), first, count)
         due = [(first + i) % 18 for i in range(count)]
         self._A[6:12, due] = np.reshape(values[12:], (18, 6)).T[:, due]
-        # Phi = exp(A T) (:func:`.kalman.transition_matrix`'s series) is the identity but for the rows
-        # of s (the wrench and the hole walk): those rows, F = Phi[s, [s, W]], as the series of
-        # A's nonzero rows, and Phi P Phi^T by them
-        AT = self._A * st.sample_period
+        # Phi = exp(A T) (:func:`.kalman.transition_matrix`'s series) over z = [s, W, V] (W' = V; the
+        # hole walks alone) is the identity but for the rows of s and W: those rows as the series of
+        # A's nonzero rows (s's: F over [s, W], F_V over V, from A's W columns times V's T / k;
+        # W's: [0, I, T I]), and Phi P Phi^T by them
+        T = st.sample_period
+        AT = self._A * T
         term = AT
         F = self._F0 + AT
+        FV = np.zeros((N_REDUCED, 6))
         for k in range(2, TAYLOR_ORDER + 1):
+            FV += term[:, N_REDUCED:] * (T / k)
             term = term[:, :N_REDUCED] @ AT / k
             F += term
+        Phi = self._Phi
+        Phi[:12, :18], Phi[:12, 18:] = F, FV
         self.x[_S] = values[:12]
+        self.x[_W] += T * self.x[_V]
         P, Pxb = self.P, self._Pxb
-        FP = F @ P[:18]
-        FPF = FP[:, :18] @ F.T
-        P[:12, :12] = 0.5 * (FPF + FPF.T)
-        P[:12, 12:] = FP[:, 12:]
-        P[12:, :12] = FP[:, 12:].T
+        FP = Phi @ P[_Z]  # (18, 28)
+        FPF = FP[:, _Z] @ Phi.T
+        P[:18, :18] = 0.5 * (FPF + FPF.T)
+        P[:18, 18:] = FP[:, 18:]
+        P[18:, :18] = FP[:, 18:].T
         P += self._Q if self.manoeuvre else self._Q_steady
-        Pxb[:12] = F @ Pxb[:18]
+        Pxb[:18] = Phi @ Pxb[_Z]
 
     def update(self, y: Sequence[float], qw: Sequence[float]) -> None:
         """Measurement update with the joint angles, then the gated contact-law update."""
@@ -315,10 +337,10 @@ class PegEKF:
         H[0:3, 0:3] = servo[3:12].reshape(3, 3)
         residual = np.concatenate([np.asarray(y, float) - servo[0:3], np.asarray(qw, float) - self.x[3:6]])
         st = self.settings
-        PHt = self.P[:, :6] @ H.T
-        S = H @ PHt[:6] + self._R
+        S = H @ (self.P[:6, :6] @ H.T) + self._R
         Sinv = np.linalg.inv(S)
-        self._detect_manoeuvre(float(residual @ Sinv @ residual))  # changes P's wrench block only, not H P
+        self._detect_manoeuvre(float(residual @ Sinv @ residual))  # changes the wrench's rows, not P[:6, :6]
+        PHt = self.P[:, :6] @ H.T
         self._correct_angles(H, PHt, S, PHt @ Sinv, residual)
         force = self.x[12:15]
         touching = math.sqrt(force @ force) > st.contact_threshold
@@ -379,8 +401,8 @@ class PegEKF:
         A0 = GP[:, :18] @ G.T + self._Rc
         D = P[_H, _H] + Pxb[_H]  # cov(h, h + b)
         E = D + Pxb[_H].T + Pbb  # cov(h + b)
-        Z = np.vstack([-(GP[:, 18:] + GPxb), -D, E])  # [-G cov(z, h + b); -cov(h, h + b); cov(h + b)]
-        C = GP[:, 18:].T  # P[h, z] G^T
+        Z = np.vstack([-(GP[:, _H] + GPxb), -D, E])  # [-G cov(z, h + b); -cov(h, h + b); cov(h + b)]
+        C = GP[:, _H].T  # P[h, z] G^T
         prior = self.x[_H].copy()
         wrench = self.x[_W].copy()
         scale = np.sqrt(np.diag(P)[_H])
@@ -427,6 +449,12 @@ class PegEKF:
         if manoeuvre and not self.manoeuvre:
             window = st.manoeuvre_samples
             self.P[_W, _W] += window * (self._Q[_W, _W] - self._Q_steady[_W, _W])
+            # the wrench's rate starts over: a new contact's ramp, unrelated to the last one's
+            self.x[_V] = 0.0
+            self.P[_V, :] = 0.0
+            self.P[:, _V] = 0.0
+            self.P[_V, _V] = self._ramp
+            self._Pxb[_V] = 0.0
             self.manoeuvres += 1
         self.manoeuvre = manoeuvre
 
