@@ -24,8 +24,8 @@ _SETTINGS = ("sample_period", "y_std", "qw_std", "acceleration_std", "angular_ac
              "moment_rate_std", "velocity_std0", "rate_std0", "force_std0", "moment_std0", "hole_std0", "tilt_std0",
              "contact_force_std", "contact_moment_std", "contact_threshold", "contact_samples", "reject_samples",
              "hole_drift_std", "tilt_drift_std", "law_hole_std", "law_tilt_std", "steady_force_rate_std",
-             "steady_moment_rate_std", "force_acceleration_std", "moment_acceleration_std", "manoeuvre_samples", "pole",
-             "substeps", "contact_iterations", "jacobian_columns")
+             "steady_moment_rate_std", "force_acceleration_std", "moment_acceleration_std", "force_ramp_std",
+             "moment_ramp_std", "manoeuvre_samples", "pole", "substeps", "contact_iterations", "jacobian_columns")
 
 
 class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel, SampledComponent):
@@ -89,6 +89,11 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
                                        "force an integrated random walk, its ramps followed")
     moment_acceleration_std = Parameter(0.02, unit="N.m/s2", min=0.0,
                                         description="Random walk of the contact moment's rate (per sqrt(Hz))")
+    force_ramp_std = Parameter(5.0, unit="N/s", min=0.0,
+                               description="The contact force's rate after a manoeuvre, about zero (a new contact's "
+                               "ramp)")
+    moment_ramp_std = Parameter(0.05, unit="N.m/s", min=0.0,
+                                description="The contact moment's rate after a manoeuvre, about zero")
     manoeuvre_samples = Parameter(10, type=int, min=1,
                                   description="Samples of the joint angles' normalised innovations whose sum, above "
                                   "its chi-square 0.999 quantile, detects a manoeuvre")

@@ -3,19 +3,29 @@ delta robot with its spherical wrist (DeltaWristPeg), from joint angles and moto
 
 Measured: the servo angles y (3, noise y_std) and the wrist angles qw (3, noise qw_std); known
 inputs: the servo torques u and the wrist torques tau, held over each sample period. Estimated,
-22 states X = [s (12), W (6), h (4)]:
+28 states X = [s (12), W (6), h (4), V (6)]:
 
 - s = [z, qw, zd, vw]: the plant's six independent coordinates and their rates, process model
   the plant's DAE (:mod:`.wrist_process`), with white acceleration noise for the model's errors
   (acceleration_std on the plate, angular_acceleration_std on the wrist joints);
 - W = [F, M]: the contact wrench on the peg, force at the tool tip and moment about it, world
   frame (the resultant of the contact multipliers; the plant's contact_force, contact_moment),
-  a random walk at two levels (Bar-Shalom, Li, Kirubarajan 2001, section 11.2: adjustable process
-  noise): steady_force_rate_std, steady_moment_rate_std while the joint angles' innovations are
-  consistent (a contact force sliding on the chamfer or in the bore changes slowly), and
-  force_rate_std, moment_rate_std in a manoeuvre (an impact): detected when the sum of the last
-  manoeuvre_samples normalised innovations r^T S^-1 r exceeds its chi-square 0.999 quantile, the
-  wrench's covariance then first given what the fast walk would have added over that window;
+  and V = W' its rate: a sliding contact's wrench follows ramps (the controller pushing, the
+  peg moving along the chamfer or the bore), so W is an integrated random walk (W' = V, V' white,
+  force_acceleration_std, moment_acceleration_std: a ramp is followed without lag) plus a random
+  walk (W' also white) at two levels (Bar-Shalom, Li, Kirubarajan 2001, section 11.2: adjustable
+  process noise): steady_force_rate_std, steady_moment_rate_std while the joint angles'
+  innovations are consistent, and force_rate_std, moment_rate_std in a manoeuvre (an impact):
+  detected when the sum of the last manoeuvre_samples normalised innovations r^T S^-1 r exceeds
+  its chi-square 0.999 quantile, the wrench's covariance then first given what the fast walk
+  would have added over that window, and its rate starting over (zero, force_ramp_std,
+  moment_ramp_std, uncorrelated: the new contact's ramp is not the last one's). The levels are
+  what the plant's force does (benchmarks/estimator_consistency.py prints them, docs/assembly.md):
+  over tens of milliseconds in the bore its rate wanders as an integrated walk of ~0.7 N/s^2 per
+  sqrt(Hz), over one sample it moves as a walk of ~0.01 N/s per sqrt(Hz), and sliding down the
+  chamfer its ramps reach ~5 N/s. With a plain random walk wide enough for the chamfer the
+  filter was under-confident in the bore (force NEES 0.5 of its 3), and one at the bore's level
+  lagged the ramp there (NEES 50);
 - h = [x, y, tilt_x, tilt_y]: the hole (:mod:`.peg_contact`), with a prior (the nominal hole,
   hole_std0, tilt_std0) and a slow random walk (hole_drift_std, tilt_drift_std): the hole does
   not move, but the law's updates are linearised at the estimate, and a walk makes the filter
@@ -65,13 +75,14 @@ across the contact normal stays at what the chamfer told (its standard deviation
 
 Consistency (tests/models/test_peg_estimator_consistency.py, benchmarks/estimator_consistency.py:
 Monte Carlo over seeded encoder noise on the real plant; docs/assembly.md has the figures): with
-the wrench's two levels, the considered law offset and the hole's walk, the mean NEES of the hole
-(4 dof) and of the force over the contact lie within their chi-square intervals; with the wrench
-at its fast level throughout and no law error (the previous defaults) the hole's NEES was 1e4-1e5
-and the force's 0.1. A lock-in shows as the gate refusing the law reject_samples times in a row
-while in contact; the hole's covariance then goes back to its prior's about the current mean
-(its correlations dropped), and the law's updates start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that
-detects its innovations are inconsistent raises its uncertainty instead of refusing the data).
+the wrench's integrated walk and its two levels, the considered law offset and the hole's walk,
+the mean NEES of the hole (4 dof) and of the force sliding on the chamfer and in the bore lie
+within their chi-square intervals; with the wrench at its fast level throughout and no law error
+(the previous defaults) the hole's NEES was 1e4-1e5 and the force's 0.1. A lock-in shows as the
+gate refusing the law reject_samples times in a row while in contact; the hole's covariance then
+goes back to its prior's about the current mean (its correlations dropped), and the law's updates
+start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that detects its
+innovations are inconsistent raises its uncertainty instead of refusing the data).
 
 Cycle per sample t_k (:meth:`PegEKF.step`), as ContactEKF: predict from t_(k-1) with the torques
 held since then, update with y(t_k), qw(t_k), then the gated contact update. The prediction's
@@ -105,6 +116,7 @@ from .wrist_process import N_REDUCED, tool_pose
 
 __all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES", "PYTHON_FUNCTIONS"]
 
+# the wrench's rate V last, so that the hole keeps its place (18:22) among the states
 _S, _W, _H, _V = slice(0, 12), slice(12, 18), slice(18, 22), slice(22, 28)
 #: the states the prediction's transition involves: s, W and W's rate V (the hole walks alone)
 _Z = np.r_[0:18, 22:28]
@@ -163,8 +175,8 @@ class PegEKFSettings:
     manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
     force_acceleration_std: float = 0.7  #: white noise on the contact force's rate (N/s^2/sqrt(Hz)): its ramps
     moment_acceleration_std: float = 0.02  #: white noise on the contact moment's rate (N m/s^2/sqrt(Hz))
-    force_ramp_std: float = 5.0  #: the contact force's rate (N/s) after a manoeuvre, about zero: a new contact's ramp
-    moment_ramp_std: float = 0.05  #: the contact moment's rate (N m/s) after a manoeuvre, about zero
+    force_ramp_std: float = 5.0  #: the force's rate (N/s) after a manoeuvre, about zero: a new contact's ramp (0: kept)
+    moment_ramp_std: float = 0.05  #: the moment's rate (N m/s) after a manoeuvre, about zero (0 both: kept)
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
     jacobian_columns: int = 3  #: process-Jacobian columns (of 18) evaluated again per sample, in turn
@@ -438,7 +450,8 @@ class PegEKF:
         Kirubarajan 2001, section 11.2: adjustable process noise): while the sum of the last
         manoeuvre_samples normalised innovations stays within its chi-square 0.999 quantile the
         wrench walks at the steady levels; above it, at force_rate_std and moment_rate_std, and the
-        wrench's covariance first gets what that walk would have added over the window. ``nis``: the
+        wrench's covariance first gets what that walk would have added over the window, its rate V
+        starting over (zero mean, force_ramp_std and moment_ramp_std, uncorrelated). ``nis``: the
         angles' normalised innovation r^T S^-1 r at this sample."""
         st = self.settings
         if not (st.steady_force_rate_std or st.steady_moment_rate_std):
@@ -449,12 +462,13 @@ class PegEKF:
         if manoeuvre and not self.manoeuvre:
             window = st.manoeuvre_samples
             self.P[_W, _W] += window * (self._Q[_W, _W] - self._Q_steady[_W, _W])
-            # the wrench's rate starts over: a new contact's ramp, unrelated to the last one's
-            self.x[_V] = 0.0
-            self.P[_V, :] = 0.0
-            self.P[:, _V] = 0.0
-            self.P[_V, _V] = self._ramp
-            self._Pxb[_V] = 0.0
+            if st.force_ramp_std or st.moment_ramp_std:
+                # the wrench's rate starts over: a new contact's ramp, unrelated to the last one's
+                self.x[_V] = 0.0
+                self.P[_V, :] = 0.0
+                self.P[:, _V] = 0.0
+                self.P[_V, _V] = self._ramp
+                self._Pxb[_V] = 0.0
             self.manoeuvres += 1
         self.manoeuvre = manoeuvre
 
