@@ -12,8 +12,8 @@ as its FMU runs them (the Python ones give the same bits). For a consistent filt
 over R runs of a d-dimensional error is chi-square(d R) / R: within
 [chi2.ppf(0.025, d R), chi2.ppf(0.975, d R)] / R at 95 %. Printed at several instants and
 averaged over the phases of tests/models/test_peg_estimator_consistency.py (sliding on the
-chamfer 1.05-1.2 s, the impacts 1.0-1.05 s and 1.2-1.3 s, the bore to 1.5 s and after it;
-"sliding": the chamfer and the bore to 1.5 s for the hole, to the end for the force), for the
+chamfer 1.05-1.2 s, the impacts 1.0-1.05 s and 1.2-1.3 s, the bore to 1.5 s, after it and
+whole; "sliding": the chamfer and the bore to 1.5 s for the hole, to the end for the force), for the
 hole's x, y (d = 2), the hole with its tilt (d = 4) and the force (d = 3): for the defaults with
 the settings given (``--set name=value``, PegEKFSettings names), for the baseline, the previous
 defaults (the wrench a random walk at 30 N/s and 2 N m/s per sqrt(Hz) throughout, model-error
@@ -22,7 +22,7 @@ constant), for the last release's wrench (a random walk, 1 N/s and 0.05 N m/s pe
 between manoeuvres, no rate), and for the defaults without each of their noise models in turn.
 First, what the wrench's noise levels rest on: the plant's contact force and moment by phase,
 as a random walk over one sample (rms of the change per sample / sqrt(T)), as an integrated
-random walk over tau = 50 and 100 ms (rms of the second difference over tau, sqrt(3/2) / tau^1.5:
+random walk over tau = 20, 50 and 100 ms (rms of the second difference over tau, sqrt(3/2) / tau^1.5:
 a rate that is a random walk of that density gives it), and the rms of its ramps (least-squares
 slopes).
 
@@ -34,7 +34,7 @@ takes ContactEKFSettings names. On data from the filter's own model (a random-wa
 model error) tests/physics/test_contact_estimator_consistency.py asserts the force's NEES.
 
 Usage: python benchmarks/estimator_consistency.py [--estimator peg|contact] [--runs 16] [--noise RAD]
-       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 7]
+       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 8]
 """
 from __future__ import annotations
 
@@ -58,7 +58,8 @@ from deltafmi.physics.estimation.contact_ekf import ContactEKF  # noqa: E402
 
 def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start: float,  # noqa: F821
            stop: float) -> tuple:
-    """(times, hole x-y NEES, force NEES, reopened, hole error norm, hole NEES, tilt error) of one seeded run."""
+    """(times, hole x-y NEES, force NEES, reopened, hole error norm, hole NEES, tilt error, manoeuvre
+    flag) of one seeded run."""
     readout, ekf, t = Readout(noise, 0.0, seed), None, d["time"]
     rows = []
     for k in range(int(round(start / 1e-3)), int(round(stop / 1e-3)) + 1):
@@ -71,16 +72,17 @@ def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start:
         eh, ef = est.hole - d["hole"][i], est.force - d["force"][i]
         rows.append((t[i], eh[:2] @ np.linalg.solve(ekf.P[18:20, 18:20], eh[:2]),
                      ef @ np.linalg.solve(ekf.P[12:15, 12:15], ef), np.linalg.norm(eh[:2]),
-                     eh @ np.linalg.solve(ekf.P[18:22, 18:22], eh), np.abs(eh[2:]).max()))
+                     eh @ np.linalg.solve(ekf.P[18:22, 18:22], eh), np.abs(eh[2:]).max(), float(ekf.manoeuvre)))
     a = np.array(rows)
-    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened, a[:, 3], a[:, 4], a[:, 5]
+    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened, a[:, 3], a[:, 4], a[:, 5], a[:, 6]
 
 
 def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
-    H, F, H4, reopened, E, A = [], [], [], [], [], []
+    H, F, H4, reopened, E, A, M = [], [], [], [], [], [], []
     began = time.perf_counter()
     for r in range(args.runs):
-        t, h, f, n, e, h4, a = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
+        t, h, f, n, e, h4, a, m = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
+        M.append(m)
         E.append(e[-1])
         A.append(a[-1])
         H.append(h)
@@ -93,29 +95,35 @@ def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
           f"tilt median {np.median(A) * 1e3:.2f} mrad, largest {np.max(A) * 1e3:.2f} mrad")
     chamfer, bore = (t >= 1.05) & (t < 1.2), (t >= 1.3) & (t < 1.5005)
     phases = {"chamfer": chamfer, "impacts": ((t >= 1.0) & (t < 1.05)) | ((t >= 1.2) & (t < 1.3)),
-              "bore to 1.5 s": bore, "bore after 1.5 s": t >= 1.5005}
+              "bore to 1.5 s": bore, "bore after 1.5 s": t >= 1.5005, "bore from 1.3 s": t >= 1.3}
     for name, nees, dof in (("hole x, y", H, 2), ("hole, tilt", H4, 4), ("force", F, 3)):
         lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
         at = [(q, nees[:, np.argmin(np.abs(t - q))].mean()) for q in (1.1, 1.2, 1.4, 1.8, args.stop) if q <= args.stop]
         sliding = chamfer | (t >= 1.3) if name == "force" else chamfer | bore
         means = {p: nees[:, m].mean() if np.any(m) else float("nan") for p, m in phases.items()}
+        if name == "force":
+            means["largest (an instant's mean)"] = nees.mean(axis=0).max()
         print(f"  {name:10} mean NEES " + ", ".join(f"t={q:.1f} s: {v:.3g}" for q, v in at)
               + f"; sliding {nees[:, sliding].mean():.3g}; " + ", ".join(f"{p} {v:.3g}" for p, v in means.items())
               + f"; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
+    M = np.array(M)
+    print("  manoeuvre flagged at " + ", ".join(f"{100 * M[:, m].mean():.1f} %" + f" of the {p} samples"
+                                              for p, m in phases.items() if p != "bore from 1.3 s"))
 
 
 def walk_levels(X: np.ndarray, t: np.ndarray, lo: float, hi: float, T: float = 1e-3) -> tuple:
     """X's (samples T apart) levels over [lo, hi], rms over the axes: as a random walk over one sample
-    (rms change / sqrt(T)), as an integrated random walk over 50 and 100 ms (rms second difference
-    over tau, sqrt(3/2) / tau^1.5), and the rms of its least-squares slope."""
+    (rms change / sqrt(T)), as an integrated random walk over 20, 50 and 100 ms (rms second
+    difference over tau, sqrt(3/2) / tau^1.5; nan where the phase is too short), and the rms of its
+    least-squares slope."""
     X = X[(t >= lo) & (t <= hi)]
     walk = float(np.sqrt(np.mean(np.diff(X, axis=0) ** 2) / T))
     integrated = []
-    for n in (50, 100):
+    for n in (20, 50, 100):
         second = X[2 * n:] - 2.0 * X[n:-n] + X[:-2 * n] if len(X) > 2 * n else np.full((1, 3), np.nan)
         integrated.append(float(np.sqrt(1.5 * np.mean(second ** 2) / (n * T) ** 3)))
     slope = np.polyfit(np.arange(len(X)) * T, X, 1)[0]
-    return walk, integrated[0], integrated[1], float(np.sqrt(np.mean(slope ** 2)))
+    return walk, integrated, float(np.sqrt(np.mean(slope ** 2)))
 
 
 def force_rates(d: dict) -> None:
@@ -124,14 +132,16 @@ def force_rates(d: dict) -> None:
     on_grid = np.abs(t / 1e-3 - np.round(t / 1e-3)) < 1e-6
     t, F, M = t[on_grid], d["force"][on_grid], d["moment"][on_grid]
     print("the plant's contact force (N) and moment (N m), rms over the axes: as a random walk over one sample "
-          "(/s per sqrt(Hz)); as an integrated random walk over 50 and 100 ms (/s^2 per sqrt(Hz)); its ramp (/s):")
+          "(/s per sqrt(Hz)); as an integrated random walk over 20, 50, 100 ms (/s^2 per sqrt(Hz)); its ramp (/s):")
     for name, lo, hi in (("impact (1.0-1.05 s)", 1.0, 1.05), ("chamfer slide (1.05-1.12 s)", 1.05, 1.12),
                          ("chamfer (1.05-1.2 s)", 1.05, 1.2), ("bore (1.3-1.5 s)", 1.3, 1.5),
                          ("bore (from 1.35 s)", 1.35, t[-1])):
-        levels = [walk_levels(X, t, lo, hi) for X in (F, M)]
-        print(f"  {name:28} force: walk {levels[0][0]:.3g}, integrated {levels[0][1]:.3g} / {levels[0][2]:.3g}, "
-              f"ramp {levels[0][3]:.3g}; moment: walk {levels[1][0]:.3g}, integrated {levels[1][1]:.3g} / "
-              f"{levels[1][2]:.3g}, ramp {levels[1][3]:.3g}")
+        text = []
+        for label, X in (("force", F), ("moment", M)):
+            walk, integrated, ramp = walk_levels(X, t, lo, hi)
+            text.append(f"{label}: walk {walk:.3g}, integrated {' / '.join(f'{v:.3g}' for v in integrated)}, "
+                        f"ramp {ramp:.3g}")
+        print(f"  {name:28} " + "; ".join(text))
 
 
 def contact_replay(d: dict, c: "ContactEstimator", settings, noise: float, seed: int, start: float) -> tuple:
@@ -181,7 +191,7 @@ def main() -> None:
     parser.add_argument("--start", type=float, default=0.9)
     parser.add_argument("--stop", type=float, default=2.2)
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
-    parser.add_argument("--variants", type=int, default=7, help="how many of the settings variants to run (peg)")
+    parser.add_argument("--variants", type=int, default=8, help="how many of the settings variants to run (peg)")
     args = parser.parse_args()
     if args.estimator == "contact":
         contact_monte_carlo(args)

@@ -27,12 +27,12 @@ and the force (d = 3):
 - sliding (the chamfer, CHAMFER, and the bore, BORE): the contact's phases the wrench's model
   describes. The impacts (the first touch before CHAMFER[0], the fall and the wall's impact
   between CHAMFER[1] and BORE[0]) are left out: no walk predicts a step, and the samples before
-  the manoeuvre detector flags one carry NEES of hundreds (printed);
+  the manoeuvre detector flags one carry NEES of thousands (their windows' mean printed);
 - the bore alone, the hole over BORE (to 1.5 s) and the force over BORE_FORCE (to STOP): at about
   1.6 s the peg takes a new contact in the bore and the hole's covariance falls to its considered
   floor (law_hole_std) some 100 ms before its estimate reaches the hole (NEES 15-35 over 1.6-1.8 s),
-  then the estimate sits micrometres from the hole under that 30 um floor (NEES ~0.01): printed,
-  docs/assembly.md's Limits.
+  then the estimate sits micrometres from the hole under that 30 um floor (NEES ~0.01): the mean
+  after 1.5 s printed, docs/assembly.md's Limits.
 """
 from __future__ import annotations
 
