@@ -26,15 +26,18 @@ random walk over tau = 20, 50 and 100 ms (rms of the second difference over tau,
 a rate that is a random walk of that density gives it), and the rms of its ramps (least-squares
 slopes).
 
-ContactEstimator (--estimator contact): scenarios/contact_estimation.yaml recorded once without
-the estimator, ContactEKF replayed from 0.2 s before the touch to the end (the press at rest),
-noise y_std (1e-5 rad); the truth is the plane's force on the tool (normal_force +
-friction_force; the estimator knows the payload) and the plant's surface height; ``--set``
-takes ContactEKFSettings names. On data from the filter's own model (a random-walk force, no
-model error) tests/physics/test_contact_estimator_consistency.py asserts the force's NEES.
+ContactEstimator (--estimator contact): first what its noise levels rest on (the plant's force
+rates by phase, the contact law's residual, the process model's one-step error on the plant's
+states); then scenarios/contact_estimation.yaml recorded once without the estimator, ContactEKF
+replayed from the start to the end (the press at rest), noise y_std (1e-5 rad); the truth is the
+plane's force on the tool (normal_force + friction_force; the estimator knows the payload) and
+the plant's surface height; printed for the scenario's settings, the previous ones, and without
+the manoeuvre detector or its hold; ``--set`` takes ContactEKFSettings names. On data from the
+filter's own model (a random-walk force, no model error) tests/physics/test_contact_estimator_consistency.py
+asserts the force's NEES, on the real plant tests/models/test_contact_estimator_scenario_consistency.py.
 
 Usage: python benchmarks/estimator_consistency.py [--estimator peg|contact] [--runs 16] [--noise RAD]
-       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 8]
+       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 8] (contact: 4 variants)
 """
 from __future__ import annotations
 
@@ -144,43 +147,117 @@ def force_rates(d: dict) -> None:
         print(f"  {name:28} " + "; ".join(text))
 
 
-def contact_replay(d: dict, c: "ContactEstimator", settings, noise: float, seed: int, start: float) -> tuple:
+#: the ContactEstimator's settings before they were derived from the plant (contact_estimation.yaml
+#: then): the force a random walk at 100 N/s per sqrt(Hz) throughout, model-error accelerations
+#: 0.05 m/s^2 per sqrt(Hz), the contact law's noise 5 N, applied above 10 N for 10 samples
+CONTACT_BEFORE = dict(acceleration_std=0.05, force_rate_std=100.0, steady_force_rate_std=0.0, contact_model_std=5.0,
+                      contact_threshold=10.0, contact_samples=10, manoeuvre_hold=0)
+SETTLE = 0.1  # s after the touch: the impact's transient, left out of "in contact"
+
+
+def contact_statistics(d: dict, kernels) -> None:
+    """What the ContactEstimator's noise levels rest on: the plant's normal-force rate by phase (rms
+    of the change per sample / sqrt(T), and the largest change per sample, whose 0.5-1 times is
+    the walk's change per sample by Bar-Shalom, Li, Kirubarajan 2001, section 6.3.3), the contact
+    law's residual, and the process model's one-step error on the plant's own states."""
+    from deltafmi.physics.delta.kinematics import inverse_kinematics
+
+    c = contact_component()
+    t = d["time"]
+    on = np.abs(t / 1e-3 - np.round(t / 1e-3)) < 1e-6
+    t, F, mode = t[on], d["force"][on], d["mode"][on]
+    touch = float(t[np.argmax(mode > 0)])
+    rest = float(t[np.nonzero(np.abs(np.diff(F[:, 2])) > 1e-6)[0][-1] + 1])
+    phases = {"free": (0.0, touch - 1e-3), f"impact ({SETTLE} s)": (touch - 1e-3, touch + SETTLE),
+              "press, ramp": (touch + SETTLE, rest - 0.6), "press, settling": (rest - 0.6, rest), "at rest": (rest, t[-1])}
+    print(f"the plant (touch {touch:.3f} s, the force constant from {rest:.3f} s): normal force rate rms (N/s per "
+          f"sqrt(Hz)), largest change per sample (N) and its 0.5-1 times over sqrt(T) (the walk it asks for); "
+          f"tangential force largest {np.abs(F[:, :2]).max():.3g} N")
+    for name, (lo, hi) in phases.items():
+        m = (t[1:] > lo) & (t[1:] <= hi)
+        step = np.abs(np.diff(F[:, 2]))[m]
+        print(f"  {name:17} rate {np.sqrt(np.mean(step ** 2) / 1e-3):.3g}, largest change {step.max():.3g} N: walk "
+              f"{0.5 * step.max() / np.sqrt(1e-3):.3g}-{step.max() / np.sqrt(1e-3):.3g}")
+    fn, gap, zd = d["fn"][on], d["gap"][on], d["zd"][on]
+    st = c._settings
+    law = fn - (st.contact_stiffness * -gap + st.contact_damping * -zd[:, 2])
+    for value, name in ((2, "CONTACT"), (1, "COLLISION")):
+        m = mode == value
+        print(f"  contact law k (-gap) + c (-gap') against the plant's force in {name} ({m.sum()} samples): "
+              f"largest residual {np.abs(law[m]).max():.3g} N")
+    p, z, u = c.robot_params(), d["z"][on], d["u"][on]
+    errors = []
+    for k in range(len(t) - 1):  # one prediction from the plant's state with its torque and force held
+        q = inverse_kinematics(p, z[k])
+        v = np.asarray(kernels.kinematics(p, q, np.zeros(9)))[57:].reshape(9, 3) @ zd[k]
+        out = np.asarray(kernels.predict(p, q, v, list(u[k]), list(F[k]), 1e-3, st.pole, st.substeps))
+        kin = np.asarray(kernels.kinematics(p, out[:9], out[9:18]))
+        Jv = kin[3:30].reshape(3, 3, 3).transpose(1, 0, 2).reshape(3, 9) / 3.0
+        errors.append(np.abs(Jv @ out[9:18] - zd[k + 1]).max())
+    errors = np.array(errors) / np.sqrt(1e-3)  # the velocity's error over sqrt(T): m/s^2 per sqrt(Hz)
+    for name, (lo, hi) in phases.items():
+        m = (t[:-1] >= lo) & (t[:-1] < hi)
+        print(f"  process model's one-step velocity error / sqrt(T), {name:17}: rms {np.sqrt(np.mean(errors[m] ** 2)):.2g}, "
+              f"largest {errors[m].max():.2g} m/s^2 per sqrt(Hz)")
+
+
+def contact_replay(d: dict, c: "ContactEstimator", settings, kernels, noise: float, seed: int) -> tuple:
+    """(times, force NEES, surface NEES, manoeuvres) of one seeded run from the first sample."""
     readout, ekf, t = Readout(noise, 0.0, seed), None, d["time"]
     rows = []
-    for k in range(int(round(start / 1e-3)), int(round(t[-1] / 1e-3)) + 1):
+    for k in range(1, int(round(t[-1] / 1e-3)) + 1):
         i = int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1
         y = [readout.read(float(v), k, j) for j, v in enumerate(d["y"][i])]
         if ekf is None:
-            ekf = ContactEKF(c.robot_params(), settings, y)
+            ekf = ContactEKF(c.robot_params(), settings, y, kernels=kernels)
         est = ekf.step(y, d["u"][i])
         ef, es = est.force - d["force"][i], est.surface_height - d["surface"][i]
         rows.append((t[i], ef @ np.linalg.solve(ekf.P[18:21, 18:21], ef), es * es / ekf.P[21, 21]))
     a = np.array(rows)
-    return a[:, 0], a[:, 1], a[:, 2]
+    return a[:, 0], a[:, 1], a[:, 2], ekf.manoeuvres
 
 
 def contact_monte_carlo(args) -> None:
+    from deltafmi.builder.codegen import use_compiled_functions
+    from deltafmi.models.contact_estimator import ContactEstimator
+
+    compiled = use_compiled_functions(ContactEstimator)
     c = contact_component()
+    kernels = c.native_functions  # compiled if a C compiler is there: the same numbers, faster
     noise = args.noise or c._settings.y_std
     with tempfile.TemporaryDirectory() as tmp:
         d = contact_truth(Path(tmp))
+    contact_statistics(d, kernels)
+    on = np.abs(d["time"] / 1e-3 - np.round(d["time"] / 1e-3)) < 1e-6
+    rest = float(d["time"][on][np.nonzero(np.abs(np.diff(d["force"][on][:, 2])) > 1e-6)[0][-1] + 1])
     touch = float(d["time"][np.argmax(d["mode"] > 0)])
-    settings = replace(c._settings, **{k: float(v) for k, v in (s.split("=", 1) for s in args.set)})
-    F, S = [], []
-    began = time.perf_counter()
-    for r in range(args.runs):
-        t, f, s = contact_replay(d, c, settings, noise, 1000 + r, touch - 0.2)
-        F.append(f)
-        S.append(s)
-    F, S, R = np.array(F), np.array(S), args.runs
-    print(f"ContactEstimator: {R} runs from {touch - 0.2:.3f} s (touch {touch:.3f} s), noise {noise:g} rad, "
-          f"{time.perf_counter() - began:.0f} s; settings changed: {args.set or 'none'}")
-    phases = {"free": t < touch, "impact (0.3 s)": (t >= touch) & (t < touch + 0.3), "pressing": t >= touch + 0.3,
-              "last second": t > t[-1] - 1.0}
-    for name, nees, dof in (("force", F, 3), ("surface", S, 1)):
-        lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
-        print(f"  {name:8} mean NEES " + ", ".join(f"{p}: {nees[:, m].mean():.3g}" for p, m in phases.items())
-              + f", at the end {nees[:, -1].mean():.3g}; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
+    integers = {"contact_samples", "substeps", "manoeuvre_samples", "manoeuvre_hold"}
+    changes = {k: int(v) if k in integers else float(v) for k, v in (s.split("=", 1) for s in args.set)}
+    now = replace(c._settings, **changes)
+    variants = [("now (contact_estimation.yaml's settings, with --set)", now),
+                ("before: the previous settings (a 100 N/s walk throughout, 0.05 m/s^2, the law 5 N from 10 N)",
+                 replace(now, **CONTACT_BEFORE)),
+                ("without the manoeuvre detector (the steady level throughout, in every direction)",
+                 replace(now, force_rate_std=now.steady_force_rate_std, steady_force_rate_std=0.0)),
+                ("the detector without its hold (the fast walk only while the innovations say so)",
+                 replace(now, manoeuvre_hold=0))]
+    R = args.runs
+    print(f"ContactEstimator: {R} runs from the start (touch {touch:.3f} s), noise {noise:g} rad, "
+          f"{'compiled' if compiled else 'Python'} kernels; settings changed: {args.set or 'none'}")
+    for label, settings in variants[:args.variants]:
+        began = time.perf_counter()
+        runs = [contact_replay(d, c, settings, kernels, noise, 1000 + r) for r in range(R)]
+        t = runs[0][0]
+        F, S = np.array([r[1] for r in runs]), np.array([r[2] for r in runs])
+        phases = {f"in contact (from {SETTLE} s after the touch)": t >= touch + SETTLE, "free": t < touch,
+                  f"impact ({SETTLE} s)": (t >= touch) & (t < touch + SETTLE),
+                  "press, ramp": (t >= touch + SETTLE) & (t < rest), "at rest": t >= rest}
+        print(f"{label}: {time.perf_counter() - began:.0f} s, manoeuvres detected per run "
+              f"{np.mean([r[3] for r in runs]):.1f}")
+        for name, nees, dof in (("force", F, 3), ("surface", S, 1)):
+            lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
+            print(f"  {name:8} mean NEES " + ", ".join(f"{p}: {nees[:, m].mean():.3g}" for p, m in phases.items())
+                  + f", at the end {nees[:, -1].mean():.3g}; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
 
 
 def main() -> None:

@@ -59,18 +59,26 @@ CHAMFER, BORE, BORE_FORCE = (1.05, 1.2), (1.3, 1.5), (1.3, STOP)  # s, [start, e
 T = 1e-3
 
 
-def plant_run(folder: Path) -> dict:
-    """The scenario without the estimator up to STOP: the estimator's inputs and the truth."""
-    spec = yaml.safe_load(SCENARIO.read_text())
-    spec["experiment"]["stop"] = STOP
-    del spec["components"]["estimator"]
-    spec["connections"] = [c for c in spec["connections"] if "estimator" not in (c["from"] + c["to"])]
-    spec["outputs"] = ["plant.y[*]", "plant.qw[*]", "controller.u[*]", "controller.tau[*]",
-                       "plant.contact_force[*]", "plant.hole_position[*]", "plant.hole_tilt[*]"]
+def recorded(scenario: Path, folder: Path, stop: float | None, estimator: str, outputs: list) -> dict:
+    """The columns of ``scenario`` run by the master up to ``stop`` (None: its own) without the
+    component ``estimator`` and its connections, recording ``outputs``."""
+    spec = yaml.safe_load(scenario.read_text())
+    if stop is not None:
+        spec["experiment"]["stop"] = stop
+    del spec["components"][estimator]
+    spec["connections"] = [c for c in spec["connections"] if estimator not in (c["from"] + c["to"])]
+    spec["outputs"] = outputs
     path = folder / "plant.yaml"
     path.write_text(yaml.safe_dump(spec, sort_keys=False))
     Master(resolve_system(load_scenario(path)), result=path.with_suffix(".csv")).run()
-    c = columns(path.with_suffix(".csv"))
+    return columns(path.with_suffix(".csv"))
+
+
+def plant_run(folder: Path) -> dict:
+    """The scenario without the estimator up to STOP: the estimator's inputs and the truth."""
+    c = recorded(SCENARIO, folder, STOP, "estimator",
+                 ["plant.y[*]", "plant.qw[*]", "controller.u[*]", "controller.tau[*]", "plant.contact_force[*]",
+                  "plant.hole_position[*]", "plant.hole_tilt[*]"])
 
     def vector(name: str, n: int) -> np.ndarray:
         return np.column_stack([c[f"{name}[{i}]"] for i in range(1, n + 1)])

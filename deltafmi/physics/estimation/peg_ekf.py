@@ -109,7 +109,7 @@ from ..delta.params import DeltaParams
 from ..delta_wrist.params import WristMount
 from ..peg.params import Hole, Peg, PegContact
 from ..wrist.kernels import WristConstants
-from .kalman import white_acceleration_noise
+from .kalman import MANOEUVRE_Z, chi_square_quantile, white_acceleration_noise
 from .peg_contact import HOLE_STATES, linearization_parts, located
 from .peg_kernels import FUNCTIONS, JACOBIAN_COLUMNS
 from .wrist_process import N_REDUCED, tool_pose
@@ -120,8 +120,6 @@ __all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES", "PYTHON_FUNCTI
 _S, _W, _H, _V = slice(0, 12), slice(12, 18), slice(18, 22), slice(22, 28)
 #: the states the prediction's transition involves: s, W and W's rate V (the hole walks alone)
 _Z = np.r_[0:18, 22:28]
-#: the standard normal quantile of the manoeuvre detector's chi-square gate (probability 0.999)
-MANOEUVRE_Z = 3.090
 N_STATES = N_REDUCED + 6 + HOLE_STATES + 6
 #: terms of exp(A T)'s Taylor series in the prediction (:func:`.kalman.transition_matrix`'s default)
 TAYLOR_ORDER = 4
@@ -200,14 +198,6 @@ class PegEKFSettings:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
         if int(self.jacobian_columns) > 18:
             raise ValueError(f"estimator setting jacobian_columns must be <= 18, got {self.jacobian_columns}")
-
-
-def chi_square_quantile(dof: int, z: float) -> float:
-    """The chi-square quantile with dof degrees of freedom at the standard normal quantile z
-    (Wilson-Hilferty: dof (1 - 2 / (9 dof) + z sqrt(2 / (9 dof)))^3; relative error below 2e-3 for
-    dof >= 30 at z = 3.09)."""
-    a = 2.0 / (9.0 * dof)
-    return dof * (1.0 - a + z * np.sqrt(a)) ** 3
 
 
 class PegEstimate(NamedTuple):
