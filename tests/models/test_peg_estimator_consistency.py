@@ -109,9 +109,11 @@ def estimator():
 def monte_carlo_run(d: dict, c: PegEstimator, seed: int) -> np.ndarray:
     """(time, hole NEES, force NEES, hole x-y error, tilt error) at every sample of one seeded run."""
     noise, ekf, t, rows = Readout(c.y_std, 0.0, seed), None, d["time"], []
-    for k in range(int(round(START / T)), int(round(STOP / T)) + 1):
-        i = int(np.searchsorted(t, k * T + 1e-9)) - 1  # the row at the sample instant
-        read = [noise.read(float(v), k, j) for j, v in enumerate(np.r_[d["y"][i], d["qw"][i]])]
+    samples = np.arange(int(round(START / T)), int(round(STOP / T)) + 1)
+    at = np.searchsorted(t, samples * T + 1e-9) - 1  # the rows at the sample instants
+    angles = np.hstack([d["y"], d["qw"]]).tolist()
+    for k, i in zip(samples.tolist(), at.tolist()):
+        read = [noise.read(v, k, j) for j, v in enumerate(angles[i])]
         if ekf is None:
             ekf = PegEKF(c.robot_params(), c._wrist, c._mount, c._hole, c._peg, c._law, c._settings, read[:3], read[3:],
                          functions=c.native_functions)
