@@ -25,7 +25,7 @@ inputs: the servo torques u and the wrist torques tau, held over each sample per
   sqrt(Hz), over one sample it moves as a walk of ~0.01 N/s per sqrt(Hz), and sliding down the
   chamfer its ramps reach ~5 N/s. With a plain random walk wide enough for the chamfer the
   filter was under-confident in the bore (force NEES 0.5 of its 3), and one at the bore's level
-  lagged the ramp there (NEES 50);
+  lagged the ramp there (NEES rising to tens as the ramp steepened);
 - h = [x, y, tilt_x, tilt_y]: the hole (:mod:`.peg_contact`), with a prior (the nominal hole,
   hole_std0, tilt_std0) and a slow random walk (hole_drift_std, tilt_drift_std): the hole does
   not move, but the law's updates are linearised at the estimate, and a walk makes the filter
