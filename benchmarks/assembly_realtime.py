@@ -16,7 +16,9 @@ in the same run, on the same inputs:
   functions its FMU calls (C generated from the same Python), with their estimates compared; and,
   compiled, the extended filter (one linearisation of the contact law, the whole process Jacobian
   every sample) against the defaults (iterated contact update, the Jacobian's columns refreshed
-  in turn), with the hole's error each ends with;
+  in turn), with the hole's error each ends with; and the wrench a plain random walk (the
+  previous wrench model, 1 N/s and 0.05 N m/s per sqrt(Hz) between manoeuvres, its rate states
+  held at zero: the same covariance algebra);
 - ContactEstimator (contact_estimation.yaml, the filter's cycle with its estimate and gap as the
   FMU takes them, in alternating passes): baseline the process model's kernels as Python (the
   path without a C compiler) against the compiled functions its FMU calls (C generated from the
@@ -282,9 +284,13 @@ def peg(folder: Path, stop: float) -> None:
     t = d["time"]
     rows = [int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1 for k in range(900, int(round(stop / 1e-3)) + 1)]
     ekf_settings = replace(c._settings, contact_iterations=1, jacobian_columns=18)
+    walk_settings = replace(c._settings, force_acceleration_std=0.0, moment_acceleration_std=0.0, force_ramp_std=0.0,
+                            moment_ramp_std=0.0, steady_force_rate_std=1.0, steady_moment_rate_std=0.05)
     variants = {"before: Python kernels": (c._settings, PYTHON_FUNCTIONS),
                 "now: compiled kernels (the FMU's)": (c._settings, c.native_functions),
-                "compiled, EKF update, full Jacobian": (ekf_settings, c.native_functions)}
+                "compiled, EKF update, full Jacobian": (ekf_settings, c.native_functions),
+                "compiled, the wrench a random walk (its rate states held at zero)": (walk_settings,
+                                                                                     c.native_functions)}
     runs: Dict[str, list] = {label: [] for label in variants}
     for _ in range(2):
         for label, (settings, functions) in variants.items():
