@@ -10,9 +10,9 @@ hands it a logger of its own that forwards every message to the logger of whoeve
 now. Instances of a run that failed are freed (:meth:`FmuPool.discard`): a case that went
 wrong leaves nothing behind.
 
-An FMI 2.0 instance whose FMU can get and set its state also keeps its last initialization
-(:mod:`deltafmi.apps.studies.snapshots`): a case that initializes it exactly as the case before
-did gets it from an FMU state snapshot instead of reset and initialized again.
+An FMI 2.0 instance whose FMU can get and set its state also keeps its last few distinct
+initializations (:mod:`deltafmi.apps.studies.snapshots`): a case that initializes it exactly as
+an earlier case did gets it from an FMU state snapshot instead of reset and initialized again.
 """
 from __future__ import annotations
 
@@ -34,6 +34,10 @@ from .snapshots import RECORDED_CALLS, InitTranscript, Replay
 __all__ = ["FmuPool"]
 
 Key = Tuple[str, str, str]  # FMU file, interface, instance name
+
+#: initializations kept per pooled instance (an FMU state each): a study's grid repeats each value
+#: of a unit's parameters in many cases, rarely one after the other
+KEEP = 32
 
 
 class _Pooled:
@@ -78,8 +82,8 @@ class _Pooled:
 
 
 class _Pooled2(_Pooled):
-    """FMI 2.0: instantiate once, reset afterwards, and an initialization that repeats the last
-    one restored from its snapshot (see :mod:`deltafmi.apps.studies.snapshots`)."""
+    """FMI 2.0: instantiate once, reset afterwards, and an initialization that repeats one of the
+    last ones restored from its snapshot (see :mod:`deltafmi.apps.studies.snapshots`)."""
 
     def __init__(self, pool: "FmuPool", key: Key, **kwargs: Any) -> None:
         super().__init__(pool, key, **kwargs)
@@ -87,26 +91,24 @@ class _Pooled2(_Pooled):
         self.snapshots = False
         #: initializations restored from a snapshot
         self.restores = 0
-        self._kept: Optional[InitTranscript] = None  # the last initialization, with its snapshot
+        self._kept: List[InitTranscript] = []  # the last initializations with their snapshots, latest used first
         self._new: Optional[InitTranscript] = None  # the initialization under way, being recorded
         self._replay: Optional[Replay] = None  # the initialization under way, checked against _kept
-        self._terminate_due = False  # fmi2Terminate held back (see terminate)
 
     def instantiate(self, **kwargs: Any) -> None:
-        """As :meth:`_Pooled.instantiate`; with a snapshot kept, the reset waits for the first call
-        that differs from the last initialization."""
+        """As :meth:`_Pooled.instantiate`; with snapshots kept, the reset waits for the first call
+        that differs from every kept initialization."""
         self._new = self._replay = None
-        if self.component is not None and self._kept is not None:
+        if self.component is not None and self._kept:
             self._holder = kwargs.pop(self.logger_argument, None)
             self._replay = Replay(self._kept)
             return
-        self._terminate_now()
         super().instantiate(**kwargs)
         if self.snapshots:
             self._new = InitTranscript()
 
     def _through(self, name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Any:
-        """A call of :data:`RECORDED_CALLS`: answered from the last initialization while it matches,
+        """A call of :data:`RECORDED_CALLS`: answered from a kept initialization while one matches,
         else made (and recorded while initializing)."""
         replay = self._replay
         if replay is not None:
@@ -130,23 +132,6 @@ class _Pooled2(_Pooled):
             self._keep(new)
         return result
 
-    def terminate(self) -> int:
-        """fmi2Terminate, held back while the instance keeps a snapshot: made before the next reset
-        or before the instance is freed, and left out when the next case sets the FMU to its
-        snapshot (an FMU may restore the state machine's place with its state or not, and in
-        'terminated' it may take no step after fmi2SetFMUstate; the snapshot replaces everything)."""
-        if not self.snapshots:
-            self._unrecorded()
-            return super().terminate()  # type: ignore[misc]
-        self._terminate_due = True
-        return 0
-
-    def _terminate_now(self) -> None:
-        """The fmi2Terminate held back, if any."""
-        if self._terminate_due:
-            self._terminate_due = False
-            super().terminate()  # type: ignore[misc]
-
     def _unrecorded(self) -> None:
         """Before any other FMI call: the FMU must be real, and an initialization that made such a
         call is not kept."""
@@ -155,10 +140,9 @@ class _Pooled2(_Pooled):
         self._new = None
 
     def _make_real(self) -> None:
-        """The case differs from the last initialization: reset, and make the calls that matched."""
+        """The case differs from every kept initialization: reset, and make the calls that matched."""
         assert self._replay is not None
         matched, self._replay = self._replay.matched(), None
-        self._terminate_now()
         self.reset()  # type: ignore[attr-defined]
         self.resets += 1
         new = self._new = InitTranscript()
@@ -166,40 +150,42 @@ class _Pooled2(_Pooled):
             new.record(call.name, call.args, call.kwargs, getattr(super(_Pooled2, self), call.name))
 
     def _restore(self, transcript: InitTranscript) -> None:
-        """The initialization repeats the kept one: set the FMU to its snapshot."""
+        """The initialization repeats a kept one: set the FMU to its snapshot (which puts it back
+        in the state machine's state it was taken in: after fmi2Terminate, too)."""
         self._replay = None
-        self._terminate_due = False  # the FMU goes back to where the snapshot was taken
         super().setFMUstate(transcript.state)  # type: ignore[misc]
         self.restores += 1
         self.pool.restored += 1
+        if self._kept[0] is not transcript:
+            self._kept.remove(transcript)
+            self._kept.insert(0, transcript)
         for message in transcript.messages:
             self._forward(*message)
 
     def _keep(self, transcript: InitTranscript) -> None:
-        """Initialization done: its snapshot replaces the one kept (none if the FMU cannot give it)."""
-        self._drop_kept()
+        """Initialization done: its snapshot joins the kept ones (none if the FMU cannot give it),
+        the least recently used dropped beyond the pool's limit."""
         try:
             transcript.state = super().getFMUstate()  # type: ignore[misc]
         except Exception:  # noqa: BLE001 - no snapshot: the next case initializes as usual
             return
-        self._kept = transcript
+        self._kept.insert(0, transcript)
+        while len(self._kept) > self.pool.keep:
+            self._free_state(self._kept.pop())
 
-    def _drop_kept(self) -> None:
-        kept, self._kept = self._kept, None
-        if kept is not None and kept.state is not None and self.component is not None:
+    def _free_state(self, transcript: InitTranscript) -> None:
+        if transcript.state is not None and self.component is not None:
             try:
-                super().freeFMUstate(kept.state)  # type: ignore[misc]
+                super().freeFMUstate(transcript.state)  # type: ignore[misc]
             except Exception:  # noqa: BLE001 - the instance is going anyway
                 pass
 
     def free(self) -> None:
-        """Free the snapshot, then the instance."""
+        """Free the snapshots, then the instance."""
         self._replay = self._new = None
-        try:
-            self._terminate_now()
-        except Exception:  # noqa: BLE001 - freed anyway
-            pass
-        self._drop_kept()
+        kept, self._kept = self._kept, []
+        for transcript in kept:
+            self._free_state(transcript)
         super().free()
 
     def _forwarder(self) -> fmi2CallbackFunctions:
@@ -249,7 +235,7 @@ def _unrecorded(name: str) -> Callable[..., Any]:
 for _name in RECORDED_CALLS:
     setattr(_Pooled2, _name, _recorded(_name))
 # every other fmpy call the master may make on an FMI 2.0 instance
-for _name in ("doStep", "cancelStep", "getStatus", "getRealStatus", "getIntegerStatus",
+for _name in ("terminate", "doStep", "cancelStep", "getStatus", "getRealStatus", "getIntegerStatus",
               "getBooleanStatus", "getStringStatus", "setRealInputDerivatives", "getRealOutputDerivatives",
               "enterEventMode", "newDiscreteStates", "enterContinuousTimeMode", "completedIntegratorStep",
               "setTime", "setContinuousStates", "getDerivatives", "getEventIndicators", "getContinuousStates",
@@ -286,10 +272,11 @@ class FmuPool:
     first extraction and removed by :meth:`close`.
     """
 
-    def __init__(self, root: Optional[Path] = None, snapshots: bool = True) -> None:
+    def __init__(self, root: Optional[Path] = None, snapshots: bool = True, keep: int = KEEP) -> None:
         """``snapshots``: FMI 2.0 instances whose FMU can get and set its state restore an
-        initialization that repeats the last one from a snapshot (:mod:`.snapshots`)."""
+        initialization that repeats one of their last ``keep`` from a snapshot (:mod:`.snapshots`)."""
         self.snapshots = snapshots
+        self.keep = keep
         self._own_root = root is None
         self._root: Optional[Path] = None if root is None else Path(root)
         self._idle: Dict[Key, List[_Pooled]] = {}
@@ -325,9 +312,8 @@ class FmuPool:
             fmu = cls(self, key, guid=component.info.md.guid, unzipDirectory=directory,
                       modelIdentifier=component.info.model_identifier(component.interface),
                       instanceName=component.name)
-            if isinstance(fmu, _Pooled2):  # Co-Simulation: an ME unit's event iteration follows initialization
-                fmu.snapshots = (self.snapshots and component.interface == "CS"
-                                 and component.info.can_get_set_state(component.interface))
+            if isinstance(fmu, _Pooled2):
+                fmu.snapshots = self.snapshots and component.info.can_get_set_state(component.interface)
             return fmu
 
     def give_back(self, fmu: _Pooled) -> None:
