@@ -227,3 +227,40 @@ metrics:
             assert fresh.status == result.status == OK
             for name, column in fresh.timeseries.items():
                 assert np.array_equal(result.timeseries[name], column), (keep, result.case, name)
+
+
+def test_fmi3_units_are_restored_too(tmp_path):
+    """The flagship built as FMI 3.0 (fmi3GetFMUState right after fmi3ExitInitializationMode,
+    fmi3SetFMUState instead of fmi3Reset and initialized again): the records of a pool without
+    snapshots, bit for bit. The controller, a sampled FMI 3.0 unit, has a periodic Clock whose
+    interval the master asks in initialization (fmi3GetIntervalDecimal, into arrays of its own that
+    a transcript does not fill): it is initialized as usual in every case."""
+    (tmp_path / "flagship3.yaml").write_text(f"fmi_version: 3\n{SCENARIO.read_text()}")
+    study = tmp_path / "fmi3.yaml"
+    study.write_text("""\
+scenario: flagship3.yaml
+vary:
+  zip:
+    controller.pole: [5, 5, 8, 5]
+    plant.payload: [0.0, 2.0, 2.0, 0.0]
+    experiment.stop: [0.2, 0.2, 0.2, 0.2]
+metrics:
+  max_error: {signal: plant.z - trajectory.r, statistic: max}
+""")
+    planned = plan_study(load_study(study))
+    template = CaseTemplate(planned.plan, planned.fmu_files)
+    records, restored = {}, {}
+    for snapshots in (False, True):
+        pool = FmuPool(snapshots=snapshots)
+        try:
+            records[snapshots] = [run_case(template, pool, c.id, c.values, keep_timeseries=True)
+                                  for c in planned.cases]
+            restored[snapshots] = pool.restored
+        finally:
+            pool.close()
+    # trajectory in cases 1-3, plant in 2 and 3
+    assert restored == {False: 0, True: 3 + 2}
+    for fresh, result in zip(records[False], records[True]):
+        assert fresh.status == result.status == OK, (fresh.error, result.error)
+        for name, column in fresh.timeseries.items():
+            assert np.array_equal(result.timeseries[name], column), (result.case, name)

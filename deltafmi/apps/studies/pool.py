@@ -10,7 +10,7 @@ hands it a logger of its own that forwards every message to the logger of whoeve
 now. Instances of a run that failed are freed (:meth:`FmuPool.discard`): a case that went
 wrong leaves nothing behind.
 
-An FMI 2.0 instance whose FMU can get and set its state also keeps its last few distinct
+An instance whose FMU can get and set its state (FMI 2.0 or 3.0) also keeps its last few distinct
 initializations (:mod:`deltafmi.apps.studies.snapshots`): a case that initializes it exactly as
 an earlier case did gets it from an FMU state snapshot instead of reset and initialized again.
 """
@@ -29,7 +29,7 @@ from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from deltafmi.master.scenario.system import ResolvedComponent
 
-from .snapshots import RECORDED_CALLS, InitTranscript, Replay
+from .snapshots import RECORDED_CALLS, RECORDED_CALLS3, InitTranscript, Replay
 
 __all__ = ["FmuPool"]
 
@@ -81,9 +81,12 @@ class _Pooled:
         raise NotImplementedError
 
 
-class _Pooled2(_Pooled):
-    """FMI 2.0: instantiate once, reset afterwards, and an initialization that repeats one of the
-    last ones restored from its snapshot (see :mod:`deltafmi.apps.studies.snapshots`)."""
+class _Snapshotting(_Pooled):
+    """Instantiate once, reset afterwards, and an initialization that repeats one of the last ones
+    restored from its snapshot (see :mod:`deltafmi.apps.studies.snapshots`)."""
+
+    #: the fmpy methods that get, set and free an FMU state
+    get_state, set_state, free_state = "getFMUstate", "setFMUstate", "freeFMUstate"
 
     def __init__(self, pool: "FmuPool", key: Key, **kwargs: Any) -> None:
         super().__init__(pool, key, **kwargs)
@@ -118,7 +121,7 @@ class _Pooled2(_Pooled):
                     self._restore(replay.transcript)
                 return list(call.result) if isinstance(call.result, list) else call.result
             self._make_real()
-        live = getattr(super(_Pooled2, self), name)
+        live = getattr(super(_Snapshotting, self), name)
         new = self._new
         if new is None:
             return live(*args, **kwargs)
@@ -147,13 +150,13 @@ class _Pooled2(_Pooled):
         self.resets += 1
         new = self._new = InitTranscript()
         for call in matched:
-            new.record(call.name, call.args, call.kwargs, getattr(super(_Pooled2, self), call.name))
+            new.record(call.name, call.args, call.kwargs, getattr(super(_Snapshotting, self), call.name))
 
     def _restore(self, transcript: InitTranscript) -> None:
         """The initialization repeats a kept one: set the FMU to its snapshot (which puts it back
         in the state machine's state it was taken in: after fmi2Terminate, too)."""
         self._replay = None
-        super().setFMUstate(transcript.state)  # type: ignore[misc]
+        getattr(super(), self.set_state)(transcript.state)
         self.restores += 1
         self.pool.restored += 1
         if self._kept[0] is not transcript:
@@ -166,7 +169,7 @@ class _Pooled2(_Pooled):
         """Initialization done: its snapshot joins the kept ones (none if the FMU cannot give it),
         the least recently used dropped beyond the pool's limit."""
         try:
-            transcript.state = super().getFMUstate()  # type: ignore[misc]
+            transcript.state = getattr(super(), self.get_state)()
         except Exception:  # noqa: BLE001 - no snapshot: the next case initializes as usual
             return
         self._kept.insert(0, transcript)
@@ -176,7 +179,7 @@ class _Pooled2(_Pooled):
     def _free_state(self, transcript: InitTranscript) -> None:
         if transcript.state is not None and self.component is not None:
             try:
-                super().freeFMUstate(transcript.state)  # type: ignore[misc]
+                getattr(super(), self.free_state)(transcript.state)
             except Exception:  # noqa: BLE001 - the instance is going anyway
                 pass
 
@@ -188,6 +191,14 @@ class _Pooled2(_Pooled):
             self._free_state(transcript)
         super().free()
 
+    def _recording(self, message: Tuple[Any, ...]) -> None:
+        if self._new is not None:
+            self._new.messages.append(message)
+
+
+class _Pooled2(_Snapshotting):
+    """FMI 2.0: the logger callbacks of :class:`_Snapshotting`."""
+
     def _forwarder(self) -> fmi2CallbackFunctions:
         from fmpy import calloc, free
 
@@ -198,50 +209,65 @@ class _Pooled2(_Pooled):
         return callbacks
 
     def _forward(self, env: Any, instance: Any, status: int, category: Any, message: Any) -> None:
-        if self._new is not None:
-            self._new.messages.append((env, instance, status, category, message))
+        self._recording((env, instance, status, category, message))
         holder = self._holder
         if holder is not None and holder.logger:
             holder.logger(env, instance, status, category, message)
 
 
-class _Pooled3(_Pooled):
+class _Pooled3(_Snapshotting):
+    """FMI 3.0: the log message callback of :class:`_Snapshotting`."""
+
     logger_argument = "logMessage"
+    get_state, set_state, free_state = "getFMUState", "setFMUState", "freeFMUState"
 
     def _forwarder(self) -> Callable[..., None]:
         return self._forward  # fmpy wraps it in an fmi3LogMessageCallback and keeps that
 
     def _forward(self, env: Any, status: int, category: Any, message: Any) -> None:
+        self._recording((env, status, category, message))
         holder = self._holder
         if holder is not None:
             holder(env, status, category, message)
 
 
 def _recorded(name: str) -> Callable[..., Any]:
-    def method(self: _Pooled2, *args: Any, **kwargs: Any) -> Any:
+    def method(self: _Snapshotting, *args: Any, **kwargs: Any) -> Any:
         return self._through(name, args, kwargs)
     method.__name__ = name
     return method
 
 
 def _unrecorded(name: str) -> Callable[..., Any]:
-    def method(self: _Pooled2, *args: Any, **kwargs: Any) -> Any:
+    def method(self: _Snapshotting, *args: Any, **kwargs: Any) -> Any:
         self._unrecorded()
-        return getattr(super(_Pooled2, self), name)(*args, **kwargs)
+        return getattr(super(_Snapshotting, self), name)(*args, **kwargs)
     method.__name__ = name
     return method
 
 
-for _name in RECORDED_CALLS:
-    setattr(_Pooled2, _name, _recorded(_name))
-# every other fmpy call the master may make on an FMI 2.0 instance
-for _name in ("terminate", "doStep", "cancelStep", "getStatus", "getRealStatus", "getIntegerStatus",
-              "getBooleanStatus", "getStringStatus", "setRealInputDerivatives", "getRealOutputDerivatives",
-              "enterEventMode", "newDiscreteStates", "enterContinuousTimeMode", "completedIntegratorStep",
-              "setTime", "setContinuousStates", "getDerivatives", "getEventIndicators", "getContinuousStates",
-              "getNominalsOfContinuousStates", "getDirectionalDerivative", "getFMUstate", "setFMUstate",
-              "freeFMUstate", "serializeFMUstate", "deSerializeFMUstate", "setDebugLogging"):
-    setattr(_Pooled2, _name, _unrecorded(_name))
+#: fmpy methods that neither change an instance nor depend on its state (or that the pool makes itself)
+_UNWRAPPED = frozenset({"instantiate", "freeInstance", "freeLibrary", "reset", "getVersion", "getTypesPlatform",
+                        "getNumberOfContinuousStates", "getNumberOfEventIndicators",
+                        "getNumberOfVariableDependencies", "getVariableDependencies"})
+
+
+def _wrap(cls: type, recorded: Tuple[str, ...], *fmpy_classes: type) -> None:
+    """Every other fmpy call on an instance of ``cls``: the FMU made real first (and the
+    initialization under way not kept), whatever the master calls."""
+    for name in recorded:
+        setattr(cls, name, _recorded(name))
+    names = {n for c in fmpy_classes for n, v in vars(c).items() if callable(v) and n[:1].islower()
+             and not n.startswith("fmi")}
+    for c in fmpy_classes:
+        for base in c.__mro__:
+            names |= {n for n, v in vars(base).items() if callable(v) and n[:1].islower() and not n.startswith("fmi")}
+    for name in sorted(names - set(recorded) - _UNWRAPPED):
+        setattr(cls, name, _unrecorded(name))
+
+
+_wrap(_Pooled2, RECORDED_CALLS, FMU2Slave, FMU2Model)
+_wrap(_Pooled3, RECORDED_CALLS3, FMU3Slave, FMU3Model)
 
 
 # fmpy binds the fmi2 functions of classes whose name starts with "FMU2"
@@ -273,8 +299,8 @@ class FmuPool:
     """
 
     def __init__(self, root: Optional[Path] = None, snapshots: bool = True, keep: int = KEEP) -> None:
-        """``snapshots``: FMI 2.0 instances whose FMU can get and set its state restore an
-        initialization that repeats one of their last ``keep`` from a snapshot (:mod:`.snapshots`)."""
+        """``snapshots``: instances whose FMU can get and set its state restore an initialization
+        that repeats one of their last ``keep`` from a snapshot (:mod:`.snapshots`)."""
         self.snapshots = snapshots
         self.keep = keep
         self._own_root = root is None
@@ -312,8 +338,7 @@ class FmuPool:
             fmu = cls(self, key, guid=component.info.md.guid, unzipDirectory=directory,
                       modelIdentifier=component.info.model_identifier(component.interface),
                       instanceName=component.name)
-            if isinstance(fmu, _Pooled2):
-                fmu.snapshots = self.snapshots and component.info.can_get_set_state(component.interface)
+            fmu.snapshots = self.snapshots and component.info.can_get_set_state(component.interface)
             return fmu
 
     def give_back(self, fmu: _Pooled) -> None:

@@ -18,9 +18,11 @@ real, and from there it initializes as it always did (and records the new transc
 whose parameters take a new value is always initialized afresh. Values are compared bit for bit
 (``-0.0`` is not ``0.0``; a NaN matches the same NaN), ``1`` is not ``1.0``.
 
-Only FMUs that declare ``canGetAndSetFMUstate`` take snapshots (Co-Simulation and Model Exchange:
-a Model Exchange unit's snapshot is taken in Event Mode, where its event iteration goes on); any
-call of another FMI function before initialization ends makes the instance real first.
+Only FMUs that declare ``canGetAndSetFMUstate`` take snapshots (FMI 2.0 and 3.0, Co-Simulation
+and Model Exchange: a Model Exchange unit's snapshot is taken in Event Mode, where its event
+iteration goes on; FMI 3.0 names the calls after its types and ``fmi3GetFMUState``); any call of
+another FMI function before initialization ends makes the instance real first (an FMI 3.0 unit
+whose Clocks' intervals the master asks for in initialization is always initialized).
 """
 from __future__ import annotations
 
@@ -29,11 +31,15 @@ from array import array
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
-__all__ = ["InitTranscript", "RECORDED_CALLS", "Replay", "call_key"]
+__all__ = ["InitTranscript", "RECORDED_CALLS", "RECORDED_CALLS3", "Replay", "call_key"]
 
-#: the fmpy methods recorded between instantiation and the end of initialization
+#: the fmpy methods recorded between instantiation and the end of initialization (FMI 2.0, FMI 3.0)
 RECORDED_CALLS = ("setupExperiment", "setReal", "setInteger", "setBoolean", "setString", "getReal", "getInteger",
                   "getBoolean", "getString", "enterInitializationMode", "exitInitializationMode")
+RECORDED_CALLS3 = tuple(f"{way}{kind}" for way in ("set", "get")
+                        for kind in ("Float32", "Float64", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32",
+                                     "Int64", "UInt64", "Boolean", "String", "Binary")) + (
+    "enterInitializationMode", "exitInitializationMode")
 
 
 def _exact(value: Any) -> Any:
