@@ -17,7 +17,7 @@ import hashlib
 import threading
 import time as _time
 from pathlib import Path
-from typing import Any, Dict, List, Mapping, Optional, Tuple
+from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
 
 from distributed import WorkerPlugin
 
@@ -135,11 +135,13 @@ class StudyPlugin(WorkerPlugin):
 
 
 def run_cases_task(fingerprint: str, cases: List[Tuple[int, Dict[str, Any]]],
-                   keep_timeseries: bool, topic: Optional[str] = None) -> List[CaseResult]:
-    """The Dask task of a batch of cases ``(id, values)`` (runs on a worker). With ``topic``, the
-    cases' results are also sent to the client as they finish, as Dask events of that topic (a
-    list of :func:`result_message`, at most every :data:`STREAM_SECONDS`; the client subscribes):
-    what a batch has done reaches the client's result files before the batch ends."""
+                   keep_timeseries: bool, topic: Optional[str] = None) -> List[Union[CaseResult, int]]:
+    """The Dask task of a batch of cases ``(id, values)`` (runs on a worker): their results. With
+    ``topic``, the cases' results are sent to the client as they finish, as Dask events of that
+    topic (a list of :func:`result_message`, at most every :data:`STREAM_SECONDS`; the client
+    subscribes): what a batch has done reaches the client's result files before the batch ends.
+    The task then returns only the id of a case whose result went as an event (the client checks
+    that it came), and the results it did not send."""
     from distributed import get_worker
 
     cache = worker_cache()
@@ -149,7 +151,7 @@ def run_cases_task(fingerprint: str, cases: List[Tuple[int, Dict[str, Any]]],
     except ValueError:  # not on a worker (called directly)
         worker, address = None, "local"
     template = cache.template(fingerprint)
-    results: List[CaseResult] = []
+    results: List[Union[CaseResult, int]] = []
     unsent: List[Dict[str, Any]] = []
     sent = _time.monotonic()
 
@@ -157,6 +159,8 @@ def run_cases_task(fingerprint: str, cases: List[Tuple[int, Dict[str, Any]]],
         nonlocal unsent, sent
         if unsent:
             worker.log_event(topic, unsent)
+            n = len(unsent)
+            results[-n:] = [int(message["case"]) for message in unsent]  # sent: the id is enough
         unsent, sent = [], _time.monotonic()
 
     streaming = topic is not None and worker is not None
