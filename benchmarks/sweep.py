@@ -226,7 +226,7 @@ def worker_cpu(planned: PlannedStudy, cases: List[Case], snapshots: bool = True)
         pool.close()
     rest = [w - s for w, s in zip(whole[1:], stepping[1:])]
     return {"case": 1e3 * statistics.median(whole[1:]), "stepping": 1e3 * statistics.median(stepping[1:]),
-            "rest": 1e3 * statistics.median(rest)}
+            "rest": 1e3 * statistics.median(rest), "restored": pool.restored / max(1, len(cases) - 1)}
 
 
 def main() -> None:
@@ -284,9 +284,11 @@ def main() -> None:
         pairs = [(worker_cpu(planned, cases, snapshots=False), worker_cpu(planned, cases)) for _ in range(5)]
         cpu = {k: statistics.median(after[k] for _, after in pairs) for k in pairs[0][1]}
         plain = {k: statistics.median(before[k] for before, _ in pairs) for k in pairs[0][0]}
+        units = len(planned.system.components)
         print(f"  per-case CPU on a worker (no Dask, this process, medians of 5 x {n - 1} cases): {cpu['case']:.2f} ms "
               f"a case, of which stepping {cpu['stepping']:.2f} ms; the rest (reset or snapshot, start values, "
-              f"initialization, wiring, metrics) {cpu['rest']:.2f} ms; every unit reset and initialized "
+              f"initialization, wiring, metrics) {cpu['rest']:.2f} ms, {cpu['restored']:.1f} of the {units} units "
+              f"restored from a snapshot per case; every unit reset and initialized "
               f"(no snapshots, same run): {plain['rest']:.2f} ms, {plain['rest'] / cpu['rest']:.2f}x")
         # the whole sweep's CPU, results streamed per case and per task as before, alternating
         sides: Dict[bool, List[Dict[str, float]]] = {False: [], True: []}
