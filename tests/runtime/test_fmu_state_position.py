@@ -168,3 +168,25 @@ def _states(fmu) -> list:
     x = (ctypes.c_double * 3)()
     fmu.getContinuousStates(x, 3)
     return list(x)
+
+
+def test_in_a_c_host_a_state_set_after_terminate_steps_on(tmp_path):
+    """The plain C host (tests/c_host/host.c, mode restore): fmi2GetFMUstate halfway, the steps to
+    the end, fmi2Terminate, fmi2SetFMUstate, and the second half again gives the same rows bit
+    for bit (the lags against their closed form)."""
+    import subprocess
+
+    from conftest import NATIVE, ROOT
+
+    exe = tmp_path / "host"
+    subprocess.run(["cc", "-O2", "-Wall", f"-I{NATIVE}", str(ROOT / "tests" / "c_host" / "host.c"), "-o", str(exe),
+                    "-ldl", "-lm"], check=True)
+    lags = Lags(2, tmp_path / "lags")
+    run = subprocess.run([str(exe), lags.dir, lags.md.coSimulation.modelIdentifier, lags.md.guid, "restore", "1.0",
+                          str(H), *map(str, lags.x)], capture_output=True, text=True, timeout=600,
+                         env={"PATH": "/usr/bin:/bin"})
+    assert run.returncode == 0, run.stderr
+    first, again = run.stdout.split("again\n")
+    assert first == again and len(first.split()) == 10
+    t, *x = map(float, first.split()[-1].split(","))
+    np.testing.assert_allclose(x, _closed_form(t, np.zeros(3)), atol=1e-7)
