@@ -257,11 +257,8 @@ def _wrap(cls: type, recorded: Tuple[str, ...], *fmpy_classes: type) -> None:
     initialization under way not kept), whatever the master calls."""
     for name in recorded:
         setattr(cls, name, _recorded(name))
-    names = {n for c in fmpy_classes for n, v in vars(c).items() if callable(v) and n[:1].islower()
-             and not n.startswith("fmi")}
-    for c in fmpy_classes:
-        for base in c.__mro__:
-            names |= {n for n, v in vars(base).items() if callable(v) and n[:1].islower() and not n.startswith("fmi")}
+    names = {name for fmpy_class in fmpy_classes for base in fmpy_class.__mro__ for name, value in vars(base).items()
+             if callable(value) and name[:1].islower() and not name.startswith("fmi")}  # fmi*: the C functions
     for name in sorted(names - set(recorded) - _UNWRAPPED):
         setattr(cls, name, _unrecorded(name))
 
