@@ -170,19 +170,14 @@ def _states(fmu) -> list:
     return list(x)
 
 
-def test_in_a_c_host_a_state_set_after_terminate_steps_on(tmp_path):
+def test_in_a_c_host_a_state_set_after_terminate_steps_on(c_host, tmp_path):
     """The plain C host (tests/c_host/host.c, mode restore): fmi2GetFMUstate halfway, the steps to
     the end, fmi2Terminate, fmi2SetFMUstate, and the second half again gives the same rows bit
     for bit (the lags against their closed form)."""
     import subprocess
 
-    from conftest import NATIVE, ROOT
-
-    exe = tmp_path / "host"
-    subprocess.run(["cc", "-O2", "-Wall", f"-I{NATIVE}", str(ROOT / "tests" / "c_host" / "host.c"), "-o", str(exe),
-                    "-ldl", "-lm"], check=True)
     lags = Lags(2, tmp_path / "lags")
-    run = subprocess.run([str(exe), lags.dir, lags.md.coSimulation.modelIdentifier, lags.md.guid, "restore", "1.0",
+    run = subprocess.run([str(c_host), lags.dir, lags.md.coSimulation.modelIdentifier, lags.md.guid, "restore", "1.0",
                           str(H), *map(str, lags.x)], capture_output=True, text=True, timeout=600,
                          env={"PATH": "/usr/bin:/bin"})
     assert run.returncode == 0, run.stderr
