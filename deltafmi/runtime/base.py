@@ -40,10 +40,15 @@ def _unchangeable(value: Any) -> bool:
     return False
 
 
-def _copied(attributes: dict) -> dict:
+#: the key under which an internal state lists the attributes it shares (not a str: no attribute's name)
+_SHARED = ("deltafmi", "shared")
+
+
+def _copied(attributes: dict, shared: Optional[frozenset] = None) -> dict:
     """A deep copy of ``attributes`` in which values that cannot change in place are shared (the
-    others copied together, so that the references among them are kept)."""
-    keep = {k for k, v in attributes.items() if _unchangeable(v)}
+    others copied together, so that the references among them are kept); ``shared``: the keys of
+    those values when known (the values of a snapshot: looking through them again would give the same)."""
+    keep = frozenset(k for k, v in attributes.items() if _unchangeable(v)) if shared is None else shared
     fresh = copy.deepcopy({k: v for k, v in attributes.items() if k not in keep})
     return {k: v if k in keep else fresh[k] for k, v in attributes.items()}
 
@@ -193,13 +198,18 @@ class Component(ValueHolder):
         copy of the component's own attributes (those that cannot change in place, numbers and
         tuples of them, are kept as they are). Override with :meth:`restore_internal_state`
         when an attribute cannot be copied (a handle of another library)."""
-        return _copied({k: v for k, v in vars(self).items() if k not in RUNTIME_ATTRIBUTES})
+        attributes = {k: v for k, v in vars(self).items() if k not in RUNTIME_ATTRIBUTES}
+        shared = frozenset(k for k, v in attributes.items() if _unchangeable(v))
+        state = _copied(attributes, shared)
+        state[_SHARED] = shared  # type: ignore[index]
+        return state
 
     def restore_internal_state(self, state: Any) -> None:
         """Restore what :meth:`internal_state` returned (which stays valid for another restore)."""
         for key in [k for k in vars(self) if k not in RUNTIME_ATTRIBUTES]:
             delattr(self, key)
-        vars(self).update(_copied(state))
+        shared = state.get(_SHARED)  # a state saved by an older runtime has none
+        vars(self).update(_copied({k: v for k, v in state.items() if k != _SHARED}, shared))
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` to ``t + h``. Override only for purely discrete components."""

@@ -731,6 +731,7 @@ class FmuInstance:
         return {
             "real": comp._real.copy(), "int": comp._int.copy(), "str": list(comp._str),
             "internal": comp.internal_state(), "time": self.time,
+            "stop_time": self.stop_time, "tolerance": self.tolerance,
             "next_time_event": self._next_time_event, "in_initialization": self.in_initialization,
             "terminate_requested": self.terminate_requested,
             "pre_indicators": self._cs.pre_indicators_view.copy() if self._cs.pre_indicators_valid else None,
@@ -744,6 +745,9 @@ class FmuInstance:
         comp._str[:] = state["str"]
         comp.restore_internal_state(state["internal"])
         self.time = state["time"]
+        # the experiment's set-up it was taken under (a snapshot from an older runtime has none)
+        self.stop_time = state.get("stop_time", self.stop_time)
+        self.tolerance = state.get("tolerance", self.tolerance)
         self.partials.invalidate()
         self._next_time_event = state["next_time_event"]
         self.in_initialization = state["in_initialization"]

@@ -250,3 +250,23 @@ def _journal(path: Path):
 
 def _journal_rows(path: Path) -> int:
     return len(_journal(path)) if path.exists() else 0
+
+
+def test_a_streamed_case_whose_result_never_came_runs_again(cluster):
+    """A task that streamed its results returns their case ids only; one of them the client has
+    no result of (its event lost) runs again, and the results the task did not stream are kept."""
+    from distributed import Client
+
+    from deltafmi.apps.studies.batches import Batch, Batcher
+    from deltafmi.apps.studies.cases import Case
+    from deltafmi.apps.studies.driver import _results
+    from deltafmi.apps.studies.runner import OK, CaseResult
+
+    cases = [Case(i, {"x": float(i)}) for i in range(3)]
+    tail = CaseResult(2, {"x": 2.0}, {"m": 1.0}, OK)
+    batcher = Batcher([], 1, streamed=True)
+    with Client(cluster) as client:
+        future = client.submit(lambda: [0, 1, tail], pure=False)
+        returned = _results(future, Batch(cases), batcher, recorded={0})
+    assert [r.case for r in returned] == [2]
+    assert batcher and [c.id for c in batcher.next().cases] == [1]

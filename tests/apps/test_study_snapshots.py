@@ -1,12 +1,12 @@
-"""A pooled unit whose initialization repeats the case before's is restored from an FMU state
-snapshot (fmi2GetFMUstate right after its initialization, fmi2SetFMUstate instead of reset and
-initialized again): the cases record exactly what a plain ``deltafmi run`` of each records, bit for
-bit, on a real Dask worker; and a unit whose parameters change is initialized afresh.
+"""A pooled unit whose initialization repeats one of its earlier ones is restored from an FMU
+state snapshot (fmi2GetFMUstate right after that initialization, fmi2SetFMUstate instead of reset
+and initialized again): the cases record exactly what a plain ``deltafmi run`` of each records, bit
+for bit, on a real Dask worker; and a unit whose parameters take a new value is initialized afresh.
 
 The flagship's trajectory never changes in these studies, the controller only where its pole does
-(it is restored when the case before had the same pole: the values copied into it at
+(it is restored when an earlier case had the same pole: the values copied into it at
 initialization, from the trajectory and the plant, are the same), the plant (Model Exchange, its
-payload varied) is always initialized.
+payload varied) where an earlier case had the same payload.
 """
 from __future__ import annotations
 
@@ -72,8 +72,9 @@ result: {{timeseries: true}}
     restored = restored_on_workers(client) - before
     assert report.failed == 0 and len(results) == 5
     # one worker ran the five cases in order: the trajectory was restored in the four after the
-    # first, the controller in the two whose pole was the case before's (cases 1 and 3)
-    assert restored == 4 + 2
+    # first, the controller in the three whose pole an earlier case had (cases 1, 3 and 4), the
+    # plant (Model Exchange) in the two whose payload an earlier case had (cases 2 and 4)
+    assert restored == 4 + 3 + 2
     assert_same_as_plain(study, results, tmp_path)
     by_case = {r.case: r for r in results}
     assert not np.array_equal(by_case[0].timeseries["controller.u[1]"], by_case[2].timeseries["controller.u[1]"])
@@ -103,10 +104,11 @@ metrics:
     finally:
         pool.close()
     # case 1: trajectory and controller as in case 0 (the plant's payload is not copied into the
-    # controller at initialization); case 2: the trajectory's dwell changed, so the trajectory is
-    # initialized, while the controller is restored: what the trajectory gives it at t = 0 (the
-    # first waypoint, at rest) does not depend on the dwell; case 3 repeats case 2 but for the plant
-    assert np.diff([0] + restored).tolist() == [0, 2, 1, 2]
+    # controller at initialization), the plant's payload new; case 2: the trajectory's dwell
+    # changed, so the trajectory is initialized, while the controller is restored (what the
+    # trajectory gives it at t = 0, the first waypoint at rest, does not depend on the dwell) and
+    # the plant too (case 1's payload); case 3 repeats case 2
+    assert np.diff([0] + restored).tolist() == [0, 2, 2, 3]
     assert_same_as_plain(study, results, tmp_path)
     # the changed dwell holds the reference at its first waypoint longer: the trajectory did change
     assert not np.array_equal(results[1].timeseries["trajectory.r[1]"], results[2].timeseries["trajectory.r[1]"])
@@ -190,3 +192,75 @@ metrics:
     again.close()
     done = {case for case, _, _ in seen}
     assert len(done) >= 12 and {c.id for c in left} == {c.id for c in planned.cases} - done
+
+
+def test_the_least_recently_used_snapshot_goes_beyond_the_limit(tmp_path):
+    """With one initialization kept per instance, a pole or payload seen two cases before is
+    initialized again (the snapshot was dropped for the one between); the records are those of a
+    pool without snapshots, bit for bit."""
+    study = tmp_path / "limit.yaml"
+    study.write_text(f"""\
+scenario: {SCENARIO}
+vary:
+  zip:
+    controller.pole: [5, 5, 8, 8, 5]
+    plant.payload: [0.0, 2.0, 2.0, 0.5, 0.0]
+    experiment.stop: [0.2, 0.2, 0.2, 0.2, 0.2]
+metrics:
+  max_error: {{signal: plant.z - trajectory.r, statistic: max}}
+""")
+    planned = plan_study(load_study(study))
+    template = CaseTemplate(planned.plan, planned.fmu_files)
+    records, restored = {}, {}
+    for keep in (0, 1, 32):
+        pool = FmuPool(snapshots=keep > 0, keep=keep)
+        try:
+            records[keep] = [run_case(template, pool, c.id, c.values, keep_timeseries=True) for c in planned.cases]
+            restored[keep] = pool.restored
+        finally:
+            pool.close()
+    # trajectory 4 either way; controller in cases 1 and 3 (and 4 with pole 5 still kept); plant in
+    # case 2 (and 4 with payload 0 still kept)
+    assert restored == {0: 0, 1: 4 + 2 + 1, 32: 4 + 3 + 2}
+    for keep in (1, 32):
+        for fresh, result in zip(records[0], records[keep]):
+            assert fresh.status == result.status == OK
+            for name, column in fresh.timeseries.items():
+                assert np.array_equal(result.timeseries[name], column), (keep, result.case, name)
+
+
+def test_fmi3_units_are_restored_too(tmp_path):
+    """The flagship built as FMI 3.0 (fmi3GetFMUState right after fmi3ExitInitializationMode,
+    fmi3SetFMUState instead of fmi3Reset and initialized again): the records of a pool without
+    snapshots, bit for bit. The controller, a sampled FMI 3.0 unit, has a periodic Clock whose
+    interval the master asks in initialization (fmi3GetIntervalDecimal, into arrays of its own that
+    a transcript does not fill): it is initialized as usual in every case."""
+    (tmp_path / "flagship3.yaml").write_text(f"fmi_version: 3\n{SCENARIO.read_text()}")
+    study = tmp_path / "fmi3.yaml"
+    study.write_text("""\
+scenario: flagship3.yaml
+vary:
+  zip:
+    controller.pole: [5, 5, 8, 5]
+    plant.payload: [0.0, 2.0, 2.0, 0.0]
+    experiment.stop: [0.2, 0.2, 0.2, 0.2]
+metrics:
+  max_error: {signal: plant.z - trajectory.r, statistic: max}
+""")
+    planned = plan_study(load_study(study))
+    template = CaseTemplate(planned.plan, planned.fmu_files)
+    records, restored = {}, {}
+    for snapshots in (False, True):
+        pool = FmuPool(snapshots=snapshots)
+        try:
+            records[snapshots] = [run_case(template, pool, c.id, c.values, keep_timeseries=True)
+                                  for c in planned.cases]
+            restored[snapshots] = pool.restored
+        finally:
+            pool.close()
+    # trajectory in cases 1-3, plant in 2 and 3
+    assert restored == {False: 0, True: 3 + 2}
+    for fresh, result in zip(records[False], records[True]):
+        assert fresh.status == result.status == OK, (fresh.error, result.error)
+        for name, column in fresh.timeseries.items():
+            assert np.array_equal(result.timeseries[name], column), (result.case, name)

@@ -56,7 +56,7 @@ static void print_row(double t, const double *values, int n) {
 
 int main(int argc, char **argv) {
     if (argc < 5) {
-        fprintf(stderr, "usage: host <unzipdir> <identifier> <guid> cs|me|bench|error ...\n");
+        fprintf(stderr, "usage: host <unzipdir> <identifier> <guid> cs|me|restore|bench|error ...\n");
         return 2;
     }
     const char *dir = argv[1], *identifier = argv[2], *guid = argv[3], *mode = argv[4];
@@ -152,6 +152,33 @@ int main(int argc, char **argv) {
     for (int i = 0; i < n; i++) vrs[i] = (fmi2ValueReference)atol(argv[7 + i]);
     double t = 0.0;
     long steps = (long)llround(stop / h);
+
+    if (!strcmp(mode, "restore")) {
+        /* Co-Simulation; an FMU state taken halfway, the steps to the end, fmi2Terminate, then the
+         * state set again and the second half stepped once more (rows "again,..."): a state taken
+         * before fmi2Terminate puts the instance back where it was */
+        LOAD(fmi2GetFMUstate) LOAD(fmi2SetFMUstate) LOAD(fmi2FreeFMUstate)
+        fmi2FMUstate state = NULL;
+        long half = steps / 2;
+        for (long k = 1; k <= half; k++) OK(fmi2DoStep(c, (k - 1) * h, h, fmi2True));
+        OK(fmi2GetFMUstate(c, &state));
+        for (int pass = 0; pass < 2; pass++) {
+            if (pass) {
+                OK(fmi2Terminate(c));
+                OK(fmi2SetFMUstate(c, state));
+                printf("again\n");
+            }
+            for (long k = half + 1; k <= steps; k++) {
+                OK(fmi2DoStep(c, (k - 1) * h, h, fmi2True));
+                OK(fmi2GetReal(c, vrs, n, values));
+                print_row(k * h, values, n);
+            }
+        }
+        OK(fmi2FreeFMUstate(c, &state));
+        OK(fmi2Terminate(c));
+        fmi2FreeInstance(c);
+        return 0;
+    }
 
     if (!me) {
         OK(fmi2GetReal(c, vrs, n, values));

@@ -192,3 +192,22 @@ def test_trajectory_fmu_rejects_a_waypoint_outside_the_workspace(build_fmu_from_
     messages = "".join(capfd.readouterr()).splitlines()
     assert any("waypoint 2 = (0.7, 0.1, -0.9) m has radius" in m and "wp_x[k+1]" in m
                for m in messages)
+
+
+def test_a_path_is_a_value_its_copies_share():
+    """Nothing changes a path once made (its arrays are read-only copies of the caller's), so its
+    copies, deep or not, are the path itself; the robot's parameters likewise."""
+    import copy
+
+    from deltafmi.physics.delta.trajectory import ConstantSpeedPath
+
+    waypoints = np.array([A, B, C])
+    for path in (MinimumJerkPath(waypoints, [0.8, 1.2], dwell=0.2),
+                 ConstantSpeedPath(waypoints, [0.5, 0.5], blend=0.1, dwell=0.2)):
+        assert copy.deepcopy(path) is path and copy.copy(path) is path
+        assert copy.deepcopy({"p": path})["p"] is path
+        with pytest.raises(ValueError):
+            path.waypoints[0, 0] = 1.0
+        assert path.waypoints[0, 0] == A[0]
+    waypoints[0, 0] = 0.5  # the caller's array is still its own, writable
+    assert copy.deepcopy(RL5) is RL5

@@ -243,9 +243,12 @@ def test_the_python_time_follows_a_component_that_steps_itself(counter):
     s.step(0.1, n=3)
     state = s.fmu.getFMUstate()
     data = bytes(s.fmu.serializeFMUstate(state))
-    _, loader_time, _ = struct.unpack_from("=Idd", data)  # the loader's own copy, then Python's bytes
-    assert loader_time == s.t
-    assert pickle.loads(data[struct.calcsize("=Idd"):])["time"] == s.t
+    # the loader's own copy (magic, time, last successful time; the instance's state machine
+    # position, stop and tolerance defined, start, stop, tolerance, active clocks), then Python's bytes
+    header = "=IddiiidddQ"
+    _, loader_time, _, position, *_ = struct.unpack_from(header, data)
+    assert loader_time == s.t and position == 1 << 5  # step complete
+    assert pickle.loads(data[struct.calcsize(header):])["time"] == s.t
     s.step(0.1, n=2)
     s.fmu.setFMUstate(state)  # back at 0.3: stepping on from there is accepted and counts from 3
     s.t = loader_time

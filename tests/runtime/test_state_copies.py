@@ -38,3 +38,15 @@ def test_numbers_and_tuples_are_shared_the_rest_copied_with_its_references():
     again = _copied(state)  # a restore copies again: the snapshot stays valid for the next
     again["history"].append(4.0)
     assert state["history"] == [1.0, 2.0]
+
+
+def test_a_snapshot_names_what_it_shares_and_its_restore_shares_the_same():
+    """A restore told which values the snapshot shares (the keys Component.internal_state keeps
+    with it) copies exactly what one that looks through the values again copies."""
+    samples = tuple((0.001 * i, float(i)) for i in range(100))
+    history = [1.0, 2.0]
+    attributes = {"samples": samples, "gain": 2.5, "history": history, "mixed": (1.0, history)}
+    shared = frozenset(k for k, v in attributes.items() if k in ("samples", "gain"))
+    told, looked = _copied(attributes, shared), _copied(attributes)
+    assert told == looked == copy.deepcopy(attributes)
+    assert told["samples"] is samples and told["history"] is not history and told["mixed"][1] is told["history"]

@@ -437,11 +437,16 @@ def _client(client: Any, scheduler: Optional[str], workers: Optional[int], dashb
 
 def _results(future: Any, batch: Batch, batcher: Batcher, recorded: Container[int] = ()) -> List[CaseResult]:
     """The results of a finished task; none when its worker died and its cases not ``recorded``
-    yet (streamed before the death) run again."""
+    yet (streamed before the death) run again. A case the task says it streamed (its id in
+    place of its result) whose result did not come runs again."""
     from distributed import KilledWorker
 
     try:
-        results: List[CaseResult] = future.result()
+        returned = future.result()
+        results: List[CaseResult] = [r for r in returned if isinstance(r, CaseResult)]
+        lost = {r for r in returned if isinstance(r, int) and r not in recorded}
+        if lost:
+            batcher.run_again(Batch([c for c in batch.cases if c.id in lost]))
     except KilledWorker:
         if not batch.alone:
             batcher.run_again(Batch([c for c in batch.cases if c.id not in recorded]))

@@ -10,9 +10,9 @@ hands it a logger of its own that forwards every message to the logger of whoeve
 now. Instances of a run that failed are freed (:meth:`FmuPool.discard`): a case that went
 wrong leaves nothing behind.
 
-An FMI 2.0 instance whose FMU can get and set its state also keeps its last initialization
-(:mod:`deltafmi.apps.studies.snapshots`): a case that initializes it exactly as the case before
-did gets it from an FMU state snapshot instead of reset and initialized again.
+An instance whose FMU can get and set its state (FMI 2.0 or 3.0) also keeps its last few distinct
+initializations (:mod:`deltafmi.apps.studies.snapshots`): a case that initializes it exactly as
+an earlier case did gets it from an FMU state snapshot instead of reset and initialized again.
 """
 from __future__ import annotations
 
@@ -29,11 +29,15 @@ from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from deltafmi.master.scenario.system import ResolvedComponent
 
-from .snapshots import RECORDED_CALLS, InitTranscript, Replay
+from .snapshots import RECORDED_CALLS, RECORDED_CALLS3, InitTranscript, Replay
 
 __all__ = ["FmuPool"]
 
 Key = Tuple[str, str, str]  # FMU file, interface, instance name
+
+#: initializations kept per pooled instance (an FMU state each): a study's grid repeats each value
+#: of a unit's parameters in many cases, rarely one after the other
+KEEP = 32
 
 
 class _Pooled:
@@ -77,9 +81,12 @@ class _Pooled:
         raise NotImplementedError
 
 
-class _Pooled2(_Pooled):
-    """FMI 2.0: instantiate once, reset afterwards, and an initialization that repeats the last
-    one restored from its snapshot (see :mod:`deltafmi.apps.studies.snapshots`)."""
+class _Snapshotting(_Pooled):
+    """Instantiate once, reset afterwards, and an initialization that repeats one of the last ones
+    restored from its snapshot (see :mod:`deltafmi.apps.studies.snapshots`)."""
+
+    #: the fmpy methods that get, set and free an FMU state
+    get_state, set_state, free_state = "getFMUstate", "setFMUstate", "freeFMUstate"
 
     def __init__(self, pool: "FmuPool", key: Key, **kwargs: Any) -> None:
         super().__init__(pool, key, **kwargs)
@@ -87,26 +94,24 @@ class _Pooled2(_Pooled):
         self.snapshots = False
         #: initializations restored from a snapshot
         self.restores = 0
-        self._kept: Optional[InitTranscript] = None  # the last initialization, with its snapshot
+        self._kept: List[InitTranscript] = []  # the last initializations with their snapshots, latest used first
         self._new: Optional[InitTranscript] = None  # the initialization under way, being recorded
         self._replay: Optional[Replay] = None  # the initialization under way, checked against _kept
-        self._terminate_due = False  # fmi2Terminate held back (see terminate)
 
     def instantiate(self, **kwargs: Any) -> None:
-        """As :meth:`_Pooled.instantiate`; with a snapshot kept, the reset waits for the first call
-        that differs from the last initialization."""
+        """As :meth:`_Pooled.instantiate`; with snapshots kept, the reset waits for the first call
+        that differs from every kept initialization."""
         self._new = self._replay = None
-        if self.component is not None and self._kept is not None:
+        if self.component is not None and self._kept:
             self._holder = kwargs.pop(self.logger_argument, None)
             self._replay = Replay(self._kept)
             return
-        self._terminate_now()
         super().instantiate(**kwargs)
         if self.snapshots:
             self._new = InitTranscript()
 
     def _through(self, name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Any:
-        """A call of :data:`RECORDED_CALLS`: answered from the last initialization while it matches,
+        """A call of :data:`RECORDED_CALLS`: answered from a kept initialization while one matches,
         else made (and recorded while initializing)."""
         replay = self._replay
         if replay is not None:
@@ -116,7 +121,7 @@ class _Pooled2(_Pooled):
                     self._restore(replay.transcript)
                 return list(call.result) if isinstance(call.result, list) else call.result
             self._make_real()
-        live = getattr(super(_Pooled2, self), name)
+        live = getattr(super(_Snapshotting, self), name)
         new = self._new
         if new is None:
             return live(*args, **kwargs)
@@ -130,23 +135,6 @@ class _Pooled2(_Pooled):
             self._keep(new)
         return result
 
-    def terminate(self) -> int:
-        """fmi2Terminate, held back while the instance keeps a snapshot: made before the next reset
-        or before the instance is freed, and left out when the next case sets the FMU to its
-        snapshot (an FMU may restore the state machine's place with its state or not, and in
-        'terminated' it may take no step after fmi2SetFMUstate; the snapshot replaces everything)."""
-        if not self.snapshots:
-            self._unrecorded()
-            return super().terminate()  # type: ignore[misc]
-        self._terminate_due = True
-        return 0
-
-    def _terminate_now(self) -> None:
-        """The fmi2Terminate held back, if any."""
-        if self._terminate_due:
-            self._terminate_due = False
-            super().terminate()  # type: ignore[misc]
-
     def _unrecorded(self) -> None:
         """Before any other FMI call: the FMU must be real, and an initialization that made such a
         call is not kept."""
@@ -155,52 +143,61 @@ class _Pooled2(_Pooled):
         self._new = None
 
     def _make_real(self) -> None:
-        """The case differs from the last initialization: reset, and make the calls that matched."""
+        """The case differs from every kept initialization: reset, and make the calls that matched."""
         assert self._replay is not None
         matched, self._replay = self._replay.matched(), None
-        self._terminate_now()
         self.reset()  # type: ignore[attr-defined]
         self.resets += 1
         new = self._new = InitTranscript()
         for call in matched:
-            new.record(call.name, call.args, call.kwargs, getattr(super(_Pooled2, self), call.name))
+            new.record(call.name, call.args, call.kwargs, getattr(super(_Snapshotting, self), call.name))
 
     def _restore(self, transcript: InitTranscript) -> None:
-        """The initialization repeats the kept one: set the FMU to its snapshot."""
+        """The initialization repeats a kept one: set the FMU to its snapshot (which puts it back
+        in the state machine's state it was taken in: after fmi2Terminate, too)."""
         self._replay = None
-        self._terminate_due = False  # the FMU goes back to where the snapshot was taken
-        super().setFMUstate(transcript.state)  # type: ignore[misc]
+        getattr(super(), self.set_state)(transcript.state)
         self.restores += 1
         self.pool.restored += 1
+        if self._kept[0] is not transcript:
+            self._kept.remove(transcript)
+            self._kept.insert(0, transcript)
         for message in transcript.messages:
             self._forward(*message)
 
     def _keep(self, transcript: InitTranscript) -> None:
-        """Initialization done: its snapshot replaces the one kept (none if the FMU cannot give it)."""
-        self._drop_kept()
+        """Initialization done: its snapshot joins the kept ones (none if the FMU cannot give it),
+        the least recently used dropped beyond the pool's limit."""
         try:
-            transcript.state = super().getFMUstate()  # type: ignore[misc]
+            transcript.state = getattr(super(), self.get_state)()
         except Exception:  # noqa: BLE001 - no snapshot: the next case initializes as usual
             return
-        self._kept = transcript
+        self._kept.insert(0, transcript)
+        while len(self._kept) > self.pool.keep:
+            self._free_state(self._kept.pop())
 
-    def _drop_kept(self) -> None:
-        kept, self._kept = self._kept, None
-        if kept is not None and kept.state is not None and self.component is not None:
+    def _free_state(self, transcript: InitTranscript) -> None:
+        if transcript.state is not None and self.component is not None:
             try:
-                super().freeFMUstate(kept.state)  # type: ignore[misc]
+                getattr(super(), self.free_state)(transcript.state)
             except Exception:  # noqa: BLE001 - the instance is going anyway
                 pass
 
     def free(self) -> None:
-        """Free the snapshot, then the instance."""
+        """Free the snapshots, then the instance."""
         self._replay = self._new = None
-        try:
-            self._terminate_now()
-        except Exception:  # noqa: BLE001 - freed anyway
-            pass
-        self._drop_kept()
+        kept, self._kept = self._kept, []
+        for transcript in kept:
+            self._free_state(transcript)
         super().free()
+
+    def _recording(self, message: Tuple[Any, ...]) -> None:
+        if self._new is not None:
+            self._new.messages.append(message)
+
+
+class _Pooled2(_Snapshotting):
+    """FMI 2.0: the logger callbacks of :class:`_Snapshotting`."""
 
     def _forwarder(self) -> fmi2CallbackFunctions:
         from fmpy import calloc, free
@@ -212,50 +209,62 @@ class _Pooled2(_Pooled):
         return callbacks
 
     def _forward(self, env: Any, instance: Any, status: int, category: Any, message: Any) -> None:
-        if self._new is not None:
-            self._new.messages.append((env, instance, status, category, message))
+        self._recording((env, instance, status, category, message))
         holder = self._holder
         if holder is not None and holder.logger:
             holder.logger(env, instance, status, category, message)
 
 
-class _Pooled3(_Pooled):
+class _Pooled3(_Snapshotting):
+    """FMI 3.0: the log message callback of :class:`_Snapshotting`."""
+
     logger_argument = "logMessage"
+    get_state, set_state, free_state = "getFMUState", "setFMUState", "freeFMUState"
 
     def _forwarder(self) -> Callable[..., None]:
         return self._forward  # fmpy wraps it in an fmi3LogMessageCallback and keeps that
 
     def _forward(self, env: Any, status: int, category: Any, message: Any) -> None:
+        self._recording((env, status, category, message))
         holder = self._holder
         if holder is not None:
             holder(env, status, category, message)
 
 
 def _recorded(name: str) -> Callable[..., Any]:
-    def method(self: _Pooled2, *args: Any, **kwargs: Any) -> Any:
+    def method(self: _Snapshotting, *args: Any, **kwargs: Any) -> Any:
         return self._through(name, args, kwargs)
     method.__name__ = name
     return method
 
 
 def _unrecorded(name: str) -> Callable[..., Any]:
-    def method(self: _Pooled2, *args: Any, **kwargs: Any) -> Any:
+    def method(self: _Snapshotting, *args: Any, **kwargs: Any) -> Any:
         self._unrecorded()
-        return getattr(super(_Pooled2, self), name)(*args, **kwargs)
+        return getattr(super(_Snapshotting, self), name)(*args, **kwargs)
     method.__name__ = name
     return method
 
 
-for _name in RECORDED_CALLS:
-    setattr(_Pooled2, _name, _recorded(_name))
-# every other fmpy call the master may make on an FMI 2.0 instance
-for _name in ("doStep", "cancelStep", "getStatus", "getRealStatus", "getIntegerStatus",
-              "getBooleanStatus", "getStringStatus", "setRealInputDerivatives", "getRealOutputDerivatives",
-              "enterEventMode", "newDiscreteStates", "enterContinuousTimeMode", "completedIntegratorStep",
-              "setTime", "setContinuousStates", "getDerivatives", "getEventIndicators", "getContinuousStates",
-              "getNominalsOfContinuousStates", "getDirectionalDerivative", "getFMUstate", "setFMUstate",
-              "freeFMUstate", "serializeFMUstate", "deSerializeFMUstate", "setDebugLogging"):
-    setattr(_Pooled2, _name, _unrecorded(_name))
+#: fmpy methods that neither change an instance nor depend on its state (or that the pool makes itself)
+_UNWRAPPED = frozenset({"instantiate", "freeInstance", "freeLibrary", "reset", "getVersion", "getTypesPlatform",
+                        "getNumberOfContinuousStates", "getNumberOfEventIndicators",
+                        "getNumberOfVariableDependencies", "getVariableDependencies"})
+
+
+def _wrap(cls: type, recorded: Tuple[str, ...], *fmpy_classes: type) -> None:
+    """Every other fmpy call on an instance of ``cls``: the FMU made real first (and the
+    initialization under way not kept), whatever the master calls."""
+    for name in recorded:
+        setattr(cls, name, _recorded(name))
+    names = {name for fmpy_class in fmpy_classes for base in fmpy_class.__mro__ for name, value in vars(base).items()
+             if callable(value) and name[:1].islower() and not name.startswith("fmi")}  # fmi*: the C functions
+    for name in sorted(names - set(recorded) - _UNWRAPPED):
+        setattr(cls, name, _unrecorded(name))
+
+
+_wrap(_Pooled2, RECORDED_CALLS, FMU2Slave, FMU2Model)
+_wrap(_Pooled3, RECORDED_CALLS3, FMU3Slave, FMU3Model)
 
 
 # fmpy binds the fmi2 functions of classes whose name starts with "FMU2"
@@ -286,10 +295,11 @@ class FmuPool:
     first extraction and removed by :meth:`close`.
     """
 
-    def __init__(self, root: Optional[Path] = None, snapshots: bool = True) -> None:
-        """``snapshots``: FMI 2.0 instances whose FMU can get and set its state restore an
-        initialization that repeats the last one from a snapshot (:mod:`.snapshots`)."""
+    def __init__(self, root: Optional[Path] = None, snapshots: bool = True, keep: int = KEEP) -> None:
+        """``snapshots``: instances whose FMU can get and set its state restore an initialization
+        that repeats one of their last ``keep`` from a snapshot (:mod:`.snapshots`)."""
         self.snapshots = snapshots
+        self.keep = keep
         self._own_root = root is None
         self._root: Optional[Path] = None if root is None else Path(root)
         self._idle: Dict[Key, List[_Pooled]] = {}
@@ -325,9 +335,7 @@ class FmuPool:
             fmu = cls(self, key, guid=component.info.md.guid, unzipDirectory=directory,
                       modelIdentifier=component.info.model_identifier(component.interface),
                       instanceName=component.name)
-            if isinstance(fmu, _Pooled2):  # Co-Simulation: an ME unit's event iteration follows initialization
-                fmu.snapshots = (self.snapshots and component.interface == "CS"
-                                 and component.info.can_get_set_state(component.interface))
+            fmu.snapshots = self.snapshots and component.info.can_get_set_state(component.interface)
             return fmu
 
     def give_back(self, fmu: _Pooled) -> None:

@@ -137,6 +137,8 @@ class CaseTemplate:
 
     def __init__(self, plan: StudyPlan, fmu_files: Mapping[str, Path]) -> None:
         self.plan = plan
+        #: the most rows a case of it recorded so far (room made for as many in the next)
+        self.rows = 0
         by_component = dict(plan.fmus)
         components = tuple(dataclasses.replace(c, fmu=str(fmu_files[by_component[c.name]]), source=None)
                            for c in plan.scenario.components)
@@ -200,7 +202,8 @@ def run_case(template: CaseTemplate, pool: FmuPool, case: int, values: Mapping[s
         return lent[-1]
 
     def recorder(path: Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None) -> MemoryRecorder:
-        recorders.append(MemoryRecorder(path, names, kinds))
+        # room for as many rows as the longest case so far: no growing (and copying) while it runs
+        recorders.append(MemoryRecorder(path, names, kinds, chunk=max(1024, template.rows)))
         return recorders[-1]
 
     status, error, setup, stepping = OK, "", 0.0, 0.0
@@ -217,6 +220,8 @@ def run_case(template: CaseTemplate, pool: FmuPool, case: int, values: Mapping[s
         status, error = FAILED, f"{type(exc).__name__}: {exc} ({_where(exc)})"
         pool.discard(lent)
     columns = recorders[0].columns() if recorders else None
+    if recorders:
+        template.rows = max(template.rows, recorders[0].rows_written)
     if status == OK and columns is not None:
         for metric in template.plan.metrics:
             try:

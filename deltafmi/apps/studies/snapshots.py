@@ -1,35 +1,45 @@
-"""A pooled FMU instance that repeats its last initialization from an FMU state snapshot.
+"""A pooled FMU instance that repeats one of its earlier initializations from an FMU state snapshot.
 
 Between ``instantiate`` (a reset, for a pooled instance) and ``fmi2ExitInitializationMode`` an FMU
 sees a short, fixed sequence of calls from the master: the experiment's set-up, the start values,
 initialization mode, the values copied in from other units and the values read out for them.
-When a case gives a unit exactly the calls of the case before (the trajectory of a study that
-varies the plant's mass), initializing it again would bring it to the same state, so
-:class:`InitTranscript` keeps the calls of the last initialization, with what the reads returned,
-the messages it logged and an FMU state taken right after it (``fmi2GetFMUstate``). The next case
-is checked against it call by call while the FMU is left alone: each read gets its recorded
-values, and at ``fmi2ExitInitializationMode`` the FMU is set to the snapshot
-(``fmi2SetFMUstate``) and the recorded messages are passed on. At the first call that differs
-(another start value, other copied inputs, another stop time) the instance is reset and the
-calls that matched are made for real, and from there it initializes as it always did (and
-records the new transcript): a unit whose parameters change is always initialized afresh.
-Values are compared bit for bit (``-0.0`` is not ``0.0``; a NaN matches the same NaN), ``1`` is not ``1.0``.
+When a case gives a unit exactly the calls of an earlier case (the trajectory of a study that
+varies the plant's mass; the plant of a grid whose other axis moves, each of its masses coming
+back), initializing it again would bring it to the same state, so :class:`InitTranscript` keeps
+the calls of an initialization, with what the reads returned, the messages it logged and an FMU
+state taken right after it (``fmi2GetFMUstate``); an instance keeps the transcripts of its last
+few distinct initializations. The next case is checked against them call by call while the FMU
+is left alone (:class:`Replay`): each read gets its recorded values, and at
+``fmi2ExitInitializationMode`` the FMU is set to the snapshot (``fmi2SetFMUstate``, which puts it
+back in the state it was taken in, after ``fmi2Terminate`` too) and the recorded messages are
+passed on. At the first call that differs from every kept transcript (another start value, other
+copied inputs, another stop time) the instance is reset and the calls that matched are made for
+real, and from there it initializes as it always did (and records the new transcript): a unit
+whose parameters take a new value is always initialized afresh. Values are compared bit for bit
+(``-0.0`` is not ``0.0``; a NaN matches the same NaN), ``1`` is not ``1.0``.
 
-Only FMUs that declare ``canGetAndSetFMUstate`` take snapshots; any call of another FMI
-function before initialization ends makes the instance real first.
+Only FMUs that declare ``canGetAndSetFMUstate`` take snapshots (FMI 2.0 and 3.0, Co-Simulation
+and Model Exchange: a Model Exchange unit's snapshot is taken in Event Mode, where its event
+iteration goes on; FMI 3.0 names the calls after its types and ``fmi3GetFMUState``); any call of
+another FMI function before initialization ends makes the instance real first (an FMI 3.0 unit
+whose Clocks' intervals the master asks for in initialization is always initialized).
 """
 from __future__ import annotations
 
 import struct
 from array import array
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
-__all__ = ["InitTranscript", "RECORDED_CALLS", "call_key"]
+__all__ = ["InitTranscript", "RECORDED_CALLS", "RECORDED_CALLS3", "Replay", "call_key"]
 
-#: the fmpy methods recorded between instantiation and the end of initialization
+#: the fmpy methods recorded between instantiation and the end of initialization (FMI 2.0, FMI 3.0)
 RECORDED_CALLS = ("setupExperiment", "setReal", "setInteger", "setBoolean", "setString", "getReal", "getInteger",
                   "getBoolean", "getString", "enterInitializationMode", "exitInitializationMode")
+RECORDED_CALLS3 = tuple(f"{way}{kind}" for way in ("set", "get")
+                        for kind in ("Float32", "Float64", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32",
+                                     "Int64", "UInt64", "Boolean", "String", "Binary")) + (
+    "enterInitializationMode", "exitInitializationMode")
 
 
 def _exact(value: Any) -> Any:
@@ -83,21 +93,36 @@ class InitTranscript:
 
 
 class Replay:
-    """A case being checked against an :class:`InitTranscript`, one call at a time."""
+    """A case being checked against kept :class:`InitTranscript` s, one call at a time: the
+    transcripts that every call so far matched (all of them made the same calls up to here, and
+    so got the same values back: an initialization is a function of its calls)."""
 
-    def __init__(self, transcript: InitTranscript) -> None:
-        self.transcript = transcript
+    def __init__(self, transcripts: Sequence[InitTranscript]) -> None:
+        self.candidates = list(transcripts)
         self.at = 0
 
+    @property
+    def transcript(self) -> InitTranscript:
+        """The first transcript still matching (the most recently used, when several do)."""
+        return self.candidates[0]
+
     def next(self, name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Optional[Call]:
-        """The recorded call if this one is the same as the next recorded (then advance), else None."""
-        calls = self.transcript.calls
-        if self.at < len(calls):
-            call = calls[self.at]
-            if call.name == name and call.key == call_key(name, args, kwargs):
-                self.at += 1
-                return call
-        return None
+        """The recorded call if this one is the same as the next recorded of some candidate (then
+        advance, keeping the candidates that match), else None."""
+        at, key = self.at, None
+        matching = []
+        for transcript in self.candidates:
+            calls = transcript.calls
+            if at < len(calls) and calls[at].name == name:
+                if key is None:
+                    key = call_key(name, args, kwargs)
+                if calls[at].key == key:
+                    matching.append(transcript)
+        if not matching:
+            return None
+        self.candidates = matching
+        self.at += 1
+        return matching[0].calls[at]
 
     def matched(self) -> List[Call]:
         """The calls that matched so far."""

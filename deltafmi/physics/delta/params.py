@@ -55,6 +55,13 @@ class DeltaParams:
     g: float = 9.81
     damping: float = 0.0
 
+    # numbers only, frozen: a copy, deep or not, is the same value (FMU states share it)
+    def __copy__(self) -> "DeltaParams":
+        return self
+
+    def __deepcopy__(self, memo: dict) -> "DeltaParams":
+        return self
+
 
 RL5 = DeltaParams()
 

@@ -204,7 +204,26 @@ def _fixed(table, what: str):
 
 
 class _WaypointPath:
-    """Moves between waypoints, evaluated as nine plain floats by the subclass's ``evaluate_flat``."""
+    """Moves between waypoints, evaluated as nine plain floats by the subclass's ``evaluate_flat``.
+
+    A path is a value once made: nothing changes it (its arrays are read-only), so a copy of it,
+    deep or not, is the path itself (a component's FMU state holds it without copying its moves).
+    """
+
+    def _freeze(self) -> None:
+        """Make the path's arrays read-only copies (the end of a subclass's ``__init__``; the
+        caller's arrays stay as they were)."""
+        for name, value in list(vars(self).items()):
+            if isinstance(value, np.ndarray):
+                frozen = value.copy()
+                frozen.setflags(write=False)
+                setattr(self, name, frozen)
+
+    def __copy__(self) -> "_WaypointPath":
+        return self
+
+    def __deepcopy__(self, memo: dict) -> "_WaypointPath":
+        return self
 
     def evaluate_flat(self, t: float) -> Flat9:
         raise NotImplementedError
@@ -243,6 +262,7 @@ class MinimumJerkPath(_WaypointPath):
         size = max(MAX_MOVES, len(moves))
         self.n_moves, self.starts = len(moves), _padded(self._starts, math.inf, size)
         self.moves, self.at_rest = _padded(moves, _NO_MOVE, size), _resting(pts[0])
+        self._freeze()
 
     def table(self) -> MinimumJerkTable:
         """The path as a :class:`MinimumJerkTable` for :func:`evaluate_table` (and its generated
@@ -306,6 +326,7 @@ class ConstantSpeedPath(_WaypointPath):
         size = max(MAX_MOVES, len(moves))
         self.n_moves, self.starts = len(moves), _padded(self._starts, math.inf, size)
         self.moves, self.at_rest = _padded(moves, _NO_SPEED_MOVE, size), _resting(pts[0])
+        self._freeze()
 
     def table(self) -> ConstantSpeedTable:
         """The path as a :class:`ConstantSpeedTable` for :func:`evaluate_speed_table` (and its

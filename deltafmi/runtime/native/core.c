@@ -19,11 +19,17 @@
 #include "process_lock.h"
 #include "python_start.h"
 
+/* An FMU state: the model's (the bridge's) and the instance's own, its place in the state machine
+ * included: setting it puts the instance back where it was taken (the Reference FMUs do the same) */
 typedef struct {
     uint32_t magic;
     void *py;
     double time;
     double last_successful_time;
+    int32_t state; /* the state machine's (a ModelState bit); 0: unknown, the state is left as it is */
+    int32_t stop_defined, tolerance_defined;
+    double start_time, stop_time, tolerance;
+    uint64_t clocks_active;
 } SavedState;
 
 #define STATE_MAGIC 0x64666d69u /* "dfmi" */
@@ -400,6 +406,13 @@ int dfmi_get_fmu_state(Instance *c, const char *function, void **state) {
     saved->magic = STATE_MAGIC;
     saved->time = c->time;
     saved->last_successful_time = c->last_successful_time;
+    saved->state = c->state;
+    saved->start_time = c->start_time;
+    saved->stop_time = c->stop_time;
+    saved->tolerance = c->tolerance;
+    saved->stop_defined = c->stop_defined;
+    saved->tolerance_defined = c->tolerance_defined;
+    saved->clocks_active = c->clocks_active;
     int status = bridge_get_state(c->py, &saved->py);
     if (status >= DFMI_ERROR) {
         free(saved);
@@ -425,7 +438,17 @@ int dfmi_set_fmu_state(Instance *c, const char *function, void *state) {
         dfmi_values_changed(c);
         /* back before the component ended the simulation: stepping may go on */
         c->terminated_by_model = dfmi_terminated(c);
-        if (c->state == StepFailed && !c->terminated_by_model) c->state = StepComplete;
+        if (saved->state) { /* where it was taken: a state taken before fmiXTerminate steps on after it */
+            c->state = saved->state;
+            c->start_time = saved->start_time;
+            c->stop_time = saved->stop_time;
+            c->tolerance = saved->tolerance;
+            c->stop_defined = saved->stop_defined;
+            c->tolerance_defined = saved->tolerance_defined;
+            c->clocks_active = saved->clocks_active;
+        } else if (c->state == StepFailed && !c->terminated_by_model) {
+            c->state = StepComplete;
+        }
     }
     return dfmi_settle(c, status);
 }
@@ -441,8 +464,36 @@ int dfmi_free_fmu_state(Instance *c, const char *function, void **state) {
     return DFMI_OK;
 }
 
-/* serialized layout: magic, time, last successful time, then the bridge's bytes */
+/* serialized layout: magic, time, last successful time, [the instance's own: state, stop and
+ * tolerance defined (int32 each), start, stop, tolerance (double each), active clocks (uint64)],
+ * then the bridge's bytes; the bracketed part only after STATE_MAGIC2 (STATE_MAGIC: an older
+ * runtime's state, whose state machine position is unknown) */
+#define STATE_MAGIC2 0x32666d64u /* "dfm2" */
 #define HEADER_SIZE (sizeof(uint32_t) + 2 * sizeof(double))
+#define INSTANCE_SIZE (3 * sizeof(int32_t) + 3 * sizeof(double) + sizeof(uint64_t))
+#define HEADER2_SIZE (HEADER_SIZE + INSTANCE_SIZE)
+
+static void put_instance(unsigned char *out, const SavedState *saved) {
+    int32_t ints[3] = {saved->state, saved->stop_defined, saved->tolerance_defined};
+    double doubles[3] = {saved->start_time, saved->stop_time, saved->tolerance};
+    memcpy(out, ints, sizeof ints);
+    memcpy(out + sizeof ints, doubles, sizeof doubles);
+    memcpy(out + sizeof ints + sizeof doubles, &saved->clocks_active, sizeof(uint64_t));
+}
+
+static void get_instance(const unsigned char *in, SavedState *saved) {
+    int32_t ints[3];
+    double doubles[3];
+    memcpy(ints, in, sizeof ints);
+    memcpy(doubles, in + sizeof ints, sizeof doubles);
+    memcpy(&saved->clocks_active, in + sizeof ints + sizeof doubles, sizeof(uint64_t));
+    saved->state = ints[0];
+    saved->stop_defined = ints[1];
+    saved->tolerance_defined = ints[2];
+    saved->start_time = doubles[0];
+    saved->stop_time = doubles[1];
+    saved->tolerance = doubles[2];
+}
 
 int dfmi_serialized_size(Instance *c, const char *function, void *state, size_t *size) {
     SavedState *saved = as_saved(state);
@@ -451,7 +502,7 @@ int dfmi_serialized_size(Instance *c, const char *function, void *state, size_t 
     size_t n;
     int status = bridge_serialize_state(c->py, saved->py, &bytes, &n);
     if (status >= DFMI_ERROR) return dfmi_settle(c, status);
-    *size = HEADER_SIZE + n;
+    *size = HEADER2_SIZE + n;
     return DFMI_OK;
 }
 
@@ -462,25 +513,29 @@ int dfmi_serialize(Instance *c, const char *function, void *state, unsigned char
     size_t n;
     int status = bridge_serialize_state(c->py, saved->py, &bytes, &n);
     if (status >= DFMI_ERROR) return dfmi_settle(c, status);
-    if (size < HEADER_SIZE + n) return dfmi_fail(c, "%s: buffer of %zu bytes is too small", function, size);
-    uint32_t magic = STATE_MAGIC;
+    if (size < HEADER2_SIZE + n) return dfmi_fail(c, "%s: buffer of %zu bytes is too small", function, size);
+    uint32_t magic = STATE_MAGIC2;
     memcpy(out, &magic, sizeof magic);
     memcpy(out + sizeof magic, &saved->time, sizeof(double));
     memcpy(out + sizeof magic + sizeof(double), &saved->last_successful_time, sizeof(double));
-    memcpy(out + HEADER_SIZE, bytes, n);
+    put_instance(out + HEADER_SIZE, saved);
+    memcpy(out + HEADER2_SIZE, bytes, n);
     return DFMI_OK;
 }
 
 int dfmi_deserialize(Instance *c, const char *function, const unsigned char *bytes, size_t size, void **state) {
     uint32_t magic = 0;
-    if (!bytes || !state || size < HEADER_SIZE || (memcpy(&magic, bytes, sizeof magic), magic != STATE_MAGIC))
+    if (bytes && size >= sizeof magic) memcpy(&magic, bytes, sizeof magic);
+    size_t header = magic == STATE_MAGIC2 ? HEADER2_SIZE : HEADER_SIZE;
+    if (!bytes || !state || size < header || (magic != STATE_MAGIC && magic != STATE_MAGIC2))
         return dfmi_fail(c, "%s: not a serialized state of a deltafmi FMU", function);
     SavedState *saved = calloc(1, sizeof *saved);
     if (!saved) return dfmi_fail(c, "%s: out of memory", function);
     saved->magic = STATE_MAGIC;
     memcpy(&saved->time, bytes + sizeof magic, sizeof(double));
     memcpy(&saved->last_successful_time, bytes + sizeof magic + sizeof(double), sizeof(double));
-    int status = bridge_deserialize_state(c->py, (const char *)bytes + HEADER_SIZE, size - HEADER_SIZE, &saved->py);
+    if (magic == STATE_MAGIC2) get_instance(bytes + HEADER_SIZE, saved);
+    int status = bridge_deserialize_state(c->py, (const char *)bytes + header, size - header, &saved->py);
     if (status >= DFMI_ERROR) {
         free(saved);
         return dfmi_settle(c, status);
