@@ -97,6 +97,7 @@ class _Snapshotting(_Pooled):
         self._kept: List[InitTranscript] = []  # the last initializations with their snapshots, latest used first
         self._new: Optional[InitTranscript] = None  # the initialization under way, being recorded
         self._replay: Optional[Replay] = None  # the initialization under way, checked against _kept
+        self._terminate_due = False  # terminate held back (see terminate)
 
     def instantiate(self, **kwargs: Any) -> None:
         """As :meth:`_Pooled.instantiate`; with snapshots kept, the reset waits for the first call
@@ -106,6 +107,7 @@ class _Snapshotting(_Pooled):
             self._holder = kwargs.pop(self.logger_argument, None)
             self._replay = Replay(self._kept)
             return
+        self._terminate_now()
         super().instantiate(**kwargs)
         if self.snapshots:
             self._new = InitTranscript()
@@ -121,6 +123,8 @@ class _Snapshotting(_Pooled):
                     self._restore(replay.transcript)
                 return list(call.result) if isinstance(call.result, list) else call.result
             self._make_real()
+        elif self._terminate_due:  # a call after terminate, before the next case's
+            self._terminate_now()
         live = getattr(super(_Snapshotting, self), name)
         new = self._new
         if new is None:
@@ -135,9 +139,27 @@ class _Snapshotting(_Pooled):
             self._keep(new)
         return result
 
+    def terminate(self) -> Any:
+        """Terminate, held back while the instance keeps snapshots: made before any other call of
+        the FMU and before the instance is freed, and left out when the next case sets the FMU to
+        a snapshot. An FMU state carries the state machine's place (ours does), but an FMU that
+        restores only its variables would stay terminated after the restore and refuse to step."""
+        if not self.snapshots:
+            self._unrecorded()
+            return super().terminate()  # type: ignore[misc]
+        self._terminate_due = True
+        return 0
+
+    def _terminate_now(self) -> None:
+        """The terminate held back, if any."""
+        if self._terminate_due:
+            self._terminate_due = False
+            super().terminate()  # type: ignore[misc]
+
     def _unrecorded(self) -> None:
         """Before any other FMI call: the FMU must be real, and an initialization that made such a
         call is not kept."""
+        self._terminate_now()
         if self._replay is not None:
             self._make_real()
         self._new = None
@@ -146,6 +168,7 @@ class _Snapshotting(_Pooled):
         """The case differs from every kept initialization: reset, and make the calls that matched."""
         assert self._replay is not None
         matched, self._replay = self._replay.matched(), None
+        self._terminate_now()
         self.reset()  # type: ignore[attr-defined]
         self.resets += 1
         new = self._new = InitTranscript()
@@ -156,6 +179,7 @@ class _Snapshotting(_Pooled):
         """The initialization repeats a kept one: set the FMU to its snapshot (which puts it back
         in the state machine's state it was taken in: after fmi2Terminate, too)."""
         self._replay = None
+        self._terminate_due = False  # the snapshot replaces what terminate would have done
         getattr(super(), self.set_state)(transcript.state)
         self.restores += 1
         self.pool.restored += 1
@@ -186,6 +210,10 @@ class _Snapshotting(_Pooled):
     def free(self) -> None:
         """Free the snapshots, then the instance."""
         self._replay = self._new = None
+        try:
+            self._terminate_now()
+        except Exception:  # noqa: BLE001 - freed anyway
+            pass
         kept, self._kept = self._kept, []
         for transcript in kept:
             self._free_state(transcript)
@@ -259,7 +287,7 @@ def _wrap(cls: type, recorded: Tuple[str, ...], *fmpy_classes: type) -> None:
         setattr(cls, name, _recorded(name))
     names = {name for fmpy_class in fmpy_classes for base in fmpy_class.__mro__ for name, value in vars(base).items()
              if callable(value) and name[:1].islower() and not name.startswith("fmi")}  # fmi*: the C functions
-    for name in sorted(names - set(recorded) - _UNWRAPPED):
+    for name in sorted(names - set(recorded) - _UNWRAPPED - {"terminate"}):  # terminate: _Snapshotting's
         setattr(cls, name, _unrecorded(name))
 
 
