@@ -24,6 +24,7 @@ typedef struct {
     void *py;
     double time;
     double last_successful_time;
+    int mode; /* the state machine's state when it was got; 0 when deserialized (not recorded) */
 } SavedState;
 
 #define STATE_MAGIC 0x64666d69u /* "dfmi" */
@@ -400,6 +401,7 @@ int dfmi_get_fmu_state(Instance *c, const char *function, void **state) {
     saved->magic = STATE_MAGIC;
     saved->time = c->time;
     saved->last_successful_time = c->last_successful_time;
+    saved->mode = c->state;
     int status = bridge_get_state(c->py, &saved->py);
     if (status >= DFMI_ERROR) {
         free(saved);
@@ -425,7 +427,16 @@ int dfmi_set_fmu_state(Instance *c, const char *function, void *state) {
         dfmi_values_changed(c);
         /* back before the component ended the simulation: stepping may go on */
         c->terminated_by_model = dfmi_terminated(c);
-        if (c->state == StepFailed && !c->terminated_by_model) c->state = StepComplete;
+        /* FMI 2.0, section 2.1.3: after an error (or a failed, cancelled or terminated run) the
+         * simulation may go on from a state got before; the instance returns to the state it was
+         * got in (a deserialized one: the stepping state of its interface) */
+        if (c->state & (Error | StepFailed | StepCanceled | Terminated)) {
+            int mode = saved->mode                                ? saved->mode
+                       : c->interface == DFMI_MODEL_EXCHANGE       ? ContinuousTimeMode
+                       : c->interface == DFMI_SCHEDULED_EXECUTION ? ClockActivationMode
+                                                                   : StepComplete;
+            if (!(mode == StepComplete && c->terminated_by_model)) c->state = mode;
+        }
     }
     return dfmi_settle(c, status);
 }
