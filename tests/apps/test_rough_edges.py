@@ -305,6 +305,17 @@ def test_mat_on_a_full_disk_is_removed_and_says_so(long_run, tmp_path):
     assert list(kept.iterdir()) == []
 
 
+@pytest.mark.parametrize("command", [["build", "Oscillator", "-o", "{disk}/o.fmu"],
+                                     ["export-ssp", "bouncing_ball", "-o", "{disk}/o.ssp"]])
+def test_an_archive_that_does_not_fit_names_its_file_and_leaves_nothing(command, tmp_path):
+    if shutil.which("unshare") is None:
+        pytest.skip("no unshare")
+    done, kept = in_small_tmpfs(tmp_path, "100k", *command)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.splitlines()[-1] == f"Error: {tmp_path}/disk/o{Path(command[-1]).suffix}: No space left on device"
+    assert list(kept.iterdir()) == []
+
+
 # --- what the CLI prints ------------------------------------------------------------------------
 
 def test_scenario_errors_print_once_for_every_command(tmp_path):
