@@ -51,3 +51,18 @@ def test_a_linear_model_of_such_an_fmu_is_saved_in_such_a_folder(build_fmu_from_
     mat = scipy.io.loadmat(written[1])
     np.testing.assert_array_equal(mat["A"], model.A)
     assert "caf\ufffd" in str(mat["source"][0])  # MATLAB's UTF-8 shows the byte as U+FFFD
+
+
+def test_an_fmi3_fmu_fmpy_cannot_hand_its_folder_says_so(build_fmu_from_src, tmp_path, monkeypatch):
+    """fmpy encodes an FMI 3.0 resource path as UTF-8: from a cache so named it raises before the
+    FMU is called, and the run says that, not that the FMU logged no reason."""
+    monkeypatch.setenv("DELTAFMI_CACHE", str(tmp_path / FOLDER))
+    (tmp_path / "s.yaml").write_text("experiment: {stop: 0.1, step: 1.0e-3}\ncomponents:\n"
+                                     "  osc: {source: 'deltafmi.models:Oscillator', fmi_version: 3}\n")
+    done = CliRunner().invoke(main, ["run", str(tmp_path / "s.yaml"), "-q", "-o", str(tmp_path / "r.csv")])
+    if done.exit_code == 0:  # an fmpy that encodes file names as bytes: the run is what it should be
+        assert np.loadtxt(tmp_path / "r.csv", delimiter=",", skiprows=1)[0, 0] == 0.0
+        return
+    assert done.exit_code == 1, done.output
+    assert ("osc (Oscillator.fmu): fmi3InstantiateCoSimulation failed: fmpy could not call it: "
+            "UnicodeEncodeError") in done.output, done.output

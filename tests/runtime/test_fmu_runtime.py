@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import os
 from ctypes import POINTER, c_double
 from pathlib import Path
 
@@ -202,6 +203,22 @@ def test_a_model_exchange_state_got_before_an_error_restarts_the_integration(lag
     fmu.getDerivatives(dx.ctypes.data_as(POINTER(c_double)), 3)
     np.testing.assert_array_equal(dx, -K * x)
     fmu.freeFMUstate(state)
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+def test_an_fmu_unpacked_in_a_folder_whose_name_is_not_utf8_runs(lags, tmp_path):
+    """A file name is bytes: a resources folder named in Latin-1 is read as Python reads file names."""
+    md = fmpy.read_model_description(str(lags))
+    folder = fmpy.extract(str(lags), unzipdir=str(tmp_path / os.fsdecode(b"caf\xe9")))
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier="Lags")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    for i in range(10):
+        fmu.doStep(i * 0.1, 0.1)
+    np.testing.assert_allclose(fmu.getReal([0, 1, 2]), _lag_solution(1.0), atol=1e-8)
     fmu.terminate()
     fmu.freeInstance()
 
