@@ -14,8 +14,10 @@ is one clear line naming the thing, a non-zero exit and no traceback.
 """
 from __future__ import annotations
 
+import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import zipfile
@@ -314,6 +316,21 @@ def test_an_archive_that_does_not_fit_names_its_file_and_leaves_nothing(command,
     assert done.returncode == 1, done.stderr
     assert done.stderr.splitlines()[-1] == f"Error: {tmp_path}/disk/o{Path(command[-1]).suffix}: No space left on device"
     assert list(kept.iterdir()) == []
+
+
+@pytest.mark.parametrize("args", [["examples"], ["info", "Oscillator"]])
+def test_a_reader_that_has_gone_ends_the_command_quietly_as_sigpipe(args, tmp_path):
+    """`deltafmi examples | head -1`: no "Error: Broken pipe", exit 141 (128 + SIGPIPE) as a
+    shell's tools give; the reader here closes the pipe before the first line."""
+    reader, writer = os.pipe()
+    os.close(reader)
+    try:
+        done = subprocess.run([str(DELTAFMI), *args], cwd=tmp_path, stdout=writer, stderr=subprocess.PIPE, text=True,
+                              timeout=600)
+    finally:
+        os.close(writer)
+    assert done.returncode == 128 + signal.SIGPIPE, done.stderr
+    assert done.stderr == "", done.stderr
 
 
 # --- what the CLI prints ------------------------------------------------------------------------
