@@ -7,26 +7,37 @@ on the loop) is recorded once through the master; then PegEKF (deltafmi.physics.
 replayed on it ``--runs`` times in this process, each with its own seeded encoder noise on y and
 qw (the noise the filter assumes, ``--noise``, unless told otherwise), from ``--start`` to
 ``--stop`` s (the first touch of the chamfer is at ~1.015 s; starting shortly before it saves
-the free approach, the filter starting there at rest as it does at t = 0). For a consistent
-filter the mean NEES over R runs of a d-dimensional error is chi-square(d R) / R: within
-[chi2.ppf(0.025, d R), chi2.ppf(0.975, d R)] / R at 95 %. Printed at several instants, averaged
-over the contact (from 1.05 s) and over the bore (from 1.3 s), for the hole's x, y (d = 2), the
-hole with its tilt (d = 4) and the force (d = 3): for the defaults with the settings given
-(``--set name=value``, PegEKFSettings names), for the baseline, the previous defaults (the
-wrench a random walk at 30 N/s and 2 N m/s per sqrt(Hz) throughout, model-error accelerations
-0.01 m/s^2 and 0.5 rad/s^2 per sqrt(Hz), no law error considered, the hole constant), and for
-the defaults without each of their noise models in turn. First, what the tuning rests on: the
-plant's contact force and moment rates (rms of the change per sample / sqrt(T)) by phase.
+the free approach, the filter starting there at rest as it does at t = 0), its kernels compiled
+as its FMU runs them (the Python ones give the same bits). For a consistent filter the mean NEES
+over R runs of a d-dimensional error is chi-square(d R) / R: within
+[chi2.ppf(0.025, d R), chi2.ppf(0.975, d R)] / R at 95 %. Printed at several instants and
+averaged over the phases of tests/models/test_peg_estimator_consistency.py (sliding on the
+chamfer 1.05-1.2 s, the impacts 1.0-1.05 s and 1.2-1.3 s, the bore to 1.5 s, after it and
+whole; "sliding": the chamfer and the bore to 1.5 s for the hole, to the end for the force), for the
+hole's x, y (d = 2), the hole with its tilt (d = 4) and the force (d = 3): for the defaults with
+the settings given (``--set name=value``, PegEKFSettings names), for the baseline, the previous
+defaults (the wrench a random walk at 30 N/s and 2 N m/s per sqrt(Hz) throughout, model-error
+accelerations 0.01 m/s^2 and 0.5 rad/s^2 per sqrt(Hz), no law error considered, the hole
+constant), for the last release's wrench (a random walk, 1 N/s and 0.05 N m/s per sqrt(Hz)
+between manoeuvres, no rate), and for the defaults without each of their noise models in turn.
+First, what the wrench's noise levels rest on: the plant's contact force and moment by phase,
+as a random walk over one sample (rms of the change per sample / sqrt(T)), as an integrated
+random walk over tau = 20, 50 and 100 ms (rms of the second difference over tau, sqrt(3/2) / tau^1.5:
+a rate that is a random walk of that density gives it), and the rms of its ramps (least-squares
+slopes).
 
-ContactEstimator (--estimator contact): scenarios/contact_estimation.yaml recorded once without
-the estimator, ContactEKF replayed from 0.2 s before the touch to the end (the press at rest),
-noise y_std (1e-5 rad); the truth is the plane's force on the tool (normal_force +
-friction_force; the estimator knows the payload) and the plant's surface height; ``--set``
-takes ContactEKFSettings names. On data from the filter's own model (a random-walk force, no
-model error) tests/physics/test_contact_estimator_consistency.py asserts the force's NEES.
+ContactEstimator (--estimator contact): first what its noise levels rest on (the plant's force
+rates by phase, the contact law's residual, the process model's one-step error on the plant's
+states); then scenarios/contact_estimation.yaml recorded once without the estimator, ContactEKF
+replayed from the start to the end (the press at rest), noise y_std (1e-5 rad); the truth is the
+plane's force on the tool (normal_force + friction_force; the estimator knows the payload) and
+the plant's surface height; printed for the scenario's settings, the previous ones, and without
+the manoeuvre detector or its hold; ``--set`` takes ContactEKFSettings names. On data from the
+filter's own model (a random-walk force, no model error) tests/physics/test_contact_estimator_consistency.py
+asserts the force's NEES, on the real plant tests/models/test_contact_estimator_scenario_consistency.py.
 
-Usage: python benchmarks/estimator_consistency.py [--estimator peg|contact] [--runs 50] [--noise RAD]
-       [--start 0.9] [--stop 1.6] [--set NAME=VALUE ...] [--variants 6]
+Usage: python benchmarks/estimator_consistency.py [--estimator peg|contact] [--runs 16] [--noise RAD]
+       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 8] (contact: 4 variants)
 """
 from __future__ import annotations
 
@@ -48,8 +59,10 @@ from deltafmi.physics.estimation.peg_ekf import PegEKF  # noqa: E402
 from deltafmi.physics.estimation.contact_ekf import ContactEKF  # noqa: E402
 
 
-def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start: float, stop: float) -> tuple:
-    """(times, hole NEES, force NEES, reopened, hole error norm) of one seeded run."""
+def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start: float,  # noqa: F821
+           stop: float) -> tuple:
+    """(times, hole x-y NEES, force NEES, reopened, hole error norm, hole NEES, tilt error, manoeuvre
+    flag) of one seeded run."""
     readout, ekf, t = Readout(noise, 0.0, seed), None, d["time"]
     rows = []
     for k in range(int(round(start / 1e-3)), int(round(stop / 1e-3)) + 1):
@@ -57,21 +70,22 @@ def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start:
         read = [readout.read(float(v), k, j) for j, v in enumerate(np.r_[d["y"][i], d["qw"][i]])]
         if ekf is None:
             ekf = PegEKF(c.robot_params(), c._wrist, c._mount, c._hole, c._peg, c._law, settings, read[:3],
-                         read[3:])
+                         read[3:], functions=c.native_functions)
         est = ekf.step(read[:3], read[3:], d["u"][i], d["tau"][i])
         eh, ef = est.hole - d["hole"][i], est.force - d["force"][i]
         rows.append((t[i], eh[:2] @ np.linalg.solve(ekf.P[18:20, 18:20], eh[:2]),
                      ef @ np.linalg.solve(ekf.P[12:15, 12:15], ef), np.linalg.norm(eh[:2]),
-                     eh @ np.linalg.solve(ekf.P[18:22, 18:22], eh), np.abs(eh[2:]).max()))
+                     eh @ np.linalg.solve(ekf.P[18:22, 18:22], eh), np.abs(eh[2:]).max(), float(ekf.manoeuvre)))
     a = np.array(rows)
-    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened, a[:, 3], a[:, 4], a[:, 5]
+    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened, a[:, 3], a[:, 4], a[:, 5], a[:, 6]
 
 
 def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
-    H, F, H4, reopened, E, A = [], [], [], [], [], []
+    H, F, H4, reopened, E, A, M = [], [], [], [], [], [], []
     began = time.perf_counter()
     for r in range(args.runs):
-        t, h, f, n, e, h4, a = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
+        t, h, f, n, e, h4, a, m = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
+        M.append(m)
         E.append(e[-1])
         A.append(a[-1])
         H.append(h)
@@ -82,96 +96,208 @@ def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
     print(f"  {R} runs in {time.perf_counter() - began:.0f} s; hole covariance reopened in {np.count_nonzero(reopened)} "
           f"runs; hole error at the end: x-y median {np.median(E) * 1e6:.1f} um, largest {np.max(E) * 1e6:.1f} um, "
           f"tilt median {np.median(A) * 1e3:.2f} mrad, largest {np.max(A) * 1e3:.2f} mrad")
+    chamfer, bore = (t >= 1.05) & (t < 1.2), (t >= 1.3) & (t < 1.5005)
+    phases = {"chamfer": chamfer, "impacts": ((t >= 1.0) & (t < 1.05)) | ((t >= 1.2) & (t < 1.3)),
+              "bore to 1.5 s": bore, "bore after 1.5 s": t >= 1.5005, "bore from 1.3 s": t >= 1.3}
     for name, nees, dof in (("hole x, y", H, 2), ("hole, tilt", H4, 4), ("force", F, 3)):
         lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
-        at = [(q, nees[:, np.argmin(np.abs(t - q))].mean()) for q in (1.1, 1.2, 1.4, args.stop) if q <= args.stop]
-        contact = nees[:, t >= 1.05].mean() if np.any(t >= 1.05) else float("nan")
-        bore = nees[:, t >= 1.3].mean() if np.any(t >= 1.3) else float("nan")
+        at = [(q, nees[:, np.argmin(np.abs(t - q))].mean()) for q in (1.1, 1.2, 1.4, 1.8, args.stop) if q <= args.stop]
+        sliding = chamfer | (t >= 1.3) if name == "force" else chamfer | bore
+        means = {p: nees[:, m].mean() if np.any(m) else float("nan") for p, m in phases.items()}
+        if name == "force":
+            means["largest (an instant's mean)"] = nees.mean(axis=0).max()
         print(f"  {name:10} mean NEES " + ", ".join(f"t={q:.1f} s: {v:.3g}" for q, v in at)
-              + f"; in contact {contact:.3g}, in the bore {bore:.3g}; 95 % interval for dof {dof}: "
-              f"[{lo:.3f}, {hi:.3f}]")
+              + f"; sliding {nees[:, sliding].mean():.3g}; " + ", ".join(f"{p} {v:.3g}" for p, v in means.items())
+              + f"; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
+    M = np.array(M)
+    print("  manoeuvre flagged at " + ", ".join(f"{100 * M[:, m].mean():.1f} %" + f" of the {p} samples"
+                                              for p, m in phases.items() if p != "bore from 1.3 s"))
+
+
+def walk_levels(X: np.ndarray, t: np.ndarray, lo: float, hi: float, T: float = 1e-3) -> tuple:
+    """X's (samples T apart) levels over [lo, hi], rms over the axes: as a random walk over one sample
+    (rms change / sqrt(T)), as an integrated random walk over 20, 50 and 100 ms (rms second
+    difference over tau, sqrt(3/2) / tau^1.5; nan where the phase is too short), and the rms of its
+    least-squares slope."""
+    X = X[(t >= lo) & (t <= hi)]
+    walk = float(np.sqrt(np.mean(np.diff(X, axis=0) ** 2) / T))
+    integrated = []
+    for n in (20, 50, 100):
+        second = X[2 * n:] - 2.0 * X[n:-n] + X[:-2 * n] if len(X) > 2 * n else np.full((1, 3), np.nan)
+        integrated.append(float(np.sqrt(1.5 * np.mean(second ** 2) / (n * T) ** 3)))
+    slope = np.polyfit(np.arange(len(X)) * T, X, 1)[0]
+    return walk, integrated, float(np.sqrt(np.mean(slope ** 2)))
 
 
 def force_rates(d: dict) -> None:
-    """The plant's contact force and moment rates by phase: rms of the change per sample / sqrt(T)."""
+    """The plant's contact force and moment by phase, as the wrench's noise models read them."""
     t = d["time"]
     on_grid = np.abs(t / 1e-3 - np.round(t / 1e-3)) < 1e-6
     t, F, M = t[on_grid], d["force"][on_grid], d["moment"][on_grid]
-    print("the plant's contact force rate (N/s per sqrt(Hz)) and moment rate (N m/s per sqrt(Hz)), rms over axes:")
-    for name, lo, hi in (("impact (1.0-1.05 s)", 1.0, 1.05), ("chamfer (1.05-1.2 s)", 1.05, 1.2),
-                         ("bore (from 1.3 s)", 1.3, t[-1])):
+    print("the plant's contact force (N) and moment (N m), rms over the axes: as a random walk over one sample "
+          "(/s per sqrt(Hz)); as an integrated random walk over 20, 50, 100 ms (/s^2 per sqrt(Hz)); its ramp (/s):")
+    for name, lo, hi in (("impact (1.0-1.05 s)", 1.0, 1.05), ("chamfer slide (1.05-1.12 s)", 1.05, 1.12),
+                         ("chamfer (1.05-1.2 s)", 1.05, 1.2), ("bore (1.3-1.5 s)", 1.3, 1.5),
+                         ("bore (from 1.35 s)", 1.35, t[-1])):
+        text = []
+        for label, X in (("force", F), ("moment", M)):
+            walk, integrated, ramp = walk_levels(X, t, lo, hi)
+            text.append(f"{label}: walk {walk:.3g}, integrated {' / '.join(f'{v:.3g}' for v in integrated)}, "
+                        f"ramp {ramp:.3g}")
+        print(f"  {name:28} " + "; ".join(text))
+
+
+#: the ContactEstimator's settings before they were derived from the plant (contact_estimation.yaml
+#: then): the force a random walk at 100 N/s per sqrt(Hz) throughout, model-error accelerations
+#: 0.05 m/s^2 per sqrt(Hz), the contact law's noise 5 N, applied above 10 N for 10 samples
+CONTACT_BEFORE = dict(acceleration_std=0.05, force_rate_std=100.0, steady_force_rate_std=0.0, contact_model_std=5.0,
+                      contact_threshold=10.0, contact_samples=10, manoeuvre_hold=0)
+SETTLE = 0.1  # s after the touch: the impact's transient, left out of "in contact"
+
+
+def contact_statistics(d: dict, kernels) -> None:
+    """What the ContactEstimator's noise levels rest on: the plant's normal-force rate by phase (rms
+    of the change per sample / sqrt(T), and the largest change per sample, whose 0.5-1 times is
+    the walk's change per sample by Bar-Shalom, Li, Kirubarajan 2001, section 6.3.3), the contact
+    law's residual, and the process model's one-step error on the plant's own states."""
+    from deltafmi.physics.delta.kinematics import inverse_kinematics
+
+    c = contact_component()
+    t = d["time"]
+    on = np.abs(t / 1e-3 - np.round(t / 1e-3)) < 1e-6
+    t, F, mode = t[on], d["force"][on], d["mode"][on]
+    touch = float(t[np.argmax(mode > 0)])
+    rest = float(t[np.nonzero(np.abs(np.diff(F[:, 2])) > 1e-6)[0][-1] + 1])
+    phases = {"free": (0.0, touch - 1e-3), f"impact ({SETTLE} s)": (touch - 1e-3, touch + SETTLE),
+              "press, ramp": (touch + SETTLE, rest - 0.6), "press, settling": (rest - 0.6, rest), "at rest": (rest, t[-1])}
+    print(f"the plant (touch {touch:.3f} s, the force constant from {rest:.3f} s): normal force rate rms (N/s per "
+          f"sqrt(Hz)), largest change per sample (N) and its 0.5-1 times over sqrt(T) (the walk it asks for); "
+          f"tangential force largest {np.abs(F[:, :2]).max():.3g} N")
+    for name, (lo, hi) in phases.items():
         m = (t[1:] > lo) & (t[1:] <= hi)
-        f, n = (float(np.sqrt(np.mean(np.diff(X, axis=0)[m] ** 2) / 1e-3)) for X in (F, M))
-        print(f"  {name:22} force {f:.3g}, moment {n:.3g}")
+        step = np.abs(np.diff(F[:, 2]))[m]
+        print(f"  {name:17} rate {np.sqrt(np.mean(step ** 2) / 1e-3):.3g}, largest change {step.max():.3g} N: walk "
+              f"{0.5 * step.max() / np.sqrt(1e-3):.3g}-{step.max() / np.sqrt(1e-3):.3g}")
+    fn, gap, zd = d["fn"][on], d["gap"][on], d["zd"][on]
+    st = c._settings
+    law = fn - (st.contact_stiffness * -gap + st.contact_damping * -zd[:, 2])
+    for value, name in ((2, "CONTACT"), (1, "COLLISION")):
+        m = mode == value
+        print(f"  contact law k (-gap) + c (-gap') against the plant's force in {name} ({m.sum()} samples): "
+              f"largest residual {np.abs(law[m]).max():.3g} N")
+    p, z, u = c.robot_params(), d["z"][on], d["u"][on]
+    errors = []
+    for k in range(len(t) - 1):  # one prediction from the plant's state with its torque and force held
+        q = inverse_kinematics(p, z[k])
+        v = np.asarray(kernels.kinematics(p, q, np.zeros(9)))[57:].reshape(9, 3) @ zd[k]
+        out = np.asarray(kernels.predict(p, q, v, list(u[k]), list(F[k]), 1e-3, st.pole, st.substeps))
+        kin = np.asarray(kernels.kinematics(p, out[:9], out[9:18]))
+        Jv = kin[3:30].reshape(3, 3, 3).transpose(1, 0, 2).reshape(3, 9) / 3.0
+        errors.append(np.abs(Jv @ out[9:18] - zd[k + 1]).max())
+    errors = np.array(errors) / np.sqrt(1e-3)  # the velocity's error over sqrt(T): m/s^2 per sqrt(Hz)
+    for name, (lo, hi) in phases.items():
+        m = (t[:-1] >= lo) & (t[:-1] < hi)
+        print(f"  process model's one-step velocity error / sqrt(T), {name:17}: rms {np.sqrt(np.mean(errors[m] ** 2)):.2g}, "
+              f"largest {errors[m].max():.2g} m/s^2 per sqrt(Hz)")
 
 
-def contact_replay(d: dict, c: "ContactEstimator", settings, noise: float, seed: int, start: float) -> tuple:
+def contact_replay(d: dict, c: "ContactEstimator", settings, kernels, noise: float, seed: int) -> tuple:
+    """(times, force NEES, surface NEES, manoeuvres) of one seeded run from the first sample."""
     readout, ekf, t = Readout(noise, 0.0, seed), None, d["time"]
     rows = []
-    for k in range(int(round(start / 1e-3)), int(round(t[-1] / 1e-3)) + 1):
+    for k in range(1, int(round(t[-1] / 1e-3)) + 1):
         i = int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1
         y = [readout.read(float(v), k, j) for j, v in enumerate(d["y"][i])]
         if ekf is None:
-            ekf = ContactEKF(c.robot_params(), settings, y)
+            ekf = ContactEKF(c.robot_params(), settings, y, kernels=kernels)
         est = ekf.step(y, d["u"][i])
         ef, es = est.force - d["force"][i], est.surface_height - d["surface"][i]
         rows.append((t[i], ef @ np.linalg.solve(ekf.P[18:21, 18:21], ef), es * es / ekf.P[21, 21]))
     a = np.array(rows)
-    return a[:, 0], a[:, 1], a[:, 2]
+    return a[:, 0], a[:, 1], a[:, 2], ekf.manoeuvres
 
 
 def contact_monte_carlo(args) -> None:
+    from deltafmi.builder.codegen import use_compiled_functions
+    from deltafmi.models.contact_estimator import ContactEstimator
+
+    compiled = use_compiled_functions(ContactEstimator)
     c = contact_component()
+    kernels = c.native_functions  # compiled if a C compiler is there: the same numbers, faster
     noise = args.noise or c._settings.y_std
     with tempfile.TemporaryDirectory() as tmp:
         d = contact_truth(Path(tmp))
+    contact_statistics(d, kernels)
+    on = np.abs(d["time"] / 1e-3 - np.round(d["time"] / 1e-3)) < 1e-6
+    rest = float(d["time"][on][np.nonzero(np.abs(np.diff(d["force"][on][:, 2])) > 1e-6)[0][-1] + 1])
     touch = float(d["time"][np.argmax(d["mode"] > 0)])
-    settings = replace(c._settings, **{k: float(v) for k, v in (s.split("=", 1) for s in args.set)})
-    F, S = [], []
-    began = time.perf_counter()
-    for r in range(args.runs):
-        t, f, s = contact_replay(d, c, settings, noise, 1000 + r, touch - 0.2)
-        F.append(f)
-        S.append(s)
-    F, S, R = np.array(F), np.array(S), args.runs
-    print(f"ContactEstimator: {R} runs from {touch - 0.2:.3f} s (touch {touch:.3f} s), noise {noise:g} rad, "
-          f"{time.perf_counter() - began:.0f} s; settings changed: {args.set or 'none'}")
-    phases = {"free": t < touch, "impact (0.3 s)": (t >= touch) & (t < touch + 0.3), "pressing": t >= touch + 0.3,
-              "last second": t > t[-1] - 1.0}
-    for name, nees, dof in (("force", F, 3), ("surface", S, 1)):
-        lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
-        print(f"  {name:8} mean NEES " + ", ".join(f"{p}: {nees[:, m].mean():.3g}" for p, m in phases.items())
-              + f", at the end {nees[:, -1].mean():.3g}; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
+    integers = {"contact_samples", "substeps", "manoeuvre_samples", "manoeuvre_hold"}
+    changes = {k: int(v) if k in integers else float(v) for k, v in (s.split("=", 1) for s in args.set)}
+    now = replace(c._settings, **changes)
+    variants = [("now (contact_estimation.yaml's settings, with --set)", now),
+                ("before: the previous settings (a 100 N/s walk throughout, 0.05 m/s^2, the law 5 N from 10 N)",
+                 replace(now, **CONTACT_BEFORE)),
+                ("without the manoeuvre detector (the steady level throughout, in every direction)",
+                 replace(now, force_rate_std=now.steady_force_rate_std, steady_force_rate_std=0.0)),
+                ("the detector without its hold (the fast walk only while the innovations say so)",
+                 replace(now, manoeuvre_hold=0))]
+    R = args.runs
+    print(f"ContactEstimator: {R} runs from the start (touch {touch:.3f} s), noise {noise:g} rad, "
+          f"{'compiled' if compiled else 'Python'} kernels; settings changed: {args.set or 'none'}")
+    for label, settings in variants[:args.variants]:
+        began = time.perf_counter()
+        runs = [contact_replay(d, c, settings, kernels, noise, 1000 + r) for r in range(R)]
+        t = runs[0][0]
+        F, S = np.array([r[1] for r in runs]), np.array([r[2] for r in runs])
+        phases = {f"in contact (from {SETTLE} s after the touch)": t >= touch + SETTLE, "free": t < touch,
+                  f"impact ({SETTLE} s)": (t >= touch) & (t < touch + SETTLE),
+                  "press, ramp": (t >= touch + SETTLE) & (t < rest), "at rest": t >= rest}
+        print(f"{label}: {time.perf_counter() - began:.0f} s, manoeuvres detected per run "
+              f"{np.mean([r[3] for r in runs]):.1f}")
+        for name, nees, dof in (("force", F, 3), ("surface", S, 1)):
+            lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
+            print(f"  {name:8} mean NEES " + ", ".join(f"{p}: {nees[:, m].mean():.3g}" for p, m in phases.items())
+                  + f", at the end {nees[:, -1].mean():.3g}; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--estimator", choices=("peg", "contact"), default="peg")
-    parser.add_argument("--runs", type=int, default=50)
+    parser.add_argument("--runs", type=int, default=16)
     parser.add_argument("--noise", type=float, default=None, help="encoder noise (rad; default the y_std assumed)")
     parser.add_argument("--start", type=float, default=0.9)
-    parser.add_argument("--stop", type=float, default=1.6)
+    parser.add_argument("--stop", type=float, default=2.2)
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
-    parser.add_argument("--variants", type=int, default=6, help="how many of the settings variants to run (peg)")
+    parser.add_argument("--variants", type=int, default=8, help="how many of the settings variants to run (peg)")
     args = parser.parse_args()
     if args.estimator == "contact":
         contact_monte_carlo(args)
         return
+    from deltafmi.builder.codegen import use_compiled_functions
+    from deltafmi.models.peg_estimator import PegEstimator
+
+    if not use_compiled_functions(PegEstimator):
+        raise SystemExit("PegEstimator: its functions could not be compiled (no C compiler?)")
     c = component()
     args.noise = args.noise or c._settings.y_std
     with tempfile.TemporaryDirectory() as tmp:
         d = peg_truth(Path(tmp), args.stop)
     integers = {"contact_iterations", "jacobian_columns", "reject_samples", "contact_samples", "substeps",
                 "manoeuvre_samples"}
+    no_rate = dict(force_acceleration_std=0.0, moment_acceleration_std=0.0, force_ramp_std=0.0, moment_ramp_std=0.0)
     changes = {k: int(v) if k in integers else float(v) for k, v in (s.split("=", 1) for s in args.set)}
     force_rates(d)
     now = replace(c._settings, **changes)
     baseline = replace(now, acceleration_std=0.01, angular_acceleration_std=0.5, steady_force_rate_std=0.0,
                        steady_moment_rate_std=0.0, law_hole_std=0.0, law_tilt_std=0.0, hole_drift_std=0.0,
-                       tilt_drift_std=0.0)
-    variants = [("now (defaults, with --set)", now), ("baseline: the previous defaults", baseline),
+                       tilt_drift_std=0.0, **no_rate)
+    variants = [("now (defaults, with --set)", now),
+                ("the last release's wrench: a random walk, 1 N/s and 0.05 N m/s per sqrt(Hz) between manoeuvres",
+                 replace(now, steady_force_rate_std=1.0, steady_moment_rate_std=0.05, **no_rate)),
+                ("baseline: the previous defaults", baseline),
                 ("without the manoeuvre detector (the wrench at 30 N/s, 2 N m/s throughout)",
                  replace(now, steady_force_rate_std=0.0, steady_moment_rate_std=0.0)),
+                ("without the rate's restart at a manoeuvre", replace(now, force_ramp_std=0.0, moment_ramp_std=0.0)),
                 ("without the law's considered offset", replace(now, law_hole_std=0.0, law_tilt_std=0.0)),
                 ("without the hole's random walk", replace(now, hole_drift_std=0.0, tilt_drift_std=0.0)),
                 ("with the previous model-error accelerations (0.01, 0.5)",

@@ -24,8 +24,8 @@ _SETTINGS = ("sample_period", "y_std", "qw_std", "acceleration_std", "angular_ac
              "moment_rate_std", "velocity_std0", "rate_std0", "force_std0", "moment_std0", "hole_std0", "tilt_std0",
              "contact_force_std", "contact_moment_std", "contact_threshold", "contact_samples", "reject_samples",
              "hole_drift_std", "tilt_drift_std", "law_hole_std", "law_tilt_std", "steady_force_rate_std",
-             "steady_moment_rate_std", "manoeuvre_samples", "pole", "substeps", "contact_iterations",
-             "jacobian_columns")
+             "steady_moment_rate_std", "force_acceleration_std", "moment_acceleration_std", "force_ramp_std",
+             "moment_ramp_std", "manoeuvre_samples", "pole", "substeps", "contact_iterations", "jacobian_columns")
 
 
 class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel, SampledComponent):
@@ -36,7 +36,8 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     Listens to the servo angles y, the wrist angles qw, the servo torques u and the wrist torques
     tau. Process model: the plant's DAE in its six coordinates (plate position, wrist angles) and
     rates, with the contact wrench on the peg (force at the tool tip and moment about it, world,
-    the contact multipliers' resultant) as a random walk, slow between manoeuvres and fast in one
+    the contact multipliers' resultant) as an integrated random walk (its rate a random walk: ramps
+    followed) plus a random walk, slow between manoeuvres and fast in one
     (an impact, detected from the joint angles' innovations); the hole's x, y and tilt are a slow
     random walk tied to the wrench by the peg's contact law (the plant's, with the parameters below as the
     estimator models them) while the estimated force exceeds contact_threshold for
@@ -77,12 +78,22 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
                                "sqrt(Hz))")
     moment_rate_std = Parameter(2.0, unit="N.m/s", min=0.0,
                                 description="Random walk of the contact moment in a manoeuvre (per sqrt(Hz))")
-    steady_force_rate_std = Parameter(1.0, unit="N/s", min=0.0,
+    steady_force_rate_std = Parameter(0.01, unit="N/s", min=0.0,
                                       description="Random walk of the contact force between manoeuvres (per "
                                       "sqrt(Hz); 0: force_rate_std always)")
-    steady_moment_rate_std = Parameter(0.05, unit="N.m/s", min=0.0,
+    steady_moment_rate_std = Parameter(3e-4, unit="N.m/s", min=0.0,
                                        description="Random walk of the contact moment between manoeuvres (per "
                                        "sqrt(Hz); 0: moment_rate_std always)")
+    force_acceleration_std = Parameter(0.7, unit="N/s2", min=0.0,
+                                       description="Random walk of the contact force's rate (per sqrt(Hz)): the "
+                                       "force an integrated random walk, its ramps followed")
+    moment_acceleration_std = Parameter(0.02, unit="N.m/s2", min=0.0,
+                                        description="Random walk of the contact moment's rate (per sqrt(Hz))")
+    force_ramp_std = Parameter(5.0, unit="N/s", min=0.0,
+                               description="The contact force's rate after a manoeuvre, about zero (a new contact's "
+                               "ramp)")
+    moment_ramp_std = Parameter(0.05, unit="N.m/s", min=0.0,
+                                description="The contact moment's rate after a manoeuvre, about zero")
     manoeuvre_samples = Parameter(10, type=int, min=1,
                                   description="Samples of the joint angles' normalised innovations whose sum, above "
                                   "its chi-square 0.999 quantile, detects a manoeuvre")

@@ -165,6 +165,33 @@ def test_csv_reals_written_as_repr(tmp_path):
     assert lines == [f"{t!r},{a!r},{b!r},{int(n)}" for t, a, b, n in rows.tolist()]
 
 
+def test_csv_text_laid_out_as_repr_in_every_notation_and_repeated(tmp_path):
+    # every place the point can take in fixed notation (-4 ... 15 as repr chooses), integral
+    # values with zeros after their digits, short digits (a time grid, subnormals: Ryu removes
+    # many digits, several at a time), and a value repeated in its column copied from the row
+    # above, in rows of one and two columns where the texts sit close together (3 to 24 chars)
+    rng = np.random.default_rng(42)
+    mantissas = rng.random(400) + 1.0
+    fixed = np.concatenate([mantissas * 10.0 ** e for e in range(-6, 18)])
+    integral = np.concatenate([np.round(rng.random(50) * 10.0 ** k) for k in range(1, 17)]
+                              + [10.0 ** np.arange(17)])
+    grid = np.arange(0, 20001) * 1e-3
+    # subnormals: wide rounding intervals, cut where the digits removed may round either way
+    subnormal = np.arange(1, 30000) * 5e-324
+    values = np.concatenate([fixed, -fixed, integral, -integral, grid, 0.1 * np.arange(-500, 500), subnormal])
+    repeated = np.repeat(values, rng.integers(1, 4, len(values)))
+    for width in (1, 2):
+        count = len(repeated) // width * width
+        rows = repeated[:count].reshape(-1, width)
+        names = ["a"][:width - 1]
+        path = tmp_path / f"w{width}.csv"
+        writer = CsvWriter(path, names, chunk=211)
+        writer.write_rows(rows)
+        writer.close()
+        lines = path.read_text().splitlines()[1:]
+        assert lines == [",".join(repr(v) for v in row) for row in rows.tolist()]
+
+
 def test_study_recorder_takes_blocks_and_event_rows(tmp_path, c_runs):
     # deltafmi.apps.studies keeps rows in memory: blocks from the C loop between single rows (the
     # initial row, the rows before step events) must come out in order, as the Python loop's

@@ -97,45 +97,55 @@ def test_without_noise_the_estimates_match_the_plant(clean):
     """The estimator's model is the plant's. Free space: force error 0.026 N rms (measured; the
     plant's BDF at rtol 1e-6 against the filter's RK4), moment 5e-12 N m, no false contact. The
     impact on the chamfer is a train of ~5 ms bounces up to 10.3 N (the controller's force
-    feedback no longer takes the half-sample lead): the force's random walk smooths them, but the
-    momentum they exchange, the impulse over 0.3 s (0.458 N s), is right to 2.08 % (measured;
-    between detected manoeuvres the walk's steady level, 1 N/s/sqrt(Hz), lags the force rising on
-    the chamfer at ~8 N/s until the joint angles' innovations flag it; bound 5 %). Sliding in the bore (0.57 N of wall and
-    friction forces): force error 0.0045 N rms, moment 1.8e-4 N m (measured); the bounds are 2 to 3
-    times these."""
+    feedback no longer takes the half-sample lead): the force's walk smooths them, but the
+    momentum they exchange, the impulse over 0.3 s (0.458 N s), is right to 4.3 % (measured;
+    between detected manoeuvres the wrench walks at its steady levels, set for the bore, and lags
+    the bounces until the joint angles' innovations flag them; bound 5 %). Sliding in the bore
+    (0.57 N of wall and friction forces, the last 0.5 s): force error 0.015 N rms, moment 6.2e-4 N m
+    (measured: the integrated walk, 0.7 N/s^2/sqrt(Hz) on the force's rate as the plant's bore
+    force varies, lags the axial force where its ramp turns, at ~1.87 s; 0.0045 N and 1.8e-4 N m
+    with the previous walk, 1 N/s/sqrt(Hz), 24 times the bore's rate and its NEES 0.5); the
+    bounds are 2 to 2.5 times these."""
     print(f"free force error {clean['free_force']:.4f} N rms, impulse error "
           f"{100 * clean['impulse_error'] / clean['impulse']:.2f} % of {clean['impulse']:.3f} N s, bore force error "
           f"{clean['steady_force']:.4f} N rms, moment {clean['steady_moment']:.2e} N m")
     assert clean["touch"] == pytest.approx(1.012, abs=0.01)  # the scenario as measured
     assert not clean["false_contact"] and clean["free_force"] < 0.06 and clean["free_moment"] < 1e-6
     assert clean["impulse_error"] < 0.05 * clean["impulse"]
-    assert clean["steady_force"] < 0.01 and clean["steady_moment"] < 5e-4
+    assert clean["steady_force"] < 0.03 and clean["steady_moment"] < 1.5e-3
 
 
 def test_without_noise_the_hole_and_the_impact_are_found(clean):
     """The hole, 1.8 mm off the nominal, to within 5 um and its 1-degree tilt to 1 mrad (measured:
-    0.1 um and below 0.01 mrad: the law's updates on exact data, the hole's slow random walk
+    1.8 um and 0.06 mrad: the law's updates on exact data, the hole's slow random walk
     letting the estimate leave where the first chamfer bounces put it); the worst force error
-    during the bounces within 0.75 of their peak (measured 0.70: a 5 ms bounce is over before a
-    random walk follows it)."""
+    during the bounces below their peak, the estimate never overshooting past the truth by more
+    than the truth's own size (measured 0.89 of the peak: a 5 ms bounce is over before the walk,
+    at its steady level until the detector flags the bounce, follows it; 0.70 with the previous
+    steady level, 100 times the bore's)."""
     print(f"hole error {clean['hole'] * 1e6:.2f} um (std {clean['hole_std'] * 1e6:.2f} um), tilt error "
           f"{clean['tilt'] * 1e3:.3f} mrad, worst impact error {clean['impact_error'] / clean['impact_peak']:.3f} "
           f"of the peak")
     assert clean["hole"] < 5e-6 and clean["tilt"] < 1e-3
-    assert clean["impact_error"] < 0.75 * clean["impact_peak"]
+    assert clean["impact_error"] < clean["impact_peak"]
 
 
 def test_with_encoder_noise_the_errors_stay_within_the_filter_noise(noisy):
     """Encoder noise 2e-7 rad on y and qw (seeded; a 23-bit encoder's quantisation step is
-    7.5e-7 rad, std 2e-7), the filter assuming 1e-6: no false contact; force noise 0.14 N rms in
-    free space and in the bore, moment 0.011 N m (measured), the force errors within 3 of the
-    filter's standard deviations at more than 99 % of the bore's samples. The hole to 0.14 mm and
-    its tilt to 7.5 mrad (measured): the noisy wrench mostly blurs the tilt, whose error moves
-    the bore's axis by depth x tilt at the contacts."""
+    7.5e-7 rad, std 2e-7), the filter assuming 1e-6: no false contact; force error 0.029 N rms in
+    free space and 0.015 N in the bore, moment 6.2e-4 N m (measured: about the noise-free run's; the
+    wrench's steady walks, set for the bore, pass little of the noise), the force errors within 3
+    of the filter's standard deviations at more than 99 % of the bore's samples (measured 100 %).
+    The hole to 1.8 um and its tilt to 0.09 mrad (measured). With the previous steady walk (100
+    times the bore's force rate) the noise came through: 0.14 N, 0.011 N m, the hole to 0.14 mm and
+    its tilt to 7.5 mrad. The bounds are 2 to 5 times the figures measured now."""
+    print(f"free force error {noisy['free_force']:.4f} N rms, bore {noisy['steady_force']:.4f} N rms, moment "
+          f"{noisy['steady_moment']:.2e} N m, within 3 std {100 * noisy['within_3_std']:.1f} %, hole error "
+          f"{noisy['hole'] * 1e6:.1f} um, tilt {noisy['tilt'] * 1e3:.2f} mrad")
     assert not noisy["false_contact"]
-    assert noisy["free_force"] < 0.3 and noisy["steady_force"] < 0.3 and noisy["steady_moment"] < 0.03
+    assert noisy["free_force"] < 0.06 and noisy["steady_force"] < 0.03 and noisy["steady_moment"] < 1.5e-3
     assert noisy["within_3_std"] > 0.99
-    assert noisy["hole"] < 3e-4 and noisy["tilt"] < 0.015
+    assert noisy["hole"] < 1e-5 and noisy["tilt"] < 5e-4
 
 
 @pytest.fixture(scope="module")

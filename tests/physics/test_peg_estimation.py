@@ -185,7 +185,7 @@ def contact_update(iterations: int, offset: float) -> tuple[np.ndarray, np.ndarr
     exact = PegEKFSettings(contact_iterations=iterations, law_hole_std=0.0, law_tilt_std=0.0)  # the law is the truth's
     ekf = PegEKF(RL5, W_CONST, MOUNT, Hole(z=-1.2), peg, law, exact, [0.0] * 3, [0.0] * 3)
     ekf.x[:12], ekf.x[12:18], ekf.x[18:22] = s, felt, [hole.x + offset, hole.y, 0.0, 0.0]
-    ekf.P = np.diag([1e-18] * 18 + [2e-4 ** 2] * 2 + [2e-3 ** 2] * 2)
+    ekf.P = np.diag([1e-18] * 18 + [2e-4 ** 2] * 2 + [2e-3 ** 2] * 2 + [1e-18] * 6)
     ekf._contact_update()
     h = ekf.x[18:22]
     c = contact_wrench(hole, peg, law, W_CONST, MOUNT, s, h)
@@ -222,9 +222,12 @@ def test_the_manoeuvre_gate_is_the_chi_square_quantile():
 def test_a_wrench_the_steady_walk_cannot_explain_is_a_manoeuvre():
     """The filter sure there is no wrench (force_std0 1e-3 N, moment 1e-4 N m) on the moving robot
     of the test above: with no wrench no manoeuvre is detected in 0.25 s; with WRENCH (2.3 N, there
-    from the start, which the steady walk, 1 N/s/sqrt(Hz), would take seconds to reach) the sum
-    of the joint angles' normalised innovations exceeds its gate at the first full window (sample
-    9 of 10 samples), once, and the fast walk then finds the wrench (to 1e-6 N; measured 3e-8)."""
+    from the start, which the steady walks, 0.01 N/s/sqrt(Hz) on the force and 0.7 N/s^2/sqrt(Hz) on
+    its rate, would take seconds to reach) the sum of the joint angles' normalised innovations
+    exceeds its gate at the first full window (sample 9 of 10 samples), once, and the fast walk then
+    finds the wrench (to 1e-4 N; measured 2.6e-5 at 0.25 s: the wrench's rate, reopened at the
+    manoeuvre to force_ramp_std, 5 N/s, is learned to be zero over the samples after it; 3e-8
+    with the wrench a plain random walk)."""
     u, tau = inputs(S0)
     times = np.arange(251) * T
     for wrench, detected in ((np.zeros(6), None), (WRENCH, 9)):
@@ -237,7 +240,7 @@ def test_a_wrench_the_steady_walk_cannot_explain_is_a_manoeuvre():
             est = ekf.step(x[[0, 3, 6]], x[9:12], u, tau)
             first = k if first is None and ekf.manoeuvre else first
         assert first == detected and ekf.manoeuvres == (detected is not None)
-        np.testing.assert_allclose(est.force, wrench[:3], atol=1e-6)
+        np.testing.assert_allclose(est.force, wrench[:3], atol=1e-4)
 
 
 def correlated_filter() -> tuple[PegEKF, np.ndarray]:
@@ -250,12 +253,12 @@ def correlated_filter() -> tuple[PegEKF, np.ndarray]:
                  [0.0] * 3)
     ekf.x[:12], ekf.x[12:18], ekf.x[18:22] = s, c.force + c.moment, [hole.x + 2e-6, hole.y, 0.0, 0.0]
     rng = np.random.default_rng(3)
-    root = rng.standard_normal((26, 26))
-    cov = root @ root.T + 26 * np.eye(26)
-    std = np.array([1e-7] * 6 + [1e-4] * 6 + [0.05] * 3 + [0.005] * 3 + [2e-4] * 2 + [2e-3] * 2 + [3e-5] * 2
-                   + [3e-3] * 2)
+    root = rng.standard_normal((32, 32))
+    cov = root @ root.T + 32 * np.eye(32)
+    std = np.array([1e-7] * 6 + [1e-4] * 6 + [0.05] * 3 + [0.005] * 3 + [2e-4] * 2 + [2e-3] * 2 + [0.5] * 3
+                   + [0.01] * 3 + [3e-5] * 2 + [3e-3] * 2)
     Pa = cov / np.sqrt(np.outer(np.diag(cov), np.diag(cov))) * np.outer(std, std)
-    ekf.P, ekf._Pxb, ekf._Pbb = Pa[:22, :22].copy(), Pa[:22, 22:].copy(), Pa[22:, 22:].copy()
+    ekf.P, ekf._Pxb, ekf._Pbb = Pa[:28, :28].copy(), Pa[:28, 28:].copy(), Pa[28:, 28:].copy()
     return ekf, Pa
 
 
@@ -263,21 +266,21 @@ def assert_covariances(ekf: PegEKF, Pa: np.ndarray, prior: np.ndarray) -> None:
     """The filter's [P, P_xb] equal to Pa's to 1e-11 of the prior's correlation scale sqrt(P_ii P_jj):
     round-off of sums of terms of the prior's size (measured 1e-15 to 2e-12; the dense form's own
     error against long double is 3e-13 in the contact update)."""
-    scale = np.sqrt(np.outer(np.diag(prior), np.diag(prior)))[:22]
-    assert np.max(np.abs(np.hstack([ekf.P, ekf._Pxb]) - Pa[:22]) / scale) < 1e-11
+    scale = np.sqrt(np.outer(np.diag(prior), np.diag(prior)))[:28]
+    assert np.max(np.abs(np.hstack([ekf.P, ekf._Pxb]) - Pa[:28]) / scale) < 1e-11
 
 
 def assert_correction(updated: np.ndarray, x: np.ndarray, dx: np.ndarray, prior: np.ndarray) -> None:
     """updated = x + dx to 1e-11 prior standard deviations, beside x + dx's own round-off."""
     error = np.abs(updated - (x + dx)) - 4 * np.finfo(float).eps * np.abs(x + dx)
-    assert np.max(error / np.sqrt(np.diag(prior)[:22])) < 1e-11
+    assert np.max(error / np.sqrt(np.diag(prior)[:28])) < 1e-11
 
 
 def test_the_covariance_algebra_by_blocks_is_the_dense_one():
     """The filter forms its covariance algebra by blocks (the transition matrix's nonzero rows, the
-    Joseph products as low-rank corrections); against the dense forms on the 26 x 26 covariance of
-    the state and the considered law offset b, with every entry correlated: Phi P Phi^T + Q with
-    Phi = exp(A T) (kalman.transition_matrix); the angles' update, joseph_update of the 22 states
+    Joseph products as low-rank corrections); against the dense forms on the 32 x 32 covariance of
+    the state (with the wrench's rate) and the considered law offset b, with every entry correlated:
+    Phi P Phi^T + Q with Phi = exp(A T) (kalman.transition_matrix); the angles' update, joseph_update of the 28 states
     (b's rows of the gain zero); the contact law's, joseph_update of the hole's 4 (law seeing h + b).
     To round-off (:func:`assert_covariances`, :func:`assert_correction`)."""
     from deltafmi.physics.estimation.kalman import transition_matrix
@@ -285,34 +288,36 @@ def test_the_covariance_algebra_by_blocks_is_the_dense_one():
     ekf, Pa = correlated_filter()  # the prediction, from the torques holding the pose
     u, tau = inputs(ekf.x[:12])
     ekf.predict(list(u), list(tau))
-    A = np.zeros((18, 18))
-    A[:12] = ekf._A
-    Phi = np.eye(26)
-    Phi[:18, :18] = transition_matrix(A, T)
+    A = np.zeros((24, 24))  # over z = [s, W, V]: s' = A [s, W], W' = V
+    A[:12, :18] = ekf._A
+    A[12:18, 18:24] = np.eye(6)
+    z = np.r_[0:18, 22:28]
+    Phi = np.eye(32)
+    Phi[np.ix_(z, z)] = transition_matrix(A, T)
     predicted = Phi @ Pa @ Phi.T
-    predicted[:22, :22] += ekf._Q_steady
+    predicted[:28, :28] += ekf._Q_steady
     assert_covariances(ekf, predicted, Pa)
 
     ekf, Pa = correlated_filter()  # the angles' update, out of contact
     ekf.x[12:18] = 0.0
     servo = ekf.functions.servo_kinematics(ekf.p, ekf.x[0:3].tolist())
     y, qw = servo[:3] + [1e-6, -2e-6, 0.5e-6], ekf.x[3:6] + [1e-6, 0.0, -1e-6]  # innovations of a few std
-    H = np.zeros((6, 26))
+    H = np.zeros((6, 32))
     H[:3, :3], H[3:, 3:6] = servo[3:12].reshape(3, 3), np.eye(3)
     residual = np.concatenate([y - servo[:3], qw - ekf.x[3:6]])
     x = ekf.x.copy()
     ekf.update(y, qw)
-    dx, updated = joseph_update(Pa, H, residual, ekf._R, slice(0, 22))
+    dx, updated = joseph_update(Pa, H, residual, ekf._R, slice(0, 28))
     assert not ekf.in_contact
     assert_covariances(ekf, updated, Pa)
-    assert_correction(ekf.x, x, dx[:22], Pa)
+    assert_correction(ekf.x, x, dx[:28], Pa)
 
     ekf, Pa = correlated_filter()  # the contact law's update, one linearisation
     c, J, active = ekf._wrench_jacobian(ekf.x[18:22])
-    H = np.hstack([-J[:, :12], np.eye(6), -J[:, 12:], -J[:, 12:]])  # over [s, W, h, b]
+    H = np.hstack([-J[:, :12], np.eye(6), -J[:, 12:], np.zeros((6, 6)), -J[:, 12:]])  # over [s, W, h, V, b]
     x = ekf.x.copy()
     ekf._contact_update()
     dx, updated = joseph_update(Pa, H, c - x[12:18], ekf._Rc, slice(18, 22))
     assert active > 0.0 and ekf.consistency <= ekf.settings.contact_gate
     assert_covariances(ekf, updated, Pa)
-    assert_correction(ekf.x, x, dx[:22], Pa)
+    assert_correction(ekf.x, x, dx[:28], Pa)

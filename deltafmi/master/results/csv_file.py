@@ -122,7 +122,7 @@ class CsvWriter:
         else:
             self._block = np.empty((chunk, len(names) + 1))
             self._integer = (ctypes.c_int * (len(names) + 1))(0, *[kind in _INTEGERS for kind in kinds])
-            self._text_out = ctypes.create_string_buffer(chunk * (len(names) + 1) * 33)
+            self._text_out = ctypes.create_string_buffer(chunk * (len(names) + 1) * 33 + 32)  # csv_rows.c's room
             self._format_rows = _rows_formatter()
         self._n = 0
         self._last_flush = _time.monotonic()
@@ -156,13 +156,20 @@ class CsvWriter:
             return
         if self._failed is not None:
             raise self._failed
-        done = 0
+        done, chunk = 0, self._chunk
+        direct = (isinstance(rows, np.ndarray) and rows.dtype == np.float64 and rows.flags.c_contiguous
+                  and rows.shape[1:] == self._block.shape[1:])
         while done < len(rows):
-            take = min(len(rows) - done, self._chunk - self._n)
+            if direct and self._n == 0 and len(rows) - done >= chunk:
+                # a whole block with none queued before it: formatted where it is, not copied first
+                self._write_block(rows[done:done + chunk])
+                done += chunk
+                continue
+            take = min(len(rows) - done, chunk - self._n)
             self._block[self._n:self._n + take] = rows[done:done + take]
             self._n += take
             done += take
-            if self._n == self._chunk or _time.monotonic() - self._last_flush > _FLUSH_SECONDS:
+            if self._n == chunk or _time.monotonic() - self._last_flush > _FLUSH_SECONDS:
                 self.flush()
 
     def flush(self) -> None:
@@ -183,13 +190,17 @@ class CsvWriter:
                 ends = np.cumsum([len(piece) for piece in pieces])
                 times = [row[0] for row in self._rows]
                 self._rows = []
+                self._emit(data, ends, times, n)
             else:
-                size = self._format_rows(self._block.ctypes.data, n, self._block.shape[1], self._integer,
-                                         self._text_out)
-                data = memoryview(self._text_out)[:size]  # written before the buffer is used again
-                ends = None  # one row a line: found from the text if a write fails
-                times = self._block[:n, 0]
-            self._emit(data, ends, times, n)
+                self._write_block(self._block[:n])
+        self._last_flush = _time.monotonic()
+
+    def _write_block(self, block: np.ndarray) -> None:
+        """Numeric rows (a C-contiguous float block of at most ``chunk`` rows) as text to the file."""
+        size = self._format_rows(block.ctypes.data, len(block), block.shape[1], self._integer, self._text_out)
+        data = memoryview(self._text_out)[:size]  # written before the buffer is used again
+        # ends None: one row a line, found from the text if a write fails
+        self._emit(data, None, block[:, 0], len(block))
         self._last_flush = _time.monotonic()
 
     def _emit(self, data: Any, ends: Optional[np.ndarray], times: Sequence[float], n_rows: int = 0) -> None:

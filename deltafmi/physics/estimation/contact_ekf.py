@@ -9,7 +9,11 @@ inputs). Estimated, 22 states X = [q (9), v (9), f (3), s]:
   how the covariance stays on the closed loops), with white task-space acceleration noise
   (acceleration_std) for the model's errors;
 - f: the external force on the wrist, world frame, a random walk (force_rate_std): for the tool
-  on a plane with normal n, f = n lambda, lambda the contact multiplier (the plant's fn);
+  on a plane with normal n, f = n lambda, lambda the contact multiplier (the plant's fn). With
+  steady_force_rate_std the walk has two levels (:meth:`ContactEKF._detect_manoeuvre`: slow
+  between manoeuvres, force_rate_std in one, an impact detected from the servo angles'
+  innovations, its window filtered again) and follows the contact: along n, friction times
+  that across it;
 - s: the height at which the surface crosses the robot axis, a constant.
 
 s is tied to the rest by the contact law as a pseudo-measurement, applied only while the filter
@@ -36,6 +40,7 @@ benchmarks/assembly_realtime.py times it.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
@@ -45,7 +50,7 @@ from ..delta.jacobian import _SENSITIVITIES
 from ..delta.kinematics import forward_kinematics, inverse_kinematics
 from ..delta.params import DeltaParams
 from .delta_process_kernels import PYTHON_KERNELS, ProcessKernels
-from .kalman import white_acceleration_noise
+from .kalman import MANOEUVRE_Z, chi_square_quantile, white_acceleration_noise
 
 __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
 
@@ -62,7 +67,11 @@ class ContactEKFSettings:
     sample_period: float = 1e-3  #: s
     y_std: float = 1e-5  #: servo-angle noise (rad)
     acceleration_std: float = 0.05  #: white wrist-acceleration noise, model error (m/s^2/sqrt(Hz))
-    force_rate_std: float = 100.0  #: random walk of the wrist force (N/s/sqrt(Hz))
+    force_rate_std: float = 100.0  #: random walk of the wrist force (in a manoeuvre, with two levels) (N/s/sqrt(Hz))
+    steady_force_rate_std: float = 0.0  #: its walk between manoeuvres (0: force_rate_std throughout, every direction)
+    friction: float = 0.0  #: with two levels: the walk across the normal is friction times the one along it
+    manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
+    manoeuvre_hold: int = 0  #: samples a detected manoeuvre lasts at least (an impact's transient)
     surface_drift_std: float = 0.0  #: random walk of the surface height (m/sqrt(s))
     position_std0: float = 1e-3  #: initial wrist position (m), around forward kinematics of y0
     velocity_std0: float = 0.01  #: initial wrist velocity (m/s), around zd0
@@ -85,13 +94,15 @@ class ContactEKFSettings:
         for name in positive:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
-        for name in ("acceleration_std", "force_rate_std", "surface_drift_std", "contact_stiffness",
-                     "contact_damping", "pole"):
+        for name in ("acceleration_std", "force_rate_std", "steady_force_rate_std", "friction", "surface_drift_std",
+                     "contact_stiffness", "contact_damping", "pole"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
-        for name in ("substeps", "contact_samples"):
+        for name in ("substeps", "contact_samples", "manoeuvre_samples"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
+        if int(self.manoeuvre_hold) < 0:
+            raise ValueError(f"estimator setting manoeuvre_hold must be >= 0, got {self.manoeuvre_hold}")
         n = np.asarray(self.normal, dtype=float).reshape(-1)
         norm = float(np.linalg.norm(n)) if n.shape == (3,) else 0.0
         if not norm > 0.0 or abs(n[2]) < 1e-6 * norm:
@@ -161,6 +172,23 @@ class ContactEKF:
         self._Qd = np.zeros((_N, _N))  # the process noise but for the joint block, which moves with q
         self._Qd[_F, _F] = settings.force_rate_std ** 2 * T * np.eye(3)
         self._Qd[_S, _S] = settings.surface_drift_std ** 2 * T
+        # with two levels the force is the contact's: it walks along n, across it at friction times that
+        # (a contact force stays in its friction cone), fast in a manoeuvre, at the steady level between
+        steady = settings.steady_force_rate_std
+        self._Qd_steady = self._Qd.copy()
+        if steady:
+            nn = np.outer(n, n)
+            cone = T * (nn + settings.friction ** 2 * (np.eye(3) - nn))
+            self._Qd[_F, _F] = settings.force_rate_std ** 2 * cone
+            self._Qd_steady[_F, _F] = steady ** 2 * cone
+        self._nis: list[float] = []  # the servo angles' last normalised innovations r^T S^-1 r
+        self._nis_gate = chi_square_quantile(3 * int(settings.manoeuvre_samples), MANOEUVRE_Z)
+        self.manoeuvre = False  #: a manoeuvre (an impact: the force changing fast) is detected
+        self.manoeuvres = 0  #: manoeuvres detected so far
+        # the detector's window: (x, P, torques held, pressing count, y) before each of its samples
+        self._window: deque | None = deque(maxlen=int(settings.manoeuvre_samples)) if steady else None
+        self._refilter = False  # the detector fired at this sample: filter its window again
+        self._held = 0  # samples since the manoeuvre was detected
         self._kinematics_at: bytes = b""  # the (q, v) that _kinematics holds
         self._A = np.zeros((21, 21))  # d[q'; v'; f']/d[q; v; f]: q' = v, f' = 0 but for noise
         self._A[_Q, _V] = np.eye(9)
@@ -169,18 +197,29 @@ class ContactEKF:
     def step(self, y: Sequence[float], u: Sequence[float]) -> ContactEstimate:
         """One sample t_k: predict over the last period with the torques held since t_(k-1) (none
         at the first sample), update with y (rad) at t_k; u (N m) is held from now on."""
+        if self._window is not None:
+            self._window.append((self.x.copy(), self.P.copy(), self._u, self._pressing, y))
+        self._advance(y)
+        if self._refilter:  # a manoeuvre began within the window: filter it again at the fast walk
+            x, P, _, self._pressing, _ = self._window[0]
+            self.x, self.P = x.copy(), P.copy()
+            for _, _, self._u, _, earlier in self._window:
+                self._advance(earlier)
+            self._refilter = False
+        self._u = [float(value) for value in u]
+        return self.estimate()
+
+    def _advance(self, y: Sequence[float]) -> None:
         if self._u is not None:
             self.predict(self._u)
         self.update(y)
-        self._u = [float(value) for value in u]
-        return self.estimate()
 
     def update(self, y: Sequence[float]) -> None:
         """Measurement update with the servo angles, then the gated contact-law update."""
         self._correct_servos(np.asarray(y, float) - self.x[_SERVOS])
         pressing = float(self._n @ self.x[_F]) > self.settings.contact_threshold
         self._pressing = self._pressing + 1 if pressing else 0
-        self.in_contact = self._pressing >= self.settings.contact_samples
+        self.in_contact = self._pressing >= self.settings.contact_samples and not self.manoeuvre
         if self.in_contact:
             H, value = self._contact_row()
             self._correct_row(H, -value)
@@ -211,7 +250,7 @@ class ContactEKF:
         P[:21, :21] = PhiP[:, :21] @ Phi.T
         P[:21, _S] = P[_S, :21] = PhiP[:, _S]
         P[_S, _S] = self.P[_S, _S]
-        P += self._Qd
+        P += self._Qd if self.manoeuvre else self._Qd_steady
         P[:18, :18] += noise
         self.P = 0.5 * (P + P.T)
 
@@ -272,11 +311,36 @@ class ContactEKF:
         """The Joseph update (:func:`.kalman.joseph_update`) with the servo angles, whose H selects
         three states: P H^T and H P H^T are columns and entries of P, and (I - K H) P (I - K H)^T
         is M - (M H^T) K^T with M = P - K (H P), two products of rank 3."""
+        PHt = self.P[:, _SERVOS]
+        Sinv = _inverse3(PHt[_SERVOS] + self._Ry)
+        self._detect_manoeuvre(float(residual @ Sinv @ residual))  # changes P's force block only, not P H^T
         P = self.P
-        PHt = P[:, _SERVOS]
-        K = PHt @ _inverse3(PHt[_SERVOS] + self._Ry)
+        K = PHt @ Sinv
         M = P - K @ P[_SERVOS]
         self._correct(M - M[:, _SERVOS] @ K.T + self._ry * (K @ K.T), K @ residual)
+
+    def _detect_manoeuvre(self, nis: float) -> None:
+        """The force's process noise level from the servo angles' innovations (Bar-Shalom, Li,
+        Kirubarajan 2001, section 11.2: adjustable process noise; as :class:`.peg_ekf.PegEKF`): while
+        the sum of the last manoeuvre_samples normalised innovations stays within its chi-square
+        0.999 quantile the force walks at the steady level; above it at force_rate_std, for at
+        least manoeuvre_hold samples. When it starts, :meth:`step` filters the window's samples again from the state
+        before them at the fast walk (the manoeuvre began somewhere within the window; raising the
+        force's covariance at the end only would have the force alone explain a motion the joints'
+        states had already taken up, and overshoot). ``nis``: the angles' normalised innovation
+        r^T S^-1 r at this sample."""
+        st = self.settings
+        if not st.steady_force_rate_std or self._refilter:
+            return
+        self._nis.append(nis)
+        del self._nis[:-st.manoeuvre_samples]
+        manoeuvre = len(self._nis) == st.manoeuvre_samples and sum(self._nis) > self._nis_gate
+        if manoeuvre and not self.manoeuvre:
+            self._refilter = True
+            self.manoeuvres += 1
+            self._held = 0
+        self._held += 1
+        self.manoeuvre = manoeuvre or (self.manoeuvre and self._held < st.manoeuvre_hold)
 
     def _correct_row(self, h: np.ndarray, residual: float) -> None:
         """The Joseph update with one scalar measurement of gradient h (the contact law), its

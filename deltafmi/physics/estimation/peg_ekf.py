@@ -3,19 +3,29 @@ delta robot with its spherical wrist (DeltaWristPeg), from joint angles and moto
 
 Measured: the servo angles y (3, noise y_std) and the wrist angles qw (3, noise qw_std); known
 inputs: the servo torques u and the wrist torques tau, held over each sample period. Estimated,
-22 states X = [s (12), W (6), h (4)]:
+28 states X = [s (12), W (6), h (4), V (6)]:
 
 - s = [z, qw, zd, vw]: the plant's six independent coordinates and their rates, process model
   the plant's DAE (:mod:`.wrist_process`), with white acceleration noise for the model's errors
   (acceleration_std on the plate, angular_acceleration_std on the wrist joints);
 - W = [F, M]: the contact wrench on the peg, force at the tool tip and moment about it, world
   frame (the resultant of the contact multipliers; the plant's contact_force, contact_moment),
-  a random walk at two levels (Bar-Shalom, Li, Kirubarajan 2001, section 11.2: adjustable process
-  noise): steady_force_rate_std, steady_moment_rate_std while the joint angles' innovations are
-  consistent (a contact force sliding on the chamfer or in the bore changes slowly), and
-  force_rate_std, moment_rate_std in a manoeuvre (an impact): detected when the sum of the last
-  manoeuvre_samples normalised innovations r^T S^-1 r exceeds its chi-square 0.999 quantile, the
-  wrench's covariance then first given what the fast walk would have added over that window;
+  and V = W' its rate: a sliding contact's wrench follows ramps (the controller pushing, the
+  peg moving along the chamfer or the bore), so W is an integrated random walk (W' = V, V' white,
+  force_acceleration_std, moment_acceleration_std: a ramp is followed without lag) plus a random
+  walk (W' also white) at two levels (Bar-Shalom, Li, Kirubarajan 2001, section 11.2: adjustable
+  process noise): steady_force_rate_std, steady_moment_rate_std while the joint angles'
+  innovations are consistent, and force_rate_std, moment_rate_std in a manoeuvre (an impact):
+  detected when the sum of the last manoeuvre_samples normalised innovations r^T S^-1 r exceeds
+  its chi-square 0.999 quantile, the wrench's covariance then first given what the fast walk
+  would have added over that window, and its rate starting over (zero, force_ramp_std,
+  moment_ramp_std, uncorrelated: the new contact's ramp is not the last one's). The levels are
+  what the plant's force does (benchmarks/estimator_consistency.py prints them, docs/assembly.md):
+  over tens of milliseconds in the bore its rate wanders as an integrated walk of ~0.7 N/s^2 per
+  sqrt(Hz), over one sample it moves as a walk of ~0.01 N/s per sqrt(Hz), and sliding down the
+  chamfer its ramps reach ~5 N/s. With a plain random walk wide enough for the chamfer the
+  filter was under-confident in the bore (force NEES 0.5 of its 3), and one at the bore's level
+  lagged the ramp there (NEES rising to tens as the ramp steepened);
 - h = [x, y, tilt_x, tilt_y]: the hole (:mod:`.peg_contact`), with a prior (the nominal hole,
   hole_std0, tilt_std0) and a slow random walk (hole_drift_std, tilt_drift_std): the hole does
   not move, but the law's updates are linearised at the estimate, and a walk makes the filter
@@ -65,13 +75,14 @@ across the contact normal stays at what the chamfer told (its standard deviation
 
 Consistency (tests/models/test_peg_estimator_consistency.py, benchmarks/estimator_consistency.py:
 Monte Carlo over seeded encoder noise on the real plant; docs/assembly.md has the figures): with
-the wrench's two levels, the considered law offset and the hole's walk, the mean NEES of the hole
-(4 dof) and of the force over the contact lie within their chi-square intervals; with the wrench
-at its fast level throughout and no law error (the previous defaults) the hole's NEES was 1e4-1e5
-and the force's 0.1. A lock-in shows as the gate refusing the law reject_samples times in a row
-while in contact; the hole's covariance then goes back to its prior's about the current mean
-(its correlations dropped), and the law's updates start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that
-detects its innovations are inconsistent raises its uncertainty instead of refusing the data).
+the wrench's integrated walk and its two levels, the considered law offset and the hole's walk,
+the mean NEES of the hole (4 dof) and of the force sliding on the chamfer and in the bore lie
+within their chi-square intervals; with the wrench at its fast level throughout and no law error
+(the previous defaults) the hole's NEES was 1e4-1e5 and the force's 0.1. A lock-in shows as the
+gate refusing the law reject_samples times in a row while in contact; the hole's covariance then
+goes back to its prior's about the current mean (its correlations dropped), and the law's updates
+start over from it (Bar-Shalom, Li, Kirubarajan 2001, ch. 11: a filter that detects its
+innovations are inconsistent raises its uncertainty instead of refusing the data).
 
 Cycle per sample t_k (:meth:`PegEKF.step`), as ContactEKF: predict from t_(k-1) with the torques
 held since then, update with y(t_k), qw(t_k), then the gated contact update. The prediction's
@@ -98,17 +109,18 @@ from ..delta.params import DeltaParams
 from ..delta_wrist.params import WristMount
 from ..peg.params import Hole, Peg, PegContact
 from ..wrist.kernels import WristConstants
-from .kalman import white_acceleration_noise
+from .kalman import MANOEUVRE_Z, chi_square_quantile, white_acceleration_noise
 from .peg_contact import HOLE_STATES, linearization_parts, located
 from .peg_kernels import FUNCTIONS, JACOBIAN_COLUMNS
 from .wrist_process import N_REDUCED, tool_pose
 
 __all__ = ["PegEKFSettings", "PegEstimate", "PegEKF", "N_STATES", "PYTHON_FUNCTIONS"]
 
-_S, _W, _H = slice(0, 12), slice(12, 18), slice(18, 22)
-#: the standard normal quantile of the manoeuvre detector's chi-square gate (probability 0.999)
-MANOEUVRE_Z = 3.090
-N_STATES = N_REDUCED + 6 + HOLE_STATES
+# the wrench's rate V last, so that the hole keeps its place (18:22) among the states
+_S, _W, _H, _V = slice(0, 12), slice(12, 18), slice(18, 22), slice(22, 28)
+#: the states the prediction's transition involves: s, W and W's rate V (the hole walks alone)
+_Z = np.r_[0:18, 22:28]
+N_STATES = N_REDUCED + 6 + HOLE_STATES + 6
 #: terms of exp(A T)'s Taylor series in the prediction (:func:`.kalman.transition_matrix`'s default)
 TAYLOR_ORDER = 4
 
@@ -156,9 +168,13 @@ class PegEKFSettings:
     tilt_drift_std: float = 2e-2  #: random walk of the hole's tilt (rad/sqrt(s))
     law_hole_std: float = 3e-5  #: the contact law's error as a constant offset of the hole's x, y (m), considered
     law_tilt_std: float = 3e-3  #: the contact law's error as a constant offset of the hole's tilt (rad), considered
-    steady_force_rate_std: float = 1.0  #: the force's random walk while no manoeuvre is detected (0: force_rate_std)
-    steady_moment_rate_std: float = 0.05  #: the moment's walk while no manoeuvre is detected (0: moment_rate_std)
+    steady_force_rate_std: float = 0.01  #: the force's random walk while no manoeuvre is detected (0: force_rate_std)
+    steady_moment_rate_std: float = 3e-4  #: the moment's walk while no manoeuvre is detected (0: moment_rate_std)
     manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
+    force_acceleration_std: float = 0.7  #: white noise on the contact force's rate (N/s^2/sqrt(Hz)): its ramps
+    moment_acceleration_std: float = 0.02  #: white noise on the contact moment's rate (N m/s^2/sqrt(Hz))
+    force_ramp_std: float = 5.0  #: the force's rate (N/s) after a manoeuvre, about zero: a new contact's ramp (0: kept)
+    moment_ramp_std: float = 0.05  #: the moment's rate (N m/s) after a manoeuvre, about zero (0 both: kept)
     pole: float = 5.0  #: Baumgarte pole of the process model (1/s)
     substeps: int = 1  #: Runge-Kutta steps per sample period
     jacobian_columns: int = 3  #: process-Jacobian columns (of 18) evaluated again per sample, in turn
@@ -171,7 +187,8 @@ class PegEKFSettings:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "angular_acceleration_std", "force_rate_std", "moment_rate_std",
                      "hole_drift_std", "tilt_drift_std", "law_hole_std", "law_tilt_std", "steady_force_rate_std",
-                     "steady_moment_rate_std", "contact_threshold", "contact_gate", "pole",
+                     "steady_moment_rate_std", "force_acceleration_std", "moment_acceleration_std", "force_ramp_std",
+                     "moment_ramp_std", "contact_threshold", "contact_gate", "pole",
                      "contact_tolerance"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
@@ -181,14 +198,6 @@ class PegEKFSettings:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
         if int(self.jacobian_columns) > 18:
             raise ValueError(f"estimator setting jacobian_columns must be <= 18, got {self.jacobian_columns}")
-
-
-def chi_square_quantile(dof: int, z: float) -> float:
-    """The chi-square quantile with dof degrees of freedom at the standard normal quantile z
-    (Wilson-Hilferty: dof (1 - 2 / (9 dof) + z sqrt(2 / (9 dof)))^3; relative error below 2e-3 for
-    dof >= 30 at z = 3.09)."""
-    a = 2.0 / (9.0 * dof)
-    return dof * (1.0 - a + z * np.sqrt(a)) ** 3
 
 
 class PegEstimate(NamedTuple):
@@ -228,7 +237,7 @@ class PegEKF:
         self.x[0:3], self.x[3:6] = forward_kinematics(p, y0), np.asarray(qw0, float)
         self.x[_H] = hole.x, hole.y, hole.tilt_x, hole.tilt_y
         std = ([st.position_std0] * 3 + [st.angle_std0] * 3 + [st.velocity_std0] * 3 + [st.rate_std0] * 3
-               + [st.force_std0] * 3 + [st.moment_std0] * 3 + [st.hole_std0] * 2 + [st.tilt_std0] * 2)
+               + [st.force_std0] * 3 + [st.moment_std0] * 3 + [st.hole_std0] * 2 + [st.tilt_std0] * 2 + [0.0] * 6)
         self.P = np.diag(np.square(std))
         self.in_contact = False
         self.consistency = 0.0  #: r^T S^-1 r of the last contact update (module docstring)
@@ -251,14 +260,22 @@ class PegEKF:
         Q = np.zeros((N_STATES, N_STATES))
         for i, a in enumerate([st.acceleration_std] * 3 + [st.angular_acceleration_std] * 3):
             Q[np.ix_([i, i + 6], [i, i + 6])] = a * a * W
-        Q[_W, _W] = np.diag([st.force_rate_std ** 2] * 3 + [st.moment_rate_std ** 2] * 3) * T
         Q[_H, _H] = np.diag([st.hole_drift_std ** 2] * 2 + [st.tilt_drift_std ** 2] * 2) * T
+        # the wrench's rate V: an integrated random walk of the wrench (W' = V, V' = white noise)
+        for i, a in enumerate([st.force_acceleration_std] * 3 + [st.moment_acceleration_std] * 3):
+            Q[np.ix_([12 + i, 22 + i], [12 + i, 22 + i])] = a * a * W
+        walk = Q.copy()
+        Q[_W, _W] += np.diag([st.force_rate_std ** 2] * 3 + [st.moment_rate_std ** 2] * 3) * T
         self._Q = Q
         # the wrench's random walk between manoeuvres (the steady levels), and the detector's state
         steady = ([st.steady_force_rate_std or st.force_rate_std] * 3
                   + [st.steady_moment_rate_std or st.moment_rate_std] * 3)
-        self._Q_steady = Q.copy()
-        self._Q_steady[_W, _W] = np.diag(np.square(steady)) * T
+        self._Q_steady = walk
+        self._Q_steady[_W, _W] += np.diag(np.square(steady)) * T
+        self._ramp = np.diag([st.force_ramp_std ** 2] * 3 + [st.moment_ramp_std ** 2] * 3)
+        self._Phi = np.zeros((18, 24))  # the transition's rows of [s, W] over [s, W, V]
+        self._Phi[12:18, 12:18] = np.eye(6)
+        self._Phi[12:18, 18:24] = T * np.eye(6)
         self._nis: list[float] = []  # the joint angles' last normalised innovations r^T S^-1 r
         self._nis_gate = chi_square_quantile(6 * st.manoeuvre_samples, MANOEUVRE_Z)
         self.manoeuvre = False  #: a manoeuvre (an impact: the wrench changing fast) is detected
@@ -289,24 +306,31 @@ class PegEKF:
                                            float(st.pole), float(st.sample_period), int(st.substeps), first, count)
         due = [(first + i) % 18 for i in range(count)]
         self._A[6:12, due] = np.reshape(values[12:], (18, 6)).T[:, due]
-        # Phi = exp(A T) (:func:`.kalman.transition_matrix`'s series) is the identity but for the rows
-        # of s (the wrench and the hole walk): those rows, F = Phi[s, [s, W]], as the series of
-        # A's nonzero rows, and Phi P Phi^T by them
-        AT = self._A * st.sample_period
+        # Phi = exp(A T) (:func:`.kalman.transition_matrix`'s series) over z = [s, W, V] (W' = V; the
+        # hole walks alone) is the identity but for the rows of s and W: those rows as the series of
+        # A's nonzero rows (s's: F over [s, W], F_V over V, from A's W columns times V's T / k;
+        # W's: [0, I, T I]), and Phi P Phi^T by them
+        T = st.sample_period
+        AT = self._A * T
         term = AT
         F = self._F0 + AT
+        FV = np.zeros((N_REDUCED, 6))
         for k in range(2, TAYLOR_ORDER + 1):
+            FV += term[:, N_REDUCED:] * (T / k)
             term = term[:, :N_REDUCED] @ AT / k
             F += term
+        Phi = self._Phi
+        Phi[:12, :18], Phi[:12, 18:] = F, FV
         self.x[_S] = values[:12]
+        self.x[_W] += T * self.x[_V]
         P, Pxb = self.P, self._Pxb
-        FP = F @ P[:18]
-        FPF = FP[:, :18] @ F.T
-        P[:12, :12] = 0.5 * (FPF + FPF.T)
-        P[:12, 12:] = FP[:, 12:]
-        P[12:, :12] = FP[:, 12:].T
+        FP = Phi @ P[_Z]  # (18, 28)
+        FPF = FP[:, _Z] @ Phi.T
+        P[:18, :18] = 0.5 * (FPF + FPF.T)
+        P[:18, 18:] = FP[:, 18:]
+        P[18:, :18] = FP[:, 18:].T
         P += self._Q if self.manoeuvre else self._Q_steady
-        Pxb[:12] = F @ Pxb[:18]
+        Pxb[:18] = Phi @ Pxb[_Z]
 
     def update(self, y: Sequence[float], qw: Sequence[float]) -> None:
         """Measurement update with the joint angles, then the gated contact-law update."""
@@ -315,10 +339,10 @@ class PegEKF:
         H[0:3, 0:3] = servo[3:12].reshape(3, 3)
         residual = np.concatenate([np.asarray(y, float) - servo[0:3], np.asarray(qw, float) - self.x[3:6]])
         st = self.settings
-        PHt = self.P[:, :6] @ H.T
-        S = H @ PHt[:6] + self._R
+        S = H @ (self.P[:6, :6] @ H.T) + self._R
         Sinv = np.linalg.inv(S)
-        self._detect_manoeuvre(float(residual @ Sinv @ residual))  # changes P's wrench block only, not H P
+        self._detect_manoeuvre(float(residual @ Sinv @ residual))  # changes the wrench's rows, not P[:6, :6]
+        PHt = self.P[:, :6] @ H.T
         self._correct_angles(H, PHt, S, PHt @ Sinv, residual)
         force = self.x[12:15]
         touching = math.sqrt(force @ force) > st.contact_threshold
@@ -379,8 +403,8 @@ class PegEKF:
         A0 = GP[:, :18] @ G.T + self._Rc
         D = P[_H, _H] + Pxb[_H]  # cov(h, h + b)
         E = D + Pxb[_H].T + Pbb  # cov(h + b)
-        Z = np.vstack([-(GP[:, 18:] + GPxb), -D, E])  # [-G cov(z, h + b); -cov(h, h + b); cov(h + b)]
-        C = GP[:, 18:].T  # P[h, z] G^T
+        Z = np.vstack([-(GP[:, _H] + GPxb), -D, E])  # [-G cov(z, h + b); -cov(h, h + b); cov(h + b)]
+        C = GP[:, _H].T  # P[h, z] G^T
         prior = self.x[_H].copy()
         wrench = self.x[_W].copy()
         scale = np.sqrt(np.diag(P)[_H])
@@ -416,7 +440,8 @@ class PegEKF:
         Kirubarajan 2001, section 11.2: adjustable process noise): while the sum of the last
         manoeuvre_samples normalised innovations stays within its chi-square 0.999 quantile the
         wrench walks at the steady levels; above it, at force_rate_std and moment_rate_std, and the
-        wrench's covariance first gets what that walk would have added over the window. ``nis``: the
+        wrench's covariance first gets what that walk would have added over the window, its rate V
+        starting over (zero mean, force_ramp_std and moment_ramp_std, uncorrelated). ``nis``: the
         angles' normalised innovation r^T S^-1 r at this sample."""
         st = self.settings
         if not (st.steady_force_rate_std or st.steady_moment_rate_std):
@@ -427,6 +452,13 @@ class PegEKF:
         if manoeuvre and not self.manoeuvre:
             window = st.manoeuvre_samples
             self.P[_W, _W] += window * (self._Q[_W, _W] - self._Q_steady[_W, _W])
+            if st.force_ramp_std or st.moment_ramp_std:
+                # the wrench's rate starts over: a new contact's ramp, unrelated to the last one's
+                self.x[_V] = 0.0
+                self.P[_V, :] = 0.0
+                self.P[:, _V] = 0.0
+                self.P[_V, _V] = self._ramp
+                self._Pxb[_V] = 0.0
             self.manoeuvres += 1
         self.manoeuvre = manoeuvre
 

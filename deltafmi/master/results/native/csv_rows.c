@@ -148,6 +148,15 @@ static void shortest(uint64_t ieee_mantissa, uint32_t ieee_exponent, uint64_t *d
             vp /= 100;
             vm /= 100;
             removed += 2;
+            /* short outputs (0.001, 0.25): four digits a time while four can go; the loop below
+             * would remove them one by one, its rounding set by the last, the highest of them */
+            while (vp / 10000 > vm / 10000) {
+                round_up = vr % 10000 >= 5000;
+                vr /= 10000;
+                vp /= 10000;
+                vm /= 10000;
+                removed += 4;
+            }
         }
         for (;;) {
             if (vp / 10 <= vm / 10) break;
@@ -169,19 +178,19 @@ static const char DIGIT_PAIRS[200] =
     "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
     "8081828384858687888990919293949596979899";
 
-/* the decimal digits of v (> 0, at most 20 of them): compared from the most, the common case of a
- * double's shortest digits (15 to 17 of them) in a few comparisons */
+/* 10^i, i < 20 */
 static const uint64_t POWERS_OF_TEN[20] = {
     1ull, 10ull, 100ull, 1000ull, 10000ull, 100000ull, 1000000ull, 10000000ull, 100000000ull, 1000000000ull,
     10000000000ull, 100000000000ull, 1000000000000ull, 10000000000000ull, 100000000000000ull,
     1000000000000000ull, 10000000000000000ull, 100000000000000000ull, 1000000000000000000ull,
     10000000000000000000ull};
 
+/* the number of decimal digits of v (> 0): from its bit length (1233 / 4096 just above
+ * log10(2)), one more where v reaches the next power of ten */
 static inline int decimal_length(uint64_t v)
 {
-    int n = 20;
-    while (n > 1 && v < POWERS_OF_TEN[n - 1]) n--;
-    return n;
+    const int guess = ((64 - __builtin_clzll(v)) * 1233) >> 12;
+    return guess + (v >= POWERS_OF_TEN[guess]);
 }
 
 /* "dddd": w (< 10000) as exactly four digits */
@@ -238,7 +247,10 @@ static int format_integer(double x, char *out)
     return n + nd;
 }
 
-/* repr(x) into out (room for 32 chars); returns its length */
+/* repr(x) into out (room for 24 chars, the longest repr: it may write up to there, past the
+ * length it returns); returns its length. The digits are written once, where they end up:
+ * write_digits fills from the right, so a point inside them is made by moving the digits before
+ * it one place left. */
 static int repr_double(double x, char *out)
 {
     uint64_t bits;
@@ -264,44 +276,48 @@ static int repr_double(double x, char *out)
     uint64_t mantissa;
     int32_t e10;
     shortest(ieee_mantissa, ieee_exponent, &mantissa, &e10);
-    char digits[24];
     const int nd = decimal_length(mantissa);
-    write_digits(mantissa, digits, nd);
     const int exponent = e10 + nd - 1; /* of the first digit */
+    char *p = out + n;
     if (exponent >= -4 && exponent < 16) {
-        if (exponent < 0) {
-            out[n++] = '0';
-            out[n++] = '.';
-            for (int i = -1; i > exponent; i--) out[n++] = '0';
-            memcpy(out + n, digits, (size_t)nd);
-            return n + nd;
+        if (exponent < 0) { /* 0.000ddd */
+            memcpy(p, "0.0000", 6);
+            p += 1 - exponent;
+            write_digits(mantissa, p, nd);
+            return (int)(p - out) + nd;
         }
-        for (int i = 0; i <= exponent; i++) out[n++] = i < nd ? digits[i] : '0';
-        out[n++] = '.';
-        if (nd > exponent + 1) {
-            memcpy(out + n, digits + exponent + 1, (size_t)(nd - exponent - 1));
-            return n + nd - exponent - 1;
+        if (nd <= exponent + 1) { /* integral: ddd000.0 (at most 16 digits) */
+            memset(p, '0', 16);
+            write_digits(mantissa, p, nd);
+            p += exponent + 1;
+            memcpy(p, ".0", 2);
+            return (int)(p - out) + 2;
         }
-        out[n++] = '0';
-        return n;
+        write_digits(mantissa, p + 1, nd); /* ddd.ddd */
+        for (int i = 0; i <= exponent; i++) p[i] = p[i + 1];
+        p[exponent + 1] = '.';
+        return n + nd + 1;
     }
-    out[n++] = digits[0];
+    write_digits(mantissa, p + 1, nd); /* d.ddde+XX */
+    p[0] = p[1];
     if (nd > 1) {
-        out[n++] = '.';
-        memcpy(out + n, digits + 1, (size_t)(nd - 1));
-        n += nd - 1;
+        p[1] = '.';
+        p += nd + 1;
+    } else {
+        p += 1;
     }
-    out[n++] = 'e';
-    out[n++] = exponent < 0 ? '-' : '+';
+    *p++ = 'e';
+    *p++ = exponent < 0 ? '-' : '+';
     int e = exponent < 0 ? -exponent : exponent;
-    if (e >= 100) out[n++] = (char)('0' + e / 100);
-    out[n++] = (char)('0' + e / 10 % 10);
-    out[n++] = (char)('0' + e % 10);
-    return n;
+    if (e >= 100) *p++ = (char)('0' + e / 100);
+    *p++ = (char)('0' + e / 10 % 10);
+    *p++ = (char)('0' + e % 10);
+    return (int)(p - out);
 }
 
 /* n_rows rows of `width` doubles (row-major) as lines "v,v,...\n" into out (room for
- * n_rows * width * 32 chars); integer[j] != 0 writes column j as an integer (truncated, as
+ * n_rows * width * 33 + 32 chars: a value and its comma take at most 25, and up to 32 are
+ * written where a value starts); integer[j] != 0 writes column j as an integer (truncated, as
  * Python's "%d" does; the master's Integer and Boolean buses hold 32-bit integers).
  * A value with the bits of the one above it in its column is copied from that one's text.
  * Returns the number of chars written. */
@@ -318,7 +334,12 @@ size_t deltafmi_csv_rows(const double *rows, long n_rows, long width, const int 
             size_t length;
             if (above && i && memcmp(&row[j], &previous[j], sizeof(double)) == 0) {
                 length = above[2 * j + 1];
-                memcpy(out + n, out + above[2 * j], length);
+                /* a fixed 32 bytes (a text is at most 24: the rest is written over next), copied
+                 * inline instead of a call; all read before any is written: in a narrow row the
+                 * two may overlap */
+                char text[32];
+                memcpy(text, out + above[2 * j], 32);
+                memcpy(out + n, text, 32);
             } else if (integer[j]) {
                 length = (size_t)format_integer(row[j], out + n);
             } else {
