@@ -74,7 +74,12 @@ def replaced_atomically(path: Path) -> Iterator[Path]:
         if held is not None:
             signal.pthread_sigmask(signal.SIG_SETMASK, held)
             held = None
-        yield Path(name)
+        try:
+            yield Path(name)
+        except OSError as error:
+            if error.filename is None:  # a write that failed (a full disk): the file it was for
+                error.filename = str(path)
+            raise
         os.chmod(name, USER_FILE_MODE)
         os.replace(name, path)
     finally:

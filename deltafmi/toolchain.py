@@ -130,7 +130,7 @@ def single_file_library(source: Path, name: str, includes: Sequence[Callable[[],
     (``-lm``); ``includes`` give its include directories, asked for only when it must be compiled
     (a Python's headers are needed only then)."""
     key = f"\0{name}\0{abi}\0{' '.join(flags)}\0{' '.join(libraries)}"
-    digest = hashlib.sha256(source.read_bytes() + key.encode()).hexdigest()[:16]
+    digest = hashlib.sha256(source.read_bytes() + key.encode("utf-8", "surrogateescape")).hexdigest()[:16]
     relative = f"native/{source.stem}-{digest}/{name}"
     found = find_built(relative)
     if found is not None:
@@ -182,7 +182,7 @@ def building(target: Path) -> Iterator[None]:
         import fcntl
         folder = Path(tempfile.gettempdir()) / "deltafmi-build-locks"
         folder.mkdir(exist_ok=True)
-        name = hashlib.sha256(str(Path(target).resolve()).encode()).hexdigest()[:32]
+        name = hashlib.sha256(os.fsencode(Path(target).resolve())).hexdigest()[:32]
         handle = open(folder / name, "a")
     except (ImportError, OSError):
         yield
@@ -213,13 +213,14 @@ def strip_unneeded(library: Path) -> None:
     """Drop a shared library's symbol table and debug information in place; its dynamic symbols
     (what dlsym and the loader need) stay. Nothing happens where binutils' strip is missing."""
     if shutil.which("strip"):
-        subprocess.run(["strip", "--strip-unneeded", str(library)], check=True, capture_output=True, text=True)
+        subprocess.run(["strip", "--strip-unneeded", str(library)], check=True, capture_output=True, text=True,
+                       errors="replace")
 
 
 def run_compiler(command: list[str], source: Path) -> None:
     """Run the compiler ``command`` that builds from ``source``; :class:`BuildError` with its messages when it fails."""
     try:
-        result = subprocess.run(command, capture_output=True, text=True)
+        result = subprocess.run(command, capture_output=True, text=True, errors="replace")  # file names: any bytes
     except OSError as exc:  # found by which, yet not runnable
         raise NoCompilerError(f"{_shown(source)}: {no_compiler_message(command[0])} ({exc.strerror})") from None
     if result.returncode != 0:

@@ -103,7 +103,8 @@ SLOW = {"test_reliability_signals_tools", "test_wheel_install", "test_python_hos
         "test_third_party_masters", "test_fmu_threads", "test_symbol_isolation", "test_joystick_tracking",
         "test_component_docs", "test_mpc_controller", "test_peg_estimator", "test_fmu_without_fmpy_scipy",
         "test_export_fmu", "test_assembly_hold", "test_contact_estimator_consistency",
-        "test_peg_estimator_consistency", "test_contact_estimator_scenario_consistency"}
+        "test_peg_estimator_consistency", "test_non_utf8_paths",
+        "test_contact_estimator_scenario_consistency"}
 
 
 def pytest_configure(config) -> None:

@@ -1,6 +1,7 @@
 """Result files are replaced whole: a failed write leaves the earlier file, a link is written through."""
 from __future__ import annotations
 
+import errno
 import os
 
 import pytest
@@ -31,6 +32,17 @@ def test_a_failed_write_keeps_the_earlier_file_and_leaves_no_part_file(tmp_path)
             raise RuntimeError("the run failed")
     assert target.read_text() == "earlier\n"
     assert [p.name for p in tmp_path.iterdir()] == ["run.csv"]
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+def test_a_write_the_disk_refuses_names_the_file_it_was_for(tmp_path):
+    target = tmp_path / "model.fmu"
+    with pytest.raises(OSError) as failed:
+        with replaced_atomically(target):
+            with open("/dev/full", "wb", buffering=0) as full:  # the kernel's ENOSPC, no file name
+                full.write(b"x")
+    assert failed.value.errno == errno.ENOSPC and failed.value.filename == str(target)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_symbolic_link_is_written_through_and_stays_a_link(tmp_path):

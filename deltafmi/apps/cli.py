@@ -179,9 +179,25 @@ def _reported(error: Exception) -> int:
     library = sys.modules.get("deltafmi.runtime.errors")  # not imported: no library error can have been raised
     if library is not None and isinstance(error, library.DeltaFmiError):
         return report(error)
+    if isinstance(error, BrokenPipeError) and _reader_gone():
+        # `deltafmi info X.fmu | head -1`: the reader took what it wanted; end as a shell's tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # Python's last flush: nowhere
+        return 128 + signal.SIGPIPE
     if os.environ.get(DEBUG_VARIABLE):
         raise error
     return report_os_error(error) if isinstance(error, OSError) else report_unexpected(error)
+
+
+def _reader_gone() -> bool:
+    """Whether the reader of stdout (a pipe) has closed it."""
+    import select
+
+    try:
+        poll = select.poll()
+        poll.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & select.POLLERR for _, events in poll.poll(0))
+    except (OSError, ValueError):  # no stdout, or not a file (a test's captured output)
+        return False
 
 
 @click.group(cls=_Commands)

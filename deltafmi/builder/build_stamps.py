@@ -104,7 +104,7 @@ def remember(request: str, stamps: Sequence[Stamp], fmu: Path) -> None:
 def _request(*parts: str) -> str:
     # the interpreter and the compiler's presence go into the key (packager.content_key), so into the request
     environment = (sys.prefix, sys.base_prefix, sys.version, str(compiler_available()))
-    return hashlib.sha256("\0".join((*parts, *environment)).encode()).hexdigest()[:32]
+    return hashlib.sha256("\0".join((*parts, *environment)).encode("utf-8", "surrogateescape")).hexdigest()[:32]
 
 
 def _record_path(request: str) -> Path:

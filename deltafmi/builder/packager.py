@@ -211,7 +211,7 @@ def _keyed(source: Path, class_name: Optional[str], fmi_version: int,
     stamps = stamps_of([source, *(path for path, _ in carried), *hashed, *folders])
     digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0fmi{fmi_version}\0".encode())
     for path, arcname in carried:
-        digest.update(f"{arcname}\0{path.stat().st_size}\0".encode() + path.read_bytes())
+        digest.update(f"{arcname}\0{path.stat().st_size}\0".encode("utf-8", "surrogateescape") + path.read_bytes())
     for path in hashed:
         digest.update(path.read_bytes())
     digest.update(" ".join(CFLAGS).encode())  # how the binary is compiled
@@ -219,7 +219,7 @@ def _keyed(source: Path, class_name: Optional[str], fmi_version: int,
     digest.update(f"\0compiler={compiler_available()}".encode())
     # the environment, not the interpreter's name in it: bin/python and bin/python3.12 (the console
     # scripts' shebang) of one venv build the same FMU
-    digest.update(re.sub(r"(?m)^executable=.*$", f"prefix={sys.prefix}", python_runtime_config()).encode())
+    digest.update(re.sub(r"(?m)^executable=.*$", f"prefix={sys.prefix}", python_runtime_config()).encode("utf-8", "surrogateescape"))
     return digest.hexdigest(), stamps
 
 

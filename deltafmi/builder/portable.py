@@ -488,7 +488,7 @@ def _compressed_members(files: list[tuple[Path, str]]) -> Path:
     digest = hashlib.sha256()
     for path, name in files:
         stat = path.stat()
-        digest.update(f"{name}\0{path.resolve()}\0{stat.st_size}\0{stat.st_mtime_ns}\0".encode())
+        digest.update(f"{name}\0{path.resolve()}\0{stat.st_size}\0{stat.st_mtime_ns}\0".encode("utf-8", "surrogateescape"))
     target = cache_dir() / "portable" / "members" / digest.hexdigest()[:24]
 
     def build(tmp: str) -> None:

@@ -272,7 +272,7 @@ def _import_model(resources_dir: str) -> tuple:
     with open(os.path.join(resources_dir, "deltafmi.json"), encoding="utf-8") as f:
         info = json.load(f)
     bundle = _Bundle(os.path.join(resources_dir, "python"), _shareable(info, resources_dir))
-    digest = hashlib.sha1(resources_dir.encode()).hexdigest()[:12]
+    digest = hashlib.sha1(os.fsencode(resources_dir)).hexdigest()[:12]
     unique = f"_deltafmi_fmu_{info['model_identifier']}_{digest}"
     with bundle.active():
         runtime = importlib.import_module("deltafmi.runtime.instance")

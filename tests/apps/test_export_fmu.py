@@ -21,6 +21,7 @@ from fmpy.validation import validate_fmu
 import deltafmi
 from deltafmi.apps.cli import main
 from deltafmi.apps.export_fmu import export_fmu
+from deltafmi.builder.requirements import runtime_requirement
 from third_party.build import build_all
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -41,6 +42,12 @@ def exported(tmp_path_factory):
         return built[key]
 
     return export
+
+
+def test_the_hint_for_a_portable_copy_names_a_shipped_scenario_as_it_is_given(exported):
+    """`deltafmi export-fmu delta_tracking.yaml` works only beside such a file: the hint names the example."""
+    line = next(text for text in runtime_requirement(exported("delta_tracking")).describe() if "--portable" in text)
+    assert "`deltafmi export-fmu delta_tracking --portable`" in line, line
 
 
 def grid_rows(result, step: float) -> np.ndarray:

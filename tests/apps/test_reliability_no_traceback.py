@@ -41,6 +41,13 @@ def inputs(build_fmu_from_src, tmp_path_factory) -> Path:
                                                                count=1))
     _rewrite(osc, folder / "nomd.fmu", drop="modelDescription.xml")
     _rewrite(osc, folder / "badxml.fmu", edit=lambda t: t[: len(t) // 2])
+    with zipfile.ZipFile(osc) as old, zipfile.ZipFile(folder / "bomb.fmu", "w", zipfile.ZIP_DEFLATED) as new:
+        for item in old.infolist():
+            data = old.read(item.filename)
+            if item.filename == "modelDescription.xml":  # 48 MB of blanks inside the root element
+                root = data.index(b"<ModelExchange")
+                data = data[:root] + b" " * (48 << 20) + data[root:]
+            new.writestr(item.filename, data)
     (folder / "garbage.fmu").write_bytes(os.urandom(4000))
     data = osc.read_bytes()
     (folder / "truncated.fmu").write_bytes(data[: len(data) // 2])
@@ -65,6 +72,7 @@ BROKEN = {
     "badvr": "modelDescription.xml: variable 'x' has valueReference 'abc', not an unsigned integer",
     "nomd": "its archive has no modelDescription.xml",
     "badxml": "modelDescription.xml is not well-formed XML",
+    "bomb": "its modelDescription.xml would unpack to 48 MB from",  # KB and ratio: as zlib packs them
     "garbage": "not a zip archive",
     "truncated": "not a zip archive",
 }

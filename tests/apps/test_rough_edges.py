@@ -14,8 +14,10 @@ is one clear line naming the thing, a non-zero exit and no traceback.
 """
 from __future__ import annotations
 
+import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import zipfile
@@ -303,6 +305,32 @@ def test_mat_on_a_full_disk_is_removed_and_says_so(long_run, tmp_path):
     assert done.stderr == (f"Error: {tmp_path}/disk/r.mat: disk full: its {n} rows (t = 20 s) did not fit and the "
                            "file was removed\n")
     assert list(kept.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", [["build", "Oscillator", "-o", "{disk}/o.fmu"],
+                                     ["export-ssp", "bouncing_ball", "-o", "{disk}/o.ssp"]])
+def test_an_archive_that_does_not_fit_names_its_file_and_leaves_nothing(command, tmp_path):
+    if shutil.which("unshare") is None:
+        pytest.skip("no unshare")
+    done, kept = in_small_tmpfs(tmp_path, "100k", *command)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.splitlines()[-1] == f"Error: {tmp_path}/disk/o{Path(command[-1]).suffix}: No space left on device"
+    assert list(kept.iterdir()) == []
+
+
+@pytest.mark.parametrize("args", [["examples"], ["info", "Oscillator"]])
+def test_a_reader_that_has_gone_ends_the_command_quietly_as_sigpipe(args, tmp_path):
+    """`deltafmi examples | head -1`: no "Error: Broken pipe", exit 141 (128 + SIGPIPE) as a
+    shell's tools give; the reader here closes the pipe before the first line."""
+    reader, writer = os.pipe()
+    os.close(reader)
+    try:
+        done = subprocess.run([str(DELTAFMI), *args], cwd=tmp_path, stdout=writer, stderr=subprocess.PIPE, text=True,
+                              timeout=600)
+    finally:
+        os.close(writer)
+    assert done.returncode == 128 + signal.SIGPIPE, done.stderr
+    assert done.stderr == "", done.stderr
 
 
 # --- what the CLI prints ------------------------------------------------------------------------

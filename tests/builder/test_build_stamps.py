@@ -94,3 +94,31 @@ def test_a_record_of_an_fmu_gone_from_the_cache_is_not_used(source):
     build_stamps.remember(request, build_stamps.stamps_of([source]), first.parent / "elsewhere.fmu")
     assert build_stamps.lookup(request) is None
     assert packager.build_cached(source) == first
+
+
+def test_a_cache_in_a_folder_whose_name_is_not_utf8_builds_fmus_that_run(source, tmp_path, monkeypatch):
+    """A home folder named in Latin-1: the build cache's keys, the compiler's messages and the
+    FMU's start take its name as bytes; the FMU steps as the one from an ordinary cache does."""
+    import fmpy
+    from fmpy.fmi2 import FMU2Slave
+
+    rows = []
+    for cache in ("cache", os.fsdecode(b"c\xe9che")):
+        monkeypatch.setenv("DELTAFMI_CACHE", str(tmp_path / cache))
+        fmu = packager.build_cached(source)
+        assert str(tmp_path / cache) in str(fmu)
+        md = fmpy.read_model_description(str(fmu))
+        vr = {v.name: v.valueReference for v in md.modelVariables}
+        slave = FMU2Slave(guid=md.guid, modelIdentifier="Oscillator",
+                          unzipDirectory=fmpy.extract(str(fmu), unzipdir=str(tmp_path / cache / "unpacked")))
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        rows.append([slave.getReal([vr["x"], vr["v"]])])
+        for i in range(100):
+            slave.doStep(i * 0.01, 0.01)
+            rows[-1].append(slave.getReal([vr["x"], vr["v"]]))
+        slave.terminate()
+        slave.freeInstance()
+    assert rows[1] == rows[0] and rows[0][0] == [1.0, 0.0] and rows[0][-1] != rows[0][0]

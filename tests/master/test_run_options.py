@@ -168,6 +168,8 @@ def test_the_scenarios_tolerance_is_each_components_unless_it_gives_its_own(fmus
     (["--set", "osc.k=inf"], "--set osc.k: error: component 'osc': parameter 'k': 'k' = inf is not a finite number"),
     (["--set", "osc.k=-inf"], "'k' = -inf is not a finite number"),
     (["--record", "osc.zz"], "--record osc.zz: error: output pattern 'osc.zz' matches no variable"),
+    (["--record", "Oscillator.*"], "--record Oscillator.*: error: output pattern 'Oscillator.*' matches no variable "
+                                   "(no component 'Oscillator': the components are osc)"),
 ])
 def test_bad_run_options_exit_2_with_one_line(oscillator, tmp_path, args, message):
     result = run(oscillator, *args, "-o", tmp_path / "bad.csv")

@@ -161,6 +161,15 @@ def test_output_pattern_matching_nothing(fmu_dir):
     expect_error(result, f"{path}:10", "output pattern 'robot.zz[*]' matches no variable", "did you mean")
 
 
+def test_a_component_that_cannot_be_read_is_the_only_error_of_the_patterns_it_could_match(fmu_dir):
+    """`*.energy` may name the missing component's variable: no 'matches no variable' besides."""
+    path, result = validate(fmu_dir, HEAD.replace("a: {fmu: osc.fmu}", "a: {fmu: oscc.fmu}")
+                            + "outputs:\n  - '*.energy'\n  - 'a*.x'\n  - b.zz\n")
+    expect_error(result, f"{path}:3", "component 'a': FMU 'oscc.fmu' not found")
+    expect_error(result, f"{path}:10", "output pattern 'b.zz' matches no variable")  # b is there: its error stays
+    assert result.output.count("error:") == 2, result.output
+
+
 def test_missing_fmu_suggests_file(fmu_dir):
     path, result = validate(fmu_dir, HEAD.replace("a: {fmu: osc.fmu}", "a: {fmu: oscc.fmu}"))
     expect_error(result, f"{path}:3", "component 'a': FMU 'oscc.fmu' not found", "did you mean 'osc.fmu'")

@@ -2,13 +2,15 @@
 from __future__ import annotations
 
 import math
+import os
+from ctypes import POINTER, c_double
 from pathlib import Path
 
 import fmpy
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.validation import validate_fmu
 
 from deltafmi.builder import build_fmu
@@ -158,6 +160,67 @@ def test_fmu_state_rollback_and_serialization(lags):
     assert s.real("x[1]", "x[2]", "x[3]", "y[2]") == reference
     np.testing.assert_allclose(reference[:3], _lag_solution(1.0, u=np.array([0, 1.0, 0])), atol=1e-8)
     s.fmu.freeFMUstate(state)
+
+
+@pytest.mark.parametrize("spoil", ["error", "terminate"])
+def test_a_state_got_before_an_error_restarts_the_simulation(lags, spoil):
+    """FMI 2.0, 2.1.3: after fmi2Error the simulation may go on from an FMU state got before;
+    so it may from a terminated one. A deserialized copy of the state does the same."""
+    s = Slave(lags, **{"u[2]": 1.0})
+    s.step(0.05, n=10)
+    state = s.fmu.getFMUstate()
+    serialized = s.fmu.serializeFMUstate(state)
+    for restore in (lambda: state, lambda: s.fmu.deSerializeFMUstate(serialized)):
+        if spoil == "error":
+            with pytest.raises(FMICallException):
+                s.fmu.doStep(7.0, 0.05)  # not the FMU's time: fmi2Error, the instance in state error
+        else:
+            s.fmu.terminate()
+        s.fmu.setFMUstate(restore())
+        s.t = 0.5
+        s.step(0.05, n=10)
+        np.testing.assert_allclose(s.real("x[1]", "x[2]", "x[3]"), _lag_solution(1.0, u=np.array([0, 1.0, 0])),
+                                   atol=1e-8)
+    s.fmu.freeFMUstate(state)
+
+
+def test_a_model_exchange_state_got_before_an_error_restarts_the_integration(lags):
+    md = fmpy.read_model_description(str(lags))
+    fmu = FMU2Model(guid=md.guid, unzipDirectory=fmpy.extract(str(lags)), modelIdentifier="Lags")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    fmu.newDiscreteStates()
+    fmu.enterContinuousTimeMode()
+    state = fmu.getFMUstate()
+    with pytest.raises(FMICallException):
+        fmu.exitInitializationMode()  # not in continuous-time mode: fmi2Error
+    fmu.setFMUstate(state)
+    fmu.setTime(0.1)
+    x, dx = np.array([0.5, 0.25, 2.0]), np.zeros(3)
+    fmu.setContinuousStates(x.ctypes.data_as(POINTER(c_double)), 3)
+    fmu.getDerivatives(dx.ctypes.data_as(POINTER(c_double)), 3)
+    np.testing.assert_array_equal(dx, -K * x)
+    fmu.freeFMUstate(state)
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+def test_an_fmu_unpacked_in_a_folder_whose_name_is_not_utf8_runs(lags, tmp_path):
+    """A file name is bytes: a resources folder named in Latin-1 is read as Python reads file names."""
+    md = fmpy.read_model_description(str(lags))
+    folder = fmpy.extract(str(lags), unzipdir=str(tmp_path / os.fsdecode(b"caf\xe9")))
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier="Lags")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    for i in range(10):
+        fmu.doStep(i * 0.1, 0.1)
+    np.testing.assert_allclose(fmu.getReal([0, 1, 2]), _lag_solution(1.0), atol=1e-8)
+    fmu.terminate()
+    fmu.freeInstance()
 
 
 def test_discrete_component_state_includes_python_attributes(counter):

@@ -85,7 +85,9 @@ class LinearModel:
         npz, mat = base.with_suffix(".npz"), base.with_suffix(".mat")
         base.parent.mkdir(parents=True, exist_ok=True)
         np.savez(npz, **{k: (v.astype(str) if v.dtype == object else v) for k, v in content.items()})  # type: ignore[arg-type]
-        scipy.io.savemat(mat, content, oned_as="column")
+        # MATLAB strings are UTF-8: a file name that is not (bytes the OS allows) is shown with U+FFFD there
+        shown = self.source.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+        scipy.io.savemat(mat, dict(content, source=np.array(shown)), oned_as="column")
         return [npz, mat]
 
     @classmethod

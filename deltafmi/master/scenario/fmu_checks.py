@@ -17,6 +17,9 @@ __all__ = ["binary_problem", "clock_problem", "clocks_refused", "guid_problem"]
 
 #: the intervalVariability of the input Clocks the master activates itself (periodic, time-based)
 PERIODIC_CLOCKS = ("constant", "fixed", "tunable")
+#: a modelDescription.xml packs 4 to 20 times (at most about 50 with deep indentation); one that
+#: would unpack to more than this many bytes at more than this ratio is a zip bomb, not read
+BOMB_SIZE, BOMB_RATIO = 32 << 20, 200
 
 
 def binary_problem(fmu: Path, model_identifiers: Iterable[str], fmi3: bool = False) -> Optional[str]:
@@ -88,7 +91,8 @@ def clocks_refused(root: Any, interface: str) -> Optional[str]:
 def archive_problem(fmu: Path) -> Optional[str]:
     """Why ``fmu`` is not an FMU deltafmi can read, in words for its user, or None: not a zip
     archive, a damaged one, an entry that would land outside the folder it is unpacked into (an
-    absolute path or ``..``), no modelDescription.xml, an FMI 1.0 FMU, or a variable whose
+    absolute path or ``..``), no modelDescription.xml, one that would unpack to far more than
+    it could hold (a zip bomb), an FMI 1.0 FMU, or a variable whose
     valueReference is not an unsigned integer (fmpy's own message for these names no variable)."""
     import xml.etree.ElementTree as ElementTree  # here: an FMU read before is not checked again (modelinfo)
 
@@ -104,6 +108,11 @@ def archive_problem(fmu: Path) -> Optional[str]:
                         "folder (an FMU's entries are relative paths without '..')")
             if "modelDescription.xml" not in names:
                 return "its archive has no modelDescription.xml"
+            packed = archive.getinfo("modelDescription.xml")
+            if packed.file_size > BOMB_SIZE and packed.file_size > BOMB_RATIO * packed.compress_size:
+                return (f"its modelDescription.xml would unpack to {packed.file_size >> 20} MB from "
+                        f"{packed.compress_size >> 10} KB, {packed.file_size // max(1, packed.compress_size)} times "
+                        "its packed size, as a zip bomb does (a model description packs 4 to 20 times)")
             text = archive.read("modelDescription.xml")
     except (zipfile.BadZipFile, OSError, EOFError) as exc:
         return f"a damaged zip archive ({exc})"

@@ -313,4 +313,4 @@ def _kept_description(fmu: Path) -> Optional[_KeptDescription]:
         return None  # archive_problem says what is wrong
     key = (f"{where}\0{status.st_size}\0{status.st_mtime_ns}\0{status.st_ino}\0{fmpy.__version__}"
            f"\0{sys.version_info[:2]}")
-    return _KeptDescription(cache_dir() / "model-descriptions" / hashlib.sha256(key.encode()).hexdigest()[:32])
+    return _KeptDescription(cache_dir() / "model-descriptions" / hashlib.sha256(key.encode("utf-8", "surrogateescape")).hexdigest()[:32])

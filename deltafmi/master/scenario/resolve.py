@@ -437,11 +437,15 @@ class _Checker:
             regex = pattern_regex(pattern)
             hits = [(c, n) for c, n in every if regex.match(f"{c.name}.{n}")] or self._array_named(pattern)
             if not hits:
-                if pattern.split(".", 1)[0] in unresolved:
-                    continue  # its component's error is reported already
+                head = pattern_regex(pattern.split(".", 1)[0])
+                if any(head.match(name) for name in unresolved):
+                    continue  # it may name a variable of a component whose error is reported already
                 candidates = [f"{c.name}.{n}" for c, n in every]
-                self.error(line, f"{what} pattern '{pattern}' matches no variable"
-                                 f"{did_you_mean(pattern, candidates)}", origin)
+                hint = did_you_mean(pattern, candidates)
+                names = list(self.components)
+                if not hint and "." in pattern and not any(head.match(name) for name in names):
+                    hint = f" (no component '{pattern.split('.', 1)[0]}': the components are {', '.join(names)})"
+                self.error(line, f"{what} pattern '{pattern}' matches no variable{hint}", origin)
                 continue
             for component, name in hits:
                 port = _port(component, name)

@@ -318,9 +318,12 @@ class Unit:
             self._instantiate_fmu()
         except FMICallException as exc:
             raise self.failure(exc) from None
-        except Exception:  # noqa: BLE001 - fmpy raises a plain Exception when the instantiation returns NULL
+        except Exception as exc:  # noqa: BLE001 - fmpy raises a plain Exception when the instantiation returns NULL
+            # any other exception is fmpy's before it called the FMU (a folder name it cannot encode)
+            reason = self.instantiation_reason() if type(exc) is Exception else \
+                f"fmpy could not call it: {type(exc).__name__}: {exc}"
             raise FmuFailure(f"{self.name} ({self.component.fmu.name}): {self.instantiate_call} failed: "
-                             f"{self.instantiation_reason()}") from None
+                             f"{reason}") from None
         self.instantiated = True
         self._set_up_experiment(self.component.spec.solver.get("rtol"), start, stop)
 

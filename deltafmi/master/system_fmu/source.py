@@ -12,6 +12,7 @@ from typing import Any, Dict, List, Optional, Tuple
 import yaml
 
 from deltafmi.errors import BadInput
+from deltafmi.shipped import is_shipped
 
 from ..scenario.system import Port, ResolvedComponent, System
 from .inside import SystemComponent
@@ -74,8 +75,10 @@ def _component_source(system: System, class_name: str) -> str:
     experiment = scenario.experiment
     tolerance = f", tolerance={experiment.tolerance!r}" if experiment.tolerance is not None else ""
     description = " ".join((scenario.description or f"The scenario {scenario.path.name}").split())
+    # what export-fmu takes to build it again: a shipped example by its name, from any folder
+    named = scenario.path.stem if is_shipped(scenario.path) else scenario.path.name
     lines = [
-        f'"""{scenario.path.name} exported as one Co-Simulation FMU by deltafmi export-fmu."""',
+        f'"""{named} exported as one Co-Simulation FMU by deltafmi export-fmu."""',
         "from deltafmi.component import Experiment, Input, Output, Parameter",
         "from deltafmi.master.system_fmu.inside import SystemComponent",
         "",

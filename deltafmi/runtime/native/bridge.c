@@ -304,19 +304,26 @@ int bridge_start(void *python, const char *python_executable, char *error, size_
 static PyObject *run_boot(const char *resources_dir, const char *function, DfmiLogFn log, void *env) {
     char path[4352];
     snprintf(path, sizeof path, "%s/deltafmi_boot.py", resources_dir);
-    PyObject *registry = py.PyImport_ImportModule("_deltafmi_fmu_registry");
+    /* a file name is bytes: one that is not UTF-8 (a folder named in Latin-1) is decoded as
+     * Python decodes file names, not refused */
+    PyObject *location = py.PyUnicode_DecodeFSDefault(path);
+    PyObject *registry = location ? py.PyImport_ImportModule("_deltafmi_fmu_registry") : NULL;
     PyObject *boots = registry ? py.PyObject_GetAttrString(registry, "boots") : NULL;
-    g_load = boots ? py.PyDict_GetItemString(boots, path) : NULL; /* borrowed */
+    g_load = boots ? py.PyDict_GetItem(boots, location) : NULL; /* borrowed */
     Py_XINCREF(g_load);
     Py_XDECREF(boots);
     Py_XDECREF(registry);
     py.PyErr_Clear();
-    if (g_load) return g_load;
+    if (g_load || !location) {
+        Py_XDECREF(location);
+        return g_load;
+    }
     /* imported as a module, not run from its source text: the import system keeps the file's
      * bytecode in resources/__pycache__ (where that is writable), so later processes do not parse
      * and compile it again on every instantiation of every FMU */
     PyObject *util = py.PyImport_ImportModule("importlib.util");
-    PyObject *spec = util ? py.PyObject_CallMethod(util, "spec_from_file_location", "ss", "_deltafmi_boot", path) : NULL;
+    PyObject *spec = util ? py.PyObject_CallMethod(util, "spec_from_file_location", "sO", "_deltafmi_boot", location)
+                          : NULL;
     PyObject *module = spec ? py.PyObject_CallMethod(util, "module_from_spec", "O", spec) : NULL;
     PyObject *loader = module ? py.PyObject_GetAttrString(spec, "loader") : NULL;
     PyObject *done = loader ? py.PyObject_CallMethod(loader, "exec_module", "O", module) : NULL;
@@ -331,6 +338,7 @@ static PyObject *run_boot(const char *resources_dir, const char *function, DfmiL
     Py_XDECREF(module);
     Py_XDECREF(spec);
     Py_XDECREF(util);
+    Py_XDECREF(location);
     return g_load;
 }
 
@@ -411,7 +419,9 @@ void *bridge_instantiate(const char *resources_dir, const char *instance_name, c
     /* what the model logs while it is imported and its setup() runs */
     early = py.PyList_New(0);
     PyObject *previous = listen(early);
-    b->instance = py.PyObject_CallFunction(load, "sssi", resources_dir, instance_name, guid, fmu_type);
+    PyObject *folder = py.PyUnicode_DecodeFSDefault(resources_dir);
+    b->instance = folder ? py.PyObject_CallFunction(load, "Ossi", folder, instance_name, guid, fmu_type) : NULL;
+    Py_XDECREF(folder);
     unlisten(previous);
     if (early) drain_list(b, early);
     Py_XDECREF(early);

@@ -446,8 +446,14 @@ int dfmi_set_fmu_state(Instance *c, const char *function, void *state) {
             c->stop_defined = saved->stop_defined;
             c->tolerance_defined = saved->tolerance_defined;
             c->clocks_active = saved->clocks_active;
-        } else if (c->state == StepFailed && !c->terminated_by_model) {
-            c->state = StepComplete;
+        } else if (c->state & (Error | StepFailed | StepCanceled | Terminated)) {
+            /* FMI 2.0, section 2.1.3: after an error (or a failed, cancelled or terminated run) the
+             * simulation may go on from a state got before; a state serialized by an older runtime
+             * does not say where it was got: the stepping state of the interface */
+            int mode = c->interface == DFMI_MODEL_EXCHANGE       ? ContinuousTimeMode
+                       : c->interface == DFMI_SCHEDULED_EXECUTION ? ClockActivationMode
+                                                                  : StepComplete;
+            if (!(mode == StepComplete && c->terminated_by_model)) c->state = mode;
         }
     }
     return dfmi_settle(c, status);

@@ -68,6 +68,7 @@ typedef struct _ts PyThreadState;
     X(double, PyFloat_AsDouble, (PyObject *))                                                       \
     X(long, PyLong_AsLong, (PyObject *))                                                            \
     X(PyObject *, PyUnicode_FromString, (const char *))                                             \
+    X(PyObject *, PyUnicode_DecodeFSDefault, (const char *))                                        \
     X(PyObject *, PyUnicode_InternFromString, (const char *))                                       \
     X(PyObject *, PyUnicode_Join, (PyObject *, PyObject *))                                         \
     X(const char *, PyUnicode_AsUTF8AndSize, (PyObject *, Py_ssize_t *))                            \
