@@ -30,7 +30,9 @@ microseconds):
   the same samples as the C controller);
 - the flagship's CPU time, of the whole process and of the stepping thread alone (the rows become
   text on a thread of their own: where that thread has a core to itself, the wall time comes to the
-  stepping thread's CPU time and the last block's text), the difference (the rows' text), and the
+  stepping thread's CPU time and the last block's text), the stepping thread's split into its time
+  in the master's C loop and the Python around it, the process's CPU and wall time with the text
+  made on the stepping thread instead (no text thread), the difference (the rows' text), and the
   CPU time of the CSV writer alone writing the same rows (formatted and written, on one thread:
   the text's own cost, without a second thread beside the stepping);
 - the ratios against issue 26's targets (medians of the rounds' ratios): flagship <= 5x the C
@@ -343,17 +345,26 @@ def python_controller(controller, inputs: np.ndarray) -> tuple[np.ndarray, float
     return np.array(u), wall
 
 
-def cpu_master_run(cosim, system, stop: float, out: Path, thread: Optional[list] = None) -> tuple:
+def cpu_master_run(cosim, system, stop: float, out: Path, thread: Optional[list] = None,
+                   in_c: Optional[list] = None, text_thread: bool = True) -> tuple:
     """A master run (as cosim.master_run) and the CPU seconds the process spent stepping (the
     fixed-step loop, with the rows formatted and written as they go, on the stepping thread or
     the result writer's; the last CSV block's at close is not in it, as in the summary's stepping
     time). On a shared machine the wall time of a run that lasts several scheduler slices
     includes other processes' turns; its CPU time does not. ``thread``: a list that gets the CPU
     seconds of the stepping thread alone appended (what the wall time comes to where the rows'
-    thread has a core of its own)."""
+    thread has a core of its own); ``in_c``: a list that gets the stepping thread's CPU seconds
+    inside the master's C loop appended (the calls of :meth:`NativeLoop.run`: the FMUs, their
+    kernels, the Runge-Kutta steps and the rows gathered; the rest of the stepping thread's is
+    the Python around them: laying out the C loop, handing the rows to the writer); with
+    ``text_thread`` False a CSV result is written by a CsvWriter of the benchmark's own (no text
+    thread: the master gives blocks of rows a thread of their own for its own CsvWriter only), its
+    text made on the stepping thread."""
+    from deltafmi.master.results.csv_file import CsvWriter
+    from deltafmi.master.stepping.c_loop import NativeLoop
     from deltafmi.master.stepping.master import Master
 
-    run_fixed, spent = Master._run_fixed, [0.0, 0.0]
+    run_fixed, run_c, spent = Master._run_fixed, NativeLoop.run, [0.0, 0.0, 0.0]
 
     def timed(master):
         begin, own = time.process_time(), time.thread_time()
@@ -363,13 +374,28 @@ def cpu_master_run(cosim, system, stop: float, out: Path, thread: Optional[list]
             spent[0] += time.process_time() - begin
             spent[1] += time.thread_time() - own
 
-    Master._run_fixed = timed
+    def timed_c(loop, *args):
+        begin = time.thread_time()
+        try:
+            return run_c(loop, *args)
+        finally:
+            spent[2] += time.thread_time() - begin
+
+    class SteppingThreadCsv(CsvWriter):
+        """The master's CSV writer, not its exact class: its rows become text where they are recorded."""
+
+    Master._run_fixed, NativeLoop.run = timed, timed_c
     try:
-        summary = cosim.master_run(system, stop, out)
+        if text_thread:
+            summary = cosim.master_run(system, stop, out)
+        else:
+            summary = Master(system, result=out, stop=stop, writer_class=SteppingThreadCsv).run()
     finally:
-        Master._run_fixed = run_fixed
+        Master._run_fixed, NativeLoop.run = run_fixed, run_c
     if thread is not None:
         thread.append(spent[1])
+    if in_c is not None:
+        in_c.append(spent[2])
     return summary, spent[0]
 
 
@@ -431,12 +457,17 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
         _, _, wall, cpu = baseline.timed_run(spec, steps)
         fig.setdefault("c step", []).append(1e6 * wall / steps)
         fig.setdefault("c step cpu", []).append(1e6 * cpu / steps)
-        own: list = []
-        run, cpu = cpu_master_run(cosim, system, stop, out / "flagship.csv", own)
+        own, in_c = [], []
+        run, cpu = cpu_master_run(cosim, system, stop, out / "flagship.csv", own, in_c)
         fig.setdefault("fmi step", []).append(1e6 * run.stepping_time / run.steps)
         fig.setdefault("fmi step cpu", []).append(1e6 * cpu / run.steps)
         fig.setdefault("fmi thread cpu", []).append(1e6 * own[0] / run.steps)
         fig.setdefault("fmi text cpu", []).append(fig["fmi step cpu"][-1] - fig["fmi thread cpu"][-1])
+        fig.setdefault("fmi c loop cpu", []).append(1e6 * in_c[0] / run.steps)
+        fig.setdefault("fmi python cpu", []).append(1e6 * (own[0] - in_c[0]) / run.steps)
+        run, cpu = cpu_master_run(cosim, system, stop, out / "flagship.csv", text_thread=False)
+        fig.setdefault("fmi same thread cpu", []).append(1e6 * cpu / run.steps)
+        fig.setdefault("fmi same thread step", []).append(1e6 * run.stepping_time / run.steps)
         run, cpu = cpu_master_run(cosim, system, stop, out / "flagship.parquet")
         fig.setdefault("fmi binary cpu", []).append(1e6 * cpu / run.steps)
         fig.setdefault("csv alone cpu", []).append(1e6 * csv_text_cpu(rows, out / "text.csv") / len(rows))
@@ -470,6 +501,13 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
     print(line("deltafmi: flagship stepping through FMI, CPU time of the process (rows written)", "fmi step cpu"))
     print(line("deltafmi: the same, CPU time of the stepping thread (the rows become text on another)",
                "fmi thread cpu"))
+    print(line("deltafmi: of the stepping thread's, in the master's C loop (FMUs, kernels, RK, rows)",
+               "fmi c loop cpu"))
+    print(line("deltafmi: of the stepping thread's, Python around the C loop (set-up, rows handed over)",
+               "fmi python cpu"))
+    print(line("deltafmi: the same, CPU time of the process, CSV text on the stepping thread (no thread)",
+               "fmi same thread cpu"))
+    print(line("deltafmi: the same, stepping time / steps, CSV text on the stepping thread", "fmi same thread step"))
     print(line("deltafmi: the same, CPU time of the process, rows recorded as binary (-o x.parquet)",
                "fmi binary cpu"))
     print(line("deltafmi: the rows' text in the CSV run, CPU (process less stepping thread) per step",
@@ -496,12 +534,16 @@ def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:
     for label, fmi, c in (("wall time, rows written as CSV", "fmi step", "c step"),
                           ("CPU time, rows written as CSV", "fmi step cpu", "c step cpu"),
                           ("CPU time of the stepping thread", "fmi thread cpu", "c step cpu"),
+                          ("CPU time, CSV text on stepping thread", "fmi same thread cpu", "c step cpu"),
+                          ("wall time, CSV text on stepping thread", "fmi same thread step", "c step"),
                           ("CPU time, rows recorded as binary", "fmi binary cpu", "c step cpu")):
         ratio = statistics.median(a / b for a, b in zip(fig[fmi], fig[c]))
-        print(f"  {label:36s} {verdict(ratio, LIMIT)}")
+        print(f"  {label:38s} {verdict(ratio, LIMIT)}")
     for label, key in (("of which the rows' text", "fmi text cpu"),
+                       ("the stepping thread in the C loop", "fmi c loop cpu"),
+                       ("the stepping thread in Python", "fmi python cpu"),
                        ("the CSV writer alone on the same rows", "csv alone cpu")):
-        print(f"  {label:36s} {statistics.median(a / b for a, b in zip(fig[key], fig['c step cpu'])):6.2f}x "
+        print(f"  {label:38s} {statistics.median(a / b for a, b in zip(fig[key], fig['c step cpu'])):6.2f}x "
               f"the C step's CPU time")
     print("the Python paths (before the compiled kernels), deltafmi / C:")
     for label, py, c in (("flagship step, Python kernels", "py step", "c step"),

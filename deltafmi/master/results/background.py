@@ -33,6 +33,11 @@ class BackgroundRows:
 
     def write_rows(self, rows: np.ndarray) -> None:
         """Queue rows ``time, values...`` (copied); raises what an earlier block met."""
+        self.take_rows(np.array(rows, copy=True))
+
+    def take_rows(self, rows: np.ndarray) -> None:
+        """Queue rows ``time, values...`` handed over: not copied, the caller writes them no more
+        (the master's C loop then fills a block of its own); raises what an earlier block met."""
         self._raise()
         if isinstance(self._error, _Spent):  # the writer refuses rows now: let it say so
             write_rows_to(self._writer, rows)
@@ -40,7 +45,7 @@ class BackgroundRows:
         if self._thread is None:
             self._thread = threading.Thread(target=self._work, name="deltafmi-result-rows", daemon=True)
             self._thread.start()
-        self._blocks.put(np.array(rows, copy=True))
+        self._blocks.put(rows)
 
     def _work(self) -> None:
         while True:

@@ -617,7 +617,11 @@ class Master:
             if rows and native.rows[rows - 1, 0] == t_done:  # its row shows what the sources gave by then
                 native.rows[rows - 1, 1:] = self.sampler.sample()
         if rows:
-            self._record_rows(native.rows[:rows])
+            if isinstance(self.writer, BackgroundRows):  # the block goes to the text thread as it is
+                block, native.rows = native.rows[:rows], np.empty_like(native.rows)
+                self._record_rows(block, hand_over=True)
+            else:
+                self._record_rows(native.rows[:rows])
         if done > k:
             self.steps = done
             self.time = self.step_end = grid.start + done * grid.h if done < grid.n_steps else grid.stop
@@ -688,8 +692,9 @@ class Master:
                 self._not_finite(t, [self._real_names[i] for i in np.flatnonzero(~np.isfinite(bus))],
                                  bus[~np.isfinite(bus)])
 
-    def _record_rows(self, rows: np.ndarray) -> None:
-        """Rows ``time, values...`` recorded at once (a writer without ``write_rows`` gets them one by one)."""
+    def _record_rows(self, rows: np.ndarray, hand_over: bool = False) -> None:
+        """Rows ``time, values...`` recorded at once (a writer without ``write_rows`` gets them one by one);
+        ``hand_over``: the rows are the writer's (a :class:`BackgroundRows` takes them without a copy)."""
         bad = None
         # every value of the block finite (the other columns hold integers): its sum is, but for
         # an overflow, which the row by row look below then clears (a paced run's C loop hands
@@ -699,7 +704,10 @@ class Master:
             if not finite.all():
                 bad = int(np.argmin(finite))
                 rows = rows[:bad + 1]  # rows up to the first with a NaN, that one included
-        write_rows_to(self.writer, rows)
+        if hand_over:
+            self.writer.take_rows(rows)
+        else:
+            write_rows_to(self.writer, rows)
         self.recorded_until = float(rows[-1, 0])
         if bad is not None:
             self._check_row(float(rows[-1, 0]), rows[-1, 1:])

@@ -140,9 +140,8 @@ const char *dfmi_state_name(const Instance *c, int state) {
     }
 }
 
-int dfmi_allowed(Instance *c, const char *function, int mask) {
+int dfmi_refuse(Instance *c, const char *function) {
     if (!c) return 0;
-    if (c->state & mask) return 1;
     dfmi_logf(c, DFMI_ERROR, "logStatusError", "%s must not be called in state '%s' (FMI %s state machine)",
               function, dfmi_state_name(c, c->state), c->fmi_version == 3 ? "3.0" : "2.0");
     c->state = Error;
@@ -337,22 +336,7 @@ int dfmi_ensure_values(Instance *c, int derivatives) {
     return dfmi_settle(c, status);
 }
 
-int dfmi_is_derivative(const Instance *c, size_t first, size_t n) {
-    return n && first < c->L.dx_offset + c->L.nx && first + n > c->L.dx_offset;
-}
-
-int dfmi_setter_bit(const Instance *c) {
-    switch (c->state) {
-    case Instantiated: return SET_INSTANTIATED;
-    case InitializationMode: return SET_INITIALIZATION;
-    case EventMode: case StepComplete: case ClockActivationMode: return SET_EVENT;
-    case ContinuousTimeMode: return SET_CONTINUOUS;
-    default: return 0;
-    }
-}
-
-int dfmi_check_settable(Instance *c, const char *function, size_t vr) {
-    if (c->L.flags[vr] & dfmi_setter_bit(c)) return 1;
+int dfmi_refuse_setting(Instance *c, const char *function, size_t vr) {
     dfmi_fail(c, "%s: the variable with value reference %zu cannot be set in state '%s'", function, vr,
               dfmi_state_name(c, c->state));
     return 0;
@@ -388,8 +372,6 @@ int dfmi_set_string(Instance *c, const char *function, size_t vr, const char *va
     if (status < DFMI_ERROR) dfmi_values_changed(c);
     return dfmi_settle(c, status);
 }
-
-void dfmi_values_changed(Instance *c) { c->dirty = c->outputs_dirty = 1; }
 
 /* ---------------------------------------------------------------------------------------- */
 /* FMU state                                                                                 */
@@ -665,8 +647,6 @@ int dfmi_activate_model_partition(Instance *c, const char *function, size_t i, d
     }
     return dfmi_settle(c, status);
 }
-
-int dfmi_terminated(const Instance *c) { return c->L.control && c->L.control[0] != 0.0; }
 
 int dfmi_do_step(Instance *c, const char *function, double t, double h, DfmiStepEvents events) {
     if (!(h > 0.0)) return dfmi_fail(c, "%s: communicationStepSize must be > 0, got %g", function, h);

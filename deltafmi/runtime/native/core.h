@@ -80,8 +80,14 @@ int dfmi_fail(Instance *c, const char *fmt, ...) __attribute__((format(printf, 2
 /* fmiXSetDebugLogging, the same in both standards. */
 int dfmi_set_debug_logging(Instance *c, const char *function, int logging_on, size_t n, const char *const names[]);
 const char *dfmi_state_name(const Instance *c, int state);
-/* Whether `function` may be called in the instance's state; otherwise an error, state Error. */
-int dfmi_allowed(Instance *c, const char *function, int mask);
+/* dfmi_allowed's refusal: an error naming `function` and the state (none without an instance), the
+ * instance to the error state; returns 0. */
+int dfmi_refuse(Instance *c, const char *function);
+/* Whether `function` may be called in the instance's state; otherwise an error, state Error.
+ * Inline (as the value helpers below): every FMI call passes here. */
+static inline int dfmi_allowed(Instance *c, const char *function, int mask) {
+    return c && (c->state & mask) ? 1 : dfmi_refuse(c, function);
+}
 /* A bridge call's status: errors move the instance to the error state. */
 int dfmi_settle(Instance *c, int status);
 
@@ -106,17 +112,36 @@ int dfmi_ensure_derivatives(Instance *c);
 /* Up to date for getters: outputs, and derivatives when asked for (`derivatives`). */
 int dfmi_ensure_values(Instance *c, int derivatives);
 /* Whether a derivative is among the scalars [first, first + n). */
-int dfmi_is_derivative(const Instance *c, size_t first, size_t n);
+static inline int dfmi_is_derivative(const Instance *c, size_t first, size_t n) {
+    return n && first < c->L.dx_offset + c->L.nx && first + n > c->L.dx_offset;
+}
 /* The setter rule bit of the instance's state (0: nothing may be set). */
-int dfmi_setter_bit(const Instance *c);
+static inline int dfmi_setter_bit(const Instance *c) {
+    switch (c->state) {
+    case Instantiated: return SET_INSTANTIATED;
+    case InitializationMode: return SET_INITIALIZATION;
+    case EventMode: case StepComplete: case ClockActivationMode: return SET_EVENT;
+    case ContinuousTimeMode: return SET_CONTINUOUS;
+    default: return 0;
+    }
+}
+/* dfmi_check_settable's refusal: an error naming `function`, vr and the state; returns 0. */
+int dfmi_refuse_setting(Instance *c, const char *function, size_t vr);
+/* Whether scalar vr may be set in a state of setter rule bit `bit` (dfmi_setter_bit, taken once by
+ * a setter for all its scalars); else logs and fails. */
+static inline int dfmi_settable(Instance *c, const char *function, size_t vr, int bit) {
+    return (c->L.flags[vr] & bit) ? 1 : dfmi_refuse_setting(c, function, vr);
+}
 /* Whether scalar vr may be set now (its flags against the state); else logs and fails. */
-int dfmi_check_settable(Instance *c, const char *function, size_t vr);
+static inline int dfmi_check_settable(Instance *c, const char *function, size_t vr) {
+    return dfmi_settable(c, function, vr, dfmi_setter_bit(c));
+}
 /* Whether vr is a scalar of the int buffer of the kind asked for (boolean or not). */
 int dfmi_is_int(const Instance *c, size_t vr, int boolean);
 int dfmi_string_index(const Instance *c, size_t vr, size_t *index);
 int dfmi_get_string(Instance *c, const char *function, size_t vr, const char **value);
 int dfmi_set_string(Instance *c, const char *function, size_t vr, const char *value);
-void dfmi_values_changed(Instance *c);
+static inline void dfmi_values_changed(Instance *c) { c->dirty = c->outputs_dirty = 1; }
 
 /* ---- FMU state ---- */
 int dfmi_get_fmu_state(Instance *c, const char *function, void **state);
@@ -147,7 +172,7 @@ int dfmi_activate_model_partition(Instance *c, const char *function, size_t i, d
 
 /* ---- Co-Simulation ---- */
 /* Whether the component ended the simulation (Component.terminate_simulation). */
-int dfmi_terminated(const Instance *c);
+static inline int dfmi_terminated(const Instance *c) { return c->L.control && c->L.control[0] != 0.0; }
 /* What a Co-Simulation step does at a state or time event in (t, t + h] (the same numbers as
  * runtime/instance.py's EVENTS_*, FmuInstance.do_step's `events`):
  *   DFMI_EVENTS_INSIDE        handles each event inside the step and reaches t + h (FMI 2.0;

@@ -176,10 +176,11 @@ fmi2Status fmi2SetReal(fmi2Component component, const fmi2ValueReference vr[], s
     Instance *c = component;
     CHECK("fmi2SetReal", MASK_SET);
     CHECK_ARRAYS("fmi2SetReal");
+    const int bit = dfmi_setter_bit(c);
     for (size_t i = 0; i < nvr; i++) {
         if (vr[i] >= c->L.n_real)
             return (fmi2Status)dfmi_fail(c, "fmi2SetReal: %u is not the value reference of a Real", vr[i]);
-        if (!dfmi_check_settable(c, "fmi2SetReal", vr[i])) return fmi2Error;
+        if (!dfmi_settable(c, "fmi2SetReal", vr[i], bit)) return fmi2Error;
     }
     for (size_t i = 0; i < nvr; i++) c->L.real[vr[i]] = value[i];
     dfmi_values_changed(c);
@@ -203,11 +204,12 @@ static fmi2Status get_ints(Instance *c, const char *function, int boolean, const
 static fmi2Status set_ints(Instance *c, const char *function, int boolean, const fmi2ValueReference vr[],
                            size_t nvr, const int value[]) {
     CHECK_ARRAYS(function);
+    const int bit = dfmi_setter_bit(c);
     for (size_t i = 0; i < nvr; i++) {
         if (!dfmi_is_int(c, vr[i], boolean))
             return (fmi2Status)dfmi_fail(c, "%s: %u is not the value reference of %s", function, vr[i],
                                          boolean ? "a Boolean" : "an Integer");
-        if (!dfmi_check_settable(c, function, vr[i])) return fmi2Error;
+        if (!dfmi_settable(c, function, vr[i], bit)) return fmi2Error;
     }
     for (size_t i = 0; i < nvr; i++) c->L.ints[vr[i] - c->L.n_real] = boolean ? (value[i] != 0) : value[i];
     dfmi_values_changed(c);

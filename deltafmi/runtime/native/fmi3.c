@@ -117,9 +117,10 @@ static int measure(Instance *c, const char *function, const fmi3ValueReference v
 
 /* Each scalar of the variables may be set now (their flags against the state). */
 static int settable(Instance *c, const char *function, const fmi3ValueReference vr[], size_t nvr) {
+    const int bit = dfmi_setter_bit(c);
     for (size_t i = 0; i < nvr; i++)
         for (size_t k = 0; k < c->L.sizes3[vr[i]]; k++)
-            if (!dfmi_check_settable(c, function, vr[i] + k)) return 0;
+            if (!dfmi_settable(c, function, vr[i] + k, bit)) return 0;
     return 1;
 }
 
