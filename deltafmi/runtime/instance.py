@@ -23,6 +23,7 @@ from .cs_native import CsShared, native_cs_wanted
 from .native_functions import FunctionSet
 from .native_kernels import TRAILING_ROLES, NativeKernelsRuntime
 from .partials import DirectionalDerivatives
+from .state_bytes import load_state
 
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
     from .cvode import Cvode
@@ -771,7 +772,7 @@ class FmuInstance:
     def deserialize_state(self, data: bytes) -> dict:
         """Inverse of :meth:`serialize_state`."""
         with self._module_context():
-            return pickle.loads(data)
+            return load_state(data, self.component_class.__module__, self.resources_dir)
 
     # --- life cycle -------------------------------------------------------------------------
     def terminate(self) -> int:

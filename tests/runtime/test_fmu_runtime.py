@@ -162,6 +162,39 @@ def test_fmu_state_rollback_and_serialization(lags):
     s.fmu.freeFMUstate(state)
 
 
+class _RunsACommand:
+    """Unpickled, a plain pickle would run ``touch`` on the path it was made with."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def __reduce__(self):
+        return (os.system, (f"touch {self.path}",))
+
+
+def test_serialized_state_bytes_that_name_a_function_are_refused_and_run_nothing(lags, tmp_path):
+    """fmi2DeSerializeFMUstate takes the importer's bytes: ones naming a callable outside what an
+    FMU state holds (here os.system, in Python's own bytes after the loader's header) are refused
+    with fmi2Error, nothing they name runs, and the instance steps on."""
+    import pickle
+    import struct
+
+    s = Slave(lags, **{"u[2]": 1.0})
+    s.step(0.05, n=4)
+    state = s.fmu.getFMUstate()
+    good = bytes(s.fmu.serializeFMUstate(state))
+    header = struct.calcsize("=IddiiidddQ")
+    marker = tmp_path / "ran"
+    bad = good[:header] + pickle.dumps({"real": _RunsACommand(marker)}, protocol=pickle.HIGHEST_PROTOCOL)
+    with pytest.raises(Exception):
+        s.fmu.deSerializeFMUstate(bad)
+    assert not marker.exists()
+    s.fmu.setFMUstate(s.fmu.deSerializeFMUstate(good))  # its own bytes still load
+    s.step(0.05, n=2)
+    np.testing.assert_allclose(s.real("x[1]", "x[2]", "x[3]"), _lag_solution(0.3, u=np.array([0, 1.0, 0])), atol=1e-8)
+    s.fmu.freeFMUstate(state)
+
+
 @pytest.mark.parametrize("spoil", ["error", "terminate"])
 def test_a_state_got_before_an_error_restarts_the_simulation(lags, spoil):
     """FMI 2.0, 2.1.3: after fmi2Error the simulation may go on from an FMU state got before;

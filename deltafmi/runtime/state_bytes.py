@@ -1,0 +1,74 @@
+"""Loading serialized FMU states without running what the bytes name.
+
+``fmi2DeSerializeFMUstate`` (and FMI 3.0's) takes bytes from the importer, which may have read
+them from a file anyone could have written. A plain :func:`pickle.loads` calls whatever callable
+the bytes name (``os.system`` included) and imports whatever module they name. The loader here
+resolves only what an FMU state holds, from modules already loaded (the bytes import nothing):
+classes and functions of the model's own code (its module, those under the FMU's resources
+folder, deltafmi's physics and models), classes of deltafmi's runtime, numpy's arrays, dtypes
+and scalars with their constructors, and a few value types of the standard library; anything
+else (``os.system``, ``eval``, numpy's memmap) is refused with the name it asked for.
+"""
+from __future__ import annotations
+
+import builtins
+import io
+import os
+import pickle
+import sys
+import types
+from typing import Any
+
+import numpy as np
+
+__all__ = ["load_state"]
+
+_BUILTINS = frozenset({"bool", "bytearray", "bytes", "complex", "dict", "float", "frozenset", "int", "list",
+                       "object", "range", "set", "slice", "str", "tuple"})
+_STANDARD_MODULES = frozenset({"collections", "datetime", "decimal", "enum", "fractions"})
+_NUMPY_CONSTRUCTORS = frozenset({("numpy._core.numeric", "_frombuffer"), ("numpy.core.numeric", "_frombuffer"),
+                                 ("numpy._core.multiarray", "_reconstruct"), ("numpy.core.multiarray", "_reconstruct"),
+                                 ("numpy._core.multiarray", "scalar"), ("numpy.core.multiarray", "scalar")})
+
+
+class _StateUnpickler(pickle.Unpickler):
+    def __init__(self, data: bytes, own_module: str, resources_dir: str) -> None:
+        super().__init__(io.BytesIO(data))
+        self._own_module = own_module
+        self._resources = os.path.realpath(resources_dir) + os.sep if resources_dir else None
+
+    def find_class(self, module: str, name: str) -> Any:
+        if module == "builtins":
+            if name in _BUILTINS:
+                return getattr(builtins, name)
+        elif module in sys.modules:
+            found: Any = sys.modules[module]
+            for part in name.split("."):  # a class nested in another: its qualified name
+                found = getattr(found, part, None)
+            if (module, name) in _NUMPY_CONSTRUCTORS:
+                return found
+            if isinstance(found, type) and self._holds(module, found):
+                return found
+            if isinstance(found, types.FunctionType) and self._model_code(module):
+                return found  # a component may keep one of its model's functions (a kernel)
+        raise pickle.UnpicklingError(f"the FMU state names {module}.{name}, which no FMU state holds")
+
+    def _holds(self, module: str, cls: type) -> bool:
+        """Whether an FMU state may hold an instance of ``cls`` (of the loaded ``module``)."""
+        if module.partition(".")[0] == "numpy":  # not its memmap, which opens files
+            return cls is np.ndarray or issubclass(cls, (np.generic, np.dtype))
+        return module in _STANDARD_MODULES or module.startswith("deltafmi.runtime.") or self._model_code(module)
+
+    def _model_code(self, module: str) -> bool:
+        """The model's own code: its module, the modules under the FMU's resources folder, and
+        deltafmi's physics and models."""
+        if module == self._own_module or module.startswith(("deltafmi.physics.", "deltafmi.models.")):
+            return True
+        path = getattr(sys.modules[module], "__file__", None)
+        return bool(self._resources and path and os.path.realpath(path).startswith(self._resources))
+
+
+def load_state(data: bytes, own_module: str, resources_dir: str) -> Any:
+    """The object ``data`` (from :func:`pickle.dumps`) holds, if it names only what an FMU state
+    may hold; :class:`pickle.UnpicklingError` otherwise."""
+    return _StateUnpickler(data, own_module, resources_dir).load()
