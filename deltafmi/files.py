@@ -77,7 +77,7 @@ def replaced_atomically(path: Path) -> Iterator[Path]:
         try:
             yield Path(name)
         except OSError as error:
-            if error.filename is None:  # a write that failed (a full disk): the file it was for
+            if error.filename is None or str(error.filename) == name:  # a full disk: the file it was for
                 error.filename = str(path)
             raise
         os.chmod(name, USER_FILE_MODE)

@@ -45,6 +45,16 @@ def test_a_write_the_disk_refuses_names_the_file_it_was_for(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_an_error_naming_the_temporary_file_names_the_file_it_was_for(tmp_path):
+    """A writer that opens the temporary file by its name (a zip library) reports that name: the
+    user is told the file they asked for."""
+    target = tmp_path / "tree.zip"
+    with pytest.raises(OSError) as failed:
+        with replaced_atomically(target) as part:
+            raise OSError(errno.ENOSPC, "No space left on device", str(part))
+    assert failed.value.filename == str(target)
+
+
 def test_a_symbolic_link_is_written_through_and_stays_a_link(tmp_path):
     data = tmp_path / "data"
     data.mkdir()

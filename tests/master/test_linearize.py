@@ -235,3 +235,28 @@ def test_fmi3_flagship_closed_loop_equals_the_fmi2_one(tmp_path):
     for k in range(0, 60, 7):
         power = [np.linalg.matrix_power(model.A, k) for model in (two, three)]
         np.testing.assert_allclose(three.C @ power[1] @ three.B, two.C @ power[0] @ two.B, rtol=0, atol=1e-9)
+
+
+def test_a_save_that_fails_keeps_the_earlier_files_whole(tmp_path, monkeypatch):
+    """The .npz and .mat are written to temporary files that replace them only when whole: a
+    write that fails half way (a full disk) leaves the earlier model readable, and no stray file."""
+    import errno
+
+    earlier = LinearModel(A=-np.eye(2), B=np.ones((2, 1)), C=np.eye(2), D=np.zeros((2, 1)),
+                          states=["x", "v"], inputs=["u"], outputs=["x", "v"], source="first")
+    written = earlier.save(tmp_path / "m")
+    before = [p.read_bytes() for p in written]
+
+    def disk_full(target, *args, **kwargs):
+        target.write(b"MATLAB 5.0 half a file")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(scipy.io, "savemat", disk_full)
+    later = LinearModel(A=-2 * np.eye(2), B=np.ones((2, 1)), C=np.eye(2), D=np.zeros((2, 1)),
+                        states=["x", "v"], inputs=["u"], outputs=["x", "v"], source="second")
+    with pytest.raises(OSError) as error:
+        later.save(tmp_path / "m")
+    assert error.value.filename == str(tmp_path / "m.mat")
+    assert written[1].read_bytes() == before[1]
+    np.testing.assert_array_equal(scipy.io.loadmat(written[1])["A"], -np.eye(2))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.mat", "m.npz"]

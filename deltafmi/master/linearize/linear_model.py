@@ -14,6 +14,8 @@ from typing import Optional
 import numpy as np
 import scipy.io
 
+from deltafmi.files import replaced_atomically
+
 __all__ = ["LinearModel"]
 
 
@@ -83,11 +85,12 @@ class LinearModel:
                        Ts=np.array(self.sample_time if self.discrete else 0.0), time=np.array(self.time),
                        x0=self.x0, u0=self.u0, y0=self.y0, source=np.array(self.source))
         npz, mat = base.with_suffix(".npz"), base.with_suffix(".mat")
-        base.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(npz, **{k: (v.astype(str) if v.dtype == object else v) for k, v in content.items()})  # type: ignore[arg-type]
         # MATLAB strings are UTF-8: a file name that is not (bytes the OS allows) is shown with U+FFFD there
         shown = self.source.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
-        scipy.io.savemat(mat, dict(content, source=np.array(shown)), oned_as="column")
+        with replaced_atomically(npz) as part, open(part, "wb") as out:
+            np.savez(out, **{k: (v.astype(str) if v.dtype == object else v) for k, v in content.items()})  # type: ignore[arg-type]
+        with replaced_atomically(mat) as part, open(part, "wb") as out:
+            scipy.io.savemat(out, dict(content, source=np.array(shown)), oned_as="column")
         return [npz, mat]
 
     @classmethod
