@@ -93,7 +93,8 @@ SUBPROCESS = {"test_reliability_signals_tools", "test_component_docs", "test_liv
               "test_fmu_without_fmpy_scipy", "test_memory", "test_symbol_isolation", "test_third_party_masters",
               "test_peg_robustness", "test_examples", "test_reliability_results", "test_reliability_sweep",
               "test_reliability_recipes", "test_reliability_limits", "test_reliability_no_traceback",
-              "test_export_fmu", "test_fmi3_cs_events", "test_cli_lazy", "test_cs_native", "test_fmu_state_position"}
+              "test_export_fmu", "test_fmi3_cs_events", "test_cli_lazy", "test_cs_native", "test_fmu_state_position",
+              "test_cache_installations"}
 #: what a module that builds FMUs (or runs scenarios, which build theirs) says somewhere
 _BUILDS = re.compile(r"build_fmu|build_cached|_fmu\b|_fmu\(|simulate|resolve_system|\[\"(run|build|sweep|linearize)\"")
 #: modules with a test over 10 s on this kind of machine (2 cores; `--durations=25` shows them)

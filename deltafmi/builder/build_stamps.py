@@ -4,9 +4,12 @@ The key of a cached FMU (:func:`.packager.content_key`) hashes every file the FM
 its component source, the runtime modules it carries, the native sources, the code generator.
 Reading and hashing them all costs more than the rest of a short run's start-up. So, as Python
 checks a ``.pyc`` against its ``.py``, each build request (this component, FMI version and
-resources, in this Python) records beside the cache the stamp of every file its key read, and of
-the folders those files were found in (a module added there may be reached): size, modification
-time in nanoseconds and inode. The next request stats them: when no stamp changed it takes the
+resources, in this Python, by this installation of deltafmi) records beside the cache the stamp of
+every file its key read, and of the folders those files were found in (a module added there may be
+reached): size, modification time in nanoseconds and inode. The request names the installation
+(:func:`installation`): two checkouts or environments sharing one cache each check the stamps of
+their own files, never those another recorded (unchanged there, while this one's runtime may
+differ); installations with the same contents still share the FMU, found from its content key. The next request stats them: when no stamp changed it takes the
 recorded FMU, read nothing; when one did (an edit, a ``touch``, a checkout), the key is computed
 from the contents again and the record renewed, so a stamp that changed with the content unchanged
 costs one hash, never a rebuild.
@@ -24,7 +27,7 @@ from typing import List, Optional, Sequence, Tuple, Union
 
 from deltafmi.toolchain import cache_dir, compiler_available
 
-__all__ = ["Stamp", "file_request", "lookup", "module_request", "recorded", "remember", "stamps_of"]
+__all__ = ["Stamp", "file_request", "installation", "lookup", "module_request", "recorded", "remember", "stamps_of"]
 
 #: [path, size, mtime_ns, inode] of one file or folder
 Stamp = List[Union[str, int]]
@@ -101,9 +104,20 @@ def remember(request: str, stamps: Sequence[Stamp], fmu: Path) -> None:
         temporary.unlink(missing_ok=True)  # a read-only cache: the next run hashes again
 
 
+def installation() -> Tuple[str, str]:
+    """This deltafmi: the folder its package is imported from (symbolic links resolved) and its version.
+
+    Each installation's requests are its own: the stamps a request records are those of the files
+    of the installation that made it (its runtime, native sources, code generator), and another
+    checkout or environment sharing the cache, whose files may differ, has to check its own."""
+    import deltafmi
+
+    return os.path.realpath(os.path.dirname(deltafmi.__file__)), deltafmi.__version__
+
+
 def _request(*parts: str) -> str:
     # the interpreter and the compiler's presence go into the key (packager.content_key), so into the request
-    environment = (sys.prefix, sys.base_prefix, sys.version, str(compiler_available()))
+    environment = (sys.prefix, sys.base_prefix, sys.version, str(compiler_available()), *installation())
     return hashlib.sha256("\0".join((*parts, *environment)).encode("utf-8", "surrogateescape")).hexdigest()[:32]
 
 

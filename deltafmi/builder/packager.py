@@ -31,7 +31,7 @@ from .bytecode import unchecked_hash_pyc
 from .equations import SOURCES as EQUATION_COMPILER, generated_files
 from .reach import BOOT_SOURCE, module_archive_name, module_source, reached_modules
 from .shared_modules import carried_digests, module_keys
-from . import shared_modules as _shared_modules
+from . import compiler as _compiler, reach as _reach, shared_modules as _shared_modules
 from .source_error import import_failure
 from .sources import ComponentSourceError, find_component, split_file_reference
 
@@ -206,9 +206,13 @@ def _keyed(source: Path, class_name: Optional[str], fmi_version: int,
     generator = sorted([*codegen.glob("*.py"), *codegen.glob("*.c")])  # writes the compiled kernels' C
     generator += EQUATION_COMPILER  # writes an equation model's kernels
     hashed = native_source_files(fmi_version) + writers + generator + [Path(__file__), BOOT_SOURCE, SHARED_MODULES]
-    # folders where reached modules were found: a module added to one may be reached (from P import name)
-    folders = sorted({path.parent for path, _ in carried} | {path.parent for path in writers} | {codegen})
-    stamps = stamps_of([source, *(path for path, _ in carried), *hashed, *folders])
+    # folders where reached modules were found: a module added to one may be reached (from P import name);
+    # the generators' folders: a file added to one is part of the generator
+    folders = sorted({path.parent for path, _ in carried} | {path.parent for path in writers} |
+                     {codegen, *(path.parent for path in EQUATION_COMPILER)})
+    # stamped, not hashed: the code that decides what this key hashes (which modules are carried, the
+    # binary's sources and flags); what it decides is hashed, so an edit there costs a hash, not a build
+    stamps = stamps_of([source, *(path for path, _ in carried), *hashed, *KEY_CODE, *folders])
     digest = hashlib.sha256(Path(source).read_bytes() + f"\0{class_name or ''}\0fmi{fmi_version}\0".encode())
     for path, arcname in carried:
         digest.update(f"{arcname}\0{path.stat().st_size}\0".encode("utf-8", "surrogateescape") + path.read_bytes())
@@ -225,6 +229,9 @@ def _keyed(source: Path, class_name: Optional[str], fmi_version: int,
 
 #: writes the keys of the modules an FMU may share (recorded in its deltafmi.json)
 SHARED_MODULES = Path(_shared_modules.__file__)
+#: the modules that decide which files a content key reads (the FMU's modules, its binary's
+#: sources and flags, the Python it runs in)
+KEY_CODE = [Path(_compiler.__file__), Path(_reach.__file__)]
 
 #: where :func:`build_cached` says, at INFO, that it builds an FMU (silent when the FMU is cached);
 #: the commands show it on stderr (``-q``: not), the API leaves it to the user's logging set-up

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from deltafmi.builder import build_stamps, packager, provider
+import deltafmi
+from deltafmi.builder import build_stamps, compiler, packager, provider, reach
 
 FMU_SRC = Path(__file__).resolve().parents[2] / "fmu_src"
 
@@ -72,6 +73,27 @@ def test_a_module_added_beside_a_reached_one_is_noticed(source, hashed, tmp_path
     assert build_stamps.lookup("probe") == first
     (probe / "new_module.py").write_text("")
     assert build_stamps.lookup("probe") is None
+
+
+def test_the_code_that_decides_what_the_key_reads_is_stamped(source):
+    """An edit to the binary's flags or sources (compiler.py) or to which modules an FMU carries
+    (reach.py) is noticed as one to a file the key read is: the key is computed again."""
+    packager.build_cached(source)
+    record = build_stamps.recorded(build_stamps.file_request(source, None, 2, []))
+    stamped = {Path(p) for p, *_ in record[1]}
+    assert {Path(compiler.__file__), Path(reach.__file__), Path(packager.__file__)} <= stamped
+
+
+def test_a_request_names_the_installation_that_made_it(source, monkeypatch):
+    """Another copy of deltafmi (path or version) asks another request: it checks its own files."""
+    request = build_stamps.file_request(source, None, 2, [])
+    folder, version = build_stamps.installation()
+    assert Path(folder) == Path(packager.__file__).resolve().parents[1] and version == deltafmi.__version__
+    monkeypatch.setattr(deltafmi, "__version__", version + "+other")
+    assert build_stamps.file_request(source, None, 2, []) != request
+    monkeypatch.undo()
+    monkeypatch.setattr(deltafmi, "__file__", str(source.parent / "elsewhere" / "deltafmi" / "__init__.py"))
+    assert build_stamps.file_request(source, None, 2, []) != request
 
 
 def test_a_packaged_model_is_found_without_importing_it(monkeypatch, tmp_path):
