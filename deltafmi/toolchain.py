@@ -28,7 +28,8 @@ from typing import Callable, Iterator, Optional, Sequence
 
 __all__ = ["BuildError", "NoCompilerError", "PREBUILT_DIR", "abi_tag", "build_into", "building", "cache_dir", "compiler_available",
            "compiler_name", "compiler_output", "find_built", "no_compiler_message", "plain_c_library",
-           "python_extension", "python_include", "require_compiler", "run_compiler", "single_file_library", "strip_unneeded"]
+           "python_extension", "python_include", "require_compiler", "run_compiler", "seeded_file", "single_file_library",
+           "strip_unneeded"]
 
 from deltafmi.errors import DeltaFmiError
 
@@ -195,18 +196,30 @@ def building(target: Path) -> Iterator[None]:
         yield  # closing the file releases the lock
 
 
-def _seeded(target: Path) -> Optional[Path]:
-    """``target``'s folder in the seed cache ``$DELTAFMI_CACHE_SEED`` (same key, same relative
-    path), or None: no seed, ``target`` outside the cache, or not in the seed."""
+def _in_seed(target: Path) -> Optional[Path]:
+    """``target``'s path in the seed cache ``$DELTAFMI_CACHE_SEED`` (same relative path), or None:
+    no seed, or ``target`` outside the cache."""
     seed = os.environ.get("DELTAFMI_CACHE_SEED")
     if not seed:
         return None
     try:
-        relative = target.resolve().relative_to(cache_dir().resolve())
+        relative = Path(target).resolve().relative_to(cache_dir().resolve())
     except ValueError:
         return None
-    found = Path(seed) / relative
-    return found if found.is_dir() and any(found.iterdir()) else None
+    return Path(seed) / relative
+
+
+def _seeded(target: Path) -> Optional[Path]:
+    """``target``'s folder in the seed cache ``$DELTAFMI_CACHE_SEED`` (same key, same relative
+    path), or None: no seed, ``target`` outside the cache, or not in the seed."""
+    found = _in_seed(target)
+    return found if found is not None and found.is_dir() and any(found.iterdir()) else None
+
+
+def seeded_file(target: Path) -> Optional[Path]:
+    """The file ``target`` (a path in the cache) in the seed cache ``$DELTAFMI_CACHE_SEED``, or None."""
+    found = _in_seed(target)
+    return found if found is not None and found.is_file() else None
 
 
 def strip_unneeded(library: Path) -> None:

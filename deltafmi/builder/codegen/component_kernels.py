@@ -17,9 +17,11 @@ process.
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 import hashlib
 import warnings
+import weakref
 from pathlib import Path
 from typing import Any, NamedTuple, Optional
 
@@ -163,13 +165,35 @@ def _check_step(cls: type[Component]) -> None:
                                    f"return: add them to its returns")
 
 
+#: each class's generated kernels (with the ``native`` they were made from), translated once per
+#: process: the builds of one model (FMI 2.0 and 3.0, plain and portable) share its translation
+_GENERATED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: the same for the classes of component files, which each build imports anew (a module named
+#: after the file's content, see ``packager.load_component_class``): by module and class name
+_GENERATED_FROM_FILES: dict = {}
+
+
+def _generated_once(cls: type[Component]) -> Optional[GeneratedKernels]:
+    """:func:`generate_component` of ``cls``, remembered for this process (a translation that fails
+    is not remembered: it fails again, saying why)."""
+    from_file = cls.__module__.startswith("_deltafmi_source_")
+    memo, key = (_GENERATED_FROM_FILES, (cls.__module__, cls.__qualname__)) if from_file else (_GENERATED, cls)
+    native = getattr(cls, "native", None)
+    known = memo.get(key)
+    if known is None or (not from_file and known[0] is not native):
+        known = (native, generate_component(cls))
+        memo[key] = known
+    generated = known[1]
+    return None if generated is None else GeneratedKernels(generated.source, copy.deepcopy(generated.description))
+
+
 def component_library(cls: type[Component]) -> Optional[ComponentLibrary]:
     """``cls``'s kernels compiled (from the cache when built before), or None: none declared, or
     (``mode="fallback"``) they cannot be translated, with a warning naming the line.
 
     Raises :class:`BuildError` for ``mode="required"`` when they cannot be translated."""
     try:
-        generated = generate_component(cls)
+        generated = _generated_once(cls)
     except CodegenError as exc:
         if cls.native.mode != "fallback":
             raise BuildError(f"{cls.__name__}: native kernels: {exc} (NativeKernels(mode=\"fallback\") ships "

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from deltafmi.runtime.equations import component as _component
+from deltafmi.toolchain import building, seeded_file
 from deltafmi.runtime.equations.model import EquationModelError, FlatModel
 
 #: the compiler's own files: what a generated module depends on besides the model
@@ -22,15 +23,25 @@ def compile_to_cache(cls: type, flat: FlatModel, name: str) -> Path:
     (where :func:`deltafmi.runtime.equations.component.equations_cache` finds it)."""
     path = _component.equations_cache(name)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not path.exists():
-        try:
-            import sympy  # noqa: F401  (the symbolic work; imported only for equation models)
-        except ImportError:  # pragma: no cover - sympy is one of deltafmi's dependencies
-            raise EquationModelError(f"{cls.__name__}: compiling an equation model needs sympy: "
-                                     f"pip install sympy") from None
-        from .emit import generate
+    if path.exists():
+        return path
+    # processes that need the same module at once wait for the first one's (the symbolic work
+    # takes seconds); one that the seed cache holds (the wheel's build) is copied from there
+    with building(path):
+        if path.exists():
+            return path
+        seeded = seeded_file(path)
+        if seeded is not None:
+            source = seeded.read_text()
+        else:
+            try:
+                import sympy  # noqa: F401  (the symbolic work; imported only for equation models)
+            except ImportError:  # pragma: no cover - sympy is one of deltafmi's dependencies
+                raise EquationModelError(f"{cls.__name__}: compiling an equation model needs sympy: "
+                                         f"pip install sympy") from None
+            from .emit import generate
 
-        source = generate(flat, name, getattr(cls, "constraint_pole", 0.0))
+            source = generate(flat, name, getattr(cls, "constraint_pole", 0.0))
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
         os.replace(tmp, path)
