@@ -119,6 +119,16 @@ def pytest_configure(config) -> None:
             compileall.compile_dir(folder, quiet=1)
 
 
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A test's captured output may hold a file name that is not UTF-8 (the tests of such folders):
+    xdist's workers send reports as UTF-8 and fail on it, so such characters are sent escaped."""
+    outcome = yield
+    report = outcome.get_result()
+    report.sections = [(title, content.encode("utf-8", "backslashreplace").decode("utf-8"))
+                       for title, content in report.sections]
+
+
 def group_of(nodeid: str) -> str | None:
     """The xdist group of the test ``nodeid`` ("serial", a module of :data:`OWN_GROUP`), or None."""
     module = Path(nodeid.split("::")[0]).stem
