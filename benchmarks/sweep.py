@@ -12,7 +12,8 @@ machine, all with the same cases:
    on the worker): reset + initialization, and everything else (Dask, metrics, transfer); and in
    all, the sweep's time per case minus those cases' stepping (target <= 1 ms); the CPU time of
    the same on a worker without Dask (this process, thread CPU time: what a loaded machine moves
-   least), with and without FMU state snapshots; and the CPU time per case of a whole 1-worker
+   least), with and without FMU state snapshots, and with each case's wiring built anew instead of
+   taken over from the case before; and the CPU time per case of a whole 1-worker
    sweep (worker process, client and scheduler) minus the same cases' stepping in that worker,
    with results streamed per case and per task;
 4. the scaling from 1 to 2 workers, against what two plain processes running the same cases at
@@ -223,14 +224,16 @@ def per_case(rows: List[dict], wall: float, once: float) -> Dict[str, float]:
             "load": first["setup_time"]}
 
 
-def worker_cpu(planned: PlannedStudy, cases: List[Case], snapshots: bool = True) -> Dict[str, float]:
+def worker_cpu(planned: PlannedStudy, cases: List[Case], snapshots: bool = True,
+               wiring: bool = True) -> Dict[str, float]:
     """CPU milliseconds per case (this thread's: a loaded machine moves it much less than wall
     time) of what a worker does for a case, the cases run one after another in this process on
     one FmuPool as a worker runs them (no Dask): the whole case, its stepping (the master's
     fixed-step loop) and the rest (reset, start values, initialization, wiring, metrics); medians
     over the cases after the first (which loads the FMUs). ``snapshots``: units whose
     initialization repeats the case before's are restored from an FMU state snapshot (the
-    default), else every unit is reset and initialized."""
+    default), else every unit is reset and initialized. ``wiring``: a case on the instances of the
+    case before takes over its buses and input/output wiring (the default), else wires anew."""
     from deltafmi.apps.studies.pool import FmuPool
     from deltafmi.apps.studies.runner import CaseTemplate, run_case
     from deltafmi.master.stepping.master import Master
@@ -246,6 +249,8 @@ def worker_cpu(planned: PlannedStudy, cases: List[Case], snapshots: bool = True)
             stepping.append(time.thread_time() - start)
 
     template = CaseTemplate(planned.plan, planned.fmu_files)
+    if not wiring:
+        template.wirings = None  # type: ignore[assignment]
     pool = FmuPool(snapshots=snapshots)
     whole: List[float] = []
     Master._run_fixed = timed  # type: ignore[method-assign]
@@ -314,16 +319,20 @@ def main() -> None:
         print(f"  per-case overhead, 1 worker (the sweep's time per case minus the same cases' stepping, same run): "
               f"{1e3 * stats['overhead']:.2f} ms (target <= 1 ms; load average {os.getloadavg()[0]:.1f} "
               f"on {os.cpu_count()} cores)")
-        # without snapshots, then with, alternating: the same spell of load hits both
-        pairs = [(worker_cpu(planned, cases, snapshots=False), worker_cpu(planned, cases)) for _ in range(5)]
-        cpu = {k: statistics.median(after[k] for _, after in pairs) for k in pairs[0][1]}
-        plain = {k: statistics.median(before[k] for before, _ in pairs) for k in pairs[0][0]}
+        # without snapshots, with, and with the wiring built anew, alternating: the same spell of
+        # load hits all three
+        triples = [(worker_cpu(planned, cases, snapshots=False), worker_cpu(planned, cases),
+                    worker_cpu(planned, cases, wiring=False)) for _ in range(5)]
+        cpu = {k: statistics.median(t[1][k] for t in triples) for k in triples[0][1]}
+        plain = {k: statistics.median(t[0][k] for t in triples) for k in triples[0][0]}
+        anew = {k: statistics.median(t[2][k] for t in triples) for k in triples[0][2]}
         units = len(planned.system.components)
         print(f"  per-case CPU on a worker (no Dask, this process, medians of 5 x {n - 1} cases): {cpu['case']:.2f} ms "
               f"a case, of which stepping {cpu['stepping']:.2f} ms; the rest (reset or snapshot, start values, "
               f"initialization, wiring, metrics) {cpu['rest']:.2f} ms, {cpu['restored']:.1f} of the {units} units "
               f"restored from a snapshot per case; every unit reset and initialized "
-              f"(no snapshots, same run): {plain['rest']:.2f} ms, {plain['rest'] / cpu['rest']:.2f}x")
+              f"(no snapshots, same run): {plain['rest']:.2f} ms, {plain['rest'] / cpu['rest']:.2f}x; "
+              f"every case wired anew (same run): {anew['rest']:.2f} ms, {anew['rest'] / cpu['rest']:.2f}x")
         # the whole sweep's CPU, results streamed per case and per task as before, alternating
         sides: Dict[bool, List[Dict[str, float]]] = {False: [], True: []}
         for _ in range(3):

@@ -1,7 +1,8 @@
 """Cases run one after another on one worker's pooled FMUs (reset instead of loaded again, the
 case's start values set in one call per type after the scenario's) record exactly what a plain
 ``deltafmi run`` of the same case exported as a scenario records, bit for bit, whatever ran before
-on those instances (here without Dask: the worker's own loop, run_case on one FmuPool)."""
+on those instances, with the master's buses and wiring of the case before used again (here without
+Dask: the worker's own loop, run_case on one FmuPool)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -52,6 +53,8 @@ def test_pooled_cases_equal_plain_runs_bit_for_bit(tmp_path):
     finally:
         pool.close()
     assert [r.status for r in results] == [OK] * 4, [r.error for r in results]
+    # the later cases ran on the first one's buses and input/output wiring (same instances)
+    assert [w.reuses for w in template.wirings.values()] == [3]
     plain = {case.id: plain_run(study, case.id, tmp_path) for case in planned.cases}
     for case, result in zip(order, results):
         expected = plain[case.id]

@@ -264,3 +264,20 @@ metrics:
         assert fresh.status == result.status == OK, (fresh.error, result.error)
         for name, column in fresh.timeseries.items():
             assert np.array_equal(result.timeseries[name], column), (result.case, name)
+
+
+def test_call_keys_of_mixed_numbers_are_bit_exact():
+    """A set call's values of floats and ints (a study's integer grid value among the scenario's
+    floats) match only the same values of the same types, bit for bit."""
+    from deltafmi.apps.studies.snapshots import call_key
+
+    def key(values):
+        return call_key("setReal", ([1, 2, 3], values), {})
+
+    assert key([0.5, 0.0, 3]) == key([0.5, 0.0, 3])
+    assert key([0.5, 0.0, 3]) != key([0.5, 0.0, 3.0])  # 3 is not 3.0
+    assert key([0.5, 0.0, 3]) != key([0.5, -0.0, 3])  # nor -0.0 0.0
+    assert key([0.5, float("nan"), 3]) == key([0.5, float("nan"), 3])
+    big = 2 ** 53
+    assert key([0.5, big, 3]) != key([0.5, big + 1, 3])  # the same double, not the same int
+    assert key([0.5, True]) != key([0.5, 1])  # a bool is not an int

@@ -440,3 +440,24 @@ def test_controller_fmu_warns_once_when_the_step_is_longer_than_its_sample_perio
     assert (quiet.returncode, quiet.stdout, quiet.stderr) == (0, "", "")
     shipped = run()
     assert shipped.returncode == 0 and "sample_period" not in shipped.stderr
+
+
+def test_a_deep_copy_continues_as_the_original_and_apart_from_it():
+    """A deep copy (what an FMU state holds) samples on exactly as the controller it was taken
+    from, and neither sees the other's samples; a mutable attribute is not shared."""
+    import copy
+
+    z = np.array(POINTS[1])
+    y = d.inverse_kinematics(P, z)[IY]
+    target = z + [2e-3, -1e-3, 1e-3]
+    ctl = dc.DeltaController(P, pole=9.0, stiffness=[0.0, 0.0, 0.0])
+    for _ in range(3):
+        ctl.step(y, [0.0] * 3, target, [0.0] * 3, [0.0] * 3)
+    saved = copy.deepcopy(ctl)
+    assert saved is not ctl and saved.stiffness is not ctl.stiffness  # a list: copied
+    before = ctl.state
+    u_original = [ctl.step(y, [0.0] * 3, target, [0.0] * 3, [0.0] * 3) for _ in range(4)]
+    assert saved.state == before  # untouched by the original's samples
+    u_copy = [saved.step(y, [0.0] * 3, target, [0.0] * 3, [0.0] * 3) for _ in range(4)]
+    assert all(np.array_equal(a, b) for a, b in zip(u_original, u_copy))
+    assert saved.state == ctl.state and saved.integral != before.integral

@@ -139,6 +139,8 @@ class CaseTemplate:
         self.plan = plan
         #: the most rows a case of it recorded so far (room made for as many in the next)
         self.rows = 0
+        #: the master's wiring of the cases, kept for the next case on the same pooled FMUs
+        self.wirings: Dict[Any, Any] = {}
         by_component = dict(plan.fmus)
         components = tuple(dataclasses.replace(c, fmu=str(fmu_files[by_component[c.name]]), source=None)
                            for c in plan.scenario.components)
@@ -210,7 +212,8 @@ def run_case(template: CaseTemplate, pool: FmuPool, case: int, values: Mapping[s
     metrics = {m.name: math.nan for m in template.plan.metrics}
     try:
         system, stop = template.system(values)
-        summary = Master(system, result=Path(f"case-{case}"), stop=stop, fmus=lend, writer_class=recorder).run()
+        summary = Master(system, result=Path(f"case-{case}"), stop=stop, fmus=lend, writer_class=recorder,
+                         wirings=template.wirings).run()
         setup, stepping = summary.setup_time, summary.wall_time - summary.setup_time
     except (SimulationError, BadInput, ScenarioError) as exc:
         # the rows up to the failure are in memory, not in the file the master names

@@ -42,15 +42,21 @@ RECORDED_CALLS3 = tuple(f"{way}{kind}" for way in ("set", "get")
     "enterInitializationMode", "exitInitializationMode")
 
 
+_FLOAT, _INT, _NUMBERS = {float}, {int}, {float, int}
+
+
 def _exact(value: Any) -> Any:
     """``value`` in a form whose ``==`` is bit equality for floats (sign of zero, NaN payload)."""
     if isinstance(value, float):
         return ("f", struct.pack("<d", value))
     if isinstance(value, (list, tuple)):
-        if all(type(v) is float for v in value):  # start values: their bytes in one go
+        kinds = set(map(type, value))
+        if kinds == _FLOAT:  # start values: their bytes in one go
             return ("d", array("d", value).tobytes())
-        if all(type(v) is int for v in value):  # value references
+        if kinds == _INT:  # value references
             return ("i", tuple(value))
+        if kinds == _NUMBERS:  # floats' bytes in one go; the ints as they are (1 is not 1.0)
+            return ("n", array("d", value).tobytes(), tuple(v if type(v) is int else None for v in value))
         return tuple(_exact(v) for v in value)
     if isinstance(value, (bool, int, str, bytes)) or value is None:
         return (type(value).__name__, value)

@@ -357,6 +357,21 @@ class NativeLoop:
                   offset: Optional[np.ndarray], values_address: Optional[int] = None,
                   bus_address: Optional[int] = None) -> _Op:
         self._keep.append(holder)
+        # the op of a holder used again (a study's next case on the same wiring) is made once:
+        # every field comes from the holder's own arrays and its unit's instance
+        key = (kind, function, m, unit.fmu.component, values_address, bus_address)
+        made = holder.__dict__.setdefault("_c_ops", {})
+        op = made.get(key)
+        if op is None:
+            op = made[key] = self._new_value_op(unit, holder, kind, function, m, values, bus, index, factor, offset,
+                                                values_address, bus_address)
+        return op
+
+    @staticmethod
+    def _new_value_op(unit: Unit, holder: Any, kind: int, function: str, m: int, values: Optional[np.ndarray],
+                      bus: Optional[np.ndarray], index: Optional[np.ndarray], factor: Optional[np.ndarray],
+                      offset: Optional[np.ndarray], values_address: Optional[int],
+                      bus_address: Optional[int]) -> _Op:
         positions = getattr(holder, "positions", None)
         return _Op(kind=kind, multiple=m, function=function_address(unit.fmu, function), component=unit.fmu.component,
                    vrs=ctypes.cast(holder.vrs, c_void_p).value, n=holder.n,

@@ -49,10 +49,10 @@ from deltafmi.master.stepping.algebraic_loops import InitialLoops, LoopBlock, Lo
 from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
                           STEP_RETURNED, TERMINATED, UNSETTLED, BEHIND, NativeLoop)
 from .stop_signals import StopSignals
-from .unit_base import instant_margin
+from .unit_base import _Inputs, _Outputs, instant_margin
 from .parallel import StepPool, group_actions
 from .unpacked import kept_unpacked
-from .units import TYPES, FmuFailure, Terminated, Unit, new_bus, unit_for
+from .units import TYPES, CoSimulationUnit, FmuFailure, Terminated, Unit, new_bus, unit_for
 
 __all__ = ["Master", "NativeLoop"]
 
@@ -74,6 +74,95 @@ class _FixedGrid(NamedTuple):
     last: int  # steps from k with k + m < last are m * h long, later ones end at stop
 
 
+def _address(handle: Any) -> Any:
+    """An instance handle's address (fmpy keeps an int, or a ctypes pointer)."""
+    return getattr(handle, "value", handle)
+
+
+class _Wiring:
+    """The buses and the units' input and output wiring of one run, for a later run of the same
+    system on the same FMU instances (a study's pooled FMUs, reset between cases): the wiring is
+    a function of the system's links and recorded variables and of the instances (their value
+    references, functions and handles), none of which changes between such runs. Used again,
+    the buses and the inputs' and outputs' value buffers are set back to what new ones hold, so
+    the run sees exactly what a fresh wiring gives it. Only FMI 2.0 units of the master's own
+    classes, with no String inputs or outputs, are kept."""
+
+    #: wirings kept per dict (the least recently made dropped beyond)
+    KEEP = 8
+
+    def __init__(self, system: System, units: Sequence[Unit], buses: Dict[str, np.ndarray],
+                 slot: Dict[Tuple[str, str, int, int], int]) -> None:
+        self.links, self.recorded = system.links, system.recorded
+        self.fmus = [unit.fmu for unit in units]
+        self.handles = [_address(unit.fmu.component) for unit in units]
+        self.buses, self.slot = buses, slot
+        self.pristine = {kind: bus.copy() for kind, bus in buses.items()}
+        self.wired = [(list(unit.inputs), list(unit.outputs), list(getattr(unit, "_discrete_inputs", ())))
+                      for unit in units]
+        #: runs that used it again
+        self.reuses = 0
+
+    @staticmethod
+    def _key(units: Sequence[Unit]) -> Tuple[int, ...]:
+        return tuple(id(unit.fmu) for unit in units)
+
+    @staticmethod
+    def _eligible(units: Sequence[Unit]) -> bool:
+        from .me_integrator import ModelExchangeUnit
+        return all(type(unit) in (CoSimulationUnit, ModelExchangeUnit) and not unit.inputs and not unit.outputs
+                   and not getattr(unit, "_discrete_inputs", None) for unit in units)
+
+    @classmethod
+    def find(cls, wirings: Optional[Dict[Any, Any]], system: System, units: Sequence[Unit]) -> Optional["_Wiring"]:
+        """The kept wiring of ``system`` on these very FMU instances, if any."""
+        if wirings is None:
+            return None
+        kept = wirings.get(cls._key(units))
+        if kept is None or kept.links is not system.links or kept.recorded is not system.recorded \
+                or not cls._eligible(units) \
+                or any(fmu is not unit.fmu for fmu, unit in zip(kept.fmus, units)) \
+                or any(handle != _address(unit.fmu.component) for handle, unit in zip(kept.handles, units)):
+            return None
+        return kept
+
+    @classmethod
+    def keep(cls, wirings: Optional[Dict[Any, Any]], system: System, units: Sequence[Unit],
+             buses: Dict[str, np.ndarray], slot: Dict[Tuple[str, str, int, int], int]) -> None:
+        """Keep the wiring just made (when its units qualify)."""
+        if wirings is None or not all(type(io) in (_Inputs, _Outputs) for unit in units
+                                      for io in unit.inputs + unit.outputs + getattr(unit, "_discrete_inputs", [])):
+            return
+        from .me_integrator import ModelExchangeUnit
+        if not all(type(unit) in (CoSimulationUnit, ModelExchangeUnit) for unit in units):
+            return
+        key = cls._key(units)
+        wirings.pop(key, None)
+        wirings[key] = cls(system, units, buses, slot)
+        while len(wirings) > cls.KEEP:
+            try:
+                wirings.pop(next(iter(wirings)), None)
+            except (StopIteration, RuntimeError):  # another thread's run changed it meanwhile
+                break
+
+    def reuse(self, master: "Master") -> Dict[Tuple[str, str, int, int], int]:
+        """Give ``master``'s units and buses this wiring, as new; returns the bus slots."""
+        for kind, bus in self.buses.items():
+            bus[...] = self.pristine[kind]
+        master.buses = self.buses
+        self.reuses += 1
+        for unit, (inputs, outputs, discrete) in zip(master.units, self.wired):
+            for io in inputs + discrete:
+                io.values[...] = 0
+            for io in outputs:
+                if io.staging is not None:
+                    io.staging[...] = 0
+            unit.inputs, unit.outputs = list(inputs), list(outputs)
+            if discrete:
+                unit._discrete_inputs = list(discrete)  # type: ignore[attr-defined]
+        return self.slot
+
+
 class Master:
     """Runs one :class:`System`; create, then call :meth:`run` once."""
 
@@ -84,7 +173,7 @@ class Master:
                  writer_class: Optional[Callable[..., Any]] = None, native: bool = True,
                  on_message: Optional[Callable[[str, int, str, str], None]] = None,
                  debug_logging: bool = False, replay: Optional[Path] = None,
-                 progress_lines: bool = False) -> None:
+                 progress_lines: bool = False, wirings: Optional[Dict[Any, Any]] = None) -> None:
         """``fmus`` lends each component a loaded fmpy FMU object (default: extract and load every
         FMU for this run; deltafmi.apps.studies keeps them loaded across runs and resets them);
         ``on_message(component, status, category, text)`` gets every message the FMUs log
@@ -96,7 +185,10 @@ class Master:
         ``native``: run fixed steps in C where :mod:`.native_loop` can (same calls, same results);
         ``replay``: a results file of an earlier run of this scenario whose recorded live inputs
         stand in for the live sources (:mod:`deltafmi.master.live.replay`); ``progress``: a bar on
-        a terminal, ``progress_lines``: a line every 30 s instead (a log)."""
+        a terminal, ``progress_lines``: a line every 30 s instead (a log); ``wirings``: a dict the
+        caller keeps across runs of one system with ``fmus`` (a study's cases): the buses and the
+        units' input and output wiring are kept in it and used again by a later run that gets
+        the same FMU instances (:class:`_Wiring`)."""
         scenario = system.scenario
         self.system = system
         self.start = scenario.experiment.start
@@ -142,6 +234,7 @@ class Master:
         self._unzip_root = ""
         self._by_name: Dict[str, Unit] = {}
         self.fmus = fmus
+        self.wirings = wirings if fmus is not None else None
         self.writer_class = writer_class
         self.native = native
         #: threads stepping independent units at once (master.threads; parallel.py)
@@ -345,19 +438,25 @@ class Master:
 
         Runs after instantiation: the precomputed calls hold the instance handles.
         """
-        slot = self._wire_outputs()
+        kept = _Wiring.find(self.wirings, self.system, self.units)
+        if kept is not None:
+            slot = kept.reuse(self)
+        else:
+            slot = self._wire_outputs()
         links = self.system.links
 
         def at(port: Port) -> int:
             return slot[(port.type, port.component, port.vr, port.index)]
 
-        for unit in self.units:
-            for kind in TYPES:
-                mine = [l for l in links if l.target.component == unit.name and l.target.type == kind]
-                if mine:
-                    unit.wire_inputs(kind, [l.target.vr for l in mine], self.buses[kind],
-                                     [at(l.source) for l in mine], [l.factor for l in mine],
-                                     [l.offset for l in mine], [l.target.index for l in mine])
+        if kept is None:
+            for unit in self.units:
+                for kind in TYPES:
+                    mine = [l for l in links if l.target.component == unit.name and l.target.type == kind]
+                    if mine:
+                        unit.wire_inputs(kind, [l.target.vr for l in mine], self.buses[kind],
+                                         [at(l.source) for l in mine], [l.factor for l in mine],
+                                         [l.offset for l in mine], [l.target.index for l in mine])
+            _Wiring.keep(self.wirings, self.system, self.units, self.buses, slot)
         recorded = self.system.recorded
         parts = []
         for kind in TYPES:

@@ -5,6 +5,7 @@ dynamics) around the control law of :mod:`.control_law`, whose docstring explain
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from typing import Optional, Sequence
@@ -125,6 +126,16 @@ def reduced_inertia(params, y: Sequence[float]) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # the stateful sampled controller
 # --------------------------------------------------------------------------------------------
+def _unchangeable(value: object) -> bool:
+    """Whether ``value`` cannot change in place: a number, a string, None, or a tuple of such
+    (a NamedTuple too)."""
+    if value is None or type(value) in (float, int, bool, str):
+        return True
+    if isinstance(value, tuple) and not hasattr(value, "__dict__"):  # a NamedTuple has no __dict__
+        return all(_unchangeable(item) for item in value)
+    return False
+
+
 def _of_state(name: str, doc: str) -> property:
     """A read-only attribute of the controller: its state's field ``name``."""
     return property(lambda self: getattr(self.state, name), doc=doc)
@@ -189,6 +200,16 @@ class DeltaController:
         self.settings = SampleSettings(float(self.sample_period), bool(self.zoh_lead), float(self.tactile_gain),
                                        (ax, ay, az))
         self.reset()
+
+    def __deepcopy__(self, memo: dict) -> "DeltaController":
+        # what a sample changes is replaced, never changed in place (state is a NamedTuple of
+        # numbers and tuples): the attributes that are such values are shared, the others copied
+        new = copy.copy(self)
+        memo[id(self)] = new
+        for name, value in vars(self).items():
+            if not _unchangeable(value):
+                setattr(new, name, copy.deepcopy(value, memo))
+        return new
 
     def reset(self) -> None:
         """Clear the integral, the warm start, the held torque and the warning latch."""
