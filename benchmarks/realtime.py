@@ -43,11 +43,14 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
 import deltafmi
 from deltafmi.master.live.datagram import decode, encode
+
+SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "delta_tracking.yaml"
 
 
 def lateness_figures(seconds: float, speed: float = 1.0) -> dict:
@@ -94,54 +97,130 @@ def highest_speed() -> float:
 
 
 class PacedFloor:
-    """benchmarks/native/paced_floor.c compiled (``cc -std=c99 -O2``) and loaded."""
+    """benchmarks/native/paced_floor.c compiled (``cc -std=c99 -O2``) as a program of its own."""
 
     def __init__(self, directory: Path) -> None:
         from deltafmi.toolchain import require_compiler
 
         source = Path(__file__).resolve().parent / "native" / "paced_floor.c"
-        library = directory / "paced_floor.so"
-        subprocess.run([*require_compiler(source), "-std=c99", "-O2", "-shared", "-fPIC", str(source), "-o",
-                        str(library)], check=True, capture_output=True)
-        self._floor = ctypes.CDLL(str(library)).paced_floor
-        self._floor.argtypes = [ctypes.c_long, ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                                ctypes.POINTER(ctypes.c_long), ctypes.POINTER(ctypes.c_long)]
-        self._floor.restype = ctypes.c_double
+        self.program, self.out = directory / "paced_floor", directory / "lateness.bin"
+        subprocess.run([*require_compiler(source), "-std=c99", "-O2", str(source), "-o", str(self.program)],
+                       check=True, capture_output=True)
 
-    def __call__(self, points: int, period: float, busy: float) -> dict:
-        """Overruns (later than a quarter period, as the Pacer's tolerance), fell-behind episodes
-        and the largest lateness of ``points`` paced points around ``busy`` seconds of work."""
-        overruns, behind = ctypes.c_long(), ctypes.c_long()
-        worst = self._floor(points, period, busy, period / 4, ctypes.byref(overruns), ctypes.byref(behind))
-        return {"overruns": overruns.value, "behind": behind.value, "max": worst, "points": points}
+    def __call__(self, mode: str, points: int, period: float, busy: float, spin: float = 2e-4,
+                 lock: bool = True) -> dict:
+        """``points`` points ``period`` apart around ``busy`` seconds of work, waiting by ``mode``
+        (spin, sleep, hybrid: sleep to ``spin`` before the deadline, then poll): :func:`figures`."""
+        done = subprocess.run([str(self.program), mode, str(points), repr(period), repr(busy), repr(spin),
+                               str(self.out), *(["mlock"] if lock else [])], check=True, capture_output=True, text=True)
+        cpu, wall, locked = done.stdout.split()
+        return figures(np.fromfile(self.out), period, float(cpu), float(wall), locked == "1")
 
 
-def target_speed(seconds: float, repeats: int, speed: float) -> list:
-    """The flagship paced at ``speed`` and, right after each run, the machine's floor with its
-    median busy time (:class:`PacedFloor`): (flagship figures, floor figures, load average)."""
+def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked: bool) -> dict:
+    """Overruns (the Pacer's: later than a quarter period), shares later than 1 us, half and a
+    whole period, fell-behind episodes (as the Pacer counts them), lateness percentiles and the
+    CPU time of the loop against its wall time."""
+    late = np.asarray(lateness, dtype=float)
+    beyond = late > period
+    return {"points": len(late), "overruns": float(np.mean(late > period / 4)), "over_1us": float(np.mean(late > 1e-6)),
+            "over_half": float(np.mean(late > period / 2)), "over_period": float(np.mean(beyond)),
+            "behind": int(np.count_nonzero(beyond & ~np.concatenate(([False], beyond[:-1])))),
+            "p50": float(np.median(late)), "p99": float(np.percentile(late, 99)), "max": float(late.max()),
+            "cpu": cpu / wall if wall > 0 else float("nan"), "locked": locked}
+
+
+def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] = None) -> dict:
+    """The flagship paced at ``speed`` for ``stop`` simulated seconds (the master's C loop);
+    ``before``: the pacing as it was (1 us timer slack, memory not locked); ``spin``: another
+    ``master.realtime.spin``: :func:`figures` and the median busy time."""
+    from dataclasses import replace
+
+    from deltafmi.master.live import pacing
+
+    scenario = deltafmi.load_scenario(SCENARIO)
+    if spin is not None:
+        scenario = replace(scenario, master=replace(scenario.master, realtime=replace(scenario.master.realtime,
+                                                                                      spin=spin)))
+    slack, lock = pacing._timer_slack, pacing._lock_memory
+    if before:
+        pacing._timer_slack = lambda ns: slack(1000 if ns == 1 else ns)
+        pacing._lock_memory = lambda: False
+    try:
+        result = deltafmi.simulate(scenario, stop=stop, speed=speed)
+    finally:
+        pacing._timer_slack, pacing._lock_memory = slack, lock
+    report = result.summary.live.realtime
+    found = figures(report.lateness, 1e-3 / speed, report.cpu, report.wall, report.locked)
+    found["busy"] = float(np.median(result["realtime.busy"][1:]))
+    found["polled"] = report.polled / report.wall
+    return found
+
+
+def compare(repeats: int, seconds: dict) -> dict:
+    """Each configuration once per repeat, interleaved (the load changes from one moment to the
+    next): the flagship paced at 50x and 1x (as now, and as before: 1 us timer slack, no
+    mlockall), beside the floor (:class:`PacedFloor`) around the flagship's busy time waiting each
+    way. ``seconds``: simulated seconds per speed. Returns {label: [figures per repeat]}."""
+    runs: dict = {}
     with tempfile.TemporaryDirectory() as folder:
         floor = PacedFloor(Path(folder))
-        runs = []
         for _ in range(repeats):
-            load = os.getloadavg()[0]
-            flagship = lateness_figures(seconds, speed)
-            runs.append((flagship, floor(flagship["points"], 1e-3 / speed, flagship["busy"]), load))
+            for speed in (50.0, 1.0):
+                period, stop = 1e-3 / speed, seconds[speed]
+                n = int(round(stop / 1e-3))
+                load = os.getloadavg()[0]
+                mine = ours(stop, speed)
+                busy = mine["busy"]
+                row = {f"ours {speed:g}x": mine, f"ours {speed:g}x before": ours(stop, speed, before=True)}
+                if speed == 1.0:
+                    row["ours 1x spin 50 us"] = ours(stop, speed, spin=5e-5)
+                for mode, spin in (("spin", 0.0), ("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5)):
+                    if speed == 50.0 and mode == "hybrid":
+                        continue  # a 20 us period: hybrid with a 50-200 us spin polls only (= spin)
+                    label = f"floor {speed:g}x {mode}" + (f" {spin * 1e6:.0f} us" if mode == "hybrid" else "")
+                    row[label] = floor(mode, n, period, busy, spin)
+                if speed == 50.0:
+                    row["floor 50x spin, no mlock"] = floor("spin", n, period, busy, lock=False)
+                for label, found in row.items():
+                    found["load"] = load
+                    runs.setdefault(label, []).append(found)
     return runs
 
 
-def print_target(runs: list, speed: float, seconds: float) -> None:
-    def share(figures: dict) -> str:
-        return f"{figures['overruns']} of {figures['points']} ({figures['overruns'] / figures['points']:.1%})"
-    print(f"flagship at {speed:g}x real time, {seconds:g} s, {len(runs)} runs (target: never behind, overruns <= 1 %); "
-          f"beside each, the machine's floor (a C loop paced the same way around the same busy time):")
-    for flagship, floor, load in runs:
-        print(f"  load {load:5.2f}: flagship overruns {share(flagship)}, fell behind {flagship['behind']}, max late "
-              f"{_us(flagship['max'])}, busy median {_us(flagship['busy'])} | floor overruns {share(floor)}, fell "
-              f"behind {floor['behind']}, max late {_us(floor['max'])}")
-    fraction = statistics.median(f["overruns"] / f["points"] for f, _, _ in runs)
-    floor_fraction = statistics.median(f["overruns"] / f["points"] for _, f, _ in runs)
-    print(f"  medians: overruns flagship {fraction:.2%}, floor {floor_fraction:.2%}; fell behind flagship "
-          f"{statistics.median(f['behind'] for f, _, _ in runs):g}, floor {statistics.median(f['behind'] for _, f, _ in runs):g}")
+def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
+    print(f"paced flagship (master's C loop) beside the machine's floor (a bare C program around the flagship's "
+          f"median busy time), {repeats} interleaved repeats; 50x: {seconds[50.0]:g} s simulated "
+          f"({int(seconds[50.0] * 1e3)} points, 20 us paced step, overrun = later than 5 us), 1x: {seconds[1.0]:g} s "
+          f"(1 ms step, overrun = later than 250 us); load average (1 min) at each repeat's start: "
+          + ", ".join(f"{f['load']:.2f}" for f in runs["ours 50x"]))
+    print(f"  {'':28} {'overruns':>9} {'>1us':>7} {'>T/2':>7} {'>T':>7} {'behind':>7} {'p50':>9} {'p99':>10} "
+          f"{'max':>10} {'CPU':>6}   (medians over the repeats; per repeat: overruns %, fell behind)")
+    for label, found in runs.items():
+        med = {key: statistics.median(f[key] for f in found) for key in ("overruns", "over_1us", "over_half",
+                                                                            "over_period", "behind", "p50", "p99",
+                                                                            "max", "cpu")}
+        each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in found)
+        print(f"  {label:28} {med['overruns']:9.2%} {med['over_1us']:7.1%} {med['over_half']:7.1%} "
+              f"{med['over_period']:7.1%} {med['behind']:7g} {_us(med['p50'])} {_us(med['p99'])} {_us(med['max'])} "
+              f"{med['cpu']:6.0%}   {each}")
+    for speed in (50.0, 1.0):
+        mine = runs[f"ours {speed:g}x"]
+        print(f"  ours {speed:g}x: busy median {_us(statistics.median(f['busy'] for f in mine))}, polling "
+              f"{statistics.median(f['polled'] for f in mine):.0%} of wall, memory locked "
+              f"{all(f['locked'] for f in mine)}")
+    for speed, floors in ((50.0, ("spin",)), (1.0, ("hybrid 200 us", "spin"))):
+        mine = statistics.median(f["overruns"] for f in runs[f"ours {speed:g}x"])
+        for mode in floors:
+            floor = statistics.median(f["overruns"] for f in runs[f"floor {speed:g}x {mode}"])
+            print(f"  {speed:g}x overruns ours / floor ({mode}, waiting as ours does): {mine:.2%} / {floor:.2%}"
+                  + (f" = {mine / floor:.2f}" if floor else ""))
+    target = statistics.median(f["overruns"] for f in runs["ours 50x"]) <= 0.01 and \
+        statistics.median(f["behind"] for f in runs["ours 50x"]) == 0
+    floor_ok = statistics.median(f["overruns"] for f in runs["floor 50x spin"]) <= 0.01 and \
+        statistics.median(f["behind"] for f in runs["floor 50x spin"]) == 0
+    print(f"  target at 50x (never behind, overruns <= 1 %): ours {'met' if target else 'missed'}, the floor "
+          f"{'met' if floor_ok else 'missed'} at these moments")
 
 
 def _echo_scenario(folder: Path, port: int, back: int) -> Path:
@@ -244,37 +323,31 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pings", type=int, default=300)
-    parser.add_argument("--target-speed", type=float, default=50.0)
+    parser.add_argument("--seconds-fast", type=float, default=10.0, help="simulated seconds of the 50x runs")
+    parser.add_argument("--seconds-real", type=float, default=2.0, help="simulated seconds of the 1x runs")
     parser.add_argument("--target-only", action="store_true",
-                        help="only the flagship at --target-speed and the machine's floor beside it")
+                        help="only the paced flagship at 50x and 1x beside the machine's floor")
     args = parser.parse_args()
 
     logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)  # "fell behind" while probing speeds
     deltafmi.simulate("delta_tracking", stop=0.01)  # builds the FMUs once
+    seconds = {50.0: args.seconds_fast, 1.0: args.seconds_real}
+    runs = compare(args.repeats, seconds)
+    print_compare(runs, args.repeats, seconds)
     if args.target_only:
-        print_target(target_speed(args.seconds, args.repeats, args.target_speed), args.target_speed, args.seconds)
         return
-    runs = [lateness_figures(args.seconds) for _ in range(args.repeats)]
-    med = {key: statistics.median(run[key] for run in runs) for key in runs[0]}
-    print(f"flagship at 1 kHz, real time, {args.seconds:g} s x {args.repeats} (medians of the runs):")
-    print(f"  lateness median {_us(med['median'])}, 99th percentile {_us(med['p99'])}, max {_us(med['max'])}")
-    print(f"  overruns (> 250 us) {med['overruns']:g} of {med['points']:g} points; fell behind {med['behind']:g} times")
-    print(f"  busy (one step computing) median {_us(med['busy'])} = {med['busy'] / 1e-3:.1%} of the 1 ms step")
-
-    runs = target_speed(args.seconds, args.repeats, args.target_speed)
-    print_target(runs, args.target_speed, args.seconds)
-    fast = [flagship for flagship, _, _ in runs]
-    python_busy = [python_loop_busy(args.seconds, args.target_speed) for _ in range(args.repeats)]
-    c_busy = statistics.median(run["busy"] for run in fast)
+    python_busy = [python_loop_busy(args.seconds, 50.0) for _ in range(args.repeats)]
+    c_busy = statistics.median(run["busy"] for run in runs["ours 50x"])
     print(f"  busy per point, medians: C loop {_us(c_busy)}, Python loop {_us(statistics.median(python_busy))} "
-          f"(paced step {_us(1e-3 / args.target_speed)}); Python / C {statistics.median(python_busy) / c_busy:.1f}x")
+          f"(paced step {_us(1e-3 / 50.0)}); Python / C {statistics.median(python_busy) / c_busy:.1f}x")
 
+    busy = statistics.median(run["busy"] for run in runs["ours 1x"])
     plain = deltafmi.simulate("delta_tracking")
     rtf = plain.summary.simulated / plain.summary.stepping_time
     speed = highest_speed()
     print(f"highest speed that keeps up: {speed:.1f}x real time")
-    print(f"  baseline (same run): step / busy = {1e-3 / med['busy']:.1f}x; unpaced real-time factor "
-          f"{rtf:.0f}x (C loop); ratio kept-up / busy-allowed = {speed / (1e-3 / med['busy']):.2f}")
+    print(f"  baseline (same run): step / busy = {1e-3 / busy:.1f}x; unpaced real-time factor "
+          f"{rtf:.0f}x (C loop); ratio kept-up / busy-allowed = {speed / (1e-3 / busy):.2f}")
 
     echo = python_echo(args.pings)
     for paced in (True, False):

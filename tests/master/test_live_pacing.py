@@ -166,3 +166,61 @@ def test_points_released_in_c_make_the_episodes_one_by_one_would():
             one_by_one._episode(t, late)
         assert at_once.report().behind == one_by_one.report().behind and warned[0] == warned[1]
         assert str(at_once.failure) == str(one_by_one.failure)
+
+
+def _status(field: str) -> int:
+    return int(re.search(rf"{field}:\s*([0-9a-f]+)", Path("/proc/self/status").read_text()).group(1), 16 if
+               field.startswith("Cap") else 10)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl and mlockall are Linux's")
+def test_the_pacer_gives_back_the_timer_slack_and_memory_lock_it_took():
+    """While paced, the thread's timer slack is 1 ns; the process's memory is locked only where
+    locking without limit is permitted (CAP_IPC_LOCK or RLIMIT_MEMLOCK unlimited), and both are
+    as they were after close(); a lock the program made itself stays untouched."""
+    import ctypes
+    import resource
+
+    from deltafmi.master.live.pacing import Pacer
+
+    libc = ctypes.CDLL("libc.so.6", use_errno=True)
+    slack = libc.prctl(30, 0, 0, 0, 0)  # PR_GET_TIMERSLACK
+    permitted = bool(_status("CapEff") >> 14 & 1) or \
+        resource.getrlimit(resource.RLIMIT_MEMLOCK)[0] == resource.RLIM_INFINITY
+    assert _status("VmLck") == 0
+    pacer = Pacer(1.0, 1e-3, 10)
+    pacer.start(0.0)
+    try:
+        assert libc.prctl(30, 0, 0, 0, 0) == 1
+        assert pacer.locked == permitted and (_status("VmLck") > 0) == permitted
+        for k in range(1, 11):
+            pacer.wait(k * 1e-3)
+    finally:
+        pacer.close()
+    assert libc.prctl(30, 0, 0, 0, 0) == slack and _status("VmLck") == 0
+    report = pacer.report()
+    assert report.locked == permitted and len(report.lateness) == 10
+    # one thread: its CPU time cannot exceed the wall time (the CPU clock is read first, a few
+    # microseconds before the wall clock starts); each 1 ms wait ends polling
+    assert 0 < report.cpu <= report.wall + 1e-4 and 0 < report.polled <= report.wall
+    if permitted:
+        assert libc.mlockall(1 | 4) == 0  # MCL_CURRENT | MCL_ONFAULT: the program's own lock
+        try:
+            other = Pacer(1.0, 1e-3, 1)
+            other.start(0.0)
+            other.close()
+            assert not other.locked and _status("VmLck") > 0
+        finally:
+            libc.munlockall()
+
+
+def test_a_paced_run_in_c_reports_its_cpu_and_polling():
+    """The C loop adds up its thread's CPU time, its wall time and its polling; a 20 us paced step
+    is waited for by polling alone (the 0.2 ms spin is longer), so the polling is most of the wait."""
+    result = deltafmi.simulate("delta_tracking", stop=0.2, speed=50.0)
+    report = result.summary.live.realtime
+    assert 0 < report.polled <= report.wall and 0 < report.cpu <= report.wall * 1.01 + 1e-4
+    # no point before its time: one call of the C loop (it hands back after 50 ms of wall time)
+    # waits at least the 4 ms of the 200 points
+    assert report.wall >= 0.2 / 50 - 1e-9
+    assert _status("VmLck") == 0  # given back

@@ -3,8 +3,14 @@
 Communication point ``t`` is due at wall time ``wall0 + (t - t0) / speed``. :meth:`Pacer.wait`
 sleeps until shortly before (``spin`` seconds) and polls the clock for the rest: ``time.sleep``
 alone wakes 50-100 us late on Linux (the thread's timer slack, the scheduler), which at 1 kHz is
-a tenth of the step. Where the C library allows it the thread's timer slack is set to 1 us
-(``prctl(PR_SET_TIMERSLACK)``), so the sleep itself lands closer and the polling stays short.
+a tenth of the step. Where the C library allows it the thread's timer slack is set to 1 ns, the
+least there is (``prctl(PR_SET_TIMERSLACK)``), so the sleep itself lands closer and the polling
+stays short. Where locking memory cannot make a later allocation fail (the process may lock
+without limit: ``CAP_IPC_LOCK``, or ``RLIMIT_MEMLOCK`` unlimited) and nothing is locked already,
+the process's pages stay in memory for the run (``mlockall``, as they are faulted in; unlocked at
+:meth:`Pacer.close`): no page of the run is swapped or evicted and read back at a deadline. The
+lateness record is written through once when it is made, so that the run itself faults in none
+of its pages.
 
 A point released after its time is late by the difference; the schedule is absolute, so a late
 run catches up when it can (no point is skipped, no time is stretched). A point later than
@@ -17,9 +23,11 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import math
+import re
+import sys
 import time
 from dataclasses import field
-from typing import Callable, List, Optional, Tuple
+from typing import Any, Callable, List, Optional, Tuple
 
 import numpy as np
 
@@ -30,6 +38,8 @@ from ..scenario.records import record
 __all__ = ["Pacer", "RealtimeReport", "FellBehind"]
 
 _PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30
+_MCL_CURRENT, _MCL_FUTURE, _MCL_ONFAULT = 1, 2, 4
+_CAP_IPC_LOCK = 14
 #: longest single sleep: a stop signal is looked at between sleeps
 _SLEEP_CHUNK = 0.05
 
@@ -48,6 +58,13 @@ class RealtimeReport:
     lateness: np.ndarray
     #: (simulation time it began, end or None, largest lateness) of each time the run fell behind
     behind: List[Tuple[float, Optional[float], float]] = field(default_factory=list)
+    #: CPU time [s] of the thread that stepped and waited, over :attr:`wall` seconds of the paced stepping
+    cpu: float = 0.0
+    wall: float = 0.0
+    #: wall time [s] spent polling the clock before deadlines (CPU spent waiting)
+    polled: float = 0.0
+    #: whether the process's memory was locked for the run (mlockall)
+    locked: bool = False
 
     @property
     def overruns(self) -> int:
@@ -76,17 +93,49 @@ def _us(seconds: float) -> str:
     return f"{seconds * 1e6:.1f} us" if seconds < 1e-2 else f"{seconds * 1e3:.1f} ms"
 
 
+def _libc() -> Any:
+    return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+
+
 def _timer_slack(nanoseconds: Optional[int]) -> Optional[int]:
     """Set this thread's timer slack (Linux; elsewhere nothing happens) and return the one it
     had; None leaves it as it is."""
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc = _libc()
         before = int(libc.prctl(_PR_GET_TIMERSLACK, 0, 0, 0, 0))
         if nanoseconds is not None:
             libc.prctl(_PR_SET_TIMERSLACK, nanoseconds, 0, 0, 0)
         return before if before > 0 else None
     except (OSError, AttributeError):
         return None
+
+
+def _lock_memory() -> bool:
+    """Lock the process's pages in memory as they are faulted in (Linux ``mlockall``), where no
+    later allocation can fail for it (locking without limit is permitted) and nothing is locked
+    yet (a lock the program made stays its own); returns whether it locked."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import resource
+
+        status = open("/proc/self/status").read()
+        caps, locked = re.search(r"CapEff:\s*([0-9a-f]+)", status), re.search(r"VmLck:\s*(\d+)", status)
+        unlimited = resource.getrlimit(resource.RLIMIT_MEMLOCK)[0] == resource.RLIM_INFINITY
+        if caps is None or locked is None or int(locked.group(1)) or not (unlimited or int(caps.group(1), 16)
+                                                                           >> _CAP_IPC_LOCK & 1):
+            return False
+        # MCL_ONFAULT: the pages mapped but never used are not read in (a second and 100 MB for Python's)
+        return int(_libc().mlockall(_MCL_CURRENT | _MCL_FUTURE | _MCL_ONFAULT)) == 0
+    except (OSError, AttributeError, ValueError, ImportError):
+        return False
+
+
+def _unlock_memory() -> None:
+    try:
+        _libc().munlockall()
+    except (OSError, AttributeError):
+        pass
 
 
 class Pacer:
@@ -109,7 +158,7 @@ class Pacer:
         self.stopped = stopped
         self.clock = clock
         self.step = step
-        self._lateness = np.zeros(max(n_points, 1))
+        self._lateness = np.full(max(n_points, 1), 0.0)  # written through: its pages faulted in now
         self._count = 0
         self._behind: List[Tuple[float, Optional[float], float]] = []
         self._t0 = 0.0
@@ -121,17 +170,28 @@ class Pacer:
         self.failure: Optional[FellBehind] = None
         #: wall seconds from the release of the last point to the call of the next wait
         self.busy = 0.0
+        #: the stepping thread's CPU time and the wall time of the paced stepping so far [s]
+        self.cpu = self.wall = 0.0
+        #: wall time spent polling the clock before deadlines [s]
+        self.polled = 0.0
+        self._cpu0 = 0.0
+        #: whether :meth:`start` locked the process's memory (until :meth:`close`)
+        self.locked = False
+        self._unlock = False
 
     def start(self, t0: float) -> None:
         """Simulation time ``t0`` is now (call :meth:`close` when the run ends)."""
-        self._slack = _timer_slack(1000)
+        self._slack = _timer_slack(1)
+        self.locked = self._unlock = _lock_memory()
         self._t0 = t0
+        self._cpu0 = time.thread_time()
         self._wall0 = self.released = self.clock()
 
     def restart(self) -> None:
         """The clock starts again now, at the same simulation time, before any point was waited
         for (preparing the stepping does not count as the first point's lateness)."""
         if self._count == 0:
+            self._cpu0 = time.thread_time()
             self._wall0 = self.released = self.clock()
 
     def wait(self, t: float) -> float:
@@ -146,10 +206,13 @@ class Pacer:
                 return 0.0
             time.sleep(min(deadline - now - self.spin, _SLEEP_CHUNK))
             now = clock()
+        polling = now
         while now < deadline:
             now = clock()
+        self.polled += now - polling
         late = self.late = now - deadline
         self.released = now
+        self.cpu, self.wall = time.thread_time() - self._cpu0, now - self._wall0
         self._note(t, late)
         return late
 
@@ -199,8 +262,12 @@ class Pacer:
         if self._slack is not None:
             _timer_slack(self._slack)
             self._slack = None
+        if self._unlock:
+            _unlock_memory()
+            self._unlock = False
 
     def report(self) -> RealtimeReport:
         """The lateness of every point so far."""
         return RealtimeReport(self.speed, self.step, self.tolerance, self._lateness[:self._count].copy(),
-                              list(self._behind))
+                              list(self._behind), cpu=self.cpu, wall=self.wall, polled=self.polled,
+                              locked=self.locked)

@@ -82,7 +82,7 @@ class _Pace(ctypes.Structure):
     _fields_ = [("t0", c_double), ("wall0", c_double), ("speed", c_double), ("spin", c_double), ("period", c_double),
                 ("released", c_double), ("lateness", c_void_p), ("count", c_void_p), ("capacity", c_long),
                 ("late", c_void_p), ("busy", c_void_p), ("behind", c_void_p), ("stop_behind", c_int),
-                ("last_busy", c_double)]
+                ("last_busy", c_double), ("cpu", c_double), ("wall", c_double), ("polled", c_double)]
 
 
 class _Plan(ctypes.Structure):
@@ -397,6 +397,7 @@ class NativeLoop:
                            count=self._count.ctypes.data, capacity=len(pacer._lateness),
                            late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error))
         self.plan.pace = ctypes.pointer(self._pace)
+        self.rows.fill(0.0)  # its pages faulted in now, not at the first paced points that write them
         self._run = _steps_function(release_gil=True)
         self.plan.gil_released = 1
 
@@ -413,6 +414,7 @@ class NativeLoop:
         lateness = pacer._lateness[first:pacer._count]
         if len(lateness):
             pacer.late, pacer.busy = float(lateness[-1]), self._pace.last_busy
+        pacer.cpu, pacer.wall, pacer.polled = self._pace.cpu, self._pace.wall, self._pace.polled
         pacer.note_released(times[:len(lateness)], lateness)
 
     def keep_step_start(self) -> None:

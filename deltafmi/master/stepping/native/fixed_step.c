@@ -168,6 +168,8 @@ typedef struct {
     double *late, *busy, *behind; /* NULL or the bus slots of the measurements (live.run._Measurements) */
     int stop_behind;         /* stop (BEHIND) after a point later than a whole paced step */
     double last_busy;        /* out: wall seconds from the release of the point before the last to its wait */
+    double cpu, wall;        /* out, added up: this thread's CPU time and the wall time in paced runs of the loop */
+    double polled;           /* out, added up: wall time spent polling the clock before deadlines */
 } Pace;
 
 typedef struct {
@@ -238,7 +240,9 @@ static int pace_to(Pace *c, double t)
         sleep_until(now_ + (left < 0.05 ? left : 0.05));
         now_ = now();
     }
+    double polling = now_;
     while (now_ < deadline) now_ = now();
+    c->polled += now_ - polling;
     double late = now_ - deadline;
     c->released = now_;
     if (*c->count < c->capacity) c->lateness[(*c->count)++] = late;
@@ -985,13 +989,34 @@ static int block_steps(Plan *p, Pool *pool, long k, long k_end, double *rows, lo
     return RAN;
 }
 
+static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max_rows, long *k_done,
+                       long *n_rows);
+
+static double thread_cpu(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 /* Steps k_begin, k_begin + 1, ... before k_end, every recorded row into `rows` (room for
  * max_rows). Returns why it stopped (RAN: k_end reached; ROWS_FULL: no room for the next
  * step's row; else the stop of operation plan->op in step *k_done); *k_done is the first step
- * not completed and *n_rows the rows written. */
+ * not completed and *n_rows the rows written. A paced run adds its CPU and wall time up (Pace). */
 __attribute__((visibility("default")))
 int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max_rows, long *k_done,
                          long *n_rows)
+{
+    if (!p->pace) return fixed_steps(p, k_begin, k_end, rows, max_rows, k_done, n_rows);
+    double cpu = thread_cpu(), wall = now();
+    int why = fixed_steps(p, k_begin, k_end, rows, max_rows, k_done, n_rows);
+    p->pace->cpu += thread_cpu() - cpu;
+    p->pace->wall += now() - wall;
+    return why;
+}
+
+static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max_rows, long *k_done,
+                       long *n_rows)
 {
     long k = k_begin, written = 0;
     int why = RAN;
