@@ -22,9 +22,10 @@ Python loop would.
 from __future__ import annotations
 
 import ctypes
+import threading
 from ctypes import POINTER, c_double, c_int, c_long, c_size_t, c_void_p
 from pathlib import Path
-from typing import Any, List, Optional, Sequence, Tuple
+from typing import Any, Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -82,7 +83,8 @@ class _Pace(ctypes.Structure):
     _fields_ = [("t0", c_double), ("wall0", c_double), ("speed", c_double), ("spin", c_double), ("period", c_double),
                 ("released", c_double), ("lateness", c_void_p), ("count", c_void_p), ("capacity", c_long),
                 ("late", c_void_p), ("busy", c_void_p), ("behind", c_void_p), ("stop_behind", c_int),
-                ("last_busy", c_double), ("cpu", c_double), ("wall", c_double), ("polled", c_double)]
+                ("last_busy", c_double), ("cpu", c_double), ("wall", c_double), ("polled", c_double),
+                ("stream", c_int), ("stop_request", c_int), ("published", c_long), ("taken", c_long)]
 
 
 class _Plan(ctypes.Structure):
@@ -210,6 +212,7 @@ class NativeLoop:
         self._pace: Optional[_Pace] = None
         self._paced: Optional[Any] = None
         self._count = np.zeros(1, dtype=np.int_)
+        self._count_before = 0
         #: set :meth:`timed` to have the C loop add up the wall time of each operation
         self.op_seconds: Optional[np.ndarray] = None
         #: set :meth:`keep_step_start` to have the C loop gather the recorded values at each step's start here
@@ -403,19 +406,73 @@ class NativeLoop:
 
     def _before_paced(self) -> None:
         pacer = self._paced
-        self._count[0] = pacer._count
+        self._count[0] = self._count_before = pacer._count
         self._pace.t0, self._pace.wall0, self._pace.released = pacer._t0, pacer._wall0, pacer.released
 
-    def _after_paced(self, times: np.ndarray) -> None:
-        """The pacer's record of the points the C run released at ``times``."""
-        pacer = self._paced
+    def _after_paced(self, k: int) -> None:
+        """The pacer's record of the points a C run from step ``k`` released so far (the end
+        points of steps k, k + 1, ...)."""
+        pacer, plan = self._paced, self.plan
         first, pacer._count = pacer._count, int(self._count[0])
         pacer.released, pacer._wall0 = self._pace.released, self._pace.wall0  # C anchors the clock at its first point
         lateness = pacer._lateness[first:pacer._count]
         if len(lateness):
             pacer.late, pacer.busy = float(lateness[-1]), self._pace.last_busy
         pacer.cpu, pacer.wall, pacer.polled = self._pace.cpu, self._pace.wall, self._pace.polled
-        pacer.note_released(times[:len(lateness)], lateness)
+        points = k + 1 + first - self._count_before + np.arange(len(lateness))
+        pacer.note_released(np.where(points < plan.n_steps, plan.start + points * plan.h, plan.stop), lateness)
+
+    def run_streamed(self, k: int, k_end: int, take: Callable[[np.ndarray], None], stopped: Callable[[], bool],
+                     poll: float = 0.005) -> Tuple[int, int, int]:
+        """A paced :meth:`run` on a thread of its own while this one takes its rows every ``poll``
+        seconds (``take(rows)``, a copy) and notes its points (the pacer's warnings), so that no
+        hand-back to Python comes between two paced points; ``stopped()`` True: the run stops
+        after the point being released. Returns as :meth:`run` does, every row taken (0 rows)."""
+        pace = self._pace
+        self.enter()
+        self._before_paced()
+        pace.stream, pace.stop_request, pace.published, pace.taken = 1, 0, 0, 0
+        ring, taken = len(self.rows), 0
+        why: List[int] = []
+
+        def steps() -> None:
+            why.append(self._run(ctypes.byref(self.plan), k, k_end, self.rows.ctypes.data, ring,
+                                 ctypes.byref(self._k_done), ctypes.byref(self._n_rows)))
+
+        def take_published() -> int:
+            published = pace.published  # the rows up to it are written (C stores it after them)
+            if published > taken:
+                rows = self.rows[np.arange(taken, published) % ring]  # a copy: C writes the ring on
+                pace.taken = published
+                take(rows)
+            return published
+
+        thread = threading.Thread(target=steps, name="deltafmi-paced-steps", daemon=True)
+        thread.start()
+        try:
+            while True:
+                running = thread.is_alive()
+                taken = take_published()
+                self._after_paced(k)
+                if not running:
+                    break
+                if stopped():
+                    pace.stop_request = 1
+                thread.join(poll)
+        except KeyboardInterrupt:  # a second stop signal: the rows so far kept
+            pace.stop_request = 1
+            thread.join()
+            take_published()
+            raise
+        except BaseException:
+            pace.stop_request = 1
+            thread.join()
+            raise
+        finally:
+            pace.stream = 0
+            self.leave()
+        self._after_paced(k)
+        return why[0], self._k_done.value, 0
 
     def keep_step_start(self) -> None:
         """From now on gather the recorded row (time first) at the start of every step into
@@ -447,10 +504,7 @@ class NativeLoop:
         self.leave()
         done = self._k_done.value
         if self._paced is not None:
-            plan = self.plan
-            points = np.arange(k + 1, done + 1)  # the steps k ... done - 1 completed: their end points
-            times = np.where(points < plan.n_steps, plan.start + points * plan.h, plan.stop)
-            self._after_paced(times)
+            self._after_paced(k)
         return why, done, self._n_rows.value
 
     def enter(self) -> None:
