@@ -1,35 +1,34 @@
 """Issue 28's figures: how well a paced run keeps the wall clock, and UDP round trips through a run.
 
-- Lateness of the flagship (scenarios/delta_tracking.yaml, 1 kHz) paced at real time:
-  median, 99th percentile and largest lateness of its communication points, overruns (later than a
-  quarter step), times it fell behind; and the wall time one step computes ("busy"). Medians over
-  ``--repeats`` runs of ``--seconds`` simulated seconds.
 - The highest speed-up at which it still keeps up: paced runs of 1 simulated second at rising
   speeds (doubling, then bisecting), "keeps up" = at most 1 % of the points overrun. Against the baseline measured in the same run: the speed the busy time
   allows (step / median busy), and the unpaced run's real-time factor (both on the master's C
   loop: a paced run without streams waits for every point in C).
-- The flagship at ``--target-speed`` (default 50x) over ``--seconds``, ``--repeats`` times: overruns
-  and times it fell behind (target: never behind, at most 1 % of the points overrun); and the
-  busy time per point (computing, not waiting) of the C loop against the Python loop paced the
-  same way (``LiveRun.paced_in_c`` off), in the same run: on a loaded machine, where other
-  processes' turns make points late, the busy time against the paced step says whether a run
-  can keep up.
-- The machine's floor at ``--target-speed``, measured beside each of those runs: a C loop paced
-  exactly as the master's (benchmarks/native/paced_floor.c) around a step that only spends the
-  flagship's median busy time; what it counts late is the machine's (other processes' turns,
-  scheduler ticks, a virtual machine's host), not the master's. The load average is printed
-  with it. ``--target-only`` measures this and the line above only.
+- The paced flagship beside the machine's floor, interleaved, ``--repeats`` times: the flagship
+  at 50x (``--seconds-fast`` simulated seconds) and 1x (``--seconds-real``) on the master's C loop,
+  as it paces now and as it paced before (1 us timer slack, memory not locked, 0.2 ms spin; at 1x
+  sleeping only too), and benchmarks/native/paced_floor.c, a bare C program pacing as many points
+  around the flagship's median busy time, waiting by polling only, by sleeping only
+  (clock_nanosleep TIMER_ABSTIME) and by sleeping then polling the last 50 or 200 us. For each:
+  overruns (later than a quarter step, the Pacer's tolerance), the shares later than 1 us, half
+  and a whole step, fell-behind episodes, median, 99th percentile and largest lateness, and CPU
+  time over wall time; medians over the repeats, the load average beside them; whether the
+  flagship meets the 50x target (never behind, overruns <= 1 %) and whether the floor does at the
+  same moments. ``--fifo``: at 50x both at a real-time priority too (``chrt -f 50``, root).
+  ``--target-only`` measures this only. Also the busy time per point of the C loop against the
+  Python loop paced the same way (``LiveRun.paced_in_c`` off).
 - UDP round trip: a datagram sent to a live UDP input comes back on a UDP stream of the same
   signal (the run at 1 kHz paced, and unpaced); wall time from sendto to recv, median and 99th
   percentile over ``--pings``. Baseline in the same run: a plain Python echo over loopback (one
   thread receives and sends back), the floor of any round trip through Python sockets.
 
-Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only]
+Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only] [--fifo]
+       [--seconds-fast 10] [--seconds-real 2]
 """
 from __future__ import annotations
 
 import argparse
-import ctypes
+import json
 import logging
 import os
 import random
@@ -108,10 +107,11 @@ class PacedFloor:
                        check=True, capture_output=True)
 
     def __call__(self, mode: str, points: int, period: float, busy: float, spin: float = 2e-4,
-                 lock: bool = True) -> dict:
+                 lock: bool = True, prefix: tuple = ()) -> dict:
         """``points`` points ``period`` apart around ``busy`` seconds of work, waiting by ``mode``
-        (spin, sleep, hybrid: sleep to ``spin`` before the deadline, then poll): :func:`figures`."""
-        done = subprocess.run([str(self.program), mode, str(points), repr(period), repr(busy), repr(spin),
+        (spin, sleep, hybrid: sleep to ``spin`` before the deadline, then poll): :func:`figures`.
+        ``prefix``: the command it runs under (``chrt -f 50``)."""
+        done = subprocess.run([*prefix, str(self.program), mode, str(points), repr(period), repr(busy), repr(spin),
                                str(self.out), *(["mlock"] if lock else [])], check=True, capture_output=True, text=True)
         cpu, wall, locked = done.stdout.split()
         return figures(np.fromfile(self.out), period, float(cpu), float(wall), locked == "1")
@@ -132,8 +132,9 @@ def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked
 
 def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] = None) -> dict:
     """The flagship paced at ``speed`` for ``stop`` simulated seconds (the master's C loop);
-    ``before``: the pacing as it was (1 us timer slack, memory not locked); ``spin``: another
-    ``master.realtime.spin``: :func:`figures` and the median busy time."""
+    ``before``: the pacing as it was (1 us timer slack, memory not locked, 0.2 ms spin; the rows
+    streamed as now); ``spin``: another ``master.realtime.spin``: :func:`figures` and the median
+    busy time."""
     from dataclasses import replace
 
     from deltafmi.master.live import pacing
@@ -146,6 +147,7 @@ def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] 
     if before:
         pacing._timer_slack = lambda ns: slack(1000 if ns == 1 else ns)
         pacing._lock_memory = lambda: False
+        spin = 2e-4 if spin is None else spin
     try:
         result = deltafmi.simulate(scenario, stop=stop, speed=speed)
     finally:
@@ -157,11 +159,23 @@ def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] 
     return found
 
 
-def compare(repeats: int, seconds: dict) -> dict:
+#: a real-time priority (SCHED_FIFO 50: root or CAP_SYS_NICE), for --fifo
+FIFO = ("chrt", "-f", "50")
+
+
+def ours_fifo(stop: float, speed: float) -> dict:
+    """:func:`ours` in a process of its own at a real-time priority (:data:`FIFO`)."""
+    done = subprocess.run([*FIFO, sys.executable, __file__, "--paced-figures", repr(speed), repr(stop)], check=True,
+                          capture_output=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
     """Each configuration once per repeat, interleaved (the load changes from one moment to the
     next): the flagship paced at 50x and 1x (as now, and as before: 1 us timer slack, no
-    mlockall), beside the floor (:class:`PacedFloor`) around the flagship's busy time waiting each
-    way. ``seconds``: simulated seconds per speed. Returns {label: [figures per repeat]}."""
+    mlockall, 0.2 ms spin; at 1x sleeping only too), beside the floor (:class:`PacedFloor`) around the flagship's busy time waiting each
+    way; ``fifo``: at 50x both at a real-time priority too (:data:`FIFO`). ``seconds``: simulated
+    seconds per speed. Returns {label: [figures per repeat]}."""
     runs: dict = {}
     with tempfile.TemporaryDirectory() as folder:
         floor = PacedFloor(Path(folder))
@@ -174,7 +188,7 @@ def compare(repeats: int, seconds: dict) -> dict:
                 busy = mine["busy"]
                 row = {f"ours {speed:g}x": mine, f"ours {speed:g}x before": ours(stop, speed, before=True)}
                 if speed == 1.0:
-                    row["ours 1x spin 50 us"] = ours(stop, speed, spin=5e-5)
+                    row["ours 1x sleep only"] = ours(stop, speed, spin=0.0)
                 for mode, spin in (("spin", 0.0), ("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5)):
                     if speed == 50.0 and mode == "hybrid":
                         continue  # a 20 us period: hybrid with a 50-200 us spin polls only (= spin)
@@ -182,6 +196,9 @@ def compare(repeats: int, seconds: dict) -> dict:
                     row[label] = floor(mode, n, period, busy, spin)
                 if speed == 50.0:
                     row["floor 50x spin, no mlock"] = floor("spin", n, period, busy, lock=False)
+                if speed == 50.0 and fifo:
+                    row["ours 50x SCHED_FIFO"] = ours_fifo(stop, speed)
+                    row["floor 50x spin SCHED_FIFO"] = floor("spin", n, period, busy, prefix=FIFO)
                 for label, found in row.items():
                     found["load"] = load
                     runs.setdefault(label, []).append(found)
@@ -209,11 +226,12 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
         print(f"  ours {speed:g}x: busy median {_us(statistics.median(f['busy'] for f in mine))}, polling "
               f"{statistics.median(f['polled'] for f in mine):.0%} of wall, memory locked "
               f"{all(f['locked'] for f in mine)}")
-    for speed, floors in ((50.0, ("spin",)), (1.0, ("hybrid 200 us", "spin"))):
+    for speed, floors in ((50.0, ("spin",)), (1.0, ("hybrid 50 us", "sleep"))):
         mine = statistics.median(f["overruns"] for f in runs[f"ours {speed:g}x"])
         for mode in floors:
             floor = statistics.median(f["overruns"] for f in runs[f"floor {speed:g}x {mode}"])
-            print(f"  {speed:g}x overruns ours / floor ({mode}, waiting as ours does): {mine:.2%} / {floor:.2%}"
+            how = "waiting as ours does" if mode != "sleep" else "sleeping only"
+            print(f"  {speed:g}x overruns ours / floor ({mode}, {how}): {mine:.2%} / {floor:.2%}"
                   + (f" = {mine / floor:.2f}" if floor else ""))
     target = statistics.median(f["overruns"] for f in runs["ours 50x"]) <= 0.01 and \
         statistics.median(f["behind"] for f in runs["ours 50x"]) == 0
@@ -327,12 +345,19 @@ def main() -> None:
     parser.add_argument("--seconds-real", type=float, default=2.0, help="simulated seconds of the 1x runs")
     parser.add_argument("--target-only", action="store_true",
                         help="only the paced flagship at 50x and 1x beside the machine's floor")
+    parser.add_argument("--fifo", action="store_true",
+                        help="at 50x, the flagship and the floor at a real-time priority too (chrt -f 50: root)")
+    parser.add_argument("--paced-figures", nargs=2, type=float, metavar=("SPEED", "STOP"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.paced_figures:  # ours_fifo's process
+        logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)
+        print(json.dumps(ours(args.paced_figures[1], args.paced_figures[0])))
+        return
 
     logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)  # "fell behind" while probing speeds
     deltafmi.simulate("delta_tracking", stop=0.01)  # builds the FMUs once
     seconds = {50.0: args.seconds_fast, 1.0: args.seconds_real}
-    runs = compare(args.repeats, seconds)
+    runs = compare(args.repeats, seconds, args.fifo)
     print_compare(runs, args.repeats, seconds)
     if args.target_only:
         return
