@@ -423,11 +423,13 @@ class NativeLoop:
         pacer.note_released(np.where(points < plan.n_steps, plan.start + points * plan.h, plan.stop), lateness)
 
     def run_streamed(self, k: int, k_end: int, take: Callable[[np.ndarray], None], stopped: Callable[[], bool],
-                     poll: float = 0.005) -> Tuple[int, int, int]:
+                     poll: float = 0.05) -> Tuple[int, int, int]:
         """A paced :meth:`run` on a thread of its own while this one takes its rows every ``poll``
-        seconds (``take(rows)``, a copy) and notes its points (the pacer's warnings), so that no
-        hand-back to Python comes between two paced points; ``stopped()`` True: the run stops
-        after the point being released. Returns as :meth:`run` does, every row taken (0 rows)."""
+        seconds of wall time, or four times while the loop fills the rows block (``take(rows)``, a
+        copy), notes its points (the pacer's warnings) and looks at ``stopped()`` (True: the run
+        stops after the point being released), so that no hand-back to Python comes between two
+        paced points. Returns as :meth:`run` does, every row taken (0 rows)."""
+        poll = min(poll, max(1e-3, len(self.rows) * self._paced.period / 4))
         pace = self._pace
         self.enter()
         self._before_paced()
