@@ -243,3 +243,39 @@ def test_a_paced_run_streams_its_rows_through_a_small_ring_unchanged(monkeypatch
         assert np.array_equal(paced[name], plain[name]), name
     if speed > 100:  # a 1 us paced step: shorter than one step's computing
         assert (paced["realtime.behind"][1:] == 1).any() and paced.summary.live.realtime.behind
+
+
+def test_points_handed_back_one_at_a_time_make_the_episodes_of_their_lateness(tmp_path):
+    """With a live source the C loop hands back at every point, which is noted without arrays:
+    at 2000x (0.5 us per step: behind from the first point, caught up now and then) the run's
+    episodes are those of its recorded lateness noted one point at a time."""
+    import socket
+
+    from deltafmi.master.live.pacing import Pacer
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    scenario = tmp_path / "live.yaml"
+    scenario.write_text(f"""\
+experiment: {{stop: 0.3, step: 1.0e-3}}
+master: {{realtime: true}}
+live:
+  cmd:
+    udp: {{port: {port}}}
+    timeout: 100.0
+    signals: {{x: {{}}}}
+components:
+  osc: {{source: 'deltafmi.models:Oscillator', interface: CS}}
+connections:
+  - {{from: cmd.x, to: osc.F}}
+outputs: [osc.x]
+""")
+    logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)
+    result = deltafmi.simulate(scenario, speed=2000.0)
+    report = result.summary.live.realtime
+    assert len(report.lateness) == 300 and np.array_equal(report.lateness, result["realtime.lateness"][1:])
+    one_by_one = Pacer(2000.0, 1e-3, 300)
+    for t, late in zip(result.time[1:].tolist(), report.lateness.tolist()):
+        one_by_one._episode(t, late)
+    assert report.behind and report.behind == one_by_one.report().behind

@@ -419,7 +419,13 @@ class NativeLoop:
         if len(lateness):
             pacer.late, pacer.busy = float(lateness[-1]), self._pace.last_busy
         pacer.cpu, pacer.wall, pacer.polled = self._pace.cpu, self._pace.wall, self._pace.polled
-        points = k + 1 + first - self._count_before + np.arange(len(lateness))
+        point = k + 1 + first - self._count_before
+        if len(lateness) == 1:  # a run handing back at every point (live sources): no arrays made
+            late = pacer.late
+            if late > pacer.period or (pacer._behind and pacer._behind[-1][1] is None):
+                pacer._episode(plan.start + point * plan.h if point < plan.n_steps else plan.stop, late)
+            return
+        points = point + np.arange(len(lateness))
         pacer.note_released(np.where(points < plan.n_steps, plan.start + points * plan.h, plan.stop), lateness)
 
     def run_streamed(self, k: int, k_end: int, take: Callable[[np.ndarray], None], stopped: Callable[[], bool],
