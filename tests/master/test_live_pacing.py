@@ -279,3 +279,28 @@ outputs: [osc.x]
     for t, late in zip(result.time[1:].tolist(), report.lateness.tolist()):
         one_by_one._episode(t, late)
     assert report.behind and report.behind == one_by_one.report().behind
+
+
+@pytest.mark.skipif(not Path(f"/proc/{__import__('os').getpid()}/timerslack_ns").exists(),
+                    reason="/proc/<tid>/timerslack_ns is Linux's (4.6 on)")
+def test_the_thread_that_paces_a_streamed_run_has_the_least_timer_slack(monkeypatch):
+    """A paced run without live sources steps on a thread of its own (NativeLoop.run_streamed),
+    made after the pacer set the slack: it paces with 1 ns, and this thread has its own back."""
+    import threading
+
+    from deltafmi.master.stepping import master
+
+    def slack(thread_id: int) -> int:
+        return int(Path(f"/proc/{thread_id}/timerslack_ns").read_text())
+
+    before, seen = slack(threading.get_native_id()), []
+    take = master.Master._take_rows
+
+    def looking(self, rows):
+        seen.extend(slack(t.native_id) for t in threading.enumerate() if t.name == "deltafmi-paced-steps")
+        take(self, rows)
+
+    monkeypatch.setattr(master.Master, "_take_rows", looking)
+    deltafmi.simulate("delta_tracking", stop=0.2, speed=1.0)
+    assert seen and set(seen) == {1}
+    assert slack(threading.get_native_id()) == before

@@ -137,7 +137,9 @@ class LiveRun:
         """Communication points the C loop steps between two samples of the sources (and looks
         at stop signals): a replay or a live source samples at every point (what arrived before
         a point is what the step from it takes, as the recording says and a replay repeats);
-        with no source but the clock, every :data:`C_LONGEST_WAIT` of wall time."""
+        with no source but the clock, as many as :data:`C_LONGEST_WAIT` of wall time holds (more
+        than one: the master runs the whole run in one call on a thread of its own and looks at
+        stop signals while it goes, ``NativeLoop.run_streamed``)."""
         if self._replayed or self.pacer is None or self.sources:
             return 1
         return max(1, int(C_LONGEST_WAIT / self.pacer.period))
