@@ -304,3 +304,44 @@ def test_the_thread_that_paces_a_streamed_run_has_the_least_timer_slack(monkeypa
     deltafmi.simulate("delta_tracking", stop=0.2, speed=1.0)
     assert seen and set(seen) == {1}
     assert slack(threading.get_native_id()) == before
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setscheduler"), reason="real-time priorities are Linux's")
+def test_a_run_paced_at_a_real_time_priority_steps_at_it_and_gives_it_back(tmp_path, monkeypatch):
+    """master.realtime.priority: the thread that paces (here the streamed run's own) is SCHED_FIFO
+    at that priority while it steps (where this process may raise it), the calling thread's
+    scheduling is as before afterwards; a priority out of 1-99 is refused."""
+    import os
+    import threading
+
+    from deltafmi.master.stepping import master
+
+    source = Path(deltafmi.__file__).resolve().parent.parent / "scenarios" / "delta_tracking.yaml"
+    text = source.read_text().replace("master:\n", "master:\n  realtime: {priority: 10}\n", 1)
+    assert "priority: 10" in text
+    scenario = tmp_path / "delta_tracking.yaml"
+    scenario.write_text(text)
+    before, seen = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority), []
+    take = master.Master._take_rows
+
+    def looking(self, rows):
+        seen.extend((os.sched_getscheduler(t.native_id), os.sched_getparam(t.native_id).sched_priority)
+                    for t in threading.enumerate() if t.name == "deltafmi-paced-steps")
+        take(self, rows)
+
+    monkeypatch.setattr(master.Master, "_take_rows", looking)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))
+        os.sched_setscheduler(0, *before[:1], os.sched_param(before[1]))
+        permitted = True
+    except PermissionError:
+        permitted = False
+    result = deltafmi.simulate(scenario, stop=0.2)
+    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
+    assert len(result.time) == 201
+    if permitted:
+        assert seen and set(seen) == {(os.SCHED_FIFO, 10)}
+    with pytest.raises(deltafmi.ScenarioError, match=r"bad.yaml:\d+: error: master.realtime: .*'priority': 100"):
+        bad = tmp_path / "bad.yaml"
+        bad.write_text(text.replace("priority: 10", "priority: 100"))
+        deltafmi.simulate(bad, stop=0.01)

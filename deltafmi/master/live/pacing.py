@@ -23,6 +23,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import math
+import os
 import re
 import sys
 import time
@@ -131,6 +132,22 @@ def _lock_memory() -> bool:
         return False
 
 
+def _real_time_priority(priority: int, warn: Callable[[str], None]) -> Optional[Tuple[int, int]]:
+    """The calling thread at real-time ``priority`` (SCHED_FIFO); returns its scheduling before,
+    or None (and a warning) where that is not permitted or not there."""
+    if not hasattr(os, "sched_setscheduler"):
+        warn(f"master.realtime.priority {priority}: real-time priorities are Linux's; paced at the usual priority")
+        return None
+    before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError as exc:
+        warn(f"master.realtime.priority {priority}: not permitted ({exc.strerror}: root, CAP_SYS_NICE or a "
+             f"ulimit -r of at least {priority}); paced at the usual priority")
+        return None
+    return before
+
+
 def _unlock_memory() -> None:
     try:
         _libc().munlockall()
@@ -143,10 +160,13 @@ class Pacer:
 
     def __init__(self, speed: float, step: float, n_points: int, *, tolerance: Optional[float] = None,
                  spin: float = 5e-5, behind: str = "warn", warn: Callable[[str], None] = lambda text: None,
-                 stopped: Callable[[], bool] = lambda: False, clock: Callable[[], float] = time.perf_counter) -> None:
+                 stopped: Callable[[], bool] = lambda: False, clock: Callable[[], float] = time.perf_counter,
+                 priority: Optional[int] = None) -> None:
         """``step``: the communication step [s of simulated time]; ``n_points``: how many points
         :meth:`wait` will be asked for (sizes the lateness record); ``stopped()``: True when a stop
-        signal came (the wait then returns early)."""
+        signal came (the wait then returns early); ``priority``: a real-time priority (SCHED_FIFO)
+        for the calling thread from :meth:`start` to :meth:`close`, and the threads it starts
+        meanwhile (they inherit it)."""
         if not (speed > 0 and math.isfinite(speed)):
             raise ValueError(f"real-time speed {speed!r} must be a positive number")
         self.speed = float(speed)
@@ -178,11 +198,16 @@ class Pacer:
         #: whether :meth:`start` locked the process's memory (until :meth:`close`)
         self.locked = False
         self._unlock = False
+        self.priority = priority
+        #: the calling thread's scheduling (policy, priority) before :meth:`start` raised it
+        self._scheduling: Optional[Tuple[int, int]] = None
 
     def start(self, t0: float) -> None:
         """Simulation time ``t0`` is now (call :meth:`close` when the run ends)."""
         self._slack = _timer_slack(1)
         self.locked = self._unlock = _lock_memory()
+        if self.priority is not None:
+            self._scheduling = _real_time_priority(self.priority, self.warn)
         self._t0 = t0
         self._cpu0 = time.thread_time()
         self._wall0 = self.released = self.clock()
@@ -265,6 +290,10 @@ class Pacer:
         if self._unlock:
             _unlock_memory()
             self._unlock = False
+        if self._scheduling is not None:
+            policy, priority = self._scheduling
+            os.sched_setscheduler(0, policy, os.sched_param(priority))
+            self._scheduling = None
 
     def report(self) -> RealtimeReport:
         """The lateness of every point so far."""

@@ -62,7 +62,8 @@ class LiveRun:
         for component in system.live:
             if component.name == REALTIME:
                 self.pacer = Pacer(realtime.speed, step, grid_steps(start, stop, step), tolerance=realtime.tolerance,
-                                   spin=realtime.spin, behind=realtime.behind, warn=warn, stopped=stopped)
+                                   spin=realtime.spin, behind=realtime.behind, warn=warn, stopped=stopped,
+                                   priority=realtime.priority)
                 self._clock_unit = LiveInputUnit(component, _Measurements(self.pacer), [0.0] * 3)
                 continue
             spec = specs[component.name]

@@ -99,6 +99,8 @@ class Realtime:
     tolerance: Optional[float] = None
     #: wall seconds before a deadline spent polling the clock rather than sleeping
     spin: float = 5e-5
+    #: a real-time priority (SCHED_FIFO, 1-99) for the thread that paces; None: its usual one
+    priority: Optional[int] = None
 
 
 @record
