@@ -15,7 +15,9 @@
   time over wall time; medians over the repeats, the load average beside them; whether the
   flagship meets the 50x target (never behind, overruns <= 1 %) and whether the floor does at the
   same moments. ``--fifo``: at 50x both at real-time priority 50 too (the flagship with
-  ``master.realtime.priority: 50`` and under ``chrt -f 50``; the floor under ``chrt -f 50``: root).
+  ``master.realtime.priority: 50``, so too handing back to Python every 50 ms of wall time as the
+  C loop did before its paced runs were streamed, and under ``chrt -f 50``; the floor under
+  ``chrt -f 50``: root).
   ``--target-only`` measures this only. Also the busy time per point of the C loop against the
   Python loop paced the same way (``LiveRun.paced_in_c`` off).
 - UDP round trip: a datagram sent to a live UDP input comes back on a UDP stream of the same
@@ -131,12 +133,23 @@ def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked
             "cpu": cpu / wall if wall > 0 else float("nan"), "locked": locked}
 
 
+def handing_back(begin_fixed_steps):
+    """Master.begin_fixed_steps as it was before the streamed paced run: the C loop hands back
+    to Python after every 50 ms of wall time (LiveRun.points_between_samples points)."""
+    def begin(self, *args, **kwargs):
+        begin_fixed_steps(self, *args, **kwargs)
+        if getattr(self, "_streamed", False):
+            self._streamed = False
+            self._fixed_chunk = self._fixed_most = self.live.points_between_samples()
+    return begin
+
+
 def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] = None,
-         priority: Optional[int] = None) -> dict:
+         priority: Optional[int] = None, hand_back: bool = False) -> dict:
     """The flagship paced at ``speed`` for ``stop`` simulated seconds (the master's C loop);
     ``before``: the pacing as it was (1 us timer slack, memory not locked, 0.2 ms spin; the rows
-    streamed as now); ``spin``, ``priority``: ``master.realtime``'s: :func:`figures` and the
-    median busy time."""
+    streamed as now); ``spin``, ``priority``: ``master.realtime``'s; ``hand_back``: the C loop
+    handing back every 50 ms (:func:`handing_back`): :func:`figures` and the median busy time."""
     from dataclasses import replace
 
     from deltafmi.master.live import pacing
@@ -151,10 +164,16 @@ def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] 
         pacing._timer_slack = lambda ns: slack(1000 if ns == 1 else ns)
         pacing._lock_memory = lambda: False
         spin = 2e-4 if spin is None else spin
+    from deltafmi.master.stepping.master import Master
+
+    begin = Master.begin_fixed_steps
+    if hand_back:
+        Master.begin_fixed_steps = handing_back(begin)
     try:
         result = deltafmi.simulate(scenario, stop=stop, speed=speed)
     finally:
         pacing._timer_slack, pacing._lock_memory = slack, lock
+        Master.begin_fixed_steps = begin
     report = result.summary.live.realtime
     found = figures(report.lateness, 1e-3 / speed, report.cpu, report.wall, report.locked)
     found["busy"] = float(np.median(result["realtime.busy"][1:]))
@@ -201,6 +220,7 @@ def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
                     row["floor 50x spin, no mlock"] = floor("spin", n, period, busy, lock=False)
                 if speed == 50.0 and fifo:
                     row["ours 50x priority 50"] = ours(stop, speed, priority=50)
+                    row["ours 50x prio 50, hand-backs"] = ours(stop, speed, priority=50, hand_back=True)
                     row["ours 50x under chrt -f 50"] = ours_fifo(stop, speed)
                     row["floor 50x spin SCHED_FIFO"] = floor("spin", n, period, busy, prefix=FIFO)
                 for label, found in row.items():
