@@ -27,6 +27,7 @@
 
 Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only] [--fifo]
        [--seconds-fast 10] [--seconds-real 2]
+       python benchmarks/realtime.py --throttling   # the floor at priority 50 for 0.8 s and 1.4 s (root)
 """
 from __future__ import annotations
 
@@ -268,6 +269,22 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
               f"{met('ours 50x under chrt -f 50')}), the floor {met('floor 50x spin SCHED_FIFO')}")
 
 
+def throttling() -> None:
+    """The floor polling at real-time priority 50 for 0.8 s and 1.4 s of wall time (20 us steps):
+    Linux's real-time throttling (kernel.sched_rt_runtime_us of sched_rt_period_us) stops a thread
+    that never sleeps for the rest of each period once it has run its share."""
+    runtime, period = (int(Path(f"/proc/sys/kernel/sched_rt_{name}_us").read_text()) for name in ("runtime", "period"))
+    print(f"real-time throttling: sched_rt_runtime_us {runtime} of sched_rt_period_us {period}; the floor polling "
+          f"at priority 50 (20 us steps):")
+    with tempfile.TemporaryDirectory() as folder:
+        floor = PacedFloor(Path(folder))
+        for seconds in (0.8, 1.4):
+            found = floor("spin", int(seconds / 2e-5), 2e-5, 2.3e-6, prefix=FIFO)
+            late = np.fromfile(floor.out)
+            print(f"  {seconds:g} s: {np.count_nonzero(late > 1e-2)} points later than 10 ms of {found['points']}, "
+                  f"largest {found['max'] * 1e3:.1f} ms, overruns {found['overruns']:.2%}")
+
+
 def _echo_scenario(folder: Path, port: int, back: int) -> Path:
     path = folder / "echo.yaml"
     path.write_text(f"""\
@@ -374,6 +391,8 @@ def main() -> None:
                         help="only the paced flagship at 50x and 1x beside the machine's floor")
     parser.add_argument("--fifo", action="store_true",
                         help="at 50x, the flagship and the floor at a real-time priority too (chrt -f 50: root)")
+    parser.add_argument("--throttling", action="store_true",
+                        help="only the floor at real-time priority 50 for 0.8 s and 1.4 s (Linux's real-time throttling)")
     parser.add_argument("--paced-figures", nargs=2, type=float, metavar=("SPEED", "STOP"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.paced_figures:  # ours_fifo's process
@@ -381,6 +400,9 @@ def main() -> None:
         print(json.dumps(ours(args.paced_figures[1], args.paced_figures[0])))
         return
 
+    if args.throttling:
+        throttling()
+        return
     logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)  # "fell behind" while probing speeds
     deltafmi.simulate("delta_tracking", stop=0.01)  # builds the FMUs once
     seconds = {50.0: args.seconds_fast, 1.0: args.seconds_real}
