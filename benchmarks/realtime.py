@@ -160,10 +160,10 @@ def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] 
         realtime = scenario.master.realtime
         realtime = replace(realtime, spin=realtime.spin if spin is None else spin, priority=priority)
         scenario = replace(scenario, master=replace(scenario.master, realtime=realtime))
-    slack, lock = pacing._timer_slack, pacing._lock_memory
+    slack, lock = pacing.timer_slack, pacing.lock_memory
     if before:
-        pacing._timer_slack = lambda ns: slack(1000 if ns == 1 else ns)
-        pacing._lock_memory = lambda: False
+        pacing.timer_slack = lambda ns: slack(1000 if ns == 1 else ns)
+        pacing.lock_memory = lambda: False
         spin = 2e-4 if spin is None else spin
     from deltafmi.master.stepping.master import Master
 
@@ -173,7 +173,7 @@ def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] 
     try:
         result = deltafmi.simulate(scenario, stop=stop, speed=speed)
     finally:
-        pacing._timer_slack, pacing._lock_memory = slack, lock
+        pacing.timer_slack, pacing.lock_memory = slack, lock
         Master.begin_fixed_steps = begin
     report = result.summary.live.realtime
     found = figures(report.lateness, 1e-3 / speed, report.cpu, report.wall, report.locked)

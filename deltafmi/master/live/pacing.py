@@ -20,27 +20,20 @@ warning at the start of each such episode (or an error with ``behind="error"``) 
 """
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import math
-import os
-import re
-import sys
 import time
 from dataclasses import field
-from typing import Any, Callable, List, Optional, Tuple
+from typing import Callable, List, Optional, Tuple
 
 import numpy as np
 
 from deltafmi.errors import SimulationError
 
 from ..scenario.records import record
+from .thread_timing import lock_memory, real_time_priority, restore_scheduling, timer_slack, unlock_memory
 
 __all__ = ["Pacer", "RealtimeReport", "FellBehind"]
 
-_PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30
-_MCL_CURRENT, _MCL_FUTURE, _MCL_ONFAULT = 1, 2, 4
-_CAP_IPC_LOCK = 14
 #: longest single sleep: a stop signal is looked at between sleeps
 _SLEEP_CHUNK = 0.05
 
@@ -94,67 +87,6 @@ def _us(seconds: float) -> str:
     return f"{seconds * 1e6:.1f} us" if seconds < 1e-2 else f"{seconds * 1e3:.1f} ms"
 
 
-def _libc() -> Any:
-    return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-
-
-def _timer_slack(nanoseconds: Optional[int]) -> Optional[int]:
-    """Set this thread's timer slack (Linux; elsewhere nothing happens) and return the one it
-    had; None leaves it as it is."""
-    try:
-        libc = _libc()
-        before = int(libc.prctl(_PR_GET_TIMERSLACK, 0, 0, 0, 0))
-        if nanoseconds is not None:
-            libc.prctl(_PR_SET_TIMERSLACK, nanoseconds, 0, 0, 0)
-        return before if before > 0 else None
-    except (OSError, AttributeError):
-        return None
-
-
-def _lock_memory() -> bool:
-    """Lock the process's pages in memory as they are faulted in (Linux ``mlockall``), where no
-    later allocation can fail for it (locking without limit is permitted) and nothing is locked
-    yet (a lock the program made stays its own); returns whether it locked."""
-    if not sys.platform.startswith("linux"):
-        return False
-    try:
-        import resource
-
-        status = open("/proc/self/status").read()
-        caps, locked = re.search(r"CapEff:\s*([0-9a-f]+)", status), re.search(r"VmLck:\s*(\d+)", status)
-        unlimited = resource.getrlimit(resource.RLIMIT_MEMLOCK)[0] == resource.RLIM_INFINITY
-        if caps is None or locked is None or int(locked.group(1)) or not (unlimited or int(caps.group(1), 16)
-                                                                           >> _CAP_IPC_LOCK & 1):
-            return False
-        # MCL_ONFAULT: the pages mapped but never used are not read in (a second and 100 MB for Python's)
-        return int(_libc().mlockall(_MCL_CURRENT | _MCL_FUTURE | _MCL_ONFAULT)) == 0
-    except (OSError, AttributeError, ValueError, ImportError):
-        return False
-
-
-def _real_time_priority(priority: int, warn: Callable[[str], None]) -> Optional[Tuple[int, int]]:
-    """The calling thread at real-time ``priority`` (SCHED_FIFO); returns its scheduling before,
-    or None (and a warning) where that is not permitted or not there."""
-    if not hasattr(os, "sched_setscheduler"):
-        warn(f"master.realtime.priority {priority}: real-time priorities are Linux's; paced at the usual priority")
-        return None
-    before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except OSError as exc:
-        warn(f"master.realtime.priority {priority}: not permitted ({exc.strerror}: root, CAP_SYS_NICE or a "
-             f"ulimit -r of at least {priority}); paced at the usual priority")
-        return None
-    return before
-
-
-def _unlock_memory() -> None:
-    try:
-        _libc().munlockall()
-    except (OSError, AttributeError):
-        pass
-
-
 class Pacer:
     """Releases communication points at their wall-clock times and measures how late they were."""
 
@@ -204,10 +136,10 @@ class Pacer:
 
     def start(self, t0: float) -> None:
         """Simulation time ``t0`` is now (call :meth:`close` when the run ends)."""
-        self._slack = _timer_slack(1)
-        self.locked = self._unlock = _lock_memory()
+        self._slack = timer_slack(1)
+        self.locked = self._unlock = lock_memory()
         if self.priority is not None:
-            self._scheduling = _real_time_priority(self.priority, self.warn)
+            self._scheduling = real_time_priority(self.priority, self.warn)
         self._t0 = t0
         self._cpu0 = time.thread_time()
         self._wall0 = self.released = self.clock()
@@ -285,14 +217,13 @@ class Pacer:
     def close(self) -> None:
         """Give the thread its timer slack back (a notebook's thread outlives the run)."""
         if self._slack is not None:
-            _timer_slack(self._slack)
+            timer_slack(self._slack)
             self._slack = None
         if self._unlock:
-            _unlock_memory()
+            unlock_memory()
             self._unlock = False
         if self._scheduling is not None:
-            policy, priority = self._scheduling
-            os.sched_setscheduler(0, policy, os.sched_param(priority))
+            restore_scheduling(self._scheduling)
             self._scheduling = None
 
     def report(self) -> RealtimeReport:
