@@ -345,3 +345,29 @@ def test_a_run_paced_at_a_real_time_priority_steps_at_it_and_gives_it_back(tmp_p
         bad = tmp_path / "bad.yaml"
         bad.write_text(text.replace("priority: 10", "priority: 100"))
         deltafmi.simulate(bad, stop=0.01)
+
+
+def test_two_stop_signals_stop_a_streamed_run_where_its_rows_end():
+    """SIGTERM twice, close together, while a streamed paced run goes: the run is interrupted
+    (the second signal where this thread waits for the stepping thread), the stepping thread has
+    stopped before the run is closed, and the time the run says it stopped at is its last row's."""
+    import os
+    import threading
+
+    def twice() -> None:
+        time.sleep(1.0)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.001)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    killer = threading.Thread(target=twice)
+    killer.start()
+    try:
+        with pytest.raises(deltafmi.Interrupted) as caught:
+            deltafmi.simulate("delta_tracking", stop=20.0, speed=1.0)
+    finally:
+        killer.join()
+    assert not any(t.name == "deltafmi-paced-steps" for t in threading.enumerate())
+    result = caught.value.result
+    said = float(re.search(r"interrupted at t = ([\d.]+) s", str(caught.value)).group(1))
+    assert 0 < said == result.time[-1] and len(result.time) == round(said / 1e-3) + 1

@@ -442,10 +442,25 @@ class NativeLoop:
         pace.stream, pace.stop_request, pace.published, pace.taken = 1, 0, 0, 0
         ring, taken = len(self.rows), 0
         why: List[int] = []
+        # its own flag, not Thread.join/is_alive: a join interrupted by a stop signal leaves the
+        # thread marked as stopped while it still runs (CPython's _wait_for_tstate_lock)
+        finished = threading.Event()
 
         def steps() -> None:
-            why.append(self._run(ctypes.byref(self.plan), k, k_end, self.rows.ctypes.data, ring,
-                                 ctypes.byref(self._k_done), ctypes.byref(self._n_rows)))
+            try:
+                why.append(self._run(ctypes.byref(self.plan), k, k_end, self.rows.ctypes.data, ring,
+                                     ctypes.byref(self._k_done), ctypes.byref(self._n_rows)))
+            finally:
+                finished.set()
+
+        def stop_and_wait() -> None:  # the loop stops after the point it releases: within a paced step
+            pace.stop_request = 1
+            while True:
+                try:
+                    if finished.wait(0.05):
+                        return
+                except KeyboardInterrupt:  # one more stop signal: the loop is stopping already
+                    pass
 
         def take_published() -> int:
             published = pace.published  # the rows up to it are written (C stores it after them)
@@ -455,32 +470,35 @@ class NativeLoop:
                 take(rows)
             return published
 
-        thread = threading.Thread(target=steps, name="deltafmi-paced-steps", daemon=True)
-        thread.start()
+        threading.Thread(target=steps, name="deltafmi-paced-steps", daemon=True).start()
         try:
             while True:
-                running = thread.is_alive()
+                running = not finished.is_set()
                 taken = take_published()
                 self._after_paced(k)
                 if not running:
                     break
                 if stopped():
                     pace.stop_request = 1
-                thread.join(poll)
+                finished.wait(poll)
         except KeyboardInterrupt:  # a second stop signal: the rows so far kept
-            pace.stop_request = 1
-            thread.join()
+            stop_and_wait()
             take_published()
+            self._after_paced(k)
             raise
         except BaseException:
-            pace.stop_request = 1
-            thread.join()
+            stop_and_wait()
             raise
         finally:
             pace.stream = 0
             self.leave()
         self._after_paced(k)
         return why[0], self._k_done.value, 0
+
+    def steps_done(self) -> int:
+        """The first step the last run did not complete (after :meth:`run_streamed` was
+        interrupted: where its thread stopped)."""
+        return self._k_done.value
 
     def keep_step_start(self) -> None:
         """From now on gather the recorded row (time first) at the start of every step into

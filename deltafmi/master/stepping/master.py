@@ -609,7 +609,15 @@ class Master:
         """Steps ``k`` ... ``k_end - 1`` in C as far as they go, the step where C stopped (an
         event, a failure, a termination) finished here; returns the next step to take."""
         if self._streamed:
-            why, done, rows = native.run_streamed(k, k_end, self._take_rows, lambda: self.stop_signals.received is not None)
+            try:
+                why, done, rows = native.run_streamed(k, k_end, self._take_rows,
+                                                      lambda: self.stop_signals.received is not None)
+            except KeyboardInterrupt:  # the steps taken meanwhile are the run's (their rows recorded)
+                done = native.steps_done()
+                if done > k:
+                    self.steps = done
+                    self.time = self.step_end = grid.start + done * grid.h if done < grid.n_steps else grid.stop
+                raise
         else:
             why, done, rows = native.run(k, k_end)
         return self.after_c_run(native, grid, k, why, done, rows)
