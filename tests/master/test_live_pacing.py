@@ -354,8 +354,10 @@ def test_two_stop_signals_stop_a_streamed_run_where_its_rows_end():
     import os
     import threading
 
-    def twice() -> None:
-        time.sleep(1.0)
+    def twice() -> None:  # once the run steps (its stop signals caught), not before
+        while not any(t.name == "deltafmi-paced-steps" for t in threading.enumerate()):
+            time.sleep(0.01)
+        time.sleep(0.3)
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(0.001)
         os.kill(os.getpid(), signal.SIGTERM)
