@@ -194,45 +194,58 @@ def ours_fifo(stop: float, speed: float) -> dict:
 
 
 def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
-    """Each configuration once per repeat, interleaved (the load changes from one moment to the
-    next): the flagship paced at 50x and 1x (as now, and as before: 1 us timer slack, no
-    mlockall, 0.2 ms spin; at 1x sleeping only too), beside the floor (:class:`PacedFloor`) around the flagship's busy time waiting each
-    way; ``fifo``: at 50x both at a real-time priority too (:data:`FIFO`). ``seconds``: simulated
-    seconds per speed. Returns {label: [figures per repeat]}."""
+    """Each configuration once per repeat, in an order shuffled anew each repeat (the load changes
+    from one moment to the next; a fixed order would favour a place in it): the flagship paced at
+    50x and 1x (as now, and as before: 1 us timer slack, no mlockall, 0.2 ms spin; at 1x sleeping
+    only too), beside the floor (:class:`PacedFloor`) around the flagship's median busy time (from
+    a first run, not counted) waiting each way; ``fifo``: at 50x both at a real-time priority too
+    (:data:`FIFO`). ``seconds``: simulated seconds per speed. Returns {label: [figures per
+    repeat]}; each figures' "load" is the load average when its repeat began."""
     runs: dict = {}
+    shuffle = random.Random(42).shuffle
     with tempfile.TemporaryDirectory() as folder:
         floor = PacedFloor(Path(folder))
+        busy = {speed: ours(seconds[speed], speed)["busy"] for speed in (50.0, 1.0)}
+        plan: list = []
+        for speed in (50.0, 1.0):
+            period, stop = 1e-3 / speed, seconds[speed]
+            n = int(round(stop / 1e-3))
+            plan += [(f"ours {speed:g}x", lambda stop=stop, speed=speed: ours(stop, speed)),
+                     (f"ours {speed:g}x before", lambda stop=stop, speed=speed: ours(stop, speed, before=True))]
+            if speed == 1.0:
+                plan.append(("ours 1x sleep only", lambda stop=stop, speed=speed: ours(stop, speed, spin=0.0)))
+            for mode, spin in (("spin", 0.0), ("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5)):
+                if speed == 50.0 and mode == "hybrid":
+                    continue  # a 20 us period: hybrid with a 50-200 us spin polls only (= spin)
+                label = f"floor {speed:g}x {mode}" + (f" {spin * 1e6:.0f} us" if mode == "hybrid" else "")
+                plan.append((label, lambda mode=mode, n=n, period=period, b=busy[speed], spin=spin:
+                             floor(mode, n, period, b, spin)))
+            if speed == 50.0:
+                plan.append(("floor 50x spin, no mlock", lambda n=n, period=period, b=busy[speed]:
+                             floor("spin", n, period, b, lock=False)))
+            if speed == 50.0 and fifo:
+                plan += [("ours 50x priority 50", lambda stop=stop: ours(stop, 50.0, priority=50)),
+                         ("ours 50x prio 50, hand-backs", lambda stop=stop: ours(stop, 50.0, priority=50,
+                                                                                   hand_back=True)),
+                         ("ours 50x under chrt -f 50", lambda stop=stop: ours_fifo(stop, 50.0)),
+                         ("floor 50x spin SCHED_FIFO", lambda n=n, period=period, b=busy[speed]:
+                          floor("spin", n, period, b, prefix=FIFO))]
+        for label, _ in plan:
+            runs[label] = []
         for _ in range(repeats):
-            for speed in (50.0, 1.0):
-                period, stop = 1e-3 / speed, seconds[speed]
-                n = int(round(stop / 1e-3))
-                load = os.getloadavg()[0]
-                mine = ours(stop, speed)
-                busy = mine["busy"]
-                row = {f"ours {speed:g}x": mine, f"ours {speed:g}x before": ours(stop, speed, before=True)}
-                if speed == 1.0:
-                    row["ours 1x sleep only"] = ours(stop, speed, spin=0.0)
-                for mode, spin in (("spin", 0.0), ("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5)):
-                    if speed == 50.0 and mode == "hybrid":
-                        continue  # a 20 us period: hybrid with a 50-200 us spin polls only (= spin)
-                    label = f"floor {speed:g}x {mode}" + (f" {spin * 1e6:.0f} us" if mode == "hybrid" else "")
-                    row[label] = floor(mode, n, period, busy, spin)
-                if speed == 50.0:
-                    row["floor 50x spin, no mlock"] = floor("spin", n, period, busy, lock=False)
-                if speed == 50.0 and fifo:
-                    row["ours 50x priority 50"] = ours(stop, speed, priority=50)
-                    row["ours 50x prio 50, hand-backs"] = ours(stop, speed, priority=50, hand_back=True)
-                    row["ours 50x under chrt -f 50"] = ours_fifo(stop, speed)
-                    row["floor 50x spin SCHED_FIFO"] = floor("spin", n, period, busy, prefix=FIFO)
-                for label, found in row.items():
-                    found["load"] = load
-                    runs.setdefault(label, []).append(found)
+            load = os.getloadavg()[0]
+            order = list(plan)
+            shuffle(order)
+            for label, run in order:
+                found = run()
+                found["load"] = load
+                runs[label].append(found)
     return runs
 
 
 def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
     print(f"paced flagship (master's C loop) beside the machine's floor (a bare C program around the flagship's "
-          f"median busy time), {repeats} interleaved repeats; 50x: {seconds[50.0]:g} s simulated "
+          f"median busy time), {repeats} repeats, each configuration once a repeat in a shuffled order; 50x: {seconds[50.0]:g} s simulated "
           f"({int(seconds[50.0] * 1e3)} points, 20 us paced step, overrun = later than 5 us), 1x: {seconds[1.0]:g} s "
           f"(1 ms step, overrun = later than 250 us); load average (1 min) at each repeat's start: "
           + ", ".join(f"{f['load']:.2f}" for f in runs["ours 50x"]))
@@ -251,6 +264,9 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
         print(f"  ours {speed:g}x: busy median {_us(statistics.median(f['busy'] for f in mine))}, polling "
               f"{statistics.median(f['polled'] for f in mine):.0%} of wall, memory locked "
               f"{all(f['locked'] for f in mine)}")
+    same = [statistics.median(f["overruns"] for f in runs[label]) for label in ("ours 50x", "ours 50x before")]
+    print(f"  noise: at 50x 'ours' and 'ours before' wait alike (the 20 us step is polled whole: the timer slack and "
+          f"spin do not come in; only the memory lock differs): their overruns {same[0]:.2%} and {same[1]:.2%} differ by the moment alone")
     for speed, floors in ((50.0, ("spin",)), (1.0, ("hybrid 50 us", "sleep"))):
         mine = statistics.median(f["overruns"] for f in runs[f"ours {speed:g}x"])
         for mode in floors:
