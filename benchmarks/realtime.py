@@ -123,11 +123,13 @@ class PacedFloor:
 
 def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked: bool) -> dict:
     """Overruns (the Pacer's: later than a quarter period), shares later than 1 us, half and a
-    whole period, fell-behind episodes (as the Pacer counts them), lateness percentiles and the
-    CPU time of the loop against its wall time."""
+    whole period, fell-behind episodes (as the Pacer counts them) and the median time between
+    their starts, lateness percentiles and the CPU time of the loop against its wall time."""
     late = np.asarray(lateness, dtype=float)
     beyond = late > period
-    return {"points": len(late), "overruns": float(np.mean(late > period / 4)), "over_1us": float(np.mean(late > 1e-6)),
+    starts = np.flatnonzero(beyond & ~np.concatenate(([False], beyond[:-1])))
+    return {"spacing": float(np.median(np.diff(starts))) * period if len(starts) > 2 else float("nan"),
+            "points": len(late), "overruns": float(np.mean(late > period / 4)), "over_1us": float(np.mean(late > 1e-6)),
             "over_half": float(np.mean(late > period / 2)), "over_period": float(np.mean(beyond)),
             "behind": int(np.count_nonzero(beyond & ~np.concatenate(([False], beyond[:-1])))),
             "p50": float(np.median(late)), "p99": float(np.percentile(late, 99)), "max": float(late.max()),
@@ -243,6 +245,20 @@ def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
     return runs
 
 
+def kernel_hz() -> Optional[str]:
+    """CONFIG_HZ of the running kernel (/proc/config.gz or /boot/config-RELEASE), or None."""
+    import gzip
+
+    for path, read in ((Path("/proc/config.gz"), lambda p: gzip.decompress(p.read_bytes()).decode()),
+                       (Path(f"/boot/config-{os.uname().release}"), lambda p: p.read_text())):
+        try:
+            text = read(path)
+        except OSError:
+            continue
+        return next((line.split("=")[1] for line in text.splitlines() if line.startswith("CONFIG_HZ=")), None)
+    return None
+
+
 def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
     print(f"paced flagship (master's C loop) beside the machine's floor (a bare C program around the flagship's "
           f"median busy time), {repeats} repeats, each configuration once a repeat in a shuffled order; 50x: {seconds[50.0]:g} s simulated "
@@ -280,6 +296,13 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
 
     print(f"  target at 50x (never behind, overruns <= 1 %): ours {met('ours 50x')}, the floor "
           f"{met('floor 50x spin')} at these moments")
+    if "floor 50x spin SCHED_FIFO" in runs:
+        spacing = [statistics.median(f["spacing"] for f in runs[label]) * 1e3
+                   for label in ("ours 50x priority 50", "floor 50x spin SCHED_FIFO")]
+        hz = kernel_hz()
+        print(f"  at priority 50 a point later than a step comes every {spacing[0]:.2f} ms (ours) and {spacing[1]:.2f} "
+              f"ms (floor), medians of the time between them; the kernel's scheduler tick: "
+              + (f"every {1e3 / int(hz):g} ms (CONFIG_HZ={hz})" if hz else "CONFIG_HZ unknown"))
     if "ours 50x priority 50" in runs:
         print(f"  at real-time priority 50: ours {met('ours 50x priority 50')} (under chrt "
               f"{met('ours 50x under chrt -f 50')}), the floor {met('floor 50x spin SCHED_FIFO')}")
