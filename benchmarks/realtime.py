@@ -1,35 +1,38 @@
 """Issue 28's figures: how well a paced run keeps the wall clock, and UDP round trips through a run.
 
-- Lateness of the flagship (scenarios/delta_tracking.yaml, 1 kHz) paced at real time:
-  median, 99th percentile and largest lateness of its communication points, overruns (later than a
-  quarter step), times it fell behind; and the wall time one step computes ("busy"). Medians over
-  ``--repeats`` runs of ``--seconds`` simulated seconds.
 - The highest speed-up at which it still keeps up: paced runs of 1 simulated second at rising
   speeds (doubling, then bisecting), "keeps up" = at most 1 % of the points overrun. Against the baseline measured in the same run: the speed the busy time
   allows (step / median busy), and the unpaced run's real-time factor (both on the master's C
   loop: a paced run without streams waits for every point in C).
-- The flagship at ``--target-speed`` (default 50x) over ``--seconds``, ``--repeats`` times: overruns
-  and times it fell behind (target: never behind, at most 1 % of the points overrun); and the
-  busy time per point (computing, not waiting) of the C loop against the Python loop paced the
-  same way (``LiveRun.paced_in_c`` off), in the same run: on a loaded machine, where other
-  processes' turns make points late, the busy time against the paced step says whether a run
-  can keep up.
-- The machine's floor at ``--target-speed``, measured beside each of those runs: a C loop paced
-  exactly as the master's (benchmarks/native/paced_floor.c) around a step that only spends the
-  flagship's median busy time; what it counts late is the machine's (other processes' turns,
-  scheduler ticks, a virtual machine's host), not the master's. The load average is printed
-  with it. ``--target-only`` measures this and the line above only.
+- The paced flagship beside the machine's floor, interleaved, ``--repeats`` times: the flagship
+  at 50x (``--seconds-fast`` simulated seconds) and 1x (``--seconds-real``) on the master's C loop,
+  as it paces now and as it paced before (1 us timer slack, memory not locked, 0.2 ms spin; at 1x
+  sleeping only too), and benchmarks/native/paced_floor.c, a bare C program pacing as many points
+  around the flagship's median busy time, waiting by polling only, by sleeping only
+  (clock_nanosleep TIMER_ABSTIME) and by sleeping then polling the last 50 or 200 us. For each:
+  overruns (later than a quarter step, the Pacer's tolerance), the shares later than 1 us, half
+  and a whole step, fell-behind episodes, median, 99th percentile and largest lateness, and CPU
+  time over wall time; medians over the repeats, the load average beside them; whether the
+  flagship meets the 50x target (never behind, overruns <= 1 %) and whether the floor does at the
+  same moments. ``--fifo``: at 50x both at real-time priority 50 too (the flagship with
+  ``master.realtime.priority: 50``, so too handing back to Python every 50 ms of wall time as the
+  C loop did before its paced runs were streamed, and under ``chrt -f 50``; the floor under
+  ``chrt -f 50``: root).
+  ``--target-only`` measures this only. Also the busy time per point of the C loop against the
+  Python loop paced the same way (``LiveRun.paced_in_c`` off).
 - UDP round trip: a datagram sent to a live UDP input comes back on a UDP stream of the same
   signal (the run at 1 kHz paced, and unpaced); wall time from sendto to recv, median and 99th
   percentile over ``--pings``. Baseline in the same run: a plain Python echo over loopback (one
   thread receives and sends back), the floor of any round trip through Python sockets.
 
-Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only]
+Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only] [--fifo]
+       [--seconds-fast 10] [--seconds-real 2]
+       python benchmarks/realtime.py --throttling   # the floor at priority 50 for 0.8 s and 1.4 s (root)
 """
 from __future__ import annotations
 
 import argparse
-import ctypes
+import json
 import logging
 import os
 import random
@@ -43,11 +46,14 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
 import deltafmi
 from deltafmi.master.live.datagram import decode, encode
+
+SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "delta_tracking.yaml"
 
 
 def lateness_figures(seconds: float, speed: float = 1.0) -> dict:
@@ -94,54 +100,228 @@ def highest_speed() -> float:
 
 
 class PacedFloor:
-    """benchmarks/native/paced_floor.c compiled (``cc -std=c99 -O2``) and loaded."""
+    """benchmarks/native/paced_floor.c compiled (``cc -std=c99 -O2``) as a program of its own."""
 
     def __init__(self, directory: Path) -> None:
         from deltafmi.toolchain import require_compiler
 
         source = Path(__file__).resolve().parent / "native" / "paced_floor.c"
-        library = directory / "paced_floor.so"
-        subprocess.run([*require_compiler(source), "-std=c99", "-O2", "-shared", "-fPIC", str(source), "-o",
-                        str(library)], check=True, capture_output=True)
-        self._floor = ctypes.CDLL(str(library)).paced_floor
-        self._floor.argtypes = [ctypes.c_long, ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                                ctypes.POINTER(ctypes.c_long), ctypes.POINTER(ctypes.c_long)]
-        self._floor.restype = ctypes.c_double
+        self.program, self.out = directory / "paced_floor", directory / "lateness.bin"
+        subprocess.run([*require_compiler(source), "-std=c99", "-O2", str(source), "-o", str(self.program)],
+                       check=True, capture_output=True)
 
-    def __call__(self, points: int, period: float, busy: float) -> dict:
-        """Overruns (later than a quarter period, as the Pacer's tolerance), fell-behind episodes
-        and the largest lateness of ``points`` paced points around ``busy`` seconds of work."""
-        overruns, behind = ctypes.c_long(), ctypes.c_long()
-        worst = self._floor(points, period, busy, period / 4, ctypes.byref(overruns), ctypes.byref(behind))
-        return {"overruns": overruns.value, "behind": behind.value, "max": worst, "points": points}
+    def __call__(self, mode: str, points: int, period: float, busy: float, spin: float = 2e-4,
+                 lock: bool = True, prefix: tuple = ()) -> dict:
+        """``points`` points ``period`` apart around ``busy`` seconds of work, waiting by ``mode``
+        (spin, sleep, hybrid: sleep to ``spin`` before the deadline, then poll): :func:`figures`.
+        ``prefix``: the command it runs under (``chrt -f 50``)."""
+        done = subprocess.run([*prefix, str(self.program), mode, str(points), repr(period), repr(busy), repr(spin),
+                               str(self.out), *(["mlock"] if lock else [])], check=True, capture_output=True, text=True)
+        cpu, wall, locked = done.stdout.split()
+        return figures(np.fromfile(self.out), period, float(cpu), float(wall), locked == "1")
 
 
-def target_speed(seconds: float, repeats: int, speed: float) -> list:
-    """The flagship paced at ``speed`` and, right after each run, the machine's floor with its
-    median busy time (:class:`PacedFloor`): (flagship figures, floor figures, load average)."""
+def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked: bool) -> dict:
+    """Overruns (the Pacer's: later than a quarter period), shares later than 1 us, half and a
+    whole period, fell-behind episodes (as the Pacer counts them) and the median time between
+    their starts, lateness percentiles and the CPU time of the loop against its wall time."""
+    late = np.asarray(lateness, dtype=float)
+    beyond = late > period
+    starts = np.flatnonzero(beyond & ~np.concatenate(([False], beyond[:-1])))
+    return {"spacing": float(np.median(np.diff(starts))) * period if len(starts) > 2 else float("nan"),
+            "points": len(late), "overruns": float(np.mean(late > period / 4)), "over_1us": float(np.mean(late > 1e-6)),
+            "over_half": float(np.mean(late > period / 2)), "over_period": float(np.mean(beyond)),
+            "behind": int(np.count_nonzero(beyond & ~np.concatenate(([False], beyond[:-1])))),
+            "p50": float(np.median(late)), "p99": float(np.percentile(late, 99)), "max": float(late.max()),
+            "cpu": cpu / wall if wall > 0 else float("nan"), "locked": locked}
+
+
+def handing_back(begin_fixed_steps):
+    """Master.begin_fixed_steps as it was before the streamed paced run: the C loop hands back
+    to Python after every 50 ms of wall time (LiveRun.points_between_samples points)."""
+    def begin(self, *args, **kwargs):
+        begin_fixed_steps(self, *args, **kwargs)
+        if getattr(self, "_streamed", False):
+            self._streamed = False
+            self._fixed_chunk = self._fixed_most = self.live.points_between_samples()
+    return begin
+
+
+def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] = None,
+         priority: Optional[int] = None, hand_back: bool = False) -> dict:
+    """The flagship paced at ``speed`` for ``stop`` simulated seconds (the master's C loop);
+    ``before``: the pacing as it was (1 us timer slack, memory not locked, 0.2 ms spin; the rows
+    streamed as now); ``spin``, ``priority``: ``master.realtime``'s; ``hand_back``: the C loop
+    handing back every 50 ms (:func:`handing_back`): :func:`figures` and the median busy time."""
+    from dataclasses import replace
+
+    from deltafmi.master.live import pacing
+
+    scenario = deltafmi.load_scenario(SCENARIO)
+    if spin is not None or priority is not None:
+        realtime = scenario.master.realtime
+        realtime = replace(realtime, spin=realtime.spin if spin is None else spin, priority=priority)
+        scenario = replace(scenario, master=replace(scenario.master, realtime=realtime))
+    slack, lock = pacing.timer_slack, pacing.lock_memory
+    if before:
+        pacing.timer_slack = lambda ns: slack(1000 if ns == 1 else ns)
+        pacing.lock_memory = lambda: False
+        spin = 2e-4 if spin is None else spin
+    from deltafmi.master.stepping.master import Master
+
+    begin = Master.begin_fixed_steps
+    if hand_back:
+        Master.begin_fixed_steps = handing_back(begin)
+    try:
+        result = deltafmi.simulate(scenario, stop=stop, speed=speed)
+    finally:
+        pacing.timer_slack, pacing.lock_memory = slack, lock
+        Master.begin_fixed_steps = begin
+    report = result.summary.live.realtime
+    found = figures(report.lateness, 1e-3 / speed, report.cpu, report.wall, report.locked)
+    found["busy"] = float(np.median(result["realtime.busy"][1:]))
+    found["polled"] = report.polled / report.wall
+    return found
+
+
+#: a real-time priority (SCHED_FIFO 50: root or CAP_SYS_NICE), for --fifo
+FIFO = ("chrt", "-f", "50")
+
+
+def ours_fifo(stop: float, speed: float) -> dict:
+    """:func:`ours` in a process of its own at a real-time priority (:data:`FIFO`)."""
+    done = subprocess.run([*FIFO, sys.executable, __file__, "--paced-figures", repr(speed), repr(stop)], check=True,
+                          capture_output=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
+    """Each configuration once per repeat, in an order shuffled anew each repeat (the load changes
+    from one moment to the next; a fixed order would favour a place in it): the flagship paced at
+    50x and 1x (as now, and as before: 1 us timer slack, no mlockall, 0.2 ms spin; at 1x sleeping
+    only too), beside the floor (:class:`PacedFloor`) around the flagship's median busy time (from
+    a first run, not counted) waiting each way; ``fifo``: at 50x both at a real-time priority too
+    (:data:`FIFO`). ``seconds``: simulated seconds per speed. Returns {label: [figures per
+    repeat]}; each figures' "load" is the load average when its repeat began."""
+    runs: dict = {}
+    shuffle = random.Random(42).shuffle
     with tempfile.TemporaryDirectory() as folder:
         floor = PacedFloor(Path(folder))
-        runs = []
+        busy = {speed: ours(seconds[speed], speed)["busy"] for speed in (50.0, 1.0)}
+        plan: list = []
+        for speed in (50.0, 1.0):
+            period, stop = 1e-3 / speed, seconds[speed]
+            n = int(round(stop / 1e-3))
+            plan += [(f"ours {speed:g}x", lambda stop=stop, speed=speed: ours(stop, speed)),
+                     (f"ours {speed:g}x before", lambda stop=stop, speed=speed: ours(stop, speed, before=True))]
+            if speed == 1.0:
+                plan.append(("ours 1x sleep only", lambda stop=stop, speed=speed: ours(stop, speed, spin=0.0)))
+            for mode, spin in (("spin", 0.0), ("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5)):
+                if speed == 50.0 and mode == "hybrid":
+                    continue  # a 20 us period: hybrid with a 50-200 us spin polls only (= spin)
+                label = f"floor {speed:g}x {mode}" + (f" {spin * 1e6:.0f} us" if mode == "hybrid" else "")
+                plan.append((label, lambda mode=mode, n=n, period=period, b=busy[speed], spin=spin:
+                             floor(mode, n, period, b, spin)))
+            if speed == 50.0:
+                plan.append(("floor 50x spin, no mlock", lambda n=n, period=period, b=busy[speed]:
+                             floor("spin", n, period, b, lock=False)))
+            if speed == 50.0 and fifo:
+                plan += [("ours 50x priority 50", lambda stop=stop: ours(stop, 50.0, priority=50)),
+                         ("ours 50x prio 50, hand-backs", lambda stop=stop: ours(stop, 50.0, priority=50,
+                                                                                   hand_back=True)),
+                         ("ours 50x under chrt -f 50", lambda stop=stop: ours_fifo(stop, 50.0)),
+                         ("floor 50x spin SCHED_FIFO", lambda n=n, period=period, b=busy[speed]:
+                          floor("spin", n, period, b, prefix=FIFO))]
+        for label, _ in plan:
+            runs[label] = []
         for _ in range(repeats):
             load = os.getloadavg()[0]
-            flagship = lateness_figures(seconds, speed)
-            runs.append((flagship, floor(flagship["points"], 1e-3 / speed, flagship["busy"]), load))
+            order = list(plan)
+            shuffle(order)
+            for label, run in order:
+                found = run()
+                found["load"] = load
+                runs[label].append(found)
     return runs
 
 
-def print_target(runs: list, speed: float, seconds: float) -> None:
-    def share(figures: dict) -> str:
-        return f"{figures['overruns']} of {figures['points']} ({figures['overruns'] / figures['points']:.1%})"
-    print(f"flagship at {speed:g}x real time, {seconds:g} s, {len(runs)} runs (target: never behind, overruns <= 1 %); "
-          f"beside each, the machine's floor (a C loop paced the same way around the same busy time):")
-    for flagship, floor, load in runs:
-        print(f"  load {load:5.2f}: flagship overruns {share(flagship)}, fell behind {flagship['behind']}, max late "
-              f"{_us(flagship['max'])}, busy median {_us(flagship['busy'])} | floor overruns {share(floor)}, fell "
-              f"behind {floor['behind']}, max late {_us(floor['max'])}")
-    fraction = statistics.median(f["overruns"] / f["points"] for f, _, _ in runs)
-    floor_fraction = statistics.median(f["overruns"] / f["points"] for _, f, _ in runs)
-    print(f"  medians: overruns flagship {fraction:.2%}, floor {floor_fraction:.2%}; fell behind flagship "
-          f"{statistics.median(f['behind'] for f, _, _ in runs):g}, floor {statistics.median(f['behind'] for _, f, _ in runs):g}")
+def kernel_hz() -> Optional[str]:
+    """CONFIG_HZ of the running kernel (/proc/config.gz or /boot/config-RELEASE), or None."""
+    import gzip
+
+    for path, read in ((Path("/proc/config.gz"), lambda p: gzip.decompress(p.read_bytes()).decode()),
+                       (Path(f"/boot/config-{os.uname().release}"), lambda p: p.read_text())):
+        try:
+            text = read(path)
+        except OSError:
+            continue
+        return next((line.split("=")[1] for line in text.splitlines() if line.startswith("CONFIG_HZ=")), None)
+    return None
+
+
+def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
+    print(f"paced flagship (master's C loop) beside the machine's floor (a bare C program around the flagship's "
+          f"median busy time), {repeats} repeats, each configuration once a repeat in a shuffled order; 50x: {seconds[50.0]:g} s simulated "
+          f"({int(seconds[50.0] * 1e3)} points, 20 us paced step, overrun = later than 5 us), 1x: {seconds[1.0]:g} s "
+          f"(1 ms step, overrun = later than 250 us); load average (1 min) at each repeat's start: "
+          + ", ".join(f"{f['load']:.2f}" for f in runs["ours 50x"]))
+    print(f"  {'':28} {'overruns':>9} {'>1us':>7} {'>T/2':>7} {'>T':>7} {'behind':>7} {'p50':>9} {'p99':>10} "
+          f"{'max':>10} {'CPU':>6}   (medians over the repeats; per repeat: overruns %, fell behind)")
+    for label, found in runs.items():
+        med = {key: statistics.median(f[key] for f in found) for key in ("overruns", "over_1us", "over_half",
+                                                                            "over_period", "behind", "p50", "p99",
+                                                                            "max", "cpu")}
+        each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in found)
+        print(f"  {label:28} {med['overruns']:9.2%} {med['over_1us']:7.1%} {med['over_half']:7.1%} "
+              f"{med['over_period']:7.1%} {med['behind']:7g} {_us(med['p50'])} {_us(med['p99'])} {_us(med['max'])} "
+              f"{med['cpu']:6.0%}   {each}")
+    for speed in (50.0, 1.0):
+        mine = runs[f"ours {speed:g}x"]
+        print(f"  ours {speed:g}x: busy median {_us(statistics.median(f['busy'] for f in mine))}, polling "
+              f"{statistics.median(f['polled'] for f in mine):.0%} of wall, memory locked "
+              f"{all(f['locked'] for f in mine)}")
+    same = [statistics.median(f["overruns"] for f in runs[label]) for label in ("ours 50x", "ours 50x before")]
+    print(f"  noise: at 50x 'ours' and 'ours before' wait alike (the 20 us step is polled whole: the timer slack and "
+          f"spin do not come in; only the memory lock differs): their overruns {same[0]:.2%} and {same[1]:.2%} differ by the moment alone")
+    for speed, floors in ((50.0, ("spin",)), (1.0, ("hybrid 50 us", "sleep"))):
+        mine = statistics.median(f["overruns"] for f in runs[f"ours {speed:g}x"])
+        for mode in floors:
+            floor = statistics.median(f["overruns"] for f in runs[f"floor {speed:g}x {mode}"])
+            how = "waiting as ours does" if mode != "sleep" else "sleeping only"
+            print(f"  {speed:g}x overruns ours / floor ({mode}, {how}): {mine:.2%} / {floor:.2%}"
+                  + (f" = {mine / floor:.2f}" if floor else ""))
+    def met(label: str) -> str:
+        return "met" if statistics.median(f["overruns"] for f in runs[label]) <= 0.01 and \
+            statistics.median(f["behind"] for f in runs[label]) == 0 else "missed"
+
+    print(f"  target at 50x (never behind, overruns <= 1 %): ours {met('ours 50x')}, the floor "
+          f"{met('floor 50x spin')} at these moments")
+    if "floor 50x spin SCHED_FIFO" in runs:
+        spacing = [statistics.median(f["spacing"] for f in runs[label]) * 1e3
+                   for label in ("ours 50x priority 50", "floor 50x spin SCHED_FIFO")]
+        hz = kernel_hz()
+        print(f"  at priority 50 a point later than a step comes every {spacing[0]:.2f} ms (ours) and {spacing[1]:.2f} "
+              f"ms (floor), medians of the time between them; the kernel's scheduler tick: "
+              + (f"every {1e3 / int(hz):g} ms (CONFIG_HZ={hz})" if hz else "CONFIG_HZ unknown"))
+    if "ours 50x priority 50" in runs:
+        print(f"  at real-time priority 50: ours {met('ours 50x priority 50')} (under chrt "
+              f"{met('ours 50x under chrt -f 50')}), the floor {met('floor 50x spin SCHED_FIFO')}")
+
+
+def throttling() -> None:
+    """The floor polling at real-time priority 50 for 0.8 s and 1.4 s of wall time (20 us steps):
+    Linux's real-time throttling (kernel.sched_rt_runtime_us of sched_rt_period_us) stops a thread
+    that never sleeps for the rest of each period once it has run its share."""
+    runtime, period = (int(Path(f"/proc/sys/kernel/sched_rt_{name}_us").read_text()) for name in ("runtime", "period"))
+    print(f"real-time throttling: sched_rt_runtime_us {runtime} of sched_rt_period_us {period}; the floor polling "
+          f"at priority 50 (20 us steps):")
+    with tempfile.TemporaryDirectory() as folder:
+        floor = PacedFloor(Path(folder))
+        for seconds in (0.8, 1.4):
+            found = floor("spin", int(seconds / 2e-5), 2e-5, 2.3e-6, prefix=FIFO)
+            late = np.fromfile(floor.out)
+            print(f"  {seconds:g} s: {np.count_nonzero(late > 1e-2)} points later than 10 ms of {found['points']}, "
+                  f"largest {found['max'] * 1e3:.1f} ms, overruns {found['overruns']:.2%}")
 
 
 def _echo_scenario(folder: Path, port: int, back: int) -> Path:
@@ -244,37 +424,43 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pings", type=int, default=300)
-    parser.add_argument("--target-speed", type=float, default=50.0)
+    parser.add_argument("--seconds-fast", type=float, default=10.0, help="simulated seconds of the 50x runs")
+    parser.add_argument("--seconds-real", type=float, default=2.0, help="simulated seconds of the 1x runs")
     parser.add_argument("--target-only", action="store_true",
-                        help="only the flagship at --target-speed and the machine's floor beside it")
+                        help="only the paced flagship at 50x and 1x beside the machine's floor")
+    parser.add_argument("--fifo", action="store_true",
+                        help="at 50x, the flagship and the floor at a real-time priority too (chrt -f 50: root)")
+    parser.add_argument("--throttling", action="store_true",
+                        help="only the floor at real-time priority 50 for 0.8 s and 1.4 s (Linux's real-time throttling)")
+    parser.add_argument("--paced-figures", nargs=2, type=float, metavar=("SPEED", "STOP"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.paced_figures:  # ours_fifo's process
+        logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)
+        print(json.dumps(ours(args.paced_figures[1], args.paced_figures[0])))
+        return
 
+    if args.throttling:
+        throttling()
+        return
     logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)  # "fell behind" while probing speeds
     deltafmi.simulate("delta_tracking", stop=0.01)  # builds the FMUs once
+    seconds = {50.0: args.seconds_fast, 1.0: args.seconds_real}
+    runs = compare(args.repeats, seconds, args.fifo)
+    print_compare(runs, args.repeats, seconds)
     if args.target_only:
-        print_target(target_speed(args.seconds, args.repeats, args.target_speed), args.target_speed, args.seconds)
         return
-    runs = [lateness_figures(args.seconds) for _ in range(args.repeats)]
-    med = {key: statistics.median(run[key] for run in runs) for key in runs[0]}
-    print(f"flagship at 1 kHz, real time, {args.seconds:g} s x {args.repeats} (medians of the runs):")
-    print(f"  lateness median {_us(med['median'])}, 99th percentile {_us(med['p99'])}, max {_us(med['max'])}")
-    print(f"  overruns (> 250 us) {med['overruns']:g} of {med['points']:g} points; fell behind {med['behind']:g} times")
-    print(f"  busy (one step computing) median {_us(med['busy'])} = {med['busy'] / 1e-3:.1%} of the 1 ms step")
-
-    runs = target_speed(args.seconds, args.repeats, args.target_speed)
-    print_target(runs, args.target_speed, args.seconds)
-    fast = [flagship for flagship, _, _ in runs]
-    python_busy = [python_loop_busy(args.seconds, args.target_speed) for _ in range(args.repeats)]
-    c_busy = statistics.median(run["busy"] for run in fast)
+    python_busy = [python_loop_busy(args.seconds, 50.0) for _ in range(args.repeats)]
+    c_busy = statistics.median(run["busy"] for run in runs["ours 50x"])
     print(f"  busy per point, medians: C loop {_us(c_busy)}, Python loop {_us(statistics.median(python_busy))} "
-          f"(paced step {_us(1e-3 / args.target_speed)}); Python / C {statistics.median(python_busy) / c_busy:.1f}x")
+          f"(paced step {_us(1e-3 / 50.0)}); Python / C {statistics.median(python_busy) / c_busy:.1f}x")
 
+    busy = statistics.median(run["busy"] for run in runs["ours 1x"])
     plain = deltafmi.simulate("delta_tracking")
     rtf = plain.summary.simulated / plain.summary.stepping_time
     speed = highest_speed()
     print(f"highest speed that keeps up: {speed:.1f}x real time")
-    print(f"  baseline (same run): step / busy = {1e-3 / med['busy']:.1f}x; unpaced real-time factor "
-          f"{rtf:.0f}x (C loop); ratio kept-up / busy-allowed = {speed / (1e-3 / med['busy']):.2f}")
+    print(f"  baseline (same run): step / busy = {1e-3 / busy:.1f}x; unpaced real-time factor "
+          f"{rtf:.0f}x (C loop); ratio kept-up / busy-allowed = {speed / (1e-3 / busy):.2f}")
 
     echo = python_echo(args.pings)
     for paced in (True, False):

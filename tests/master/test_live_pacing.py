@@ -166,3 +166,210 @@ def test_points_released_in_c_make_the_episodes_one_by_one_would():
             one_by_one._episode(t, late)
         assert at_once.report().behind == one_by_one.report().behind and warned[0] == warned[1]
         assert str(at_once.failure) == str(one_by_one.failure)
+
+
+def _status(field: str) -> int:
+    return int(re.search(rf"{field}:\s*([0-9a-f]+)", Path("/proc/self/status").read_text()).group(1), 16 if
+               field.startswith("Cap") else 10)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl and mlockall are Linux's")
+def test_the_pacer_gives_back_the_timer_slack_and_memory_lock_it_took():
+    """While paced, the thread's timer slack is 1 ns; the process's memory is locked only where
+    locking without limit is permitted (CAP_IPC_LOCK or RLIMIT_MEMLOCK unlimited), and both are
+    as they were after close(); a lock the program made itself stays untouched."""
+    import ctypes
+    import resource
+
+    from deltafmi.master.live.pacing import Pacer
+
+    libc = ctypes.CDLL("libc.so.6", use_errno=True)
+    slack = libc.prctl(30, 0, 0, 0, 0)  # PR_GET_TIMERSLACK
+    permitted = bool(_status("CapEff") >> 14 & 1) or \
+        resource.getrlimit(resource.RLIMIT_MEMLOCK)[0] == resource.RLIM_INFINITY
+    assert _status("VmLck") == 0
+    pacer = Pacer(1.0, 1e-3, 10)
+    pacer.start(0.0)
+    try:
+        assert libc.prctl(30, 0, 0, 0, 0) == 1
+        assert pacer.locked == permitted and (_status("VmLck") > 0) == permitted
+        for k in range(1, 11):
+            pacer.wait(k * 1e-3)
+    finally:
+        pacer.close()
+    assert libc.prctl(30, 0, 0, 0, 0) == slack and _status("VmLck") == 0
+    report = pacer.report()
+    assert report.locked == permitted and len(report.lateness) == 10
+    # one thread: its CPU time cannot exceed the wall time (the CPU clock is read first, a few
+    # microseconds before the wall clock starts); a wait on time ends polling (a late point polls not at all)
+    assert 0 < report.cpu <= report.wall + 1e-4 and 0 <= report.polled <= report.wall
+    if permitted:
+        assert libc.mlockall(1 | 4) == 0  # MCL_CURRENT | MCL_ONFAULT: the program's own lock
+        try:
+            other = Pacer(1.0, 1e-3, 1)
+            other.start(0.0)
+            other.close()
+            assert not other.locked and _status("VmLck") > 0
+        finally:
+            libc.munlockall()
+
+
+def test_a_paced_run_in_c_reports_its_cpu_and_polling():
+    """The C loop adds up its thread's CPU time, its wall time and its polling (the thread's CPU
+    time cannot exceed its wall time)."""
+    result = deltafmi.simulate("delta_tracking", stop=0.2, speed=50.0)
+    report = result.summary.live.realtime
+    assert 0 <= report.polled <= report.wall and 0 < report.cpu <= report.wall + 1e-6
+    # no point before its time: one call of the C loop (it hands back after 50 ms of wall time)
+    # waits at least the 4 ms of the 200 points
+    assert report.wall >= 0.2 / 50 - 1e-9
+    assert _status("VmLck") == 0  # given back
+
+
+@pytest.mark.parametrize("speed", [3.0, 1000.0])
+def test_a_paced_run_streams_its_rows_through_a_small_ring_unchanged(monkeypatch, speed):
+    """A paced run without live sources steps in one call of the C loop while this thread takes
+    its rows: through a ring of 64 rows for 300 points (at 1000x the loop, a whole step behind
+    at once, fills the ring and waits for room), every row of the unpaced run comes out, in
+    order, bit for bit, and every point's lateness is noted."""
+    from deltafmi.master.stepping import master
+
+    monkeypatch.setattr(master, "_C_ROWS_BYTES", 1)  # the smallest block: 64 rows
+    logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)
+    plain = deltafmi.simulate("delta_tracking", stop=0.3)
+    paced = deltafmi.simulate("delta_tracking", stop=0.3, speed=speed)
+    assert len(paced.time) == 301 and len(paced.summary.live.realtime.lateness) == 300
+    for name in plain.names:
+        assert np.array_equal(paced[name], plain[name]), name
+    if speed > 100:  # a 1 us paced step: shorter than one step's computing
+        assert (paced["realtime.behind"][1:] == 1).any() and paced.summary.live.realtime.behind
+
+
+def test_points_handed_back_one_at_a_time_make_the_episodes_of_their_lateness(tmp_path):
+    """With a live source the C loop hands back at every point, which is noted without arrays:
+    at 2000x (0.5 us per step: behind from the first point, caught up now and then) the run's
+    episodes are those of its recorded lateness noted one point at a time."""
+    import socket
+
+    from deltafmi.master.live.pacing import Pacer
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    scenario = tmp_path / "live.yaml"
+    scenario.write_text(f"""\
+experiment: {{stop: 0.3, step: 1.0e-3}}
+master: {{realtime: true}}
+live:
+  cmd:
+    udp: {{port: {port}}}
+    timeout: 100.0
+    signals: {{x: {{}}}}
+components:
+  osc: {{source: 'deltafmi.models:Oscillator', interface: CS}}
+connections:
+  - {{from: cmd.x, to: osc.F}}
+outputs: [osc.x]
+""")
+    logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)
+    result = deltafmi.simulate(scenario, speed=2000.0)
+    report = result.summary.live.realtime
+    assert len(report.lateness) == 300 and np.array_equal(report.lateness, result["realtime.lateness"][1:])
+    one_by_one = Pacer(2000.0, 1e-3, 300)
+    for t, late in zip(result.time[1:].tolist(), report.lateness.tolist()):
+        one_by_one._episode(t, late)
+    assert report.behind and report.behind == one_by_one.report().behind
+
+
+@pytest.mark.skipif(not Path(f"/proc/{__import__('os').getpid()}/timerslack_ns").exists(),
+                    reason="/proc/<tid>/timerslack_ns is Linux's (4.6 on)")
+def test_the_thread_that_paces_a_streamed_run_has_the_least_timer_slack(monkeypatch):
+    """A paced run without live sources steps on a thread of its own (NativeLoop.run_streamed),
+    made after the pacer set the slack: it paces with 1 ns, and this thread has its own back."""
+    import threading
+
+    from deltafmi.master.stepping import master
+
+    def slack(thread_id: int) -> int:
+        return int(Path(f"/proc/{thread_id}/timerslack_ns").read_text())
+
+    before, seen = slack(threading.get_native_id()), []
+    take = master.Master._take_rows
+
+    def looking(self, rows):
+        seen.extend(slack(t.native_id) for t in threading.enumerate() if t.name == "deltafmi-paced-steps")
+        take(self, rows)
+
+    monkeypatch.setattr(master.Master, "_take_rows", looking)
+    deltafmi.simulate("delta_tracking", stop=0.2, speed=1.0)
+    assert seen and set(seen) == {1}
+    assert slack(threading.get_native_id()) == before
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setscheduler"), reason="real-time priorities are Linux's")
+def test_a_run_paced_at_a_real_time_priority_steps_at_it_and_gives_it_back(tmp_path, monkeypatch):
+    """master.realtime.priority: the thread that paces (here the streamed run's own) is SCHED_FIFO
+    at that priority while it steps (where this process may raise it), the calling thread's
+    scheduling is as before afterwards; a priority out of 1-99 is refused."""
+    import os
+    import threading
+
+    from deltafmi.master.stepping import master
+
+    source = Path(deltafmi.__file__).resolve().parent.parent / "scenarios" / "delta_tracking.yaml"
+    text = source.read_text().replace("master:\n", "master:\n  realtime: {priority: 10}\n", 1)
+    assert "priority: 10" in text
+    scenario = tmp_path / "delta_tracking.yaml"
+    scenario.write_text(text)
+    before, seen = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority), []
+    take = master.Master._take_rows
+
+    def looking(self, rows):
+        seen.extend((os.sched_getscheduler(t.native_id), os.sched_getparam(t.native_id).sched_priority)
+                    for t in threading.enumerate() if t.name == "deltafmi-paced-steps")
+        take(self, rows)
+
+    monkeypatch.setattr(master.Master, "_take_rows", looking)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))
+        os.sched_setscheduler(0, *before[:1], os.sched_param(before[1]))
+        permitted = True
+    except PermissionError:
+        permitted = False
+    result = deltafmi.simulate(scenario, stop=0.2)
+    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
+    assert len(result.time) == 201
+    if permitted:
+        assert seen and set(seen) == {(os.SCHED_FIFO, 10)}
+    with pytest.raises(deltafmi.ScenarioError, match=r"bad.yaml:\d+: error: master.realtime: .*'priority': 100"):
+        bad = tmp_path / "bad.yaml"
+        bad.write_text(text.replace("priority: 10", "priority: 100"))
+        deltafmi.simulate(bad, stop=0.01)
+
+
+def test_two_stop_signals_stop_a_streamed_run_where_its_rows_end():
+    """SIGTERM twice, close together, while a streamed paced run goes: the run is interrupted
+    (the second signal where this thread waits for the stepping thread), the stepping thread has
+    stopped before the run is closed, and the time the run says it stopped at is its last row's."""
+    import os
+    import threading
+
+    def twice() -> None:  # once the run steps (its stop signals caught), not before
+        while not any(t.name == "deltafmi-paced-steps" for t in threading.enumerate()):
+            time.sleep(0.01)
+        time.sleep(0.3)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.001)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    killer = threading.Thread(target=twice)
+    killer.start()
+    try:
+        with pytest.raises(deltafmi.Interrupted) as caught:
+            deltafmi.simulate("delta_tracking", stop=20.0, speed=1.0)
+    finally:
+        killer.join()
+    assert not any(t.name == "deltafmi-paced-steps" for t in threading.enumerate())
+    result = caught.value.result
+    said = float(re.search(r"interrupted at t = ([\d.]+) s", str(caught.value)).group(1))
+    assert 0 < said == result.time[-1] and len(result.time) == round(said / 1e-3) + 1

@@ -3,8 +3,14 @@
 Communication point ``t`` is due at wall time ``wall0 + (t - t0) / speed``. :meth:`Pacer.wait`
 sleeps until shortly before (``spin`` seconds) and polls the clock for the rest: ``time.sleep``
 alone wakes 50-100 us late on Linux (the thread's timer slack, the scheduler), which at 1 kHz is
-a tenth of the step. Where the C library allows it the thread's timer slack is set to 1 us
-(``prctl(PR_SET_TIMERSLACK)``), so the sleep itself lands closer and the polling stays short.
+a tenth of the step. Where the C library allows it the thread's timer slack is set to 1 ns, the
+least there is (``prctl(PR_SET_TIMERSLACK)``), so the sleep itself lands closer and the polling
+stays short. Where locking memory cannot make a later allocation fail (the process may lock
+without limit: ``CAP_IPC_LOCK``, or ``RLIMIT_MEMLOCK`` unlimited) and nothing is locked already,
+the process's pages stay in memory for the run (``mlockall``, as they are faulted in; unlocked at
+:meth:`Pacer.close`): no page of the run is swapped or evicted and read back at a deadline. The
+lateness record is written through once when it is made, so that the run itself faults in none
+of its pages.
 
 A point released after its time is late by the difference; the schedule is absolute, so a late
 run catches up when it can (no point is skipped, no time is stretched). A point later than
@@ -14,8 +20,6 @@ warning at the start of each such episode (or an error with ``behind="error"``) 
 """
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import math
 import time
 from dataclasses import field
@@ -26,10 +30,10 @@ import numpy as np
 from deltafmi.errors import SimulationError
 
 from ..scenario.records import record
+from .thread_timing import lock_memory, real_time_priority, restore_scheduling, timer_slack, unlock_memory
 
 __all__ = ["Pacer", "RealtimeReport", "FellBehind"]
 
-_PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30
 #: longest single sleep: a stop signal is looked at between sleeps
 _SLEEP_CHUNK = 0.05
 
@@ -48,6 +52,13 @@ class RealtimeReport:
     lateness: np.ndarray
     #: (simulation time it began, end or None, largest lateness) of each time the run fell behind
     behind: List[Tuple[float, Optional[float], float]] = field(default_factory=list)
+    #: CPU time [s] of the thread that stepped and waited, over :attr:`wall` seconds of the paced stepping
+    cpu: float = 0.0
+    wall: float = 0.0
+    #: wall time [s] spent polling the clock before deadlines (CPU spent waiting)
+    polled: float = 0.0
+    #: whether the process's memory was locked for the run (mlockall)
+    locked: bool = False
 
     @property
     def overruns(self) -> int:
@@ -76,28 +87,18 @@ def _us(seconds: float) -> str:
     return f"{seconds * 1e6:.1f} us" if seconds < 1e-2 else f"{seconds * 1e3:.1f} ms"
 
 
-def _timer_slack(nanoseconds: Optional[int]) -> Optional[int]:
-    """Set this thread's timer slack (Linux; elsewhere nothing happens) and return the one it
-    had; None leaves it as it is."""
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        before = int(libc.prctl(_PR_GET_TIMERSLACK, 0, 0, 0, 0))
-        if nanoseconds is not None:
-            libc.prctl(_PR_SET_TIMERSLACK, nanoseconds, 0, 0, 0)
-        return before if before > 0 else None
-    except (OSError, AttributeError):
-        return None
-
-
 class Pacer:
     """Releases communication points at their wall-clock times and measures how late they were."""
 
     def __init__(self, speed: float, step: float, n_points: int, *, tolerance: Optional[float] = None,
-                 spin: float = 2e-4, behind: str = "warn", warn: Callable[[str], None] = lambda text: None,
-                 stopped: Callable[[], bool] = lambda: False, clock: Callable[[], float] = time.perf_counter) -> None:
+                 spin: float = 5e-5, behind: str = "warn", warn: Callable[[str], None] = lambda text: None,
+                 stopped: Callable[[], bool] = lambda: False, clock: Callable[[], float] = time.perf_counter,
+                 priority: Optional[int] = None) -> None:
         """``step``: the communication step [s of simulated time]; ``n_points``: how many points
         :meth:`wait` will be asked for (sizes the lateness record); ``stopped()``: True when a stop
-        signal came (the wait then returns early)."""
+        signal came (the wait then returns early); ``priority``: a real-time priority (SCHED_FIFO)
+        for the calling thread from :meth:`start` to :meth:`close`, and the threads it starts
+        meanwhile (they inherit it)."""
         if not (speed > 0 and math.isfinite(speed)):
             raise ValueError(f"real-time speed {speed!r} must be a positive number")
         self.speed = float(speed)
@@ -109,7 +110,7 @@ class Pacer:
         self.stopped = stopped
         self.clock = clock
         self.step = step
-        self._lateness = np.zeros(max(n_points, 1))
+        self._lateness = np.full(max(n_points, 1), 0.0)  # written through: its pages faulted in now
         self._count = 0
         self._behind: List[Tuple[float, Optional[float], float]] = []
         self._t0 = 0.0
@@ -121,17 +122,33 @@ class Pacer:
         self.failure: Optional[FellBehind] = None
         #: wall seconds from the release of the last point to the call of the next wait
         self.busy = 0.0
+        #: the stepping thread's CPU time and the wall time of the paced stepping so far [s]
+        self.cpu = self.wall = 0.0
+        #: wall time spent polling the clock before deadlines [s]
+        self.polled = 0.0
+        self._cpu0 = 0.0
+        #: whether :meth:`start` locked the process's memory (until :meth:`close`)
+        self.locked = False
+        self._unlock = False
+        self.priority = priority
+        #: the calling thread's scheduling (policy, priority) before :meth:`start` raised it
+        self._scheduling: Optional[Tuple[int, int]] = None
 
     def start(self, t0: float) -> None:
         """Simulation time ``t0`` is now (call :meth:`close` when the run ends)."""
-        self._slack = _timer_slack(1000)
+        self._slack = timer_slack(1)
+        self.locked = self._unlock = lock_memory()
+        if self.priority is not None:
+            self._scheduling = real_time_priority(self.priority, self.warn)
         self._t0 = t0
+        self._cpu0 = time.thread_time()
         self._wall0 = self.released = self.clock()
 
     def restart(self) -> None:
         """The clock starts again now, at the same simulation time, before any point was waited
         for (preparing the stepping does not count as the first point's lateness)."""
         if self._count == 0:
+            self._cpu0 = time.thread_time()
             self._wall0 = self.released = self.clock()
 
     def wait(self, t: float) -> float:
@@ -146,10 +163,13 @@ class Pacer:
                 return 0.0
             time.sleep(min(deadline - now - self.spin, _SLEEP_CHUNK))
             now = clock()
+        polling = now
         while now < deadline:
             now = clock()
+        self.polled += now - polling
         late = self.late = now - deadline
         self.released = now
+        self.cpu, self.wall = time.thread_time() - self._cpu0, now - self._wall0
         self._note(t, late)
         return late
 
@@ -197,10 +217,17 @@ class Pacer:
     def close(self) -> None:
         """Give the thread its timer slack back (a notebook's thread outlives the run)."""
         if self._slack is not None:
-            _timer_slack(self._slack)
+            timer_slack(self._slack)
             self._slack = None
+        if self._unlock:
+            unlock_memory()
+            self._unlock = False
+        if self._scheduling is not None:
+            restore_scheduling(self._scheduling)
+            self._scheduling = None
 
     def report(self) -> RealtimeReport:
         """The lateness of every point so far."""
         return RealtimeReport(self.speed, self.step, self.tolerance, self._lateness[:self._count].copy(),
-                              list(self._behind))
+                              list(self._behind), cpu=self.cpu, wall=self.wall, polled=self.polled,
+                              locked=self.locked)

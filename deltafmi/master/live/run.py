@@ -62,7 +62,8 @@ class LiveRun:
         for component in system.live:
             if component.name == REALTIME:
                 self.pacer = Pacer(realtime.speed, step, grid_steps(start, stop, step), tolerance=realtime.tolerance,
-                                   spin=realtime.spin, behind=realtime.behind, warn=warn, stopped=stopped)
+                                   spin=realtime.spin, behind=realtime.behind, warn=warn, stopped=stopped,
+                                   priority=realtime.priority)
                 self._clock_unit = LiveInputUnit(component, _Measurements(self.pacer), [0.0] * 3)
                 continue
             spec = specs[component.name]
@@ -137,7 +138,9 @@ class LiveRun:
         """Communication points the C loop steps between two samples of the sources (and looks
         at stop signals): a replay or a live source samples at every point (what arrived before
         a point is what the step from it takes, as the recording says and a replay repeats);
-        with no source but the clock, every :data:`C_LONGEST_WAIT` of wall time."""
+        with no source but the clock, as many as :data:`C_LONGEST_WAIT` of wall time holds (more
+        than one: the master runs the whole run in one call on a thread of its own and looks at
+        stop signals while it goes, ``NativeLoop.run_streamed``)."""
         if self._replayed or self.pacer is None or self.sources:
             return 1
         return max(1, int(C_LONGEST_WAIT / self.pacer.period))

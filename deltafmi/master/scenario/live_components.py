@@ -24,7 +24,7 @@ REALTIME = "realtime"
 #: its signals: (name, unit, description)
 REALTIME_SIGNALS = (("lateness", "s", "How late this communication point was released"),
                     ("busy", "s", "Wall time the step before this point took (computing, not waiting)"),
-                    ("behind", "", "1 when this point came a whole paced step late or more (the run fell behind)"))
+                    ("behind", "", "1 when this point came more than a whole paced step late (the run fell behind)"))
 
 
 def live_component(spec: LiveSpec) -> ResolvedComponent:

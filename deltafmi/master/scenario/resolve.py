@@ -667,7 +667,8 @@ def describe(system: System) -> Sequence[str]:
         lines.append(f"  {c.name}: {c.info.md.modelName[1:-1]}: {', '.join(c.info.variables)}")
     realtime = system.scenario.master.realtime
     if realtime.enabled:
-        lines.append(f"paced to the wall clock at {realtime.speed:g}x (falling behind: {realtime.behind})")
+        priority = "" if realtime.priority is None else f"; real-time priority {realtime.priority}"
+        lines.append(f"paced to the wall clock at {realtime.speed:g}x (falling behind: {realtime.behind}{priority})")
     for stream, ports in zip(system.scenario.streams, system.streamed):
         where = stream.target if stream.kind == "udp" else "a plot window"
         lines.append(f"  stream to {where}: {', '.join(p.ref for p in ports)}")

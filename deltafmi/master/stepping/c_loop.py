@@ -22,9 +22,10 @@ Python loop would.
 from __future__ import annotations
 
 import ctypes
+import threading
 from ctypes import POINTER, c_double, c_int, c_long, c_size_t, c_void_p
 from pathlib import Path
-from typing import Any, List, Optional, Sequence, Tuple
+from typing import Any, Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -82,7 +83,8 @@ class _Pace(ctypes.Structure):
     _fields_ = [("t0", c_double), ("wall0", c_double), ("speed", c_double), ("spin", c_double), ("period", c_double),
                 ("released", c_double), ("lateness", c_void_p), ("count", c_void_p), ("capacity", c_long),
                 ("late", c_void_p), ("busy", c_void_p), ("behind", c_void_p), ("stop_behind", c_int),
-                ("last_busy", c_double)]
+                ("last_busy", c_double), ("cpu", c_double), ("wall", c_double), ("polled", c_double),
+                ("stream", c_int), ("stop_request", c_int), ("published", c_long), ("taken", c_long)]
 
 
 class _Plan(ctypes.Structure):
@@ -210,6 +212,7 @@ class NativeLoop:
         self._pace: Optional[_Pace] = None
         self._paced: Optional[Any] = None
         self._count = np.zeros(1, dtype=np.int_)
+        self._count_before = 0
         #: set :meth:`timed` to have the C loop add up the wall time of each operation
         self.op_seconds: Optional[np.ndarray] = None
         #: set :meth:`keep_step_start` to have the C loop gather the recorded values at each step's start here
@@ -412,23 +415,105 @@ class NativeLoop:
                            count=self._count.ctypes.data, capacity=len(pacer._lateness),
                            late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error))
         self.plan.pace = ctypes.pointer(self._pace)
+        self.rows.fill(0.0)  # its pages faulted in now, not at the first paced points that write them
         self._run = _steps_function(release_gil=True)
         self.plan.gil_released = 1
 
     def _before_paced(self) -> None:
         pacer = self._paced
-        self._count[0] = pacer._count
+        self._count[0] = self._count_before = pacer._count
         self._pace.t0, self._pace.wall0, self._pace.released = pacer._t0, pacer._wall0, pacer.released
 
-    def _after_paced(self, times: np.ndarray) -> None:
-        """The pacer's record of the points the C run released at ``times``."""
-        pacer = self._paced
+    def _after_paced(self, k: int) -> None:
+        """The pacer's record of the points a C run from step ``k`` released so far (the end
+        points of steps k, k + 1, ...)."""
+        pacer, plan = self._paced, self.plan
         first, pacer._count = pacer._count, int(self._count[0])
         pacer.released, pacer._wall0 = self._pace.released, self._pace.wall0  # C anchors the clock at its first point
         lateness = pacer._lateness[first:pacer._count]
         if len(lateness):
             pacer.late, pacer.busy = float(lateness[-1]), self._pace.last_busy
-        pacer.note_released(times[:len(lateness)], lateness)
+        pacer.cpu, pacer.wall, pacer.polled = self._pace.cpu, self._pace.wall, self._pace.polled
+        point = k + 1 + first - self._count_before
+        if len(lateness) == 1:  # a run handing back at every point (live sources): no arrays made
+            late = pacer.late
+            if late > pacer.period or (pacer._behind and pacer._behind[-1][1] is None):
+                pacer._episode(plan.start + point * plan.h if point < plan.n_steps else plan.stop, late)
+            return
+        points = point + np.arange(len(lateness))
+        pacer.note_released(np.where(points < plan.n_steps, plan.start + points * plan.h, plan.stop), lateness)
+
+    def run_streamed(self, k: int, k_end: int, take: Callable[[np.ndarray], None], stopped: Callable[[], bool],
+                     poll: float = 0.05) -> Tuple[int, int, int]:
+        """A paced :meth:`run` on a thread of its own while this one takes its rows every ``poll``
+        seconds of wall time, or four times while the loop fills the rows block (``take(rows)``, a
+        copy), notes its points (the pacer's warnings) and looks at ``stopped()`` (True: the run
+        stops after the point being released), so that no hand-back to Python comes between two
+        paced points. Returns as :meth:`run` does, every row taken (0 rows)."""
+        poll = min(poll, max(1e-3, len(self.rows) * self._paced.period / 4))
+        pace = self._pace
+        self.enter()
+        self._before_paced()
+        pace.stream, pace.stop_request, pace.published, pace.taken = 1, 0, 0, 0
+        ring, taken = len(self.rows), 0
+        why: List[int] = []
+        # its own flag, not Thread.join/is_alive: a join interrupted by a stop signal leaves the
+        # thread marked as stopped while it still runs (CPython's _wait_for_tstate_lock)
+        finished = threading.Event()
+
+        def steps() -> None:
+            try:
+                why.append(self._run(ctypes.byref(self.plan), k, k_end, self.rows.ctypes.data, ring,
+                                     ctypes.byref(self._k_done), ctypes.byref(self._n_rows)))
+            finally:
+                finished.set()
+
+        def stop_and_wait() -> None:  # the loop stops after the point it releases: within a paced step
+            pace.stop_request = 1
+            while True:
+                try:
+                    if finished.wait(0.05):
+                        return
+                except KeyboardInterrupt:  # one more stop signal: the loop is stopping already
+                    pass
+
+        def take_published() -> int:
+            published = pace.published  # the rows up to it are written (C stores it after them)
+            if published > taken:
+                rows = self.rows[np.arange(taken, published) % ring]  # a copy: C writes the ring on
+                pace.taken = published
+                take(rows)
+            return published
+
+        threading.Thread(target=steps, name="deltafmi-paced-steps", daemon=True).start()
+        try:
+            while True:
+                running = not finished.is_set()
+                taken = take_published()
+                self._after_paced(k)
+                if not running:
+                    break
+                if stopped():
+                    pace.stop_request = 1
+                finished.wait(poll)
+        except KeyboardInterrupt:  # a second stop signal: the rows so far kept
+            stop_and_wait()
+            take_published()
+            self._after_paced(k)
+            raise
+        except BaseException:
+            stop_and_wait()
+            raise
+        finally:
+            pace.stream = 0
+            self.leave()
+        self._after_paced(k)
+        return why[0], self._k_done.value, 0
+
+    def steps_done(self) -> int:
+        """The first step the last run did not complete (after :meth:`run_streamed` was
+        interrupted: where its thread stopped)."""
+        return self._k_done.value
 
     def keep_step_start(self) -> None:
         """From now on gather the recorded row (time first) at the start of every step into
@@ -460,10 +545,7 @@ class NativeLoop:
         self.leave()
         done = self._k_done.value
         if self._paced is not None:
-            plan = self.plan
-            points = np.arange(k + 1, done + 1)  # the steps k ... done - 1 completed: their end points
-            times = np.where(points < plan.n_steps, plan.start + points * plan.h, plan.stop)
-            self._after_paced(times)
+            self._after_paced(k)
         return why, done, self._n_rows.value
 
     def enter(self) -> None:

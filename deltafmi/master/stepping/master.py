@@ -611,10 +611,15 @@ class Master:
                 # (it releases the GIL for that)
                 self.writer = BackgroundRows(self.writer)
                 native.release_gil()
-            if live is not None:
-                native.pace(live.pacer, live.clock_slots())
-                live.pacer.restart()
-                most = live.points_between_samples()
+        self._streamed = False
+        if native is not None and live is not None:
+            native.pace(live.pacer, live.clock_slots())
+            live.pacer.restart()
+            most = live.points_between_samples()
+            # nothing sampled between points: the whole run in one call, its rows taken meanwhile
+            # on this thread: a hand-back to Python between two points costs milliseconds
+            self._streamed = most > 1
+            most = n_steps if self._streamed else most
         self._fixed_actions, self._fixed_native = actions, native
         self._fixed_grid = _FixedGrid(start, stop, h, n_steps, last)
         # steps per call of the C loop: it grows while a call is short (see _C_STEPS)
@@ -633,7 +638,7 @@ class Master:
             if native is not None and native.ready():
                 begin, k_begin = _time.perf_counter(), k
                 end = min(n_steps, k + chunk)
-                if background and end == n_steps and n_steps - k > 4 * _C_STEPS:
+                if background and end == n_steps and n_steps - k > 4 * _C_STEPS and not self._streamed:
                     # the last rows become text after the stepping: a short last call leaves few
                     end = n_steps - max(_C_STEPS, (n_steps - k) // 8)
                 k = self._steps_in_c(native, fixed, k, end)
@@ -702,8 +707,24 @@ class Master:
     def _steps_in_c(self, native: NativeLoop, grid: "_FixedGrid", k: int, k_end: int) -> int:
         """Steps ``k`` ... ``k_end - 1`` in C as far as they go, the step where C stopped (an
         event, a failure, a termination) finished here; returns the next step to take."""
-        why, done, rows = native.run(k, k_end)
+        if self._streamed:
+            try:
+                why, done, rows = native.run_streamed(k, k_end, self._take_rows,
+                                                      lambda: self.stop_signals.received is not None)
+            except KeyboardInterrupt:  # the steps taken meanwhile are the run's (their rows recorded)
+                done = native.steps_done()
+                if done > k:
+                    self.steps = done
+                    self.time = self.step_end = grid.start + done * grid.h if done < grid.n_steps else grid.stop
+                raise
+        else:
+            why, done, rows = native.run(k, k_end)
         return self.after_c_run(native, grid, k, why, done, rows)
+
+    def _take_rows(self, rows: np.ndarray) -> None:
+        """Rows a streamed paced run of the C loop wrote (:meth:`NativeLoop.run_streamed`)."""
+        self._record_rows(rows)
+        self.progress.update(float(rows[-1, 0]))
 
     def after_c_run(self, native: NativeLoop, grid: "_FixedGrid", k: int, why: int, done: int, rows: int) -> int:
         """What follows a run of the C loop from step ``k`` that returned ``why``, ``done`` and

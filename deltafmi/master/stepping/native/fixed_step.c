@@ -168,6 +168,15 @@ typedef struct {
     double *late, *busy, *behind; /* NULL or the bus slots of the measurements (live.run._Measurements) */
     int stop_behind;         /* stop (BEHIND) after a point later than a whole paced step */
     double last_busy;        /* out: wall seconds from the release of the point before the last to its wait */
+    double cpu, wall;        /* out, added up: this thread's CPU time and the wall time in paced runs of the loop */
+    double polled;           /* out, added up: wall time spent polling the clock before deadlines */
+    /* rows streamed (stream 1): the run's rows go round `rows` as a ring that another thread of the
+     * caller empties while the run goes on (NativeLoop.run_streamed), so that no hand-back to
+     * Python comes between two paced points; it asks the run to stop with stop_request */
+    int stream;
+    int stop_request;        /* in: stop after the point being released (a stop signal) */
+    long published;          /* out: rows of this run written into the ring (release: the rows first) */
+    long taken;              /* in: rows of this run the other thread has taken out of the ring */
 } Pace;
 
 typedef struct {
@@ -238,10 +247,15 @@ static int pace_to(Pace *c, double t)
         sleep_until(now_ + (left < 0.05 ? left : 0.05));
         now_ = now();
     }
+    double polling = now_;
     while (now_ < deadline) now_ = now();
+    c->polled += now_ - polling;
     double late = now_ - deadline;
     c->released = now_;
-    if (*c->count < c->capacity) c->lateness[(*c->count)++] = late;
+    if (*c->count < c->capacity) { /* the lateness first: another thread may read up to the count */
+        c->lateness[*c->count] = late;
+        __atomic_store_n(c->count, *c->count + 1, __ATOMIC_RELEASE);
+    }
     if (c->late) *c->late = late;
     c->last_busy = busy;
     if (c->busy) *c->busy = busy;
@@ -985,13 +999,34 @@ static int block_steps(Plan *p, Pool *pool, long k, long k_end, double *rows, lo
     return RAN;
 }
 
+static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max_rows, long *k_done,
+                       long *n_rows);
+
+static double thread_cpu(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 /* Steps k_begin, k_begin + 1, ... before k_end, every recorded row into `rows` (room for
  * max_rows). Returns why it stopped (RAN: k_end reached; ROWS_FULL: no room for the next
  * step's row; else the stop of operation plan->op in step *k_done); *k_done is the first step
- * not completed and *n_rows the rows written. */
+ * not completed and *n_rows the rows written. A paced run adds its CPU and wall time up (Pace). */
 __attribute__((visibility("default")))
 int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max_rows, long *k_done,
                          long *n_rows)
+{
+    if (!p->pace) return fixed_steps(p, k_begin, k_end, rows, max_rows, k_done, n_rows);
+    double cpu = thread_cpu(), wall = now();
+    int why = fixed_steps(p, k_begin, k_end, rows, max_rows, k_done, n_rows);
+    p->pace->cpu += thread_cpu() - cpu;
+    p->pace->wall += now() - wall;
+    return why;
+}
+
+static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max_rows, long *k_done,
+                       long *n_rows)
 {
     long k = k_begin, written = 0;
     int why = RAN;
@@ -1005,10 +1040,11 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
         p->pace->wall0 = now();
         p->pace->released = p->pace->wall0;
     }
+    Pace *stream = p->pace && p->pace->stream ? p->pace : NULL;
     for (; k < k_end; k++) {
         long next = k + 1;
         int due = next % p->every == 0 || next == p->n_steps;
-        if (due && written == max_rows) {
+        if (due && written == max_rows && !stream) {
             why = ROWS_FULL;
             break;
         }
@@ -1045,7 +1081,18 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
         }
         double t_next = next < p->n_steps ? p->start + (double)next * p->h : p->stop;
         int late = p->pace ? pace_to(p->pace, t_next) : 0;
-        if (due) {
+        if (due && stream) { /* into the ring, once the other thread has made room */
+            while (written - __atomic_load_n(&stream->taken, __ATOMIC_ACQUIRE) >= max_rows) {
+                if (__atomic_load_n(&stream->stop_request, __ATOMIC_ACQUIRE)) {
+                    *k_done = k;
+                    *n_rows = written;
+                    return RAN; /* the run ends (asked to), the units past its last row */
+                }
+                sleep_until(now() + 1e-4);
+            }
+            record(p, t_next, rows + (written % max_rows) * (long)(p->width + 1));
+            __atomic_store_n(&stream->published, ++written, __ATOMIC_RELEASE);
+        } else if (due) {
             record(p, t_next, rows + written * (long)(p->width + 1));
             written++;
         }
@@ -1053,6 +1100,10 @@ int deltafmi_fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long m
             *k_done = next;
             *n_rows = written;
             return BEHIND;
+        }
+        if (stream && __atomic_load_n(&stream->stop_request, __ATOMIC_ACQUIRE)) {
+            k++;
+            break;
         }
     }
     *k_done = k;
