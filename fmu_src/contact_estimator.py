@@ -14,7 +14,7 @@ EstimatorRobotModel = robot_parameters("as the estimator models it")
 
 #: parameters handed to ContactEKFSettings under the same names
 _SETTINGS = ("sample_period", "y_std", "acceleration_std", "force_rate_std", "steady_force_rate_std", "friction",
-             "manoeuvre_samples", "manoeuvre_hold", "surface_drift_std",
+             "manoeuvre_samples", "manoeuvre_hold", "force_acceleration_std", "force_ramp_std", "surface_drift_std",
              "position_std0", "velocity_std0", "force_std0", "surface_height0", "surface_std0", "tool",
              "contact_stiffness", "contact_damping", "contact_model_std", "contact_threshold", "contact_samples",
              "pole", "substeps")
@@ -26,7 +26,8 @@ class ContactEstimator(EstimatorRobotModel, SampledComponent):
     Listens to the servo angles y and the servo torques u only. Its process model is the robot's
     stabilised DAE in the nine joint angles (exact Jacobians), augmented with the external wrist
     force (world frame, a random walk: for a tool on a plane it is n * lambda, the contact
-    multiplier) and the surface height (a constant, tied to the force by the contact law
+    multiplier; with force_acceleration_std its rate a random walk too, an integrated random walk
+    that follows a ramp without lag, restarted at force_ramp_std by a manoeuvre) and the surface height (a constant, tied to the force by the contact law
     lambda = k (-gap) + c (-gap') while the estimated normal force exceeds contact_threshold for
     contact_samples samples, and no manoeuvre is detected). The force walks at force_rate_std in
     every direction; with steady_force_rate_std it walks at that level along the surface normal
@@ -63,6 +64,11 @@ class ContactEstimator(EstimatorRobotModel, SampledComponent):
     manoeuvre_samples = Parameter(10, type=int, min=1,
                                   description="Samples of the servo innovations summed to detect a manoeuvre")
     manoeuvre_hold = Parameter(0, type=int, min=0, description="Samples a detected manoeuvre lasts at least")
+    force_acceleration_std = Parameter(0.0, unit="N/s2", min=0.0,
+                                       description="Random walk of the force's rate, its ramps (per sqrt(Hz); "
+                                                   "0: the force a random walk alone)")
+    force_ramp_std = Parameter(0.0, unit="N/s", min=0.0,
+                               description="The force's rate after a manoeuvre (about zero): a new contact's ramp")
     surface_drift_std = Parameter(0.0, unit="m", min=0.0, description="Random walk of the surface height (per sqrt(s))")
     position_std0 = Parameter(1e-3, unit="m", min=0.0, description="Initial wrist position uncertainty")
     velocity_std0 = Parameter(0.01, unit="m/s", min=0.0, description="Initial wrist velocity uncertainty (about rest)")
