@@ -80,6 +80,7 @@ class ContactEKFSettings:
     manoeuvre_hold: int = 0  #: samples a detected manoeuvre lasts at least (an impact's transient)
     force_acceleration_std: float = 0.0  #: white noise on the force's rate, its ramps (N/s^2/sqrt(Hz); 0: no rate)
     force_ramp_std: float = 0.0  #: the force's rate (N/s) after a manoeuvre, about zero: a new contact's ramp
+    law_manoeuvre: bool = False  #: the detector also sums the contact law's normalised innovations (in contact)
     surface_drift_std: float = 0.0  #: random walk of the surface height (m/sqrt(s))
     position_std0: float = 1e-3  #: initial wrist position (m), around forward kinematics of y0
     velocity_std0: float = 0.01  #: initial wrist velocity (m/s), around zd0
@@ -199,8 +200,11 @@ class ContactEKF:
         self._ramp = settings.force_ramp_std ** 2 * D  # the rate's covariance after a manoeuvre
         self._nis: list[float] = []  # the servo angles' last normalised innovations r^T S^-1 r
         self._nis_gate = chi_square_quantile(3 * int(settings.manoeuvre_samples), MANOEUVRE_Z)
+        self._law_nis: list[float] = []  # the contact law's last normalised innovations, in contact
+        self._law_gate = chi_square_quantile(int(settings.manoeuvre_samples), MANOEUVRE_Z)
         self.manoeuvre = False  #: a manoeuvre (an impact: the force changing fast) is detected
         self.manoeuvres = 0  #: manoeuvres detected so far
+        self.rate_restarts = 0  #: changes of the force's rate the contact law detected (law_manoeuvre)
         # the detector's window: (x, P, torques held, pressing count, y) before each of its samples
         self._window: deque | None = deque(maxlen=int(settings.manoeuvre_samples)) if steady else None
         self._refilter = False  # the detector fired at this sample: filter its window again
@@ -242,9 +246,12 @@ class ContactEKF:
         pressing = float(self._n @ self.x[_F]) > self.settings.contact_threshold
         self._pressing = self._pressing + 1 if pressing else 0
         self.in_contact = self._pressing >= self.settings.contact_samples and not self.manoeuvre
-        if self.in_contact:
-            H, value = self._contact_row()
-            self._correct_row(H, -value)
+        if not self.in_contact:
+            self._law_nis.clear()
+            return
+        H, value = self._contact_row()
+        self._law_manoeuvre(value * value / (H @ self.P @ H + self._Rc))
+        self._correct_row(H, -value)
 
     def predict(self, u: Sequence[float]) -> None:
         """Propagate the state over one sample period with u held, and the covariance with it."""
@@ -366,6 +373,23 @@ class ContactEKF:
             self._held = 0
         self._held += 1
         self.manoeuvre = manoeuvre or (self.manoeuvre and self._held < st.manoeuvre_hold)
+
+    def _law_manoeuvre(self, nis: float) -> None:
+        """With law_manoeuvre (and two levels), in contact: when the sum of the contact law's last
+        manoeuvre_samples normalised innovations exceeds its chi-square 0.999 quantile, the force has
+        left the course its rate predicts (a ramp ending, which the law sees long before the servo
+        angles do): the rate restarts about zero (force_ramp_std) from the state before the window,
+        whose samples are filtered again (:meth:`step`), the force walking at the steady level (a
+        change of rate, not an impact: the law stays applied)."""
+        st = self.settings
+        if not (st.law_manoeuvre and st.steady_force_rate_std) or self._refilter or self.manoeuvre:
+            return
+        self._law_nis.append(nis)
+        del self._law_nis[:-st.manoeuvre_samples]
+        if len(self._law_nis) == st.manoeuvre_samples and sum(self._law_nis) > self._law_gate:
+            self._law_nis.clear()
+            self._refilter = True
+            self.rate_restarts += 1
 
     def _correct_row(self, h: np.ndarray, residual: float) -> None:
         """The Joseph update with one scalar measurement of gradient h (the contact law), its
