@@ -17,8 +17,10 @@ inputs). Estimated, 25 states X = [q (9), v (9), f (3), s, r (3)]:
 - r: the force's rate, f' = r, a random walk (force_acceleration_std, along n and friction times
   it across): f is then an integrated random walk over the small steady walk, which follows a
   pressing force's ramp without lag and holds still when it stops. A manoeuvre restarts r about
-  zero (force_ramp_std: a new contact's ramp, unrelated to the last). With both levels 0 r stays
-  zero and the force is the random walk alone;
+  zero (force_ramp_std: a new contact's ramp, unrelated to the last); with law_manoeuvre the
+  contact law's innovations, summed as the servo angles' are, reopen r by force_ramp_std when the
+  force leaves the course r predicts (a ramp's end). With both levels 0 r stays zero and the force
+  is the random walk alone;
 - s: the height at which the surface crosses the robot axis, a constant.
 
 s is tied to the rest by the contact law as a pseudo-measurement, applied only while the filter
@@ -378,9 +380,9 @@ class ContactEKF:
         """With law_manoeuvre (and two levels), in contact: when the sum of the contact law's last
         manoeuvre_samples normalised innovations exceeds its chi-square 0.999 quantile, the force has
         left the course its rate predicts (a ramp ending, which the law sees long before the servo
-        angles do): the rate restarts about zero (force_ramp_std) from the state before the window,
-        whose samples are filtered again (:meth:`step`), the force walking at the steady level (a
-        change of rate, not an impact: the law stays applied)."""
+        angles do): the rate's covariance grows by force_ramp_std squared, its estimate kept (a change
+        of rate, not an impact: the force walks at the steady level and the law stays applied; no
+        window is filtered again, which would cost manoeuvre_samples cycles at each)."""
         st = self.settings
         if not (st.law_manoeuvre and st.steady_force_rate_std) or self._refilter or self.manoeuvre:
             return
@@ -388,7 +390,7 @@ class ContactEKF:
         del self._law_nis[:-st.manoeuvre_samples]
         if len(self._law_nis) == st.manoeuvre_samples and sum(self._law_nis) > self._law_gate:
             self._law_nis.clear()
-            self._refilter = True
+            self.P[_R, _R] += self._ramp
             self.rate_restarts += 1
 
     def _correct_row(self, h: np.ndarray, residual: float) -> None:
