@@ -27,12 +27,14 @@ a rate that is a random walk of that density gives it), and the rms of its ramps
 slopes).
 
 ContactEstimator (--estimator contact): first what its noise levels rest on (the plant's force
-rates by phase, the contact law's residual, the process model's one-step error on the plant's
-states); then scenarios/contact_estimation.yaml recorded once without the estimator, ContactEKF
+rates by phase, as a random walk and as an integrated random walk over 20, 50 and 100 ms, and its
+ramps; the contact law's residual; the process model's one-step error on the plant's states, the
+force held over the step or at its mid-period value as the filter with the force's rate holds it);
+then scenarios/contact_estimation.yaml recorded once without the estimator, ContactEKF
 replayed from the start to the end (the press at rest), noise y_std (1e-5 rad); the truth is the
 plane's force on the tool (normal_force + friction_force; the estimator knows the payload) and
-the plant's surface height; printed for the scenario's settings, the previous ones, and without
-the manoeuvre detector or its hold; ``--set`` takes ContactEKFSettings names. On data from the
+the plant's surface height; printed for the scenario's settings, its force as the last release's
+random walk (no rate), the previous settings, and without the manoeuvre detector or its hold; ``--set`` takes ContactEKFSettings names. On data from the
 filter's own model (a random-walk force, no model error) tests/physics/test_contact_estimator_consistency.py
 asserts the force's NEES, on the real plant tests/models/test_contact_estimator_scenario_consistency.py.
 
