@@ -22,7 +22,9 @@ in the same run, on the same inputs:
 - ContactEstimator (contact_estimation.yaml, the filter's cycle with its estimate and gap as the
   FMU takes them, in alternating passes): baseline the process model's kernels as Python (the
   path without a C compiler) against the compiled functions its FMU calls (C generated from the
-  same Python), with their estimates compared.
+  same Python), with their estimates compared; the previous settings and the last release's
+  levels (the force a random walk, no rate, no law detector: the same covariance algebra, the
+  rate states held at zero) as variants, compiled.
 
 Prints median and 99th percentile per sample (ms), their ratios to the baseline and to the 1 ms
 budget, and the share of samples over 1 ms, and the thread's CPU time per sample, which a loaded
@@ -367,8 +369,11 @@ def contact(folder: Path) -> None:
     rows = [int(np.searchsorted(t, k * 1e-3 + 1e-9)) - 1 for k in range(1, int(round(t[-1] / 1e-3)) + 1)]
     previous = replace(c._settings, acceleration_std=0.05, force_rate_std=100.0, steady_force_rate_std=0.0,
                        contact_model_std=5.0, contact_threshold=10.0, contact_samples=10, manoeuvre_hold=0)
+    walk = replace(c._settings, acceleration_std=1e-4, steady_force_rate_std=0.3, force_acceleration_std=0.0,
+                   force_ramp_std=0.0, law_manoeuvre=False, contact_model_std=1e-3)
     variants = {"baseline: Python kernels": (PYTHON_KERNELS, None), "now: compiled kernels": (c.native_functions, None),
-                "compiled, the previous settings (one walk level, no manoeuvre detector)": (c.native_functions, previous)}
+                "compiled, the previous settings (one walk level, no manoeuvre detector)": (c.native_functions, previous),
+                "compiled, the last release's levels (the force a random walk, no rate)": (c.native_functions, walk)}
     runs: Dict[str, list] = {label: [] for label in variants}
     for _ in range(2):
         for label, (kernels, settings) in variants.items():
@@ -384,10 +389,12 @@ def contact(folder: Path) -> None:
                {**rows_, **parts}, ratios=False)
         budget(f"ContactEstimator {label}", rows_)
         figure[label] = rows_["per sample, the thread's CPU time"]
-    base, now, before = figure.values()
+    base, now, before, last = figure.values()
     print(f"\nnow against baseline (CPU time): median {base['median'] / now['median']:.2f}x, "
           f"p99 {base['p99'] / now['p99']:.2f}x faster; against the previous settings (compiled): median "
-          f"{now['median'] / before['median']:.2f}x, p99 {now['p99'] / before['p99']:.2f}x the time")
+          f"{now['median'] / before['median']:.2f}x, p99 {now['p99'] / before['p99']:.2f}x the time; against the "
+          f"last release's levels (compiled): median {now['median'] / last['median']:.2f}x, "
+          f"p99 {now['p99'] / last['p99']:.2f}x the time")
     python, compiled = (runs[label][-1][3] for label in list(variants)[:2])
     worst = np.max(np.abs(compiled - python) / np.maximum(np.abs(python), 1e-300))
     print(f"estimates, compiled against Python: largest relative difference {worst:.1e} over {python.size} numbers")

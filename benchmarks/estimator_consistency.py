@@ -27,17 +27,19 @@ a rate that is a random walk of that density gives it), and the rms of its ramps
 slopes).
 
 ContactEstimator (--estimator contact): first what its noise levels rest on (the plant's force
-rates by phase, the contact law's residual, the process model's one-step error on the plant's
-states); then scenarios/contact_estimation.yaml recorded once without the estimator, ContactEKF
+rates by phase, as a random walk and as an integrated random walk over 20, 50 and 100 ms, and its
+ramps; the contact law's residual; the process model's one-step error on the plant's states, the
+force held over the step or at its mid-period value as the filter with the force's rate holds it);
+then scenarios/contact_estimation.yaml recorded once without the estimator, ContactEKF
 replayed from the start to the end (the press at rest), noise y_std (1e-5 rad); the truth is the
 plane's force on the tool (normal_force + friction_force; the estimator knows the payload) and
-the plant's surface height; printed for the scenario's settings, the previous ones, and without
-the manoeuvre detector or its hold; ``--set`` takes ContactEKFSettings names. On data from the
+the plant's surface height; printed for the scenario's settings, its force as the last release's
+random walk (no rate), the previous settings, and without the manoeuvre detector or its hold; ``--set`` takes ContactEKFSettings names. On data from the
 filter's own model (a random-walk force, no model error) tests/physics/test_contact_estimator_consistency.py
 asserts the force's NEES, on the real plant tests/models/test_contact_estimator_scenario_consistency.py.
 
 Usage: python benchmarks/estimator_consistency.py [--estimator peg|contact] [--runs 16] [--noise RAD]
-       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 8] (contact: 4 variants)
+       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 8] (contact: 5 variants)
 """
 from __future__ import annotations
 
@@ -152,6 +154,8 @@ def force_rates(d: dict) -> None:
 #: 0.05 m/s^2 per sqrt(Hz), the contact law's noise 5 N, applied above 10 N for 10 samples
 CONTACT_BEFORE = dict(acceleration_std=0.05, force_rate_std=100.0, steady_force_rate_std=0.0, contact_model_std=5.0,
                       contact_threshold=10.0, contact_samples=10, manoeuvre_hold=0)
+#: the last release's force: a random walk, 0.3 N/s per sqrt(Hz) between manoeuvres, without its rate
+CONTACT_WALK = dict(steady_force_rate_std=0.3, force_acceleration_std=0.0, force_ramp_std=0.0)
 SETTLE = 0.1  # s after the touch: the impact's transient, left out of "in contact"
 
 
@@ -172,12 +176,18 @@ def contact_statistics(d: dict, kernels) -> None:
               "press, ramp": (touch + SETTLE, rest - 0.6), "press, settling": (rest - 0.6, rest), "at rest": (rest, t[-1])}
     print(f"the plant (touch {touch:.3f} s, the force constant from {rest:.3f} s): normal force rate rms (N/s per "
           f"sqrt(Hz)), largest change per sample (N) and its 0.5-1 times over sqrt(T) (the walk it asks for); "
+          f"as an integrated random walk over 20, 50, 100 ms (N/s^2 per sqrt(Hz)); its ramp (N/s); "
           f"tangential force largest {np.abs(F[:, :2]).max():.3g} N")
     for name, (lo, hi) in phases.items():
         m = (t[1:] > lo) & (t[1:] <= hi)
         step = np.abs(np.diff(F[:, 2]))[m]
+        _, integrated, ramp = walk_levels(F[:, 2:], t, lo, hi)
         print(f"  {name:17} rate {np.sqrt(np.mean(step ** 2) / 1e-3):.3g}, largest change {step.max():.3g} N: walk "
-              f"{0.5 * step.max() / np.sqrt(1e-3):.3g}-{step.max() / np.sqrt(1e-3):.3g}")
+              f"{0.5 * step.max() / np.sqrt(1e-3):.3g}-{step.max() / np.sqrt(1e-3):.3g}; integrated "
+              f"{' / '.join(f'{v:.3g}' for v in integrated)}, ramp {ramp:.3g}")
+    ramps = (touch + SETTLE, rest + 0.1)  # the press's ramp and its end: the rate's change the walk must allow
+    _, integrated, _ = walk_levels(F[:, 2:], t, *ramps)
+    print(f"  the ramp's end ({ramps[0]:.2f}-{ramps[1]:.2f} s): integrated {' / '.join(f'{v:.3g}' for v in integrated)}")
     fn, gap, zd = d["fn"][on], d["gap"][on], d["zd"][on]
     st = c._settings
     law = fn - (st.contact_stiffness * -gap + st.contact_damping * -zd[:, 2])
@@ -186,19 +196,23 @@ def contact_statistics(d: dict, kernels) -> None:
         print(f"  contact law k (-gap) + c (-gap') against the plant's force in {name} ({m.sum()} samples): "
               f"largest residual {np.abs(law[m]).max():.3g} N")
     p, z, u = c.robot_params(), d["z"][on], d["u"][on]
-    errors = []
-    for k in range(len(t) - 1):  # one prediction from the plant's state with its torque and force held
+    # one prediction from the plant's state with its torque held and its force held at the start (the
+    # force a random walk) or at its mid-period value (the force with its rate: ContactEKF's f + r T/2)
+    errors = {"force held": [], "force at mid-period": []}
+    for k in range(len(t) - 1):
         q = inverse_kinematics(p, z[k])
         v = np.asarray(kernels.kinematics(p, q, np.zeros(9)))[57:].reshape(9, 3) @ zd[k]
-        out = np.asarray(kernels.predict(p, q, v, list(u[k]), list(F[k]), 1e-3, st.pole, st.substeps))
-        kin = np.asarray(kernels.kinematics(p, out[:9], out[9:18]))
-        Jv = kin[3:30].reshape(3, 3, 3).transpose(1, 0, 2).reshape(3, 9) / 3.0
-        errors.append(np.abs(Jv @ out[9:18] - zd[k + 1]).max())
-    errors = np.array(errors) / np.sqrt(1e-3)  # the velocity's error over sqrt(T): m/s^2 per sqrt(Hz)
-    for name, (lo, hi) in phases.items():
-        m = (t[:-1] >= lo) & (t[:-1] < hi)
-        print(f"  process model's one-step velocity error / sqrt(T), {name:17}: rms {np.sqrt(np.mean(errors[m] ** 2)):.2g}, "
-              f"largest {errors[m].max():.2g} m/s^2 per sqrt(Hz)")
+        for label, force in (("force held", F[k]), ("force at mid-period", 0.5 * (F[k] + F[k + 1]))):
+            out = np.asarray(kernels.predict(p, q, v, list(u[k]), list(force), 1e-3, st.pole, st.substeps))
+            kin = np.asarray(kernels.kinematics(p, out[:9], out[9:18]))
+            Jv = kin[3:30].reshape(3, 3, 3).transpose(1, 0, 2).reshape(3, 9) / 3.0
+            errors[label].append(np.abs(Jv @ out[9:18] - zd[k + 1]).max())
+    for label, values in errors.items():
+        values = np.array(values) / np.sqrt(1e-3)  # the velocity's error over sqrt(T): m/s^2 per sqrt(Hz)
+        for name, (lo, hi) in phases.items():
+            m = (t[:-1] >= lo) & (t[:-1] < hi)
+            print(f"  process model's one-step velocity error / sqrt(T), {label}, {name:17}: rms "
+                  f"{np.sqrt(np.mean(values[m] ** 2)):.2g}, largest {values[m].max():.2g} m/s^2 per sqrt(Hz)")
 
 
 def contact_replay(d: dict, c: "ContactEstimator", settings, kernels, noise: float, seed: int) -> tuple:
@@ -235,8 +249,10 @@ def contact_monte_carlo(args) -> None:
     changes = {k: int(v) if k in integers else float(v) for k, v in (s.split("=", 1) for s in args.set)}
     now = replace(c._settings, **changes)
     variants = [("now (contact_estimation.yaml's settings, with --set)", now),
+                ("the last release's force: a random walk (0.3 N/s per sqrt(Hz) between manoeuvres), no rate",
+                 replace(now, **CONTACT_WALK)),
                 ("before: the previous settings (a 100 N/s walk throughout, 0.05 m/s^2, the law 5 N from 10 N)",
-                 replace(now, **CONTACT_BEFORE)),
+                 replace(now, **{**CONTACT_WALK, **CONTACT_BEFORE})),
                 ("without the manoeuvre detector (the steady level throughout, in every direction)",
                  replace(now, force_rate_std=now.steady_force_rate_std, steady_force_rate_std=0.0)),
                 ("the detector without its hold (the fast walk only while the innovations say so)",

@@ -14,7 +14,7 @@ EstimatorRobotModel = robot_parameters("as the estimator models it")
 
 #: parameters handed to ContactEKFSettings under the same names
 _SETTINGS = ("sample_period", "y_std", "acceleration_std", "force_rate_std", "steady_force_rate_std", "friction",
-             "manoeuvre_samples", "manoeuvre_hold", "surface_drift_std",
+             "manoeuvre_samples", "manoeuvre_hold", "force_acceleration_std", "force_ramp_std", "law_manoeuvre", "surface_drift_std",
              "position_std0", "velocity_std0", "force_std0", "surface_height0", "surface_std0", "tool",
              "contact_stiffness", "contact_damping", "contact_model_std", "contact_threshold", "contact_samples",
              "pole", "substeps")
@@ -26,13 +26,15 @@ class ContactEstimator(EstimatorRobotModel, SampledComponent):
     Listens to the servo angles y and the servo torques u only. Its process model is the robot's
     stabilised DAE in the nine joint angles (exact Jacobians), augmented with the external wrist
     force (world frame, a random walk: for a tool on a plane it is n * lambda, the contact
-    multiplier) and the surface height (a constant, tied to the force by the contact law
+    multiplier; with force_acceleration_std its rate a random walk too, an integrated random walk
+    that follows a ramp without lag, restarted at force_ramp_std by a manoeuvre) and the surface height (a constant, tied to the force by the contact law
     lambda = k (-gap) + c (-gap') while the estimated normal force exceeds contact_threshold for
     contact_samples samples, and no manoeuvre is detected). The force walks at force_rate_std in
     every direction; with steady_force_rate_std it walks at that level along the surface normal
     (friction times it across) until the servo angles' normalised innovations over the last
-    manoeuvre_samples exceed their chi-square 0.999 quantile (a manoeuvre: an impact), and at
-    force_rate_std while they do. At each sample t_k it predicts from t_(k-1) with the torques read
+    manoeuvre_samples exceed their chi-square 0.999 quantile (a manoeuvre: an impact; with
+    law_manoeuvre also the contact law's, in contact: a ramp's end), and at force_rate_std while
+    they do. At each sample t_k it predicts from t_(k-1) with the torques read
     then (held over the period), then updates with y(t_k); the outputs are this estimate at t_k
     and its standard deviations. The filter starts at the forward kinematics of the first y, at
     rest. sensor_noise adds seeded Gaussian noise to y before the filter sees it (a noisier
@@ -63,6 +65,13 @@ class ContactEstimator(EstimatorRobotModel, SampledComponent):
     manoeuvre_samples = Parameter(10, type=int, min=1,
                                   description="Samples of the servo innovations summed to detect a manoeuvre")
     manoeuvre_hold = Parameter(0, type=int, min=0, description="Samples a detected manoeuvre lasts at least")
+    force_acceleration_std = Parameter(0.0, unit="N/s2", min=0.0,
+                                       description="Random walk of the force's rate, its ramps (per sqrt(Hz); "
+                                                   "0: the force a random walk alone)")
+    force_ramp_std = Parameter(0.0, unit="N/s", min=0.0,
+                               description="The force's rate after a manoeuvre (about zero): a new contact's ramp")
+    law_manoeuvre = Parameter(False, description="The manoeuvre detector also watches the contact law's innovations "
+                                                 "(a ramp's end, seen in contact)")
     surface_drift_std = Parameter(0.0, unit="m", min=0.0, description="Random walk of the surface height (per sqrt(s))")
     position_std0 = Parameter(1e-3, unit="m", min=0.0, description="Initial wrist position uncertainty")
     velocity_std0 = Parameter(0.01, unit="m/s", min=0.0, description="Initial wrist velocity uncertainty (about rest)")

@@ -13,12 +13,15 @@ the FMU's sensor_noise draws it), on the component's compiled kernels (the FMU's
 The test (Bar-Shalom, Li, Kirubarajan 2001, section 5.4.2; as
 tests/models/test_peg_estimator_consistency.py): for a consistent filter the mean NEES over R
 runs of a d-dimensional error lies in [chi2.ppf(0.025, d R), chi2.ppf(0.975, d R)] / R with
-probability 0.95. Asserted: the mean over the runs and over the instants in contact, from 0.1 s
-after the touch (the impact's transient over, which no random walk follows) to the end, inside
-that interval for the force (d = 3) and the table height (d = 1). The instants of one run are
-strongly correlated, so the average over them is about as variable as one instant's: the
-interval is one instant's. Printed: the NEES by phase (free flight, the impact, the press's ramp,
-the press at rest).
+probability 0.95. Asserted: the mean over the runs and over the instants inside that interval, in contact (from
+0.1 s after the touch: the impact's transient over, which no random walk follows, to the end) and
+over the press's ramp (with its end's swing), for the force (d = 3), its normal component (d = 1,
+in contact) and the table height (d = 1, at rest too). The instants of one run are strongly
+correlated, so the average over them is about as variable as one instant's: the interval is one
+instant's. Printed: the NEES by phase (free flight, the impact, the ramp, at rest). The force at
+rest is printed, not asserted: its normal component is still under-confident there (its error far
+below its deviation: docs/assembly.md's Limits), and the three components' mean is inside its
+interval with these seeds but not with others (benchmarks/estimator_consistency.py's).
 """
 from __future__ import annotations
 
@@ -74,7 +77,7 @@ def estimator():
 
 
 def monte_carlo_run(d: dict, c, kernels, seed: int) -> np.ndarray:
-    """(force NEES, surface NEES) at every sample of one seeded run, from the first sample on."""
+    """(force NEES, surface NEES, normal force NEES) at every sample of one seeded run, from the first sample on."""
     noise, ekf, rows = Readout(c.y_std, 0.0, seed), None, []
     for k, (y, u, force, surface) in enumerate(zip(d["y"], d["u"], d["force"], d["surface"])):
         read = [noise.read(float(v), k, j) for j, v in enumerate(y)]
@@ -82,7 +85,7 @@ def monte_carlo_run(d: dict, c, kernels, seed: int) -> np.ndarray:
             ekf = ContactEKF(c.robot_params(), c._settings, read, kernels=kernels)
         est = ekf.step(read, u)
         ef, es = est.force - force, est.surface_height - surface
-        rows.append((ef @ np.linalg.solve(ekf.P[18:21, 18:21], ef), es * es / ekf.P[21, 21]))
+        rows.append((ef @ np.linalg.solve(ekf.P[18:21, 18:21], ef), es * es / ekf.P[21, 21], ef[2] ** 2 / ekf.P[20, 20]))
     return np.array(rows)
 
 
@@ -98,15 +101,17 @@ def test_force_and_surface_nees_are_within_their_chi_square_intervals(tmp_path, 
     phases = {"free": t < touch, f"impact ({SETTLE} s)": (t >= touch) & (t < touch + SETTLE),
               "ramp": (t >= touch + SETTLE) & (t < rest), "at rest": t >= rest}
     contact = t >= touch + SETTLE
+    asserted = {"in contact": contact, "ramp": phases["ramp"]}
     print(f"\nContactEstimator NEES over {RUNS} runs of servo noise {c.y_std:g} rad (touch {touch:.3f} s, "
           f"at rest from {rest:.3f} s):")
-    means = {}
-    for name, column, dof in (("force", 0, 3), ("table height", 1, 1)):
+    means = []
+    for name, column, dof in (("force", 0, 3), ("table height", 1, 1), ("normal force", 2, 1)):
         mean = runs[:, :, column].mean(axis=0)
         lo, hi = chi2.ppf(0.025, dof * RUNS) / RUNS, chi2.ppf(0.975, dof * RUNS) / RUNS
-        means[name] = (mean[contact].mean(), lo, hi)
+        checked = {0: asserted, 1: {**asserted, "at rest": phases["at rest"]}, 2: {"in contact": contact}}[column]
+        means += [(f"{name} {p}", mean[m].mean(), lo, hi) for p, m in checked.items()]
         print(f"  {name:12}: in contact (from {SETTLE} s after the touch) {mean[contact].mean():.3g}; "
               + ", ".join(f"{p} {mean[m].mean():.3g}" for p, m in phases.items())
               + f"; 95 % interval [{lo:.2f}, {hi:.2f}]; per run {np.round(runs[:, contact, column].mean(axis=1), 2)}")
-    for name, (value, lo, hi) in means.items():
+    for name, value, lo, hi in means:
         assert lo <= value <= hi, f"{name} NEES {value:.3g} outside [{lo:.2f}, {hi:.2f}]"

@@ -119,6 +119,32 @@ def test_a_constant_wrist_force_is_recovered(noise):
         assert np.all(np.abs(err[late]) < 3.0 * std[late])
 
 
+def test_a_force_ramp_is_followed_without_lag_by_the_force_rate():
+    """A wrist force ramping at 10 N/s along z from 0.1 s (truth: the DOP853 closed loop), noise-free.
+    The force a random walk (force_rate_std 1 N/s per sqrt(Hz)) lags a ramp: its estimate trails
+    the truth by a constant error once the filter is in steady state. With the force's rate as a
+    random walk too (force_acceleration_std 100 N/s^2 per sqrt(Hz): an integrated random walk) the
+    ramp is in the model: the error over the last 0.1 s at least 1000 times smaller (measured
+    0.3 N against 2.7e-6 N) and the rate estimate the ramp's slope (to 1e-4; measured 3e-10
+    relative). With both rate levels 0 the rate states stay zero with zero covariance: the force
+    a random walk alone."""
+    slope = 10.0
+    q = d.inverse_kinematics(P, [0.0, 0.0, -1.0])
+    walk = ContactEKFSettings(contact_threshold=1e9, force_rate_std=1.0, acceleration_std=1e-3)
+    ramp = replace(walk, force_acceleration_std=100.0)
+    errors = {}
+    for name, settings in (("walk", walk), ("ramp", ramp)):
+        ekf = ContactEKF(P, settings, q[SERVOS])
+        rows = closed_loop(ekf, q, 400, lambda t, z, zd: np.array([0.0, 0.0, slope * max(t - 0.1, 0.0)]))
+        errors[name] = max(abs(est.force[2] - f[2]) for _, f, est in rows[-100:])
+        if name == "walk":
+            assert not ekf.x[22:].any() and not ekf.P[22:].any()
+        else:
+            np.testing.assert_allclose(ekf.x[22:25], [0.0, 0.0, slope], rtol=1e-4, atol=1e-6)
+    print(f"largest force error over the last 0.1 s: walk {errors['walk']:.2g} N, with the rate {errors['ramp']:.2g} N")
+    assert errors["ramp"] < errors["walk"] / 1000.0
+
+
 def spring_table(height: float, k: float = 2e5, c: float = 2e3, tool: float = -0.1):
     """The plant's CONTACT law, a table at height: fn = (k pen + c pen')_+, pen = height - tip."""
     def force(t, z, zd):

@@ -2,7 +2,7 @@
 
 The talk asks "Task State or Parameter Estimation: can we estimate?" the unmeasured multipliers
 lambda. Measured: the three servo angles y (noise y_std) and the commanded servo torques u (known
-inputs). Estimated, 22 states X = [q (9), v (9), f (3), s]:
+inputs). Estimated, 25 states X = [q (9), v (9), f (3), s, r (3)]:
 
 - q, v: the robot's joint angles and rates; process model the stabilised DAE of
   :mod:`deltafmi.physics.delta.dynamics` (see :mod:`.delta_process` for the coordinates and
@@ -14,6 +14,13 @@ inputs). Estimated, 22 states X = [q (9), v (9), f (3), s]:
   between manoeuvres, force_rate_std in one, an impact detected from the servo angles'
   innovations, its window filtered again) and follows the contact: along n, friction times
   that across it;
+- r: the force's rate, f' = r, a random walk (force_acceleration_std, along n and friction times
+  it across): f is then an integrated random walk over the small steady walk, which follows a
+  pressing force's ramp without lag and holds still when it stops. A manoeuvre restarts r about
+  zero (force_ramp_std: a new contact's ramp, unrelated to the last); with law_manoeuvre the
+  contact law's innovations, summed as the servo angles' are, reopen r by force_ramp_std when the
+  force leaves the course r predicts (a ramp's end). With both levels 0 r stays zero and the force
+  is the random walk alone;
 - s: the height at which the surface crosses the robot axis, a constant.
 
 s is tied to the rest by the contact law as a pseudo-measurement, applied only while the filter
@@ -54,9 +61,10 @@ from .kalman import MANOEUVRE_Z, chi_square_quantile, white_acceleration_noise
 
 __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
 
-#: slices of the estimator state X = [q, v, f, s]
-_Q, _V, _F, _S = slice(0, 9), slice(9, 18), slice(18, 21), 21
-_N = 22
+#: slices of the estimator state X = [q, v, f, s, r]
+_Q, _V, _F, _S, _R = slice(0, 9), slice(9, 18), slice(18, 21), 21, slice(22, 25)
+_N = 25
+_Z = np.r_[0:21, 22:25]  #: the states the prediction's transition involves: [q, v, f, r] (s is constant)
 _SERVOS = slice(0, 9, 3)  # q_11, q_21, q_31: the servo angles
 
 
@@ -72,6 +80,9 @@ class ContactEKFSettings:
     friction: float = 0.0  #: with two levels: the walk across the normal is friction times the one along it
     manoeuvre_samples: int = 10  #: samples of the angles' normalised innovations summed to detect a manoeuvre
     manoeuvre_hold: int = 0  #: samples a detected manoeuvre lasts at least (an impact's transient)
+    force_acceleration_std: float = 0.0  #: white noise on the force's rate, its ramps (N/s^2/sqrt(Hz); 0: no rate)
+    force_ramp_std: float = 0.0  #: the force's rate (N/s) after a manoeuvre, about zero: a new contact's ramp
+    law_manoeuvre: bool = False  #: the detector also sums the contact law's normalised innovations (in contact)
     surface_drift_std: float = 0.0  #: random walk of the surface height (m/sqrt(s))
     position_std0: float = 1e-3  #: initial wrist position (m), around forward kinematics of y0
     velocity_std0: float = 0.01  #: initial wrist velocity (m/s), around zd0
@@ -95,6 +106,7 @@ class ContactEKFSettings:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "force_rate_std", "steady_force_rate_std", "friction", "surface_drift_std",
+                     "force_acceleration_std", "force_ramp_std",
                      "contact_stiffness", "contact_damping", "pole"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
@@ -165,7 +177,6 @@ class ContactEKF:
         self._Ry = settings.y_std ** 2 * np.eye(3)
         self._ry = settings.y_std ** 2
         self._Rc = settings.contact_model_std ** 2
-        self._I21 = np.eye(21)
         self._G = np.zeros((6, 18))
         T = settings.sample_period
         self._W = settings.acceleration_std ** 2 * white_acceleration_noise(T)
@@ -181,17 +192,30 @@ class ContactEKF:
             cone = T * (nn + settings.friction ** 2 * (np.eye(3) - nn))
             self._Qd[_F, _F] = settings.force_rate_std ** 2 * cone
             self._Qd_steady[_F, _F] = steady ** 2 * cone
+        # the force's rate r: f' = r, r' white (an integrated random walk of f), in the walk's directions
+        D = cone / T if steady else np.eye(3)
+        a2 = settings.force_acceleration_std ** 2
+        for Qd in (self._Qd, self._Qd_steady):
+            Qd[_F, _F] += a2 * T ** 3 / 3.0 * D
+            Qd[_F, _R] = Qd[_R, _F] = a2 * T ** 2 / 2.0 * D
+            Qd[_R, _R] = a2 * T * D
+        self._ramp = settings.force_ramp_std ** 2 * D  # the rate's covariance after a manoeuvre
         self._nis: list[float] = []  # the servo angles' last normalised innovations r^T S^-1 r
         self._nis_gate = chi_square_quantile(3 * int(settings.manoeuvre_samples), MANOEUVRE_Z)
+        self._law_nis: list[float] = []  # the contact law's last normalised innovations, in contact
+        self._law_gate = chi_square_quantile(int(settings.manoeuvre_samples), MANOEUVRE_Z)
         self.manoeuvre = False  #: a manoeuvre (an impact: the force changing fast) is detected
         self.manoeuvres = 0  #: manoeuvres detected so far
+        self.rate_restarts = 0  #: changes of the force's rate the contact law detected (law_manoeuvre)
         # the detector's window: (x, P, torques held, pressing count, y) before each of its samples
         self._window: deque | None = deque(maxlen=int(settings.manoeuvre_samples)) if steady else None
         self._refilter = False  # the detector fired at this sample: filter its window again
         self._held = 0  # samples since the manoeuvre was detected
         self._kinematics_at: bytes = b""  # the (q, v) that _kinematics holds
-        self._A = np.zeros((21, 21))  # d[q'; v'; f']/d[q; v; f]: q' = v, f' = 0 but for noise
+        self._A = np.zeros((24, 24))  # d[q'; v'; f'; r']/d[q; v; f; r]: q' = v, f' = r, r' = 0 but for noise
         self._A[_Q, _V] = np.eye(9)
+        self._A[_F, 21:24] = np.eye(3)
+        self._I24 = np.eye(24)
 
     # --------------------------------------------------------------------------------- cycle
     def step(self, y: Sequence[float], u: Sequence[float]) -> ContactEstimate:
@@ -203,6 +227,10 @@ class ContactEKF:
         if self._refilter:  # a manoeuvre began within the window: filter it again at the fast walk
             x, P, _, self._pressing, _ = self._window[0]
             self.x, self.P = x.copy(), P.copy()
+            # the force's rate starts over: a new contact's ramp, unrelated to the last one's
+            self.x[_R] = 0.0
+            self.P[_R, :] = self.P[:, _R] = 0.0
+            self.P[_R, _R] = self._ramp
             for _, _, self._u, _, earlier in self._window:
                 self._advance(earlier)
             self._refilter = False
@@ -220,9 +248,12 @@ class ContactEKF:
         pressing = float(self._n @ self.x[_F]) > self.settings.contact_threshold
         self._pressing = self._pressing + 1 if pressing else 0
         self.in_contact = self._pressing >= self.settings.contact_samples and not self.manoeuvre
-        if self.in_contact:
-            H, value = self._contact_row()
-            self._correct_row(H, -value)
+        if not self.in_contact:
+            self._law_nis.clear()
+            return
+        H, value = self._contact_row()
+        self._law_manoeuvre(value * value / (H @ self.P @ H + self._Rc))
+        self._correct_row(H, -value)
 
     def predict(self, u: Sequence[float]) -> None:
         """Propagate the state over one sample period with u held, and the covariance with it."""
@@ -230,14 +261,16 @@ class ContactEKF:
         T = st.sample_period
         Tz = self._kinematics()[3]
         # (q, v) after the period and the exact Jacobian at its start (jacobian_values' floats)
-        out = self._kernels.predict(p, self.x[_Q], self.x[_V], u, self.x[_F], T, st.pole, st.substeps)
+        # the force held at its mid-period value (f + r T/2: the same as f for a plain walk)
+        force = self.x[_F] + 0.5 * T * self.x[_R]
+        out = self._kernels.predict(p, self.x[_Q], self.x[_V], u, force, T, st.pole, st.substeps)
         columns = out[18 + _SENSITIVITIES:].reshape(24, 15)  # per known [q, v, u, f]: [da (9); dlam (6)]
         A = self._A
         A[_V, :18] = columns[:18, :9].T
         A[_V, _F] = columns[21:24, :9].T
-        # Phi = exp(A T) of [q, v, f] (s is constant: its row of the 22 is e_s) to (A T)^4 / 24, as
-        # kalman.transition_matrix, by Horner's rule: I + AT (I + AT/2 (I + AT/3 (I + AT/4)))
-        AT, I = A * T, self._I21
+        # Phi = exp(A T) of z = [q, v, f, r] (s is constant: its row of the 25 is e_s) to (A T)^4 / 24,
+        # as kalman.transition_matrix, by Horner's rule: I + AT (I + AT/2 (I + AT/3 (I + AT/4)))
+        AT, I = A * T, self._I24
         Phi = I + AT / 4.0
         for k in (3.0, 2.0):
             Phi = I + AT @ Phi / k
@@ -245,10 +278,11 @@ class ContactEKF:
         TT = Tz @ Tz.T  # the process noise of [q, v]: kron(W, TT) = [[W00 TT, W01 TT], [W10 TT, W11 TT]]
         noise = (self._W[:, None, :, None] * TT[None, :, None, :]).reshape(18, 18)
         self.x[:18] = out[:18]
+        self.x[_F] += T * self.x[_R]
         P = np.empty((_N, _N))
-        PhiP = Phi @ self.P[:21]
-        P[:21, :21] = PhiP[:, :21] @ Phi.T
-        P[:21, _S] = P[_S, :21] = PhiP[:, _S]
+        PhiP = Phi @ self.P[_Z]
+        P[np.ix_(_Z, _Z)] = PhiP[:, _Z] @ Phi.T
+        P[_Z, _S] = P[_S, _Z] = PhiP[:, _S]
         P[_S, _S] = self.P[_S, _S]
         P += self._Qd if self.manoeuvre else self._Qd_steady
         P[:18, :18] += noise
@@ -341,6 +375,23 @@ class ContactEKF:
             self._held = 0
         self._held += 1
         self.manoeuvre = manoeuvre or (self.manoeuvre and self._held < st.manoeuvre_hold)
+
+    def _law_manoeuvre(self, nis: float) -> None:
+        """With law_manoeuvre (and two levels), in contact: when the sum of the contact law's last
+        manoeuvre_samples normalised innovations exceeds its chi-square 0.999 quantile, the force has
+        left the course its rate predicts (a ramp ending, which the law sees long before the servo
+        angles do): the rate's covariance grows by force_ramp_std squared, its estimate kept (a change
+        of rate, not an impact: the force walks at the steady level and the law stays applied; no
+        window is filtered again, which would cost manoeuvre_samples cycles at each)."""
+        st = self.settings
+        if not (st.law_manoeuvre and st.steady_force_rate_std) or self._refilter or self.manoeuvre:
+            return
+        self._law_nis.append(nis)
+        del self._law_nis[:-st.manoeuvre_samples]
+        if len(self._law_nis) == st.manoeuvre_samples and sum(self._law_nis) > self._law_gate:
+            self._law_nis.clear()
+            self.P[_R, _R] += self._ramp
+            self.rate_restarts += 1
 
     def _correct_row(self, h: np.ndarray, residual: float) -> None:
         """The Joseph update with one scalar measurement of gradient h (the contact law), its
