@@ -227,7 +227,7 @@ def test_a_paced_run_in_c_reports_its_cpu_and_polling():
 
 
 @pytest.mark.parametrize("speed", [3.0, 1000.0])
-def test_a_paced_run_streams_its_rows_through_a_small_ring_unchanged(monkeypatch, speed):
+def test_a_paced_run_streams_its_rows_through_a_small_ring_unchanged(monkeypatch, caplog, speed):
     """A paced run without live sources steps in one call of the C loop while this thread takes
     its rows: through a ring of 64 rows for 300 points (at 1000x the loop, a whole step behind
     at once, fills the ring and waits for room), every row of the unpaced run comes out, in
@@ -235,7 +235,7 @@ def test_a_paced_run_streams_its_rows_through_a_small_ring_unchanged(monkeypatch
     from deltafmi.master.stepping import master
 
     monkeypatch.setattr(master, "_C_ROWS_BYTES", 1)  # the smallest block: 64 rows
-    logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)
+    caplog.set_level(logging.ERROR, logger="deltafmi.scenario")  # back as it was after the test
     plain = deltafmi.simulate("delta_tracking", stop=0.3)
     paced = deltafmi.simulate("delta_tracking", stop=0.3, speed=speed)
     assert len(paced.time) == 301 and len(paced.summary.live.realtime.lateness) == 300
@@ -245,7 +245,7 @@ def test_a_paced_run_streams_its_rows_through_a_small_ring_unchanged(monkeypatch
         assert (paced["realtime.behind"][1:] == 1).any() and paced.summary.live.realtime.behind
 
 
-def test_points_handed_back_one_at_a_time_make_the_episodes_of_their_lateness(tmp_path):
+def test_points_handed_back_one_at_a_time_make_the_episodes_of_their_lateness(tmp_path, caplog):
     """With a live source the C loop hands back at every point, which is noted without arrays:
     at 2000x (0.5 us per step: behind from the first point, caught up now and then) the run's
     episodes are those of its recorded lateness noted one point at a time."""
@@ -271,7 +271,7 @@ connections:
   - {{from: cmd.x, to: osc.F}}
 outputs: [osc.x]
 """)
-    logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)
+    caplog.set_level(logging.ERROR, logger="deltafmi.scenario")  # back as it was after the test
     result = deltafmi.simulate(scenario, speed=2000.0)
     report = result.summary.live.realtime
     assert len(report.lateness) == 300 and np.array_equal(report.lateness, result["realtime.lateness"][1:])
