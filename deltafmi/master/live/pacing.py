@@ -91,7 +91,7 @@ class Pacer:
     """Releases communication points at their wall-clock times and measures how late they were."""
 
     def __init__(self, speed: float, step: float, n_points: int, *, tolerance: Optional[float] = None,
-                 spin: float = 5e-5, behind: str = "warn", warn: Callable[[str], None] = lambda text: None,
+                 spin: float = 2e-4, behind: str = "warn", warn: Callable[[str], None] = lambda text: None,
                  stopped: Callable[[], bool] = lambda: False, clock: Callable[[], float] = time.perf_counter,
                  priority: Optional[int] = None) -> None:
         """``step``: the communication step [s of simulated time]; ``n_points``: how many points

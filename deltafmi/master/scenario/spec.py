@@ -98,7 +98,7 @@ class Realtime:
     #: lateness [s] counted as an overrun; None: a quarter of the paced step
     tolerance: Optional[float] = None
     #: wall seconds before a deadline spent polling the clock rather than sleeping
-    spin: float = 5e-5
+    spin: float = 2e-4
     #: a real-time priority (SCHED_FIFO, 1-99) for the thread that paces; None: its usual one
     priority: Optional[int] = None
 
