@@ -122,7 +122,7 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     reject_samples = Parameter(50, type=int, min=1,
                                description="Contact-law updates refused in a row (the estimate locked in a wrong "
                                "hole) after which the hole's uncertainty goes back to its prior")
-    contact_iterations = Parameter(10, type=int, min=1,
+    contact_iterations = Parameter(5, type=int, min=1,
                                    description="Largest number of Gauss-Newton iterations of a contact-law update "
                                    "(1: the extended filter's single linearisation)")
     jacobian_columns = Parameter(3, type=int, min=1, max=18,
