@@ -108,10 +108,16 @@ class _Wiring:
         return tuple(id(unit.fmu) for unit in units)
 
     @staticmethod
-    def _eligible(units: Sequence[Unit]) -> bool:
+    def _own_classes(units: Sequence[Unit]) -> bool:
+        """Whether every unit is of the master's own FMI 2.0 classes (whose wiring is kept)."""
         from .me_integrator import ModelExchangeUnit
-        return all(type(unit) in (CoSimulationUnit, ModelExchangeUnit) and not unit.inputs and not unit.outputs
-                   and not getattr(unit, "_discrete_inputs", None) for unit in units)
+        return all(type(unit) in (CoSimulationUnit, ModelExchangeUnit) for unit in units)
+
+    @classmethod
+    def _eligible(cls, units: Sequence[Unit]) -> bool:
+        """Whether ``units``, not wired yet, may take a kept wiring."""
+        return cls._own_classes(units) and not any(
+            unit.inputs or unit.outputs or getattr(unit, "_discrete_inputs", None) for unit in units)
 
     @classmethod
     def find(cls, wirings: Optional[Dict[Any, Any]], system: System, units: Sequence[Unit]) -> Optional["_Wiring"]:
@@ -133,8 +139,7 @@ class _Wiring:
         if wirings is None or not all(type(io) in (_Inputs, _Outputs) for unit in units
                                       for io in unit.inputs + unit.outputs + getattr(unit, "_discrete_inputs", [])):
             return
-        from .me_integrator import ModelExchangeUnit
-        if not all(type(unit) in (CoSimulationUnit, ModelExchangeUnit) for unit in units):
+        if not cls._own_classes(units):
             return
         key = cls._key(units)
         wirings.pop(key, None)
