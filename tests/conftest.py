@@ -111,12 +111,22 @@ SLOW = {"test_reliability_signals_tools", "test_wheel_install", "test_python_hos
 def pytest_configure(config) -> None:
     """Where ``PYTHONDONTWRITEBYTECODE`` is set, no process writes the bytecode of what it imports, and
     each of the suite's processes (workers, CLIs, Dask workers, FMU hosts) would compile the package
-    from source again: the controller compiles it once, before the workers start."""
+    from source again: the controller compiles it once, before the workers start. So too the
+    environment's packages when they were installed without bytecode (``PIP_NO_COMPILE=0``, as
+    .ci/run installs them: pip compiles one file after the other, and the packages' own test
+    folders, a third of it, which no process here imports), on every core."""
     if sys.dont_write_bytecode and not hasattr(config, "workerinput"):
         import compileall
+        import importlib.util
+        import sysconfig
 
-        for folder in (ROOT / "deltafmi", FMU_SRC):
-            compileall.compile_dir(folder, quiet=1)
+        folders = [ROOT / "deltafmi", FMU_SRC]
+        packages = Path(sysconfig.get_paths()["purelib"])
+        if not Path(importlib.util.cache_from_source(pytest.__file__)).exists():
+            folders.append(packages)
+        skip = re.compile(re.escape(str(packages)) + r"/.+/tests?/")
+        for folder in folders:
+            compileall.compile_dir(folder, quiet=1, workers=os.cpu_count() or 1, rx=skip)
 
 
 @pytest.hookimpl(hookwrapper=True)
