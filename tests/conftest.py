@@ -120,13 +120,12 @@ def pytest_configure(config) -> None:
         import importlib.util
         import sysconfig
 
-        folders = [ROOT / "deltafmi", FMU_SRC]
+        for folder in (ROOT / "deltafmi", FMU_SRC):
+            compileall.compile_dir(folder, quiet=1)
         packages = Path(sysconfig.get_paths()["purelib"])
         if not Path(importlib.util.cache_from_source(pytest.__file__)).exists():
-            folders.append(packages)
-        skip = re.compile(re.escape(str(packages)) + r"/.+/tests?/")
-        for folder in folders:
-            compileall.compile_dir(folder, quiet=1, workers=os.cpu_count() or 1, rx=skip)
+            compileall.compile_dir(packages, quiet=1, workers=os.cpu_count() or 1,
+                                   rx=re.compile(re.escape(str(packages)) + r"/.+/tests?/"))
 
 
 @pytest.hookimpl(hookwrapper=True)
