@@ -743,7 +743,7 @@ class Master:
                 native.rows[rows - 1, 1:] = self.sampler.sample()
         if rows:
             if isinstance(self.writer, BackgroundRows):  # the block goes to the text thread as it is
-                block, native.rows = native.rows[:rows], np.empty_like(native.rows)
+                block, native.rows = native.rows[:rows], self.writer.spare(native.rows)
                 self._record_rows(block, hand_over=True)
             else:
                 self._record_rows(native.rows[:rows])
