@@ -58,11 +58,13 @@ __all__ = ["Master", "NativeLoop"]
 
 #: steps of the first call of the C loop; while a call is shorter than _C_SECONDS the next takes as
 #: many steps as would fill _C_SECONDS at its pace, between twice and _C_GROWTH times as many, up to
-#: _C_MAX_STEPS (stop signals and progress are looked at in between)
+#: _C_MAX_STEPS (stop signals and progress are looked at in between: a stop signal is answered
+#: within _C_SECONDS). Each hand-back to Python costs far more than a step of compiled units (the
+#: Python, and the C loop's data out of the caches when it goes on), so the calls grow fast.
 _C_STEPS = 64
-_C_GROWTH = 8
+_C_GROWTH = 64
 _C_MAX_STEPS = 4096
-_C_SECONDS = 0.005
+_C_SECONDS = 0.02
 _C_ROWS_BYTES = 8 << 20
 
 
