@@ -37,7 +37,7 @@ class BackgroundRows:
         self._thread: Optional[threading.Thread] = None
         rows_thread = getattr(writer, "rows_thread", None)
         self._c = rows_thread() if rows_thread is not None else None  # the writer's thread of C
-        self._queued: List[Tuple[int, np.ndarray]] = []  # (its number, the block) until the C thread took it
+        self._queued: List[Tuple[int, np.ndarray]] = []  # (its last block's number, an array) until taken
         self._spare: List[np.ndarray] = []  # blocks written: memory to fill again
 
     def write_rows(self, rows: np.ndarray) -> None:
@@ -52,9 +52,12 @@ class BackgroundRows:
             write_rows_to(self._writer, rows)
             return
         if self._c is not None:
+            if self._c.failed():  # the thread met an error: raised now, as the Python thread's is
+                self._wait_c()
+                self._raise()
             rows = np.ascontiguousarray(rows, dtype=np.float64)
             if rows.ndim == 2 and rows.shape[1] == self._c.width:
-                self._queued.append((self._c.put(rows), rows))
+                self.handed(rows, self._c.put(rows))
                 return
             self.drain()  # rows the writer takes otherwise (or refuses): after those handed over
             write_rows_to(self._writer, rows)
@@ -77,15 +80,36 @@ class BackgroundRows:
             finally:
                 self._blocks.task_done()
 
+    def c_sink(self) -> Optional[Tuple[int, int]]:
+        """Where C code queues blocks to this writer's thread of C itself, as
+        :meth:`.NativeLoop.hand_rows_to` takes it (None: the writer has none, or has failed); the
+        rows queued or handed over before are written first. Call it again before every run of
+        C code that hands rows over (rows written in between, e.g. an event's, go first)."""
+        if self._c is None or self._error is not None:
+            return None
+        if self._c.writer_holds_rows():
+            self._wait_c()
+            if self._error is not None:
+                return None
+        return self._c.direct()
+
+    def handed(self, rows: np.ndarray, queued: int) -> None:
+        """``rows`` were queued to the thread of C (the ``queued``-th block or before): their memory
+        is left alone until it has taken them."""
+        base = rows.base if rows.base is not None else rows
+        if self._queued and self._queued[-1][1] is base:
+            self._queued[-1] = (queued, base)
+        else:
+            self._queued.append((queued, base))
+
     def spare(self, like: np.ndarray) -> np.ndarray:
         """An array shaped as ``like`` to fill with rows: a block handed over before, which the
         C thread has written (its pages in memory already), else a new one."""
         if self._c is not None and self._queued:
             taken = self._c.taken()
             while self._queued and self._queued[0][0] <= taken:
-                block = self._queued.pop(0)[1]
-                base = block.base if block.base is not None else block
-                if base.shape == like.shape and base.flags.c_contiguous:
+                base = self._queued.pop(0)[1]
+                if base.shape == like.shape and base.flags.c_contiguous and base.dtype == like.dtype:
                     self._spare.append(base)
         for i, block in enumerate(self._spare):
             if block.shape == like.shape:

@@ -63,6 +63,8 @@ def _csv_library() -> Any:
         library.deltafmi_csv_sink_taken.restype = ctypes.c_long
         library.deltafmi_csv_sink_wait.argtypes = [ctypes.c_void_p, ctypes.POINTER(_SinkReport)]
         library.deltafmi_csv_sink_wait.restype = None
+        library.deltafmi_csv_sink_failed.argtypes = [ctypes.c_void_p]
+        library.deltafmi_csv_sink_failed.restype = ctypes.c_int
         library.deltafmi_csv_sink_close.argtypes = [ctypes.c_void_p]
         library.deltafmi_csv_sink_close.restype = None
         _format_rows, _library = function, library
@@ -328,6 +330,20 @@ class CsvRowsThread:
     def taken(self) -> int:
         """The blocks the thread is done with (their memory is the caller's again)."""
         return self._library.deltafmi_csv_sink_taken(self._handle)
+
+    def failed(self) -> bool:
+        """Whether a write failed (:meth:`wait` tells the writer)."""
+        return bool(self._library.deltafmi_csv_sink_failed(self._handle))
+
+    def direct(self) -> Tuple[int, int]:
+        """(the address of ``deltafmi_csv_sink_put``, the sink) for C to queue blocks itself, the
+        rows the writer queued written first (call with nothing in flight: after :meth:`wait`)."""
+        self._writer.flush()
+        return ctypes.cast(self._library.deltafmi_csv_sink_put, ctypes.c_void_p).value, self._handle
+
+    def writer_holds_rows(self) -> bool:
+        """Whether the writer holds rows of its own not yet written."""
+        return self._writer._n > 0
 
     def wait(self) -> Optional[ResultWriteError]:
         """Wait until every block queued is written; the writer's error if a write failed."""

@@ -66,6 +66,8 @@ _C_GROWTH = 64
 _C_MAX_STEPS = 4096
 _C_SECONDS = 0.02
 _C_ROWS_BYTES = 8 << 20
+#: rows the C loop hands to the CSV writer's thread of C at once, while it steps on
+_C_SINK_ROWS = 256
 
 
 class _FixedGrid(NamedTuple):
@@ -636,7 +638,7 @@ class Master:
         """Take the fixed steps of :meth:`begin_fixed_steps` until :attr:`steps` is ``k_end``."""
         actions, native, fixed = self._fixed_actions, self._fixed_native, self._fixed_grid
         n_steps = min(k_end, fixed.n_steps)
-        stop_signals, progress = self.stop_signals, self.progress
+        stop_signals, progress, live = self.stop_signals, self.progress, self.live
         k, chunk, most = self.steps, self._fixed_chunk, self._fixed_most
         background = isinstance(self.writer, BackgroundRows)
         while k < n_steps:
@@ -645,7 +647,10 @@ class Master:
             if native is not None and native.ready():
                 begin, k_begin = _time.perf_counter(), k
                 end = min(n_steps, k + chunk)
-                if background and end == n_steps and n_steps - k > 4 * _C_STEPS and not self._streamed:
+                sink = self.writer.c_sink() if background and not self._streamed and live is None else None
+                native.hand_rows_to(sink, _C_SINK_ROWS, self.check_finite)
+                if background and sink is None and end == n_steps and n_steps - k > 4 * _C_STEPS \
+                        and not self._streamed:
                     # the last rows become text after the stepping: a short last call leaves few
                     end = n_steps - max(_C_STEPS, (n_steps - k) // 8)
                 k = self._steps_in_c(native, fixed, k, end)
@@ -746,7 +751,12 @@ class Master:
         if rows:
             if isinstance(self.writer, BackgroundRows):  # the block goes to the text thread as it is
                 block, native.rows = native.rows[:rows], self.writer.spare(native.rows)
-                self._record_rows(block, hand_over=True)
+                handed, queued = native.handed()  # the first rows went to its thread of C already
+                if handed:
+                    self.writer.handed(block[:handed], queued)
+                    self.recorded_until = float(block[handed - 1, 0])
+                if handed < rows:
+                    self._record_rows(block[handed:], hand_over=True)
             else:
                 self._record_rows(native.rows[:rows])
         if done > k:

@@ -525,6 +525,16 @@ long deltafmi_csv_sink_taken(Sink *s)
     return taken;
 }
 
+/* The errno of the write that failed (0: none so far). */
+__attribute__((visibility("default")))
+int deltafmi_csv_sink_failed(Sink *s)
+{
+    pthread_mutex_lock(&s->lock);
+    int error = s->report.error;
+    pthread_mutex_unlock(&s->lock);
+    return error;
+}
+
 /* Wait until every block queued is done; what the sink has written so far into *report. */
 __attribute__((visibility("default")))
 void deltafmi_csv_sink_wait(Sink *s, SinkReport *report)
