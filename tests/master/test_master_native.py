@@ -265,3 +265,15 @@ def test_a_nan_stops_the_rows_handed_over_by_the_c_loop(tmp_path, c_runs, handed
     assert messages[0] == messages[1] and messages[0].startswith("n.y is NaN at t = 0.051 s"), messages
     assert texts[0] == texts[1] and len(texts[0].splitlines()) == 1 + 52  # header, t = 0 ... 0.051 s
     assert texts[0].splitlines()[-1].endswith(",nan")
+
+
+def test_runs_returning_by_their_deadline_same_bits(tmp_path, c_runs, handed_rows, monkeypatch):
+    # an unpaced call of the C loop returns once its time is up (here at once: after every 4
+    # steps), the master calling it again from there: the file is the Python loop's, byte for byte
+    from deltafmi.master.stepping import master as master_module
+
+    monkeypatch.setattr(master_module, "_C_SECONDS", -1.0)
+    monkeypatch.setattr(master_module, "_C_SINK_ROWS", 3)  # 3 of a call's 4 rows from C, the 4th from Python
+    (c, c_text), (python, python_text) = both(tmp_path, flagship(), stop=0.2)
+    assert c.steps == python.steps == 200 and len(c_runs) == 50 and set(c_runs) == {native_loop.RAN}
+    assert c_text == python_text and sum(handed_rows) == 150

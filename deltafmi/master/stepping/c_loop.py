@@ -96,7 +96,7 @@ class _Plan(ctypes.Structure):
                 ("pool", c_void_p), ("gil_released", c_int), ("step_start", c_void_p),
                 ("components", POINTER(_Component)), ("n_components", c_size_t), ("fixed_parts", POINTER(_RowPart)),
                 ("n_fixed_parts", c_size_t), ("sink_put", c_void_p), ("sink", c_void_p), ("sink_every", c_long),
-                ("sink_finite", c_int), ("sink_rows", c_long), ("sink_queued", c_long)]
+                ("sink_finite", c_int), ("sink_rows", c_long), ("sink_queued", c_long), ("deadline", c_double)]
 
 
 _kernels: dict = {}
@@ -525,6 +525,11 @@ class NativeLoop:
         plan = self.plan
         plan.sink_put, plan.sink = sink if sink is not None else (None, None)
         plan.sink_every, plan.sink_finite = every, int(finite)
+
+    def return_by(self, deadline: float) -> None:
+        """Unpaced runs from now on return (RAN) after the first step that ends past ``deadline``
+        (``time.monotonic()`` seconds; 0: none), looked at every few steps."""
+        self.plan.deadline = deadline
 
     def handed(self) -> Tuple[int, int]:
         """The rows of the last run handed to the sink (its first rows), and the sink's count of

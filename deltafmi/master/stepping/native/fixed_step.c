@@ -222,7 +222,11 @@ typedef struct {
     int sink_finite;
     long sink_rows;          /* out: the rows of the last run handed over, from its first on */
     long sink_queued;        /* out: sink_put's count after the last of them (0: none) */
+    double deadline;         /* > 0, unpaced: the run returns (RAN) after the first step that ends past
+                              * this CLOCK_MONOTONIC time (looked at every DEADLINE_STEPS steps) */
 } Plan;
+
+enum { DEADLINE_STEPS = 4 };
 
 /* The rows [p->sink_rows, written) to the sink; 0 when they were not (a value not finite). */
 static int hand_over(Plan *p, const double *rows, long written)
@@ -1021,6 +1025,7 @@ static int block_steps(Plan *p, Pool *pool, long k, long k_end, double *rows, lo
             return pool->stop_why;
         }
         k = kb;
+        if (p->deadline > 0.0 && now() > p->deadline) break;
     }
     *k_done = k;
     *n_rows = written;
@@ -1071,6 +1076,7 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
     }
     Pace *stream = p->pace && p->pace->stream ? p->pace : NULL;
     int sink = p->sink_put && p->sink && !p->pace && p->sink_every > 0;
+    int deadline = p->deadline > 0.0 && !p->pace;
     for (; k < k_end; k++) {
         long next = k + 1;
         int due = next % p->every == 0 || next == p->n_steps;
@@ -1133,6 +1139,10 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
             return BEHIND;
         }
         if (stream && __atomic_load_n(&stream->stop_request, __ATOMIC_ACQUIRE)) {
+            k++;
+            break;
+        }
+        if (deadline && (next - k_begin) % DEADLINE_STEPS == 0 && now() > p->deadline) {
             k++;
             break;
         }
