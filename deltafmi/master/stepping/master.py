@@ -57,19 +57,21 @@ from .units import TYPES, CoSimulationUnit, FmuFailure, Terminated, Unit, new_bu
 __all__ = ["Master", "NativeLoop"]
 
 #: an unpaced call of the C loop goes on until the run's end or its rows block is full, and
-#: returns after _C_SECONDS (stop signals and progress are looked at in between: a stop signal
-#: is answered within _C_SECONDS of wall time, or one step of a slower model). Each hand-back to
-#: Python costs far more than a step of compiled units (the Python, and the C loop's data out of
+#: returns after _C_RETURN_SECONDS of wall time (stop signals and progress are looked at in
+#: between: a stop signal is answered within that, or one step of a slower model). Each hand-back
+#: to Python costs far more than a step of compiled units (the Python, and the C loop's data out of
 #: the caches when it goes on). Paced: steps of the first call; while a call is shorter than
-#: _C_SECONDS the next takes as many steps as would fill _C_SECONDS at its pace, between twice
-#: and _C_GROWTH times as many, up to _C_MAX_STEPS.
+#: _C_SECONDS the next takes as many steps as would fill _C_SECONDS at its pace, between twice and
+#: _C_GROWTH times as many, up to _C_MAX_STEPS.
+_C_RETURN_SECONDS = 0.05
 _C_STEPS = 64
 _C_GROWTH = 8
 _C_MAX_STEPS = 4096
-_C_SECONDS = 0.02
+_C_SECONDS = 0.005
 _C_ROWS_BYTES = 8 << 20
-#: rows the C loop hands to the CSV writer's thread of C at once, while it steps on
-_C_SINK_ROWS = 256
+#: rows the C loop hands to the CSV writer's thread of C at once, while it steps on (each hand-over
+#: wakes the thread: a system call on the stepping thread, dearer on a virtual machine)
+_C_SINK_ROWS = 1024
 
 
 class _FixedGrid(NamedTuple):
@@ -652,7 +654,7 @@ class Master:
                 # between hand-backs to Python saves one)
                 unpaced = live is None and not self._streamed
                 end = n_steps if unpaced else min(n_steps, k + chunk)
-                native.return_by(_time.monotonic() + _C_SECONDS if unpaced else 0.0)
+                native.return_by(_time.monotonic() + _C_RETURN_SECONDS if unpaced else 0.0)
                 sink = self.writer.c_sink() if background and unpaced else None
                 native.hand_rows_to(sink, _C_SINK_ROWS, self.check_finite)
                 if background and sink is None and end == n_steps and n_steps - k > 4 * _C_STEPS \
