@@ -84,13 +84,12 @@ class BackgroundRows:
         """Where C code queues blocks to this writer's thread of C itself, as
         :meth:`.NativeLoop.hand_rows_to` takes it (None: the writer has none, or has failed); the
         rows queued or handed over before are written first. Call it again before every run of
-        C code that hands rows over (rows written in between, e.g. an event's, go first)."""
+        C code that hands rows over (rows written in between, e.g. an event's, are queued first)."""
         if self._c is None or self._error is not None:
             return None
-        if self._c.writer_holds_rows():
-            self._wait_c()
-            if self._error is not None:
-                return None
+        held = self._c.take_writer_rows()
+        if held is not None:  # the rows written one by one (the first, an event's) go first
+            self.handed(held, self._c.put(held))
         return self._c.direct()
 
     def handed(self, rows: np.ndarray, queued: int) -> None:

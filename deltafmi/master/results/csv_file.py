@@ -336,14 +336,18 @@ class CsvRowsThread:
         return bool(self._library.deltafmi_csv_sink_failed(self._handle))
 
     def direct(self) -> Tuple[int, int]:
-        """(the address of ``deltafmi_csv_sink_put``, the sink) for C to queue blocks itself, the
-        rows the writer queued written first (call with nothing in flight: after :meth:`wait`)."""
-        self._writer.flush()
+        """(the address of ``deltafmi_csv_sink_put``, the sink) for C to queue blocks itself
+        (after the rows the writer holds: :meth:`take_writer_rows` first)."""
         return ctypes.cast(self._library.deltafmi_csv_sink_put, ctypes.c_void_p).value, self._handle
 
-    def writer_holds_rows(self) -> bool:
-        """Whether the writer holds rows of its own not yet written."""
-        return self._writer._n > 0
+    def take_writer_rows(self) -> Optional[np.ndarray]:
+        """The rows the writer holds of its own, not yet written (a copy, its queue emptied), to
+        queue here: None when it holds none."""
+        writer = self._writer
+        if not writer._n:
+            return None
+        rows, writer._n = writer._block[:writer._n].copy(), 0
+        return rows
 
     def wait(self) -> Optional[ResultWriteError]:
         """Wait until every block queued is written; the writer's error if a write failed."""
