@@ -29,9 +29,10 @@ microseconds):
   by the master's C loop) and the Python path's (``DeltaController.step``, in-process, replaying
   the same samples as the C controller);
 - the flagship's CPU time, of the whole process and of the stepping thread alone (the rows become
-  text on a thread of their own: where that thread has a core to itself, the wall time comes to the
-  stepping thread's CPU time and the last block's text), the stepping thread's split into its time
-  in the master's C loop and the Python around it, the process's CPU and wall time with the text
+  text on a thread of C the C loop hands them to while it steps: where that thread has a core to
+  itself, the wall time comes to the stepping thread's CPU time and the last rows' text), the
+  stepping thread's split into its time in the master's C loop (handing the rows over included)
+  and the Python around it, the process's CPU and wall time with the text
   made on the stepping thread instead (no text thread), the difference (the rows' text), and the
   CPU time of the CSV writer alone writing the same rows (formatted and written, on one thread:
   the text's own cost, without a second thread beside the stepping);

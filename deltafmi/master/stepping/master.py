@@ -661,7 +661,11 @@ class Master:
                         and not self._streamed:
                     # the last rows become text after the stepping: a short last call leaves few
                     end = n_steps - max(_C_STEPS, (n_steps - k) // 8)
-                k = self._steps_in_c(native, fixed, k, end)
+                try:
+                    k = self._steps_in_c(native, fixed, k, end)
+                finally:  # the plan is left as others run it (a system FMU's C step)
+                    native.return_by(0.0)
+                    native.hand_rows_to(None)
                 spent = _time.perf_counter() - begin
                 if chunk < most and spent < _C_SECONDS:
                     fill = int((k - k_begin) * _C_SECONDS / max(spent, 1e-9))
