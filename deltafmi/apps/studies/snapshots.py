@@ -31,7 +31,7 @@ from array import array
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
-__all__ = ["InitTranscript", "RECORDED_CALLS", "RECORDED_CALLS3", "Replay", "call_key"]
+__all__ = ["InitTranscript", "Prefixes", "RECORDED_CALLS", "RECORDED_CALLS3", "Replay", "call_key"]
 
 #: the fmpy methods recorded between instantiation and the end of initialization (FMI 2.0, FMI 3.0)
 RECORDED_CALLS = ("setupExperiment", "setReal", "setInteger", "setBoolean", "setString", "getReal", "getInteger",
@@ -98,38 +98,50 @@ class InitTranscript:
         return result
 
 
-class Replay:
-    """A case being checked against kept :class:`InitTranscript` s, one call at a time: the
-    transcripts that every call so far matched (all of them made the same calls up to here, and
-    so got the same values back: an initialization is a function of its calls)."""
+class Prefixes:
+    """The kept transcripts of one instance as a tree of their calls: every call's key leads from
+    the calls before it to the calls after it, so a case is matched against all the transcripts at
+    once with one dictionary look-up per call, however many are kept. Transcripts that share their
+    first calls share those nodes (they got the same values back there: an initialization is a
+    function of its calls), with the calls of the most recently used one."""
 
     def __init__(self, transcripts: Sequence[InitTranscript]) -> None:
-        self.candidates = list(transcripts)
-        self.at = 0
+        #: call key -> (the recorded call, the node after it); a node after the last call of a
+        #: transcript holds it under the key None
+        self.root: Dict[Any, Any] = {}
+        for transcript in transcripts:
+            node = self.root
+            for call in transcript.calls:
+                known = node.get(call.key)
+                if known is None:
+                    known = node[call.key] = (call, {})
+                node = known[1]
+            node[None] = transcript
+
+
+class Replay:
+    """A case being checked against kept :class:`InitTranscript` s (their :class:`Prefixes`),
+    one call at a time."""
+
+    def __init__(self, prefixes: Prefixes) -> None:
+        self._node = prefixes.root
+        self._matched: List[Call] = []
 
     @property
     def transcript(self) -> InitTranscript:
-        """The first transcript still matching (the most recently used, when several do)."""
-        return self.candidates[0]
+        """The transcript whose calls all matched (after its last call)."""
+        return self._node[None]
 
     def next(self, name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Optional[Call]:
-        """The recorded call if this one is the same as the next recorded of some candidate (then
-        advance, keeping the candidates that match), else None."""
-        at, key = self.at, None
-        matching = []
-        for transcript in self.candidates:
-            calls = transcript.calls
-            if at < len(calls) and calls[at].name == name:
-                if key is None:
-                    key = call_key(name, args, kwargs)
-                if calls[at].key == key:
-                    matching.append(transcript)
-        if not matching:
+        """The recorded call if this one is the same as the next recorded of some kept transcript
+        (then advance), else None."""
+        found = self._node.get(call_key(name, args, kwargs))
+        if found is None:
             return None
-        self.candidates = matching
-        self.at += 1
-        return matching[0].calls[at]
+        call, self._node = found
+        self._matched.append(call)
+        return call
 
     def matched(self) -> List[Call]:
         """The calls that matched so far."""
-        return self.transcript.calls[: self.at]
+        return self._matched
