@@ -26,8 +26,8 @@ whose Clocks' intervals the master asks for in initialization is always initiali
 """
 from __future__ import annotations
 
-import struct
-from array import array
+import io
+import pickle
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
@@ -42,30 +42,21 @@ RECORDED_CALLS3 = tuple(f"{way}{kind}" for way in ("set", "get")
     "enterInitializationMode", "exitInitializationMode")
 
 
-_FLOAT, _INT, _NUMBERS = {float}, {int}, {float, int}
-
-
-def _exact(value: Any) -> Any:
-    """``value`` in a form whose ``==`` is bit equality for floats (sign of zero, NaN payload)."""
-    if isinstance(value, float):
-        return ("f", struct.pack("<d", value))
-    if isinstance(value, (list, tuple)):
-        kinds = set(map(type, value))
-        if kinds == _FLOAT:  # start values: their bytes in one go
-            return ("d", array("d", value).tobytes())
-        if kinds == _INT:  # value references
-            return ("i", tuple(value))
-        if kinds == _NUMBERS:  # floats' bytes in one go; the ints as they are (1 is not 1.0)
-            return ("n", array("d", value).tobytes(), tuple(v if type(v) is int else None for v in value))
-        return tuple(_exact(v) for v in value)
-    if isinstance(value, (bool, int, str, bytes)) or value is None:
-        return (type(value).__name__, value)
-    return ("other", repr(value))
-
-
 def call_key(name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Any:
-    """What two calls must share to be the same call."""
-    return name, _exact(args), tuple(sorted((k, _exact(v)) for k, v in kwargs.items()))
+    """What two calls must share to be the same call: their pickle, which keeps a float's bits (the
+    sign of zero, a NaN's payload) and every value's type (1 is not 1.0 nor True), made without
+    pickle's memo (a string given twice is pickled twice, as two equal strings are); a tuple
+    argument counts as the list of its items. A call whose arguments cannot be pickled matches no
+    other."""
+    args = tuple(list(a) if type(a) is tuple else a for a in args)
+    out = io.BytesIO()
+    pickler = pickle.Pickler(out, 5)  # protocol fixed: the same call, the same bytes
+    pickler.fast = True  # no memo
+    try:
+        pickler.dump((name, args, sorted(kwargs.items())))
+    except Exception:  # noqa: BLE001 - an argument pickle cannot take: never the same call
+        return object()
+    return out.getvalue()
 
 
 @dataclass
