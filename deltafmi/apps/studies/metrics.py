@@ -66,10 +66,13 @@ class Metric:
         if kept is not None and key in kept:
             return kept[key]
         if len(self.left) < 8:  # column by column (see reduce): the same numbers, far fewer loops
-            elements = [np.asarray(columns[name], dtype=float) for name in self.left]
+            # the recorded columns themselves where ``columns`` can give them (no copies: element
+            # by element arithmetic gives the same numbers on them)
+            column = getattr(columns, "view", None) or (lambda name: np.asarray(columns[name], dtype=float))
+            elements = [column(name) for name in self.left]
             if self.right:
-                elements = [e - np.asarray(columns[name], dtype=float) for e, name in zip(elements, self.right)]
-            signal = _reduced(elements, self.spec.norm)
+                elements = [e - column(name) for e, name in zip(elements, self.right)]
+            signal = np.ascontiguousarray(_reduced(elements, self.spec.norm))
         else:
             signal = reduce(self._values(columns), self.spec.norm)
         if kept is not None:

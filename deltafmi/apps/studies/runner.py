@@ -99,6 +99,12 @@ class RecordedColumns(Mapping[str, np.ndarray]):
             return gathered if len(names) < 8 else np.ascontiguousarray(gathered)
         return np.column_stack([self[name] for name in names])
 
+    def view(self, name: str) -> np.ndarray:
+        """A numeric column as a view of the rows (no copy; strided: do not write to it)."""
+        if self._rows.dtype == object:
+            return self[name]
+        return self._rows[:, self._index[name]]
+
     def window(self, start: Optional[float], stop: Optional[float]) -> Optional[slice]:
         """The rows with ``start <= time <= stop`` (None: no bound) as a slice, when the times
         never decrease (a master's rows: an event's two rows share their time), else None."""
