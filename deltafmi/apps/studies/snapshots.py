@@ -44,19 +44,25 @@ RECORDED_CALLS3 = tuple(f"{way}{kind}" for way in ("set", "get")
 
 def call_key(name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Any:
     """What two calls must share to be the same call: their pickle, which keeps a float's bits (the
-    sign of zero, a NaN's payload) and every value's type (1 is not 1.0 nor True), made without
-    pickle's memo (a string given twice is pickled twice, as two equal strings are); a tuple
-    argument counts as the list of its items. A call whose arguments cannot be pickled matches no
-    other."""
-    args = tuple(list(a) if type(a) is tuple else a for a in args)
-    out = io.BytesIO()
-    pickler = pickle.Pickler(out, 5)  # protocol fixed: the same call, the same bytes
-    pickler.fast = True  # no memo
+    sign of zero, a NaN's payload) and every value's type (1 is not 1.0 nor True); a tuple
+    argument counts as the list of its items. The values of String and Binary calls are pickled
+    without pickle's memo (a string given twice is pickled twice, as two equal strings are); in
+    other calls only a list given twice could be pickled the second time as a reference to the
+    first, which makes the call match no other (never another call). A call whose arguments
+    cannot be pickled matches no other."""
+    if tuple in map(type, args):
+        args = tuple(list(a) if type(a) is tuple else a for a in args)
+    call = (name, args, sorted(kwargs.items()) if kwargs else ())
     try:
-        pickler.dump((name, args, sorted(kwargs.items())))
+        if "String" not in name and "Binary" not in name:
+            return pickle.dumps(call, 5)  # protocol fixed: the same call, the same bytes
+        out = io.BytesIO()
+        pickler = pickle.Pickler(out, 5)
+        pickler.fast = True  # no memo
+        pickler.dump(call)
+        return out.getvalue()
     except Exception:  # noqa: BLE001 - an argument pickle cannot take: never the same call
         return object()
-    return out.getvalue()
 
 
 @dataclass(eq=False)
