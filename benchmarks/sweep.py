@@ -337,7 +337,7 @@ def main() -> None:
         plain = {k: statistics.median(t[0][k] for t in triples) for k in triples[0][0]}
         anew = {k: statistics.median(t[2][k] for t in triples) for k in triples[0][2]}
         units = len(planned.system.components)
-        print(f"  per-case CPU on a worker (no Dask, this process, medians of 5 x {n - 1} cases): {cpu['case']:.2f} ms "
+        print(f"  per-case CPU on a worker (no Dask, a thread of this process, medians of 5 x {n - 1} cases): {cpu['case']:.2f} ms "
               f"a case, of which stepping {cpu['stepping']:.2f} ms; the rest (reset or snapshot, start values, "
               f"initialization, wiring, metrics) {cpu['rest']:.2f} ms, {cpu['restored']:.1f} of the {units} units "
               f"restored from a snapshot per case; every unit reset and initialized "
