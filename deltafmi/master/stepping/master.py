@@ -110,6 +110,9 @@ class _Wiring:
                       for unit in units]
         #: runs that used it again
         self.reuses = 0
+        #: what the master derives from the wiring for recording (its row sampler, the columns
+        #: not each event unit's own, the Real columns, the names of the Real bus's slots)
+        self.recording: Optional[Tuple[RowSampler, Dict[str, np.ndarray], np.ndarray, List[str]]] = None
 
     @staticmethod
     def _key(units: Sequence[Unit]) -> Tuple[int, ...]:
@@ -142,21 +145,22 @@ class _Wiring:
 
     @classmethod
     def keep(cls, wirings: Optional[Dict[Any, Any]], system: System, units: Sequence[Unit],
-             buses: Dict[str, np.ndarray], slot: Dict[Tuple[str, str, int, int], int]) -> None:
-        """Keep the wiring just made (when its units qualify)."""
+             buses: Dict[str, np.ndarray], slot: Dict[Tuple[str, str, int, int], int]) -> Optional["_Wiring"]:
+        """Keep the wiring just made (when its units qualify); returns it (None: not kept)."""
         if wirings is None or not all(type(io) in (_Inputs, _Outputs) for unit in units
                                       for io in unit.inputs + unit.outputs + getattr(unit, "_discrete_inputs", [])):
-            return
+            return None
         if not cls._own_classes(units):
-            return
+            return None
         key = cls._key(units)
         wirings.pop(key, None)
-        wirings[key] = cls(system, units, buses, slot)
+        kept = wirings[key] = cls(system, units, buses, slot)
         while len(wirings) > cls.KEEP:
             try:
                 wirings.pop(next(iter(wirings)), None)
             except (StopIteration, RuntimeError):  # another thread's run changed it meanwhile
                 break
+        return kept
 
     def reuse(self, master: "Master") -> Dict[Tuple[str, str, int, int], int]:
         """Give ``master``'s units and buses this wiring, as new; returns the bus slots."""
@@ -469,23 +473,31 @@ class Master:
                         unit.wire_inputs(kind, [l.target.vr for l in mine], self.buses[kind],
                                          [at(l.source) for l in mine], [l.factor for l in mine],
                                          [l.offset for l in mine], [l.target.index for l in mine])
-            _Wiring.keep(self.wirings, self.system, self.units, self.buses, slot)
-        recorded = self.system.recorded
-        parts = []
-        for kind in TYPES:
-            columns = [i for i, p in enumerate(recorded) if p.type == kind]
-            parts.append((self.buses[kind], [at(recorded[i]) for i in columns], columns))
-        self.sampler = RowSampler(parts, len(recorded))
-        owners = np.array([p.component for p in recorded], dtype=object)
-        self._others = {unit.name: owners != unit.name for unit in self.units
-                        if hasattr(unit, "on_event") and (owners != unit.name).any()}
-        self._real_columns = np.asarray([i for i, p in enumerate(recorded) if p.type == "Real"], np.intp)
-        names = [""] * len(self.buses["Real"])
-        for port in [link.source for link in links] + list(recorded):
-            if port.type == "Real":
-                names[at(port)] = port.ref
-        self._real_names = names
-        self._zeros = np.zeros(len(names))
+            kept = _Wiring.keep(self.wirings, self.system, self.units, self.buses, slot)
+        if kept is not None and kept.recording is not None:
+            # the row sampler and the names of the recorded and bus columns, as the run before
+            # made them (they depend on the system and the slots alone; the row set back to zeros)
+            self.sampler, self._others, self._real_columns, self._real_names = kept.recording
+            self.sampler.row[...] = 0
+        else:
+            recorded = self.system.recorded
+            parts = []
+            for kind in TYPES:
+                columns = [i for i, p in enumerate(recorded) if p.type == kind]
+                parts.append((self.buses[kind], [at(recorded[i]) for i in columns], columns))
+            self.sampler = RowSampler(parts, len(recorded))
+            owners = np.array([p.component for p in recorded], dtype=object)
+            self._others = {unit.name: owners != unit.name for unit in self.units
+                            if hasattr(unit, "on_event") and (owners != unit.name).any()}
+            self._real_columns = np.asarray([i for i, p in enumerate(recorded) if p.type == "Real"], np.intp)
+            names = [""] * len(self.buses["Real"])
+            for port in [link.source for link in links] + list(recorded):
+                if port.type == "Real":
+                    names[at(port)] = port.ref
+            self._real_names = names
+            if kept is not None:
+                kept.recording = (self.sampler, self._others, self._real_columns, self._real_names)
+        self._zeros = np.zeros(len(self._real_names))
         self.loops = [LoopBlock(loop, [self._by_name[name] for name in loop.members], self.buses,
                                 [at(port) for port in loop.tears], self.system.scenario.master.loops, self)
                       for loop in self.system.loops]
