@@ -14,14 +14,13 @@ The test (Bar-Shalom, Li, Kirubarajan 2001, section 5.4.2; as
 tests/models/test_peg_estimator_consistency.py): for a consistent filter the mean NEES over R
 runs of a d-dimensional error lies in [chi2.ppf(0.025, d R), chi2.ppf(0.975, d R)] / R with
 probability 0.95. Asserted: the mean over the runs and over the instants inside that interval, in contact (from
-0.1 s after the touch: the impact's transient over, which no random walk follows, to the end) and
-over the press's ramp (with its end's swing), for the force (d = 3), its normal component (d = 1,
-in contact) and the table height (d = 1, at rest too). The instants of one run are strongly
-correlated, so the average over them is about as variable as one instant's: the interval is one
-instant's. Printed: the NEES by phase (free flight, the impact, the ramp, at rest). The force at
-rest is printed, not asserted: its normal component is still under-confident there (its error far
-below its deviation: docs/assembly.md's Limits), and the three components' mean is inside its
-interval with these seeds but not with others (benchmarks/estimator_consistency.py's).
+0.1 s after the touch: the impact's transient over, which no random walk follows, to the end),
+over the press's ramp (with its end's swing) and at rest (the force constant: the filter's rest
+level, the torques still, with the wrist's acceleration a pseudo-measurement of zero), for the
+force (d = 3), its normal component (d = 1, in contact and at rest) and the table height (d = 1).
+The instants of one run are strongly correlated, so the average over them is about as variable as
+one instant's: the interval is one instant's. Printed: the NEES by phase (free flight, the impact,
+the ramp, at rest).
 """
 from __future__ import annotations
 
@@ -108,7 +107,8 @@ def test_force_and_surface_nees_are_within_their_chi_square_intervals(tmp_path, 
     for name, column, dof in (("force", 0, 3), ("table height", 1, 1), ("normal force", 2, 1)):
         mean = runs[:, :, column].mean(axis=0)
         lo, hi = chi2.ppf(0.025, dof * RUNS) / RUNS, chi2.ppf(0.975, dof * RUNS) / RUNS
-        checked = {0: asserted, 1: {**asserted, "at rest": phases["at rest"]}, 2: {"in contact": contact}}[column]
+        at_rest = {**asserted, "at rest": phases["at rest"]}
+        checked = {0: at_rest, 1: at_rest, 2: {"in contact": contact, "at rest": phases["at rest"]}}[column]
         means += [(f"{name} {p}", mean[m].mean(), lo, hi) for p, m in checked.items()]
         print(f"  {name:12}: in contact (from {SETTLE} s after the touch) {mean[contact].mean():.3g}; "
               + ", ".join(f"{p} {mean[m].mean():.3g}" for p, m in phases.items())

@@ -57,7 +57,7 @@ from ..delta.jacobian import _SENSITIVITIES
 from ..delta.kinematics import forward_kinematics, inverse_kinematics
 from ..delta.params import DeltaParams
 from .delta_process_kernels import PYTHON_KERNELS, ProcessKernels
-from .kalman import MANOEUVRE_Z, chi_square_quantile, white_acceleration_noise
+from .kalman import MANOEUVRE_Z, chi_square_quantile, joseph_update, white_acceleration_noise
 
 __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
 
@@ -83,6 +83,10 @@ class ContactEKFSettings:
     force_acceleration_std: float = 0.0  #: white noise on the force's rate, its ramps (N/s^2/sqrt(Hz); 0: no rate)
     force_ramp_std: float = 0.0  #: the force's rate (N/s) after a manoeuvre, about zero: a new contact's ramp
     law_manoeuvre: bool = False  #: the detector also sums the contact law's normalised innovations (in contact)
+    rest_force_rate_std: float = 0.0  #: the force's walk at rest (N/s/sqrt(Hz); 0: no rest level)
+    rest_force_acceleration_std: float = 0.0  #: its rate's walk at rest (N/s^2/sqrt(Hz))
+    rest_samples: int = 100  #: samples of still torques before the rest level applies
+    rest_acceleration_std: float = 0.0  #: the wrist's acceleration at rest, a pseudo-measurement of 0 (m/s^2; 0: none)
     surface_drift_std: float = 0.0  #: random walk of the surface height (m/sqrt(s))
     position_std0: float = 1e-3  #: initial wrist position (m), around forward kinematics of y0
     velocity_std0: float = 0.01  #: initial wrist velocity (m/s), around zd0
@@ -106,11 +110,12 @@ class ContactEKFSettings:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "force_rate_std", "steady_force_rate_std", "friction", "surface_drift_std",
-                     "force_acceleration_std", "force_ramp_std",
+                     "force_acceleration_std", "force_ramp_std", "rest_force_rate_std", "rest_force_acceleration_std",
+                     "rest_acceleration_std",
                      "contact_stiffness", "contact_damping", "pole"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
-        for name in ("substeps", "contact_samples", "manoeuvre_samples"):
+        for name in ("substeps", "contact_samples", "manoeuvre_samples", "rest_samples"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
         if int(self.manoeuvre_hold) < 0:
@@ -192,13 +197,17 @@ class ContactEKF:
             cone = T * (nn + settings.friction ** 2 * (np.eye(3) - nn))
             self._Qd[_F, _F] = settings.force_rate_std ** 2 * cone
             self._Qd_steady[_F, _F] = steady ** 2 * cone
+        # at rest (the torques still: :meth:`_detect_rest`) the force and its rate walk at the rest levels
+        self._Qd_rest = self._Qd_steady.copy()
+        if steady:
+            self._Qd_rest[_F, _F] = settings.rest_force_rate_std ** 2 * cone
         # the force's rate r: f' = r, r' white (an integrated random walk of f), in the walk's directions
         D = cone / T if steady else np.eye(3)
-        a2 = settings.force_acceleration_std ** 2
-        for Qd in (self._Qd, self._Qd_steady):
-            Qd[_F, _F] += a2 * T ** 3 / 3.0 * D
-            Qd[_F, _R] = Qd[_R, _F] = a2 * T ** 2 / 2.0 * D
-            Qd[_R, _R] = a2 * T * D
+        for Qd, a in ((self._Qd, settings.force_acceleration_std), (self._Qd_steady, settings.force_acceleration_std),
+                      (self._Qd_rest, settings.rest_force_acceleration_std)):
+            Qd[_F, _F] += a * a * T ** 3 / 3.0 * D
+            Qd[_F, _R] = Qd[_R, _F] = a * a * T ** 2 / 2.0 * D
+            Qd[_R, _R] = a * a * T * D
         self._ramp = settings.force_ramp_std ** 2 * D  # the rate's covariance after a manoeuvre
         self._nis: list[float] = []  # the servo angles' last normalised innovations r^T S^-1 r
         self._nis_gate = chi_square_quantile(3 * int(settings.manoeuvre_samples), MANOEUVRE_Z)
@@ -210,6 +219,11 @@ class ContactEKF:
         # the detector's window: (x, P, torques held, pressing count, y) before each of its samples
         self._window: deque | None = deque(maxlen=int(settings.manoeuvre_samples)) if steady else None
         self._refilter = False  # the detector fired at this sample: filter its window again
+        # the rest detector: the force the torques balance, where it was when they last moved, and since when
+        self._rest_gate = MANOEUVRE_Z * settings.rest_force_rate_std * math.sqrt(settings.rest_samples * T)
+        self._still_at: np.ndarray | None = None
+        self._still = 0
+        self.resting = False  #: the torques have been still for rest_samples: the force walks at the rest levels
         self._held = 0  # samples since the manoeuvre was detected
         self._kinematics_at: bytes = b""  # the (q, v) that _kinematics holds
         self._A = np.zeros((24, 24))  # d[q'; v'; f'; r']/d[q; v; f; r]: q' = v, f' = r, r' = 0 but for noise
@@ -235,6 +249,7 @@ class ContactEKF:
                 self._advance(earlier)
             self._refilter = False
         self._u = [float(value) for value in u]
+        self._detect_rest(self._u)
         return self.estimate()
 
     def _advance(self, y: Sequence[float]) -> None:
@@ -248,6 +263,8 @@ class ContactEKF:
         pressing = float(self._n @ self.x[_F]) > self.settings.contact_threshold
         self._pressing = self._pressing + 1 if pressing else 0
         self.in_contact = self._pressing >= self.settings.contact_samples and not self.manoeuvre
+        if self.resting and self.settings.rest_acceleration_std:
+            self._correct_rest()
         if not self.in_contact:
             self._law_nis.clear()
             return
@@ -284,7 +301,7 @@ class ContactEKF:
         P[np.ix_(_Z, _Z)] = PhiP[:, _Z] @ Phi.T
         P[_Z, _S] = P[_S, _Z] = PhiP[:, _S]
         P[_S, _S] = self.P[_S, _S]
-        P += self._Qd if self.manoeuvre else self._Qd_steady
+        P += self._Qd if self.manoeuvre else self._Qd_rest if self.resting else self._Qd_steady
         P[:18, :18] += noise
         self.P = 0.5 * (P + P.T)
 
@@ -375,6 +392,41 @@ class ContactEKF:
             self._held = 0
         self._held += 1
         self.manoeuvre = manoeuvre or (self.manoeuvre and self._held < st.manoeuvre_hold)
+
+    def _detect_rest(self, u: list[float]) -> None:
+        """With rest_force_rate_std (and two levels): whether the force is at rest over the next
+        period. The servo torques u are known exactly; held still with the robot at rest they balance
+        the wrist force, f = (dq_s/dz)^T u up to gravity's torque (virtual work, q_s the servo
+        angles), so the force they imply moving by less than the rest walk would over rest_samples
+        samples (its 0.999 quantile, MANOEUVRE_Z sigma) for rest_samples samples in a row says the
+        force is still: its walk drops to the rest levels until the torques move or a manoeuvre is
+        detected. A controller fed noisy angles moves its torques by more than that: no rest."""
+        st = self.settings
+        if not (st.rest_force_rate_std and st.steady_force_rate_std):
+            return
+        implied = self._kinematics()[3][_SERVOS].T @ np.asarray(u)
+        if self.manoeuvre or self._still_at is None or np.linalg.norm(implied - self._still_at) > self._rest_gate:
+            self._still_at, self._still = implied, 0
+        else:
+            self._still += 1
+        self.resting = self._still >= st.rest_samples
+
+    def _correct_rest(self) -> None:
+        """At rest the wrist does not accelerate: Jv a(q, v, u, f) = 0 (a the DAE's joint
+        accelerations under the torques held, the force at its mid-period value), a pseudo-measurement
+        of noise rest_acceleration_std, its gradient the process model's exact Jacobian."""
+        st = self.settings
+        T = st.sample_period
+        force = self.x[_F] + 0.5 * T * self.x[_R]
+        out = self._kernels.predict(self.params, self.x[_Q], self.x[_V], self._u, force, T, st.pole, st.substeps)
+        columns = out[18 + _SENSITIVITIES:].reshape(24, 15)
+        Jv = self._kinematics()[1]
+        H = np.zeros((3, _N))
+        H[:, :18] = Jv @ columns[:18, :9].T
+        H[:, _F] = Jv @ columns[21:24, :9].T
+        H[:, _R] = 0.5 * T * H[:, _F]
+        dx, P = joseph_update(self.P, H, -(Jv @ np.asarray(out[18:27])), st.rest_acceleration_std ** 2 * np.eye(3))
+        self._correct(P, dx)
 
     def _law_manoeuvre(self, nis: float) -> None:
         """With law_manoeuvre (and two levels), in contact: when the sum of the contact law's last
