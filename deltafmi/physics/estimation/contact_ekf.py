@@ -23,6 +23,17 @@ inputs). Estimated, 25 states X = [q (9), v (9), f (3), s, r (3)]:
   is the random walk alone;
 - s: the height at which the surface crosses the robot axis, a constant.
 
+At rest (rest_force_rate_std, with two levels; :meth:`ContactEKF._detect_rest`): the servo
+torques are known exactly and, the robot still, balance the wrist force, so once the force they
+balance has moved by less than the rest walk would over rest_samples samples, for that many
+samples in a row, the force and its rate walk at the rest levels (rest_force_rate_std,
+rest_force_acceleration_std) and, with rest_acceleration_std, the wrist's acceleration
+Jv a(q, v, u, f) is a pseudo-measurement of zero: the force is then known from the torques'
+balance, which the servo angles (the force integrates twice into them) and the contact law
+(through the gap, which the angles' noise blurs) tell only over thousands of samples; without it
+the force's deviation at rest stays some 15 times its error. A manoeuvre or torques that move end
+the rest.
+
 s is tied to the rest by the contact law as a pseudo-measurement, applied only while the filter
 believes the tool presses (n . f > contact_threshold for contact_samples samples in a row, so that
 noise on the force estimate does not fake a contact): the plant's spring-damper
@@ -36,7 +47,8 @@ contact-mode changes, the noise Gaussian and the rate 1 kHz; a horizon of N samp
 DAE linearisations per sample for little gain without inequality constraints to enforce.
 
 Cycle per sample t_k (:meth:`ContactEKF.step`): predict from t_(k-1) with u(t_(k-1)), the
-torque held over that period, then update with y(t_k) (Joseph form) and the gated contact update.
+torque held over that period, then update with y(t_k) (Joseph form), at rest the zero
+acceleration, and the gated contact update.
 The published estimate is the posterior at t_k: it uses y(t_k) and is time-aligned with it.
 Cost per sample: one exact DAE Jacobian (whose accelerations are the Runge-Kutta step's first
 stage), three more DAE evaluations, one or two projections onto the loops and the wrist kinematics
