@@ -290,14 +290,17 @@ def contact_monte_carlo(args) -> None:
               f"{100 * resting[:, t < touch].mean():.0f} %")
         # the impact's samples before the detector first flags it (no walk at the press's levels predicts
         # the jump; they are the detector's delay), and the rest of the impact's 0.1 s after it
-        flagged = [r[0][(r[0] >= touch) & (r[7] > 0)] for r in runs]
+        flagged = [r[0][(r[0] >= touch) & (r[0] < touch + SETTLE) & (r[7] > 0)] for r in runs]
         fired = np.array([f[0] if len(f) else touch + SETTLE for f in flagged])
         impact = (t >= touch) & (t < touch + SETTLE)
         before, after = np.array([impact & (t < f) for f in fired]), np.array([impact & (t >= f) for f in fired])
-        print(f"  the impact: the detector fires {1e3 * np.median(fired - touch):.0f} ms after the touch (median; "
-              f"{1e3 * (fired - touch).min():.0f}-{1e3 * (fired - touch).max():.0f}); force NEES over those samples "
-              f"{F[before].mean():.3g} (largest {F[before].max():.3g}), over the impact's rest "
-              f"{F[after].mean():.3g} (largest {F[after].max():.3g})")
+        if not after.any():
+            print("  the impact: no manoeuvre detected in its 0.1 s")
+        else:
+            print(f"  the impact: the detector fires {1e3 * np.median(fired - touch):.0f} ms after the touch (median; "
+                  f"{1e3 * (fired - touch).min():.0f}-{1e3 * (fired - touch).max():.0f}); force NEES over those samples "
+                  f"{F[before].mean():.3g} (largest {F[before].max():.3g}), over the impact's rest "
+                  f"{F[after].mean():.3g} (largest {F[after].max():.3g})")
         for name, nees, dof in (("force", F, 3), ("normal", N, 1), ("surface", S, 1)):
             lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
             print(f"  {name:8} mean NEES " + ", ".join(f"{p}: {nees[:, m].mean():.3g}" for p, m in phases.items())
