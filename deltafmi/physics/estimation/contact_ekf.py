@@ -47,8 +47,8 @@ contact-mode changes, the noise Gaussian and the rate 1 kHz; a horizon of N samp
 DAE linearisations per sample for little gain without inequality constraints to enforce.
 
 Cycle per sample t_k (:meth:`ContactEKF.step`): predict from t_(k-1) with u(t_(k-1)), the
-torque held over that period, then update with y(t_k) (Joseph form), at rest the zero
-acceleration, and the gated contact update.
+torque held over that period (at rest after the zero acceleration's update at t_(k-1), with that
+period's Jacobian), then update with y(t_k) (Joseph form) and the gated contact update.
 The published estimate is the posterior at t_k: it uses y(t_k) and is time-aligned with it.
 Cost per sample: one exact DAE Jacobian (whose accelerations are the Runge-Kutta step's first
 stage), three more DAE evaluations, one or two projections onto the loops and the wrist kinematics
@@ -69,7 +69,7 @@ from ..delta.jacobian import _SENSITIVITIES
 from ..delta.kinematics import forward_kinematics, inverse_kinematics
 from ..delta.params import DeltaParams
 from .delta_process_kernels import PYTHON_KERNELS, ProcessKernels
-from .kalman import MANOEUVRE_Z, chi_square_quantile, joseph_update, white_acceleration_noise
+from .kalman import MANOEUVRE_Z, chi_square_quantile, white_acceleration_noise
 
 __all__ = ["ContactEKFSettings", "ContactEstimate", "ContactEKF"]
 
@@ -236,6 +236,8 @@ class ContactEKF:
         self._still_at: np.ndarray | None = None
         self._still = 0
         self.resting = False  #: the torques have been still for rest_samples: the force walks at the rest levels
+        self._H_rest = np.zeros((3, _N))
+        self._R_rest = settings.rest_acceleration_std ** 2 * np.eye(3)
         self._held = 0  # samples since the manoeuvre was detected
         self._kinematics_at: bytes = b""  # the (q, v) that _kinematics holds
         self._A = np.zeros((24, 24))  # d[q'; v'; f'; r']/d[q; v; f; r]: q' = v, f' = r, r' = 0 but for noise
@@ -275,8 +277,6 @@ class ContactEKF:
         pressing = float(self._n @ self.x[_F]) > self.settings.contact_threshold
         self._pressing = self._pressing + 1 if pressing else 0
         self.in_contact = self._pressing >= self.settings.contact_samples and not self.manoeuvre
-        if self.resting and self.settings.rest_acceleration_std:
-            self._correct_rest()
         if not self.in_contact:
             self._law_nis.clear()
             return
@@ -306,8 +306,12 @@ class ContactEKF:
         Phi = I + AT @ Phi
         TT = Tz @ Tz.T  # the process noise of [q, v]: kron(W, TT) = [[W00 TT, W01 TT], [W10 TT, W11 TT]]
         noise = (self._W[:, None, :, None] * TT[None, :, None, :]).reshape(18, 18)
+        dx = self._correct_rest(columns, out[18:27]) if self.resting and st.rest_acceleration_std else None
         self.x[:18] = out[:18]
         self.x[_F] += T * self.x[_R]
+        if dx is not None:  # the corrected state propagated: to first order, the prediction plus Phi dx
+            self.x[_Z] += Phi @ dx[_Z]
+            self.x[_S] += dx[_S]
         P = np.empty((_N, _N))
         PhiP = Phi @ self.P[_Z]
         P[np.ix_(_Z, _Z)] = PhiP[:, _Z] @ Phi.T
@@ -423,22 +427,27 @@ class ContactEKF:
             self._still += 1
         self.resting = self._still >= st.rest_samples
 
-    def _correct_rest(self) -> None:
-        """At rest the wrist does not accelerate: Jv a(q, v, u, f) = 0 (a the DAE's joint
-        accelerations under the torques held, the force at its mid-period value), a pseudo-measurement
-        of noise rest_acceleration_std, its gradient the process model's exact Jacobian."""
-        st = self.settings
-        T = st.sample_period
-        force = self.x[_F] + 0.5 * T * self.x[_R]
-        out = self._kernels.predict(self.params, self.x[_Q], self.x[_V], self._u, force, T, st.pole, st.substeps)
-        columns = out[18 + _SENSITIVITIES:].reshape(24, 15)
+    def _correct_rest(self, columns: np.ndarray, acceleration: Sequence[float]) -> np.ndarray:
+        """At rest the wrist does not accelerate: Jv a(q, v, u, f) = 0, a pseudo-measurement of noise
+        rest_acceleration_std at the start of the period :meth:`predict` is taking (a the DAE's
+        joint accelerations under the torques held, the force at its mid-period value, and their
+        gradient the prediction's exact Jacobian, ``columns``: no more process-model calls). The
+        Joseph update of P by its products of rank 3, as :meth:`_correct_servos`; returns the
+        state's correction, which the caller propagates."""
+        T = self.settings.sample_period
         Jv = self._kinematics()[1]
-        H = np.zeros((3, _N))
+        H = self._H_rest
         H[:, :18] = Jv @ columns[:18, :9].T
         H[:, _F] = Jv @ columns[21:24, :9].T
         H[:, _R] = 0.5 * T * H[:, _F]
-        dx, P = joseph_update(self.P, H, -(Jv @ np.asarray(out[18:27])), st.rest_acceleration_std ** 2 * np.eye(3))
-        self._correct(P, dx)
+        P = self.P
+        PHt = P @ H.T
+        Sinv = _inverse3(H @ PHt + self._R_rest)
+        K = PHt @ Sinv
+        M = P - K @ (H @ P)
+        P = M - (M @ H.T) @ K.T + self._R_rest[0, 0] * (K @ K.T)
+        self.P = 0.5 * (P + P.T)
+        return K @ -(Jv @ np.asarray(acceleration))
 
     def _law_manoeuvre(self, nis: float) -> None:
         """With law_manoeuvre (and two levels), in contact: when the sum of the contact law's last
