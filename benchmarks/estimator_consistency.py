@@ -115,6 +115,11 @@ def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
         print(f"  {name:10} mean NEES " + ", ".join(f"t={q:.1f} s: {v:.3g}" for q, v in at)
               + f"; sliding {nees[:, sliding].mean():.3g}; " + ", ".join(f"{p} {v:.3g}" for p, v in means.items())
               + f"; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
+    for lo, hi in ((1.3, 1.4), (1.4, 1.5), (1.5, 1.6), (1.6, 1.7), (1.7, 1.8), (1.8, 1.9), (1.9, 2.05), (2.05, args.stop)):
+        if hi <= args.stop + 1e-9:
+            m = (t >= lo) & (t < hi + 0.5e-3)
+            windows = f"{lo:.2f}-{hi:.2f} s: hole {H4[:, m].mean():.3g}, force {F[:, m].mean():.3g}"
+            print(f"  by 0.1 s in the bore, {windows}")
     M = np.array(M)
     print("  manoeuvre flagged at " + ", ".join(f"{100 * M[:, m].mean():.1f} %" + f" of the {p} samples"
                                               for p, m in phases.items() if p != "bore from 1.3 s"))
