@@ -1,4 +1,4 @@
-"""Issue 28's figures: how well a paced run keeps the wall clock, and UDP round trips through a run.
+"""How well a paced run keeps the wall clock, and UDP round trips through a run.
 
 - The highest speed-up at which it still keeps up: paced runs of 1 simulated second at rising
   speeds (doubling, then bisecting), "keeps up" = at most 1 % of the points overrun. Against the baseline measured in the same run: the speed the busy time
@@ -6,18 +6,17 @@
   loop: a paced run without streams waits for every point in C).
 - The paced flagship beside the machine's floor, interleaved, ``--repeats`` times: the flagship
   at 50x (``--seconds-fast`` simulated seconds) and 1x (``--seconds-real``) on the master's C loop,
-  as it paces now and as it paced before (1 us timer slack, memory not locked, 0.2 ms spin; at 1x
-  sleeping only too), and benchmarks/native/paced_floor.c, a bare C program pacing as many points
-  around the flagship's median busy time, waiting by polling only, by sleeping only
-  (clock_nanosleep TIMER_ABSTIME) and by sleeping then polling the last 50 or 200 us. For each:
-  overruns (later than a quarter step, the Pacer's tolerance), the shares later than 1 us, half
-  and a whole step, fell-behind episodes, median, 99th percentile and largest lateness, and CPU
-  time over wall time; medians over the repeats, the load average beside them; whether the
-  flagship meets the 50x target (never behind, overruns <= 1 %) and whether the floor does at the
-  same moments. ``--fifo``: at 50x both at real-time priority 50 too (the flagship with
-  ``master.realtime.priority: 50``, so too handing back to Python every 50 ms of wall time as the
-  C loop did before its paced runs were streamed, and under ``chrt -f 50``; the floor under
-  ``chrt -f 50``: root).
+  as it paces by default (at 50x a lead of 0.5 ms, sleeping; at 1x a deadline per step, sleeping
+  then polling 0.2 ms) and at 50x with a deadline per step (lead 0, polling: the pacing before the
+  lead), at 1x sleeping only too; beside benchmarks/native/paced_floor.c, a bare C program pacing
+  as many points around the flagship's median busy time, waiting each of those ways (and at 1x
+  by polling only, by sleeping then polling the last 50 us). For each: overruns (later than a
+  quarter step, the Pacer's tolerance), the shares later than 1 us, half and a whole step,
+  fell-behind episodes, median, 99th percentile and largest lateness, the largest earliness (a
+  lead's price), and CPU time over wall time; medians over the repeats, the load average beside
+  them; whether the flagship meets the 50x target (never behind, overruns <= 1 %) and whether
+  the floor does at the same moments. ``--fifo``: both at real-time priority 50 too (the
+  flagship with ``master.realtime.priority: 50``, the floor under ``chrt -f 50``: root).
   ``--target-only`` measures this only. Also the busy time per point of the C loop against the
   Python loop paced the same way (``LiveRun.paced_in_c`` off).
 - UDP round trip: a datagram sent to a live UDP input comes back on a UDP stream of the same
@@ -32,7 +31,6 @@ Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
 import random
@@ -111,14 +109,18 @@ class PacedFloor:
                        check=True, capture_output=True)
 
     def __call__(self, mode: str, points: int, period: float, busy: float, spin: float = 2e-4,
-                 lock: bool = True, prefix: tuple = ()) -> dict:
+                 lock: bool = True, prefix: tuple = (), lead: float = 0.0) -> dict:
         """``points`` points ``period`` apart around ``busy`` seconds of work, waiting by ``mode``
         (spin, sleep, hybrid: sleep to ``spin`` before the deadline, then poll): :func:`figures`.
         ``prefix``: the command it runs under (``chrt -f 50``)."""
         done = subprocess.run([*prefix, str(self.program), mode, str(points), repr(period), repr(busy), repr(spin),
-                               str(self.out), *(["mlock"] if lock else [])], check=True, capture_output=True, text=True)
-        cpu, wall, locked = done.stdout.split()
-        return figures(np.fromfile(self.out), period, float(cpu), float(wall), locked == "1")
+                               str(self.out), *(["mlock"] if lock else []), f"lead={lead!r}"], check=True,
+                              capture_output=True, text=True)
+        cpu, wall, locked, _ = done.stdout.split()
+        late = np.fromfile(self.out)
+        found = figures(late, period, float(cpu), float(wall), locked == "1")
+        found["early"] = float(max(0.0, -late.min()))
+        return found
 
 
 def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked: bool) -> dict:
@@ -147,26 +149,18 @@ def handing_back(begin_fixed_steps):
     return begin
 
 
-def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] = None,
-         priority: Optional[int] = None, hand_back: bool = False) -> dict:
+def ours(stop: float, speed: float, spin: Optional[float] = None, priority: Optional[int] = None,
+         hand_back: bool = False, lead: Optional[float] = None) -> dict:
     """The flagship paced at ``speed`` for ``stop`` simulated seconds (the master's C loop);
-    ``before``: the pacing as it was (1 us timer slack, memory not locked, 0.2 ms spin; the rows
-    streamed as now); ``spin``, ``priority``: ``master.realtime``'s; ``hand_back``: the C loop
-    handing back every 50 ms (:func:`handing_back`): :func:`figures` and the median busy time."""
+    ``spin``, ``priority``, ``lead``: ``master.realtime``'s (None: the defaults; ``lead=0``: a
+    deadline per step, the pacing before the lead); ``hand_back``: the C loop handing back every
+    50 ms (:func:`handing_back`): :func:`figures` and the median busy time."""
     from dataclasses import replace
 
-    from deltafmi.master.live import pacing
-
     scenario = deltafmi.load_scenario(SCENARIO)
-    if spin is not None or priority is not None:
-        realtime = scenario.master.realtime
-        realtime = replace(realtime, spin=realtime.spin if spin is None else spin, priority=priority)
+    if spin is not None or priority is not None or lead is not None:
+        realtime = replace(scenario.master.realtime, spin=spin, priority=priority, lead=lead)
         scenario = replace(scenario, master=replace(scenario.master, realtime=realtime))
-    slack, lock = pacing.timer_slack, pacing.lock_memory
-    if before:
-        pacing.timer_slack = lambda ns: slack(1000 if ns == 1 else ns)
-        pacing.lock_memory = lambda: False
-        spin = 2e-4 if spin is None else spin
     from deltafmi.master.stepping.master import Master
 
     begin = Master.begin_fixed_steps
@@ -175,12 +169,12 @@ def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] 
     try:
         result = deltafmi.simulate(scenario, stop=stop, speed=speed)
     finally:
-        pacing.timer_slack, pacing.lock_memory = slack, lock
         Master.begin_fixed_steps = begin
     report = result.summary.live.realtime
     found = figures(report.lateness, 1e-3 / speed, report.cpu, report.wall, report.locked)
     found["busy"] = float(np.median(result["realtime.busy"][1:]))
     found["polled"] = report.polled / report.wall
+    found["early"] = float(max(0.0, -report.lateness.min())) if len(report.lateness) else 0.0
     return found
 
 
@@ -188,21 +182,16 @@ def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] 
 FIFO = ("chrt", "-f", "50")
 
 
-def ours_fifo(stop: float, speed: float) -> dict:
-    """:func:`ours` in a process of its own at a real-time priority (:data:`FIFO`)."""
-    done = subprocess.run([*FIFO, sys.executable, __file__, "--paced-figures", repr(speed), repr(stop)], check=True,
-                          capture_output=True, text=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
 def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
     """Each configuration once per repeat, in an order shuffled anew each repeat (the load changes
     from one moment to the next; a fixed order would favour a place in it): the flagship paced at
-    50x and 1x (as now, and as before: 1 us timer slack, no mlockall, 0.2 ms spin; at 1x sleeping
-    only too), beside the floor (:class:`PacedFloor`) around the flagship's median busy time (from
-    a first run, not counted) waiting each way; ``fifo``: at 50x both at a real-time priority too
-    (:data:`FIFO`). ``seconds``: simulated seconds per speed. Returns {label: [figures per
-    repeat]}; each figures' "load" is the load average when its repeat began."""
+    50x as it paces by default (a lead of 0.5 ms, sleeping) and with a deadline per step (lead 0,
+    polling: the pacing before the lead), and at 1x (per step, sleeping then polling 0.2 ms; sleeping
+    only too), beside the floor (:class:`PacedFloor`) around the flagship's median busy time (from a
+    first run, not counted) waiting each way; ``fifo``: both at real-time priority 50 too
+    (``master.realtime.priority``; the floor under :data:`FIFO`). ``seconds``: simulated seconds
+    per speed. Returns {label: [figures per repeat]}; each figures' "load" is the load average
+    when its repeat began."""
     runs: dict = {}
     shuffle = random.Random(42).shuffle
     with tempfile.TemporaryDirectory() as folder:
@@ -212,26 +201,33 @@ def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
         for speed in (50.0, 1.0):
             period, stop = 1e-3 / speed, seconds[speed]
             n = int(round(stop / 1e-3))
-            plan += [(f"ours {speed:g}x", lambda stop=stop, speed=speed: ours(stop, speed)),
-                     (f"ours {speed:g}x before", lambda stop=stop, speed=speed: ours(stop, speed, before=True))]
-            if speed == 1.0:
-                plan.append(("ours 1x sleep only", lambda stop=stop, speed=speed: ours(stop, speed, spin=0.0)))
-            for mode, spin in (("spin", 0.0), ("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5)):
-                if speed == 50.0 and mode == "hybrid":
-                    continue  # a 20 us period: hybrid with a 50-200 us spin polls only (= spin)
-                label = f"floor {speed:g}x {mode}" + (f" {spin * 1e6:.0f} us" if mode == "hybrid" else "")
-                plan.append((label, lambda mode=mode, n=n, period=period, b=busy[speed], spin=spin:
-                             floor(mode, n, period, b, spin)))
+            b = busy[speed]
+            plan.append((f"ours {speed:g}x", lambda stop=stop, speed=speed: ours(stop, speed)))
             if speed == 50.0:
-                plan.append(("floor 50x spin, no mlock", lambda n=n, period=period, b=busy[speed]:
-                             floor("spin", n, period, b, lock=False)))
-            if speed == 50.0 and fifo:
-                plan += [("ours 50x priority 50", lambda stop=stop: ours(stop, 50.0, priority=50)),
-                         ("ours 50x prio 50, hand-backs", lambda stop=stop: ours(stop, 50.0, priority=50,
-                                                                                   hand_back=True)),
-                         ("ours 50x under chrt -f 50", lambda stop=stop: ours_fifo(stop, 50.0)),
-                         ("floor 50x spin SCHED_FIFO", lambda n=n, period=period, b=busy[speed]:
-                          floor("spin", n, period, b, prefix=FIFO))]
+                plan += [("ours 50x per step", lambda stop=stop: ours(stop, 50.0, lead=0.0)),
+                         ("floor 50x spin (per step)", lambda n=n, period=period, b=b: floor("spin", n, period, b)),
+                         ("floor 50x sleep, lead 500 us", lambda n=n, period=period, b=b:
+                          floor("sleep", n, period, b, spin=0.0, lead=5e-4)),
+                         ("floor 50x sleep (per step)", lambda n=n, period=period, b=b:
+                          floor("sleep", n, period, b, spin=0.0))]
+                if fifo:
+                    plan += [("ours 50x priority 50", lambda stop=stop: ours(stop, 50.0, priority=50)),
+                             ("ours 50x per step, priority 50", lambda stop=stop: ours(stop, 50.0, priority=50,
+                                                                                         lead=0.0)),
+                             ("floor 50x spin SCHED_FIFO", lambda n=n, period=period, b=b:
+                              floor("spin", n, period, b, prefix=FIFO)),
+                             ("floor 50x lead SCHED_FIFO", lambda n=n, period=period, b=b:
+                              floor("sleep", n, period, b, spin=0.0, lead=5e-4, prefix=FIFO))]
+            else:
+                plan.append(("ours 1x sleep only", lambda stop=stop: ours(stop, 1.0, spin=0.0)))
+                for mode, spin in (("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5), ("spin", 0.0)):
+                    label = f"floor 1x {mode}" + (f" {spin * 1e6:.0f} us" if mode == "hybrid" else "")
+                    plan.append((label, lambda mode=mode, n=n, period=period, b=b, spin=spin:
+                                 floor(mode, n, period, b, spin)))
+                if fifo:
+                    plan += [("ours 1x priority 50", lambda stop=stop: ours(stop, 1.0, priority=50)),
+                             ("floor 1x hybrid 200 us SCHED_FIFO", lambda n=n, period=period, b=b:
+                              floor("hybrid", n, period, b, 2e-4, prefix=FIFO))]
         for label, _ in plan:
             runs[label] = []
         for _ in range(repeats):
@@ -265,47 +261,50 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
           f"({int(seconds[50.0] * 1e3)} points, 20 us paced step, overrun = later than 5 us), 1x: {seconds[1.0]:g} s "
           f"(1 ms step, overrun = later than 250 us); load average (1 min) at each repeat's start: "
           + ", ".join(f"{f['load']:.2f}" for f in runs["ours 50x"]))
-    print(f"  {'':28} {'overruns':>9} {'>1us':>7} {'>T/2':>7} {'>T':>7} {'behind':>7} {'p50':>9} {'p99':>10} "
-          f"{'max':>10} {'CPU':>6}   (medians over the repeats; per repeat: overruns %, fell behind)")
+    print(f"  {'':34} {'overruns':>9} {'>1us':>7} {'>T/2':>7} {'>T':>7} {'behind':>7} {'p50':>9} {'p99':>10} "
+          f"{'max':>10} {'early':>10} {'CPU':>6}   (medians over the repeats; per repeat: overruns %, fell behind)")
     for label, found in runs.items():
         med = {key: statistics.median(f[key] for f in found) for key in ("overruns", "over_1us", "over_half",
                                                                             "over_period", "behind", "p50", "p99",
-                                                                            "max", "cpu")}
+                                                                            "max", "early", "cpu")}
         each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in found)
-        print(f"  {label:28} {med['overruns']:9.2%} {med['over_1us']:7.1%} {med['over_half']:7.1%} "
+        print(f"  {label:34} {med['overruns']:9.2%} {med['over_1us']:7.1%} {med['over_half']:7.1%} "
               f"{med['over_period']:7.1%} {med['behind']:7g} {_us(med['p50'])} {_us(med['p99'])} {_us(med['max'])} "
-              f"{med['cpu']:6.0%}   {each}")
+              f"{_us(med['early'])} {med['cpu']:6.0%}   {each}")
     for speed in (50.0, 1.0):
         mine = runs[f"ours {speed:g}x"]
         print(f"  ours {speed:g}x: busy median {_us(statistics.median(f['busy'] for f in mine))}, polling "
               f"{statistics.median(f['polled'] for f in mine):.0%} of wall, memory locked "
               f"{all(f['locked'] for f in mine)}")
-    same = [statistics.median(f["overruns"] for f in runs[label]) for label in ("ours 50x", "ours 50x before")]
-    print(f"  noise: at 50x 'ours' and 'ours before' wait alike (the 20 us step is polled whole: the timer slack and "
-          f"spin do not come in; only the memory lock differs): their overruns {same[0]:.2%} and {same[1]:.2%} differ by the moment alone")
-    for speed, floors in ((50.0, ("spin",)), (1.0, ("hybrid 50 us", "sleep"))):
-        mine = statistics.median(f["overruns"] for f in runs[f"ours {speed:g}x"])
-        for mode in floors:
-            floor = statistics.median(f["overruns"] for f in runs[f"floor {speed:g}x {mode}"])
-            how = "waiting as ours does" if mode != "sleep" else "sleeping only"
-            print(f"  {speed:g}x overruns ours / floor ({mode}, {how}): {mine:.2%} / {floor:.2%}"
-                  + (f" = {mine / floor:.2f}" if floor else ""))
+    pairs = [("ours 50x", "floor 50x sleep, lead 500 us"), ("ours 50x per step", "floor 50x spin (per step)"),
+             ("ours 1x", "floor 1x hybrid 200 us"), ("ours 1x sleep only", "floor 1x sleep")]
+    if "ours 50x priority 50" in runs:
+        pairs += [("ours 50x priority 50", "floor 50x lead SCHED_FIFO"),
+                  ("ours 50x per step, priority 50", "floor 50x spin SCHED_FIFO"),
+                  ("ours 1x priority 50", "floor 1x hybrid 200 us SCHED_FIFO")]
+    for mine_label, floor_label in pairs:
+        mine = statistics.median(f["overruns"] for f in runs[mine_label])
+        floor = statistics.median(f["overruns"] for f in runs[floor_label])
+        print(f"  overruns {mine_label} / {floor_label} (waiting alike): {mine:.2%} / {floor:.2%}"
+              + (f" = {mine / floor:.2f}" if floor else ""))
+
     def met(label: str) -> str:
         return "met" if statistics.median(f["overruns"] for f in runs[label]) <= 0.01 and \
             statistics.median(f["behind"] for f in runs[label]) == 0 else "missed"
 
-    print(f"  target at 50x (never behind, overruns <= 1 %): ours {met('ours 50x')}, the floor "
-          f"{met('floor 50x spin')} at these moments")
-    if "floor 50x spin SCHED_FIFO" in runs:
-        spacing = [statistics.median(f["spacing"] for f in runs[label]) * 1e3
-                   for label in ("ours 50x priority 50", "floor 50x spin SCHED_FIFO")]
-        hz = kernel_hz()
-        print(f"  at priority 50 a point later than a step comes every {spacing[0]:.2f} ms (ours) and {spacing[1]:.2f} "
-              f"ms (floor), medians of the time between them; the kernel's scheduler tick: "
-              + (f"every {1e3 / int(hz):g} ms (CONFIG_HZ={hz})" if hz else "CONFIG_HZ unknown"))
+    print(f"  target at 50x (never behind, overruns <= 1 %), at these moments: ours {met('ours 50x')} (per step "
+          f"{met('ours 50x per step')}), the floor waiting as ours does {met('floor 50x sleep, lead 500 us')} "
+          f"(per step {met('floor 50x spin (per step)')})")
     if "ours 50x priority 50" in runs:
-        print(f"  at real-time priority 50: ours {met('ours 50x priority 50')} (under chrt "
-              f"{met('ours 50x under chrt -f 50')}), the floor {met('floor 50x spin SCHED_FIFO')}")
+        spacing = [statistics.median(f["spacing"] for f in runs[label]) * 1e3
+                   for label in ("ours 50x per step, priority 50", "floor 50x spin SCHED_FIFO")]
+        hz = kernel_hz()
+        print(f"  at priority 50 per step, a point later than a step comes every {spacing[0]:.2f} ms (ours) and "
+              f"{spacing[1]:.2f} ms (floor), medians of the time between them; the kernel's scheduler tick: "
+              + (f"every {1e3 / int(hz):g} ms (CONFIG_HZ={hz})" if hz else "CONFIG_HZ unknown"))
+        print(f"  at real-time priority 50: ours {met('ours 50x priority 50')} (per step "
+              f"{met('ours 50x per step, priority 50')}), the floor with the lead {met('floor 50x lead SCHED_FIFO')} "
+              f"(per step {met('floor 50x spin SCHED_FIFO')})")
 
 
 def throttling() -> None:
@@ -432,13 +431,7 @@ def main() -> None:
                         help="at 50x, the flagship and the floor at a real-time priority too (chrt -f 50: root)")
     parser.add_argument("--throttling", action="store_true",
                         help="only the floor at real-time priority 50 for 0.8 s and 1.4 s (Linux's real-time throttling)")
-    parser.add_argument("--paced-figures", nargs=2, type=float, metavar=("SPEED", "STOP"), help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.paced_figures:  # ours_fifo's process
-        logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)
-        print(json.dumps(ours(args.paced_figures[1], args.paced_figures[0])))
-        return
-
     if args.throttling:
         throttling()
         return

@@ -220,10 +220,39 @@ def test_a_paced_run_in_c_reports_its_cpu_and_polling():
     result = deltafmi.simulate("delta_tracking", stop=0.2, speed=50.0)
     report = result.summary.live.realtime
     assert 0 <= report.polled <= report.wall and 0 < report.cpu <= report.wall + 1e-6
-    # no point before its time: one call of the C loop (it hands back after 50 ms of wall time)
-    # waits at least the 4 ms of the 200 points
-    assert report.wall >= 0.2 / 50 - 1e-9
+    # no point more than the lead (0.5 ms at 50x) before its time: the run waits at least the 4 ms
+    # of the 200 points less the lead
+    assert report.lead == 5e-4
+    assert report.wall >= 0.2 / 50 - report.lead - 1e-9
     assert _status("VmLck") == 0  # given back
+
+
+@pytest.mark.parametrize("lead", [None, 2e-3, 0.0])
+def test_a_lead_releases_points_early_by_at_most_the_lead_and_changes_no_number(lead):
+    """At 50x (a 20 us paced step: finer than 0.1 ms) the default lead is 0.5 ms: a point due
+    within the lead goes out at once, one due later is waited for until half the lead is left,
+    so no point is released more than the lead before its time, and a run of 200 points (4 ms)
+    with a 2 ms lead releases some points more than 1 ms early; lead 0 releases none early.
+    The values are the unpaced run's bit for bit."""
+    from dataclasses import replace
+
+    scenario = deltafmi.load_scenario("delta_tracking")
+    scenario = replace(scenario, master=replace(scenario.master, realtime=replace(scenario.master.realtime,
+                                                                                  lead=lead)))
+    plain = deltafmi.simulate("delta_tracking", stop=0.2)
+    paced = deltafmi.simulate(scenario, stop=0.2, speed=50.0)
+    report = paced.summary.live.realtime
+    expected = 5e-4 if lead is None else lead
+    assert report.lead == expected and report.tolerance == 5e-6
+    assert report.lateness.min() >= -expected - 1e-12
+    assert np.array_equal(report.lateness, paced["realtime.lateness"][1:])
+    if expected == 0:
+        assert report.lateness.min() >= 0
+    elif expected > 1e-3:
+        assert report.lateness.min() < -1e-3  # steps of 2.5 us: the run is ahead by more than half the lead
+        assert "early (lead)" in str(report)
+    for name in plain.names:
+        assert np.array_equal(paced[name], plain[name]), name
 
 
 @pytest.mark.parametrize("speed", [3.0, 1000.0])

@@ -63,7 +63,7 @@ class LiveRun:
             if component.name == REALTIME:
                 self.pacer = Pacer(realtime.speed, step, grid_steps(start, stop, step), tolerance=realtime.tolerance,
                                    spin=realtime.spin, behind=realtime.behind, warn=warn, stopped=stopped,
-                                   priority=realtime.priority)
+                                   priority=realtime.priority, lead=realtime.lead)
                 self._clock_unit = LiveInputUnit(component, _Measurements(self.pacer), [0.0] * 3)
                 continue
             spec = specs[component.name]

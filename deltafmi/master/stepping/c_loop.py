@@ -84,7 +84,8 @@ class _Pace(ctypes.Structure):
                 ("released", c_double), ("lateness", c_void_p), ("count", c_void_p), ("capacity", c_long),
                 ("late", c_void_p), ("busy", c_void_p), ("behind", c_void_p), ("stop_behind", c_int),
                 ("last_busy", c_double), ("cpu", c_double), ("wall", c_double), ("polled", c_double),
-                ("stream", c_int), ("stop_request", c_int), ("published", c_long), ("taken", c_long)]
+                ("stream", c_int), ("stop_request", c_int), ("published", c_long), ("taken", c_long),
+                ("lead", c_double)]
 
 
 class _Plan(ctypes.Structure):
@@ -413,7 +414,8 @@ class NativeLoop:
         self._pace = _Pace(t0=pacer._t0, wall0=pacer._wall0, speed=pacer.speed, spin=pacer.spin, period=pacer.period,
                            released=pacer.released, lateness=pacer._lateness.ctypes.data,
                            count=self._count.ctypes.data, capacity=len(pacer._lateness),
-                           late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error))
+                           late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error),
+                           lead=pacer.lead)
         self.plan.pace = ctypes.pointer(self._pace)
         self.rows.fill(0.0)  # its pages faulted in now, not at the first paced points that write them
         self._run = _steps_function(release_gil=True)

@@ -177,6 +177,7 @@ typedef struct {
     int stop_request;        /* in: stop after the point being released (a stop signal) */
     long published;          /* out: rows of this run written into the ring (release: the rows first) */
     long taken;              /* in: rows of this run the other thread has taken out of the ring */
+    double lead;             /* wall seconds a point may be released before its deadline (pace_to) */
 } Pace;
 
 typedef struct {
@@ -236,19 +237,23 @@ static void sleep_until(double until)
 
 /* Pacer.wait for point t, then the measurements on the bus; returns 1 when it came more than a
  * whole paced step late. A stop signal is looked at between calls (a call lasts about a
- * millisecond of wall time, see master.py). */
+ * millisecond of wall time, see master.py). With a lead (Pace.lead > 0) a point due within the
+ * lead is released at once, and one due later is waited for until half the lead is left: the
+ * points go out in bursts up to the lead ahead of their deadlines, which absorb a stall of the
+ * thread shorter than half the lead, and the waits are long enough to sleep through. */
 static int pace_to(Pace *c, double t)
 {
     double now_ = now();
     double busy = now_ - c->released;
     double deadline = c->wall0 + (t - c->t0) / c->speed;
-    while (deadline - now_ > c->spin + 1e-6) {
-        double left = deadline - now_ - c->spin;
+    double wake = c->lead > 0.0 ? (now_ < deadline - c->lead ? deadline - c->lead / 2 : now_) : deadline;
+    while (wake - now_ > c->spin + 1e-6) {
+        double left = wake - now_ - c->spin;
         sleep_until(now_ + (left < 0.05 ? left : 0.05));
         now_ = now();
     }
     double polling = now_;
-    while (now_ < deadline) now_ = now();
+    while (now_ < wake) now_ = now();
     c->polled += now_ - polling;
     double late = now_ - deadline;
     c->released = now_;
