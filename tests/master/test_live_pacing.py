@@ -31,8 +31,8 @@ def test_paced_run_takes_its_simulated_time_and_changes_no_number(monkeypatch):
 
     paced_in_c = []
     pace = NativeLoop.pace
-    monkeypatch.setattr(NativeLoop, "pace", lambda loop, pacer, slots: (paced_in_c.append(pacer.speed),
-                                                                       pace(loop, pacer, slots)))
+    monkeypatch.setattr(NativeLoop, "pace", lambda loop, pacer, *rest: (paced_in_c.append(pacer.speed),
+                                                                       pace(loop, pacer, *rest)))
     plain = deltafmi.simulate("delta_tracking", stop=0.3)
     paced = deltafmi.simulate("delta_tracking", stop=0.3, realtime=True)
     fast = deltafmi.simulate("delta_tracking", stop=0.3, speed=3.0)

@@ -83,6 +83,10 @@ class RealtimeReport:
     locked: bool = False
     #: wall seconds a point could be released before its time (negative lateness: how early)
     lead: float = 0.0
+    #: the wall-clock time [s, ``time.perf_counter``] at which simulation time :attr:`t0` was due:
+    #: point ``t`` was due at ``wall0 + (t - t0) / speed`` and released ``lateness`` after that
+    wall0: float = 0.0
+    t0: float = 0.0
 
     @property
     def overruns(self) -> int:
@@ -262,4 +266,4 @@ class Pacer:
         """The lateness of every point so far."""
         return RealtimeReport(self.speed, self.step, self.tolerance, self._lateness[:self._count].copy(),
                               list(self._behind), cpu=self.cpu, wall=self.wall, polled=self.polled,
-                              locked=self.locked, lead=self.lead)
+                              locked=self.locked, lead=self.lead, wall0=self._wall0, t0=self._t0)

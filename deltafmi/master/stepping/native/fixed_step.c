@@ -78,7 +78,8 @@ enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_
        STEP_RETURNED = 7, /* fmi3DoStep: an event, an early return or a termination (Op.flags) */
        CLOCK_INSIDE = 8, /* CLOCK_TICK: a tick inside the step; nothing done, Python takes the step */
        UNSETTLED = 9, /* CLOCK_TICK: fmi3UpdateDiscreteStates still asked for more after MAX_EVENT_ITERATIONS */
-       BEHIND = 10 /* paced, Pace.stop_behind: a point came more than a paced step late (its row recorded) */ };
+       BEHIND = 10, /* paced, Pace.stop_behind: a point came more than a paced step late (its row recorded) */
+       LIVE = 11 /* paced, Pace.sample: the live sources need Python at the point reached (its row not recorded) */ };
 enum { MAX_EVENT_ITERATIONS = 1000 }; /* fmi3_units._MAX_EVENT_ITERATIONS */
 /* Op.flags after fmi3DoStep */
 enum { EVENT_HANDLING_NEEDED = 1, TERMINATE_SIMULATION = 2, EARLY_RETURN = 4 };
@@ -178,6 +179,10 @@ typedef struct {
     long published;          /* out: rows of this run written into the ring (release: the rows first) */
     long taken;              /* in: rows of this run the other thread has taken out of the ring */
     double lead;             /* wall seconds a point may be released before its deadline (pace_to) */
+    /* NULL, or the live sources read at every point once it is released, before its row
+     * (deltafmi/master/live/native/udp_reader.c); returns 1 when Python must sample them there */
+    int (*sample)(void *context, double t);
+    void *sample_context;
 } Pace;
 
 typedef struct {
@@ -1086,6 +1091,11 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
         }
         double t_next = next < p->n_steps ? p->start + (double)next * p->h : p->stop;
         int late = p->pace ? pace_to(p->pace, t_next) : 0;
+        if (p->pace && p->pace->sample && p->pace->sample(p->pace->sample_context, t_next)) {
+            *k_done = next;
+            *n_rows = written;
+            return LIVE;
+        }
         if (due && stream) { /* into the ring, once the other thread has made room */
             while (written - __atomic_load_n(&stream->taken, __ATOMIC_ACQUIRE) >= max_rows) {
                 if (__atomic_load_n(&stream->stop_request, __ATOMIC_ACQUIRE)) {
