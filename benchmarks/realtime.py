@@ -7,8 +7,8 @@
 - The paced flagship beside the machine's floor, interleaved, ``--repeats`` times: the flagship
   at 50x (``--seconds-fast`` simulated seconds) and 1x (``--seconds-real``) on the master's C loop,
   as it paces by default (at 50x a lead of 0.5 ms, sleeping; at 1x a deadline per step, sleeping
-  then polling 0.2 ms) and at 50x with a deadline per step (lead 0, polling: the pacing before the
-  lead), at 1x sleeping only too; beside benchmarks/native/paced_floor.c, a bare C program pacing
+  then polling 50 us) and at 50x with a deadline per step (lead 0, polling: the pacing before the
+  lead), at 1x sleeping only and polling 200 us (the default before) too; beside benchmarks/native/paced_floor.c, a bare C program pacing
   as many points around the flagship's median busy time, waiting each of those ways (and at 1x
   by polling only, by sleeping then polling the last 50 us). For each: overruns (later than a
   quarter step, the Pacer's tolerance), the shares later than 1 us, half and a whole step,
@@ -19,12 +19,16 @@
   flagship with ``master.realtime.priority: 50``, the floor under ``chrt -f 50``: root).
   ``--target-only`` measures this only. Also the busy time per point of the C loop against the
   Python loop paced the same way (``LiveRun.paced_in_c`` off).
+- A UDP live input at 50x: the Oscillator paced with a datagram sent to it every millisecond of
+  wall time, its source read by the C loop between steps and, as the baseline in the same run,
+  sampled in Python at every point (the C loop handing back at each): overruns, fell-behind,
+  lateness, busy time, values taken (``--udp-only`` measures this only).
 - UDP round trip: a datagram sent to a live UDP input comes back on a UDP stream of the same
   signal (the run at 1 kHz paced, and unpaced); wall time from sendto to recv, median and 99th
   percentile over ``--pings``. Baseline in the same run: a plain Python echo over loopback (one
   thread receives and sends back), the floor of any round trip through Python sockets.
 
-Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only] [--fifo]
+Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only] [--fifo] [--udp-only]
        [--seconds-fast 10] [--seconds-real 2]
        python benchmarks/realtime.py --throttling   # the floor at priority 50 for 0.8 s and 1.4 s (root)
 """
@@ -120,6 +124,7 @@ class PacedFloor:
         late = np.fromfile(self.out)
         found = figures(late, period, float(cpu), float(wall), locked == "1")
         found["early"] = float(max(0.0, -late.min()))
+        found["miss"] = float("nan")  # benchmarks/pacing_floor.py measures the floor's
         return found
 
 
@@ -175,7 +180,16 @@ def ours(stop: float, speed: float, spin: Optional[float] = None, priority: Opti
     found["busy"] = float(np.median(result["realtime.busy"][1:]))
     found["polled"] = report.polled / report.wall
     found["early"] = float(max(0.0, -report.lateness.min())) if len(report.lateness) else 0.0
+    found["miss"] = deadline_misses(result["realtime.lateness"], result["realtime.busy"], 1e-3 / speed)
     return found
+
+
+def deadline_misses(lateness: np.ndarray, busy: np.ndarray, period: float) -> float:
+    """The share of steps that finished computing after their point's deadline (a real-time
+    engineer's overrun): point k's step began at the release of point k - 1 (its deadline plus its
+    lateness) and computed ``busy[k]`` seconds; the first point starts the clock."""
+    finished = (np.arange(len(lateness) - 1) * period + lateness[:-1]) + busy[1:]
+    return float(np.mean(finished > np.arange(1, len(lateness)) * period))
 
 
 #: a real-time priority (SCHED_FIFO 50: root or CAP_SYS_NICE), for --fifo
@@ -186,8 +200,8 @@ def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
     """Each configuration once per repeat, in an order shuffled anew each repeat (the load changes
     from one moment to the next; a fixed order would favour a place in it): the flagship paced at
     50x as it paces by default (a lead of 0.5 ms, sleeping) and with a deadline per step (lead 0,
-    polling: the pacing before the lead), and at 1x (per step, sleeping then polling 0.2 ms; sleeping
-    only too), beside the floor (:class:`PacedFloor`) around the flagship's median busy time (from a
+    polling: the pacing before the lead), and at 1x (per step, sleeping then polling 50 us; sleeping
+    only and polling 200 us too), beside the floor (:class:`PacedFloor`) around the flagship's median busy time (from a
     first run, not counted) waiting each way; ``fifo``: both at real-time priority 50 too
     (``master.realtime.priority``; the floor under :data:`FIFO`). ``seconds``: simulated seconds
     per speed. Returns {label: [figures per repeat]}; each figures' "load" is the load average
@@ -219,15 +233,16 @@ def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
                              ("floor 50x lead SCHED_FIFO", lambda n=n, period=period, b=b:
                               floor("sleep", n, period, b, spin=0.0, lead=5e-4, prefix=FIFO))]
             else:
-                plan.append(("ours 1x sleep only", lambda stop=stop: ours(stop, 1.0, spin=0.0)))
+                plan += [("ours 1x sleep only", lambda stop=stop: ours(stop, 1.0, spin=0.0)),
+                         ("ours 1x polling 200 us", lambda stop=stop: ours(stop, 1.0, spin=2e-4))]
                 for mode, spin in (("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5), ("spin", 0.0)):
                     label = f"floor 1x {mode}" + (f" {spin * 1e6:.0f} us" if mode == "hybrid" else "")
                     plan.append((label, lambda mode=mode, n=n, period=period, b=b, spin=spin:
                                  floor(mode, n, period, b, spin)))
                 if fifo:
                     plan += [("ours 1x priority 50", lambda stop=stop: ours(stop, 1.0, priority=50)),
-                             ("floor 1x hybrid 200 us SCHED_FIFO", lambda n=n, period=period, b=b:
-                              floor("hybrid", n, period, b, 2e-4, prefix=FIFO))]
+                             ("floor 1x hybrid 50 us SCHED_FIFO", lambda n=n, period=period, b=b:
+                              floor("hybrid", n, period, b, 5e-5, prefix=FIFO))]
         for label, _ in plan:
             runs[label] = []
         for _ in range(repeats):
@@ -261,14 +276,15 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
           f"({int(seconds[50.0] * 1e3)} points, 20 us paced step, overrun = later than 5 us), 1x: {seconds[1.0]:g} s "
           f"(1 ms step, overrun = later than 250 us); load average (1 min) at each repeat's start: "
           + ", ".join(f"{f['load']:.2f}" for f in runs["ours 50x"]))
-    print(f"  {'':34} {'overruns':>9} {'>1us':>7} {'>T/2':>7} {'>T':>7} {'behind':>7} {'p50':>9} {'p99':>10} "
-          f"{'max':>10} {'early':>10} {'CPU':>6}   (medians over the repeats; per repeat: overruns %, fell behind)")
+    print(f"  {'':34} {'overruns':>9} {'miss':>7} {'>1us':>7} {'>T/2':>7} {'>T':>7} {'behind':>7} {'p50':>9} "
+          f"{'p99':>10} {'max':>10} {'early':>10} {'CPU':>6}   (medians over the repeats; per repeat: overruns %, "
+          f"fell behind; miss: steps that finished computing after their deadline)")
     for label, found in runs.items():
-        med = {key: statistics.median(f[key] for f in found) for key in ("overruns", "over_1us", "over_half",
+        med = {key: statistics.median(f[key] for f in found) for key in ("overruns", "miss", "over_1us", "over_half",
                                                                             "over_period", "behind", "p50", "p99",
                                                                             "max", "early", "cpu")}
         each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in found)
-        print(f"  {label:34} {med['overruns']:9.2%} {med['over_1us']:7.1%} {med['over_half']:7.1%} "
+        print(f"  {label:34} {med['overruns']:9.2%} {med['miss']:7.2%} {med['over_1us']:7.1%} {med['over_half']:7.1%} "
               f"{med['over_period']:7.1%} {med['behind']:7g} {_us(med['p50'])} {_us(med['p99'])} {_us(med['max'])} "
               f"{_us(med['early'])} {med['cpu']:6.0%}   {each}")
     for speed in (50.0, 1.0):
@@ -277,11 +293,12 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
               f"{statistics.median(f['polled'] for f in mine):.0%} of wall, memory locked "
               f"{all(f['locked'] for f in mine)}")
     pairs = [("ours 50x", "floor 50x sleep, lead 500 us"), ("ours 50x per step", "floor 50x spin (per step)"),
-             ("ours 1x", "floor 1x hybrid 200 us"), ("ours 1x sleep only", "floor 1x sleep")]
+             ("ours 1x", "floor 1x hybrid 50 us"), ("ours 1x polling 200 us", "floor 1x hybrid 200 us"),
+             ("ours 1x sleep only", "floor 1x sleep")]
     if "ours 50x priority 50" in runs:
         pairs += [("ours 50x priority 50", "floor 50x lead SCHED_FIFO"),
                   ("ours 50x per step, priority 50", "floor 50x spin SCHED_FIFO"),
-                  ("ours 1x priority 50", "floor 1x hybrid 200 us SCHED_FIFO")]
+                  ("ours 1x priority 50", "floor 1x hybrid 50 us SCHED_FIFO")]
     for mine_label, floor_label in pairs:
         mine = statistics.median(f["overruns"] for f in runs[mine_label])
         floor = statistics.median(f["overruns"] for f in runs[floor_label])
@@ -342,6 +359,83 @@ streams:
   - {{udp: '127.0.0.1:{back}', signals: [cmd.x]}}
 """)
     return path
+
+
+def _udp_input_scenario(folder: Path, port: int) -> Path:
+    path = folder / "udp_input.yaml"
+    path.write_text(f"""\
+experiment: {{stop: 1000.0, step: 1.0e-3}}
+master: {{realtime: true}}
+live:
+  cmd:
+    udp: {{port: {port}}}
+    timeout: 100.0
+    signals: {{x: {{}}}}
+components:
+  osc: {{source: 'deltafmi.models:Oscillator', interface: CS}}
+connections:
+  - {{from: cmd.x, to: osc.F}}
+outputs: [osc.x]
+""")
+    return path
+
+
+def udp_input_run(stop: float, speed: float, in_c: bool) -> dict:
+    """The Oscillator paced at ``speed`` for ``stop`` simulated seconds with a UDP live input that
+    another thread sends a datagram to every millisecond of wall time: the live source read by the
+    C loop between its steps (``in_c``), or sampled in Python at every point (the C loop handing
+    back at each, as before the C reader): :func:`figures`, the median busy time and the datagrams
+    taken."""
+    from deltafmi.master.live.run import LiveRun
+
+    port = _ports()[0]
+    done = threading.Event()
+
+    def send() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            n = 0
+            while not done.is_set():
+                n += 1
+                sock.sendto(encode({"x": float(n)}, t=n * 1e-3, seq=n), ("127.0.0.1", port))
+                time.sleep(1e-3)
+
+    read_in_c = LiveRun.read_in_c
+    if not in_c:
+        LiveRun.read_in_c = lambda self: None
+    sender = threading.Thread(target=send, daemon=True)
+    with tempfile.TemporaryDirectory() as folder:
+        scenario = _udp_input_scenario(Path(folder), port)
+        sender.start()
+        try:
+            result = deltafmi.simulate(scenario, stop=stop, speed=speed, output=Path(folder) / "udp.csv")
+        finally:
+            done.set()
+            sender.join()
+            LiveRun.read_in_c = read_in_c
+    report = result.summary.live.realtime
+    found = figures(report.lateness, 1e-3 / speed, report.cpu, report.wall, report.locked)
+    found["busy"] = float(np.median(result["realtime.busy"][1:]))
+    found["taken"] = len(np.unique(result["cmd.x"]))
+    return found
+
+
+def udp_figures(seconds: float, repeats: int) -> None:
+    """:func:`udp_input_run` at 50x read in C and in Python, once each per repeat in alternating
+    order; medians over the repeats."""
+    load = os.getloadavg()[0]
+    found: dict = {True: [], False: []}
+    for repeat in range(repeats):
+        for in_c in ((True, False) if repeat % 2 == 0 else (False, True)):
+            found[in_c].append(udp_input_run(seconds, 50.0, in_c))
+    print(f"UDP live input at 50x (the Oscillator, {seconds:g} s simulated, a datagram every ms of wall time), "
+          f"{repeats} repeats, medians; load average {load:.2f} at the start, {os.getloadavg()[0]:.2f} at the end:")
+    for in_c in (True, False):
+        med = {key: statistics.median(f[key] for f in found[in_c]) for key in ("overruns", "behind", "p50", "p99",
+                                                                                  "busy", "taken")}
+        each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in found[in_c])
+        label = "read by the C loop between steps" if in_c else "sampled in Python at every point"
+        print(f"  {label:34} overruns {med['overruns']:7.2%}, behind {med['behind']:5g}, p50 {_us(med['p50'])}, "
+              f"p99 {_us(med['p99'])}, busy {_us(med['busy'])}, values taken {med['taken']:g}   ({each})")
 
 
 def _ports() -> tuple:
@@ -429,6 +523,8 @@ def main() -> None:
                         help="only the paced flagship at 50x and 1x beside the machine's floor")
     parser.add_argument("--fifo", action="store_true",
                         help="at 50x, the flagship and the floor at a real-time priority too (chrt -f 50: root)")
+    parser.add_argument("--udp-only", action="store_true",
+                        help="only the UDP live input at 50x, read in C and in Python")
     parser.add_argument("--throttling", action="store_true",
                         help="only the floor at real-time priority 50 for 0.8 s and 1.4 s (Linux's real-time throttling)")
     args = parser.parse_args()
@@ -437,6 +533,9 @@ def main() -> None:
         return
     logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)  # "fell behind" while probing speeds
     deltafmi.simulate("delta_tracking", stop=0.01)  # builds the FMUs once
+    if args.udp_only:
+        udp_figures(args.seconds, args.repeats)
+        return
     seconds = {50.0: args.seconds_fast, 1.0: args.seconds_real}
     runs = compare(args.repeats, seconds, args.fifo)
     print_compare(runs, args.repeats, seconds)
@@ -454,6 +553,8 @@ def main() -> None:
     print(f"highest speed that keeps up: {speed:.1f}x real time")
     print(f"  baseline (same run): step / busy = {1e-3 / busy:.1f}x; unpaced real-time factor "
           f"{rtf:.0f}x (C loop); ratio kept-up / busy-allowed = {speed / (1e-3 / busy):.2f}")
+
+    udp_figures(args.seconds, args.repeats)
 
     echo = python_echo(args.pings)
     for paced in (True, False):

@@ -52,7 +52,7 @@ FINE_STEP = 1e-4
 #: the lead [s of wall time] of a run paced finer than :data:`FINE_STEP`
 DEFAULT_LEAD = 5e-4
 #: wall seconds polled before a deadline without a lead (with one the waits sleep only)
-DEFAULT_SPIN = 2e-4
+DEFAULT_SPIN = 5e-5
 
 
 def default_lead(period: float) -> float:

@@ -97,7 +97,7 @@ class Realtime:
     behind: str = "warn"
     #: lateness [s] counted as an overrun; None: a quarter of the paced step
     tolerance: Optional[float] = None
-    #: wall seconds before a deadline spent polling the clock rather than sleeping; None: 0.2 ms
+    #: wall seconds before a deadline spent polling the clock rather than sleeping; None: 0.05 ms
     #: without a lead, 0 with one (live/pacing.py)
     spin: Optional[float] = None
     #: a real-time priority (SCHED_FIFO, 1-99) for the thread that paces; None: its usual one
