@@ -361,11 +361,12 @@ streams:
     return path
 
 
-def _udp_input_scenario(folder: Path, port: int) -> Path:
+def _udp_input_scenario(folder: Path, port: int, priority: Optional[int] = None) -> Path:
     path = folder / "udp_input.yaml"
+    realtime = "true" if priority is None else f"{{priority: {priority}}}"
     path.write_text(f"""\
 experiment: {{stop: 1000.0, step: 1.0e-3}}
-master: {{realtime: true}}
+master: {{realtime: {realtime}}}
 live:
   cmd:
     udp: {{port: {port}}}
@@ -380,12 +381,12 @@ outputs: [osc.x]
     return path
 
 
-def udp_input_run(stop: float, speed: float, in_c: bool) -> dict:
+def udp_input_run(stop: float, speed: float, in_c: bool, priority: Optional[int] = None) -> dict:
     """The Oscillator paced at ``speed`` for ``stop`` simulated seconds with a UDP live input that
     another thread sends a datagram to every millisecond of wall time: the live source read by the
     C loop between its steps (``in_c``), or sampled in Python at every point (the C loop handing
-    back at each, as before the C reader): :func:`figures`, the median busy time and the datagrams
-    taken."""
+    back at each, as before the C reader); ``priority``: ``master.realtime.priority``: :func:`figures`,
+    the median busy time and the datagrams taken."""
     from deltafmi.master.live.run import LiveRun
 
     port = _ports()[0]
@@ -404,7 +405,7 @@ def udp_input_run(stop: float, speed: float, in_c: bool) -> dict:
         LiveRun.read_in_c = lambda self: None
     sender = threading.Thread(target=send, daemon=True)
     with tempfile.TemporaryDirectory() as folder:
-        scenario = _udp_input_scenario(Path(folder), port)
+        scenario = _udp_input_scenario(Path(folder), port, priority)
         sender.start()
         try:
             result = deltafmi.simulate(scenario, stop=stop, speed=speed, output=Path(folder) / "udp.csv")
@@ -419,21 +420,26 @@ def udp_input_run(stop: float, speed: float, in_c: bool) -> dict:
     return found
 
 
-def udp_figures(seconds: float, repeats: int) -> None:
-    """:func:`udp_input_run` at 50x read in C and in Python, once each per repeat in alternating
-    order; medians over the repeats."""
+def udp_figures(seconds: float, repeats: int, fifo: bool = False) -> None:
+    """:func:`udp_input_run` at 50x read in C and in Python (``fifo``: at priority 50 too), each
+    once per repeat in a shuffled order; medians over the repeats."""
     load = os.getloadavg()[0]
-    found: dict = {True: [], False: []}
-    for repeat in range(repeats):
-        for in_c in ((True, False) if repeat % 2 == 0 else (False, True)):
-            found[in_c].append(udp_input_run(seconds, 50.0, in_c))
+    plan = [("read by the C loop between steps", True, None), ("sampled in Python at every point", False, None)]
+    if fifo:
+        plan += [("read in C, priority 50", True, 50), ("sampled in Python, priority 50", False, 50)]
+    found: dict = {label: [] for label, _, _ in plan}
+    shuffle = random.Random(5).shuffle
+    for _ in range(repeats):
+        order = list(plan)
+        shuffle(order)
+        for label, in_c, priority in order:
+            found[label].append(udp_input_run(seconds, 50.0, in_c, priority))
     print(f"UDP live input at 50x (the Oscillator, {seconds:g} s simulated, a datagram every ms of wall time), "
           f"{repeats} repeats, medians; load average {load:.2f} at the start, {os.getloadavg()[0]:.2f} at the end:")
-    for in_c in (True, False):
-        med = {key: statistics.median(f[key] for f in found[in_c]) for key in ("overruns", "behind", "p50", "p99",
-                                                                                  "busy", "taken")}
-        each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in found[in_c])
-        label = "read by the C loop between steps" if in_c else "sampled in Python at every point"
+    for label, runs in found.items():
+        med = {key: statistics.median(f[key] for f in runs) for key in ("overruns", "behind", "p50", "p99", "busy",
+                                                                           "taken")}
+        each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in runs)
         print(f"  {label:34} overruns {med['overruns']:7.2%}, behind {med['behind']:5g}, p50 {_us(med['p50'])}, "
               f"p99 {_us(med['p99'])}, busy {_us(med['busy'])}, values taken {med['taken']:g}   ({each})")
 
@@ -534,7 +540,7 @@ def main() -> None:
     logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)  # "fell behind" while probing speeds
     deltafmi.simulate("delta_tracking", stop=0.01)  # builds the FMUs once
     if args.udp_only:
-        udp_figures(args.seconds, args.repeats)
+        udp_figures(args.seconds, args.repeats, args.fifo)
         return
     seconds = {50.0: args.seconds_fast, 1.0: args.seconds_real}
     runs = compare(args.repeats, seconds, args.fifo)
@@ -554,7 +560,7 @@ def main() -> None:
     print(f"  baseline (same run): step / busy = {1e-3 / busy:.1f}x; unpaced real-time factor "
           f"{rtf:.0f}x (C loop); ratio kept-up / busy-allowed = {speed / (1e-3 / busy):.2f}")
 
-    udp_figures(args.seconds, args.repeats)
+    udp_figures(args.seconds, args.repeats, args.fifo)
 
     echo = python_echo(args.pings)
     for paced in (True, False):

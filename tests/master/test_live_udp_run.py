@@ -378,8 +378,7 @@ def test_udp_inputs_read_by_the_c_loop_reach_the_plant_at_the_points_they_arrive
         build_fmu_from_src, tmp_path, monkeypatch):
     """At 50x (20 us paced steps) a UDP source on IPv4 is read by the C loop between its steps:
     the run is one call of the C loop, handing back to Python only for the datagrams Python must
-    read (the first from a new sender, and every 40th datagram a malformed one, a stale one and
-    one with an undeclared name), which are counted as a Python-read run counts them. Datagram n carries F = 1 + n / 1000, sent every
+    read (every 40th datagram, a malformed one, a stale one and one with an undeclared name), which are counted as a Python-read run counts them. Datagram n carries F = 1 + n / 1000, sent every
     millisecond of wall time by another thread with the wall time just before and just after
     sendto (loopback: in the socket when sendto returns). A value first recorded at point k was
     sent before the point after k was released (the source is read right after a point's
@@ -431,8 +430,8 @@ def test_udp_inputs_read_by_the_c_loop_reach_the_plant_at_the_points_they_arrive
     assert counts["malformed"] >= counts["stale"] >= counts["unknown"] >= max(1, counts["malformed"] - 1), counts
     c_counts = readers[0].readers[0].counters()
     # most in C (Python reads what arrived before the paced run and at each hand-back): one call of
-    # the C loop, and one more after each hand-back (a new sender, and about one for each trio of
-    # datagrams Python must read: they come within microseconds)
+    # the C loop, and one more after each hand-back (about one for each trio of datagrams Python
+    # must read: they come within microseconds)
     assert c_counts["accepted"] >= 50 and c_counts["accepted"] > counts["accepted"] / 2, (c_counts, counts)
     assert 1 <= len(calls) <= 3 * counts["malformed"] + 3, (len(calls), counts)
     force = result["cmd.F"]

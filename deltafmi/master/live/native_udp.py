@@ -6,8 +6,8 @@ every communication point, after the point's wait and before its row, as
 since the last point, in arrival order, the newest value of each signal winning, into the unit's
 values and the bus. No Python runs between two points, so the run can go as fast as its pacing
 (a hand-back to Python at every point costs more than a 20 us paced step). What the C reader does
-not take itself (a JSON datagram, a malformed one, an undeclared name, a sender it has not heard
-of, a timestamp older than its sender's newest, a change of the source's silence) it hands to
+not take itself (a JSON datagram, a malformed one, an undeclared name, a sender beyond the 16 it
+remembers, a timestamp older than its sender's newest, a change of the source's silence) it hands to
 Python with that point: :class:`~deltafmi.master.live.udp.UdpSource` reads on from exactly that
 datagram by its own rules, so the values, counters and warnings are those of a Python-read run.
 """
@@ -109,23 +109,32 @@ class NativeReader:
         s, unit = self.s, self.unit
         s.silent = int(unit._silent_since is not None)
         s.last_news = unit._last_news
-        newest = self.source._newest
-        for i in range(s.n_senders):
+        newest = dict(self.source._newest)
+        for i in range(s.n_senders):  # every one C knows of, Python knows of too (after_c)
             sender = s.senders[i]
-            known = newest.get(_address(sender.host, sender.port))
-            sender.known = int(known is not None)
+            known = newest.pop(_address(sender.host, sender.port), None)
             if known is not None:
                 sender.t, sender.seq = known[0], known[1] & 0xFFFFFFFF
+        for address, (t, seq) in newest.items():  # the senders only Python heard of, while C has room
+            if s.n_senders >= _MAX_SENDERS:
+                break
+            if len(address) != 2:
+                continue
+            sender = s.senders[s.n_senders]
+            sender.host = int.from_bytes(socket.inet_aton(address[0]), "little")
+            sender.port, sender.known, sender.t, sender.seq = socket.htons(address[1]), 1, t, seq & 0xFFFFFFFF
+            s.n_senders += 1
 
     def after_c(self) -> Tuple[dict, Optional[Tuple[bytes, Tuple[str, int]]]]:
-        """What C took since Python last looked (signal -> value) and the datagram it handed over
-        with its sender (or None); the senders' newest timestamps C accepted, given to Python."""
+        """What C took at the point it read last (signal -> value: the point's news) and the
+        datagram it handed over with its sender (or None); the senders' newest timestamps C
+        accepted, and its last news, given to Python."""
         s, unit = self.s, self.unit
         unit._last_news = max(unit._last_news, s.last_news)
         newest = self.source._newest
         for i in range(s.n_senders):
             sender = s.senders[i]
-            if sender.known:
+            if sender.known and sender.t != -np.inf:  # -inf: remembered, nothing accepted yet
                 newest[_address(sender.host, sender.port)] = (sender.t, sender.seq)
         taken = {self.source.signals[i]: float(unit.values[i]) for i in np.flatnonzero(self.fresh).tolist()}
         self.fresh[:] = 0

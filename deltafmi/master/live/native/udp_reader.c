@@ -5,9 +5,9 @@
  * read as deltafmi/master/live/udp.py's UdpSource would: in arrival order, the newest value of each
  * signal winning, into the unit's values and their bus slots. A datagram it does not take itself is
  * handed to Python with the point: a JSON datagram, one that is malformed (the reason is Python's to
- * say), names a signal the source does not declare, comes from a sender the source has not heard of
- * (or whose newest timestamp Python holds) or is older than the newest of its sender (stale or a
- * restart: Python's rules). It stops that source's reading there (the datagram kept in `pending`,
+ * say), names a signal the source does not declare, comes from a sender beyond the MAX_SENDERS
+ * this reader remembers (Python remembers more), or is older than the newest of its sender (stale
+ * or a restart: Python's rules). It stops that source's reading there (the datagram kept in `pending`,
  * the rest left in the socket) and the C loop hands the point back, where Python reads on from
  * exactly there. So does a change of the source's silence (no news for `timeout` wall seconds, or
  * news after it), which Python reports. Datagrams from a host other than the allowed ones are
@@ -44,7 +44,7 @@ typedef struct {
     const long *name_start, *name_length;
     double *values;          /* the unit's values, by signal */
     double *const *bus;      /* per signal: its bus slot, or NULL */
-    unsigned char *fresh;    /* out, per signal: taken since Python last looked (Python clears it) */
+    unsigned char *fresh;    /* out, per signal: taken at the last point read */
     double *scratch;         /* n: a datagram's values before it is taken whole */
     unsigned char *seen;     /* n */
     double timeout;          /* wall seconds without news before the source is silent; <= 0: never */
@@ -92,15 +92,19 @@ static void take(Source *s, long i, double value)
     if (s->bus[i]) *s->bus[i] = value;
 }
 
+/* The sender's entry: a new sender gets one while there is room (its first datagram is then
+ * taken here, as Python takes any new sender's), else NULL (Python's) */
 static Sender *sender_of(Source *s, uint32_t host, uint16_t port)
 {
     for (long i = 0; i < s->n_senders; i++)
         if (s->senders[i].host == host && s->senders[i].port == port) return &s->senders[i];
-    if (s->n_senders < MAX_SENDERS) { /* remembered for Python to tell its newest timestamp */
+    if (s->n_senders < MAX_SENDERS) {
         Sender *new_ = &s->senders[s->n_senders++];
         memset(new_, 0, sizeof *new_);
         new_->host = host;
         new_->port = port;
+        new_->known = 1;
+        new_->t = -INFINITY;
         return new_;
     }
     return NULL;
@@ -173,6 +177,7 @@ static int sample_source(Source *s)
     int news = 0;
     long read = 0;
     if (s->pending >= 0) return 1; /* Python has not taken the last one yet */
+    memset(s->fresh, 0, (size_t)s->n);
     for (; read < s->max_per_poll; read++) {
         struct sockaddr_in from;
         struct iovec iov = {.iov_base = s->buffer, .iov_len = MAX_DATAGRAM + 1};
