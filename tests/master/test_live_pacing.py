@@ -402,3 +402,29 @@ def test_two_stop_signals_stop_a_streamed_run_where_its_rows_end():
     result = caught.value.result
     said = float(re.search(r"interrupted at t = ([\d.]+) s", str(caught.value)).group(1))
     assert 0 < said == result.time[-1] and len(result.time) == round(said / 1e-3) + 1
+
+
+def test_the_python_pacer_keeps_the_same_lead():
+    """The Pacer (the Python loop's, with streams) waits as the C loop does with a lead: a point
+    due within the lead goes out at once, one due later at half the lead before its time (or
+    later), never earlier than the lead; 40 points of 1 ms with a 4 ms lead take at least 36 ms."""
+    import time
+
+    from deltafmi.master.live.pacing import Pacer
+
+    pacer = Pacer(1.0, 1e-3, 40, lead=4e-3)
+    assert pacer.spin == 0.0 and pacer.lead == 4e-3
+    pacer.start(0.0)
+    begin = time.perf_counter()
+    try:
+        late = [pacer.wait(k * 1e-3) for k in range(1, 41)]
+    finally:
+        pacer.close()
+    wall = time.perf_counter() - begin
+    assert min(late) >= -4e-3 - 1e-12 and wall >= 40e-3 - 4e-3
+    assert late[0] < -0.9e-3  # due 1 ms ahead, within the lead: at once
+    report = pacer.report()
+    assert report.lead == 4e-3 and np.array_equal(report.lateness, np.array(late))
+    # no lead by default at 1 ms paced steps: never before its time
+    assert Pacer(1.0, 1e-3, 1).lead == 0.0 and Pacer(1.0, 1e-3, 1).spin == 5e-5
+    assert Pacer(50.0, 1e-3, 1).lead == 5e-4 and Pacer(50.0, 1e-3, 1).spin == 0.0
