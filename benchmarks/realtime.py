@@ -131,7 +131,8 @@ class PacedFloor:
 def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked: bool) -> dict:
     """Overruns (the Pacer's: later than a quarter period), shares later than 1 us, half and a
     whole period, fell-behind episodes (as the Pacer counts them) and the median time between
-    their starts, lateness percentiles and the CPU time of the loop against its wall time."""
+    their starts, lateness percentiles, the CPU time of the loop against its wall time, and
+    whether the last point was still a whole period late (the run had not caught up by its end)."""
     late = np.asarray(lateness, dtype=float)
     beyond = late > period
     starts = np.flatnonzero(beyond & ~np.concatenate(([False], beyond[:-1])))
@@ -140,7 +141,7 @@ def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked
             "over_half": float(np.mean(late > period / 2)), "over_period": float(np.mean(beyond)),
             "behind": int(np.count_nonzero(beyond & ~np.concatenate(([False], beyond[:-1])))),
             "p50": float(np.median(late)), "p99": float(np.percentile(late, 99)), "max": float(late.max()),
-            "cpu": cpu / wall if wall > 0 else float("nan"), "locked": locked}
+            "cpu": cpu / wall if wall > 0 else float("nan"), "locked": locked, "end": bool(late[-1] > period)}
 
 
 def handing_back(begin_fixed_steps):
@@ -277,8 +278,9 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
           f"(1 ms step, overrun = later than 250 us); load average (1 min) at each repeat's start: "
           + ", ".join(f"{f['load']:.2f}" for f in runs["ours 50x"]))
     print(f"  {'':34} {'overruns':>9} {'miss':>7} {'>1us':>7} {'>T/2':>7} {'>T':>7} {'behind':>7} {'p50':>9} "
-          f"{'p99':>10} {'max':>10} {'early':>10} {'CPU':>6}   (medians over the repeats; per repeat: overruns %, "
-          f"fell behind; miss: steps that finished computing after their deadline)")
+          f"{'p99':>10} {'max':>10} {'early':>10} {'CPU':>6} {'end':>4}   (medians over the repeats; per repeat: "
+          f"overruns %, fell behind; miss: steps that finished computing after their deadline; end: repeats whose "
+          f"last point was still a step late)")
     for label, found in runs.items():
         med = {key: statistics.median(f[key] for f in found) for key in ("overruns", "miss", "over_1us", "over_half",
                                                                             "over_period", "behind", "p50", "p99",
@@ -286,7 +288,7 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
         each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in found)
         print(f"  {label:34} {med['overruns']:9.2%} {med['miss']:7.2%} {med['over_1us']:7.1%} {med['over_half']:7.1%} "
               f"{med['over_period']:7.1%} {med['behind']:7g} {_us(med['p50'])} {_us(med['p99'])} {_us(med['max'])} "
-              f"{_us(med['early'])} {med['cpu']:6.0%}   {each}")
+              f"{_us(med['early'])} {med['cpu']:6.0%} {sum(f['end'] for f in found):4d}   {each}")
     for speed in (50.0, 1.0):
         mine = runs[f"ours {speed:g}x"]
         print(f"  ours {speed:g}x: busy median {_us(statistics.median(f['busy'] for f in mine))}, polling "
