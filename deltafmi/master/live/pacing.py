@@ -104,7 +104,8 @@ class RealtimeReport:
         text = (f"real time at {self.speed:g}x: lateness median {_us(self.percentile(50))}, "
                 f"99th percentile {_us(self.percentile(99))}, max {_us(float(lat.max()))}; "
                 f"{self.overruns} overrun{'s' * (self.overruns != 1)} (> {_us(self.tolerance)})"
-                + (f", released up to {_us(self.lead)} early (lead)" if self.lead else ""))
+                + (f", released up to {_us(max(0.0, -float(lat.min())))} early (lead {_us(self.lead)})"
+                   if self.lead else ""))
         if not self.behind:
             return text + "; kept up"
         first = self.behind[0]
