@@ -156,12 +156,16 @@ def handing_back(begin_fixed_steps):
 
 
 def ours(stop: float, speed: float, spin: Optional[float] = None, priority: Optional[int] = None,
-         hand_back: bool = False, lead: Optional[float] = None) -> dict:
+         hand_back: bool = False, lead: Optional[float] = None, lock: bool = True,
+         cpu: Optional[int] = None) -> dict:
     """The flagship paced at ``speed`` for ``stop`` simulated seconds (the master's C loop);
     ``spin``, ``priority``, ``lead``: ``master.realtime``'s (None: the defaults; ``lead=0``: a
     deadline per step, the pacing before the lead); ``hand_back``: the C loop handing back every
-    50 ms (:func:`handing_back`): :func:`figures` and the median busy time."""
+    50 ms (:func:`handing_back`); ``lock=False``: memory not locked (mlockall); ``cpu``: the process
+    on that CPU only while it runs: :func:`figures` and the median busy time."""
     from dataclasses import replace
+
+    from deltafmi.master.live import pacing
 
     scenario = deltafmi.load_scenario(SCENARIO)
     if spin is not None or priority is not None or lead is not None:
@@ -169,13 +173,18 @@ def ours(stop: float, speed: float, spin: Optional[float] = None, priority: Opti
         scenario = replace(scenario, master=replace(scenario.master, realtime=realtime))
     from deltafmi.master.stepping.master import Master
 
-    begin = Master.begin_fixed_steps
+    begin, lock_memory, affinity = Master.begin_fixed_steps, pacing.lock_memory, os.sched_getaffinity(0)
     if hand_back:
         Master.begin_fixed_steps = handing_back(begin)
+    if not lock:
+        pacing.lock_memory = lambda: False
+    if cpu is not None:
+        os.sched_setaffinity(0, {cpu})
     try:
         result = deltafmi.simulate(scenario, stop=stop, speed=speed)
     finally:
-        Master.begin_fixed_steps = begin
+        Master.begin_fixed_steps, pacing.lock_memory = begin, lock_memory
+        os.sched_setaffinity(0, affinity)
     report = result.summary.live.realtime
     found = figures(report.lateness, 1e-3 / speed, report.cpu, report.wall, report.locked)
     found["busy"] = float(np.median(result["realtime.busy"][1:]))
@@ -227,6 +236,8 @@ def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
                           floor("sleep", n, period, b, spin=0.0))]
                 if fifo:
                     plan += [("ours 50x priority 50", lambda stop=stop: ours(stop, 50.0, priority=50)),
+                             ("ours 50x priority 50, no mlock", lambda stop=stop: ours(stop, 50.0, priority=50,
+                                                                                       lock=False)),
                              ("ours 50x per step, priority 50", lambda stop=stop: ours(stop, 50.0, priority=50,
                                                                                          lead=0.0)),
                              ("floor 50x spin SCHED_FIFO", lambda n=n, period=period, b=b:
