@@ -71,7 +71,8 @@ def c_host(tmp_path_factory) -> Path:
 
 
 #: modules that measure wall time, threads or memory, or start Dask clusters or paced runs
-SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_joystick_tracking", "test_live_scope",
+SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_live_udp_native", "test_joystick_tracking",
+          "test_live_scope",
           "test_fmu_threads", "test_memory", "test_study_dask", "test_study_cluster", "test_study_tls",
           "test_study_dashboard", "test_study_rough_edges", "test_peg_robustness", "test_troubleshooting_docs",
           "test_examples", "test_rough_edges", "test_study_metrics", "test_reliability_results",

@@ -35,13 +35,13 @@ from .explicit_rk import ExplicitRungeKutta
 from .parallel import pooled
 from .unit_base import Unit, _Inputs, _Outputs, function_address
 
-__all__ = ["BEHIND", "CLOCK_INSIDE", "FETCH", "NativeLoop", "PULL", "RAN", "RK_FAILED", "ROWS_FULL", "STATE_EVENT",
-           "STEP", "STEP_EVENT", "STEP_RETURNED", "TERMINATED", "UNSETTLED"]
+__all__ = ["BEHIND", "CLOCK_INSIDE", "FETCH", "LIVE", "NativeLoop", "PULL", "RAN", "RK_FAILED", "ROWS_FULL",
+           "STATE_EVENT", "STEP", "STEP_EVENT", "STEP_RETURNED", "TERMINATED", "UNSETTLED"]
 
 SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP, SET_BOOL3, GET_BOOL3, CLOCK_TICK = range(9)
 #: why a C run stopped
 RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED, CLOCK_INSIDE, UNSETTLED, \
-    BEHIND = range(11)
+    BEHIND, LIVE = range(12)
 #: the FMI 3.0 type the C loop exchanges on each bus (others: the Python loop)
 _FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 _SET, _GET = {"Real": SET_REAL, "Integer": SET_INT, "Boolean": SET_INT}, \
@@ -84,7 +84,8 @@ class _Pace(ctypes.Structure):
                 ("released", c_double), ("lateness", c_void_p), ("count", c_void_p), ("capacity", c_long),
                 ("late", c_void_p), ("busy", c_void_p), ("behind", c_void_p), ("stop_behind", c_int),
                 ("last_busy", c_double), ("cpu", c_double), ("wall", c_double), ("polled", c_double),
-                ("stream", c_int), ("stop_request", c_int), ("published", c_long), ("taken", c_long)]
+                ("stream", c_int), ("stop_request", c_int), ("published", c_long), ("taken", c_long),
+                ("lead", c_double), ("sample", c_void_p), ("sample_context", c_void_p)]
 
 
 class _Plan(ctypes.Structure):
@@ -405,16 +406,21 @@ class NativeLoop:
         self._run = _steps_function(release_gil=True)
         self.plan.gil_released = 1
 
-    def pace(self, pacer: Any, slots: Sequence[Optional[int]]) -> None:
+    def pace(self, pacer: Any, slots: Sequence[Optional[int]], readers: Optional[Any] = None) -> None:
         """Wait for every point's wall-clock time in C, as ``pacer`` (a started
         :class:`~deltafmi.master.live.pacing.Pacer`) would, writing its lateness record and the
         measurements to the Real bus addresses ``slots`` (lateness, busy, behind; None: not on
-        the bus); see :meth:`paced_points`."""
+        the bus); ``readers``: the live sources' C readers (:class:`~deltafmi.master.live.native_udp.
+        NativeReaders`), called at every point once it is released, before its row (a run
+        stopped with LIVE: they need Python at the point it reached, whose row is not recorded)."""
         self._paced = pacer
         self._pace = _Pace(t0=pacer._t0, wall0=pacer._wall0, speed=pacer.speed, spin=pacer.spin, period=pacer.period,
                            released=pacer.released, lateness=pacer._lateness.ctypes.data,
                            count=self._count.ctypes.data, capacity=len(pacer._lateness),
-                           late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error))
+                           late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error),
+                           lead=pacer.lead, sample=None if readers is None else readers.function,
+                           sample_context=None if readers is None else readers.context)
+        self._keep.append(readers)
         self.plan.pace = ctypes.pointer(self._pace)
         self.rows.fill(0.0)  # its pages faulted in now, not at the first paced points that write them
         self._run = _steps_function(release_gil=True)

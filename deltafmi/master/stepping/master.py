@@ -47,7 +47,7 @@ from .explicit_rk import RungeKuttaError, step_failure
 from .initial_links import copy_initial_links
 from deltafmi.master.stepping.algebraic_loops import InitialLoops, LoopBlock, LoopStatistics, Stepper
 from deltafmi.master.stepping.c_loop import (CLOCK_INSIDE, FETCH, PULL, RAN, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP, STEP_EVENT,
-                          STEP_RETURNED, TERMINATED, UNSETTLED, BEHIND, NativeLoop)
+                          STEP_RETURNED, TERMINATED, UNSETTLED, BEHIND, LIVE, NativeLoop)
 from .stop_signals import StopSignals
 from .unit_base import _Inputs, _Outputs, instant_margin
 from .parallel import StepPool, group_actions
@@ -638,7 +638,7 @@ class Master:
                 native.release_gil()
         self._streamed = False
         if native is not None and live is not None:
-            native.pace(live.pacer, live.clock_slots())
+            native.pace(live.pacer, live.clock_slots(), live.read_in_c())
             live.pacer.restart()
             most = live.points_between_samples()
             # nothing sampled between points: the whole run in one call, its rows taken meanwhile
@@ -769,7 +769,7 @@ class Master:
         live = self.live
         if live is not None and done > k:
             t_done = grid.start + done * grid.h if done < grid.n_steps else grid.stop
-            live.after_c_points(t_done)
+            live.after_c_points(t_done, why == LIVE)
             if rows and native.rows[rows - 1, 0] == t_done:  # its row shows what the sources gave by then
                 native.rows[rows - 1, 1:] = self.sampler.sample()
         if rows:
@@ -786,9 +786,11 @@ class Master:
         if done > k:
             self.steps = done
             self.time = self.step_end = grid.start + done * grid.h if done < grid.n_steps else grid.stop
+        if why == LIVE and (done % self.every == 0 or done == grid.n_steps):
+            self._record(self.time)  # the point C handed back at: its row once the sources are sampled
         if live is not None and live.pacer.failure is not None:
             raise live.pacer.failure
-        if why in (RAN, ROWS_FULL, BEHIND):
+        if why in (RAN, ROWS_FULL, BEHIND, LIVE):
             self._check_bus(self.time)  # the rows held the recorded variables, this the connected ones
             return done
         # step `done` stopped inside: the state the Python loop would have there
