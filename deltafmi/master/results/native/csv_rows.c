@@ -341,11 +341,10 @@ size_t deltafmi_csv_rows(const double *rows, long n_rows, long width, const int 
     size_t *above = n_rows > 1 ? malloc((size_t)width * 2 * sizeof *above) : NULL; /* text start, length */
     for (long i = 0; i < n_rows; i++) {
         const double *row = rows + i * width;
-        const double *previous = row - width;
         for (long j = 0; j < width; j++) {
             if (j) out[n++] = ',';
             size_t length;
-            if (above && i && memcmp(&row[j], &previous[j], sizeof(double)) == 0) {
+            if (above && i && memcmp(&row[j], &row[j - width], sizeof(double)) == 0) {
                 length = above[2 * j + 1];
                 /* a fixed 32 bytes (a text is at most 24: the rest is written over next), copied
                  * inline instead of a call; all read before any is written: in a narrow row the
@@ -403,18 +402,19 @@ typedef struct {
 } Sink;
 
 /* text[0, size) to the file; on a failed write the file cut back to its last whole row, the
- * rows (of `width` doubles from `rows`) counted up to there. Returns 0, or errno. */
+ * rows (of `width` doubles from `rows`) counted up to there. Called without the lock; the report
+ * is changed under it, as everywhere. Returns 0, or errno. */
 static int sink_write(Sink *s, const char *text, size_t size, const double *rows)
 {
     size_t written = 0;
     while (written < size) {
         ssize_t n = write(s->fd, text + written, size - written);
-        if (n >= 0) {
+        if (n > 0) {
             written += (size_t)n;
             continue;
         }
-        if (errno == EINTR) continue;
-        int error = errno;
+        if (n < 0 && errno == EINTR) continue;
+        int error = n < 0 ? errno : EIO; /* 0 bytes of a non-empty write: would repeat for ever */
         long whole = 0;
         size_t keep = 0;
         for (size_t i = 0; i < written; i++) {
@@ -425,12 +425,16 @@ static int sink_write(Sink *s, const char *text, size_t size, const double *rows
         }
         off_t end = lseek(s->fd, 0, SEEK_CUR); /* where the part written ends */
         if (end >= 0) (void)!ftruncate(s->fd, end - (off_t)written + (off_t)keep); /* frees space: cannot fail for lack of it */
+        pthread_mutex_lock(&s->lock);
         s->report.size += (long long)keep;
         s->report.rows += whole;
         if (whole) s->report.last_time = rows[(whole - 1) * s->width];
+        pthread_mutex_unlock(&s->lock);
         return error;
     }
+    pthread_mutex_lock(&s->lock);
     s->report.size += (long long)size;
+    pthread_mutex_unlock(&s->lock);
     return 0;
 }
 
