@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import ctypes
 import socket
+import sys
 from ctypes import POINTER, c_double, c_int, c_long, c_uint16, c_uint32, c_void_p
 from pathlib import Path
 from typing import Any, List, Optional, Sequence, Tuple
@@ -55,6 +56,7 @@ _sample: Optional[Any] = None
 
 
 def _sample_function() -> Any:
+    """``deltafmi_live_sample`` of ``native/udp_reader.c``, compiled (or prebuilt) and loaded once."""
     global _sample
     if _sample is None:
         library = ctypes.CDLL(str(plain_c_library(Path(__file__).parent / "native" / "udp_reader.c")))
@@ -63,8 +65,14 @@ def _sample_function() -> Any:
 
 
 def _address(host: int, port: int) -> Tuple[str, int]:
-    """The (host, port) Python's socket gives for an IPv4 address and port in network byte order."""
-    return socket.inet_ntoa(int(host).to_bytes(4, "little")), socket.ntohs(port)
+    """The (host, port) Python's socket gives for an IPv4 address and port in network byte order
+    (as C's ``sin_addr.s_addr`` and ``sin_port`` hold them, read as native integers)."""
+    return socket.inet_ntoa(int(host).to_bytes(4, sys.byteorder)), socket.ntohs(port)
+
+
+def _host(ip: str) -> int:
+    """An IPv4 address as C's ``sin_addr.s_addr`` holds it (network byte order), read as a native integer."""
+    return int.from_bytes(socket.inet_aton(ip), sys.byteorder)
 
 
 class NativeReader:
@@ -99,7 +107,7 @@ class NativeReader:
         allowed = sorted(source._sender_ips)
         s.n_allowed = len(allowed)
         for i, ip in enumerate(allowed):
-            s.allowed[i] = int.from_bytes(socket.inet_aton(ip), "little")
+            s.allowed[i] = _host(ip)
         s.pending = -1
         self.before_c()
 
@@ -121,7 +129,7 @@ class NativeReader:
             if len(address) != 2:
                 continue
             sender = s.senders[s.n_senders]
-            sender.host = int.from_bytes(socket.inet_aton(address[0]), "little")
+            sender.host = _host(address[0])
             sender.port, sender.known, sender.t, sender.seq = socket.htons(address[1]), 1, t, seq & 0xFFFFFFFF
             s.n_senders += 1
 
@@ -166,6 +174,7 @@ class NativeReaders:
         self.context = ctypes.addressof(self._readers)
 
     def before_c(self) -> None:
+        """Every reader given Python's view before the C loop reads again (:meth:`NativeReader.before_c`)."""
         for reader in self.readers:
             reader.before_c()
 
