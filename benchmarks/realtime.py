@@ -353,30 +353,12 @@ def throttling() -> None:
                   f"largest {found['max'] * 1e3:.1f} ms, overruns {found['overruns']:.2%}")
 
 
-def _echo_scenario(folder: Path, port: int, back: int) -> Path:
-    path = folder / "echo.yaml"
-    path.write_text(f"""\
-experiment: {{stop: 1000.0, step: 1.0e-3}}
-master: {{realtime: true}}
-live:
-  cmd:
-    udp: {{port: {port}}}
-    timeout: 100.0
-    signals: {{x: {{}}}}
-components:
-  osc: {{source: 'deltafmi.models:Oscillator', interface: CS}}
-connections:
-  - {{from: cmd.x, to: osc.F}}
-outputs: [osc.x]
-streams:
-  - {{udp: '127.0.0.1:{back}', signals: [cmd.x]}}
-""")
-    return path
-
-
-def _udp_input_scenario(folder: Path, port: int, priority: Optional[int] = None) -> Path:
-    path = folder / "udp_input.yaml"
+def _udp_scenario(folder: Path, port: int, back: Optional[int] = None, priority: Optional[int] = None) -> Path:
+    """The Oscillator forced by a UDP live input on ``port``; ``back``: its input streamed to that
+    port too (the echo of :func:`round_trips`); ``priority``: ``master.realtime.priority``."""
+    path = folder / ("echo.yaml" if back is not None else "udp_input.yaml")
     realtime = "true" if priority is None else f"{{priority: {priority}}}"
+    streams = "" if back is None else f"streams:\n  - {{udp: '127.0.0.1:{back}', signals: [cmd.x]}}\n"
     path.write_text(f"""\
 experiment: {{stop: 1000.0, step: 1.0e-3}}
 master: {{realtime: {realtime}}}
@@ -390,7 +372,7 @@ components:
 connections:
   - {{from: cmd.x, to: osc.F}}
 outputs: [osc.x]
-""")
+{streams}""")
     return path
 
 
@@ -418,7 +400,7 @@ def udp_input_run(stop: float, speed: float, in_c: bool, priority: Optional[int]
         LiveRun.read_in_c = lambda self: None
     sender = threading.Thread(target=send, daemon=True)
     with tempfile.TemporaryDirectory() as folder:
-        scenario = _udp_input_scenario(Path(folder), port, priority)
+        scenario = _udp_scenario(Path(folder), port, priority=priority)
         sender.start()
         try:
             result = deltafmi.simulate(scenario, stop=stop, speed=speed, output=Path(folder) / "udp.csv")
@@ -475,7 +457,7 @@ def round_trips(pings: int, paced: bool) -> list:
     receiver.bind(("127.0.0.1", back))
     receiver.settimeout(60.0)
     with tempfile.TemporaryDirectory() as folder:
-        scenario = _echo_scenario(Path(folder), port, back)
+        scenario = _udp_scenario(Path(folder), port, back)
         run = subprocess.Popen([sys.executable, "-c", "from deltafmi.apps.cli import main; main()", "run", str(scenario), "-q",
                                 "--realtime" if paced else "--no-realtime", "-o", str(Path(folder) / "echo.csv")],
                                stderr=subprocess.DEVNULL)  # its "interrupted" line: the stop asked for
