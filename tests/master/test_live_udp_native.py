@@ -22,15 +22,7 @@ import pytest
 from deltafmi.master.live.input_units import LiveInputUnit
 from deltafmi.master.live.native_udp import NativeReaders
 from deltafmi.master.live.udp import UdpSource
-
-
-def dfmi(values: dict, t: float, seq: int = 0) -> bytes:
-    """A DFMI v1 binary datagram, by the byte table."""
-    out = struct.pack("<4sBBHId", b"DFMI", 1, 1, len(values), seq, t)
-    for name, value in values.items():
-        raw = name.encode()
-        out += struct.pack(f"<B{len(raw)}sd", len(raw), raw, value)
-    return out
+from test_live_udp import dfmi
 
 
 def dfmi_json(values: dict, t: float, seq: int = 0) -> bytes:

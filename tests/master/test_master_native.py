@@ -125,20 +125,27 @@ def test_off_grid_stop_and_sparse_rows_same_bits(tmp_path, build_fmu_from_src, c
     assert times[-1] == stop and c.rows == python.rows == len(times)
 
 
+def failed_both_ways(system, folder: Path) -> tuple[list, list]:
+    """([its message, ...], [the rows kept, ...]) of a run of ``system`` that fails, by the C loop
+    and then the Python loop (the result's path in the message as RESULT)."""
+    messages, texts = [], []
+    for native in (True, False):
+        result = folder / f"{native}.csv"
+        with pytest.raises(SimulationError) as failure:
+            Master(system, result=result, native=native).run()
+        kept = result.with_suffix(".failed.csv")  # a failed run's rows, under a name that says so
+        messages.append(str(failure.value.message).replace(str(kept), "RESULT"))
+        texts.append(kept.read_text())
+    return messages, texts
+
+
 def test_failure_in_c_same_message_and_rows(tmp_path, build_fmu_from_src, c_runs):
     # an absurd force step at t = 1 s makes b's own CVODE fail inside its fmi2DoStep
     fmu = build_fmu_from_src("oscillator.py")
     path = tmp_path / "s.yaml"
     path.write_text(textwrap.dedent(OSCILLATORS.format(fmu=fmu, force=1.0e308)))
     system = resolve_system(load_scenario(path))
-    messages, texts = [], []
-    for native in (True, False):
-        result = tmp_path / f"{native}.csv"
-        with pytest.raises(SimulationError) as failure:
-            Master(system, result=result, native=native).run()
-        kept = result.with_suffix(".failed.csv")  # a failed run's rows, under a name that says so
-        messages.append(str(failure.value.message).replace(str(kept), "RESULT"))
-        texts.append(kept.read_text())
+    messages, texts = failed_both_ways(system, tmp_path)
     assert c_runs
     assert messages[0] == messages[1] and messages[0].startswith("simulation failed at t = 1 s: b: fmi2DoStep")
     assert texts[0] == texts[1] and len(texts[0].splitlines()) == 1 + 101  # header, t = 0 ... 1 s
@@ -253,14 +260,7 @@ def test_a_nan_stops_the_rows_handed_over_by_the_c_loop(tmp_path, c_runs, handed
     path = tmp_path / "s.yaml"
     path.write_text("experiment: {stop: 0.1, step: 1.0e-3}\ncomponents:\n  n: {source: nanny.py, interface: CS}\n")
     system = resolve_system(load_scenario(path))
-    messages, texts = [], []
-    for native in (True, False):
-        result = tmp_path / f"{native}.csv"
-        with pytest.raises(SimulationError) as failure:
-            Master(system, result=result, native=native).run()
-        kept = result.with_suffix(".failed.csv")
-        messages.append(str(failure.value.message).replace(str(kept), "RESULT"))
-        texts.append(kept.read_text())
+    messages, texts = failed_both_ways(system, tmp_path)
     assert c_runs and sum(handed_rows) == 50  # the rows after t = 0 up to 0.05 s, five at a time
     assert messages[0] == messages[1] and messages[0].startswith("n.y is NaN at t = 0.051 s"), messages
     assert texts[0] == texts[1] and len(texts[0].splitlines()) == 1 + 52  # header, t = 0 ... 0.051 s
