@@ -1,14 +1,15 @@
-"""Writing result files atomically: readers (another process, a crash) never see half a file."""
+"""Writing result files and cache entries atomically: readers (another process, a crash) never see half a file."""
 from __future__ import annotations
 
 import atexit
 import os
 import signal
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["USER_FILE_MODE", "replaced_atomically", "written_through"]
+__all__ = ["USER_FILE_MODE", "keep_in_cache", "replaced_atomically", "written_through"]
 
 
 def _user_file_mode() -> int:
@@ -88,3 +89,22 @@ def replaced_atomically(path: Path) -> Iterator[Path]:
         if name and os.path.exists(name):
             os.unlink(name)
         _UNFINISHED.discard((os.getpid(), name))
+
+
+def keep_in_cache(path: Path, data: bytes) -> bool:
+    """``data`` kept at ``path``, an entry of a cache that is only ever replaced whole: written to
+    a temporary file of this process and thread next to it, then renamed over it, so that readers
+    see the old entry or the new one. False when it could not be kept (a read-only cache: the
+    caller works it out again next time)."""
+    temporary = path.with_name(f"{path.name}.{os.getpid()}-{threading.get_ident()}.tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        temporary.write_bytes(data)
+        os.replace(temporary, path)
+    except OSError:
+        try:
+            temporary.unlink()
+        except OSError:  # never made (or not in a folder at all)
+            pass
+        return False
+    return True

@@ -1,12 +1,14 @@
-"""Result files are replaced whole: a failed write leaves the earlier file, a link is written through."""
+"""Result files are replaced whole: a failed write leaves the earlier file, a link is written through;
+cache entries are replaced whole, by threads at once too."""
 from __future__ import annotations
 
 import errno
 import os
+import threading
 
 import pytest
 
-from deltafmi.files import USER_FILE_MODE, replaced_atomically
+from deltafmi.files import USER_FILE_MODE, keep_in_cache, replaced_atomically
 
 
 def _write(path, text):
@@ -88,3 +90,38 @@ def test_a_temporary_file_left_between_enter_and_block_is_removed_when_the_proce
     assert done.returncode == 130, done.stderr
     assert done.stdout.strip().endswith(".part")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_cache_entries_kept_by_threads_at_once_are_each_whole(tmp_path):
+    # eight threads of one process replace the same entry with their own 1 MB, again and again,
+    # while it is read: every read is one thread's whole entry, and no temporary file is left
+    entry = tmp_path / "cache" / "entry"
+    payloads = [bytes([i]) * 1_000_000 for i in range(8)]
+    start = threading.Barrier(len(payloads) + 1)
+    kept = []
+
+    def keep(data):
+        start.wait()
+        kept.extend(keep_in_cache(entry, data) for _ in range(20))
+
+    threads = [threading.Thread(target=keep, args=(data,)) for data in payloads]
+    for thread in threads:
+        thread.start()
+    start.wait()
+    reads = []
+    while any(thread.is_alive() for thread in threads):
+        if entry.exists():
+            reads.append(entry.read_bytes())
+    for thread in threads:
+        thread.join()
+    reads.append(entry.read_bytes())
+    assert all(kept) and len(kept) == 160
+    assert all(data in payloads for data in reads)
+    assert [p.name for p in entry.parent.iterdir()] == ["entry"]
+
+
+def test_a_cache_entry_that_cannot_be_written_is_not_kept(tmp_path):
+    blocker = tmp_path / "cache"
+    blocker.write_text("a file where the cache's folder would be")
+    assert keep_in_cache(blocker / "entry", b"data") is False
+    assert [p.name for p in tmp_path.iterdir()] == ["cache"]

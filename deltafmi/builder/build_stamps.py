@@ -25,6 +25,7 @@ import sys
 from pathlib import Path
 from typing import List, Optional, Sequence, Tuple, Union
 
+from deltafmi.files import keep_in_cache
 from deltafmi.toolchain import cache_dir, compiler_available
 
 __all__ = ["Stamp", "file_request", "installation", "lookup", "module_request", "recorded", "remember", "stamps_of"]
@@ -94,14 +95,8 @@ def remember(request: str, stamps: Sequence[Stamp], fmu: Path) -> None:
         relative = Path(fmu).resolve().relative_to((cache_dir() / "fmus").resolve())
     except ValueError:
         return  # not in the cache: nothing to find again
-    target = _record_path(request)
-    temporary = target.with_name(f"{target.name}.{os.getpid()}.tmp")
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        temporary.write_text(json.dumps({"format": _FORMAT, "fmu": relative.as_posix(), "stamps": list(stamps)}))
-        os.replace(temporary, target)  # readers see the old record or the new one, never half of one
-    except OSError:
-        temporary.unlink(missing_ok=True)  # a read-only cache: the next run hashes again
+    record = json.dumps({"format": _FORMAT, "fmu": relative.as_posix(), "stamps": list(stamps)})
+    keep_in_cache(_record_path(request), record.encode("utf-8"))  # a read-only cache: the next run hashes again
 
 
 def installation() -> Tuple[str, str]:

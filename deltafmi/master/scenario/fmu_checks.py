@@ -161,10 +161,9 @@ def validation_problems(fmu: Path) -> List[str]:
     naming convention takes fmpy up to a second per FMU, and the FMUs of the build cache are
     validated by every scenario that uses them. Raises what ``validate_fmu`` raises for an archive
     it cannot read (nothing is kept then)."""
-    import os
-
     from fmpy.validation import validate_fmu
 
+    from deltafmi.files import keep_in_cache
     from deltafmi.toolchain import cache_dir
 
     stamp = fmu_stamp(fmu)
@@ -178,11 +177,5 @@ def validation_problems(fmu: Path) -> List[str]:
             pass
     problems = [str(problem) for problem in validate_fmu(str(fmu))]
     if kept is not None:
-        temporary = kept.with_name(f"{kept.name}.{os.getpid()}.tmp")
-        try:
-            kept.parent.mkdir(parents=True, exist_ok=True)
-            temporary.write_text(json.dumps(problems), encoding="utf-8")
-            os.replace(temporary, kept)
-        except OSError:  # a read-only cache: validate each time
-            temporary.unlink(missing_ok=True)
+        keep_in_cache(kept, json.dumps(problems).encode("utf-8"))  # a read-only cache: validated each time
     return problems

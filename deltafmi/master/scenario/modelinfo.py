@@ -286,16 +286,15 @@ class _KeptDescription:
         return md if isinstance(md, ModelDescription) else None
 
     def write(self, md: ModelDescription) -> None:
-        import os
         import pickle
 
-        temporary = self.file.with_name(f"{self.file.name}.{os.getpid()}.tmp")
+        from deltafmi.files import keep_in_cache
+
         try:
-            self.file.parent.mkdir(parents=True, exist_ok=True)
-            temporary.write_bytes(pickle.dumps(md, protocol=pickle.HIGHEST_PROTOCOL))
-            os.replace(temporary, self.file)
-        except Exception:  # noqa: BLE001 - a read-only cache, a description pickle cannot hold: read it each time
-            temporary.unlink(missing_ok=True)
+            data = pickle.dumps(md, protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:  # noqa: BLE001 - a description pickle cannot hold: read it each time
+            return
+        keep_in_cache(self.file, data)  # a read-only cache: read it each time
 
 
 def _kept_description(fmu: Path) -> Optional[_KeptDescription]:

@@ -16,6 +16,7 @@ import os
 from pathlib import Path
 from typing import Any, Optional, Tuple
 
+from deltafmi.files import keep_in_cache
 from deltafmi.toolchain import cache_dir
 
 from .line_map import LineMap
@@ -59,12 +60,10 @@ def remember(text: str, data: Any, lines: LineMap) -> None:
     stored = {"data": data, "values": [[list(p), line] for p, line in lines.value_lines.items()],
               "keys": [[list(p), line] for p, line in lines.key_lines.items()]}
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        temporary = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-        temporary.write_text(json.dumps(stored, allow_nan=True), encoding="utf-8")
-        os.replace(temporary, path)
-    except (OSError, ValueError):
-        pass  # a read-only cache: parsed every time
+        data = json.dumps(stored, allow_nan=True).encode("utf-8")
+    except ValueError:  # a circular structure: parsed every time
+        return
+    keep_in_cache(path, data)  # a read-only cache: parsed every time
 
 
 def _entry(text: str) -> Optional[Path]:
