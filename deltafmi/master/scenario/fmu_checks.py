@@ -158,7 +158,7 @@ def fmu_stamp(fmu: Path) -> Optional[str]:
 def validation_problems(fmu: Path) -> List[str]:
     """The problems fmpy's ``validate_fmu`` finds in ``fmu`` (none: an empty list), kept in the
     cache under the FMU's stamp (:func:`fmu_stamp`): parsing every variable name by the structured
-    naming convention takes fmpy up to a second per FMU, and the FMUs of the build cache are
+    naming convention is slow for an FMU of many variables, and the FMUs of the build cache are
     validated by every scenario that uses them. Raises what ``validate_fmu`` raises for an archive
     it cannot read (nothing is kept then)."""
     from fmpy.validation import validate_fmu
