@@ -662,7 +662,7 @@ class Master:
                 raise KeyboardInterrupt
             if native is not None and native.ready():
                 begin, k_begin = _time.perf_counter(), k
-                # unpaced, the C loop itself returns after _C_SECONDS (every step it takes
+                # unpaced, the C loop itself returns after _C_RETURN_SECONDS (every step it takes
                 # between hand-backs to Python saves one)
                 unpaced = live is None and not self._streamed
                 end = n_steps if unpaced else min(n_steps, k + chunk)
