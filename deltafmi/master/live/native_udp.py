@@ -16,6 +16,7 @@ from __future__ import annotations
 import ctypes
 import socket
 import sys
+import time
 from ctypes import POINTER, c_double, c_int, c_long, c_uint16, c_uint32, c_void_p
 from pathlib import Path
 from typing import Any, List, Optional, Sequence, Tuple
@@ -185,15 +186,17 @@ class NativeReaders:
 
 
 def native_readers(units: Sequence[Any]) -> Optional[NativeReaders]:
-    """C readers for the live input ``units`` when every one reads an open IPv4 UDP source, else
+    """C readers for the live input ``units`` when every one reads an open IPv4 UDP source on the
+    clock C reads (``time.monotonic``: CLOCK_MONOTONIC, against which its silence is timed), else
     None (the sources are then sampled in Python at every point)."""
     from .udp import UdpSource
 
     pairs = [(unit, unit.source) for unit in units]
     if not pairs or not all(isinstance(source, UdpSource) and source._socket is not None
+                            and getattr(unit, "clock", None) is time.monotonic
                             and source._socket.family == socket.AF_INET
                             and len(source._sender_ips) <= _MAX_ALLOWED
-                            and all(":" not in ip for ip in source._sender_ips) for _, source in pairs):
+                            and all(":" not in ip for ip in source._sender_ips) for unit, source in pairs):
         return None
     try:
         return NativeReaders(pairs)
