@@ -448,7 +448,8 @@ def test_udp_inputs_read_by_the_c_loop_reach_the_plant_at_the_points_they_arrive
         before, after = sent[n]
         if k + 1 < len(release):
             assert before < release[k + 1], (n, k)
-        assert after > release[k - 1], (n, k)
+        if k > 1:  # point 0 is sampled by Python before the C loop anchors the clock (wall0) at it
+            assert after > release[k - 1], (n, k)
     x, v = 1.0, 0.0
     xs, vs = [x], [v]
     for k in range(len(times) - 1):
