@@ -222,7 +222,7 @@ def test_study_recorder_takes_blocks_and_event_rows(tmp_path, c_runs):
 @pytest.fixture
 def handed_rows(monkeypatch) -> list:
     """The C loop hands the CSV writer's thread of C its rows every 5 rows, while it steps (the
-    master's default is every 256); the rows each run handed over this way."""
+    master's default is every 1024); the rows each run handed over this way."""
     from deltafmi.master.stepping import master as master_module
 
     monkeypatch.setattr(master_module, "_C_SINK_ROWS", 5)
