@@ -33,7 +33,6 @@ __all__ = ["CsvRowsThread", "CsvWriter", "RowSampler", "columns", "read_csv"]
 
 _FLUSH_SECONDS = 0.5
 _INTEGERS = ("Integer", "Boolean")
-_format_rows: Optional[Any] = None
 _tables: List[np.ndarray] = []  # Ryu's tables, alive as long as the library uses them
 
 
@@ -45,36 +44,34 @@ class _SinkReport(ctypes.Structure):  # csv_rows.c's SinkReport
                 ("error", ctypes.c_int)]
 
 
+_P, _LONG = ctypes.c_void_p, ctypes.c_long
+#: native/csv_rows.c's functions: (argument types, result type)
+_SIGNATURES = {"deltafmi_csv_rows": ([_P, _LONG, _LONG, _P, ctypes.c_char_p], ctypes.c_size_t),
+               "deltafmi_csv_sink_open": ([ctypes.c_int, _LONG, _P, _LONG], _P),
+               "deltafmi_csv_sink_put": ([_P, _P, _LONG], _LONG),
+               "deltafmi_csv_sink_taken": ([_P], _LONG),
+               "deltafmi_csv_sink_wait": ([_P, ctypes.POINTER(_SinkReport)], None),
+               "deltafmi_csv_sink_failed": ([_P], ctypes.c_int),
+               "deltafmi_csv_sink_close": ([_P], None)}
+
+
 def _csv_library() -> Any:
     """``native/csv_rows.c`` loaded, its tables set and its functions typed."""
-    global _format_rows, _library
+    global _library
     if _library is None:
         library = ctypes.CDLL(str(plain_c_library(Path(__file__).parent / "native" / "csv_rows.c")))
         _tables[:] = _ryu_tables()
         library.deltafmi_csv_tables(ctypes.c_void_p(_tables[0].ctypes.data), ctypes.c_void_p(_tables[1].ctypes.data))
-        function = library.deltafmi_csv_rows
-        function.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_char_p]
-        function.restype = ctypes.c_size_t
-        library.deltafmi_csv_sink_open.argtypes = [ctypes.c_int, ctypes.c_long, ctypes.c_void_p, ctypes.c_long]
-        library.deltafmi_csv_sink_open.restype = ctypes.c_void_p
-        library.deltafmi_csv_sink_put.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long]
-        library.deltafmi_csv_sink_put.restype = ctypes.c_long
-        library.deltafmi_csv_sink_taken.argtypes = [ctypes.c_void_p]
-        library.deltafmi_csv_sink_taken.restype = ctypes.c_long
-        library.deltafmi_csv_sink_wait.argtypes = [ctypes.c_void_p, ctypes.POINTER(_SinkReport)]
-        library.deltafmi_csv_sink_wait.restype = None
-        library.deltafmi_csv_sink_failed.argtypes = [ctypes.c_void_p]
-        library.deltafmi_csv_sink_failed.restype = ctypes.c_int
-        library.deltafmi_csv_sink_close.argtypes = [ctypes.c_void_p]
-        library.deltafmi_csv_sink_close.restype = None
-        _format_rows, _library = function, library
+        for name, (arguments, result) in _SIGNATURES.items():
+            function = getattr(library, name)
+            function.argtypes, function.restype = arguments, result
+        _library = library
     return _library
 
 
 def _rows_formatter() -> Any:
     """The C function writing rows of doubles as CSV text (``native/csv_rows.c``), its tables set."""
-    _csv_library()
-    return _format_rows
+    return _csv_library().deltafmi_csv_rows
 
 
 def _ryu_tables() -> List[np.ndarray]:
