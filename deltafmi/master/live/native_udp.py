@@ -34,7 +34,7 @@ _FORMAT = {"dfmi": 0, "doubles": 1}
 
 
 class _Sender(ctypes.Structure):
-    _fields_ = [("host", c_uint32), ("port", c_uint16), ("known", c_int), ("t", c_double), ("seq", c_uint32)]
+    _fields_ = [("host", c_uint32), ("port", c_uint16), ("t", c_double), ("seq", c_uint32)]
 
 
 class _Source(ctypes.Structure):
@@ -131,7 +131,7 @@ class NativeReader:
                 continue
             sender = s.senders[s.n_senders]
             sender.host = _host(address[0])
-            sender.port, sender.known, sender.t, sender.seq = socket.htons(address[1]), 1, t, seq & 0xFFFFFFFF
+            sender.port, sender.t, sender.seq = socket.htons(address[1]), t, seq & 0xFFFFFFFF
             s.n_senders += 1
 
     def after_c(self) -> Tuple[dict, Optional[Tuple[bytes, Tuple[str, int]]]]:
@@ -143,7 +143,7 @@ class NativeReader:
         newest = self.source._newest
         for i in range(s.n_senders):
             sender = s.senders[i]
-            if sender.known and sender.t != -np.inf:  # -inf: remembered, nothing accepted yet
+            if sender.t != -np.inf:  # -inf: remembered, nothing accepted yet
                 newest[_address(sender.host, sender.port)] = (sender.t, sender.seq)
         taken = {self.source.signals[i]: float(unit.values[i]) for i in np.flatnonzero(self.fresh).tolist()}
         self.fresh[:] = 0

@@ -30,8 +30,7 @@ enum { MAX_SENDERS = 16, MAX_ALLOWED = 8, HEADER = 20, MAX_DATAGRAM = 65507 };
 typedef struct {
     uint32_t host;           /* IPv4 address and port, network byte order */
     uint16_t port;
-    int known;               /* t and seq hold its newest accepted datagram (else Python's to decide) */
-    double t;
+    double t;                /* with seq: its newest accepted datagram's (-INFINITY: none yet) */
     uint32_t seq;
 } Sender;
 
@@ -103,7 +102,6 @@ static Sender *sender_of(Source *s, uint32_t host, uint16_t port)
         memset(new_, 0, sizeof *new_);
         new_->host = host;
         new_->port = port;
-        new_->known = 1;
         new_->t = -INFINITY;
         return new_;
     }
@@ -119,7 +117,7 @@ static int take_dfmi(Source *s, const unsigned char *d, long size, uint32_t host
     double t = read_le_double(d + 12);
     if (count == 0 || !isfinite(t)) return 0;
     Sender *sender = sender_of(s, host, port);
-    if (!sender || !sender->known || t < sender->t) return 0;
+    if (!sender || t < sender->t) return 0;
     memset(s->seen, 0, (size_t)s->n);
     long offset = HEADER;
     for (unsigned k = 0; k < count; k++) {
