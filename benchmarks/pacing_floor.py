@@ -6,7 +6,8 @@ flagship's busy time in the master's C loop), waiting by
 
 - ``sleep``: clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME) to the deadline, nothing else;
 - ``spin``: polling clock_gettime(CLOCK_MONOTONIC) until the deadline;
-- ``hybrid S``: sleeping to S before the deadline, then polling (the master's default, S = 200 us);
+- ``hybrid S``: sleeping to S before the deadline, then polling (the master's default without a lead:
+  S = 50 us, 200 us before);
 
 at the usual priority and at SCHED_FIFO 50 (root or CAP_SYS_NICE; said when refused), with and
 without mlockall and pinned to one CPU (``cpu=1``) or not; and with a lead window (a point may be
