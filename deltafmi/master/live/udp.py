@@ -166,12 +166,8 @@ class UdpSource:
             updates, pending = self.native.after_c()
             if self.native.s.backlog:
                 self._warn_backlog(t)
-            if pending is not None:
-                data, sender = pending
-                if self._sender_ips and sender[0] not in self._sender_ips:
-                    counts["foreign"] += 1
-                else:
-                    self._take(data, sender, updates)
+            if pending is not None:  # from an allowed host: C counts and drops the foreign ones
+                self._take(*pending, updates)
         ancillary = socket.CMSG_SPACE(_OVERFLOW_COUNT.size)
         for _ in range(self.max_per_poll):
             try:
