@@ -91,6 +91,15 @@ class LiveInputUnit:
         self._vrs = np.asarray(vrs, np.intp)
         self._slots = np.arange(start, start + len(vrs), dtype=np.intp)
 
+    def bus_addresses(self) -> List[Optional[int]]:
+        """The address of each value's slot on the Real bus, by value reference (None: not on the
+        bus), for C code that writes them there."""
+        addresses: List[Optional[int]] = [None] * len(self.values)
+        if self._bus is not None:
+            for vr, slot in zip(self._vrs.tolist(), self._slots.tolist()):
+                addresses[vr] = self._bus.ctypes.data + slot * self._bus.itemsize
+        return addresses
+
     def wire_inputs(self, *args: Any) -> None:
         raise AssertionError(f"live source {self.name} has no inputs")
 

@@ -87,10 +87,7 @@ class NativeReader:
         self._names = np.frombuffer(b"".join(names) or b"\0", dtype=np.uint8).copy()
         self._start = np.cumsum([0] + [len(b) for b in names[:-1]]).astype(np.int_)
         self._length = np.array([len(b) for b in names], dtype=np.int_)
-        self._bus = (c_void_p * n)()
-        if unit._bus is not None:
-            for vr, slot in zip(unit._vrs.tolist(), unit._slots.tolist()):
-                self._bus[vr] = unit._bus.ctypes.data + slot * unit._bus.itemsize
+        self._bus = (c_void_p * n)(*unit.bus_addresses())
         self.fresh = np.zeros(n, dtype=np.uint8)
         self._scratch, self._seen = np.zeros(n), np.zeros(n, dtype=np.uint8)
         self._buffer = np.zeros(MAX_DATAGRAM + 1, dtype=np.uint8)

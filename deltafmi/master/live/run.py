@@ -161,12 +161,7 @@ class LiveRun:
     def clock_slots(self) -> List[Optional[int]]:
         """The Real bus addresses of the pacing measurements (lateness, busy, behind; None where
         a measurement is not on the bus)."""
-        unit = self._clock_unit
-        slots: List[Optional[int]] = [None, None, None]
-        if unit is not None and unit._bus is not None:
-            for vr, slot in zip(unit._vrs.tolist(), unit._slots.tolist()):
-                slots[vr] = unit._bus.ctypes.data + slot * unit._bus.itemsize
-        return slots
+        return [None, None, None] if self._clock_unit is None else self._clock_unit.bus_addresses()
 
     def after_c_points(self, t: float, handed_back: bool = False) -> None:
         """The C loop released the points up to ``t`` (the pacer's record is up to date): the
