@@ -395,3 +395,18 @@ def test_wrist_on_a_free_falling_base_conserves_energy_and_momentum():
         assert abs(energy - E0) < 1e-9 * (T0 + (mb + m) * P.g)
         swing = max(swing, np.linalg.norm(momentum - (mb + m) * sol.sol(t)[9:]))
     assert swing > 0.01  # the wrist's own momentum J_s qd is not negligible
+
+
+def test_the_wrists_cross_product_is_numpys_bit_for_bit():
+    """dynamics._cross (np.cross without its axis handling) gives np.cross's bits: single
+    vectors, rows, one side broadcast against rows, across magnitudes, signed zeros and
+    cancellations, so the wrist's results are those of np.cross."""
+    from deltafmi.physics.wrist.dynamics import _cross
+
+    rng = np.random.default_rng(3)
+    scale = 10.0 ** rng.integers(-20, 20, (500, 3))
+    a, b = rng.standard_normal((500, 3)) * scale, rng.standard_normal((500, 3)) * scale[::-1]
+    b[::7] = a[::7] * 3.0  # parallel: every component a cancellation
+    a[::11, 1] = -0.0
+    for x, y in ((a, b), (a[0], b[0]), (a, b[0]), (a[0], b), (a.reshape(5, 100, 3), b.reshape(5, 100, 3))):
+        assert _cross(x, y).tobytes() == np.cross(x, y).tobytes()
