@@ -117,12 +117,14 @@ int main(int argc, char **argv)
     }
     double wall = now() - start, cpu = clock_of(CLOCK_PROCESS_CPUTIME_ID) - cpu0;
     FILE *out = fopen(argv[6], "wb");
-    if (!out || fwrite(lateness, sizeof *lateness, (size_t)points, out) != (size_t)points) return 1;
-    fclose(out);
+    if (!out) return 1;
+    int whole = fwrite(lateness, sizeof *lateness, (size_t)points, out) == (size_t)points;
+    if (fclose(out) != 0 || !whole) return 1; /* a buffered write's error shows at fclose */
     if (done_path) {
         FILE *d = fopen(done_path, "wb");
-        if (!d || fwrite(done, sizeof *done, (size_t)points, d) != (size_t)points) return 1;
-        fclose(d);
+        if (!d) return 1;
+        whole = fwrite(done, sizeof *done, (size_t)points, d) == (size_t)points;
+        if (fclose(d) != 0 || !whole) return 1;
     }
     printf("%.9f %.9f %d %d\n", cpu, wall, locked, fifo);
     return 0;
