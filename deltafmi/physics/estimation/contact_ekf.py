@@ -31,8 +31,8 @@ rest_force_acceleration_std) and, with rest_acceleration_std, the wrist's accele
 Jv a(q, v, u, f) is a pseudo-measurement of zero: the force is then known from the torques'
 balance, which the servo angles (the force integrates twice into them) and the contact law
 (through the gap, which the angles' noise blurs) tell only over thousands of samples; without it
-the force's deviation at rest stays some 15 times its error. A manoeuvre or torques that move end
-the rest.
+the force's deviation at rest stays many times its error (docs/assembly.md has the consistency
+figures). A manoeuvre or torques that move end the rest.
 
 s is tied to the rest by the contact law as a pseudo-measurement, applied only while the filter
 believes the tool presses (n . f > contact_threshold for contact_samples samples in a row, so that
