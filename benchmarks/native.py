@@ -455,6 +455,7 @@ def at_the_limit(cosim, out: Path, rounds: int, stop: Optional[float]) -> None:
     steps = int(round((stop - spec.start) / spec.h))
     cpu_master_run(cosim, system, stop, out / "flagship.csv")  # FMUs built and loaded, caches warm
     ratios: dict = {}
+    load = os.getloadavg()[0]
     for i in range(rounds):
         _, _, wall, cpu = baseline.timed_run(spec, steps)
         own: list = []
@@ -468,7 +469,8 @@ def at_the_limit(cosim, out: Path, rounds: int, stop: Optional[float]) -> None:
             _, process = cpu_master_run(cosim, system, stop, out / "flagship.parquet")
             ratios.setdefault("CPU time, rows recorded as binary", []).append(process / cpu)
     print(f"the flagship at the limit, {rounds} rounds ({steps} steps each), medians of the rounds' ratios "
-          f"(target <= {LIMIT:g}x the C transcription):")
+          f"(target <= {LIMIT:g}x the C transcription); load average {load:.2f} at the start, "
+          f"{os.getloadavg()[0]:.2f} at the end:")
     for label, values in ratios.items():
         if label.endswith("us"):
             print(f"  {label:38s} {statistics.median(values):6.2f} us")
