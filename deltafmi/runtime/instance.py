@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-import pickle
 import struct
 from contextlib import nullcontext
 from typing import TYPE_CHECKING, Callable, ContextManager, Optional, Sequence
@@ -23,7 +22,7 @@ from .cs_native import CsShared, native_cs_wanted
 from .native_functions import FunctionSet
 from .native_kernels import TRAILING_ROLES, NativeKernelsRuntime
 from .partials import DirectionalDerivatives
-from .state_bytes import load_state
+from .state_bytes import dump_state, load_state
 
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
     from .cvode import Cvode
@@ -767,12 +766,13 @@ class FmuInstance:
             raise RuntimeError(f"{self.component_class.fmi_model_name()} cannot serialize its FMU state "
                                "(canSerializeFMUstate is false); get and set it instead")
         with self._module_context():
-            return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+            return dump_state(state, FunctionSet)
 
     def deserialize_state(self, data: bytes) -> dict:
         """Inverse of :meth:`serialize_state`."""
         with self._module_context():
-            return load_state(data, self.component_class.__module__, self.resources_dir)
+            return load_state(data, self.component_class.__module__, self.resources_dir,
+                              self.component.native_functions)
 
     # --- life cycle -------------------------------------------------------------------------
     def terminate(self) -> int:

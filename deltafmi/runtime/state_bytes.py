@@ -1,4 +1,4 @@
-"""Loading serialized FMU states without running what the bytes name.
+"""Serialized FMU states: loading them without running what the bytes name.
 
 ``fmi2DeSerializeFMUstate`` (and FMI 3.0's) takes bytes from the importer, which may have read
 them from a file anyone could have written. A plain :func:`pickle.loads` calls whatever callable
@@ -22,11 +22,14 @@ import os
 import pickle
 import sys
 import types
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 
-__all__ = ["load_state"]
+__all__ = ["dump_state", "load_state"]
+
+#: the token a state's bytes hold in place of the component's compiled functions
+_FUNCTIONS = "native_functions"
 
 _BUILTINS = frozenset({"bool", "bytearray", "bytes", "complex", "dict", "float", "frozenset", "int", "list",
                        "object", "range", "set", "slice", "str", "tuple"})
@@ -40,8 +43,9 @@ _NUMPY_CONSTRUCTORS = frozenset({("numpy._core.numeric", "_frombuffer"), ("numpy
 class _StateUnpickler(pickle._Unpickler):  # noqa: SLF001
     dispatch = dict(pickle._Unpickler.dispatch)  # noqa: SLF001
 
-    def __init__(self, data: bytes, own_module: str, resources_dir: str) -> None:
+    def __init__(self, data: bytes, own_module: str, resources_dir: str, functions: Any) -> None:
         super().__init__(io.BytesIO(data))
+        self._functions = functions
         self._own_module = own_module
         self._resources = os.path.realpath(resources_dir) + os.sep if resources_dir else None
         self._constructors: list = []  # numpy's, as found
@@ -64,6 +68,11 @@ class _StateUnpickler(pickle._Unpickler):  # noqa: SLF001
             if isinstance(found, types.FunctionType) and self._model_code(module):
                 return found  # a component may keep one of its model's functions (a kernel)
         raise pickle.UnpicklingError(f"the FMU state names {module}.{name}, which no FMU state holds")
+
+    def persistent_load(self, pid: Any) -> Any:
+        if pid == _FUNCTIONS and self._functions is not None:
+            return self._functions
+        raise pickle.UnpicklingError(f"the FMU state refers to {pid!r}, which no FMU state refers to")
 
     def load_reduce(self) -> None:
         """REDUCE: the call a state's bytes make, only of what is made to be rebuilt by one."""
@@ -109,7 +118,26 @@ def _rebuilt_by_call(func: Any) -> bool:
     return func.__reduce_ex__ is not object.__reduce_ex__ or func.__reduce__ is not object.__reduce__
 
 
-def load_state(data: bytes, own_module: str, resources_dir: str) -> Any:
-    """The object ``data`` (from :func:`pickle.dumps`) holds, if it names only what an FMU state
-    may hold; :class:`pickle.UnpicklingError` otherwise."""
-    return _StateUnpickler(data, own_module, resources_dir).load()
+class _StatePickler(pickle.Pickler):
+    def __init__(self, file: Any, functions_type: type) -> None:
+        super().__init__(file, protocol=pickle.HIGHEST_PROTOCOL)
+        self._functions_type = functions_type
+
+    def persistent_id(self, obj: Any) -> Optional[str]:
+        return _FUNCTIONS if type(obj) is self._functions_type else None
+
+
+def dump_state(state: Any, functions_type: type) -> bytes:
+    """``state``'s bytes (:mod:`pickle`), the component's compiled functions (an instance of
+    ``functions_type``: calls into the FMU's kernel library, no value) kept as a reference that
+    :func:`load_state` resolves to the loading instance's."""
+    out = io.BytesIO()
+    _StatePickler(out, functions_type).dump(state)
+    return out.getvalue()
+
+
+def load_state(data: bytes, own_module: str, resources_dir: str, functions: Any = None) -> Any:
+    """The object ``data`` (from :func:`dump_state`) holds, if it names only what an FMU state
+    may hold, the component's functions being ``functions``; :class:`pickle.UnpicklingError`
+    otherwise."""
+    return _StateUnpickler(data, own_module, resources_dir, functions).load()
