@@ -11,7 +11,7 @@ import ctypes
 import math
 import struct
 from contextlib import nullcontext
-from typing import TYPE_CHECKING, Callable, ContextManager, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ContextManager, Optional, Sequence
 
 import numpy as np
 
@@ -41,6 +41,10 @@ _INPUT_JUMP_TOLERANCE = 10.0
 EVENTS_INSIDE = 0        #: handles every event inside the step (FMI 2.0; FMI 3.0 without eventModeUsed)
 EVENTS_EARLY_RETURN = 1  #: stops at the first event and leaves it pending (eventModeUsed, earlyReturnAllowed)
 EVENTS_AT_STEP_END = 2   #: handles the events inside the step, leaves one at its end pending (eventModeUsed)
+
+#: what every snapshot of :meth:`FmuInstance.get_state` holds
+_STATE_KEYS = frozenset({"real", "int", "str", "internal", "time", "next_time_event", "in_initialization",
+                         "terminate_requested"})
 
 
 class CompiledStep:
@@ -738,8 +742,11 @@ class FmuInstance:
         }
 
     def set_state(self, state: dict) -> int:
-        """Restore a snapshot from :meth:`get_state`; the CS solver restarts from it."""
+        """Restore a snapshot from :meth:`get_state`; the CS solver restarts from it. A snapshot
+        that does not fit (deserialized from damaged bytes) raises before anything changes (the
+        component's own part: before it changes, by default)."""
         comp = self.component
+        self._check_state(state)
         comp._real[:] = state["real"]
         comp._int[:] = state["int"]
         comp._str[:] = state["str"]
@@ -759,6 +766,25 @@ class FmuInstance:
         self._drop_solver()  # a fresh solver, as in get_state()
         self._pack_kernels()
         return OK
+
+    def _check_state(self, state: Any) -> None:
+        comp = self.component
+        if not isinstance(state, dict) or not _STATE_KEYS <= state.keys():
+            raise ValueError("not an FMU state of this FMU: it lacks the values of a snapshot")
+        arrays = [("real", comp._real), ("int", comp._int)]
+        if state.get("pre_indicators") is not None:
+            arrays.append(("pre_indicators", self._cs.pre_indicators_view))
+        for key, buffer in arrays:
+            value = state[key]
+            if not isinstance(value, np.ndarray) or value.shape != buffer.shape or value.dtype != buffer.dtype:
+                raise ValueError(f"not an FMU state of this FMU: its {key} values are not {buffer.shape[0]} "
+                                 f"{buffer.dtype} values")
+        strings = state["str"]
+        if not isinstance(strings, list) or len(strings) != len(comp._str) or \
+                not all(isinstance(text, str) for text in strings):
+            raise ValueError(f"not an FMU state of this FMU: its string values are not {len(comp._str)} strings")
+        if not isinstance(state["time"], (float, int)):
+            raise ValueError("not an FMU state of this FMU: its time is not a number")
 
     def serialize_state(self, state: dict) -> bytes:
         """Bytes for ``fmi2SerializeFMUstate``."""
