@@ -45,6 +45,18 @@ def test_non_finite_times_are_refused_by_validate_and_run_alike(tmp_path, key, v
     assert not (tmp_path / "r.csv").exists()
 
 
+def test_a_step_count_no_float_counts_names_no_limit_to_raise(tmp_path):
+    """1 s in steps of 1e-300 s: more steps than 2^53, where consecutive step numbers are one
+    float; the message said to raise max_steps to a 301-digit number. It says the run cannot count
+    them, as for a span of 1e308 s."""
+    done = CliRunner().invoke(main, ["run", "delta_tracking", "--step", "1e-300", "--stop", "1",
+                                     "-o", str(tmp_path / "r.csv")])
+    assert done.exit_code == 2, done.output
+    assert done.output.strip().splitlines()[-1] == (
+        "Error: 1 s in steps of 1e-300 s: more communication steps than a run can count; shorten the span or "
+        "lengthen the step")
+
+
 def test_a_step_count_beyond_the_limit_is_refused_with_the_count_and_the_override(tmp_path):
     path = _flagship_with(tmp_path, "step", "1.0e-12")
     done = CliRunner().invoke(main, ["validate", str(path)])
