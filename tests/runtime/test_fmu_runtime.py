@@ -286,6 +286,23 @@ def test_a_damaged_state_that_loads_is_refused_and_a_good_one_restores_after_it(
     s.fmu.freeFMUstate(state)
 
 
+@pytest.mark.parametrize("point, step", [(0.0, math.inf), (math.nan, 0.05)])
+def test_a_step_of_no_finite_size_or_from_no_time_is_refused(build_fmu_from_src, point, step):
+    """fmi2DoStep(t, inf) and fmi2DoStep(NaN, h) passed the checks (inf > 0; a NaN compares
+    false): the oscillator returned fmi2OK at no time in particular, a controller sampling at
+    1 kHz sampled for ever. Both are refused with fmi2Error; after fmi2Reset the instance steps on
+    (the damped oscillator's closed form before it reaches the wall)."""
+    s = Slave(build_fmu_from_src("oscillator.py"))
+    with pytest.raises(FMICallException):
+        s.fmu.doStep(point, step)
+    s.reset()
+    s.step(0.05, n=4)
+    omega, zeta = 2 * math.pi, 0.2 / (2 * 2 * math.pi)  # k = (2 pi)^2 N/m, m = 1 kg, c = 0.2 N s/m
+    wd, t = omega * math.sqrt(1 - zeta ** 2), 0.2
+    x = math.exp(-zeta * omega * t) * (math.cos(wd * t) + zeta * omega / wd * math.sin(wd * t))
+    assert s.real("x")[0] == pytest.approx(x, abs=1e-6)
+
+
 @pytest.mark.parametrize("spoil", ["error", "terminate"])
 def test_a_state_got_before_an_error_restarts_the_simulation(lags, spoil):
     """FMI 2.0, 2.1.3: after fmi2Error the simulation may go on from an FMU state got before;

@@ -679,8 +679,10 @@ int dfmi_activate_model_partition(Instance *c, const char *function, size_t i, d
 }
 
 int dfmi_do_step(Instance *c, const char *function, double t, double h, DfmiStepEvents events) {
-    if (!(h > 0.0)) return dfmi_fail(c, "%s: communicationStepSize must be > 0, got %g", function, h);
-    if (fabs(t - c->time) > 1e-9 * fmax(1.0, fabs(t)))
+    /* an infinite step never ends (a sampled component samples on for ever) */
+    if (!(h > 0.0) || isinf(h))
+        return dfmi_fail(c, "%s: communicationStepSize must be a finite number > 0, got %g", function, h);
+    if (!(fabs(t - c->time) <= 1e-9 * fmax(1.0, fabs(t)))) /* NaN too */
         return dfmi_fail(c, "%s: currentCommunicationPoint %.16g differs from the FMU time %.16g", function, t,
                          c->time);
     const DfmiLayout *L = &c->L;
