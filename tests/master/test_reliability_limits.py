@@ -125,6 +125,18 @@ def test_a_yaml_alias_bomb_is_refused_in_a_moment(tmp_path, command):
                         done.output.strip().splitlines()[-1]), done.output
 
 
+def test_a_long_yaml_file_without_aliases_is_refused_for_its_length(tmp_path):
+    """A file that writes out more than 200,000 values itself, no alias in it, was refused with
+    the alias bomb's message (aliases repeating what &a names); it says the file holds too many."""
+    path = tmp_path / "long.yaml"
+    path.write_text("experiment: {stop: 1, step: 0.1}\nparameters:\n" +
+                    "".join(f"  p{i}: [{i}, {i}]\n" for i in range(70_000)))
+    done = CliRunner().invoke(main, ["validate", str(path)])
+    assert done.exit_code == 2, done.output
+    assert re.fullmatch(rf"{re.escape(str(path))}:\d+: error: the YAML holds more than 200,000 values: not a "
+                        r"scenario or a study", done.output.strip().splitlines()[-1]), done.output
+
+
 @pytest.mark.parametrize("command", ["validate", "run", "sweep"])
 def test_a_binary_file_as_the_scenario_is_one_line(tmp_path, command):
     path = tmp_path / "photo.yaml"
