@@ -208,6 +208,8 @@ class Component(ValueHolder):
         """Restore what :meth:`internal_state` returned (which stays valid for another restore)."""
         if not isinstance(state, dict) or not all(isinstance(k, str) for k in state if k != _SHARED):
             raise TypeError("not an internal state of a component: attributes are named by strings")
+        if not RUNTIME_ATTRIBUTES.isdisjoint(state):  # the instance's, never in a state (a buffer, its resources)
+            raise ValueError(f"not an internal state of a component: it sets {sorted(RUNTIME_ATTRIBUTES & state.keys())}")
         shared = state.get(_SHARED)  # a state saved by an older runtime has none
         # copied before any attribute goes: a state that cannot be restored leaves the component as it was
         restored = _copied({k: v for k, v in state.items() if k != _SHARED}, shared)
