@@ -791,8 +791,10 @@ class FmuInstance:
         if not self.component_class.can_serialize_state:
             raise RuntimeError(f"{self.component_class.fmi_model_name()} cannot serialize its FMU state "
                                "(canSerializeFMUstate is false); get and set it instead")
+        # a component given functions may keep them in its state (an estimator its kernels)
+        functions = FunctionSet if "_native_functions" in vars(self.component) else None
         with self._module_context():
-            return dump_state(state, FunctionSet)
+            return dump_state(state, functions)
 
     def deserialize_state(self, data: bytes) -> dict:
         """Inverse of :meth:`serialize_state`."""

@@ -127,10 +127,13 @@ class _StatePickler(pickle.Pickler):
         return _FUNCTIONS if type(obj) is self._functions_type else None
 
 
-def dump_state(state: Any, functions_type: type) -> bytes:
+def dump_state(state: Any, functions_type: Optional[type]) -> bytes:
     """``state``'s bytes (:mod:`pickle`), the component's compiled functions (an instance of
     ``functions_type``: calls into the FMU's kernel library, no value) kept as a reference that
-    :func:`load_state` resolves to the loading instance's."""
+    :func:`load_state` resolves to the loading instance's (None: the component has none; pickle
+    alone, without a call per object)."""
+    if functions_type is None:
+        return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
     out = io.BytesIO()
     _StatePickler(out, functions_type).dump(state)
     return out.getvalue()
