@@ -24,7 +24,8 @@ in the same run, on the same inputs:
   path without a C compiler) against the compiled functions its FMU calls (C generated from the
   same Python), with their estimates compared; the previous settings and the last release's
   levels (the force a random walk, no rate, no law detector: the same covariance algebra, the
-  rate states held at zero) as variants, compiled.
+  rate states held at zero) and without the rest level as variants, compiled, and the rest's last
+  0.2 s (the rest level on: its zero-acceleration update adds a process-model call) apart.
 
 Prints median and 99th percentile per sample (ms), their ratios to the baseline and to the 1 ms
 budget, and the share of samples over 1 ms, and the thread's CPU time per sample, which a loaded
@@ -373,7 +374,9 @@ def contact(folder: Path) -> None:
                    force_ramp_std=0.0, law_manoeuvre=False, contact_model_std=1e-3)
     variants = {"baseline: Python kernels": (PYTHON_KERNELS, None), "now: compiled kernels": (c.native_functions, None),
                 "compiled, the previous settings (one walk level, no manoeuvre detector)": (c.native_functions, previous),
-                "compiled, the last release's levels (the force a random walk, no rate)": (c.native_functions, walk)}
+                "compiled, the last release's levels (the force a random walk, no rate)": (c.native_functions, walk),
+                "compiled, without the rest level": (c.native_functions, replace(c._settings, rest_force_rate_std=0.0,
+                                                                                   rest_acceleration_std=0.0))}
     runs: Dict[str, list] = {label: [] for label in variants}
     for _ in range(2):
         for label, (kernels, settings) in variants.items():
@@ -389,12 +392,18 @@ def contact(folder: Path) -> None:
                {**rows_, **parts}, ratios=False)
         budget(f"ContactEstimator {label}", rows_)
         figure[label] = rows_["per sample, the thread's CPU time"]
-    base, now, before, last = figure.values()
+    base, now, before, last, restless = figure.values()
+    resting = np.asarray(t)[rows] >= t[-1] - 0.2  # the rest level is on over the last 0.24 s (estimator_consistency)
+    for label in ("now: compiled kernels", "compiled, without the rest level"):
+        cpu = figures([x for r in runs[label] for x in np.asarray(r[1])[resting]])
+        print(f"ContactEstimator {label}, the last 0.2 s (at rest), the thread's CPU time per sample: "
+              f"median {cpu['median']:.3f} ms, p99 {cpu['p99']:.3f} ms")
     print(f"\nnow against baseline (CPU time): median {base['median'] / now['median']:.2f}x, "
           f"p99 {base['p99'] / now['p99']:.2f}x faster; against the previous settings (compiled): median "
           f"{now['median'] / before['median']:.2f}x, p99 {now['p99'] / before['p99']:.2f}x the time; against the "
           f"last release's levels (compiled): median {now['median'] / last['median']:.2f}x, "
-          f"p99 {now['p99'] / last['p99']:.2f}x the time")
+          f"p99 {now['p99'] / last['p99']:.2f}x the time; against no rest level: median "
+          f"{now['median'] / restless['median']:.2f}x, p99 {now['p99'] / restless['p99']:.2f}x the time")
     python, compiled = (runs[label][-1][3] for label in list(variants)[:2])
     worst = np.max(np.abs(compiled - python) / np.maximum(np.abs(python), 1e-300))
     print(f"estimates, compiled against Python: largest relative difference {worst:.1e} over {python.size} numbers")

@@ -34,12 +34,16 @@ then scenarios/contact_estimation.yaml recorded once without the estimator, Cont
 replayed from the start to the end (the press at rest), noise y_std (1e-5 rad); the truth is the
 plane's force on the tool (normal_force + friction_force; the estimator knows the payload) and
 the plant's surface height; printed for the scenario's settings, its force as the last release's
-random walk (no rate), the previous settings, and without the manoeuvre detector or its hold; ``--set`` takes ContactEKFSettings names. On data from the
-filter's own model (a random-walk force, no model error) tests/physics/test_contact_estimator_consistency.py
+random walk (no rate), the previous settings, and without the rest level, the manoeuvre detector
+or its hold: the NEES of the force, its normal component and the surface by phase, where the rest
+level is on, and the impact's samples before the detector first fires (the detector's delay, which
+no walk at the press's levels covers) apart from the rest of its 0.1 s; ``--set`` takes
+ContactEKFSettings names. The plant's statistics include its wrist acceleration at rest (the rest
+level's zero-acceleration pseudo-measurement). On data from the filter's own model (a random-walk force, no model error) tests/physics/test_contact_estimator_consistency.py
 asserts the force's NEES, on the real plant tests/models/test_contact_estimator_scenario_consistency.py.
 
 Usage: python benchmarks/estimator_consistency.py [--estimator peg|contact] [--runs 16] [--noise RAD]
-       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 8] (contact: 5 variants)
+       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 8] (contact: 6 variants)
 """
 from __future__ import annotations
 
@@ -111,6 +115,11 @@ def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
         print(f"  {name:10} mean NEES " + ", ".join(f"t={q:.1f} s: {v:.3g}" for q, v in at)
               + f"; sliding {nees[:, sliding].mean():.3g}; " + ", ".join(f"{p} {v:.3g}" for p, v in means.items())
               + f"; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")
+    for lo, hi in ((1.3, 1.4), (1.4, 1.5), (1.5, 1.6), (1.6, 1.7), (1.7, 1.8), (1.8, 1.9), (1.9, 2.05), (2.05, args.stop)):
+        if hi <= args.stop + 1e-9:
+            m = (t >= lo) & (t < hi + 0.5e-3)
+            windows = f"{lo:.2f}-{hi:.2f} s: hole {H4[:, m].mean():.3g}, force {F[:, m].mean():.3g}"
+            print(f"  by 0.1 s in the bore, {windows}")
     M = np.array(M)
     print("  manoeuvre flagged at " + ", ".join(f"{100 * M[:, m].mean():.1f} %" + f" of the {p} samples"
                                               for p, m in phases.items() if p != "bore from 1.3 s"))
@@ -156,6 +165,8 @@ CONTACT_BEFORE = dict(acceleration_std=0.05, force_rate_std=100.0, steady_force_
                       contact_threshold=10.0, contact_samples=10, manoeuvre_hold=0)
 #: the last release's force: a random walk, 0.3 N/s per sqrt(Hz) between manoeuvres, without its rate
 CONTACT_WALK = dict(steady_force_rate_std=0.3, force_acceleration_std=0.0, force_ramp_std=0.0)
+#: no rest level: the steady walks at rest too, and no zero-acceleration pseudo-measurement
+NO_REST = dict(rest_force_rate_std=0.0, rest_acceleration_std=0.0)
 SETTLE = 0.1  # s after the touch: the impact's transient, left out of "in contact"
 
 
@@ -189,6 +200,9 @@ def contact_statistics(d: dict, kernels) -> None:
     _, integrated, _ = walk_levels(F[:, 2:], t, *ramps)
     print(f"  the ramp's end ({ramps[0]:.2f}-{ramps[1]:.2f} s): integrated {' / '.join(f'{v:.3g}' for v in integrated)}")
     fn, gap, zd = d["fn"][on], d["gap"][on], d["zd"][on]
+    acceleration = np.linalg.norm(np.diff(zd, axis=0), axis=1)[t[1:] > rest] / 1e-3
+    print(f"  at rest: the wrist's acceleration rms {np.sqrt(np.mean(acceleration ** 2)):.2g}, largest "
+          f"{acceleration.max():.2g} m/s^2 (the rest's pseudo-measurement of zero)")
     st = c._settings
     law = fn - (st.contact_stiffness * -gap + st.contact_damping * -zd[:, 2])
     for value, name in ((2, "CONTACT"), (1, "COLLISION")):
@@ -226,9 +240,10 @@ def contact_replay(d: dict, c: "ContactEstimator", settings, kernels, noise: flo
             ekf = ContactEKF(c.robot_params(), settings, y, kernels=kernels)
         est = ekf.step(y, d["u"][i])
         ef, es = est.force - d["force"][i], est.surface_height - d["surface"][i]
-        rows.append((t[i], ef @ np.linalg.solve(ekf.P[18:21, 18:21], ef), es * es / ekf.P[21, 21]))
+        rows.append((t[i], ef @ np.linalg.solve(ekf.P[18:21, 18:21], ef), es * es / ekf.P[21, 21],
+                     ef[2] ** 2 / ekf.P[20, 20], float(ekf.resting), float(ekf.manoeuvre)))
     a = np.array(rows)
-    return a[:, 0], a[:, 1], a[:, 2], ekf.manoeuvres
+    return a[:, 0], a[:, 1], a[:, 2], ekf.manoeuvres, a[:, 3], a[:, 4], ekf.rate_restarts, a[:, 5]
 
 
 def contact_monte_carlo(args) -> None:
@@ -249,10 +264,11 @@ def contact_monte_carlo(args) -> None:
     changes = {k: int(v) if k in integers else float(v) for k, v in (s.split("=", 1) for s in args.set)}
     now = replace(c._settings, **changes)
     variants = [("now (contact_estimation.yaml's settings, with --set)", now),
+                ("without the rest level (the steady walks at rest, no zero acceleration)", replace(now, **NO_REST)),
                 ("the last release's force: a random walk (0.3 N/s per sqrt(Hz) between manoeuvres), no rate",
-                 replace(now, **CONTACT_WALK)),
+                 replace(now, **CONTACT_WALK, **NO_REST)),
                 ("before: the previous settings (a 100 N/s walk throughout, 0.05 m/s^2, the law 5 N from 10 N)",
-                 replace(now, **{**CONTACT_WALK, **CONTACT_BEFORE})),
+                 replace(now, **{**CONTACT_WALK, **CONTACT_BEFORE, **NO_REST})),
                 ("without the manoeuvre detector (the steady level throughout, in every direction)",
                  replace(now, force_rate_std=now.steady_force_rate_std, steady_force_rate_std=0.0)),
                 ("the detector without its hold (the fast walk only while the innovations say so)",
@@ -264,13 +280,33 @@ def contact_monte_carlo(args) -> None:
         began = time.perf_counter()
         runs = [contact_replay(d, c, settings, kernels, noise, 1000 + r) for r in range(R)]
         t = runs[0][0]
-        F, S = np.array([r[1] for r in runs]), np.array([r[2] for r in runs])
+        F, S, N = np.array([r[1] for r in runs]), np.array([r[2] for r in runs]), np.array([r[4] for r in runs])
+        resting = np.array([r[5] for r in runs])
         phases = {f"in contact (from {SETTLE} s after the touch)": t >= touch + SETTLE, "free": t < touch,
                   f"impact ({SETTLE} s)": (t >= touch) & (t < touch + SETTLE),
                   "press, ramp": (t >= touch + SETTLE) & (t < rest), "at rest": t >= rest}
+        first = [float(r[0][(r[0] > touch) & (r[5] > 0)][0]) if np.any((r[0] > touch) & (r[5] > 0)) else np.nan
+                 for r in runs]
+        first = f"{np.nanmedian(first):.3f} s" if not np.all(np.isnan(first)) else "never"
         print(f"{label}: {time.perf_counter() - began:.0f} s, manoeuvres detected per run "
-              f"{np.mean([r[3] for r in runs]):.1f}")
-        for name, nees, dof in (("force", F, 3), ("surface", S, 1)):
+              f"{np.mean([r[3] for r in runs]):.1f}, rate restarts by the law per run "
+              f"{np.mean([r[6] for r in runs]):.1f}; at rest the rest level on at "
+              f"{100 * resting[:, t >= rest].mean():.0f} % of the samples, first at {first} (median), free "
+              f"{100 * resting[:, t < touch].mean():.0f} %")
+        # the impact's samples before the detector first flags it (no walk at the press's levels predicts
+        # the jump; they are the detector's delay), and the rest of the impact's 0.1 s after it
+        flagged = [r[0][(r[0] >= touch) & (r[0] < touch + SETTLE) & (r[7] > 0)] for r in runs]
+        fired = np.array([f[0] if len(f) else touch + SETTLE for f in flagged])
+        impact = (t >= touch) & (t < touch + SETTLE)
+        before, after = np.array([impact & (t < f) for f in fired]), np.array([impact & (t >= f) for f in fired])
+        if not after.any():
+            print("  the impact: no manoeuvre detected in its 0.1 s")
+        else:
+            print(f"  the impact: the detector fires {1e3 * np.median(fired - touch):.0f} ms after the touch (median; "
+                  f"{1e3 * (fired - touch).min():.0f}-{1e3 * (fired - touch).max():.0f}); force NEES over those samples "
+                  f"{F[before].mean():.3g} (largest {F[before].max():.3g}), over the impact's rest "
+                  f"{F[after].mean():.3g} (largest {F[after].max():.3g})")
+        for name, nees, dof in (("force", F, 3), ("normal", N, 1), ("surface", S, 1)):
             lo, hi = chi2.ppf(0.025, dof * R) / R, chi2.ppf(0.975, dof * R) / R
             print(f"  {name:8} mean NEES " + ", ".join(f"{p}: {nees[:, m].mean():.3g}" for p, m in phases.items())
                   + f", at the end {nees[:, -1].mean():.3g}; 95 % interval for dof {dof}: [{lo:.3f}, {hi:.3f}]")

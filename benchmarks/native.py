@@ -29,9 +29,10 @@ microseconds):
   by the master's C loop) and the Python path's (``DeltaController.step``, in-process, replaying
   the same samples as the C controller);
 - the flagship's CPU time, of the whole process and of the stepping thread alone (the rows become
-  text on a thread of their own: where that thread has a core to itself, the wall time comes to the
-  stepping thread's CPU time and the last block's text), the stepping thread's split into its time
-  in the master's C loop and the Python around it, the process's CPU and wall time with the text
+  text on a thread of C the C loop hands them to while it steps: where that thread has a core to
+  itself, the wall time comes to the stepping thread's CPU time and the last rows' text), the
+  stepping thread's split into its time in the master's C loop (handing the rows over included)
+  and the Python around it, the process's CPU and wall time with the text
   made on the stepping thread instead (no text thread), the difference (the rows' text), and the
   CPU time of the CSV writer alone writing the same rows (formatted and written, on one thread:
   the text's own cost, without a second thread beside the stepping);
@@ -39,7 +40,13 @@ microseconds):
   closed-loop step, plant derivative <= 2x, controller sample <= 3x, through FMI (what a solver
   and the master pay); the Python paths' ratios for reference (the issue's "today" column).
 
-Usage: python benchmarks/native.py [--repeats 5] [--stop 3.5]
+With ``--limit-only ROUNDS`` it prints the at-the-limit ratios alone (wall and CPU with the rows
+written as CSV, the stepping thread's CPU, CPU with the rows recorded as binary every third
+round), medians of ROUNDS short rounds' ratios: quick enough to run two checkouts interleaved
+(``PYTHONPATH=<checkout> python <checkout>/benchmarks/native.py --limit-only 25``) for a
+before/after on a shared machine.
+
+Usage: python benchmarks/native.py [--repeats 5] [--stop 3.5] [--limit-only ROUNDS]
 """
 from __future__ import annotations
 
@@ -424,12 +431,50 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5, help="rounds; every figure is a median over them")
     parser.add_argument("--stop", type=float, default=None, help="simulated seconds (default: the flagship's)")
+    parser.add_argument("--limit-only", type=int, default=0, metavar="ROUNDS",
+                        help="only the at-the-limit ratios, medians over ROUNDS short rounds")
     args = parser.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import cosim  # benchmarks/cosim.py: the master's timings and the in-process floor
 
     with tempfile.TemporaryDirectory(prefix="deltafmi-native-") as scratch:
-        measure(cosim, Path(scratch), args.repeats, args.stop)
+        if args.limit_only:
+            at_the_limit(cosim, Path(scratch), args.limit_only, args.stop)
+        else:
+            measure(cosim, Path(scratch), args.repeats, args.stop)
+
+
+def at_the_limit(cosim, out: Path, rounds: int, stop: Optional[float]) -> None:
+    """The flagship against the C transcription with its rows written, ``rounds`` rounds (each
+    a C run and a CSV run back to back, every third a binary run too): medians of the rounds'
+    ratios."""
+    baseline = Baseline(compile_baseline(out))
+    system = load_flagship()
+    spec = flagship_spec(system)
+    stop = stop or system.scenario.experiment.stop
+    steps = int(round((stop - spec.start) / spec.h))
+    cpu_master_run(cosim, system, stop, out / "flagship.csv")  # FMUs built and loaded, caches warm
+    ratios: dict = {}
+    for i in range(rounds):
+        _, _, wall, cpu = baseline.timed_run(spec, steps)
+        own: list = []
+        run, process = cpu_master_run(cosim, system, stop, out / "flagship.csv", own)
+        ratios.setdefault("wall time, rows written as CSV", []).append(run.stepping_time / wall)
+        ratios.setdefault("CPU time, rows written as CSV", []).append(process / cpu)
+        ratios.setdefault("CPU time of the stepping thread", []).append(own[0] / cpu)
+        ratios.setdefault("C step CPU us", []).append(1e6 * cpu / steps)
+        if i % 3 == 0:
+            _, _, _, cpu = baseline.timed_run(spec, steps)
+            _, process = cpu_master_run(cosim, system, stop, out / "flagship.parquet")
+            ratios.setdefault("CPU time, rows recorded as binary", []).append(process / cpu)
+    print(f"the flagship at the limit, {rounds} rounds ({steps} steps each), medians of the rounds' ratios "
+          f"(target <= {LIMIT:g}x the C transcription):")
+    for label, values in ratios.items():
+        if label.endswith("us"):
+            print(f"  {label:38s} {statistics.median(values):6.2f} us")
+        else:
+            ratio = statistics.median(values)
+            print(f"  {label:38s} {ratio:6.2f}x (target <= {LIMIT:g}x: {'met' if ratio <= LIMIT else 'NOT met'})")
 
 
 def measure(cosim, out: Path, repeats: int, stop: Optional[float]) -> None:

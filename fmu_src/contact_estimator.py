@@ -14,7 +14,9 @@ EstimatorRobotModel = robot_parameters("as the estimator models it")
 
 #: parameters handed to ContactEKFSettings under the same names
 _SETTINGS = ("sample_period", "y_std", "acceleration_std", "force_rate_std", "steady_force_rate_std", "friction",
-             "manoeuvre_samples", "manoeuvre_hold", "force_acceleration_std", "force_ramp_std", "law_manoeuvre", "surface_drift_std",
+             "manoeuvre_samples", "manoeuvre_hold", "force_acceleration_std", "force_ramp_std", "law_manoeuvre",
+             "rest_force_rate_std", "rest_force_acceleration_std", "rest_samples", "rest_acceleration_std",
+             "surface_drift_std",
              "position_std0", "velocity_std0", "force_std0", "surface_height0", "surface_std0", "tool",
              "contact_stiffness", "contact_damping", "contact_model_std", "contact_threshold", "contact_samples",
              "pole", "substeps")
@@ -34,7 +36,10 @@ class ContactEstimator(EstimatorRobotModel, SampledComponent):
     (friction times it across) until the servo angles' normalised innovations over the last
     manoeuvre_samples exceed their chi-square 0.999 quantile (a manoeuvre: an impact; with
     law_manoeuvre also the contact law's, in contact: a ramp's end), and at force_rate_std while
-    they do. At each sample t_k it predicts from t_(k-1) with the torques read
+    they do. With rest_force_rate_std, once the servo torques have held still for rest_samples
+    (the force they balance moving by less than that walk would), the force and its rate walk at
+    the rest levels and, with rest_acceleration_std, the wrist's acceleration is taken as zero (the
+    force balances the torques). At each sample t_k it predicts from t_(k-1) with the torques read
     then (held over the period), then updates with y(t_k); the outputs are this estimate at t_k
     and its standard deviations. The filter starts at the forward kinematics of the first y, at
     rest. sensor_noise adds seeded Gaussian noise to y before the filter sees it (a noisier
@@ -72,6 +77,17 @@ class ContactEstimator(EstimatorRobotModel, SampledComponent):
                                description="The force's rate after a manoeuvre (about zero): a new contact's ramp")
     law_manoeuvre = Parameter(False, description="The manoeuvre detector also watches the contact law's innovations "
                                                  "(a ramp's end, seen in contact)")
+    rest_force_rate_std = Parameter(0.0, unit="N/s", min=0.0,
+                                    description="Walk of the force at rest, the torques still (per sqrt(Hz); "
+                                                "0: no rest level)")
+    rest_force_acceleration_std = Parameter(0.0, unit="N/s2", min=0.0,
+                                            description="Walk of the force's rate at rest (per sqrt(Hz))")
+    rest_samples = Parameter(100, type=int, min=1,
+                             description="Samples the torques stay still (the force they balance within the rest "
+                                         "walk's 0.999 quantile) before the rest level applies")
+    rest_acceleration_std = Parameter(0.0, unit="m/s2", min=0.0,
+                                      description="The wrist's acceleration at rest: a pseudo-measurement of zero "
+                                                  "(0: none)")
     surface_drift_std = Parameter(0.0, unit="m", min=0.0, description="Random walk of the surface height (per sqrt(s))")
     position_std0 = Parameter(1e-3, unit="m", min=0.0, description="Initial wrist position uncertainty")
     velocity_std0 = Parameter(0.01, unit="m/s", min=0.0, description="Initial wrist velocity uncertainty (about rest)")

@@ -83,7 +83,7 @@ SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_joysti
 OWN_GROUP = {"test_wheel_install", "test_python_hosts", "test_export_fmu", "test_assembly_hold"}
 #: modules that start other processes (a C host, another Python, a CLI, a Dask process)
 SUBPROCESS = {"test_reliability_signals_tools", "test_component_docs", "test_live_scope", "test_rough_edges",
-              "test_study_cluster", "test_study_dask", "test_study_snapshots",
+              "test_study_cluster", "test_study_dask", "test_study_snapshots", "test_study_third_party",
               "test_study_rough_edges", "test_study_tls", "test_troubleshooting_docs", "test_compiler_messages",
               "test_fmi3_clocks", "test_fmu_contents", "test_fmu_requirements", "test_native_kernels",
               "test_native_projection", "test_portable_fmus", "test_python_hosts", "test_wheel_install",

@@ -10,6 +10,7 @@ payload varied) where an earlier case had the same payload.
 """
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 from typing import List
 
@@ -281,3 +282,12 @@ def test_call_keys_of_mixed_numbers_are_bit_exact():
     big = 2 ** 53
     assert key([0.5, big, 3]) != key([0.5, big + 1, 3])  # the same double, not the same int
     assert key([0.5, True]) != key([0.5, 1])  # a bool is not an int
+    quiet, other = struct.unpack("<d", struct.pack("<Q", 0x7FF8000000000001))[0], float("nan")
+    assert key([quiet]) != key([other])  # NaNs of other payloads
+    assert key((0.5, 1)) == key([0.5, 1])  # a tuple is taken as a list
+    text, built = "ab", "".join(["a", "b"])
+    assert text is not built and call_key("setString", ([1, 2], [text, text]), {}) == \
+        call_key("setString", ([1, 2], [text, built]), {})  # equal strings, whether one object or two
+    assert call_key("setupExperiment", (), {"startTime": 0.0, "stopTime": 1.0}) == \
+        call_key("setupExperiment", (), {"stopTime": 1.0, "startTime": 0.0})
+    assert call_key("getReal", ([1],), {"x": lambda: 0}) != call_key("getReal", ([1],), {"x": lambda: 0})

@@ -210,3 +210,70 @@ def test_study_recorder_takes_blocks_and_event_rows(tmp_path, c_runs):
     assert list(c) == list(python) and len(c["time"]) == summaries[1].rows
     for name in c:
         assert np.array_equal(c[name], python[name]), name
+
+
+@pytest.fixture
+def handed_rows(monkeypatch) -> list:
+    """The C loop hands the CSV writer's thread of C its rows every 5 rows, while it steps (the
+    master's default is every 256); the rows each run handed over this way."""
+    from deltafmi.master.stepping import master as master_module
+
+    monkeypatch.setattr(master_module, "_C_SINK_ROWS", 5)
+    counts: list = []
+    original = native_loop.NativeLoop.handed
+
+    def counted(self):
+        result = original(self)
+        counts.append(result[0])
+        return result
+    monkeypatch.setattr(native_loop.NativeLoop, "handed", counted)
+    return counts
+
+
+def test_rows_handed_to_the_text_thread_by_the_c_loop_keep_their_order(tmp_path, c_runs, handed_rows):
+    # the C loop queues rows to the CSV writer's thread of C itself; between its runs the master
+    # writes the rows of step events: the file is the Python loop's, byte for byte
+    (c, c_text), (python, python_text) = both(tmp_path, flagship("      loop_tolerance: 1.0e-13\n"), stop=0.6)
+    assert python.events > 10 and c.events == python.events and sum(handed_rows) > 100
+    assert c_text == python_text
+
+
+def test_a_nan_stops_the_rows_handed_over_by_the_c_loop(tmp_path, c_runs, handed_rows):
+    # a component whose output becomes NaN after 0.05 s, stepped as Co-Simulation by the C loop:
+    # it hands over only rows whose values are all finite, and the master stops at the first row
+    # with a NaN, keeping the rows up to it (t = 0.051 s), as the Python loop does
+    import sys
+
+    sys.path.insert(0, str(ROOT / "tests" / "apps"))
+    try:
+        from test_troubleshooting_docs import NAN_SOURCE
+    finally:
+        sys.path.remove(str(ROOT / "tests" / "apps"))
+    (tmp_path / "nanny.py").write_text(NAN_SOURCE)
+    path = tmp_path / "s.yaml"
+    path.write_text("experiment: {stop: 0.1, step: 1.0e-3}\ncomponents:\n  n: {source: nanny.py, interface: CS}\n")
+    system = resolve_system(load_scenario(path))
+    messages, texts = [], []
+    for native in (True, False):
+        result = tmp_path / f"{native}.csv"
+        with pytest.raises(SimulationError) as failure:
+            Master(system, result=result, native=native).run()
+        kept = result.with_suffix(".failed.csv")
+        messages.append(str(failure.value.message).replace(str(kept), "RESULT"))
+        texts.append(kept.read_text())
+    assert c_runs and sum(handed_rows) == 50  # the rows after t = 0 up to 0.05 s, five at a time
+    assert messages[0] == messages[1] and messages[0].startswith("n.y is NaN at t = 0.051 s"), messages
+    assert texts[0] == texts[1] and len(texts[0].splitlines()) == 1 + 52  # header, t = 0 ... 0.051 s
+    assert texts[0].splitlines()[-1].endswith(",nan")
+
+
+def test_runs_returning_by_their_deadline_same_bits(tmp_path, c_runs, handed_rows, monkeypatch):
+    # an unpaced call of the C loop returns once its time is up (here at once: after every 4
+    # steps), the master calling it again from there: the file is the Python loop's, byte for byte
+    from deltafmi.master.stepping import master as master_module
+
+    monkeypatch.setattr(master_module, "_C_RETURN_SECONDS", -1.0)
+    monkeypatch.setattr(master_module, "_C_SINK_ROWS", 3)  # 3 of a call's 4 rows from C, the 4th from Python
+    (c, c_text), (python, python_text) = both(tmp_path, flagship(), stop=0.2)
+    assert c.steps == python.steps == 200 and len(c_runs) == 50 and set(c_runs) == {native_loop.RAN}
+    assert c_text == python_text and sum(handed_rows) == 150

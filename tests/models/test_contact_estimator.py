@@ -99,11 +99,11 @@ def noisy(tmp_path_factory):
 def test_without_noise_the_estimates_match_the_plant(clean):
     """The estimator's model is the plant's (same DAE, same payload): free-space force error at
     round-off (measured 2.4e-10 N), the pressing force of 24.8 N to 0.05 N over the last second, the
-    press settling and then at rest (measured mean 1.8e-5 N, rms 6.7e-5 N: the force's rate follows
-    the ramp and its end), the table's height to 1 um from a 5 cm prior (measured 2.4e-10 m). The
+    press settling and then at rest (measured mean 8.2e-6 N, rms 5.3e-5 N: the force's rate follows
+    the ramp and its end, and at rest the torques' balance holds it), the table's height to 1 um from a 5 cm prior (measured 2.4e-10 m). The
     impact (true peak 15.6 N) is missed until the manoeuvre detector fires a few ms after the touch
     (measured worst error 15.2 N, the force itself); from 0.3 s after touching on, the error stays
-    under 1 N (measured 2.0e-4 N)."""
+    under 1 N (measured 1.4e-4 N)."""
     assert clean["final"] == pytest.approx(20.0 + 0.5 * G, rel=0.01)
     assert clean["free_rms"] < 1e-3 and not clean["false_contact"]
     assert abs(clean["steady_mean"]) < 0.05 and clean["steady_rms"] < 0.05
@@ -113,8 +113,8 @@ def test_without_noise_the_estimates_match_the_plant(clean):
 
 def test_with_servo_noise_the_errors_stay_within_the_filter_noise(noisy):
     """Servo noise 1e-5 rad (seeded, as the filter assumes): no false contact before touching; the
-    force error is filter noise, measured 0.0027 N rms in free space and 6.6e-5 N rms over the last
-    second in contact (where the contact law also informs it), with a mean over it of 1.3e-5 N
+    force error is filter noise, measured 0.0027 N rms in free space and 5.2e-5 N rms over the last
+    second in contact (where the contact law also informs it), with a mean over it of 3.6e-6 N
     (bounds 0.5 N, 0.1 N, 0.05 N: room for a false manoeuvre detection, which lets the force walk
     at force_rate_std for 0.1 s); the table's height to 8.8e-8 m (the contact law averages
     thousands of samples, std 5.3e-8 m)."""

@@ -191,15 +191,21 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None,
     # A worker holds one task at a time (saturation 1.0): Dask counts a death against every task
     # assigned to the worker, so a task queued behind a crashing one must not be there. A death
     # is reported at once (allowed-failures 0): run_study retries the task's cases one by one.
-    # Workers do not sample their own stacks every 10 ms for the dashboard's profile, and the
-    # processes check that their event loop is not blocked every second instead of every 20 ms
-    # (the largest part of what an idle worker, client and scheduler cost): on a machine whose
-    # every core runs a worker that is time taken from the cases.
+    # Workers do not sample their own stacks every 10 ms for the dashboard's profile, the
+    # processes check that their event loop is not blocked every second instead of every 20 ms,
+    # the workers' and nannies' memory every second instead of every 100 ms, and the system
+    # monitors (the dashboard's CPU and memory charts) take their sample every 2 s instead of
+    # every 0.5 s; no work stealing (a worker holds only the task it runs: there is nothing to
+    # steal). What an idle cluster costs goes on during every case, on a machine whose every
+    # core runs a worker: that is time taken from the cases.
     host, port = dashboard_address(dashboard)
     with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                           "distributed.scheduler.worker-saturation": 1.0,
                           "distributed.worker.profile.enabled": False,
-                          "distributed.admin.tick.interval": "1s"}):
+                          "distributed.admin.tick.interval": "1s",
+                          "distributed.worker.memory.monitor-interval": "1s",
+                          "distributed.admin.system-monitor.interval": "2s",
+                          "distributed.scheduler.work-stealing": False}):
         try:
             # a (host, port) pair: Dask's own parsing of a string splits IPv6 addresses at every colon
             cluster = LocalCluster(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,

@@ -29,7 +29,7 @@ from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from deltafmi.master.scenario.system import ResolvedComponent
 
-from .snapshots import RECORDED_CALLS, RECORDED_CALLS3, InitTranscript, Replay
+from .snapshots import RECORDED_CALLS, RECORDED_CALLS3, InitTranscript, Prefixes, Replay
 
 __all__ = ["FmuPool"]
 
@@ -95,6 +95,7 @@ class _Snapshotting(_Pooled):
         #: initializations restored from a snapshot
         self.restores = 0
         self._kept: List[InitTranscript] = []  # the last initializations with their snapshots, latest used first
+        self._prefixes = Prefixes(())  # the calls of _kept as one tree
         self._new: Optional[InitTranscript] = None  # the initialization under way, being recorded
         self._replay: Optional[Replay] = None  # the initialization under way, checked against _kept
         self._terminate_due = False  # terminate held back (see terminate)
@@ -105,7 +106,7 @@ class _Snapshotting(_Pooled):
         self._new = self._replay = None
         if self.component is not None and self._kept:
             self._holder = kwargs.pop(self.logger_argument, None)
-            self._replay = Replay(self._kept)
+            self._replay = Replay(self._prefixes)
             return
         self._terminate_now()
         super().instantiate(**kwargs)
@@ -199,6 +200,7 @@ class _Snapshotting(_Pooled):
         self._kept.insert(0, transcript)
         while len(self._kept) > self.pool.keep:
             self._free_state(self._kept.pop())
+        self._prefixes = Prefixes(self._kept)
 
     def _free_state(self, transcript: InitTranscript) -> None:
         if transcript.state is not None and self.component is not None:
@@ -215,6 +217,7 @@ class _Snapshotting(_Pooled):
         except Exception:  # noqa: BLE001 - freed anyway
             pass
         kept, self._kept = self._kept, []
+        self._prefixes = Prefixes(())
         for transcript in kept:
             self._free_state(transcript)
         super().free()

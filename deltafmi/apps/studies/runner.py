@@ -86,6 +86,7 @@ class RecordedColumns(Mapping[str, np.ndarray]):
         self._index = {"time": 0, **{name: i + 1 for i, name in enumerate(names)}}
         self._strings = {name for name, kind in zip(names, kinds) if kind == "String"}
         self._copied: Dict[str, np.ndarray] = {}
+        self._ordered: Optional[bool] = None  # the times never decrease (see window)
         #: metric signals computed from these rows, shared by the metrics of one signal (see metrics.py)
         self.signals: Dict[Any, np.ndarray] = {}
 
@@ -97,6 +98,25 @@ class RecordedColumns(Mapping[str, np.ndarray]):
             # the layout, and a longer one pairwise in C order: C order there, as stacking gives
             return gathered if len(names) < 8 else np.ascontiguousarray(gathered)
         return np.column_stack([self[name] for name in names])
+
+    def view(self, name: str) -> np.ndarray:
+        """A numeric column as a view of the rows (no copy; strided: do not write to it)."""
+        if self._rows.dtype == object:
+            return self[name]
+        return self._rows[:, self._index[name]]
+
+    def window(self, start: Optional[float], stop: Optional[float]) -> Optional[slice]:
+        """The rows with ``start <= time <= stop`` (None: no bound) as a slice, when the times
+        never decrease (a master's rows: an event's two rows share their time), else None."""
+        if self._ordered is None:
+            time = self["time"]
+            self._ordered = bool(np.all(time[1:] >= time[:-1]))
+        if not self._ordered:
+            return None
+        time = self["time"]
+        first = 0 if start is None else int(np.searchsorted(time, start, side="left"))
+        end = len(time) if stop is None else int(np.searchsorted(time, stop, side="right"))
+        return slice(first, max(first, end))
 
     def __getitem__(self, name: str) -> np.ndarray:
         column = self._copied.get(name)

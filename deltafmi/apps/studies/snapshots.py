@@ -26,12 +26,12 @@ whose Clocks' intervals the master asks for in initialization is always initiali
 """
 from __future__ import annotations
 
-import struct
-from array import array
+import io
+import pickle
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
-__all__ = ["InitTranscript", "RECORDED_CALLS", "RECORDED_CALLS3", "Replay", "call_key"]
+__all__ = ["InitTranscript", "Prefixes", "RECORDED_CALLS", "RECORDED_CALLS3", "Replay", "call_key"]
 
 #: the fmpy methods recorded between instantiation and the end of initialization (FMI 2.0, FMI 3.0)
 RECORDED_CALLS = ("setupExperiment", "setReal", "setInteger", "setBoolean", "setString", "getReal", "getInteger",
@@ -42,33 +42,30 @@ RECORDED_CALLS3 = tuple(f"{way}{kind}" for way in ("set", "get")
     "enterInitializationMode", "exitInitializationMode")
 
 
-_FLOAT, _INT, _NUMBERS = {float}, {int}, {float, int}
-
-
-def _exact(value: Any) -> Any:
-    """``value`` in a form whose ``==`` is bit equality for floats (sign of zero, NaN payload)."""
-    if isinstance(value, float):
-        return ("f", struct.pack("<d", value))
-    if isinstance(value, (list, tuple)):
-        kinds = set(map(type, value))
-        if kinds == _FLOAT:  # start values: their bytes in one go
-            return ("d", array("d", value).tobytes())
-        if kinds == _INT:  # value references
-            return ("i", tuple(value))
-        if kinds == _NUMBERS:  # floats' bytes in one go; the ints as they are (1 is not 1.0)
-            return ("n", array("d", value).tobytes(), tuple(v if type(v) is int else None for v in value))
-        return tuple(_exact(v) for v in value)
-    if isinstance(value, (bool, int, str, bytes)) or value is None:
-        return (type(value).__name__, value)
-    return ("other", repr(value))
-
-
 def call_key(name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Any:
-    """What two calls must share to be the same call."""
-    return name, _exact(args), tuple(sorted((k, _exact(v)) for k, v in kwargs.items()))
+    """What two calls must share to be the same call: their pickle, which keeps a float's bits (the
+    sign of zero, a NaN's payload) and every value's type (1 is not 1.0 nor True); a tuple
+    argument counts as the list of its items. The values of String and Binary calls are pickled
+    without pickle's memo (a string given twice is pickled twice, as two equal strings are); in
+    other calls only a list given twice could be pickled the second time as a reference to the
+    first, which makes the call match no other (never another call). A call whose arguments
+    cannot be pickled matches no other."""
+    if tuple in map(type, args):
+        args = tuple(list(a) if type(a) is tuple else a for a in args)
+    call = (name, args, sorted(kwargs.items()) if kwargs else ())
+    try:
+        if "String" not in name and "Binary" not in name:
+            return pickle.dumps(call, 5)  # protocol fixed: the same call, the same bytes
+        out = io.BytesIO()
+        pickler = pickle.Pickler(out, 5)
+        pickler.fast = True  # no memo
+        pickler.dump(call)
+        return out.getvalue()
+    except Exception:  # noqa: BLE001 - an argument pickle cannot take: never the same call
+        return object()
 
 
-@dataclass
+@dataclass(eq=False)
 class Call:
     """One recorded call: its key, arguments (copies) and result."""
 
@@ -79,7 +76,7 @@ class Call:
     result: Any = None
 
 
-@dataclass
+@dataclass(eq=False)  # by identity: an instance's list of kept ones finds and removes them (no call compared)
 class InitTranscript:
     """The calls of one initialization, the messages the FMU logged meanwhile, and its state after."""
 
@@ -98,38 +95,50 @@ class InitTranscript:
         return result
 
 
-class Replay:
-    """A case being checked against kept :class:`InitTranscript` s, one call at a time: the
-    transcripts that every call so far matched (all of them made the same calls up to here, and
-    so got the same values back: an initialization is a function of its calls)."""
+class Prefixes:
+    """The kept transcripts of one instance as a tree of their calls: every call's key leads from
+    the calls before it to the calls after it, so a case is matched against all the transcripts at
+    once with one dictionary look-up per call, however many are kept. Transcripts that share their
+    first calls share those nodes (they got the same values back there: an initialization is a
+    function of its calls), with the calls of the most recently used one."""
 
     def __init__(self, transcripts: Sequence[InitTranscript]) -> None:
-        self.candidates = list(transcripts)
-        self.at = 0
+        #: call key -> (the recorded call, the node after it); a node after the last call of a
+        #: transcript holds it under the key None
+        self.root: Dict[Any, Any] = {}
+        for transcript in transcripts:
+            node = self.root
+            for call in transcript.calls:
+                known = node.get(call.key)
+                if known is None:
+                    known = node[call.key] = (call, {})
+                node = known[1]
+            node[None] = transcript
+
+
+class Replay:
+    """A case being checked against kept :class:`InitTranscript` s (their :class:`Prefixes`),
+    one call at a time."""
+
+    def __init__(self, prefixes: Prefixes) -> None:
+        self._node = prefixes.root
+        self._matched: List[Call] = []
 
     @property
     def transcript(self) -> InitTranscript:
-        """The first transcript still matching (the most recently used, when several do)."""
-        return self.candidates[0]
+        """The transcript whose calls all matched (after its last call)."""
+        return self._node[None]
 
     def next(self, name: str, args: Tuple[Any, ...], kwargs: Dict[str, Any]) -> Optional[Call]:
-        """The recorded call if this one is the same as the next recorded of some candidate (then
-        advance, keeping the candidates that match), else None."""
-        at, key = self.at, None
-        matching = []
-        for transcript in self.candidates:
-            calls = transcript.calls
-            if at < len(calls) and calls[at].name == name:
-                if key is None:
-                    key = call_key(name, args, kwargs)
-                if calls[at].key == key:
-                    matching.append(transcript)
-        if not matching:
+        """The recorded call if this one is the same as the next recorded of some kept transcript
+        (then advance), else None."""
+        found = self._node.get(call_key(name, args, kwargs))
+        if found is None:
             return None
-        self.candidates = matching
-        self.at += 1
-        return matching[0].calls[at]
+        call, self._node = found
+        self._matched.append(call)
+        return call
 
     def matched(self) -> List[Call]:
         """The calls that matched so far."""
-        return self.transcript.calls[: self.at]
+        return self._matched

@@ -29,7 +29,7 @@ from deltafmi.toolchain import plain_c_library
 
 from .safe_file import ResultFile
 
-__all__ = ["CsvWriter", "RowSampler", "columns", "read_csv"]
+__all__ = ["CsvRowsThread", "CsvWriter", "RowSampler", "columns", "read_csv"]
 
 _FLUSH_SECONDS = 0.5
 _INTEGERS = ("Integer", "Boolean")
@@ -37,17 +37,43 @@ _format_rows: Optional[Any] = None
 _tables: List[np.ndarray] = []  # Ryu's tables, alive as long as the library uses them
 
 
-def _rows_formatter() -> Any:
-    """The C function writing rows of doubles as CSV text (``native/csv_rows.c``), its tables set."""
-    global _format_rows
-    if _format_rows is None:
+_library: Optional[Any] = None
+
+
+class _SinkReport(ctypes.Structure):  # csv_rows.c's SinkReport
+    _fields_ = [("size", ctypes.c_longlong), ("rows", ctypes.c_long), ("last_time", ctypes.c_double),
+                ("error", ctypes.c_int)]
+
+
+def _csv_library() -> Any:
+    """``native/csv_rows.c`` loaded, its tables set and its functions typed."""
+    global _format_rows, _library
+    if _library is None:
         library = ctypes.CDLL(str(plain_c_library(Path(__file__).parent / "native" / "csv_rows.c")))
         _tables[:] = _ryu_tables()
         library.deltafmi_csv_tables(ctypes.c_void_p(_tables[0].ctypes.data), ctypes.c_void_p(_tables[1].ctypes.data))
         function = library.deltafmi_csv_rows
         function.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_char_p]
         function.restype = ctypes.c_size_t
-        _format_rows = function
+        library.deltafmi_csv_sink_open.argtypes = [ctypes.c_int, ctypes.c_long, ctypes.c_void_p, ctypes.c_long]
+        library.deltafmi_csv_sink_open.restype = ctypes.c_void_p
+        library.deltafmi_csv_sink_put.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long]
+        library.deltafmi_csv_sink_put.restype = ctypes.c_long
+        library.deltafmi_csv_sink_taken.argtypes = [ctypes.c_void_p]
+        library.deltafmi_csv_sink_taken.restype = ctypes.c_long
+        library.deltafmi_csv_sink_wait.argtypes = [ctypes.c_void_p, ctypes.POINTER(_SinkReport)]
+        library.deltafmi_csv_sink_wait.restype = None
+        library.deltafmi_csv_sink_failed.argtypes = [ctypes.c_void_p]
+        library.deltafmi_csv_sink_failed.restype = ctypes.c_int
+        library.deltafmi_csv_sink_close.argtypes = [ctypes.c_void_p]
+        library.deltafmi_csv_sink_close.restype = None
+        _format_rows, _library = function, library
+    return _library
+
+
+def _rows_formatter() -> Any:
+    """The C function writing rows of doubles as CSV text (``native/csv_rows.c``), its tables set."""
+    _csv_library()
     return _format_rows
 
 
@@ -224,12 +250,23 @@ class CsvWriter:
                 self.rows_written += whole
                 if whole:
                     self._last_time = float(times[whole - 1])
-            self._failed = ResultWriteError(self.fail(), self.rows_written, self._last_time, exc)
-            raise self._failed from None
+            raise self._refuse(exc) from None
         self._size += written
         if len(times):
             self.rows_written += len(ends) if ends is not None else n_rows
             self._last_time = float(times[-1])
+
+    def _refuse(self, error: OSError) -> ResultWriteError:
+        """A write failed (the file holds whole rows only): the error this writer raises from now on."""
+        self._failed = ResultWriteError(self.fail(), self.rows_written, self._last_time, error)
+        return self._failed
+
+    def rows_thread(self) -> Optional["CsvRowsThread"]:
+        """A thread of C formatting and writing blocks of rows to this file (None: not for this
+        writer, whose String columns Python writes, or no thread could be made)."""
+        if self._text or self._failed is not None or self._fd is None:
+            return None
+        return CsvRowsThread.open(self)
 
     def fail(self) -> Path:
         """The run failed: :meth:`close` keeps the rows under the failed name (returned)."""
@@ -261,6 +298,75 @@ class CsvWriter:
             os.replace(temporary, target)
         except OSError:  # the rows are what matters; a plot then shows no units
             temporary.unlink(missing_ok=True)
+
+
+class CsvRowsThread:
+    """Blocks of rows formatted and written to a :class:`CsvWriter`'s file by a thread in C
+    (``native/csv_rows.c``'s sink), the same text the writer writes: no Python between a block and
+    its text. A block stays untouched by the caller until the thread has taken it (:meth:`taken`);
+    :meth:`wait` brings the writer's counts up to date, and returns the writer's error when a write
+    failed (the file then ends at its last whole row, as the writer leaves it)."""
+
+    def __init__(self, writer: CsvWriter, handle: int, library: Any) -> None:
+        self._writer, self._handle, self._library = writer, handle, library
+        self.width = len(writer._integer)  #: the columns of a row, time first
+        self._report = _SinkReport()
+        self._counted = _SinkReport(0, 0, float("nan"), 0)  # what the writer was told already
+
+    @classmethod
+    def open(cls, writer: CsvWriter) -> Optional["CsvRowsThread"]:
+        """The thread for ``writer`` (None when none could be made)."""
+        library = _csv_library()
+        handle = library.deltafmi_csv_sink_open(writer._fd, len(writer._integer),
+                                                ctypes.cast(writer._integer, ctypes.c_void_p), writer._chunk)
+        return cls(writer, handle, library) if handle else None
+
+    def put(self, rows: np.ndarray) -> int:
+        """Queue ``rows`` (C-contiguous floats, the writer's width): they reach the file after the
+        rows the writer queued before. Returns the number of blocks queued so far."""
+        self._writer.flush()
+        return self._library.deltafmi_csv_sink_put(self._handle, rows.ctypes.data, len(rows))
+
+    def taken(self) -> int:
+        """The blocks the thread is done with (their memory is the caller's again)."""
+        return self._library.deltafmi_csv_sink_taken(self._handle)
+
+    def failed(self) -> bool:
+        """Whether a write failed (:meth:`wait` tells the writer)."""
+        return bool(self._library.deltafmi_csv_sink_failed(self._handle))
+
+    def direct(self) -> Tuple[int, int]:
+        """(the address of ``deltafmi_csv_sink_put``, the sink) for C to queue blocks itself
+        (after the rows the writer holds: :meth:`take_writer_rows` first)."""
+        return ctypes.cast(self._library.deltafmi_csv_sink_put, ctypes.c_void_p).value, self._handle
+
+    def take_writer_rows(self) -> Optional[np.ndarray]:
+        """The rows the writer holds of its own, not yet written (a copy, its queue emptied), to
+        queue here: None when it holds none."""
+        writer = self._writer
+        if not writer._n:
+            return None
+        rows, writer._n = writer._block[:writer._n].copy(), 0
+        return rows
+
+    def wait(self) -> Optional[ResultWriteError]:
+        """Wait until every block queued is written; the writer's error if a write failed."""
+        report, counted, writer = self._report, self._counted, self._writer
+        self._library.deltafmi_csv_sink_wait(self._handle, ctypes.byref(report))
+        writer._size += report.size - counted.size
+        if report.rows != counted.rows:
+            writer.rows_written += report.rows - counted.rows
+            writer._last_time = report.last_time
+        ctypes.memmove(ctypes.byref(counted), ctypes.byref(report), ctypes.sizeof(report))
+        if report.error and writer._failed is None:
+            return writer._refuse(OSError(report.error, os.strerror(report.error)))
+        return None
+
+    def close(self) -> None:
+        """Write what is queued and end the thread (once; :meth:`wait` first for the counts)."""
+        if self._handle:
+            self._library.deltafmi_csv_sink_close(self._handle)
+            self._handle = None
 
 
 class RowSampler:

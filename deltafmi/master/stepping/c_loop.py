@@ -95,7 +95,8 @@ class _Plan(ctypes.Structure):
                 ("rk_step", c_double), ("op_seconds", c_void_p), ("pace", POINTER(_Pace)), ("threads", c_int),
                 ("pool", c_void_p), ("gil_released", c_int), ("step_start", c_void_p),
                 ("components", POINTER(_Component)), ("n_components", c_size_t), ("fixed_parts", POINTER(_RowPart)),
-                ("n_fixed_parts", c_size_t)]
+                ("n_fixed_parts", c_size_t), ("sink_put", c_void_p), ("sink", c_void_p), ("sink_every", c_long),
+                ("sink_finite", c_int), ("sink_rows", c_long), ("sink_queued", c_long), ("deadline", c_double)]
 
 
 _kernels: dict = {}
@@ -514,6 +515,26 @@ class NativeLoop:
         """The first step the last run did not complete (after :meth:`run_streamed` was
         interrupted: where its thread stopped)."""
         return self._k_done.value
+
+    def hand_rows_to(self, sink: Optional[Tuple[int, int]], every: int = 256, finite: bool = True) -> None:
+        """From the next run on, hand every ``every`` rows to ``sink`` as they are recorded, while
+        the run goes on (None: none; the caller takes every row after the run): (the address of
+        a ``long put(void *sink, const double *rows, long n)``, the sink), as
+        :meth:`.BackgroundRows.c_sink` gives; ``finite``: only while all their values are finite
+        (the rest then comes back to the caller, who looks at them). Unpaced runs only."""
+        plan = self.plan
+        plan.sink_put, plan.sink = sink if sink is not None else (None, None)
+        plan.sink_every, plan.sink_finite = every, int(finite)
+
+    def return_by(self, deadline: float) -> None:
+        """Unpaced runs from now on return (RAN) after the first step that ends past ``deadline``
+        (``time.monotonic()`` seconds; 0: none), looked at every few steps."""
+        self.plan.deadline = deadline
+
+    def handed(self) -> Tuple[int, int]:
+        """The rows of the last run handed to the sink (its first rows), and the sink's count of
+        blocks queued after them."""
+        return self.plan.sink_rows, self.plan.sink_queued
 
     def keep_step_start(self) -> None:
         """From now on gather the recorded row (time first) at the start of every step into

@@ -56,14 +56,22 @@ from .units import TYPES, CoSimulationUnit, FmuFailure, Terminated, Unit, new_bu
 
 __all__ = ["Master", "NativeLoop"]
 
-#: steps of the first call of the C loop; while a call is shorter than _C_SECONDS the next takes as
-#: many steps as would fill _C_SECONDS at its pace, between twice and _C_GROWTH times as many, up to
-#: _C_MAX_STEPS (stop signals and progress are looked at in between)
+#: an unpaced call of the C loop goes on until the run's end or its rows block is full, and
+#: returns after _C_RETURN_SECONDS of wall time (stop signals and progress are looked at in
+#: between: a stop signal is answered within that, or one step of a slower model). Each hand-back
+#: to Python costs far more than a step of compiled units (the Python, and the C loop's data out of
+#: the caches when it goes on). Paced: steps of the first call; while a call is shorter than
+#: _C_SECONDS the next takes as many steps as would fill _C_SECONDS at its pace, between twice and
+#: _C_GROWTH times as many, up to _C_MAX_STEPS.
+_C_RETURN_SECONDS = 0.05
 _C_STEPS = 64
 _C_GROWTH = 8
 _C_MAX_STEPS = 4096
 _C_SECONDS = 0.005
 _C_ROWS_BYTES = 8 << 20
+#: rows the C loop hands to the CSV writer's thread of C at once, while it steps on (each hand-over
+#: wakes the thread: a system call on the stepping thread, dearer on a virtual machine)
+_C_SINK_ROWS = 1024
 
 
 class _FixedGrid(NamedTuple):
@@ -102,6 +110,9 @@ class _Wiring:
                       for unit in units]
         #: runs that used it again
         self.reuses = 0
+        #: what the master derives from the wiring for recording (its row sampler, the columns
+        #: not each event unit's own, the Real columns, the names of the Real bus's slots)
+        self.recording: Optional[Tuple[RowSampler, Dict[str, np.ndarray], np.ndarray, List[str]]] = None
 
     @staticmethod
     def _key(units: Sequence[Unit]) -> Tuple[int, ...]:
@@ -134,21 +145,22 @@ class _Wiring:
 
     @classmethod
     def keep(cls, wirings: Optional[Dict[Any, Any]], system: System, units: Sequence[Unit],
-             buses: Dict[str, np.ndarray], slot: Dict[Tuple[str, str, int, int], int]) -> None:
-        """Keep the wiring just made (when its units qualify)."""
+             buses: Dict[str, np.ndarray], slot: Dict[Tuple[str, str, int, int], int]) -> Optional["_Wiring"]:
+        """Keep the wiring just made (when its units qualify); returns it (None: not kept)."""
         if wirings is None or not all(type(io) in (_Inputs, _Outputs) for unit in units
                                       for io in unit.inputs + unit.outputs + getattr(unit, "_discrete_inputs", [])):
-            return
+            return None
         if not cls._own_classes(units):
-            return
+            return None
         key = cls._key(units)
         wirings.pop(key, None)
-        wirings[key] = cls(system, units, buses, slot)
+        kept = wirings[key] = cls(system, units, buses, slot)
         while len(wirings) > cls.KEEP:
             try:
                 wirings.pop(next(iter(wirings)), None)
             except (StopIteration, RuntimeError):  # another thread's run changed it meanwhile
                 break
+        return kept
 
     def reuse(self, master: "Master") -> Dict[Tuple[str, str, int, int], int]:
         """Give ``master``'s units and buses this wiring, as new; returns the bus slots."""
@@ -467,23 +479,31 @@ class Master:
                         unit.wire_inputs(kind, [l.target.vr for l in mine], self.buses[kind],
                                          [at(l.source) for l in mine], [l.factor for l in mine],
                                          [l.offset for l in mine], [l.target.index for l in mine])
-            _Wiring.keep(self.wirings, self.system, self.units, self.buses, slot)
-        recorded = self.system.recorded
-        parts = []
-        for kind in TYPES:
-            columns = [i for i, p in enumerate(recorded) if p.type == kind]
-            parts.append((self.buses[kind], [at(recorded[i]) for i in columns], columns))
-        self.sampler = RowSampler(parts, len(recorded))
-        owners = np.array([p.component for p in recorded], dtype=object)
-        self._others = {unit.name: owners != unit.name for unit in self.units
-                        if hasattr(unit, "on_event") and (owners != unit.name).any()}
-        self._real_columns = np.asarray([i for i, p in enumerate(recorded) if p.type == "Real"], np.intp)
-        names = [""] * len(self.buses["Real"])
-        for port in [link.source for link in links] + list(recorded):
-            if port.type == "Real":
-                names[at(port)] = port.ref
-        self._real_names = names
-        self._zeros = np.zeros(len(names))
+            kept = _Wiring.keep(self.wirings, self.system, self.units, self.buses, slot)
+        if kept is not None and kept.recording is not None:
+            # the row sampler and the names of the recorded and bus columns, as the run before
+            # made them (they depend on the system and the slots alone; the row set back to zeros)
+            self.sampler, self._others, self._real_columns, self._real_names = kept.recording
+            self.sampler.row[...] = 0
+        else:
+            recorded = self.system.recorded
+            parts = []
+            for kind in TYPES:
+                columns = [i for i, p in enumerate(recorded) if p.type == kind]
+                parts.append((self.buses[kind], [at(recorded[i]) for i in columns], columns))
+            self.sampler = RowSampler(parts, len(recorded))
+            owners = np.array([p.component for p in recorded], dtype=object)
+            self._others = {unit.name: owners != unit.name for unit in self.units
+                            if hasattr(unit, "on_event") and (owners != unit.name).any()}
+            self._real_columns = np.asarray([i for i, p in enumerate(recorded) if p.type == "Real"], np.intp)
+            names = [""] * len(self.buses["Real"])
+            for port in [link.source for link in links] + list(recorded):
+                if port.type == "Real":
+                    names[at(port)] = port.ref
+            self._real_names = names
+            if kept is not None:
+                kept.recording = (self.sampler, self._others, self._real_columns, self._real_names)
+        self._zeros = np.zeros(len(self._real_names))
         self.loops = [LoopBlock(loop, [self._by_name[name] for name in loop.members], self.buses,
                                 [at(port) for port in loop.tears], self.system.scenario.master.loops, self)
                       for loop in self.system.loops]
@@ -640,7 +660,7 @@ class Master:
         """Take the fixed steps of :meth:`begin_fixed_steps` until :attr:`steps` is ``k_end``."""
         actions, native, fixed = self._fixed_actions, self._fixed_native, self._fixed_grid
         n_steps = min(k_end, fixed.n_steps)
-        stop_signals, progress = self.stop_signals, self.progress
+        stop_signals, progress, live = self.stop_signals, self.progress, self.live
         k, chunk, most = self.steps, self._fixed_chunk, self._fixed_most
         background = isinstance(self.writer, BackgroundRows)
         while k < n_steps:
@@ -648,11 +668,22 @@ class Master:
                 raise KeyboardInterrupt
             if native is not None and native.ready():
                 begin, k_begin = _time.perf_counter(), k
-                end = min(n_steps, k + chunk)
-                if background and end == n_steps and n_steps - k > 4 * _C_STEPS and not self._streamed:
+                # unpaced, the C loop itself returns after _C_SECONDS (every step it takes
+                # between hand-backs to Python saves one)
+                unpaced = live is None and not self._streamed
+                end = n_steps if unpaced else min(n_steps, k + chunk)
+                native.return_by(_time.monotonic() + _C_RETURN_SECONDS if unpaced else 0.0)
+                sink = self.writer.c_sink() if background and unpaced else None
+                native.hand_rows_to(sink, _C_SINK_ROWS, self.check_finite)
+                if background and sink is None and end == n_steps and n_steps - k > 4 * _C_STEPS \
+                        and not self._streamed:
                     # the last rows become text after the stepping: a short last call leaves few
                     end = n_steps - max(_C_STEPS, (n_steps - k) // 8)
-                k = self._steps_in_c(native, fixed, k, end)
+                try:
+                    k = self._steps_in_c(native, fixed, k, end)
+                finally:  # the plan is left as others run it (a system FMU's C step)
+                    native.return_by(0.0)
+                    native.hand_rows_to(None)
                 spent = _time.perf_counter() - begin
                 if chunk < most and spent < _C_SECONDS:
                     fill = int((k - k_begin) * _C_SECONDS / max(spent, 1e-9))
@@ -749,8 +780,13 @@ class Master:
                 native.rows[rows - 1, 1:] = self.sampler.sample()
         if rows:
             if isinstance(self.writer, BackgroundRows):  # the block goes to the text thread as it is
-                block, native.rows = native.rows[:rows], np.empty_like(native.rows)
-                self._record_rows(block, hand_over=True)
+                block, native.rows = native.rows[:rows], self.writer.spare(native.rows)
+                handed, queued = native.handed()  # the first rows went to its thread of C already
+                if handed:
+                    self.writer.handed(block[:handed], queued)
+                    self.recorded_until = float(block[handed - 1, 0])
+                if handed < rows:
+                    self._record_rows(block[handed:], hand_over=True)
             else:
                 self._record_rows(native.rows[:rows])
         if done > k:

@@ -23,6 +23,17 @@ inputs). Estimated, 25 states X = [q (9), v (9), f (3), s, r (3)]:
   is the random walk alone;
 - s: the height at which the surface crosses the robot axis, a constant.
 
+At rest (rest_force_rate_std, with two levels; :meth:`ContactEKF._detect_rest`): the servo
+torques are known exactly and, the robot still, balance the wrist force, so once the force they
+balance has moved by less than the rest walk would over rest_samples samples, for that many
+samples in a row, the force and its rate walk at the rest levels (rest_force_rate_std,
+rest_force_acceleration_std) and, with rest_acceleration_std, the wrist's acceleration
+Jv a(q, v, u, f) is a pseudo-measurement of zero: the force is then known from the torques'
+balance, which the servo angles (the force integrates twice into them) and the contact law
+(through the gap, which the angles' noise blurs) tell only over thousands of samples; without it
+the force's deviation at rest stays some 15 times its error. A manoeuvre or torques that move end
+the rest.
+
 s is tied to the rest by the contact law as a pseudo-measurement, applied only while the filter
 believes the tool presses (n . f > contact_threshold for contact_samples samples in a row, so that
 noise on the force estimate does not fake a contact): the plant's spring-damper
@@ -36,7 +47,8 @@ contact-mode changes, the noise Gaussian and the rate 1 kHz; a horizon of N samp
 DAE linearisations per sample for little gain without inequality constraints to enforce.
 
 Cycle per sample t_k (:meth:`ContactEKF.step`): predict from t_(k-1) with u(t_(k-1)), the
-torque held over that period, then update with y(t_k) (Joseph form) and the gated contact update.
+torque held over that period (at rest after the zero acceleration's update at t_(k-1), with that
+period's Jacobian), then update with y(t_k) (Joseph form) and the gated contact update.
 The published estimate is the posterior at t_k: it uses y(t_k) and is time-aligned with it.
 Cost per sample: one exact DAE Jacobian (whose accelerations are the Runge-Kutta step's first
 stage), three more DAE evaluations, one or two projections onto the loops and the wrist kinematics
@@ -83,6 +95,10 @@ class ContactEKFSettings:
     force_acceleration_std: float = 0.0  #: white noise on the force's rate, its ramps (N/s^2/sqrt(Hz); 0: no rate)
     force_ramp_std: float = 0.0  #: the force's rate (N/s) after a manoeuvre, about zero: a new contact's ramp
     law_manoeuvre: bool = False  #: the detector also sums the contact law's normalised innovations (in contact)
+    rest_force_rate_std: float = 0.0  #: the force's walk at rest (N/s/sqrt(Hz); 0: no rest level)
+    rest_force_acceleration_std: float = 0.0  #: its rate's walk at rest (N/s^2/sqrt(Hz))
+    rest_samples: int = 100  #: samples of still torques before the rest level applies
+    rest_acceleration_std: float = 0.0  #: the wrist's acceleration at rest, a pseudo-measurement of 0 (m/s^2; 0: none)
     surface_drift_std: float = 0.0  #: random walk of the surface height (m/sqrt(s))
     position_std0: float = 1e-3  #: initial wrist position (m), around forward kinematics of y0
     velocity_std0: float = 0.01  #: initial wrist velocity (m/s), around zd0
@@ -106,11 +122,12 @@ class ContactEKFSettings:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"estimator setting {name} must be > 0, got {getattr(self, name)}")
         for name in ("acceleration_std", "force_rate_std", "steady_force_rate_std", "friction", "surface_drift_std",
-                     "force_acceleration_std", "force_ramp_std",
+                     "force_acceleration_std", "force_ramp_std", "rest_force_rate_std", "rest_force_acceleration_std",
+                     "rest_acceleration_std",
                      "contact_stiffness", "contact_damping", "pole"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"estimator setting {name} must be >= 0, got {getattr(self, name)}")
-        for name in ("substeps", "contact_samples", "manoeuvre_samples"):
+        for name in ("substeps", "contact_samples", "manoeuvre_samples", "rest_samples"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"estimator setting {name} must be >= 1, got {getattr(self, name)}")
         if int(self.manoeuvre_hold) < 0:
@@ -192,13 +209,17 @@ class ContactEKF:
             cone = T * (nn + settings.friction ** 2 * (np.eye(3) - nn))
             self._Qd[_F, _F] = settings.force_rate_std ** 2 * cone
             self._Qd_steady[_F, _F] = steady ** 2 * cone
+        # at rest (the torques still: :meth:`_detect_rest`) the force and its rate walk at the rest levels
+        self._Qd_rest = self._Qd_steady.copy()
+        if steady:
+            self._Qd_rest[_F, _F] = settings.rest_force_rate_std ** 2 * cone
         # the force's rate r: f' = r, r' white (an integrated random walk of f), in the walk's directions
         D = cone / T if steady else np.eye(3)
-        a2 = settings.force_acceleration_std ** 2
-        for Qd in (self._Qd, self._Qd_steady):
-            Qd[_F, _F] += a2 * T ** 3 / 3.0 * D
-            Qd[_F, _R] = Qd[_R, _F] = a2 * T ** 2 / 2.0 * D
-            Qd[_R, _R] = a2 * T * D
+        for Qd, a in ((self._Qd, settings.force_acceleration_std), (self._Qd_steady, settings.force_acceleration_std),
+                      (self._Qd_rest, settings.rest_force_acceleration_std)):
+            Qd[_F, _F] += a * a * T ** 3 / 3.0 * D
+            Qd[_F, _R] = Qd[_R, _F] = a * a * T ** 2 / 2.0 * D
+            Qd[_R, _R] = a * a * T * D
         self._ramp = settings.force_ramp_std ** 2 * D  # the rate's covariance after a manoeuvre
         self._nis: list[float] = []  # the servo angles' last normalised innovations r^T S^-1 r
         self._nis_gate = chi_square_quantile(3 * int(settings.manoeuvre_samples), MANOEUVRE_Z)
@@ -210,6 +231,13 @@ class ContactEKF:
         # the detector's window: (x, P, torques held, pressing count, y) before each of its samples
         self._window: deque | None = deque(maxlen=int(settings.manoeuvre_samples)) if steady else None
         self._refilter = False  # the detector fired at this sample: filter its window again
+        # the rest detector: the force the torques balance, where it was when they last moved, and since when
+        self._rest_gate = MANOEUVRE_Z * settings.rest_force_rate_std * math.sqrt(settings.rest_samples * T)
+        self._still_at: np.ndarray | None = None
+        self._still = 0
+        self.resting = False  #: the torques have been still for rest_samples: the force walks at the rest levels
+        self._H_rest = np.zeros((3, _N))
+        self._R_rest = settings.rest_acceleration_std ** 2 * np.eye(3)
         self._held = 0  # samples since the manoeuvre was detected
         self._kinematics_at: bytes = b""  # the (q, v) that _kinematics holds
         self._A = np.zeros((24, 24))  # d[q'; v'; f'; r']/d[q; v; f; r]: q' = v, f' = r, r' = 0 but for noise
@@ -235,6 +263,7 @@ class ContactEKF:
                 self._advance(earlier)
             self._refilter = False
         self._u = [float(value) for value in u]
+        self._detect_rest(self._u)
         return self.estimate()
 
     def _advance(self, y: Sequence[float]) -> None:
@@ -277,14 +306,18 @@ class ContactEKF:
         Phi = I + AT @ Phi
         TT = Tz @ Tz.T  # the process noise of [q, v]: kron(W, TT) = [[W00 TT, W01 TT], [W10 TT, W11 TT]]
         noise = (self._W[:, None, :, None] * TT[None, :, None, :]).reshape(18, 18)
+        dx = self._correct_rest(columns, out[18:27]) if self.resting and st.rest_acceleration_std else None
         self.x[:18] = out[:18]
         self.x[_F] += T * self.x[_R]
+        if dx is not None:  # the corrected state propagated: to first order, the prediction plus Phi dx
+            self.x[_Z] += Phi @ dx[_Z]
+            self.x[_S] += dx[_S]
         P = np.empty((_N, _N))
         PhiP = Phi @ self.P[_Z]
         P[np.ix_(_Z, _Z)] = PhiP[:, _Z] @ Phi.T
         P[_Z, _S] = P[_S, _Z] = PhiP[:, _S]
         P[_S, _S] = self.P[_S, _S]
-        P += self._Qd if self.manoeuvre else self._Qd_steady
+        P += self._Qd if self.manoeuvre else self._Qd_rest if self.resting else self._Qd_steady
         P[:18, :18] += noise
         self.P = 0.5 * (P + P.T)
 
@@ -375,6 +408,46 @@ class ContactEKF:
             self._held = 0
         self._held += 1
         self.manoeuvre = manoeuvre or (self.manoeuvre and self._held < st.manoeuvre_hold)
+
+    def _detect_rest(self, u: list[float]) -> None:
+        """With rest_force_rate_std (and two levels): whether the force is at rest over the next
+        period. The servo torques u are known exactly; held still with the robot at rest they balance
+        the wrist force, f = (dq_s/dz)^T u up to gravity's torque (virtual work, q_s the servo
+        angles), so the force they imply moving by less than the rest walk would over rest_samples
+        samples (its 0.999 quantile, MANOEUVRE_Z sigma) for rest_samples samples in a row says the
+        force is still: its walk drops to the rest levels until the torques move or a manoeuvre is
+        detected. A controller fed noisy angles moves its torques by more than that: no rest."""
+        st = self.settings
+        if not (st.rest_force_rate_std and st.steady_force_rate_std):
+            return
+        implied = self._kinematics()[3][_SERVOS].T @ np.asarray(u)
+        if self.manoeuvre or self._still_at is None or np.linalg.norm(implied - self._still_at) > self._rest_gate:
+            self._still_at, self._still = implied, 0
+        else:
+            self._still += 1
+        self.resting = self._still >= st.rest_samples
+
+    def _correct_rest(self, columns: np.ndarray, acceleration: Sequence[float]) -> np.ndarray:
+        """At rest the wrist does not accelerate: Jv a(q, v, u, f) = 0, a pseudo-measurement of noise
+        rest_acceleration_std at the start of the period :meth:`predict` is taking (a the DAE's
+        joint accelerations under the torques held, the force at its mid-period value, and their
+        gradient the prediction's exact Jacobian, ``columns``: no more process-model calls). The
+        Joseph update of P by its products of rank 3, as :meth:`_correct_servos`; returns the
+        state's correction, which the caller propagates."""
+        T = self.settings.sample_period
+        Jv = self._kinematics()[1]
+        H = self._H_rest
+        H[:, :18] = Jv @ columns[:18, :9].T
+        H[:, _F] = Jv @ columns[21:24, :9].T
+        H[:, _R] = 0.5 * T * H[:, _F]
+        P = self.P
+        PHt = P @ H.T
+        Sinv = _inverse3(H @ PHt + self._R_rest)
+        K = PHt @ Sinv
+        M = P - K @ (H @ P)
+        P = M - (M @ H.T) @ K.T + self._R_rest[0, 0] * (K @ K.T)
+        self.P = 0.5 * (P + P.T)
+        return K @ -(Jv @ np.asarray(acceleration))
 
     def _law_manoeuvre(self, nis: float) -> None:
         """With law_manoeuvre (and two levels), in contact: when the sum of the contact law's last

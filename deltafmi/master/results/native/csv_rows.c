@@ -8,11 +8,24 @@
  * whole co-simulation step. The digits here come from Ulf Adams' Ryu algorithm (PLDI 2018:
  * shortest and correctly rounded, 64 x 128-bit products against tables of powers of five),
  * about ten times faster. The tables are computed exactly by the caller (Python integers, see
- * deltafmi/master/results.py) and handed over once. Plain C, no Python.
+ * deltafmi/master/results.py) and handed over once.
+ *
+ * A sink (deltafmi_csv_sink_*) formats and writes blocks of rows on a thread of its own: the
+ * master's C loop hands its blocks over and steps on, with no Python between a block and its
+ * text (see the sink's section). Plain C, no Python.
  */
+/* the oldest versions of what moved into libc in glibc 2.34, as in fixed_step.c */
+#if defined(__x86_64__) && defined(__linux__)
+__asm__(".symver pthread_create,pthread_create@GLIBC_2.2.5");
+__asm__(".symver pthread_join,pthread_join@GLIBC_2.2.5");
+#endif
+#include <errno.h>
+#include <math.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 typedef unsigned __int128 uint128_t;
 
@@ -355,4 +368,196 @@ size_t deltafmi_csv_rows(const double *rows, long n_rows, long width, const int 
     }
     free(above);
     return n;
+}
+
+/* --- the sink -------------------------------------------------------------------------------
+ * Blocks of rows queued by deltafmi_csv_sink_put are formatted (deltafmi_csv_rows, `chunk` rows at
+ * a time into the sink's buffer) and written to the file descriptor, in the order queued, by the
+ * sink's thread. The caller keeps each block's memory as it is until the sink has taken it
+ * (deltafmi_csv_sink_taken counts the blocks done). A write that fails (a full disk, a quota, a
+ * file size limit) cuts the file back to the end of the last whole row, as CsvWriter does in
+ * Python, and the sink writes nothing more; deltafmi_csv_sink_wait reports the whole rows and
+ * bytes written, the time of the last whole row and the error. */
+enum { SINK_QUEUE = 64 };
+
+typedef struct {
+    long long size;   /* bytes written by the sink (whole rows only) */
+    long rows;        /* rows written */
+    double last_time; /* of the last row written (NaN: none) */
+    int error;        /* errno of the write that failed (0: none) */
+} SinkReport;
+
+typedef struct {
+    int fd;
+    long width, chunk;
+    int *integer;
+    char *text;
+    const double *blocks[SINK_QUEUE];
+    long lengths[SINK_QUEUE];
+    long queued, taken; /* blocks put, blocks done (the queue: [taken, queued) mod SINK_QUEUE) */
+    int quit;
+    SinkReport report;
+    pthread_mutex_t lock;
+    pthread_cond_t more, done;
+    pthread_t thread;
+} Sink;
+
+/* text[0, size) to the file; on a failed write the file cut back to its last whole row, the
+ * rows (of `width` doubles from `rows`) counted up to there. Returns 0, or errno. */
+static int sink_write(Sink *s, const char *text, size_t size, const double *rows)
+{
+    size_t written = 0;
+    while (written < size) {
+        ssize_t n = write(s->fd, text + written, size - written);
+        if (n >= 0) {
+            written += (size_t)n;
+            continue;
+        }
+        if (errno == EINTR) continue;
+        int error = errno;
+        long whole = 0;
+        size_t keep = 0;
+        for (size_t i = 0; i < written; i++) {
+            if (text[i] == '\n') {
+                whole++;
+                keep = i + 1;
+            }
+        }
+        off_t end = lseek(s->fd, 0, SEEK_CUR); /* where the part written ends */
+        if (end >= 0) (void)!ftruncate(s->fd, end - (off_t)written + (off_t)keep); /* frees space: cannot fail for lack of it */
+        s->report.size += (long long)keep;
+        s->report.rows += whole;
+        if (whole) s->report.last_time = rows[(whole - 1) * s->width];
+        return error;
+    }
+    s->report.size += (long long)size;
+    return 0;
+}
+
+static void *sink_thread(void *arg)
+{
+    Sink *s = arg;
+    pthread_mutex_lock(&s->lock);
+    for (;;) {
+        while (s->taken == s->queued && !s->quit) pthread_cond_wait(&s->more, &s->lock);
+        if (s->taken == s->queued) break; /* quit, everything written */
+        const double *rows = s->blocks[s->taken % SINK_QUEUE];
+        long n = s->lengths[s->taken % SINK_QUEUE];
+        int failed = s->report.error != 0;
+        pthread_mutex_unlock(&s->lock);
+        for (long done = 0; done < n && !failed; done += s->chunk) {
+            long take = n - done < s->chunk ? n - done : s->chunk;
+            const double *part = rows + done * s->width;
+            size_t size = deltafmi_csv_rows(part, take, s->width, s->integer, s->text);
+            int error = sink_write(s, s->text, size, part);
+            pthread_mutex_lock(&s->lock);
+            if (error) {
+                s->report.error = error;
+                failed = 1;
+            } else {
+                s->report.rows += take;
+                s->report.last_time = part[(take - 1) * s->width];
+            }
+            pthread_mutex_unlock(&s->lock);
+        }
+        pthread_mutex_lock(&s->lock);
+        s->taken++;
+        pthread_cond_broadcast(&s->done);
+    }
+    pthread_mutex_unlock(&s->lock);
+    return NULL;
+}
+
+/* A sink writing rows of `width` doubles (integer[j] != 0: column j as an integer) to fd,
+ * formatted `chunk` rows at a time; NULL when it cannot be made (no memory, no thread). */
+__attribute__((visibility("default")))
+Sink *deltafmi_csv_sink_open(int fd, long width, const int *integer, long chunk)
+{
+    Sink *s = calloc(1, sizeof *s);
+    if (!s) return NULL;
+    s->fd = fd;
+    s->width = width;
+    s->chunk = chunk > 0 ? chunk : 1;
+    s->integer = malloc((size_t)width * sizeof *s->integer);
+    s->text = malloc((size_t)(s->chunk * width * 33 + 32)); /* deltafmi_csv_rows' room */
+    s->report.last_time = NAN;
+    if (!s->integer || !s->text) goto failed;
+    memcpy(s->integer, integer, (size_t)width * sizeof *s->integer);
+    pthread_mutex_init(&s->lock, NULL);
+    pthread_cond_init(&s->more, NULL);
+    pthread_cond_init(&s->done, NULL);
+    if (pthread_create(&s->thread, NULL, sink_thread, s) != 0) {
+        pthread_cond_destroy(&s->done);
+        pthread_cond_destroy(&s->more);
+        pthread_mutex_destroy(&s->lock);
+        goto failed;
+    }
+    return s;
+failed:
+    free(s->integer);
+    free(s->text);
+    free(s);
+    return NULL;
+}
+
+/* Queue n rows (row-major, `width` doubles each) at `rows`, kept by the caller until taken;
+ * waits while the queue is full. Returns the number of blocks queued so far. */
+__attribute__((visibility("default")))
+long deltafmi_csv_sink_put(Sink *s, const double *rows, long n)
+{
+    pthread_mutex_lock(&s->lock);
+    while (s->queued - s->taken == SINK_QUEUE) pthread_cond_wait(&s->done, &s->lock);
+    s->blocks[s->queued % SINK_QUEUE] = rows;
+    s->lengths[s->queued % SINK_QUEUE] = n;
+    long queued = ++s->queued;
+    pthread_cond_signal(&s->more);
+    pthread_mutex_unlock(&s->lock);
+    return queued;
+}
+
+/* The blocks the sink is done with (written, or dropped after a failure). */
+__attribute__((visibility("default")))
+long deltafmi_csv_sink_taken(Sink *s)
+{
+    pthread_mutex_lock(&s->lock);
+    long taken = s->taken;
+    pthread_mutex_unlock(&s->lock);
+    return taken;
+}
+
+/* The errno of the write that failed (0: none so far). */
+__attribute__((visibility("default")))
+int deltafmi_csv_sink_failed(Sink *s)
+{
+    pthread_mutex_lock(&s->lock);
+    int error = s->report.error;
+    pthread_mutex_unlock(&s->lock);
+    return error;
+}
+
+/* Wait until every block queued is done; what the sink has written so far into *report. */
+__attribute__((visibility("default")))
+void deltafmi_csv_sink_wait(Sink *s, SinkReport *report)
+{
+    pthread_mutex_lock(&s->lock);
+    while (s->taken != s->queued) pthread_cond_wait(&s->done, &s->lock);
+    *report = s->report;
+    pthread_mutex_unlock(&s->lock);
+}
+
+/* Write what is queued, end the thread and free the sink (the file descriptor stays open). */
+__attribute__((visibility("default")))
+void deltafmi_csv_sink_close(Sink *s)
+{
+    pthread_mutex_lock(&s->lock);
+    s->quit = 1;
+    pthread_cond_signal(&s->more);
+    pthread_mutex_unlock(&s->lock);
+    pthread_join(s->thread, NULL);
+    pthread_cond_destroy(&s->done);
+    pthread_cond_destroy(&s->more);
+    pthread_mutex_destroy(&s->lock);
+    free(s->integer);
+    free(s->text);
+    free(s);
 }

@@ -14,7 +14,8 @@
  * (Plan.pace) waits at every communication point for its wall-clock time as
  * deltafmi/master/live/pacing.py's Pacer.wait does (sleep until shortly before, then poll the
  * clock), notes how late it came and writes the pacing measurements to the bus before the row is
- * recorded. Plain C, no Python.
+ * recorded. Rows may go to a sink while the run goes on (Plan.sink_put: the CSV writer's thread of
+ * C, deltafmi/master/results/native/csv_rows.c), every sink_every rows. Plain C, no Python.
  *
  * Parallel units (Plan.threads > 1): a run of consecutive DO_STEP operations of one group
  * (Op.group > 0: FMI 2.0 Co-Simulation units of one step that take no input from one another, whose
@@ -210,7 +211,38 @@ typedef struct {
     size_t n_components;
     const RowPart *fixed_parts; /* with components: the recorded values no op writes */
     size_t n_fixed_parts;
+    /* rows handed to a sink as they are recorded (sink_put NULL: the caller takes every row after
+     * the run): every sink_every rows of a run, unpaced and not in blocks of steps, go to
+     * sink_put(sink, first row, rows), which returns the number of blocks queued so far; with
+     * sink_finite only while every value of them is finite (a NaN or an infinity stops the
+     * hand-over: the caller looks at the rest) */
+    long (*sink_put)(void *sink, const double *rows, long n);
+    void *sink;
+    long sink_every;
+    int sink_finite;
+    long sink_rows;          /* out: the rows of the last run handed over, from its first on */
+    long sink_queued;        /* out: sink_put's count after the last of them (0: none) */
+    double deadline;         /* > 0, unpaced: the run returns (RAN) after the first step that ends past
+                              * this CLOCK_MONOTONIC time (looked at every DEADLINE_STEPS steps) */
 } Plan;
+
+enum { DEADLINE_STEPS = 4 };
+
+/* The rows [p->sink_rows, written) to the sink; 0 when they were not (a value not finite). */
+static int hand_over(Plan *p, const double *rows, long written)
+{
+    const size_t stride = p->width + 1;
+    const double *first = rows + p->sink_rows * (long)stride;
+    long n = written - p->sink_rows;
+    if (p->sink_finite) {
+        double sum = 0.0; /* NaN or infinite when a value is (or the sum overflows: the caller looks) */
+        for (size_t i = 0; i < (size_t)n * stride; i++) sum += first[i];
+        if (!isfinite(sum)) return 0;
+    }
+    p->sink_queued = p->sink_put(p->sink, first, n);
+    p->sink_rows = written;
+    return 1;
+}
 
 static double now(void)
 {
@@ -993,6 +1025,7 @@ static int block_steps(Plan *p, Pool *pool, long k, long k_end, double *rows, lo
             return pool->stop_why;
         }
         k = kb;
+        if (p->deadline > 0.0 && now() > p->deadline) break;
     }
     *k_done = k;
     *n_rows = written;
@@ -1030,6 +1063,7 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
 {
     long k = k_begin, written = 0;
     int why = RAN;
+    p->sink_rows = p->sink_queued = 0;
     for (size_t i = 0; i < p->n_ops; i++)
         p->ops[i].holds_end = 0; /* Python may have called the FMUs since the last run */
     if (!p->pool) p->pool = pool_start(p);
@@ -1041,6 +1075,8 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
         p->pace->released = p->pace->wall0;
     }
     Pace *stream = p->pace && p->pace->stream ? p->pace : NULL;
+    int sink = p->sink_put && p->sink && !p->pace && p->sink_every > 0;
+    int deadline = p->deadline > 0.0 && !p->pace;
     for (; k < k_end; k++) {
         long next = k + 1;
         int due = next % p->every == 0 || next == p->n_steps;
@@ -1095,6 +1131,7 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
         } else if (due) {
             record(p, t_next, rows + written * (long)(p->width + 1));
             written++;
+            if (sink && written - p->sink_rows >= p->sink_every && !hand_over(p, rows, written)) sink = 0;
         }
         if (late && p->pace->stop_behind) {
             *k_done = next;
@@ -1102,6 +1139,10 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
             return BEHIND;
         }
         if (stream && __atomic_load_n(&stream->stop_request, __ATOMIC_ACQUIRE)) {
+            k++;
+            break;
+        }
+        if (deadline && (next - k_begin) % DEADLINE_STEPS == 0 && now() > p->deadline) {
             k++;
             break;
         }
