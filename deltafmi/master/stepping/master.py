@@ -313,17 +313,23 @@ class Master:
                 raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
                                       f"{self._partial_note()}") from exc
             interrupted = True
-            self.close()
+            with self.stop_signals:  # a further signal breaks the writing (asked for twice)
+                self.close()
             raise self._interrupted() from None
         else:
             finished = True
         finally:
             closing = _time.perf_counter()
-            if not finished and not interrupted:
-                self._fail_result()
-            self.close()
+            # a signal while the results are written (a .mat is written whole at the end) is
+            # noted, not raised in the middle of the writing: the rows computed reach the file
+            with self.stop_signals:
+                if not finished and not interrupted:
+                    self._fail_result()
+                self.close()
             if not finished and self.live is not None and self.live.started:
                 self.warn(f"live run up to t = {self.time:.9g} s: {self.live.report()}")  # what the summary says
+        if self.stop_signals.received is not None:
+            raise self._interrupted()  # at the end, while the results were written: they are whole
         end = _time.perf_counter()
         return Summary(self.steps, self.rejected, self.events, end - wall, self.time - self.start,
                        self.writer.rows_written, self.result_path, terminated, setup, self.loop_statistics(),
