@@ -207,9 +207,8 @@ class NativeLoop:
                 self.op_function.append(function)
                 ops.append(op)
         self._ops_array = (_Op * max(1, len(ops)))(*ops)
-        #: what :meth:`renew` checks a later run against (:meth:`key`)
-        self.key = self.key_of(self.actions, sampler, start, h, stop, n_steps, last, every, block_rows, groups,
-                               threads)
+        #: what it was laid out for, :meth:`key_of` (None: not kept for :meth:`renew`)
+        self.key: Optional[Tuple[Any, ...]] = None
         parts = [_RowPart(_pointer(bus), int(bus.dtype != np.float64), len(index), _pointer(index), _pointer(columns))
                  for bus, index, columns in sampler._parts]
         self._keep.append(sampler)
@@ -573,8 +572,9 @@ class NativeLoop:
         """From the next run on, hand every ``every`` rows to ``sink`` as they are recorded, while
         the run goes on (None: none; the caller takes every row after the run): (the address of
         a ``long put(void *sink, const double *rows, long n)``, the sink), as
-        :meth:`.BackgroundRows.c_sink` gives; ``finite``: only while all their values are finite
-        (the rest then comes back to the caller, who looks at them). Unpaced runs only."""
+        :meth:`.BackgroundRows.c_sink` gives, and the last rows of a run that returns RAN or
+        ROWS_FULL too; ``finite``: only while all their values are finite (the rest then comes
+        back to the caller, who looks at them). Unpaced runs only."""
         plan = self.plan
         plan.sink_put, plan.sink = sink if sink is not None else (None, None)
         plan.sink_every, plan.sink_finite = every, int(finite)

@@ -631,15 +631,15 @@ class Master:
                 # a run on a kept wiring (a study's next case) takes the C loop of the run before,
                 # renewed, when it is laid out alike (not one stepping on threads, nor a paced one)
                 wiring = self._wiring if self.threads <= 1 and live is None else None
+                key = NativeLoop.key_of(*arguments) if wiring is not None else None
                 try:
-                    if wiring is not None and wiring.native is not None \
-                            and wiring.native.key == NativeLoop.key_of(*arguments):
+                    if wiring is not None and wiring.native is not None and wiring.native.key == key:
                         native = self._native = wiring.native
                         native.renew(arguments[0])
                     else:
                         native = self._native = NativeLoop(*arguments)
                         if wiring is not None:
-                            wiring.native = native
+                            native.key, wiring.native = key, native
                     if self._others:
                         native.keep_step_start()
                 except BuildError as exc:  # no compiler and no prebuilt loop: the same steps in Python
@@ -788,7 +788,9 @@ class Master:
                 native.rows[rows - 1, 1:] = self.sampler.sample()
         if rows:
             if isinstance(self.writer, BackgroundRows):  # the block goes to the text thread as it is
-                block, native.rows = native.rows[:rows], self.writer.spare(native.rows)
+                block = native.rows[:rows]
+                if done < grid.n_steps:  # C fills another block next (none after the last step)
+                    native.rows = self.writer.spare(native.rows)
                 handed, queued = native.handed()  # the first rows went to its thread of C already
                 if handed:
                     self.writer.handed(block[:handed], queued)
