@@ -1,4 +1,4 @@
-"""Issue 28's figures: how well a paced run keeps the wall clock, and UDP round trips through a run.
+"""How well a paced run keeps the wall clock, and UDP round trips through a run.
 
 - The highest speed-up at which it still keeps up: paced runs of 1 simulated second at rising
   speeds (doubling, then bisecting), "keeps up" = at most 1 % of the points overrun. Against the baseline measured in the same run: the speed the busy time
@@ -6,33 +6,35 @@
   loop: a paced run without streams waits for every point in C).
 - The paced flagship beside the machine's floor, interleaved, ``--repeats`` times: the flagship
   at 50x (``--seconds-fast`` simulated seconds) and 1x (``--seconds-real``) on the master's C loop,
-  as it paces now and as it paced before (1 us timer slack, memory not locked, 0.2 ms spin; at 1x
-  sleeping only too), and benchmarks/native/paced_floor.c, a bare C program pacing as many points
-  around the flagship's median busy time, waiting by polling only, by sleeping only
-  (clock_nanosleep TIMER_ABSTIME) and by sleeping then polling the last 50 or 200 us. For each:
-  overruns (later than a quarter step, the Pacer's tolerance), the shares later than 1 us, half
-  and a whole step, fell-behind episodes, median, 99th percentile and largest lateness, and CPU
-  time over wall time; medians over the repeats, the load average beside them; whether the
-  flagship meets the 50x target (never behind, overruns <= 1 %) and whether the floor does at the
-  same moments. ``--fifo``: at 50x both at real-time priority 50 too (the flagship with
-  ``master.realtime.priority: 50``, so too handing back to Python every 50 ms of wall time as the
-  C loop did before its paced runs were streamed, and under ``chrt -f 50``; the floor under
-  ``chrt -f 50``: root).
+  as it paces by default (at 50x a lead of 0.5 ms, sleeping; at 1x a deadline per step, sleeping
+  then polling 50 us) and at 50x with a deadline per step (lead 0, polling: the pacing before the
+  lead), at 1x sleeping only and polling 200 us (the default before) too; beside benchmarks/native/paced_floor.c, a bare C program pacing
+  as many points around the flagship's median busy time, waiting each of those ways (and at 1x
+  by polling only, by sleeping then polling the last 50 us). For each: overruns (later than a
+  quarter step, the Pacer's tolerance), the shares later than 1 us, half and a whole step,
+  fell-behind episodes, median, 99th percentile and largest lateness, the largest earliness (a
+  lead's price), and CPU time over wall time; medians over the repeats, the load average beside
+  them; whether the flagship meets the 50x target (never behind, overruns <= 1 %) and whether
+  the floor does at the same moments. ``--fifo``: both at real-time priority 50 too (the
+  flagship with ``master.realtime.priority: 50``, the floor under ``chrt -f 50``: root).
   ``--target-only`` measures this only. Also the busy time per point of the C loop against the
   Python loop paced the same way (``LiveRun.paced_in_c`` off).
+- A UDP live input at 50x: the Oscillator paced with a datagram sent to it every millisecond of
+  wall time, its source read by the C loop between steps and, as the baseline in the same run,
+  sampled in Python at every point (the C loop handing back at each): overruns, fell-behind,
+  lateness, busy time, values taken (``--udp-only`` measures this only).
 - UDP round trip: a datagram sent to a live UDP input comes back on a UDP stream of the same
   signal (the run at 1 kHz paced, and unpaced); wall time from sendto to recv, median and 99th
   percentile over ``--pings``. Baseline in the same run: a plain Python echo over loopback (one
   thread receives and sends back), the floor of any round trip through Python sockets.
 
-Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only] [--fifo]
+Usage: python benchmarks/realtime.py [--seconds 3] [--repeats 3] [--pings 300] [--target-only] [--fifo] [--udp-only]
        [--seconds-fast 10] [--seconds-real 2]
        python benchmarks/realtime.py --throttling   # the floor at priority 50 for 0.8 s and 1.4 s (root)
 """
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
 import random
@@ -111,20 +113,26 @@ class PacedFloor:
                        check=True, capture_output=True)
 
     def __call__(self, mode: str, points: int, period: float, busy: float, spin: float = 2e-4,
-                 lock: bool = True, prefix: tuple = ()) -> dict:
+                 lock: bool = True, prefix: tuple = (), lead: float = 0.0) -> dict:
         """``points`` points ``period`` apart around ``busy`` seconds of work, waiting by ``mode``
         (spin, sleep, hybrid: sleep to ``spin`` before the deadline, then poll): :func:`figures`.
         ``prefix``: the command it runs under (``chrt -f 50``)."""
         done = subprocess.run([*prefix, str(self.program), mode, str(points), repr(period), repr(busy), repr(spin),
-                               str(self.out), *(["mlock"] if lock else [])], check=True, capture_output=True, text=True)
-        cpu, wall, locked = done.stdout.split()
-        return figures(np.fromfile(self.out), period, float(cpu), float(wall), locked == "1")
+                               str(self.out), *(["mlock"] if lock else []), f"lead={lead!r}"], check=True,
+                              capture_output=True, text=True)
+        cpu, wall, locked, _ = done.stdout.split()
+        late = np.fromfile(self.out)
+        found = figures(late, period, float(cpu), float(wall), locked == "1")
+        found["early"] = float(max(0.0, -late.min()))
+        found["miss"] = float("nan")  # benchmarks/pacing_floor.py measures the floor's
+        return found
 
 
 def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked: bool) -> dict:
     """Overruns (the Pacer's: later than a quarter period), shares later than 1 us, half and a
     whole period, fell-behind episodes (as the Pacer counts them) and the median time between
-    their starts, lateness percentiles and the CPU time of the loop against its wall time."""
+    their starts, lateness percentiles, the CPU time of the loop against its wall time, and
+    whether the last point was still a whole period late (the run had not caught up by its end)."""
     late = np.asarray(lateness, dtype=float)
     beyond = late > period
     starts = np.flatnonzero(beyond & ~np.concatenate(([False], beyond[:-1])))
@@ -133,7 +141,7 @@ def figures(lateness: np.ndarray, period: float, cpu: float, wall: float, locked
             "over_half": float(np.mean(late > period / 2)), "over_period": float(np.mean(beyond)),
             "behind": int(np.count_nonzero(beyond & ~np.concatenate(([False], beyond[:-1])))),
             "p50": float(np.median(late)), "p99": float(np.percentile(late, 99)), "max": float(late.max()),
-            "cpu": cpu / wall if wall > 0 else float("nan"), "locked": locked}
+            "cpu": cpu / wall if wall > 0 else float("nan"), "locked": locked, "end": bool(late[-1] > period)}
 
 
 def handing_back(begin_fixed_steps):
@@ -147,62 +155,67 @@ def handing_back(begin_fixed_steps):
     return begin
 
 
-def ours(stop: float, speed: float, before: bool = False, spin: Optional[float] = None,
-         priority: Optional[int] = None, hand_back: bool = False) -> dict:
+def ours(stop: float, speed: float, spin: Optional[float] = None, priority: Optional[int] = None,
+         hand_back: bool = False, lead: Optional[float] = None, lock: bool = True,
+         cpu: Optional[int] = None) -> dict:
     """The flagship paced at ``speed`` for ``stop`` simulated seconds (the master's C loop);
-    ``before``: the pacing as it was (1 us timer slack, memory not locked, 0.2 ms spin; the rows
-    streamed as now); ``spin``, ``priority``: ``master.realtime``'s; ``hand_back``: the C loop
-    handing back every 50 ms (:func:`handing_back`): :func:`figures` and the median busy time."""
+    ``spin``, ``priority``, ``lead``: ``master.realtime``'s (None: the defaults; ``lead=0``: a
+    deadline per step, the pacing before the lead); ``hand_back``: the C loop handing back every
+    50 ms (:func:`handing_back`); ``lock=False``: memory not locked (mlockall); ``cpu``: the process
+    on that CPU only while it runs: :func:`figures` and the median busy time."""
     from dataclasses import replace
 
     from deltafmi.master.live import pacing
 
     scenario = deltafmi.load_scenario(SCENARIO)
-    if spin is not None or priority is not None:
-        realtime = scenario.master.realtime
-        realtime = replace(realtime, spin=realtime.spin if spin is None else spin, priority=priority)
+    if spin is not None or priority is not None or lead is not None:
+        realtime = replace(scenario.master.realtime, spin=spin, priority=priority, lead=lead)
         scenario = replace(scenario, master=replace(scenario.master, realtime=realtime))
-    slack, lock = pacing.timer_slack, pacing.lock_memory
-    if before:
-        pacing.timer_slack = lambda ns: slack(1000 if ns == 1 else ns)
-        pacing.lock_memory = lambda: False
-        spin = 2e-4 if spin is None else spin
     from deltafmi.master.stepping.master import Master
 
-    begin = Master.begin_fixed_steps
+    begin, lock_memory, affinity = Master.begin_fixed_steps, pacing.lock_memory, os.sched_getaffinity(0)
     if hand_back:
         Master.begin_fixed_steps = handing_back(begin)
+    if not lock:
+        pacing.lock_memory = lambda: False
+    if cpu is not None:
+        os.sched_setaffinity(0, {cpu})
     try:
         result = deltafmi.simulate(scenario, stop=stop, speed=speed)
     finally:
-        pacing.timer_slack, pacing.lock_memory = slack, lock
-        Master.begin_fixed_steps = begin
+        Master.begin_fixed_steps, pacing.lock_memory = begin, lock_memory
+        os.sched_setaffinity(0, affinity)
     report = result.summary.live.realtime
     found = figures(report.lateness, 1e-3 / speed, report.cpu, report.wall, report.locked)
     found["busy"] = float(np.median(result["realtime.busy"][1:]))
     found["polled"] = report.polled / report.wall
+    found["early"] = float(max(0.0, -report.lateness.min())) if len(report.lateness) else 0.0
+    found["miss"] = deadline_misses(result["realtime.lateness"], result["realtime.busy"], 1e-3 / speed)
     return found
+
+
+def deadline_misses(lateness: np.ndarray, busy: np.ndarray, period: float) -> float:
+    """The share of steps that finished computing after their point's deadline (a real-time
+    engineer's overrun): point k's step began at the release of point k - 1 (its deadline plus its
+    lateness) and computed ``busy[k]`` seconds; the first point starts the clock."""
+    finished = (np.arange(len(lateness) - 1) * period + lateness[:-1]) + busy[1:]
+    return float(np.mean(finished > np.arange(1, len(lateness)) * period))
 
 
 #: a real-time priority (SCHED_FIFO 50: root or CAP_SYS_NICE), for --fifo
 FIFO = ("chrt", "-f", "50")
 
 
-def ours_fifo(stop: float, speed: float) -> dict:
-    """:func:`ours` in a process of its own at a real-time priority (:data:`FIFO`)."""
-    done = subprocess.run([*FIFO, sys.executable, __file__, "--paced-figures", repr(speed), repr(stop)], check=True,
-                          capture_output=True, text=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
 def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
     """Each configuration once per repeat, in an order shuffled anew each repeat (the load changes
     from one moment to the next; a fixed order would favour a place in it): the flagship paced at
-    50x and 1x (as now, and as before: 1 us timer slack, no mlockall, 0.2 ms spin; at 1x sleeping
-    only too), beside the floor (:class:`PacedFloor`) around the flagship's median busy time (from
-    a first run, not counted) waiting each way; ``fifo``: at 50x both at a real-time priority too
-    (:data:`FIFO`). ``seconds``: simulated seconds per speed. Returns {label: [figures per
-    repeat]}; each figures' "load" is the load average when its repeat began."""
+    50x as it paces by default (a lead of 0.5 ms, sleeping) and with a deadline per step (lead 0,
+    polling: the pacing before the lead), and at 1x (per step, sleeping then polling 50 us; sleeping
+    only and polling 200 us too), beside the floor (:class:`PacedFloor`) around the flagship's median busy time (from a
+    first run, not counted) waiting each way; ``fifo``: both at real-time priority 50 too
+    (``master.realtime.priority``; the floor under :data:`FIFO`). ``seconds``: simulated seconds
+    per speed. Returns {label: [figures per repeat]}; each figures' "load" is the load average
+    when its repeat began."""
     runs: dict = {}
     shuffle = random.Random(42).shuffle
     with tempfile.TemporaryDirectory() as folder:
@@ -212,26 +225,36 @@ def compare(repeats: int, seconds: dict, fifo: bool = False) -> dict:
         for speed in (50.0, 1.0):
             period, stop = 1e-3 / speed, seconds[speed]
             n = int(round(stop / 1e-3))
-            plan += [(f"ours {speed:g}x", lambda stop=stop, speed=speed: ours(stop, speed)),
-                     (f"ours {speed:g}x before", lambda stop=stop, speed=speed: ours(stop, speed, before=True))]
-            if speed == 1.0:
-                plan.append(("ours 1x sleep only", lambda stop=stop, speed=speed: ours(stop, speed, spin=0.0)))
-            for mode, spin in (("spin", 0.0), ("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5)):
-                if speed == 50.0 and mode == "hybrid":
-                    continue  # a 20 us period: hybrid with a 50-200 us spin polls only (= spin)
-                label = f"floor {speed:g}x {mode}" + (f" {spin * 1e6:.0f} us" if mode == "hybrid" else "")
-                plan.append((label, lambda mode=mode, n=n, period=period, b=busy[speed], spin=spin:
-                             floor(mode, n, period, b, spin)))
+            b = busy[speed]
+            plan.append((f"ours {speed:g}x", lambda stop=stop, speed=speed: ours(stop, speed)))
             if speed == 50.0:
-                plan.append(("floor 50x spin, no mlock", lambda n=n, period=period, b=busy[speed]:
-                             floor("spin", n, period, b, lock=False)))
-            if speed == 50.0 and fifo:
-                plan += [("ours 50x priority 50", lambda stop=stop: ours(stop, 50.0, priority=50)),
-                         ("ours 50x prio 50, hand-backs", lambda stop=stop: ours(stop, 50.0, priority=50,
-                                                                                   hand_back=True)),
-                         ("ours 50x under chrt -f 50", lambda stop=stop: ours_fifo(stop, 50.0)),
-                         ("floor 50x spin SCHED_FIFO", lambda n=n, period=period, b=busy[speed]:
-                          floor("spin", n, period, b, prefix=FIFO))]
+                plan += [("ours 50x per step", lambda stop=stop: ours(stop, 50.0, lead=0.0)),
+                         ("floor 50x spin (per step)", lambda n=n, period=period, b=b: floor("spin", n, period, b)),
+                         ("floor 50x sleep, lead 500 us", lambda n=n, period=period, b=b:
+                          floor("sleep", n, period, b, spin=0.0, lead=5e-4)),
+                         ("floor 50x sleep (per step)", lambda n=n, period=period, b=b:
+                          floor("sleep", n, period, b, spin=0.0))]
+                if fifo:
+                    plan += [("ours 50x priority 50", lambda stop=stop: ours(stop, 50.0, priority=50)),
+                             ("ours 50x priority 50, no mlock", lambda stop=stop: ours(stop, 50.0, priority=50,
+                                                                                       lock=False)),
+                             ("ours 50x per step, priority 50", lambda stop=stop: ours(stop, 50.0, priority=50,
+                                                                                         lead=0.0)),
+                             ("floor 50x spin SCHED_FIFO", lambda n=n, period=period, b=b:
+                              floor("spin", n, period, b, prefix=FIFO)),
+                             ("floor 50x lead SCHED_FIFO", lambda n=n, period=period, b=b:
+                              floor("sleep", n, period, b, spin=0.0, lead=5e-4, prefix=FIFO))]
+            else:
+                plan += [("ours 1x sleep only", lambda stop=stop: ours(stop, 1.0, spin=0.0)),
+                         ("ours 1x polling 200 us", lambda stop=stop: ours(stop, 1.0, spin=2e-4))]
+                for mode, spin in (("sleep", 0.0), ("hybrid", 2e-4), ("hybrid", 5e-5), ("spin", 0.0)):
+                    label = f"floor 1x {mode}" + (f" {spin * 1e6:.0f} us" if mode == "hybrid" else "")
+                    plan.append((label, lambda mode=mode, n=n, period=period, b=b, spin=spin:
+                                 floor(mode, n, period, b, spin)))
+                if fifo:
+                    plan += [("ours 1x priority 50", lambda stop=stop: ours(stop, 1.0, priority=50)),
+                             ("floor 1x hybrid 50 us SCHED_FIFO", lambda n=n, period=period, b=b:
+                              floor("hybrid", n, period, b, 5e-5, prefix=FIFO))]
         for label, _ in plan:
             runs[label] = []
         for _ in range(repeats):
@@ -265,47 +288,53 @@ def print_compare(runs: dict, repeats: int, seconds: dict) -> None:
           f"({int(seconds[50.0] * 1e3)} points, 20 us paced step, overrun = later than 5 us), 1x: {seconds[1.0]:g} s "
           f"(1 ms step, overrun = later than 250 us); load average (1 min) at each repeat's start: "
           + ", ".join(f"{f['load']:.2f}" for f in runs["ours 50x"]))
-    print(f"  {'':28} {'overruns':>9} {'>1us':>7} {'>T/2':>7} {'>T':>7} {'behind':>7} {'p50':>9} {'p99':>10} "
-          f"{'max':>10} {'CPU':>6}   (medians over the repeats; per repeat: overruns %, fell behind)")
+    print(f"  {'':34} {'overruns':>9} {'miss':>7} {'>1us':>7} {'>T/2':>7} {'>T':>7} {'behind':>7} {'p50':>9} "
+          f"{'p99':>10} {'max':>10} {'early':>10} {'CPU':>6} {'end':>4}   (medians over the repeats; per repeat: "
+          f"overruns %, fell behind; miss: steps that finished computing after their deadline; end: repeats whose "
+          f"last point was still a step late)")
     for label, found in runs.items():
-        med = {key: statistics.median(f[key] for f in found) for key in ("overruns", "over_1us", "over_half",
+        med = {key: statistics.median(f[key] for f in found) for key in ("overruns", "miss", "over_1us", "over_half",
                                                                             "over_period", "behind", "p50", "p99",
-                                                                            "max", "cpu")}
+                                                                            "max", "early", "cpu")}
         each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in found)
-        print(f"  {label:28} {med['overruns']:9.2%} {med['over_1us']:7.1%} {med['over_half']:7.1%} "
+        print(f"  {label:34} {med['overruns']:9.2%} {med['miss']:7.2%} {med['over_1us']:7.1%} {med['over_half']:7.1%} "
               f"{med['over_period']:7.1%} {med['behind']:7g} {_us(med['p50'])} {_us(med['p99'])} {_us(med['max'])} "
-              f"{med['cpu']:6.0%}   {each}")
+              f"{_us(med['early'])} {med['cpu']:6.0%} {sum(f['end'] for f in found):4d}   {each}")
     for speed in (50.0, 1.0):
         mine = runs[f"ours {speed:g}x"]
         print(f"  ours {speed:g}x: busy median {_us(statistics.median(f['busy'] for f in mine))}, polling "
               f"{statistics.median(f['polled'] for f in mine):.0%} of wall, memory locked "
               f"{all(f['locked'] for f in mine)}")
-    same = [statistics.median(f["overruns"] for f in runs[label]) for label in ("ours 50x", "ours 50x before")]
-    print(f"  noise: at 50x 'ours' and 'ours before' wait alike (the 20 us step is polled whole: the timer slack and "
-          f"spin do not come in; only the memory lock differs): their overruns {same[0]:.2%} and {same[1]:.2%} differ by the moment alone")
-    for speed, floors in ((50.0, ("spin",)), (1.0, ("hybrid 50 us", "sleep"))):
-        mine = statistics.median(f["overruns"] for f in runs[f"ours {speed:g}x"])
-        for mode in floors:
-            floor = statistics.median(f["overruns"] for f in runs[f"floor {speed:g}x {mode}"])
-            how = "waiting as ours does" if mode != "sleep" else "sleeping only"
-            print(f"  {speed:g}x overruns ours / floor ({mode}, {how}): {mine:.2%} / {floor:.2%}"
-                  + (f" = {mine / floor:.2f}" if floor else ""))
+    pairs = [("ours 50x", "floor 50x sleep, lead 500 us"), ("ours 50x per step", "floor 50x spin (per step)"),
+             ("ours 1x", "floor 1x hybrid 50 us"), ("ours 1x polling 200 us", "floor 1x hybrid 200 us"),
+             ("ours 1x sleep only", "floor 1x sleep")]
+    if "ours 50x priority 50" in runs:
+        pairs += [("ours 50x priority 50", "floor 50x lead SCHED_FIFO"),
+                  ("ours 50x per step, priority 50", "floor 50x spin SCHED_FIFO"),
+                  ("ours 1x priority 50", "floor 1x hybrid 50 us SCHED_FIFO")]
+    for mine_label, floor_label in pairs:
+        mine = statistics.median(f["overruns"] for f in runs[mine_label])
+        floor = statistics.median(f["overruns"] for f in runs[floor_label])
+        print(f"  overruns {mine_label} / {floor_label} (waiting alike): {mine:.2%} / {floor:.2%}"
+              + (f" = {mine / floor:.2f}" if floor else ""))
+
     def met(label: str) -> str:
         return "met" if statistics.median(f["overruns"] for f in runs[label]) <= 0.01 and \
             statistics.median(f["behind"] for f in runs[label]) == 0 else "missed"
 
-    print(f"  target at 50x (never behind, overruns <= 1 %): ours {met('ours 50x')}, the floor "
-          f"{met('floor 50x spin')} at these moments")
-    if "floor 50x spin SCHED_FIFO" in runs:
-        spacing = [statistics.median(f["spacing"] for f in runs[label]) * 1e3
-                   for label in ("ours 50x priority 50", "floor 50x spin SCHED_FIFO")]
-        hz = kernel_hz()
-        print(f"  at priority 50 a point later than a step comes every {spacing[0]:.2f} ms (ours) and {spacing[1]:.2f} "
-              f"ms (floor), medians of the time between them; the kernel's scheduler tick: "
-              + (f"every {1e3 / int(hz):g} ms (CONFIG_HZ={hz})" if hz else "CONFIG_HZ unknown"))
+    print(f"  target at 50x (never behind, overruns <= 1 %), at these moments: ours {met('ours 50x')} (per step "
+          f"{met('ours 50x per step')}), the floor waiting as ours does {met('floor 50x sleep, lead 500 us')} "
+          f"(per step {met('floor 50x spin (per step)')})")
     if "ours 50x priority 50" in runs:
-        print(f"  at real-time priority 50: ours {met('ours 50x priority 50')} (under chrt "
-              f"{met('ours 50x under chrt -f 50')}), the floor {met('floor 50x spin SCHED_FIFO')}")
+        spacing = [statistics.median(f["spacing"] for f in runs[label]) * 1e3
+                   for label in ("ours 50x per step, priority 50", "floor 50x spin SCHED_FIFO")]
+        hz = kernel_hz()
+        print(f"  at priority 50 per step, a point later than a step comes every {spacing[0]:.2f} ms (ours) and "
+              f"{spacing[1]:.2f} ms (floor), medians of the time between them; the kernel's scheduler tick: "
+              + (f"every {1e3 / int(hz):g} ms (CONFIG_HZ={hz})" if hz else "CONFIG_HZ unknown"))
+        print(f"  at real-time priority 50: ours {met('ours 50x priority 50')} (per step "
+              f"{met('ours 50x per step, priority 50')}), the floor with the lead {met('floor 50x lead SCHED_FIFO')} "
+              f"(per step {met('floor 50x spin SCHED_FIFO')})")
 
 
 def throttling() -> None:
@@ -343,6 +372,89 @@ streams:
   - {{udp: '127.0.0.1:{back}', signals: [cmd.x]}}
 """)
     return path
+
+
+def _udp_input_scenario(folder: Path, port: int, priority: Optional[int] = None) -> Path:
+    path = folder / "udp_input.yaml"
+    realtime = "true" if priority is None else f"{{priority: {priority}}}"
+    path.write_text(f"""\
+experiment: {{stop: 1000.0, step: 1.0e-3}}
+master: {{realtime: {realtime}}}
+live:
+  cmd:
+    udp: {{port: {port}}}
+    timeout: 100.0
+    signals: {{x: {{}}}}
+components:
+  osc: {{source: 'deltafmi.models:Oscillator', interface: CS}}
+connections:
+  - {{from: cmd.x, to: osc.F}}
+outputs: [osc.x]
+""")
+    return path
+
+
+def udp_input_run(stop: float, speed: float, in_c: bool, priority: Optional[int] = None) -> dict:
+    """The Oscillator paced at ``speed`` for ``stop`` simulated seconds with a UDP live input that
+    another thread sends a datagram to every millisecond of wall time: the live source read by the
+    C loop between its steps (``in_c``), or sampled in Python at every point (the C loop handing
+    back at each, as before the C reader); ``priority``: ``master.realtime.priority``: :func:`figures`,
+    the median busy time and the datagrams taken."""
+    from deltafmi.master.live.run import LiveRun
+
+    port = _ports()[0]
+    done = threading.Event()
+
+    def send() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            n = 0
+            while not done.is_set():
+                n += 1
+                sock.sendto(encode({"x": float(n)}, t=n * 1e-3, seq=n), ("127.0.0.1", port))
+                time.sleep(1e-3)
+
+    read_in_c = LiveRun.read_in_c
+    if not in_c:
+        LiveRun.read_in_c = lambda self: None
+    sender = threading.Thread(target=send, daemon=True)
+    with tempfile.TemporaryDirectory() as folder:
+        scenario = _udp_input_scenario(Path(folder), port, priority)
+        sender.start()
+        try:
+            result = deltafmi.simulate(scenario, stop=stop, speed=speed, output=Path(folder) / "udp.csv")
+        finally:
+            done.set()
+            sender.join()
+            LiveRun.read_in_c = read_in_c
+    report = result.summary.live.realtime
+    found = figures(report.lateness, 1e-3 / speed, report.cpu, report.wall, report.locked)
+    found["busy"] = float(np.median(result["realtime.busy"][1:]))
+    found["taken"] = len(np.unique(result["cmd.x"]))
+    return found
+
+
+def udp_figures(seconds: float, repeats: int, fifo: bool = False) -> None:
+    """:func:`udp_input_run` at 50x read in C and in Python (``fifo``: at priority 50 too), each
+    once per repeat in a shuffled order; medians over the repeats."""
+    load = os.getloadavg()[0]
+    plan = [("read by the C loop between steps", True, None), ("sampled in Python at every point", False, None)]
+    if fifo:
+        plan += [("read in C, priority 50", True, 50), ("sampled in Python, priority 50", False, 50)]
+    found: dict = {label: [] for label, _, _ in plan}
+    shuffle = random.Random(5).shuffle
+    for _ in range(repeats):
+        order = list(plan)
+        shuffle(order)
+        for label, in_c, priority in order:
+            found[label].append(udp_input_run(seconds, 50.0, in_c, priority))
+    print(f"UDP live input at 50x (the Oscillator, {seconds:g} s simulated, a datagram every ms of wall time), "
+          f"{repeats} repeats, medians; load average {load:.2f} at the start, {os.getloadavg()[0]:.2f} at the end:")
+    for label, runs in found.items():
+        med = {key: statistics.median(f[key] for f in runs) for key in ("overruns", "behind", "p50", "p99", "busy",
+                                                                           "taken")}
+        each = " ".join(f"{f['overruns']:.1%}/{f['behind']}" for f in runs)
+        print(f"  {label:34} overruns {med['overruns']:7.2%}, behind {med['behind']:5g}, p50 {_us(med['p50'])}, "
+              f"p99 {_us(med['p99'])}, busy {_us(med['busy'])}, values taken {med['taken']:g}   ({each})")
 
 
 def _ports() -> tuple:
@@ -430,20 +542,19 @@ def main() -> None:
                         help="only the paced flagship at 50x and 1x beside the machine's floor")
     parser.add_argument("--fifo", action="store_true",
                         help="at 50x, the flagship and the floor at a real-time priority too (chrt -f 50: root)")
+    parser.add_argument("--udp-only", action="store_true",
+                        help="only the UDP live input at 50x, read in C and in Python")
     parser.add_argument("--throttling", action="store_true",
                         help="only the floor at real-time priority 50 for 0.8 s and 1.4 s (Linux's real-time throttling)")
-    parser.add_argument("--paced-figures", nargs=2, type=float, metavar=("SPEED", "STOP"), help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.paced_figures:  # ours_fifo's process
-        logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)
-        print(json.dumps(ours(args.paced_figures[1], args.paced_figures[0])))
-        return
-
     if args.throttling:
         throttling()
         return
     logging.getLogger("deltafmi.scenario").setLevel(logging.ERROR)  # "fell behind" while probing speeds
     deltafmi.simulate("delta_tracking", stop=0.01)  # builds the FMUs once
+    if args.udp_only:
+        udp_figures(args.seconds, args.repeats, args.fifo)
+        return
     seconds = {50.0: args.seconds_fast, 1.0: args.seconds_real}
     runs = compare(args.repeats, seconds, args.fifo)
     print_compare(runs, args.repeats, seconds)
@@ -461,6 +572,8 @@ def main() -> None:
     print(f"highest speed that keeps up: {speed:.1f}x real time")
     print(f"  baseline (same run): step / busy = {1e-3 / busy:.1f}x; unpaced real-time factor "
           f"{rtf:.0f}x (C loop); ratio kept-up / busy-allowed = {speed / (1e-3 / busy):.2f}")
+
+    udp_figures(args.seconds, args.repeats, args.fifo)
 
     echo = python_echo(args.pings)
     for paced in (True, False):

@@ -71,7 +71,8 @@ def c_host(tmp_path_factory) -> Path:
 
 
 #: modules that measure wall time, threads or memory, or start Dask clusters or paced runs
-SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_joystick_tracking", "test_live_scope",
+SERIAL = {"test_live_pacing", "test_live_udp_run", "test_live_udp", "test_live_udp_native", "test_joystick_tracking",
+          "test_live_scope",
           "test_fmu_threads", "test_memory", "test_study_dask", "test_study_cluster", "test_study_tls",
           "test_study_dashboard", "test_study_rough_edges", "test_peg_robustness", "test_troubleshooting_docs",
           "test_examples", "test_rough_edges", "test_study_metrics", "test_reliability_results",
@@ -111,12 +112,21 @@ SLOW = {"test_reliability_signals_tools", "test_wheel_install", "test_python_hos
 def pytest_configure(config) -> None:
     """Where ``PYTHONDONTWRITEBYTECODE`` is set, no process writes the bytecode of what it imports, and
     each of the suite's processes (workers, CLIs, Dask workers, FMU hosts) would compile the package
-    from source again: the controller compiles it once, before the workers start."""
+    from source again: the controller compiles it once, before the workers start. So too the
+    environment's packages when they were installed without bytecode (``PIP_NO_COMPILE=0``, as
+    .ci/run installs them: pip compiles one file after the other, and the packages' own test
+    folders, a third of it, which no process here imports), on every core."""
     if sys.dont_write_bytecode and not hasattr(config, "workerinput"):
         import compileall
+        import importlib.util
+        import sysconfig
 
         for folder in (ROOT / "deltafmi", FMU_SRC):
             compileall.compile_dir(folder, quiet=1)
+        packages = Path(sysconfig.get_paths()["purelib"])
+        if not Path(importlib.util.cache_from_source(pytest.__file__)).exists():
+            compileall.compile_dir(packages, quiet=1, workers=os.cpu_count() or 1,
+                                   rx=re.compile(re.escape(str(packages)) + r"/.+/tests?/"))
 
 
 @pytest.hookimpl(hookwrapper=True)

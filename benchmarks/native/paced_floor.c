@@ -10,12 +10,21 @@
  *   hybrid  sleeps to the deadline less `spin` seconds (absolute), then polls: the master's C loop
  *           (deltafmi/master/stepping/native/fixed_step.c pace_to); with spin >= period it polls only
  * The schedule is absolute, as the master's: a late point is not made up by skipping.
- * The thread's timer slack is 1 ns (prctl PR_SET_TIMERSLACK); "mlock" as the last argument locks
- * the process's memory first (mlockall) where permitted.
+ * The thread's timer slack is 1 ns (prctl PR_SET_TIMERSLACK). Options after OUT, any of:
+ *   mlock      lock the process's memory first (mlockall) where permitted
+ *   cpu=N      run on CPU N only (sched_setaffinity)
+ *   fifo=N     run at real-time priority N (SCHED_FIFO)
+ *   lead=S     a point may be released up to S seconds before its deadline (the master's
+ *              master.realtime.lead, pace_to): a point due more than S from now is waited for
+ *              until S/2 before its deadline, the points after it released as they are computed
+ *              until one is again more than S ahead (steps computed ahead absorb stalls up to S/2)
+ *   done=PATH  also write, per point, when the step before it finished computing, against the
+ *              point's deadline (signed doubles: > 0 is a step that completed after its deadline)
  *
- * Usage: paced_floor spin|sleep|hybrid POINTS PERIOD BUSY SPIN OUT [mlock]
- * OUT: the lateness of each point as native doubles; stdout: "cpu wall mlock" (seconds of CPU
- * time and of wall time the loop took, whether mlockall succeeded). Plain C99 + POSIX + Linux prctl. */
+ * Usage: paced_floor spin|sleep|hybrid POINTS PERIOD BUSY SPIN OUT [mlock] [cpu=N] [fifo=N] [lead=S]
+ * OUT: the signed lateness of each point as native doubles (release - deadline: negative = early,
+ * only with a lead); stdout: "cpu wall mlock fifo" (seconds of CPU time and of wall time the loop
+ * took, whether mlockall succeeded, whether the priority was set). Plain C99 + POSIX + Linux. */
 #define _GNU_SOURCE
 #include <errno.h>
 #include <stdio.h>
@@ -24,6 +33,7 @@
 #include <sys/mman.h>
 #include <time.h>
 #ifdef __linux__
+#include <sched.h>
 #include <sys/prctl.h>
 #endif
 
@@ -61,9 +71,29 @@ int main(int argc, char **argv)
     int sleeps = strcmp(mode, "spin") != 0, polls = strcmp(mode, "sleep") != 0;
     if (!strcmp(mode, "sleep")) spin = 0.0;
     double *lateness = malloc((size_t)(points > 0 ? points : 1) * sizeof *lateness);
-    if (!lateness) return 1;
+    double *done = malloc((size_t)(points > 0 ? points : 1) * sizeof *done);
+    if (!lateness || !done) return 1;
     memset(lateness, 0, (size_t)(points > 0 ? points : 1) * sizeof *lateness); /* faulted in now */
-    int locked = argc > 7 && !strcmp(argv[7], "mlock") && mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+    memset(done, 0, (size_t)(points > 0 ? points : 1) * sizeof *done);
+    int locked = 0, fifo = 0;
+    double lead = 0.0;
+    const char *done_path = NULL;
+    for (int i = 7; i < argc; i++) {
+        if (!strcmp(argv[i], "mlock")) locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+        else if (!strncmp(argv[i], "lead=", 5)) lead = atof(argv[i] + 5);
+        else if (!strncmp(argv[i], "done=", 5)) done_path = argv[i] + 5;
+#ifdef __linux__
+        else if (!strncmp(argv[i], "cpu=", 4)) {
+            cpu_set_t set;
+            CPU_ZERO(&set);
+            CPU_SET(atoi(argv[i] + 4), &set);
+            if (sched_setaffinity(0, sizeof set, &set)) perror("sched_setaffinity");
+        } else if (!strncmp(argv[i], "fifo=", 5)) {
+            struct sched_param param = {.sched_priority = atoi(argv[i] + 5)};
+            fifo = sched_setscheduler(0, SCHED_FIFO, &param) == 0;
+        }
+#endif
+    }
 #ifdef __linux__
     prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
 #endif
@@ -73,18 +103,27 @@ int main(int argc, char **argv)
         while (now() < until) {
         }
         double deadline = start + (double)k * period, t = now();
-        if (sleeps && deadline - t > spin) {
-            sleep_until(deadline - spin);
-            t = now();
+        done[k - 1] = t - deadline;
+        if (t < deadline - lead) { /* as pace_to: more than the lead early: wait until half of it is left */
+            double wake = deadline - lead / 2;
+            if (sleeps && wake - t > spin) {
+                sleep_until(wake - spin);
+                t = now();
+            }
+            if (polls)
+                while (t < wake) t = now();
         }
-        if (polls)
-            while (t < deadline) t = now();
-        lateness[k - 1] = t > deadline ? t - deadline : 0.0;
+        lateness[k - 1] = t - deadline;
     }
     double wall = now() - start, cpu = clock_of(CLOCK_PROCESS_CPUTIME_ID) - cpu0;
     FILE *out = fopen(argv[6], "wb");
     if (!out || fwrite(lateness, sizeof *lateness, (size_t)points, out) != (size_t)points) return 1;
     fclose(out);
-    printf("%.9f %.9f %d\n", cpu, wall, locked);
+    if (done_path) {
+        FILE *d = fopen(done_path, "wb");
+        if (!d || fwrite(done, sizeof *done, (size_t)points, d) != (size_t)points) return 1;
+        fclose(d);
+    }
+    printf("%.9f %.9f %d %d\n", cpu, wall, locked, fifo);
     return 0;
 }

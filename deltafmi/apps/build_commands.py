@@ -209,9 +209,7 @@ def validate_fmu_file(fmu: Path) -> None:
     deltafmi FMU's GUID against its binary's, what the FMU needs to run and whether this machine
     has it, and one trial fmi2Instantiate; a ClickException (exit 1) at the first that fails
     (:class:`BadInput`, exit 2, for a file that is not an FMU, as ``run`` and ``info`` say it)."""
-    from fmpy.validation import validate_fmu
-
-    from deltafmi.master.scenario.fmu_checks import binary_problem, guid_problem
+    from deltafmi.master.scenario.fmu_checks import binary_problem, guid_problem, validation_problems
     from deltafmi.master.stepping.fmu_trial import instantiation_problem
     if fmu.is_dir():
         raise BadInput(f"{fmu}: a folder, not an FMU file (an FMU is one .fmu file, a zip archive)")
@@ -219,7 +217,7 @@ def validate_fmu_file(fmu: Path) -> None:
         raise BadInput(f"{fmu}: no such FMU file")
     md = _readable(fmu).md
     try:
-        problems = validate_fmu(str(fmu))
+        problems = validation_problems(fmu)
         requirement = runtime_requirement(fmu)
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions for broken archives
         raise BadInput(f"{fmu}: cannot read it as an FMU: {exc}") from None

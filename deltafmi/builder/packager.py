@@ -132,7 +132,8 @@ def runtime_files(source: Path) -> list[tuple[Path, str]]:
 PLAIN_C_SOURCES = {"master/stepping/native/fixed_step.c": "deltafmi.master.stepping.c_loop",
                    "master/stepping/native/erk.c": "deltafmi.master.stepping.explicit_rk",
                    "master/results/native/csv_rows.c": "deltafmi.master.results.csv_file",
-                   "master/system_fmu/native/system_step.c": "deltafmi.master.system_fmu.direct"}
+                   "master/system_fmu/native/system_step.c": "deltafmi.master.system_fmu.direct",
+                   "master/live/native/udp_reader.c": "deltafmi.master.live.native_udp"}
 #: the data files the master reads when it runs (package-relative file -> the module that reads it)
 MASTER_DATA = {"master/scenario/scenario.schema.json": "deltafmi.master.scenario.spec"}
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import zipfile
 
+import fmpy
 import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
@@ -30,11 +31,27 @@ def test_the_model_declares_compiled_kernels_and_its_fmu_carries_them(name):
         assert "resources/native_kernels.json" in archive.namelist()
 
 
+@pytest.fixture(scope="module")
+def unpacked(tmp_path_factory):
+    """``unpacked(name, fmi_version) -> str``: the folder of the packaged model's FMU, unzipped once
+    for the runs of both interfaces, both kernels (fmpy would unzip it for each run)."""
+    done: dict = {}
+
+    def get(name: str, fmi_version: int) -> str:
+        if (name, fmi_version) not in done:
+            folder = tmp_path_factory.mktemp(f"{name}{fmi_version}")
+            fmu = build_cached(name, fmi_version=fmi_version)
+            done[name, fmi_version] = str(fmpy.extract(str(fmu), unzipdir=folder))
+        return done[name, fmi_version]
+
+    return get
+
+
 @pytest.mark.parametrize("fmi_version", [2, 3])
 @pytest.mark.parametrize("interface", ["ModelExchange", "CoSimulation"])
 @pytest.mark.parametrize("name", MODELS)
-def test_compiled_and_python_kernels_give_the_same_bits(name, interface, fmi_version, monkeypatch):
-    fmu = str(build_cached(name, fmi_version=fmi_version))
+def test_compiled_and_python_kernels_give_the_same_bits(name, interface, fmi_version, monkeypatch, unpacked):
+    fmu = unpacked(name, fmi_version)
     md = read_model_description(fmu)
     outputs = [v.name for v in md.modelVariables if v.causality == "output" and v.type != "String"]
     results = {}

@@ -9,7 +9,6 @@ numpy (the compiled kernels are plain C, whatever the host's version); the packa
 """
 from __future__ import annotations
 
-import importlib.metadata
 import json
 import math
 import os
@@ -23,6 +22,7 @@ from typing import Optional
 
 import numpy as np
 import pytest
+from uv import find_uv_bin
 
 from conftest import ROOT, clean_env, unzip
 
@@ -40,18 +40,22 @@ BUILDER = f"{sys.version_info.major}.{sys.version_info.minor}"
 
 # Run by each host: simulate every FMU in CS and ME, write results (or the error) as JSON. fmpy's
 # logger prints the FMU's messages to stdout, which the test shows when something fails.
+# Each FMU is extracted once for both interfaces (fmpy simulates an extracted FMU's folder as it does
+# the file it would extract again): a portable FMU unpacks to 60-110 MB.
 HOST_SCRIPT = r'''
-import json, sys
-from fmpy import simulate_fmu
+import json, shutil, sys
+from fmpy import extract, simulate_fmu
 out, stop, interval, fmus = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), sys.argv[4:]
 results = {}
 for fmu in fmus:
+    folder = extract(fmu)
     for interface in ("CoSimulation", "ModelExchange"):
         try:
-            r = simulate_fmu(fmu, fmi_type=interface, stop_time=stop, output_interval=interval)
+            r = simulate_fmu(folder, fmi_type=interface, stop_time=stop, output_interval=interval)
             results[f"{fmu}|{interface}"] = {n: r[n].astype(float).tolist() for n in r.dtype.names}
         except Exception as exc:
             results[f"{fmu}|{interface}"] = f"{type(exc).__name__}: {exc}"
+    shutil.rmtree(folder, ignore_errors=True)
 finder = next((f for f in sys.meta_path if type(f).__name__ == "_BundledSitePackages"), None)
 scipy = sys.modules.get("scipy")
 results["finder"] = {
@@ -75,30 +79,22 @@ def _interpreter(version: str) -> Optional[Path]:
     return Path(which) if which else None
 
 
-def _pip_cache() -> Path:
-    from deltafmi.toolchain import cache_dir
-    return cache_dir() / "pip"
-
-
 def _fresh_fmpy_venv(version: str, root: Path) -> tuple[Optional[Path], str]:
     """(python of a new virtual environment with fmpy and what it needs to simulate, "") or (None, why not)."""
     interpreter = _interpreter(version)
     if interpreter is None:
         return None, f"no CPython {version} on this machine (pyenv or python{version} on PATH)"
     venv = root / f"venv{version}"
-    # this environment's pip installs into the new one (pip >= 22.3: --python): ~3 s less each
-    outside = tuple(int(x) for x in importlib.metadata.version("pip").split(".")[:2]) >= (22, 3)
-    made = subprocess.run([str(interpreter), "-m", "venv", *(["--without-pip"] if outside else []), str(venv)],
-                          capture_output=True, text=True)
+    made = subprocess.run([str(interpreter), "-m", "venv", "--without-pip", str(venv)], capture_output=True, text=True)
     if made.returncode != 0:
         return None, f"{interpreter} cannot make a virtual environment: {made.stderr.strip()[-500:]}"
     python = venv / "bin" / "python"
-    env = dict(os.environ, PIP_CACHE_DIR=str(_pip_cache()), PIP_DISABLE_PIP_VERSION_CHECK="1")
-    pip = [sys.executable, "-m", "pip", "--python", str(python)] if outside else [str(python), "-m", "pip"]
-    installed = subprocess.run([*pip, "install", "-q", "--no-compile", "--no-deps", *HOST_PACKAGES],
-                               capture_output=True, text=True, env=env)
+    # uv (astral's installer, a test requirement) installs the host's packages from the registry or
+    # its cache: pip took 4-5 CPU-s a venv, most of it reading the index's thousands of numpy files
+    installed = subprocess.run([find_uv_bin(), "pip", "install", "-q", "--python", str(python), "--no-deps",
+                                *HOST_PACKAGES], capture_output=True, text=True)
     if installed.returncode != 0:
-        raise AssertionError(f"pip install fmpy into a CPython {version} environment failed:\n"
+        raise AssertionError(f"installing fmpy into a CPython {version} environment failed:\n"
                              f"{installed.stderr[-2000:]}")
     return python, ""
 
@@ -144,8 +140,11 @@ def host_fmus(build_fmu_from_src, portable_oscillator_fmu, portable_delta_robot_
 
 
 def _simulate(python: Path, fmus: list[Path], out: Path) -> tuple[dict, str]:
+    # the hosts' packages are installed without bytecode: the first run writes what it imports (the C
+    # host's runs below then find it), whatever PYTHONDONTWRITEBYTECODE this session has
+    env = {name: value for name, value in os.environ.items() if name != "PYTHONDONTWRITEBYTECODE"}
     run = subprocess.run([str(python), "-c", HOST_SCRIPT, str(out), str(STOP), str(INTERVAL), *map(str, fmus)],
-                         capture_output=True, text=True, timeout=600, cwd=out.parent)
+                         capture_output=True, text=True, timeout=600, cwd=out.parent, env=env)
     if run.returncode != 0 or not out.exists():
         raise AssertionError(f"{python} exited with {run.returncode}:\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}")
     return json.loads(out.read_text()), run.stdout + run.stderr

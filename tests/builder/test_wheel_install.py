@@ -3,12 +3,12 @@ environment outside the checkout, run from an empty folder by a user without a C
 
 ``tools/build_wheel.py`` builds the wheel (git's files only, setup.py's prebuilt layer, auditwheel's
 manylinux tag; the layer's pieces are compiled into this session's build cache first, and the
-wheel's build copies them from there: ``$DELTAFMI_CACHE_SEED``); pip installs it and its
-dependencies into a new venv (from the registry or pip's cache). The commands then run with ``PATH`` holding only that venv's ``bin`` (no ``cc``, ``gcc``
+wheel's build copies them from there: ``$DELTAFMI_CACHE_SEED``); uv installs it and its
+dependencies into a new venv (from the registry or uv's cache). The commands then run with ``PATH`` holding only that venv's ``bin`` (no ``cc``, ``gcc``
 or ``$CC``: deltafmi looks the compiler up on ``PATH``, as setuptools does) and ``HOME``
 a fresh folder (so the per-user cache is ``$HOME/.cache/deltafmi``, empty). Marked ``wheel``
-(``-m "not wheel"`` leaves it out); about 2 minutes, most of it pip, which needs the registry or
-its cache.
+(``-m "not wheel"`` leaves it out); about a minute, most of it the wheel's build; the install needs the
+registry or uv's cache.
 """
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from uv import find_uv_bin
 
 pytestmark = pytest.mark.wheel
 
@@ -51,11 +52,13 @@ def user(wheel, tmp_path_factory):
     """(run, venv): ``run(*args, cwd=...)`` runs ``deltafmi args`` as the wheel's user."""
     base = tmp_path_factory.mktemp("user")
     venv = base / "venv"
-    # a venv without pip, into which this environment's pip installs (pip >= 22.3: --python), with
-    # no bytecode compiled ahead: Python compiles what the commands import
+    # a venv without pip, into which uv installs the wheel and the dependencies it declares, from
+    # the registry or uv's cache, with no bytecode compiled ahead (Python compiles what the
+    # commands import): the same installation as pip's, without pip's 15-20 CPU-s of reading the
+    # index's thousands of files per project
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
-    install = subprocess.run([sys.executable, "-m", "pip", "--python", str(venv / "bin" / "python"), "install", "-q",
-                              "--no-compile", str(wheel)], capture_output=True, text=True)
+    install = subprocess.run([find_uv_bin(), "pip", "install", "-q", "--python", str(venv / "bin" / "python"),
+                              str(wheel)], capture_output=True, text=True)
     assert install.returncode == 0, install.stderr[-3000:]
     home = base / "home"
     home.mkdir()
@@ -162,6 +165,17 @@ def test_an_edited_copy_runs_without_a_compiler_and_matches_the_packaged_models(
     assert a.keys() == b.keys() and len(a["time"]) == 201
     for name in a:  # same binary, same kernels, same model: the same numbers
         assert np.array_equal(a[name], b[name]), name
+
+
+def test_an_equation_model_builds_with_its_prebuilt_kernels(user, tmp_path):
+    """An equation model's kernels are C generated from the module its equations compile to, which
+    the build cache keeps: the C names that module alone, so the wheel's prebuilt kernels (made in
+    the build's folder) are the ones the user's build asks for."""
+    run, _, _ = user
+    built = run("build", "BouncingBallEquations", "-o", "ball.fmu", cwd=tmp_path)
+    assert built.returncode == 0, built.stderr
+    assert "instead of its compiled kernels" not in built.stderr, built.stderr
+    assert "binaries/linux64/BouncingBallEquations_kernels.so" in zipfile.ZipFile(tmp_path / "ball.fmu").namelist()
 
 
 def test_without_the_prebuilt_layer_a_build_says_it_needs_a_compiler(user, tmp_path):

@@ -31,8 +31,8 @@ def test_paced_run_takes_its_simulated_time_and_changes_no_number(monkeypatch):
 
     paced_in_c = []
     pace = NativeLoop.pace
-    monkeypatch.setattr(NativeLoop, "pace", lambda loop, pacer, slots: (paced_in_c.append(pacer.speed),
-                                                                       pace(loop, pacer, slots)))
+    monkeypatch.setattr(NativeLoop, "pace", lambda loop, pacer, *rest: (paced_in_c.append(pacer.speed),
+                                                                       pace(loop, pacer, *rest)))
     plain = deltafmi.simulate("delta_tracking", stop=0.3)
     paced = deltafmi.simulate("delta_tracking", stop=0.3, realtime=True)
     fast = deltafmi.simulate("delta_tracking", stop=0.3, speed=3.0)
@@ -220,10 +220,39 @@ def test_a_paced_run_in_c_reports_its_cpu_and_polling():
     result = deltafmi.simulate("delta_tracking", stop=0.2, speed=50.0)
     report = result.summary.live.realtime
     assert 0 <= report.polled <= report.wall and 0 < report.cpu <= report.wall + 1e-6
-    # no point before its time: one call of the C loop (it hands back after 50 ms of wall time)
-    # waits at least the 4 ms of the 200 points
-    assert report.wall >= 0.2 / 50 - 1e-9
+    # no point more than the lead (0.5 ms at 50x) before its time: the run waits at least the 4 ms
+    # of the 200 points less the lead
+    assert report.lead == 5e-4
+    assert report.wall >= 0.2 / 50 - report.lead - 1e-9
     assert _status("VmLck") == 0  # given back
+
+
+@pytest.mark.parametrize("lead", [None, 2e-3, 0.0])
+def test_a_lead_releases_points_early_by_at_most_the_lead_and_changes_no_number(lead):
+    """At 50x (a 20 us paced step: finer than 0.1 ms) the default lead is 0.5 ms: a point due
+    within the lead goes out at once, one due later is waited for until half the lead is left,
+    so no point is released more than the lead before its time, and a run of 200 points (4 ms)
+    with a 2 ms lead releases some points more than 1 ms early; lead 0 releases none early.
+    The values are the unpaced run's bit for bit."""
+    from dataclasses import replace
+
+    scenario = deltafmi.load_scenario("delta_tracking")
+    scenario = replace(scenario, master=replace(scenario.master, realtime=replace(scenario.master.realtime,
+                                                                                  lead=lead)))
+    plain = deltafmi.simulate("delta_tracking", stop=0.2)
+    paced = deltafmi.simulate(scenario, stop=0.2, speed=50.0)
+    report = paced.summary.live.realtime
+    expected = 5e-4 if lead is None else lead
+    assert report.lead == expected and report.tolerance == 5e-6
+    assert report.lateness.min() >= -expected - 1e-12
+    assert np.array_equal(report.lateness, paced["realtime.lateness"][1:])
+    if expected == 0:
+        assert report.lateness.min() >= 0
+    elif expected > 1e-3:
+        assert report.lateness.min() < -1e-3  # steps of 2.5 us: the run is ahead by more than half the lead
+        assert re.search(r"released up to [\d.]+ (us|ms) early \(lead 2000.0 us\)", str(report)), str(report)
+    for name in plain.names:
+        assert np.array_equal(paced[name], plain[name]), name
 
 
 @pytest.mark.parametrize("speed", [3.0, 1000.0])
@@ -373,3 +402,29 @@ def test_two_stop_signals_stop_a_streamed_run_where_its_rows_end():
     result = caught.value.result
     said = float(re.search(r"interrupted at t = ([\d.]+) s", str(caught.value)).group(1))
     assert 0 < said == result.time[-1] and len(result.time) == round(said / 1e-3) + 1
+
+
+def test_the_python_pacer_keeps_the_same_lead():
+    """The Pacer (the Python loop's, with streams) waits as the C loop does with a lead: a point
+    due within the lead goes out at once, one due later at half the lead before its time (or
+    later), never earlier than the lead; 40 points of 1 ms with a 4 ms lead take at least 36 ms."""
+    import time
+
+    from deltafmi.master.live.pacing import Pacer
+
+    pacer = Pacer(1.0, 1e-3, 40, lead=4e-3)
+    assert pacer.spin == 0.0 and pacer.lead == 4e-3
+    pacer.start(0.0)
+    begin = time.perf_counter()
+    try:
+        late = [pacer.wait(k * 1e-3) for k in range(1, 41)]
+    finally:
+        pacer.close()
+    wall = time.perf_counter() - begin
+    assert min(late) >= -4e-3 - 1e-12 and wall >= 40e-3 - 4e-3
+    assert late[0] < -0.9e-3  # due 1 ms ahead, within the lead: at once
+    report = pacer.report()
+    assert report.lead == 4e-3 and np.array_equal(report.lateness, np.array(late))
+    # no lead by default at 1 ms paced steps: never before its time
+    assert Pacer(1.0, 1e-3, 1).lead == 0.0 and Pacer(1.0, 1e-3, 1).spin == 5e-5
+    assert Pacer(50.0, 1e-3, 1).lead == 5e-4 and Pacer(50.0, 1e-3, 1).spin == 0.0

@@ -315,8 +315,8 @@ def _spy_on_c_pacing(monkeypatch) -> list:
     from deltafmi.master.stepping.c_loop import NativeLoop
 
     paced, pace = [], NativeLoop.pace
-    monkeypatch.setattr(NativeLoop, "pace", lambda loop, pacer, slots: (paced.append(pacer.speed),
-                                                                       pace(loop, pacer, slots)))
+    monkeypatch.setattr(NativeLoop, "pace", lambda loop, pacer, *rest: (paced.append(pacer.speed),
+                                                                       pace(loop, pacer, *rest)))
     return paced
 
 
@@ -367,6 +367,91 @@ def test_live_sources_are_sampled_between_the_c_loops_calls(build_fmu_from_src, 
     x, v = 1.0, 0.0
     xs, vs = [x], [v]
     for k in range(len(result.time) - 1):
+        x, v = _free(x, v, float(force[k]), STEP, {**P, "wall": -10.0})
+        xs.append(x)
+        vs.append(v)
+    assert np.max(np.abs(np.array(xs) - result["osc.x"])) < 1e-7
+    assert np.max(np.abs(np.array(vs) - result["osc.v"])) < 1e-6
+
+
+def test_udp_inputs_read_by_the_c_loop_reach_the_plant_at_the_points_they_arrived_before(
+        build_fmu_from_src, tmp_path, monkeypatch):
+    """At 50x (20 us paced steps) a UDP source on IPv4 is read by the C loop between its steps:
+    the run is one call of the C loop, handing back to Python only for the datagrams Python must
+    read (every 40th datagram, a malformed one, a stale one and one with an undeclared name), which are counted as a Python-read run counts them. Datagram n carries F = 1 + n / 1000, sent every
+    millisecond of wall time by another thread with the wall time just before and just after
+    sendto (loopback: in the socket when sendto returns). A value first recorded at point k was
+    sent before the point after k was released (the source is read right after a point's
+    release, before the next step) and not yet in the socket when point k - 1 was read (else
+    point k - 1 would have taken it): sent_before < release[k + 1] and sent_after > release[k - 1],
+    with the releases from the pacer's clock (``wall0``) and each point's recorded lateness. The
+    oscillator's x and v follow the closed form under the recorded force held over each step:
+    the plant got each value at the step whose row shows it."""
+    from deltafmi.master.stepping.c_loop import NativeLoop
+
+    port = _free_port()
+    scenario = _without_streams(_scenario(tmp_path, build_fmu_from_src("oscillator.py"), port, _free_port(),
+                                          _free_port()), tmp_path)
+    readers, calls = [], []
+    pace, run_streamed = NativeLoop.pace, NativeLoop.run_streamed
+    monkeypatch.setattr(NativeLoop, "pace", lambda loop, pacer, slots, found=None: (readers.append(found),
+                                                                                    pace(loop, pacer, slots, found)))
+    monkeypatch.setattr(NativeLoop, "run_streamed", lambda loop, *args, **kw: (calls.append(args[0]),
+                                                                               run_streamed(loop, *args, **kw))[1])
+    done = threading.Event()
+    sent: dict = {}
+
+    def send() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            n = 0
+            while not done.is_set():
+                n += 1
+                before = time.perf_counter()
+                sock.sendto(encode({"F": 1.0 + n / 1000}, t=n * 1e-3, seq=n), ("127.0.0.1", port))
+                sent[n] = (before, time.perf_counter())
+                if n % 40 == 0:  # for Python to read: malformed, stale, an undeclared name
+                    sock.sendto(b"DFMI\x02\x01" + bytes(14), ("127.0.0.1", port))
+                    sock.sendto(encode({"F": -99.0}, t=0.0, seq=n - 1), ("127.0.0.1", port))
+                    sock.sendto(encode({"F": 1.0 + n / 1000, "nope": 1.0}, t=n * 1e-3, seq=n), ("127.0.0.1", port))
+                time.sleep(1e-3)
+
+    sender = threading.Thread(target=send, daemon=True)
+    sender.start()
+    try:
+        result = deltafmi.simulate(scenario, speed=50.0, stop=15.0, output=tmp_path / "fifty.csv")
+    finally:
+        done.set()
+        sender.join()
+    assert len(readers) == 1 and readers[0] is not None  # read in C
+    report = result.summary.live.realtime
+    assert report.speed == 50.0 and len(report.lateness) == 15000
+    counts = readers[0].readers[0].source.counters()
+    # sent in this order: the run may end between two of a trio
+    assert counts["malformed"] >= counts["stale"] >= counts["unknown"] >= max(1, counts["malformed"] - 1), counts
+    c_counts = readers[0].readers[0].counters()
+    # most in C (Python reads what arrived before the paced run and at each hand-back): one call of
+    # the C loop, and one more after each hand-back (about one for each trio of datagrams Python
+    # must read: they come within microseconds)
+    assert c_counts["accepted"] >= 50 and c_counts["accepted"] > counts["accepted"] / 2, (c_counts, counts)
+    assert 1 <= len(calls) <= 3 * counts["malformed"] + 3, (len(calls), counts)
+    force = result["cmd.F"]
+    times = result.time
+    release = report.wall0 + (times - report.t0) / report.speed
+    release[1:] += result["realtime.lateness"][1:]
+    first = {}
+    for k in range(1, len(force)):
+        n = round((float(force[k]) - 1.0) * 1000)
+        if force[k] != force[k - 1] and n in sent and n not in first:
+            first[n] = k
+    assert len(first) >= 50
+    for n, k in first.items():
+        before, after = sent[n]
+        if k + 1 < len(release):
+            assert before < release[k + 1], (n, k)
+        assert after > release[k - 1], (n, k)
+    x, v = 1.0, 0.0
+    xs, vs = [x], [v]
+    for k in range(len(times) - 1):
         x, v = _free(x, v, float(force[k]), STEP, {**P, "wall": -10.0})
         xs.append(x)
         vs.append(v)

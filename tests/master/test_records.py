@@ -88,7 +88,7 @@ def test_the_scenarios_records():
     assert dataclasses.replace(settings, threads=2) != settings
     assert repr(Experiment(0.0, 1.0, 0.001)) == "Experiment(start=0.0, stop=1.0, step=0.001, tolerance=None)"
     assert repr(settings.realtime) == ("Realtime(enabled=False, speed=1.0, behind='warn', tolerance=None, "
-                                       "spin=0.0002, priority=None)")
+                                       "spin=None, priority=None, lead=None)")
     assert settings.realtime == Realtime()
     names = [f.name for f in dataclasses.fields(Port)]
     assert Port.__record_fields__ == tuple(names)

@@ -1,6 +1,6 @@
 """FMUs of the build cache are unpacked once and the copy is kept for later runs; any other FMU
 is unpacked for its run only. A run on the kept copy gives the results of a run on a fresh one.
-An FMU's model description, once read, is kept under the FMU's stamp."""
+An FMU's model description, once read, and fmpy's validation of it are kept under the FMU's stamp."""
 from __future__ import annotations
 
 import shutil
@@ -64,3 +64,31 @@ def test_a_model_description_read_before_is_not_parsed_again(tmp_path, monkeypat
     fmu.write_bytes(b"not a zip any more")  # a changed file is read again, and its problem told
     with pytest.raises(BadInput, match="not a zip archive"):
         modelinfo.model_info(str(fmu))
+
+
+def test_an_fmu_validated_before_is_not_validated_again(tmp_path, monkeypatch):
+    import zipfile
+
+    import fmpy.validation
+
+    from deltafmi.master.scenario.fmu_checks import validation_problems
+
+    fmu = tmp_path / "osc.fmu"
+    shutil.copy(build_cached(FMU_SRC / "oscillator.py"), fmu)
+    assert validation_problems(fmu) == []
+
+    def refuse(*_args, **_kwargs):
+        raise AssertionError("validated again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(fmpy.validation, "validate_fmu", refuse)
+        assert validation_problems(fmu) == []
+    # the same file changed (a variable name the structured naming convention refuses) is validated anew
+    with zipfile.ZipFile(fmu) as archive:
+        entries = {item.filename: archive.read(item) for item in archive.infolist()}
+    entries["modelDescription.xml"] = entries["modelDescription.xml"].replace(b'name="x"', b'name="x["', 1)
+    with zipfile.ZipFile(fmu, "w") as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+    problems = validation_problems(fmu)
+    assert problems and any('"x["' in problem for problem in problems), problems

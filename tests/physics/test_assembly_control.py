@@ -36,10 +36,16 @@ class Plant:
     def __init__(self, wrist: W.WristParams) -> None:
         self.pw = wrist
 
-    def _zdd(self, q: np.ndarray, v: np.ndarray, vdot: np.ndarray) -> np.ndarray:
-        return sum(r @ (K.arm_jacobian(DELTA, q[3 * i:3 * i + 3]) @ vdot[3 * i:3 * i + 3]
-                        + K.arm_bias(DELTA, q[3 * i:3 * i + 3], v[3 * i:3 * i + 3]))
-                   for i, r in enumerate(ARM_ROTATIONS)) / 3.0
+    @staticmethod
+    def _arms(q: np.ndarray, v: np.ndarray) -> list:
+        """Per arm, its rotation, Jacobian and bias acceleration at (q, v)."""
+        return [(r, K.arm_jacobian(DELTA, q[3 * i:3 * i + 3]),
+                 K.arm_bias(DELTA, q[3 * i:3 * i + 3], v[3 * i:3 * i + 3])) for i, r in enumerate(ARM_ROTATIONS)]
+
+    def _zdd(self, q: np.ndarray, v: np.ndarray, vdot: np.ndarray, arms: list | None = None) -> np.ndarray:
+        """The plate's acceleration, the mean of the three arms' (``arms``: :meth:`_arms` at (q, v))."""
+        return sum(r @ (J @ vdot[3 * i:3 * i + 3] + bias)
+                   for i, (r, J, bias) in enumerate(arms or self._arms(q, v))) / 3.0
 
     def accelerations(self, x: np.ndarray, u, tau, f=(0.0, 0.0, 0.0), m=(0.0, 0.0, 0.0)):
         """(vdot, qwdd, plate acceleration) with a force f at the tool tip and a moment m (world).
@@ -51,9 +57,11 @@ class Plant:
         tau_all = np.asarray(tau, float) + W.tip_jacobian(self.pw, qw).T @ f + W.joint_axes(qw).T @ m
         lam, f0 = W.plate_load(self.pw, qw, qwd, tau_all, external_force=f)
 
+        arms = self._arms(q, v)  # the same at each of the five forces below
+
         def plate(force):
             vdot, _ = D.accelerations(DELTA, q, v, u, force, 20.0)
-            return vdot, self._zdd(q, v, vdot)
+            return vdot, self._zdd(q, v, vdot, arms)
 
         a0 = plate(np.zeros(3))[1]
         B = np.column_stack([plate(e)[1] - a0 for e in np.eye(3)])

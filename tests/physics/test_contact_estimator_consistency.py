@@ -7,7 +7,9 @@ the covariance it reports: the wrist force a random walk (force_rate_std, a N(0,
 step at every sample, held over the sample period as the filter's prediction holds it; the first
 value from the prior N(0, force_std0^2)) and the servo-angle noise (y_std). The robot is the DAE
 integrated independently (solve_ivp, DOP853, rtol 1e-10) under a joint PD about its start with
-gravity compensation, sampled at 1 kHz; the filter gets the noisy angles and the torques. The
+gravity compensation, sampled at 1 kHz; the filter gets the noisy angles and the torques, and runs
+its process model's compiled kernels, as ContactEstimator's FMU does (the Python ones give the same
+bits: tests/builder/test_native_models.py, tests/models/test_contact_estimator.py). The
 truth has no model error, so the filter's white acceleration noise (acceleration_std, which stands
 for model errors) is set to zero: with the default 0.05 m/s^2 per sqrt(Hz) the force NEES comes
 out lower (printed), under-confident, as it must when the filter allows for errors the truth lacks.
@@ -27,6 +29,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from scipy.integrate import solve_ivp
 from scipy.stats import chi2
 
@@ -43,7 +46,23 @@ SETTINGS = ContactEKFSettings(contact_threshold=1e9, force_rate_std=20.0, force_
                               position_std0=3e-5, velocity_std0=1e-3)
 
 
-def monte_carlo_run(seed: int) -> np.ndarray:
+@pytest.fixture(scope="module")
+def kernels():
+    """ContactEstimator's process kernels, compiled (C generated from their Python)."""
+    from deltafmi.builder.codegen import use_compiled_functions
+    from deltafmi.models.contact_estimator import ContactEstimator
+    from deltafmi.runtime.native_functions import register_library
+
+    assert use_compiled_functions(ContactEstimator)
+    try:
+        compiled = ContactEstimator().native_functions
+    finally:
+        register_library(ContactEstimator, None)
+    assert compiled.compiled
+    return compiled
+
+
+def monte_carlo_run(seed: int, kernels) -> np.ndarray:
     """The force NEES at every sample of one seeded run (2, STEPS): of the filter with SETTINGS and,
     on the same data, of one with the default acceleration_std (printed, for comparison)."""
     rng = np.random.default_rng(seed)
@@ -57,7 +76,8 @@ def monte_carlo_run(seed: int) -> np.ndarray:
         y = x[SERVOS] + SETTINGS.y_std * rng.standard_normal(3)
         u = d.holding_torque(P, x[:9])[0] + 800.0 * (y_ref - y) - 40.0 * x[[9, 12, 15]]
         if not filters:
-            filters = [ContactEKF(P, s, y) for s in (SETTINGS, replace(SETTINGS, acceleration_std=DEFAULT_ACCELERATION))]
+            filters = [ContactEKF(P, s, y, kernels=kernels)
+                       for s in (SETTINGS, replace(SETTINGS, acceleration_std=DEFAULT_ACCELERATION))]
         row = []
         for ekf in filters:
             e = ekf.step(y, u).force - force
@@ -68,8 +88,8 @@ def monte_carlo_run(seed: int) -> np.ndarray:
     return np.array(nees).T
 
 
-def test_wrist_force_nees_is_within_its_chi_square_interval():
-    nees = np.array([monte_carlo_run(100 + r) for r in range(RUNS)])  # (runs, filter, instant)
+def test_wrist_force_nees_is_within_its_chi_square_interval(kernels):
+    nees = np.array([monte_carlo_run(100 + r, kernels) for r in range(RUNS)])  # (runs, filter, instant)
     mean, default = nees[:, :, int(0.1 / T):].mean(axis=0)  # per instant, over the runs
     lo, hi = chi2.ppf(0.025, 3 * RUNS) / RUNS, chi2.ppf(0.975, 3 * RUNS) / RUNS
     inside = np.mean((mean >= lo) & (mean <= hi))

@@ -5,14 +5,17 @@ reads files). The binary is compiled with ``cc`` from the model, ``common.c`` an
 the model's FMI version (its modelDescription's ``fmiVersion``): ``plumbing.c`` supplies every fmi2
 function, ``plumbing3.c`` every fmi3 function. It is compiled against the FMI headers shipped in
 deltafmi/runtime/native, exports only the ``fmi2*`` (``fmi3*``) functions and links nothing but libc
-and libm: no Python anywhere. FMI 2.0 binaries go to ``binaries/linux64``, FMI 3.0 binaries to
+and libm: no Python anywhere (compiled once per build cache, ``$DELTAFMI_CACHE``, for all the modules
+that build the model). FMI 2.0 binaries go to ``binaries/linux64``, FMI 3.0 binaries to
 ``binaries/x86_64-linux``.
 
     build_fmu("BouncingBall3", out_dir)   # -> out_dir/BouncingBall3.fmu (FMI 3.0, ME + CS)
 """
 from __future__ import annotations
 
+import hashlib
 import re
+import shutil
 import subprocess
 import zipfile
 from pathlib import Path
@@ -46,11 +49,7 @@ def build_fmu(model: str, out_dir: Path, fmi_version: Optional[int] = None) -> P
     out_dir.mkdir(parents=True, exist_ok=True)
     binary = out_dir / f"{model}.so"
     sources = [HERE / "common.c", HERE / FRONT_END[version], source / "model.c"]
-    compiled = subprocess.run(["cc", "-shared", "-fPIC", "-O2", "-std=gnu11", "-Wall", "-Wextra", "-Werror",
-                               "-fvisibility=hidden", f"-I{HEADERS}", f"-I{HERE}", *map(str, sources),
-                               "-o", str(binary), "-lm"], capture_output=True, text=True)
-    if compiled.returncode:
-        raise RuntimeError(f"compiling {model} failed:\n{compiled.stderr}")
+    shutil.copyfile(_compiled(model, sources), binary)
     fmu = out_dir / f"{model}.fmu"
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
         archive.write(source / "modelDescription.xml", "modelDescription.xml")
@@ -65,6 +64,29 @@ def build_fmu(model: str, out_dir: Path, fmi_version: Optional[int] = None) -> P
             if f'"shared/{path.name}"' in model_c:
                 archive.write(path, f"sources/shared/{path.name}")
     return fmu
+
+
+def _compiled(model: str, sources: list) -> Path:
+    """``model``'s binary, compiled once per build cache (``$DELTAFMI_CACHE``) and C source: the
+    suite's modules build the same models, each into folders of their own."""
+    from deltafmi.toolchain import build_into, cache_dir
+
+    command = ["cc", "-shared", "-fPIC", "-O2", "-std=gnu11", "-Wall", "-Wextra", "-Werror", "-fvisibility=hidden",
+               f"-I{HEADERS}", f"-I{HERE}"]
+    key = hashlib.sha256(" ".join(command).encode())
+    for path in [*sources, *sorted(HEADERS.glob("*.h")), *sorted(HERE.glob("*.h")), *sorted(HERE.glob("shared/*.h"))]:
+        key.update(path.name.encode() + b"\0" + path.read_bytes())
+    folder = cache_dir() / "test-c-fmus" / f"{model}-{key.hexdigest()[:16]}"
+
+    def compile_into(tmp: str) -> None:
+        compiled = subprocess.run([*command, *map(str, sources), "-o", f"{tmp}/{model}.so", "-lm"],
+                                  capture_output=True, text=True)
+        if compiled.returncode:
+            raise RuntimeError(f"compiling {model} failed:\n{compiled.stderr}")
+
+    if not folder.exists():
+        build_into(folder, compile_into)
+    return folder / f"{model}.so"
 
 
 def build_all(out_dir: Path, models: Tuple[str, ...] = MODELS) -> Dict[str, Path]:

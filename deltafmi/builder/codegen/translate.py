@@ -967,11 +967,16 @@ def shown_file(path: str) -> str:
     """A source file as the generated C names it: from ``deltafmi/`` for the package's own (a
     packaged model as ``deltafmi/models/...``, in a clone's ``fmu_src/`` too), else its name
     alone, so that the C (and the cache key made from it) does not depend on where the package
-    or the component sits."""
+    or the component sits. A module generated into the build cache or the wheel's prebuilt layer
+    (an equation model's, named after its content) is named alone too, wherever that cache is
+    (inside a clone, a wheel's build folder or the user's home)."""
     from deltafmi.shipped import MODELS_DIR
+    from deltafmi.toolchain import PREBUILT_DIR, cache_dir
 
     package = Path(__file__).resolve().parents[2]
     resolved = Path(path).resolve()
+    if any(resolved.is_relative_to(folder.resolve()) for folder in (cache_dir(), PREBUILT_DIR)):
+        return resolved.name
     for folder, shown in ((MODELS_DIR.resolve(), "deltafmi/models"), (package.parent, "")):
         try:
             relative = resolved.relative_to(folder).as_posix()

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from deltafmi.runtime.equations import component as _component
-from deltafmi.toolchain import building, seeded_file
+from deltafmi.toolchain import building, cache_dir, find_built, seeded_file
 from deltafmi.runtime.equations.model import EquationModelError, FlatModel
 
 #: the compiler's own files: what a generated module depends on besides the model
@@ -26,11 +26,12 @@ def compile_to_cache(cls: type, flat: FlatModel, name: str) -> Path:
     if path.exists():
         return path
     # processes that need the same module at once wait for the first one's (the symbolic work
-    # takes seconds); one that the seed cache holds (the wheel's build) is copied from there
+    # takes seconds); one that the seed cache holds (the wheel's build), or an installed wheel's
+    # prebuilt layer (the packaged models'), is copied from there
     with building(path):
         if path.exists():
             return path
-        seeded = seeded_file(path)
+        seeded = seeded_file(path) or find_built(path.relative_to(cache_dir()).as_posix())
         if seeded is not None:
             source = seeded.read_text()
         else:

@@ -12,6 +12,17 @@ the process's pages stay in memory for the run (``mlockall``, as they are faulte
 lateness record is written through once when it is made, so that the run itself faults in none
 of its pages.
 
+With a ``lead`` (wall seconds) a point may go out before its time: one due within the
+lead is released at once, one due later is waited for until half the lead is left. The points then
+go out in bursts between the lead and half of it ahead of their deadlines, so that a stall of the
+thread shorter than half the lead makes no point late, and each wait is long enough to sleep
+through rather than poll; the price is a point released up to ``lead`` early, and a live input
+taken by a step up to ``lead * speed`` of simulated time later than its arrival's (its lateness
+is then negative: how early). By default (:func:`default_lead`) a run whose paced step is shorter
+than :data:`FINE_STEP` has a lead of :data:`DEFAULT_LEAD`: below that a step is shorter than what
+one wake-up from a sleep, one scheduler tick or another process's turn costs, so a deadline per
+step cannot be kept however the run waits; longer paced steps are released at their time.
+
 A point released after its time is late by the difference; the schedule is absolute, so a late
 run catches up when it can (no point is skipped, no time is stretched). A point later than
 ``tolerance`` is an overrun; one later than a whole paced step means the run fell behind: a
@@ -32,10 +43,21 @@ from deltafmi.errors import SimulationError
 from ..scenario.records import record
 from .thread_timing import lock_memory, real_time_priority, restore_scheduling, timer_slack, unlock_memory
 
-__all__ = ["Pacer", "RealtimeReport", "FellBehind"]
+__all__ = ["DEFAULT_LEAD", "DEFAULT_SPIN", "FINE_STEP", "Pacer", "RealtimeReport", "FellBehind", "default_lead"]
 
 #: longest single sleep: a stop signal is looked at between sleeps
 _SLEEP_CHUNK = 0.05
+#: a paced step [s of wall time] shorter than this gets :data:`DEFAULT_LEAD` unless the scenario says
+FINE_STEP = 1e-4
+#: the lead [s of wall time] of a run paced finer than :data:`FINE_STEP`
+DEFAULT_LEAD = 5e-4
+#: wall seconds polled before a deadline without a lead (with one the waits sleep only)
+DEFAULT_SPIN = 5e-5
+
+
+def default_lead(period: float) -> float:
+    """The lead [s] of a run paced at ``period`` wall seconds per step when the scenario gives none."""
+    return DEFAULT_LEAD if period < FINE_STEP else 0.0
 
 
 class FellBehind(SimulationError):
@@ -59,6 +81,12 @@ class RealtimeReport:
     polled: float = 0.0
     #: whether the process's memory was locked for the run (mlockall)
     locked: bool = False
+    #: wall seconds a point could be released before its time (negative lateness: how early)
+    lead: float = 0.0
+    #: the wall-clock time [s, ``time.perf_counter``] at which simulation time :attr:`t0` was due:
+    #: point ``t`` was due at ``wall0 + (t - t0) / speed`` and released ``lateness`` after that
+    wall0: float = 0.0
+    t0: float = 0.0
 
     @property
     def overruns(self) -> int:
@@ -75,7 +103,9 @@ class RealtimeReport:
             return f"real time at {self.speed:g}x: no step taken"
         text = (f"real time at {self.speed:g}x: lateness median {_us(self.percentile(50))}, "
                 f"99th percentile {_us(self.percentile(99))}, max {_us(float(lat.max()))}; "
-                f"{self.overruns} overrun{'s' * (self.overruns != 1)} (> {_us(self.tolerance)})")
+                f"{self.overruns} overrun{'s' * (self.overruns != 1)} (> {_us(self.tolerance)})"
+                + (f", released up to {_us(max(0.0, -float(lat.min())))} early (lead {_us(self.lead)})"
+                   if self.lead else ""))
         if not self.behind:
             return text + "; kept up"
         first = self.behind[0]
@@ -84,27 +114,32 @@ class RealtimeReport:
 
 
 def _us(seconds: float) -> str:
-    return f"{seconds * 1e6:.1f} us" if seconds < 1e-2 else f"{seconds * 1e3:.1f} ms"
+    return f"{seconds * 1e6:.1f} us" if abs(seconds) < 1e-2 else f"{seconds * 1e3:.1f} ms"
 
 
 class Pacer:
     """Releases communication points at their wall-clock times and measures how late they were."""
 
     def __init__(self, speed: float, step: float, n_points: int, *, tolerance: Optional[float] = None,
-                 spin: float = 2e-4, behind: str = "warn", warn: Callable[[str], None] = lambda text: None,
+                 spin: Optional[float] = None, behind: str = "warn", warn: Callable[[str], None] = lambda text: None,
                  stopped: Callable[[], bool] = lambda: False, clock: Callable[[], float] = time.perf_counter,
-                 priority: Optional[int] = None) -> None:
+                 priority: Optional[int] = None, lead: Optional[float] = None) -> None:
         """``step``: the communication step [s of simulated time]; ``n_points``: how many points
         :meth:`wait` will be asked for (sizes the lateness record); ``stopped()``: True when a stop
         signal came (the wait then returns early); ``priority``: a real-time priority (SCHED_FIFO)
         for the calling thread from :meth:`start` to :meth:`close`, and the threads it starts
-        meanwhile (they inherit it)."""
+        meanwhile (they inherit it); ``lead``: wall seconds a point may be released before its time
+        (None: :func:`default_lead`); ``spin``: wall seconds polled before a deadline (None:
+        :data:`DEFAULT_SPIN` without a lead, 0 with one; see the module's docstring)."""
         if not (speed > 0 and math.isfinite(speed)):
             raise ValueError(f"real-time speed {speed!r} must be a positive number")
         self.speed = float(speed)
         self.period = step / self.speed  # wall seconds per communication step
+        self.lead = default_lead(self.period) if lead is None else float(lead)
+        if not (self.lead >= 0 and math.isfinite(self.lead)):
+            raise ValueError(f"real-time lead {lead!r} must be a number >= 0")
         self.tolerance = self.period / 4 if tolerance is None else float(tolerance)
-        self.spin = float(spin)
+        self.spin = (DEFAULT_SPIN if not self.lead else 0.0) if spin is None else float(spin)
         self.behind_is_error = behind == "error"
         self.warn = warn
         self.stopped = stopped
@@ -157,14 +192,16 @@ class Pacer:
         now = clock()
         self.busy = now - self.released
         deadline = self._wall0 + (t - self._t0) / self.speed
-        while deadline - now > self.spin + 1e-6:
+        lead = self.lead
+        wake = deadline if not lead else deadline - lead / 2 if now < deadline - lead else now
+        while wake - now > self.spin + 1e-6:
             if self.stopped():  # the run ends at this point: no use waiting for its time
                 self.released = now
                 return 0.0
-            time.sleep(min(deadline - now - self.spin, _SLEEP_CHUNK))
+            time.sleep(min(wake - now - self.spin, _SLEEP_CHUNK))
             now = clock()
         polling = now
-        while now < deadline:
+        while now < wake:
             now = clock()
         self.polled += now - polling
         late = self.late = now - deadline
@@ -230,4 +267,4 @@ class Pacer:
         """The lateness of every point so far."""
         return RealtimeReport(self.speed, self.step, self.tolerance, self._lateness[:self._count].copy(),
                               list(self._behind), cpu=self.cpu, wall=self.wall, polled=self.polled,
-                              locked=self.locked)
+                              locked=self.locked, lead=self.lead, wall0=self._wall0, t0=self._t0)

@@ -63,7 +63,7 @@ class LiveRun:
             if component.name == REALTIME:
                 self.pacer = Pacer(realtime.speed, step, grid_steps(start, stop, step), tolerance=realtime.tolerance,
                                    spin=realtime.spin, behind=realtime.behind, warn=warn, stopped=stopped,
-                                   priority=realtime.priority)
+                                   priority=realtime.priority, lead=realtime.lead)
                 self._clock_unit = LiveInputUnit(component, _Measurements(self.pacer), [0.0] * 3)
                 continue
             spec = specs[component.name]
@@ -87,6 +87,8 @@ class LiveRun:
         self._replayed = replay is not None
         #: the first row is recorded: there is something to report
         self.started = False
+        #: the sources' readers in the master's C loop (:meth:`read_in_c`), or None
+        self.native_readers: Optional[Any] = None
 
     def open_streams(self) -> None:
         """Connect the streams (and start a plot window): before the result file is opened, so
@@ -117,6 +119,8 @@ class LiveRun:
             self._clock_unit.sample(t)
         for unit in self.sources:
             unit.sample(t)
+        if self.native_readers is not None:
+            self.native_readers.before_c()
         if record is not None:
             record(t)
         if self.streams:
@@ -134,6 +138,15 @@ class LiveRun:
         most :data:`C_LONGEST_WAIT` for the C loop to hand back."""
         return self.pacer is not None and not self._stream_specs and self.pacer.period <= C_LONGEST_WAIT
 
+    def read_in_c(self) -> Optional[Any]:
+        """The C readers of the live sources when the C loop paces the run and can read every
+        source itself (:mod:`.native_udp`: UDP on IPv4), else None (Python samples them at every
+        point)."""
+        if self.pacer is not None and self.sources and not self._replayed and self.native_readers is None:
+            from .native_udp import native_readers
+            self.native_readers = native_readers(self.sources)
+        return self.native_readers
+
     def points_between_samples(self) -> int:
         """Communication points the C loop steps between two samples of the sources (and looks
         at stop signals): a replay or a live source samples at every point (what arrived before
@@ -141,7 +154,7 @@ class LiveRun:
         with no source but the clock, as many as :data:`C_LONGEST_WAIT` of wall time holds (more
         than one: the master runs the whole run in one call on a thread of its own and looks at
         stop signals while it goes, ``NativeLoop.run_streamed``)."""
-        if self._replayed or self.pacer is None or self.sources:
+        if self._replayed or self.pacer is None or (self.sources and self.native_readers is None):
             return 1
         return max(1, int(C_LONGEST_WAIT / self.pacer.period))
 
@@ -155,22 +168,28 @@ class LiveRun:
                 slots[vr] = unit._bus.ctypes.data + slot * unit._bus.itemsize
         return slots
 
-    def after_c_points(self, t: float) -> None:
+    def after_c_points(self, t: float, handed_back: bool = False) -> None:
         """The C loop released the points up to ``t`` (the pacer's record is up to date): the
         pacing measurements of the last one and the sources' news, put on the bus, as
-        :meth:`at_point` would have before ``t``'s row; raises if the run fell behind and must not
-        go on."""
+        :meth:`at_point` would have before ``t``'s row (sources the C loop reads: only where it
+        ``handed_back`` for them, having read them up to there)."""
         unit = self._clock_unit
         if unit is not None:
             pacer = self.pacer
             unit.values[:] = (pacer.late, pacer.busy, float(pacer.late > pacer.period))
+        if self.native_readers is not None and not handed_back:
+            return
         for unit in self.sources:
             unit.sample(t)
+        if self.native_readers is not None:
+            self.native_readers.before_c()
 
     def close(self) -> None:
         """Stop the streams and the clock (the sources close with their units)."""
         for stream in self.streams:
             stream.close()
+        if self.native_readers is not None:
+            self.native_readers.close()
         if self.pacer is not None:
             self.pacer.close()
 

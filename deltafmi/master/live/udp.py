@@ -18,7 +18,7 @@ from __future__ import annotations
 import errno
 import socket
 import struct
-from typing import Callable, Dict, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple, Union
 
 from deltafmi.errors import BadInput
 
@@ -125,6 +125,8 @@ class UdpSource:
         self._backlog_warned = False
         self._counts = dict.fromkeys(("received", "accepted", "malformed", "stale", "restarts", "unknown", "foreign",
                                       "overflow"), 0)
+        #: the master's C loop reads the socket between its points (:mod:`.native_udp`), or None
+        self.native: Optional[Any] = None
 
     def open(self, warn: Warn) -> None:
         """Binds the socket (non-blocking); ``warn(text)`` takes the warnings of later polls.
@@ -160,6 +162,16 @@ class UdpSource:
             raise RuntimeError(f"{self._where}: poll before open (or after close)")
         counts = self._counts
         updates: Dict[str, float] = {}
+        if self.native is not None:  # what the C loop read since: its values, then the datagram it left to us
+            updates, pending = self.native.after_c()
+            if self.native.s.backlog:
+                self._warn_backlog(t)
+            if pending is not None:
+                data, sender = pending
+                if self._sender_ips and sender[0] not in self._sender_ips:
+                    counts["foreign"] += 1
+                else:
+                    self._take(data, sender, updates)
         ancillary = socket.CMSG_SPACE(_OVERFLOW_COUNT.size)
         for _ in range(self.max_per_poll):
             try:
@@ -176,11 +188,14 @@ class UdpSource:
                 continue
             self._take(data, sender, updates)
         else:
-            if not self._backlog_warned:
-                self._backlog_warned = True
-                self._warn(f"{self._where}: {self.max_per_poll} or more datagrams waiting at t = {t:.9g} s: "
-                           "the rest are read at the next communication points (their values arrive late)")
+            self._warn_backlog(t)
         return updates or None
+
+    def _warn_backlog(self, t: float) -> None:
+        if not self._backlog_warned:
+            self._backlog_warned = True
+            self._warn(f"{self._where}: {self.max_per_poll} or more datagrams waiting at t = {t:.9g} s: "
+                       "the rest are read at the next communication points (their values arrive late)")
 
     def _read_overflow(self, ancdata: list) -> None:
         for level, kind, payload in ancdata:
@@ -241,13 +256,29 @@ class UdpSource:
         newest of their sender) and ``foreign`` (from another host than ``sender``); ``unknown``:
         values of undeclared signals; ``overflow``: datagrams the OS dropped because they came
         faster than polled (Linux)."""
-        return dict(self._counts)
+        counts = dict(self._counts)
+        if self.native is not None:
+            _add_native(counts, self.native.counters())
+        return counts
+
+    def native_done(self) -> None:
+        """The C loop reads the socket no more: what it counted is kept, Python reads on."""
+        if self.native is not None:
+            _add_native(self._counts, self.native.counters())
+            self.native = None
 
     def close(self) -> None:
         """Closes the socket; idempotent."""
         sock, self._socket = self._socket, None
         if sock is not None:
             sock.close()
+
+
+def _add_native(counts: Dict[str, int], native: Dict[str, int]) -> None:
+    """The counters of the C loop's reading (:mod:`.native_udp`) added to ``counts``."""
+    for key in ("received", "accepted", "foreign"):
+        counts[key] += native[key]
+    counts["overflow"] = max(counts["overflow"], native["overflow"])
 
 
 def _show(address: tuple) -> str:

@@ -2,7 +2,8 @@
 
 :func:`binary_problem`: every FMU needs its binary for this platform; :func:`guid_problem`: a
 deltafmi FMU's modelDescription.xml and binary must agree on the GUID; :func:`clock_problem`: the
-master activates an FMI 3.0 FMU's periodic input Clocks only. ``deltafmi validate`` and
+master activates an FMI 3.0 FMU's periodic input Clocks only; :func:`validation_problems`: fmpy's
+validation of the model description, kept under the FMU's stamp. ``deltafmi validate`` and
 the scenario resolution ask them; the trial instantiation is
 :func:`deltafmi.master.stepping.fmu_trial.instantiation_problem`.
 """
@@ -11,9 +12,9 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path
-from typing import Any, Iterable, Optional
+from typing import Any, Iterable, List, Optional
 
-__all__ = ["binary_problem", "clock_problem", "clocks_refused", "guid_problem"]
+__all__ = ["binary_problem", "clock_problem", "clocks_refused", "fmu_stamp", "guid_problem", "validation_problems"]
 
 #: the intervalVariability of the input Clocks the master activates itself (periodic, time-based)
 PERIODIC_CLOCKS = ("constant", "fixed", "tunable")
@@ -132,3 +133,56 @@ def archive_problem(fmu: Path) -> Optional[str]:
             return (f"modelDescription.xml: variable '{variable.get('name')}' has valueReference "
                     f"'{reference}', not an unsigned integer")
     return None
+
+
+def fmu_stamp(fmu: Path) -> Optional[str]:
+    """A name for the file ``fmu`` as it is now (its resolved path, size, modification time and
+    inode, with fmpy's and Python's versions), under which what was read from it is kept in the
+    cache; None for a file that cannot be read. A build replaces an FMU whole (a new inode), so
+    that a rebuilt or edited FMU has another stamp."""
+    import hashlib
+    import sys
+
+    import fmpy
+
+    try:
+        status = fmu.stat()
+        where = fmu.resolve()
+    except OSError:
+        return None
+    key = (f"{where}\0{status.st_size}\0{status.st_mtime_ns}\0{status.st_ino}\0{fmpy.__version__}"
+           f"\0{sys.version_info[:2]}")
+    return hashlib.sha256(key.encode("utf-8", "surrogateescape")).hexdigest()[:32]
+
+
+def validation_problems(fmu: Path) -> List[str]:
+    """The problems fmpy's ``validate_fmu`` finds in ``fmu`` (none: an empty list), kept in the
+    cache under the FMU's stamp (:func:`fmu_stamp`): parsing every variable name by the structured
+    naming convention takes fmpy up to a second per FMU, and the FMUs of the build cache are
+    validated by every scenario that uses them. Raises what ``validate_fmu`` raises for an archive
+    it cannot read (nothing is kept then)."""
+    import os
+
+    from fmpy.validation import validate_fmu
+
+    from deltafmi.toolchain import cache_dir
+
+    stamp = fmu_stamp(fmu)
+    kept = None if stamp is None else cache_dir() / "fmu-validations" / stamp
+    if kept is not None:
+        try:
+            problems = json.loads(kept.read_text(encoding="utf-8"))
+            if isinstance(problems, list) and all(isinstance(p, str) for p in problems):
+                return problems
+        except (OSError, ValueError):  # none kept yet (or a torn file): validate
+            pass
+    problems = [str(problem) for problem in validate_fmu(str(fmu))]
+    if kept is not None:
+        temporary = kept.with_name(f"{kept.name}.{os.getpid()}.tmp")
+        try:
+            kept.parent.mkdir(parents=True, exist_ok=True)
+            temporary.write_text(json.dumps(problems), encoding="utf-8")
+            os.replace(temporary, kept)
+        except OSError:  # a read-only cache: validate each time
+            temporary.unlink(missing_ok=True)
+    return problems

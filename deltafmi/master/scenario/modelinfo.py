@@ -299,18 +299,9 @@ class _KeptDescription:
 
 
 def _kept_description(fmu: Path) -> Optional[_KeptDescription]:
-    import hashlib
-    import sys
-
-    import fmpy
-
     from deltafmi.toolchain import cache_dir
 
-    try:
-        status = fmu.stat()
-        where = fmu.resolve()
-    except OSError:
-        return None  # archive_problem says what is wrong
-    key = (f"{where}\0{status.st_size}\0{status.st_mtime_ns}\0{status.st_ino}\0{fmpy.__version__}"
-           f"\0{sys.version_info[:2]}")
-    return _KeptDescription(cache_dir() / "model-descriptions" / hashlib.sha256(key.encode("utf-8", "surrogateescape")).hexdigest()[:32])
+    from .fmu_checks import fmu_stamp
+
+    stamp = fmu_stamp(fmu)
+    return None if stamp is None else _KeptDescription(cache_dir() / "model-descriptions" / stamp)

@@ -186,8 +186,8 @@ class _Checker:
             if refused:
                 self.error(spec.line, f"component '{spec.name}': FMU '{path.name}': {refused}")
         if check_fmus:
-            from fmpy.validation import validate_fmu
-            for problem in validate_fmu(str(path)):
+            from .fmu_checks import validation_problems
+            for problem in validation_problems(path):
                 self.error(spec.line, f"component '{spec.name}': FMU validation: {problem.strip()}")
             from .fmu_checks import guid_problem
             mismatch = guid_problem(path, info.md.guid)

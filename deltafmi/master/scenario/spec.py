@@ -48,7 +48,7 @@ def too_many_steps(start: float, stop: float, step: float, limit: int) -> Option
     steps = (stop - start) / step
     if steps <= limit:
         return None
-    if not math.isfinite(steps):  # a span of 1e308 s: more steps than a float counts
+    if not math.isfinite(steps) or steps > 2.0 ** 53:  # a span of 1e308 s: more steps than a float counts
         return (f"{stop - start:g} s in steps of {step:g} s: more communication steps than a run can count; "
                 "shorten the span or lengthen the step")
     return (f"{steps:.3g} communication steps ({stop - start:g} s in steps of {step:g} s), more than the "
@@ -97,10 +97,14 @@ class Realtime:
     behind: str = "warn"
     #: lateness [s] counted as an overrun; None: a quarter of the paced step
     tolerance: Optional[float] = None
-    #: wall seconds before a deadline spent polling the clock rather than sleeping
-    spin: float = 2e-4
+    #: wall seconds before a deadline spent polling the clock rather than sleeping; None: 0.05 ms
+    #: without a lead, 0 with one (live/pacing.py)
+    spin: Optional[float] = None
     #: a real-time priority (SCHED_FIFO, 1-99) for the thread that paces; None: its usual one
     priority: Optional[int] = None
+    #: wall seconds a point may be released before its time (0: at its time); None: 0.5 ms for a
+    #: paced step shorter than 0.1 ms of wall time, else 0 (live/pacing.py)
+    lead: Optional[float] = None
 
 
 @record

@@ -35,13 +35,13 @@ from .explicit_rk import ExplicitRungeKutta
 from .parallel import pooled
 from .unit_base import Unit, _Inputs, _Outputs, function_address
 
-__all__ = ["BEHIND", "CLOCK_INSIDE", "FETCH", "NativeLoop", "PULL", "RAN", "RK_FAILED", "ROWS_FULL", "STATE_EVENT",
-           "STEP", "STEP_EVENT", "STEP_RETURNED", "TERMINATED", "UNSETTLED"]
+__all__ = ["BEHIND", "CLOCK_INSIDE", "FETCH", "LIVE", "NativeLoop", "PULL", "RAN", "RK_FAILED", "ROWS_FULL",
+           "STATE_EVENT", "STEP", "STEP_EVENT", "STEP_RETURNED", "TERMINATED", "UNSETTLED"]
 
 SET_REAL, GET_REAL, SET_INT, GET_INT, DO_STEP, ME_STEP, SET_BOOL3, GET_BOOL3, CLOCK_TICK = range(9)
 #: why a C run stopped
 RAN, FAILED, STEP_EVENT, TERMINATED, RK_FAILED, ROWS_FULL, STATE_EVENT, STEP_RETURNED, CLOCK_INSIDE, UNSETTLED, \
-    BEHIND = range(11)
+    BEHIND, LIVE = range(12)
 #: the FMI 3.0 type the C loop exchanges on each bus (others: the Python loop)
 _FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 _SET, _GET = {"Real": SET_REAL, "Integer": SET_INT, "Boolean": SET_INT}, \
@@ -84,7 +84,8 @@ class _Pace(ctypes.Structure):
                 ("released", c_double), ("lateness", c_void_p), ("count", c_void_p), ("capacity", c_long),
                 ("late", c_void_p), ("busy", c_void_p), ("behind", c_void_p), ("stop_behind", c_int),
                 ("last_busy", c_double), ("cpu", c_double), ("wall", c_double), ("polled", c_double),
-                ("stream", c_int), ("stop_request", c_int), ("published", c_long), ("taken", c_long)]
+                ("stream", c_int), ("stop_request", c_int), ("published", c_long), ("taken", c_long),
+                ("lead", c_double), ("sample", c_void_p), ("sample_context", c_void_p)]
 
 
 class _Plan(ctypes.Structure):
@@ -120,6 +121,11 @@ def _steps_function(release_gil: bool = False) -> Any:
         kernel.argtypes = [POINTER(_Plan), c_long, c_long, c_void_p, c_long, POINTER(c_long), POINTER(c_long)]
         kernel.restype = c_int
     return kernel
+
+
+def _address(handle: Any) -> Any:
+    """An instance handle's address (fmpy keeps an int, or a ctypes pointer)."""
+    return getattr(handle, "value", handle)
 
 
 def _pointer(array: Optional[np.ndarray]) -> Optional[int]:
@@ -202,6 +208,8 @@ class NativeLoop:
                 self.op_function.append(function)
                 ops.append(op)
         self._ops_array = (_Op * max(1, len(ops)))(*ops)
+        #: what it was laid out for, :meth:`key_of` (None: not kept for :meth:`renew`)
+        self.key: Optional[Tuple[Any, ...]] = None
         parts = [_RowPart(_pointer(bus), int(bus.dtype != np.float64), len(index), _pointer(index), _pointer(columns))
                  for bus, index, columns in sampler._parts]
         self._keep.append(sampler)
@@ -224,6 +232,51 @@ class NativeLoop:
         self.components: List[List[str]] = []
         if threads > 1:
             self._plan_components(sampler)
+        # the plan and its operations as laid out, for renew (C writes its outputs into both)
+        self._pristine = (bytes(self.plan), bytes(self._ops_array), len(self._keep))
+
+    @staticmethod
+    def key_of(actions: Sequence[Tuple[Unit, str, int]], sampler: Any, start: float, h: float, stop: float,
+               n_steps: int, last: int, every: int, block_rows: int = 256, groups: Sequence[int] = (),
+               threads: int = 1) -> Tuple[Any, ...]:
+        """What a plan made with these arguments depends on: the units by name, FMU instance and
+        instance handle (their value holders and functions go with them, see :meth:`renew`),
+        the actions, the row sampler and the grid."""
+        units = tuple((unit.name, action, m, id(unit.fmu), _address(unit.fmu.component), unit.interface,
+                       getattr(unit, "clocks", None) is None) for unit, action, m in actions)
+        return units, id(sampler), start, h, stop, n_steps, last, every, block_rows, tuple(groups), threads
+
+    def renew(self, actions: Sequence[Tuple[Unit, str, int]]) -> None:
+        """Make the plan run again as new, for the units ``actions`` of a later run whose
+        :meth:`key_of` is :attr:`key` (a study's next case on the same FMU instances and wiring: the
+        same value holders, buses, functions and handles, new unit objects and solvers): the plan
+        and its operations set back to what construction laid out, then each unit's own part
+        (a Model Exchange unit's solver, the ``noSetFMUStatePriorToCurrentPoint`` flags) taken
+        from the new units. Not for plans stepping on threads (``threads`` > 1)."""
+        plan_bytes, ops_bytes, kept = self._pristine
+        ctypes.memmove(ctypes.addressof(self.plan), plan_bytes, len(plan_bytes))
+        ctypes.memmove(ctypes.addressof(self._ops_array), ops_bytes, len(ops_bytes))
+        del self._keep[kept:]
+        self.actions = list(actions)
+        ops = self._ops_array
+        for i, a in enumerate(self.op_action):
+            if ops[i].kind == DO_STEP:
+                ops[i].no_prior_state = self.actions[a][0].no_prior_state
+        me = []
+        for _, index, box in self._me:
+            unit = self.actions[self.op_action[index]][0]
+            solver, op = unit.solver, ops[index]
+            op.erk, op.erk_plan, op.erk_current = solver.kernel
+            op.x, op.max_step, op.no_prior_state = solver.x.ctypes.data, solver.max_step, unit.no_prior_state
+            box[0] = solver.t
+            me.append((unit, index, box))
+            self._keep.append(solver)
+        self._me = me
+        self._pace = self._paced = None
+        self._count[0] = self._count_before = 0
+        self.op_seconds = self.step_start = None
+        self._run = _steps_function()
+        self._k_done.value = self._n_rows.value = 0
 
     def _plan_components(self, sampler: Any) -> None:
         """Blocks of steps (``native/fixed_step.c``): when every unit steps on the threads
@@ -405,16 +458,21 @@ class NativeLoop:
         self._run = _steps_function(release_gil=True)
         self.plan.gil_released = 1
 
-    def pace(self, pacer: Any, slots: Sequence[Optional[int]]) -> None:
+    def pace(self, pacer: Any, slots: Sequence[Optional[int]], readers: Optional[Any] = None) -> None:
         """Wait for every point's wall-clock time in C, as ``pacer`` (a started
         :class:`~deltafmi.master.live.pacing.Pacer`) would, writing its lateness record and the
         measurements to the Real bus addresses ``slots`` (lateness, busy, behind; None: not on
-        the bus); see :meth:`paced_points`."""
+        the bus); ``readers``: the live sources' C readers (:class:`~deltafmi.master.live.native_udp.
+        NativeReaders`), called at every point once it is released, before its row (a run
+        stopped with LIVE: they need Python at the point it reached, whose row is not recorded)."""
         self._paced = pacer
         self._pace = _Pace(t0=pacer._t0, wall0=pacer._wall0, speed=pacer.speed, spin=pacer.spin, period=pacer.period,
                            released=pacer.released, lateness=pacer._lateness.ctypes.data,
                            count=self._count.ctypes.data, capacity=len(pacer._lateness),
-                           late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error))
+                           late=slots[0], busy=slots[1], behind=slots[2], stop_behind=int(pacer.behind_is_error),
+                           lead=pacer.lead, sample=None if readers is None else readers.function,
+                           sample_context=None if readers is None else readers.context)
+        self._keep.append(readers)
         self.plan.pace = ctypes.pointer(self._pace)
         self.rows.fill(0.0)  # its pages faulted in now, not at the first paced points that write them
         self._run = _steps_function(release_gil=True)
@@ -520,8 +578,9 @@ class NativeLoop:
         """From the next run on, hand every ``every`` rows to ``sink`` as they are recorded, while
         the run goes on (None: none; the caller takes every row after the run): (the address of
         a ``long put(void *sink, const double *rows, long n)``, the sink), as
-        :meth:`.BackgroundRows.c_sink` gives; ``finite``: only while all their values are finite
-        (the rest then comes back to the caller, who looks at them). Unpaced runs only."""
+        :meth:`.BackgroundRows.c_sink` gives, and the last rows of a run that returns RAN or
+        ROWS_FULL too; ``finite``: only while all their values are finite (the rest then comes
+        back to the caller, who looks at them). Unpaced runs only."""
         plan = self.plan
         plan.sink_put, plan.sink = sink if sink is not None else (None, None)
         plan.sink_every, plan.sink_finite = every, int(finite)

@@ -70,6 +70,16 @@ def wrist_state(p: WristParams, q: ArrayLike, qd: ArrayLike | None = None) -> Wr
     return WristState(p, q, np.zeros(3) if qd is None else qd)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross(a, b)`` of vectors along the last axis (3), broadcast: the same products and
+    differences in the same order, so the same bits, without np.cross's axis handling, which costs
+    several times the arithmetic on arrays this small."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+
+
 def _g_eff(p: WristParams, base_accel: ArrayLike | None) -> np.ndarray:
     g = np.array([0.0, 0.0, -p.g])
     return g if base_accel is None else g - np.asarray(base_accel, dtype=float)
@@ -111,14 +121,14 @@ def _velocity_product(st: WristState) -> np.ndarray:
     """Rows Jd_i qd = sum_{j<=i} omega_{j-1} x a_j qd_j: body i's angular acceleration at qdd = 0."""
     out = np.zeros((3, 3))
     for i in range(1, 3):
-        out[i] = out[i - 1] + np.cross(st.omegas[i - 1], st.omegas[i] - st.omegas[i - 1])
+        out[i] = out[i - 1] + _cross(st.omegas[i - 1], st.omegas[i] - st.omegas[i - 1])
     return out
 
 
 def _bias_torques(st: WristState) -> np.ndarray:
     """Per body, Euler's law about O at qdd = 0: I_i Jd_i qd + omega_i x I_i omega_i, rows."""
     spin = np.einsum("ijk,ik->ij", st.inertias, st.omegas)
-    return np.einsum("ijk,ik->ij", st.inertias, _velocity_product(st)) + np.cross(st.omegas, spin)
+    return np.einsum("ijk,ik->ij", st.inertias, _velocity_product(st)) + _cross(st.omegas, spin)
 
 
 def _project(axes: np.ndarray, per_body: np.ndarray) -> np.ndarray:
@@ -143,7 +153,7 @@ def coriolis_matrix(p: WristParams, q: ArrayLike, qd: ArrayLike) -> np.ndarray:
 
 
 def _gravity(st: WristState, g_eff: np.ndarray) -> np.ndarray:
-    return -_project(st.axes, np.cross(st.moments, g_eff))
+    return -_project(st.axes, _cross(st.moments, g_eff))
 
 
 def gravity(p: WristParams, q: ArrayLike, base_accel: ArrayLike | None = None) -> np.ndarray:
@@ -159,7 +169,7 @@ def _free_torques(p: WristParams, st: WristState, qd: ArrayLike, tau: ArrayLike)
 
 def _moment_acceleration(st: WristState, omegad: np.ndarray) -> np.ndarray:
     """sum_i s_i'' = sum_i omegad_i x s_i + omega_i x (omega_i x s_i) for body rates omegad (rows)."""
-    return (np.cross(omegad, st.moments) + np.cross(st.omegas, np.cross(st.omegas, st.moments))).sum(axis=0)
+    return (_cross(omegad, st.moments) + _cross(st.omegas, _cross(st.omegas, st.moments))).sum(axis=0)
 
 
 def _accelerations(p: WristParams, st: WristState, qd: ArrayLike, tau: ArrayLike,
@@ -208,7 +218,7 @@ def first_moment_jacobian(p: WristParams, q: ArrayLike) -> np.ndarray:
     """J_s with d/dt sum_i m_i c_i = J_s qd (kg m/rad): column j is a_j x sum_{i >= j} s_i."""
     st = wrist_state(p, q)
     tail = np.cumsum(st.moments[::-1], axis=0)[::-1]
-    return np.cross(st.axes.T, tail).T
+    return _cross(st.axes.T, tail).T
 
 
 def base_wrench(p: WristParams, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike,
@@ -226,6 +236,6 @@ def base_wrench(p: WristParams, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike,
     omegad = np.cumsum(st.axes * np.asarray(qdd, dtype=float), axis=1).T + _velocity_product(st)
     force = st.masses.sum() * g_eff - _moment_acceleration(st, omegad)
     spin = np.einsum("ijk,ik->ij", st.inertias, st.omegas)
-    dL = np.einsum("ijk,ik->ij", st.inertias, omegad) + np.cross(st.omegas, spin)
-    torque = -(dL - np.cross(st.moments, g_eff)).sum(axis=0)
+    dL = np.einsum("ijk,ik->ij", st.inertias, omegad) + _cross(st.omegas, spin)
+    torque = -(dL - _cross(st.moments, g_eff)).sum(axis=0)
     return force, torque

@@ -79,7 +79,8 @@ enum { RAN = 0, FAILED = 1, STEP_EVENT = 2, TERMINATED = 3, RK_FAILED = 4, ROWS_
        STEP_RETURNED = 7, /* fmi3DoStep: an event, an early return or a termination (Op.flags) */
        CLOCK_INSIDE = 8, /* CLOCK_TICK: a tick inside the step; nothing done, Python takes the step */
        UNSETTLED = 9, /* CLOCK_TICK: fmi3UpdateDiscreteStates still asked for more after MAX_EVENT_ITERATIONS */
-       BEHIND = 10 /* paced, Pace.stop_behind: a point came more than a paced step late (its row recorded) */ };
+       BEHIND = 10, /* paced, Pace.stop_behind: a point came more than a paced step late (its row recorded) */
+       LIVE = 11 /* paced, Pace.sample: the live sources need Python at the point reached (its row not recorded) */ };
 enum { MAX_EVENT_ITERATIONS = 1000 }; /* fmi3_units._MAX_EVENT_ITERATIONS */
 /* Op.flags after fmi3DoStep */
 enum { EVENT_HANDLING_NEEDED = 1, TERMINATE_SIMULATION = 2, EARLY_RETURN = 4 };
@@ -178,6 +179,11 @@ typedef struct {
     int stop_request;        /* in: stop after the point being released (a stop signal) */
     long published;          /* out: rows of this run written into the ring (release: the rows first) */
     long taken;              /* in: rows of this run the other thread has taken out of the ring */
+    double lead;             /* wall seconds a point may be released before its deadline (pace_to) */
+    /* NULL, or the live sources read at every point once it is released, before its row
+     * (deltafmi/master/live/native/udp_reader.c); returns 1 when Python must sample them there */
+    int (*sample)(void *context, double t);
+    void *sample_context;
 } Pace;
 
 typedef struct {
@@ -213,7 +219,8 @@ typedef struct {
     size_t n_fixed_parts;
     /* rows handed to a sink as they are recorded (sink_put NULL: the caller takes every row after
      * the run): every sink_every rows of a run, unpaced and not in blocks of steps, go to
-     * sink_put(sink, first row, rows), which returns the number of blocks queued so far; with
+     * sink_put(sink, first row, rows), which returns the number of blocks queued so far, and so
+     * do the rows of a run that returns RAN or ROWS_FULL after the last of them; with
      * sink_finite only while every value of them is finite (a NaN or an infinity stops the
      * hand-over: the caller looks at the rest) */
     long (*sink_put)(void *sink, const double *rows, long n);
@@ -268,19 +275,23 @@ static void sleep_until(double until)
 
 /* Pacer.wait for point t, then the measurements on the bus; returns 1 when it came more than a
  * whole paced step late. A stop signal is looked at between calls (a call lasts about a
- * millisecond of wall time, see master.py). */
+ * millisecond of wall time, see master.py). With a lead (Pace.lead > 0) a point due within the
+ * lead is released at once, and one due later is waited for until half the lead is left: the
+ * points go out in bursts up to the lead ahead of their deadlines, which absorb a stall of the
+ * thread shorter than half the lead, and the waits are long enough to sleep through. */
 static int pace_to(Pace *c, double t)
 {
     double now_ = now();
     double busy = now_ - c->released;
     double deadline = c->wall0 + (t - c->t0) / c->speed;
-    while (deadline - now_ > c->spin + 1e-6) {
-        double left = deadline - now_ - c->spin;
+    double wake = c->lead > 0.0 ? (now_ < deadline - c->lead ? deadline - c->lead / 2 : now_) : deadline;
+    while (wake - now_ > c->spin + 1e-6) {
+        double left = wake - now_ - c->spin;
         sleep_until(now_ + (left < 0.05 ? left : 0.05));
         now_ = now();
     }
     double polling = now_;
-    while (now_ < deadline) now_ = now();
+    while (now_ < wake) now_ = now();
     c->polled += now_ - polling;
     double late = now_ - deadline;
     c->released = now_;
@@ -1117,6 +1128,11 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
         }
         double t_next = next < p->n_steps ? p->start + (double)next * p->h : p->stop;
         int late = p->pace ? pace_to(p->pace, t_next) : 0;
+        if (p->pace && p->pace->sample && p->pace->sample(p->pace->sample_context, t_next)) {
+            *k_done = next;
+            *n_rows = written;
+            return LIVE;
+        }
         if (due && stream) { /* into the ring, once the other thread has made room */
             while (written - __atomic_load_n(&stream->taken, __ATOMIC_ACQUIRE) >= max_rows) {
                 if (__atomic_load_n(&stream->stop_request, __ATOMIC_ACQUIRE)) {
@@ -1147,6 +1163,8 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
             break;
         }
     }
+    /* the run's last rows too (RAN or ROWS_FULL): the caller would hand them over itself */
+    if (sink && written > p->sink_rows) hand_over(p, rows, written);
     *k_done = k;
     *n_rows = written;
     return why;
