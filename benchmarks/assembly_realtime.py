@@ -183,12 +183,15 @@ def mpc(folder: Path, stop: float) -> None:
 
 # ----------------------------------------------------------------------------------- estimators
 def peg_truth(folder: Path, stop: float) -> dict:
-    c = record("peg_estimation", folder, ["plant.qw[*]", "controller.u[*]", "controller.tau[*]"], stop,
+    c = record("peg_estimation", folder, ["plant.qw[*]", "controller.u[*]", "controller.tau[*]", "plant.z[*]",
+                                          "plant.zd[*]", "plant.qwd[*]", "plant.active_contacts"], stop,
                drop=("estimator",))
     return {"time": c["time"], "y": vector(c, "plant.y", 3), "qw": vector(c, "plant.qw", 3),
             "u": vector(c, "controller.u", 3), "tau": vector(c, "controller.tau", 3),
             "force": vector(c, "plant.contact_force", 3), "moment": vector(c, "plant.contact_moment", 3),
-            "hole": np.column_stack([vector(c, "plant.hole_position", 3)[:, :2], vector(c, "plant.hole_tilt", 2)])}
+            "hole": np.column_stack([vector(c, "plant.hole_position", 3)[:, :2], vector(c, "plant.hole_tilt", 2)]),
+            "s": np.hstack([vector(c, "plant.z", 3), vector(c, "plant.qw", 3), vector(c, "plant.zd", 3),
+                            vector(c, "plant.qwd", 3)]), "active": c["plant.active_contacts"]}
 
 
 def component() -> "PegEstimator":  # noqa: F821

@@ -24,7 +24,12 @@ First, what the wrench's noise levels rest on: the plant's contact force and mom
 as a random walk over one sample (rms of the change per sample / sqrt(T)), as an integrated
 random walk over tau = 20, 50 and 100 ms (rms of the second difference over tau, sqrt(3/2) / tau^1.5:
 a rate that is a random walk of that density gives it), and the rms of its ramps (least-squares
-slopes).
+slopes); the contact law's error at the plant's own state and hole (against the plant's wrench);
+and the process model's one-step error on the plant's own states (what acceleration_std and
+angular_acceleration_std stand for), the wrench held over the sample or at its mid-period value.
+By 0.1 s in the bore, besides the NEES, how often the contact law at the estimate (its state and
+hole) has fewer active contact points than the plant, or as many, and the hole's NEES over those
+samples.
 
 ContactEstimator (--estimator contact): first what its noise levels rest on (the plant's force
 rates by phase, as a random walk and as an integrated random walk over 20, 50 and 100 ms, and its
@@ -43,7 +48,7 @@ level's zero-acceleration pseudo-measurement). On data from the filter's own mod
 asserts the force's NEES, on the real plant tests/models/test_contact_estimator_scenario_consistency.py.
 
 Usage: python benchmarks/estimator_consistency.py [--estimator peg|contact] [--runs 16] [--noise RAD]
-       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 8] (contact: 6 variants)
+       [--start 0.9] [--stop 2.2] [--set NAME=VALUE ...] [--variants 9] (contact: 6 variants)
 """
 from __future__ import annotations
 
@@ -61,6 +66,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from assembly_realtime import component, contact_component, contact_truth, peg_truth  # noqa: E402
 
 from deltafmi.physics.delta.tactile import Readout  # noqa: E402
+from deltafmi.physics.estimation.peg_contact import linearization_parts  # noqa: E402
 from deltafmi.physics.estimation.peg_ekf import PegEKF  # noqa: E402
 from deltafmi.physics.estimation.contact_ekf import ContactEKF  # noqa: E402
 
@@ -68,7 +74,7 @@ from deltafmi.physics.estimation.contact_ekf import ContactEKF  # noqa: E402
 def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start: float,  # noqa: F821
            stop: float) -> tuple:
     """(times, hole x-y NEES, force NEES, reopened, hole error norm, hole NEES, tilt error, manoeuvre
-    flag) of one seeded run."""
+    flag, the law's active contacts at the estimate less the plant's) of one seeded run."""
     readout, ekf, t = Readout(noise, 0.0, seed), None, d["time"]
     rows = []
     for k in range(int(round(start / 1e-3)), int(round(stop / 1e-3)) + 1):
@@ -81,17 +87,26 @@ def replay(d: dict, c: "PegEstimator", settings, noise: float, seed: int, start:
         eh, ef = est.hole - d["hole"][i], est.force - d["force"][i]
         rows.append((t[i], eh[:2] @ np.linalg.solve(ekf.P[18:20, 18:20], eh[:2]),
                      ef @ np.linalg.solve(ekf.P[12:15, 12:15], ef), np.linalg.norm(eh[:2]),
-                     eh @ np.linalg.solve(ekf.P[18:22, 18:22], eh), np.abs(eh[2:]).max(), float(ekf.manoeuvre)))
+                     eh @ np.linalg.solve(ekf.P[18:22, 18:22], eh), np.abs(eh[2:]).max(), float(ekf.manoeuvre),
+                     law_contacts(c, ekf.x[:12], est.hole) - d["active"][i]))
     a = np.array(rows)
-    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened, a[:, 3], a[:, 4], a[:, 5], a[:, 6]
+    return a[:, 0], a[:, 1], a[:, 2], ekf.reopened, a[:, 3], a[:, 4], a[:, 5], a[:, 6], a[:, 7]
+
+
+def law_contacts(c: "PegEstimator", s: np.ndarray, h: np.ndarray) -> float:  # noqa: F821
+    """The contact law's active contact points at the reduced state s with the hole h."""
+    return linearization_parts(c.native_functions.contact_linearization(
+        c._hole, c._peg, c._law, c._wrist, c._mount, np.asarray(s, float).tolist(), np.asarray(h, float).tolist(),
+        True))[2]
 
 
 def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
-    H, F, H4, reopened, E, A, M = [], [], [], [], [], [], []
+    H, F, H4, reopened, E, A, M, K = [], [], [], [], [], [], [], []
     began = time.perf_counter()
     for r in range(args.runs):
-        t, h, f, n, e, h4, a, m = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
+        t, h, f, n, e, h4, a, m, k = replay(d, c, settings, args.noise, 1000 + r, args.start, args.stop)
         M.append(m)
+        K.append(k)
         E.append(e[-1])
         A.append(a[-1])
         H.append(h)
@@ -118,7 +133,11 @@ def monte_carlo(d: dict, c: "PegEstimator", settings, args) -> None:
     for lo, hi in ((1.3, 1.4), (1.4, 1.5), (1.5, 1.6), (1.6, 1.7), (1.7, 1.8), (1.8, 1.9), (1.9, 2.05), (2.05, args.stop)):
         if hi <= args.stop + 1e-9:
             m = (t >= lo) & (t < hi + 0.5e-3)
-            windows = f"{lo:.2f}-{hi:.2f} s: hole {H4[:, m].mean():.3g}, force {F[:, m].mean():.3g}"
+            fewer, same = np.array(K)[:, m] < 0, np.array(K)[:, m] == 0
+            windows = (f"{lo:.2f}-{hi:.2f} s: hole {H4[:, m].mean():.3g}, force {F[:, m].mean():.3g}; the law at the "
+                       f"estimate with fewer contacts than the plant {100 * fewer.mean():.0f} % of the samples (hole "
+                       f"{H4[:, m][fewer].mean() if fewer.any() else np.nan:.3g}), as many "
+                       f"{100 * same.mean():.0f} % ({H4[:, m][same].mean() if same.any() else np.nan:.3g})")
             print(f"  by 0.1 s in the bore, {windows}")
     M = np.array(M)
     print("  manoeuvre flagged at " + ", ".join(f"{100 * M[:, m].mean():.1f} %" + f" of the {p} samples"
@@ -156,6 +175,48 @@ def force_rates(d: dict) -> None:
             text.append(f"{label}: walk {walk:.3g}, integrated {' / '.join(f'{v:.3g}' for v in integrated)}, "
                         f"ramp {ramp:.3g}")
         print(f"  {name:28} " + "; ".join(text))
+
+
+def model_error(d: dict, c: "PegEstimator") -> None:  # noqa: F821
+    """The PegEstimator's process model's one-step error on the plant's own states (what
+    acceleration_std and angular_acceleration_std stand for): from the plant's reduced state at
+    each sample, its torques and its wrench held over the period (as the filter holds them) or at
+    their mid-period value, one prediction (the filter's kernel), its velocities against the
+    plant's at the next sample, over sqrt(T): rms by phase, per axis."""
+    st, T = c._settings, 1e-3
+    t = d["time"]
+    on = np.abs(t / T - np.round(t / T)) < 1e-6
+    t, s, W = t[on], d["s"][on], np.hstack([d["force"], d["moment"]])[on]
+    u, tau = d["u"][on], d["tau"][on]
+    errors = {"held": [], "mid-period": []}
+    for k in range(len(t) - 1):
+        for label, wrench in (("held", W[k]), ("mid-period", 0.5 * (W[k] + W[k + 1]))):
+            out = np.asarray(c.native_functions.prediction(c.robot_params(), c._wrist, c._mount, s[k].tolist(),
+                                                           u[k].tolist(), tau[k].tolist(), wrench.tolist(),
+                                                           float(st.pole), T, int(st.substeps), 0, 0), float)
+            errors[label].append((out[6:12] - s[k + 1, 6:12]) / np.sqrt(T))
+    law = []
+    for k in np.nonzero((t >= 1.3) & (d["active"][on] > 0))[0]:
+        values = np.asarray(c.native_functions.contact_linearization(
+            c._hole, c._peg, c._law, c._wrist, c._mount, s[k].tolist(), d["hole"][on][k].tolist(), True), float)
+        law.append(np.abs(values[:6] - W[k]))
+    law = np.array(law)
+    print(f"the contact law at the plant's state and hole against the plant's wrench, in the bore (from 1.3 s, "
+          f"{len(law)} samples in contact): largest error {law[:, :3].max():.2g} N, {law[:, 3:].max():.2g} N m")
+    print(f"the process model's one-step velocity error / sqrt(T) on the plant's states, rms per axis: plate "
+          f"(m/s^2 per sqrt(Hz); acceleration_std {st.acceleration_std:g}), wrist joints (rad/s^2 per sqrt(Hz); "
+          f"angular_acceleration_std {st.angular_acceleration_std:g}), the wrench held over the period / at its "
+          f"mid-period value:")
+    for name, lo, hi in (("free (0.9-1.0 s)", 0.9, 1.0), ("impact (1.0-1.05 s)", 1.0, 1.05),
+                         ("chamfer (1.05-1.2 s)", 1.05, 1.2), ("fall, wall (1.2-1.3 s)", 1.2, 1.3),
+                         ("bore (1.3-1.5 s)", 1.3, 1.5), ("bore (from 1.5 s)", 1.5, t[-1])):
+        m = (t[:-1] >= lo) & (t[:-1] < hi)
+        text = []
+        for label, values in errors.items():
+            rms = np.sqrt(np.mean(np.array(values)[m] ** 2, axis=0))
+            text.append(f"{label}: plate {' '.join(f'{v:.2g}' for v in rms[:3])}, wrist "
+                        f"{' '.join(f'{v:.2g}' for v in rms[3:])}")
+        print(f"  {name:24} " + "; ".join(text))
 
 
 #: the ContactEstimator's settings before they were derived from the plant (contact_estimation.yaml
@@ -320,7 +381,7 @@ def main() -> None:
     parser.add_argument("--start", type=float, default=0.9)
     parser.add_argument("--stop", type=float, default=2.2)
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
-    parser.add_argument("--variants", type=int, default=8, help="how many of the settings variants to run (peg)")
+    parser.add_argument("--variants", type=int, default=9, help="how many of the settings variants to run (peg)")
     args = parser.parse_args()
     if args.estimator == "contact":
         contact_monte_carlo(args)
@@ -339,6 +400,7 @@ def main() -> None:
     no_rate = dict(force_acceleration_std=0.0, moment_acceleration_std=0.0, force_ramp_std=0.0, moment_ramp_std=0.0)
     changes = {k: int(v) if k in integers else float(v) for k, v in (s.split("=", 1) for s in args.set)}
     force_rates(d)
+    model_error(d, c)
     now = replace(c._settings, **changes)
     baseline = replace(now, acceleration_std=0.01, angular_acceleration_std=0.5, steady_force_rate_std=0.0,
                        steady_moment_rate_std=0.0, law_hole_std=0.0, law_tilt_std=0.0, hole_drift_std=0.0,
@@ -353,7 +415,9 @@ def main() -> None:
                 ("without the law's considered offset", replace(now, law_hole_std=0.0, law_tilt_std=0.0)),
                 ("without the hole's random walk", replace(now, hole_drift_std=0.0, tilt_drift_std=0.0)),
                 ("with the previous model-error accelerations (0.01, 0.5)",
-                 replace(now, acceleration_std=0.01, angular_acceleration_std=0.5))]
+                 replace(now, acceleration_std=0.01, angular_acceleration_std=0.5)),
+                ("with the last release's plate model error (1e-4 m/s^2 per sqrt(Hz))",
+                 replace(now, acceleration_std=1e-4))]
     for label, settings in variants[:args.variants]:
         print(label)
         monte_carlo(d, c, settings, args)

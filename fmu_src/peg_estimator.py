@@ -68,7 +68,7 @@ class PegEstimator(EstimatorHoleModel, EstimatorWristModel, EstimatorRobotModel,
     sample = Clock(period="sample_period", description="Sample instants: t_start + k * sample_period")
     y_std = Parameter(1e-6, unit="rad", min=0.0, description="Servo-angle noise (standard deviation)")
     qw_std = Parameter(1e-6, unit="rad", min=0.0, description="Wrist-angle noise (standard deviation)")
-    acceleration_std = Parameter(1e-4, unit="m/s2", min=0.0,
+    acceleration_std = Parameter(2e-6, unit="m/s2", min=0.0,
                                  description="Model error as white plate-acceleration noise (per sqrt(Hz))")
     angular_acceleration_std = Parameter(1e-3, unit="rad/s2", min=0.0,
                                          description="Model error as white wrist-joint acceleration noise "

@@ -206,10 +206,17 @@ class Component(ValueHolder):
 
     def restore_internal_state(self, state: Any) -> None:
         """Restore what :meth:`internal_state` returned (which stays valid for another restore)."""
-        for key in [k for k in vars(self) if k not in RUNTIME_ATTRIBUTES]:
-            delattr(self, key)
+        if not isinstance(state, dict) or not all(isinstance(k, str) for k in state if k != _SHARED):
+            raise TypeError("not an internal state of a component: attributes are named by strings")
+        if not RUNTIME_ATTRIBUTES.isdisjoint(state):  # the instance's, never in a state (a buffer, its resources)
+            raise ValueError(f"not an internal state of a component: it sets {sorted(RUNTIME_ATTRIBUTES & state.keys())}")
         shared = state.get(_SHARED)  # a state saved by an older runtime has none
-        vars(self).update(_copied({k: v for k, v in state.items() if k != _SHARED}, shared))
+        # copied before any attribute goes: a state that cannot be restored leaves the component as it was
+        restored = _copied({k: v for k, v in state.items() if k != _SHARED}, shared)
+        attributes = vars(self)
+        for key in [k for k in attributes if k not in RUNTIME_ATTRIBUTES]:
+            del attributes[key]
+        attributes.update(restored)
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` to ``t + h``. Override only for purely discrete components."""

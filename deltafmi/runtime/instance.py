@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import ctypes
 import math
-import pickle
 import struct
 from contextlib import nullcontext
-from typing import TYPE_CHECKING, Callable, ContextManager, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ContextManager, Optional, Sequence
 
 import numpy as np
 
@@ -23,7 +22,7 @@ from .cs_native import CsShared, native_cs_wanted
 from .native_functions import FunctionSet
 from .native_kernels import TRAILING_ROLES, NativeKernelsRuntime
 from .partials import DirectionalDerivatives
-from .state_bytes import load_state
+from .state_bytes import dump_state, load_state
 
 if TYPE_CHECKING:  # loaded by _make_solver: only components that integrate need SUNDIALS
     from .cvode import Cvode
@@ -42,6 +41,10 @@ _INPUT_JUMP_TOLERANCE = 10.0
 EVENTS_INSIDE = 0        #: handles every event inside the step (FMI 2.0; FMI 3.0 without eventModeUsed)
 EVENTS_EARLY_RETURN = 1  #: stops at the first event and leaves it pending (eventModeUsed, earlyReturnAllowed)
 EVENTS_AT_STEP_END = 2   #: handles the events inside the step, leaves one at its end pending (eventModeUsed)
+
+#: what every snapshot of :meth:`FmuInstance.get_state` holds
+_STATE_KEYS = frozenset({"real", "int", "str", "internal", "time", "next_time_event", "in_initialization",
+                         "terminate_requested"})
 
 
 class CompiledStep:
@@ -739,8 +742,11 @@ class FmuInstance:
         }
 
     def set_state(self, state: dict) -> int:
-        """Restore a snapshot from :meth:`get_state`; the CS solver restarts from it."""
+        """Restore a snapshot from :meth:`get_state`; the CS solver restarts from it. A snapshot
+        that does not fit (deserialized from damaged bytes) raises before anything changes (the
+        component's own part: before it changes, by default)."""
         comp = self.component
+        self._check_state(state)
         comp._real[:] = state["real"]
         comp._int[:] = state["int"]
         comp._str[:] = state["str"]
@@ -761,18 +767,40 @@ class FmuInstance:
         self._pack_kernels()
         return OK
 
+    def _check_state(self, state: Any) -> None:
+        comp = self.component
+        if not isinstance(state, dict) or not _STATE_KEYS <= state.keys():
+            raise ValueError("not an FMU state of this FMU: it lacks the values of a snapshot")
+        arrays = [("real", comp._real), ("int", comp._int)]
+        if state.get("pre_indicators") is not None:
+            arrays.append(("pre_indicators", self._cs.pre_indicators_view))
+        for key, buffer in arrays:
+            value = state[key]
+            if not isinstance(value, np.ndarray) or value.shape != buffer.shape or value.dtype != buffer.dtype:
+                raise ValueError(f"not an FMU state of this FMU: its {key} values are not {buffer.shape[0]} "
+                                 f"{buffer.dtype} values")
+        strings = state["str"]
+        if not isinstance(strings, list) or len(strings) != len(comp._str) or \
+                not all(isinstance(text, str) for text in strings):
+            raise ValueError(f"not an FMU state of this FMU: its string values are not {len(comp._str)} strings")
+        if not isinstance(state["time"], (float, int)):
+            raise ValueError("not an FMU state of this FMU: its time is not a number")
+
     def serialize_state(self, state: dict) -> bytes:
         """Bytes for ``fmi2SerializeFMUstate``."""
         if not self.component_class.can_serialize_state:
             raise RuntimeError(f"{self.component_class.fmi_model_name()} cannot serialize its FMU state "
                                "(canSerializeFMUstate is false); get and set it instead")
+        # a component given functions may keep them in its state (an estimator its kernels)
+        functions = FunctionSet if "_native_functions" in vars(self.component) else None
         with self._module_context():
-            return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+            return dump_state(state, functions)
 
     def deserialize_state(self, data: bytes) -> dict:
         """Inverse of :meth:`serialize_state`."""
         with self._module_context():
-            return load_state(data, self.component_class.__module__, self.resources_dir)
+            return load_state(data, self.component_class.__module__, self.resources_dir,
+                              self.component.native_functions)
 
     # --- life cycle -------------------------------------------------------------------------
     def terminate(self) -> int:

@@ -105,8 +105,20 @@ def _has_records(desc: Any) -> bool:
         return False
     if "record" in desc:
         return True
+    known = _HAS_RECORDS.get(id(desc))
+    if known is not None and known[0] is desc:
+        return known[1]
     items = desc.get("tuple") or [desc.get("array") or desc.get("optional")]
-    return any(_has_records(item) for item in items)
+    found = any(_has_records(item) for item in items)
+    if len(_HAS_RECORDS) > 4096:  # descriptions of kernels loaded long ago: asked again if need be
+        _HAS_RECORDS.clear()
+    _HAS_RECORDS[id(desc)] = (desc, found)
+    return found
+
+
+#: :func:`_has_records` of the tuple, array and optional descriptions seen (by identity, each kept
+#: with its answer): a pack at every restore asks again at every level of a value
+_HAS_RECORDS: dict = {}
 
 
 def record_classes(desc: Any, value: Any, classes: dict, path: str = "") -> None:
@@ -384,8 +396,9 @@ class NativeKernelsRuntime:
     def pack(self, component: Any) -> None:
         """Copy the component's attributes into the C struct; an attribute that does not fit
         (None, another type) leaves the kernels off until the next pack."""
-        if self.struct.changed:  # what compiled steps wrote and nobody read: overwritten whole
-            self._written.clear()
+        if self.struct.changed:  # what compiled steps wrote (their updates) and nobody read: overwritten
+            for name, _ in self.updates:
+                self._written.pop(name, None)
         self.ready[0] = self.struct.changed = 0  # the component's attributes are the truth now
         try:
             for name, desc in self.attributes:

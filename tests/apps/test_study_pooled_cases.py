@@ -66,3 +66,45 @@ def test_pooled_cases_equal_plain_runs_bit_for_bit(tmp_path):
     # each started where its case put it (initialization projects onto the constraints: round-off apart)
     assert abs(results[0].timeseries["plant.z[3]"][0] + 1.0) < 1e-12
     assert abs(results[1].timeseries["plant.z[3]"][0] + 1.05) < 1e-12
+
+
+def test_case_after_an_interrupted_case_reuses_the_c_loop_and_records_the_same_bytes(tmp_path):
+    """A case on the instances, wiring and C loop plan of a case stopped part way (its plan left
+    where C stopped: mid-run, rows block part filled, solver pointers of the units of that run)
+    records exactly what the same case records on a fresh worker (new pool, new plan)."""
+    from deltafmi.apps.studies.runner import MemoryRecorder
+    from deltafmi.master.stepping.master import Master
+
+    study = tmp_path / "pooled.yaml"
+    study.write_text(STUDY)
+    planned = plan_study(load_study(study))
+    first, stopped, last = planned.cases[0], planned.cases[1], planned.cases[2]
+    template = CaseTemplate(planned.plan, planned.fmu_files)
+    pool = FmuPool()
+    fresh_pool = FmuPool()
+    try:
+        assert run_case(template, pool, first.id, first.values).status == OK
+        wiring, = template.wirings.values()
+        loop = wiring.native
+        assert loop is not None
+        system, stop = template.system(stopped.values)
+        master = Master(system, result=tmp_path / "stopped", stop=stop, fmus=pool.lend, writer_class=MemoryRecorder,
+                        wirings=template.wirings)
+        master.open()
+        master.begin_fixed_steps()
+        master.advance(37)  # stopped there, as an interrupted case is
+        assert master._native is loop and master.steps == 37
+        master.close()  # the instances go back to the pool, not discarded
+        again = run_case(template, pool, last.id, last.values, keep_timeseries=True)
+        assert wiring.native is loop and wiring.reuses == 2
+        fresh = run_case(CaseTemplate(planned.plan, planned.fmu_files), fresh_pool, last.id, last.values,
+                         keep_timeseries=True)
+    finally:
+        pool.close()
+        fresh_pool.close()
+    assert again.status == OK and fresh.status == OK, (again.error, fresh.error)
+    assert set(again.timeseries) == set(fresh.timeseries)
+    for name, column in fresh.timeseries.items():
+        assert column.tobytes() == again.timeseries[name].tobytes(), name
+    assert again.metrics == fresh.metrics
+    assert len(fresh.timeseries["time"]) > 100

@@ -211,3 +211,24 @@ def test_the_output_name_gives_the_table_beside_its_csv_copy(output, table):
     from deltafmi.apps.studies.commands import _table_path
 
     assert _table_path(None, output) == Path(table)
+
+
+def test_a_damaged_journal_line_is_run_again_and_the_rest_kept(tmp_path):
+    """The journal of an earlier sweep with damaged lines after its first case: bytes that are
+    not UTF-8, JSON that is no row, a row missing its status. They made an "internal error" (a
+    UnicodeDecodeError, a KeyError); they are not rows: their cases run again, the finished one
+    is kept, and the table holds every case against the closed form."""
+    study = write_study(tmp_path)
+    done = subprocess.run([str(DELTAFMI), "sweep", str(study), "--workers", "1"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    journal = tmp_path / "osc_study.journal.jsonl"
+    lines = journal.read_bytes().splitlines(keepends=True)
+    assert len(lines) == 4
+    without_status = lines[3].replace(b'"status"', b'"statux"')
+    journal.write_bytes(b"".join(lines[:2]) + b'\xff\xfe{"case": 1\n' + b"[1, 2]\n" + without_status)
+    again = subprocess.run([str(DELTAFMI), "sweep", str(study), "--workers", "1"], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert "3/3 cases done, 3 ok, 0 failed (1 from an earlier run)" in again.stdout, again.stdout
+    check_closed_form(tmp_path / "osc_study.parquet")

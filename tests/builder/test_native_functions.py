@@ -157,6 +157,44 @@ def test_in_the_fmu_the_compiled_functions_run_and_equal_python(fmu, interface, 
     assert np.max(np.abs(compiled["x[1]"] - x)) < 1e-6
 
 
+def test_a_serialized_state_keeps_the_compiled_functions_the_component_holds(fmu):
+    """The component keeps its functions in an attribute (as the estimators keep their kernels):
+    its FMU state serializes (the compiled functions, calls into the kernel library, could not
+    be pickled: fmi2SerializedFMUstateSize failed) and, deserialized, steps on with the instance's
+    compiled functions, bit for bit as from the state itself, on the oscillator's closed form."""
+    import fmpy
+    from fmpy.fmi2 import FMU2Slave
+
+    md = fmpy.read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)), modelIdentifier="FunctionOscillator")
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    h, n = 0.01, 100
+
+    def run(t0):
+        for k in range(n):
+            slave.doStep(t0 + k * h, h)
+        return slave.getReal([vr["x[1]"], vr["energy"]]), slave.getInteger([vr["compiled"]])[0]
+
+    run(0.0)
+    state = slave.getFMUstate()
+    serialized = bytes(slave.serializeFMUstate(state))
+    reference = run(n * h)
+    slave.setFMUstate(slave.deSerializeFMUstate(serialized))
+    assert run(n * h) == reference
+    assert reference[1] == 1
+    omega, zeta, t = 3.0, 0.1, 2 * n * h
+    wd = omega * math.sqrt(1.0 - zeta ** 2)
+    x = math.exp(-zeta * omega * t) * (math.cos(wd * t) + zeta * omega / wd * math.sin(wd * t))
+    assert abs(reference[0][0] - x) < 1e-6
+    slave.freeFMUstate(state)
+    slave.terminate()
+    slave.freeInstance()
+
+
 def test_the_master_knows_that_an_fmu_with_functions_only_steps_in_python(fmu, tmp_path):
     """Its kernel library has no role the C layer calls: every step runs Python (it holds the GIL)."""
     from fmpy import extract

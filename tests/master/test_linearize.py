@@ -189,11 +189,23 @@ def test_command_on_a_scenario(tmp_path):
     (["--set", "z9=1"], "has no variable 'z9'"),
     (["--hold", "z=0,0,-3", "--free", "u"], "no equilibrium found"),
     (["-y", "u"], "is a Real input; linearize takes Real outputs"),
+    (["--at", "nan"], "--at nan: the operating point's time must be a finite number"),  # was linearized at NaN
+    (["--at", "1e400"], "--at inf: the operating point's time must be a finite number"),
 ])
 def test_command_bad_input(robot, args, message):
     result = CliRunner().invoke(main, ["linearize", str(robot), *args])
     assert result.exit_code == 2 and message in result.output, result.output
     assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("at, message", [
+    ("1e400", "--at inf: a linearization instant must be a finite number"),  # an internal error (OverflowError)
+    ("nan", "--at nan: a linearization instant must be a finite number"),
+])
+def test_command_on_a_scenario_at_no_reachable_instant(at, message):
+    result = CliRunner().invoke(main, ["linearize", str(FLAGSHIP), "--at", at, "-q"])
+    assert result.exit_code == 2, result.output
+    assert message in result.output.strip().splitlines()[-1], result.output
 
 
 # ------------------------------------------------------------------------------------ FMI 3.0 builds

@@ -45,6 +45,18 @@ def test_non_finite_times_are_refused_by_validate_and_run_alike(tmp_path, key, v
     assert not (tmp_path / "r.csv").exists()
 
 
+def test_a_step_count_no_float_counts_names_no_limit_to_raise(tmp_path):
+    """1 s in steps of 1e-300 s: more steps than 2^53, where consecutive step numbers are one
+    float; the message said to raise max_steps to a 301-digit number. It says the run cannot count
+    them, as for a span of 1e308 s."""
+    done = CliRunner().invoke(main, ["run", "delta_tracking", "--step", "1e-300", "--stop", "1",
+                                     "-o", str(tmp_path / "r.csv")])
+    assert done.exit_code == 2, done.output
+    assert done.output.strip().splitlines()[-1] == (
+        "Error: 1 s in steps of 1e-300 s: more communication steps than a run can count; shorten the span or "
+        "lengthen the step")
+
+
 def test_a_step_count_beyond_the_limit_is_refused_with_the_count_and_the_override(tmp_path):
     path = _flagship_with(tmp_path, "step", "1.0e-12")
     done = CliRunner().invoke(main, ["validate", str(path)])
@@ -111,6 +123,18 @@ def test_a_yaml_alias_bomb_is_refused_in_a_moment(tmp_path, command):
     assert re.fullmatch(rf"{re.escape(str(path))}:\d+: error: the YAML expands to more than 200,000 values "
                         r"\(aliases such as \*a repeat what &a names, again and again\): not a scenario or a study",
                         done.output.strip().splitlines()[-1]), done.output
+
+
+def test_a_long_yaml_file_without_aliases_is_refused_for_its_length(tmp_path):
+    """A file that writes out more than 200,000 values itself, no alias in it, was refused with
+    the alias bomb's message (aliases repeating what &a names); it says the file holds too many."""
+    path = tmp_path / "long.yaml"
+    path.write_text("experiment: {stop: 1, step: 0.1}\nparameters:\n" +
+                    "".join(f"  p{i}: [{i}, {i}]\n" for i in range(70_000)))
+    done = CliRunner().invoke(main, ["validate", str(path)])
+    assert done.exit_code == 2, done.output
+    assert re.fullmatch(rf"{re.escape(str(path))}:\d+: error: the YAML holds more than 200,000 values: not a "
+                        r"scenario or a study", done.output.strip().splitlines()[-1]), done.output
 
 
 @pytest.mark.parametrize("command", ["validate", "run", "sweep"])

@@ -3,8 +3,10 @@ metadata), .mat (MATLAB names plus the original names); other extensions are ref
 anything runs; a failed or interrupted run leaves a readable file with the rows so far."""
 from __future__ import annotations
 
+import os
 import re
 import signal
+import threading
 from pathlib import Path
 
 import fmpy
@@ -198,6 +200,33 @@ def test_interrupted_run_leaves_a_readable_parquet(oscillator, tmp_path):
     assert t[-1] > 0 and float(match[2]) == pytest.approx(t[-1], rel=1e-9)
     assert np.array_equal(t, np.arange(len(t)) * 1e-3)  # every step up to there
     assert pq.read_schema(out).field("osc.x").metadata == {b"unit": b"m"}
+
+
+@pytest.mark.skipif(threading.current_thread() is not threading.main_thread(), reason="signal handlers: main thread")
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_while_the_results_are_written_keeps_the_whole_run(scenario, results, tmp_path, monkeypatch,
+                                                                   signum):
+    """A .mat is written whole when the run ends: a signal that arrives then (a real signal, sent
+    as the writing starts) broke the writing, and the run's rows were lost ("interrupted", no
+    file). The writing goes on, the file holds the whole run (as the same run's without a signal),
+    and the run ends as interrupted with 128 + the signal."""
+    from deltafmi.master.results.writers import MatWriter
+
+    write = MatWriter.close
+
+    def close(self):
+        os.kill(os.getpid(), signum)  # handled at the next line of Python: inside the writing
+        write(self)
+
+    monkeypatch.setattr(MatWriter, "close", close)
+    out = tmp_path / "r.mat"
+    result = CliRunner().invoke(main, ["run", str(scenario), "-o", str(out), "-q"])
+    assert result.exit_code == 128 + signum, result.output
+    assert result.output.strip().splitlines()[-1] == f"interrupted at t = 1 s (results up to 1 in {out})"
+    whole, written = scipy.io.loadmat(results["mat"]), scipy.io.loadmat(out)
+    assert whole["time"].ravel()[-1] == 1.0
+    for name in ("time", *matlab_names(OUTPUTS)):
+        assert np.array_equal(written[name], whole[name]), name
 
 
 @pytest.mark.parametrize("suffix", ["csv", "parquet", "mat"])

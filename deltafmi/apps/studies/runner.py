@@ -38,11 +38,18 @@ class MemoryRecorder:
     array of rows, ``chunk`` at first, whose capacity doubles as it fills (no concatenation at the end)."""
 
     def __init__(self, path: Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None,
-                 chunk: int = 1024) -> None:
+                 chunk: int = 1024, memory: Optional[np.ndarray] = None) -> None:
+        """``memory``: an array of rows to fill (an earlier case's, done with: its pages in memory
+        already), taken when it has room for ``chunk`` rows of this width and type."""
         self.path = path
         self.names = list(names)
         self.kinds = list(kinds) if kinds is not None else ["Real"] * len(names)
-        self._rows = np.empty((chunk, len(self.names) + 1), dtype=object if "String" in self.kinds else float)
+        dtype = np.dtype(object if "String" in self.kinds else float)
+        if memory is not None and memory.dtype == dtype and memory.shape[1] == len(self.names) + 1 \
+                and len(memory) >= chunk:
+            self._rows = memory
+        else:
+            self._rows = np.empty((chunk, len(self.names) + 1), dtype=dtype)
         self.rows_written = 0
 
     def _room(self, n: int) -> np.ndarray:
@@ -71,6 +78,11 @@ class MemoryRecorder:
 
     def close(self) -> None:
         """Nothing to close."""
+
+    def release(self) -> np.ndarray:
+        """The rows array, no longer this recorder's (nothing written or read after)."""
+        rows, self._rows, self.rows_written = self._rows, self._rows[:0], 0
+        return rows
 
     def columns(self) -> "RecordedColumns":
         """The rows by column: ``time``, then every recorded variable."""
@@ -161,6 +173,8 @@ class CaseTemplate:
         self.rows = 0
         #: the master's wiring of the cases, kept for the next case on the same pooled FMUs
         self.wirings: Dict[Any, Any] = {}
+        #: rows arrays of cases done (their values copied out), for later cases to fill
+        self.spare_rows: List[np.ndarray] = []
         by_component = dict(plan.fmus)
         components = tuple(dataclasses.replace(c, fmu=str(fmu_files[by_component[c.name]]), source=None)
                            for c in plan.scenario.components)
@@ -225,7 +239,11 @@ def run_case(template: CaseTemplate, pool: FmuPool, case: int, values: Mapping[s
 
     def recorder(path: Path, names: Sequence[str], kinds: Optional[Sequence[str]] = None) -> MemoryRecorder:
         # room for as many rows as the longest case so far: no growing (and copying) while it runs
-        recorders.append(MemoryRecorder(path, names, kinds, chunk=max(1024, template.rows)))
+        try:
+            memory = template.spare_rows.pop()
+        except IndexError:  # none (the first case, or another thread's case has it)
+            memory = None
+        recorders.append(MemoryRecorder(path, names, kinds, chunk=max(1024, template.rows), memory=memory))
         return recorders[-1]
 
     status, error, setup, stepping = OK, "", 0.0, 0.0
@@ -251,8 +269,11 @@ def run_case(template: CaseTemplate, pool: FmuPool, case: int, values: Mapping[s
                 metrics[metric.name] = metric.value(columns)
             except Exception as exc:  # noqa: BLE001
                 status, error = FAILED, f"metric '{metric.name}': {type(exc).__name__}: {exc}"
+    timeseries = dict(columns) if keep_timeseries and columns is not None else None  # copies
+    if recorders and len(template.spare_rows) < 2:  # nothing of the case points into its rows now
+        template.spare_rows.append(recorders[0].release())
     return CaseResult(case, dict(values), metrics, status, error, _time.perf_counter() - wall, setup, stepping,
-                      dict(columns) if keep_timeseries and columns is not None else None, worker)
+                      timeseries, worker)
 
 
 def _where(exc: BaseException) -> str:

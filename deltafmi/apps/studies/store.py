@@ -40,6 +40,25 @@ __all__ = ["ResultStore", "read_results", "study_metadata"]
 METADATA_KEY = b"deltafmi.apps.studies"
 
 
+def _json_line(line: bytes) -> Any:
+    """A journal line's JSON value, or None when it is none (cut short, damaged, not UTF-8)."""
+    try:
+        return json.loads(line)
+    except ValueError:  # JSONDecodeError and UnicodeDecodeError alike
+        return None
+
+
+def _is_row(row: Any) -> bool:
+    """Whether a journal line's value is a finished case's row as :meth:`ResultStore.add` writes it."""
+    if not isinstance(row, dict):
+        return False
+    number = (int, float, type(None))
+    return (type(row.get("case")) is int and isinstance(row.get("values"), dict)
+            and isinstance(row.get("metrics"), dict) and isinstance(row.get("status"), str)
+            and isinstance(row.get("error", 0), (str, type(None)))
+            and isinstance(row.get("wall_time", ""), number) and isinstance(row.get("setup_time", ""), number))
+
+
 class ResultStore:
     """The files of one study's results (see the module docstring)."""
 
@@ -103,22 +122,18 @@ class ResultStore:
 
     def _read_journal(self) -> Dict[str, Dict[str, Any]]:
         rows: Dict[str, Dict[str, Any]] = {}
-        with open(self.journal) as file:
+        with open(self.journal, "rb") as file:  # a damaged line may not even be UTF-8
             lines = file.read().splitlines()
-        try:
-            header = json.loads(lines[0]) if lines else {}
-        except json.JSONDecodeError:
-            header = {}
-        if header.get("fingerprint") != self.fingerprint:
+        header = _json_line(lines[0]) if lines else None
+        if not isinstance(header, dict) or header.get("fingerprint") != self.fingerprint:
             raise BadInput(f"{self.table} holds results of a different study (its scenario, FMUs, recorded "
                            f"variables or metrics have changed since): write to another file with -o, or run with "
                            f"--fresh to replace them")
         for line in lines[1:]:
-            try:
-                row = json.loads(line)
-            except json.JSONDecodeError:
-                continue  # the last line of a killed run may be cut short
-            rows[case_key(row["values"])] = row
+            row = _json_line(line)
+            # the last line of a killed run may be cut short; a damaged one is no row (its case runs again)
+            if _is_row(row):
+                rows[case_key(row["values"])] = row
         return rows
 
     def delete(self) -> None:

@@ -21,6 +21,7 @@ the communication points: x[k+1] = Phi x[k] + Gamma u[k], y[k] = C x[k].
 """
 from __future__ import annotations
 
+import math
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -86,6 +87,8 @@ def linearize_scenario(path: Path, *, at: Optional[float] = None, inputs: Sequen
     experiment = system.scenario.experiment
     start, h = experiment.start, experiment.step
     at = start if at is None else float(at)
+    if not math.isfinite(at):
+        raise BadInput(f"--at {at:g}: a linearization instant must be a finite number")
     k = round((at - start) / h)
     if k < 0 or abs(start + k * h - at) > 1e-9 * max(h, abs(at)):
         raise BadInput(f"--at {at:g}: a linearization instant must be a communication point at or after the "

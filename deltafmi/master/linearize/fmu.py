@@ -6,6 +6,7 @@ when it provides none; :mod:`deltafmi.master.stepping.jacobians`).
 """
 from __future__ import annotations
 
+import math
 import shutil
 import sys
 import tempfile
@@ -51,6 +52,8 @@ def linearize_fmu(fmu: Path, *, start_values: Optional[Mapping[str, Any]] = None
     Raises:
         BadInput: unknown names, wrong values, no Model Exchange interface, no equilibrium.
     """
+    if not math.isfinite(time):
+        raise BadInput(f"--at {time:g}: the operating point's time must be a finite number")
     info = _info(fmu)
     where = label or str(fmu)
     if info.md.modelExchange is None:

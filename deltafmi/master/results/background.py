@@ -32,7 +32,7 @@ class BackgroundRows:
 
     def __init__(self, writer: Any) -> None:
         self._writer = writer
-        self._blocks: "queue.Queue[Optional[np.ndarray]]" = queue.Queue()
+        self._blocks: Optional["queue.Queue[Optional[np.ndarray]]"] = None  # the Python thread's (made with it)
         self._error: Optional[Any] = None  # what writing a block raised (_Spent once raised here)
         self._thread: Optional[threading.Thread] = None
         rows_thread = getattr(writer, "rows_thread", None)
@@ -63,6 +63,7 @@ class BackgroundRows:
             write_rows_to(self._writer, rows)
             return
         if self._thread is None:
+            self._blocks = queue.Queue()
             self._thread = threading.Thread(target=self._work, name="deltafmi-result-rows", daemon=True)
             self._thread.start()
         self._blocks.put(rows)

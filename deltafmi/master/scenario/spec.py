@@ -48,7 +48,7 @@ def too_many_steps(start: float, stop: float, step: float, limit: int) -> Option
     steps = (stop - start) / step
     if steps <= limit:
         return None
-    if not math.isfinite(steps):  # a span of 1e308 s: more steps than a float counts
+    if not math.isfinite(steps) or steps > 2.0 ** 53:  # a span of 1e308 s: more steps than a float counts
         return (f"{stop - start:g} s in steps of {step:g} s: more communication steps than a run can count; "
                 "shorten the span or lengthen the step")
     return (f"{steps:.3g} communication steps ({stop - start:g} s in steps of {step:g} s), more than the "

@@ -72,14 +72,39 @@ def load_yaml(text: str) -> Tuple[Any, LineMap]:
         return _build(node, (), lines, [MAX_VALUES]), lines
     except RecursionError:
         raise YamlSyntaxError("YAML nested too deeply to be a scenario or a study", None) from None
+    except _TooMany as exc:
+        if _written_values(node) > MAX_VALUES:  # a long file, no alias needed
+            raise YamlSyntaxError(f"the YAML holds more than {MAX_VALUES:,} values: not a scenario or a study",
+                                  exc.line) from None
+        raise YamlSyntaxError(f"the YAML expands to more than {MAX_VALUES:,} values (aliases such as *a repeat "
+                              "what &a names, again and again): not a scenario or a study", exc.line) from None
+
+
+class _TooMany(Exception):
+    def __init__(self, line: int) -> None:
+        super().__init__(line)
+        self.line = line
+
+
+def _written_values(root: yaml.Node) -> int:
+    """How many values the document writes out, as :func:`_build` counts them (keys not): its
+    distinct value nodes (an alias is the node it names)."""
+    seen, todo = {id(root)}, [root]
+    while todo:
+        node = todo.pop()
+        children = [v for _, v in node.value] if isinstance(node, yaml.MappingNode) else \
+            node.value if isinstance(node, yaml.SequenceNode) else []
+        for child in children:
+            if id(child) not in seen:
+                seen.add(id(child))
+                todo.append(child)
+    return len(seen)
 
 
 def _build(node: yaml.Node, path: Path, lines: LineMap, left: List[int]) -> Any:
     left[0] -= 1
     if left[0] < 0:
-        raise YamlSyntaxError(f"the YAML expands to more than {MAX_VALUES:,} values (aliases such as *a repeat "
-                              "what &a names, again and again): not a scenario or a study",
-                              node.start_mark.line + 1)
+        raise _TooMany(node.start_mark.line + 1)
     lines.value_lines[path] = node.start_mark.line + 1
     if isinstance(node, yaml.MappingNode):
         out: Dict[Any, Any] = {}

@@ -123,6 +123,11 @@ def _steps_function(release_gil: bool = False) -> Any:
     return kernel
 
 
+def _address(handle: Any) -> Any:
+    """An instance handle's address (fmpy keeps an int, or a ctypes pointer)."""
+    return getattr(handle, "value", handle)
+
+
 def _pointer(array: Optional[np.ndarray]) -> Optional[int]:
     return None if array is None else array.ctypes.data
 
@@ -203,6 +208,8 @@ class NativeLoop:
                 self.op_function.append(function)
                 ops.append(op)
         self._ops_array = (_Op * max(1, len(ops)))(*ops)
+        #: what it was laid out for, :meth:`key_of` (None: not kept for :meth:`renew`)
+        self.key: Optional[Tuple[Any, ...]] = None
         parts = [_RowPart(_pointer(bus), int(bus.dtype != np.float64), len(index), _pointer(index), _pointer(columns))
                  for bus, index, columns in sampler._parts]
         self._keep.append(sampler)
@@ -225,6 +232,51 @@ class NativeLoop:
         self.components: List[List[str]] = []
         if threads > 1:
             self._plan_components(sampler)
+        # the plan and its operations as laid out, for renew (C writes its outputs into both)
+        self._pristine = (bytes(self.plan), bytes(self._ops_array), len(self._keep))
+
+    @staticmethod
+    def key_of(actions: Sequence[Tuple[Unit, str, int]], sampler: Any, start: float, h: float, stop: float,
+               n_steps: int, last: int, every: int, block_rows: int = 256, groups: Sequence[int] = (),
+               threads: int = 1) -> Tuple[Any, ...]:
+        """What a plan made with these arguments depends on: the units by name, FMU instance and
+        instance handle (their value holders and functions go with them, see :meth:`renew`),
+        the actions, the row sampler and the grid."""
+        units = tuple((unit.name, action, m, id(unit.fmu), _address(unit.fmu.component), unit.interface,
+                       getattr(unit, "clocks", None) is None) for unit, action, m in actions)
+        return units, id(sampler), start, h, stop, n_steps, last, every, block_rows, tuple(groups), threads
+
+    def renew(self, actions: Sequence[Tuple[Unit, str, int]]) -> None:
+        """Make the plan run again as new, for the units ``actions`` of a later run whose
+        :meth:`key_of` is :attr:`key` (a study's next case on the same FMU instances and wiring: the
+        same value holders, buses, functions and handles, new unit objects and solvers): the plan
+        and its operations set back to what construction laid out, then each unit's own part
+        (a Model Exchange unit's solver, the ``noSetFMUStatePriorToCurrentPoint`` flags) taken
+        from the new units. Not for plans stepping on threads (``threads`` > 1)."""
+        plan_bytes, ops_bytes, kept = self._pristine
+        ctypes.memmove(ctypes.addressof(self.plan), plan_bytes, len(plan_bytes))
+        ctypes.memmove(ctypes.addressof(self._ops_array), ops_bytes, len(ops_bytes))
+        del self._keep[kept:]
+        self.actions = list(actions)
+        ops = self._ops_array
+        for i, a in enumerate(self.op_action):
+            if ops[i].kind == DO_STEP:
+                ops[i].no_prior_state = self.actions[a][0].no_prior_state
+        me = []
+        for _, index, box in self._me:
+            unit = self.actions[self.op_action[index]][0]
+            solver, op = unit.solver, ops[index]
+            op.erk, op.erk_plan, op.erk_current = solver.kernel
+            op.x, op.max_step, op.no_prior_state = solver.x.ctypes.data, solver.max_step, unit.no_prior_state
+            box[0] = solver.t
+            me.append((unit, index, box))
+            self._keep.append(solver)
+        self._me = me
+        self._pace = self._paced = None
+        self._count[0] = self._count_before = 0
+        self.op_seconds = self.step_start = None
+        self._run = _steps_function()
+        self._k_done.value = self._n_rows.value = 0
 
     def _plan_components(self, sampler: Any) -> None:
         """Blocks of steps (``native/fixed_step.c``): when every unit steps on the threads
@@ -526,8 +578,9 @@ class NativeLoop:
         """From the next run on, hand every ``every`` rows to ``sink`` as they are recorded, while
         the run goes on (None: none; the caller takes every row after the run): (the address of
         a ``long put(void *sink, const double *rows, long n)``, the sink), as
-        :meth:`.BackgroundRows.c_sink` gives; ``finite``: only while all their values are finite
-        (the rest then comes back to the caller, who looks at them). Unpaced runs only."""
+        :meth:`.BackgroundRows.c_sink` gives, and the last rows of a run that returns RAN or
+        ROWS_FULL too; ``finite``: only while all their values are finite (the rest then comes
+        back to the caller, who looks at them). Unpaced runs only."""
         plan = self.plan
         plan.sink_put, plan.sink = sink if sink is not None else (None, None)
         plan.sink_every, plan.sink_finite = every, int(finite)

@@ -18,7 +18,7 @@ import ctypes
 import math
 from ctypes import POINTER, c_double, c_int, c_size_t, c_void_p
 from pathlib import Path
-from typing import Any, Callable, Optional, Tuple
+from typing import Any, Callable, Dict, Optional, Tuple
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -102,6 +102,25 @@ class FmuEvaluations:
         raise FMICallException(function=self._CALLS[call] if call < 2 else get, status=code & 0xFF)
 
 
+_tableaus: Dict[str, Tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+
+def _tableau(method: str) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Butcher tableau of ``method`` as the C steps read it (a: stages x stages, b, c), made
+    once and shared by every solver (read-only)."""
+    made = _tableaus.get(method)
+    if made is None:
+        a_rows, b, c = TABLEAUS[method]
+        a = np.zeros((len(b), len(b)))
+        for i, row in enumerate(a_rows):
+            a[i, :len(row)] = row
+        made = (a, np.array(b, float), np.array(c, float))
+        for array in made:
+            array.flags.writeable = False
+        _tableaus[method] = made
+    return made
+
+
 class ExplicitRungeKutta:
     """Integrates an ME FMU in continuous-time mode with a fixed-step explicit Runge-Kutta method.
 
@@ -119,12 +138,8 @@ class ExplicitRungeKutta:
 
     def __init__(self, fmu: FMU2Model, x0: np.ndarray, t0: float, method: str = "rk4",
                  max_step: float = 0.0, indicators: Optional[Indicators] = None) -> None:
-        a_rows, b, c = TABLEAUS[method]
-        stages, nx = len(b), len(x0)
-        self._a = np.zeros((stages, stages))
-        for i, row in enumerate(a_rows):
-            self._a[i, :len(row)] = row
-        self._b, self._c = np.array(b, float), np.array(c, float)
+        self._a, self._b, self._c = _tableau(method)
+        stages, nx = len(self._b), len(x0)
         self._work = np.zeros((stages + 1) * nx)
         self._plan = _Plan(function_address(fmu, "fmi2SetTime"), function_address(fmu, "fmi2SetContinuousStates"),
                            function_address(fmu, "fmi2GetDerivatives"), fmu.component, stages,

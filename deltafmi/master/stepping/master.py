@@ -113,6 +113,9 @@ class _Wiring:
         #: what the master derives from the wiring for recording (its row sampler, the columns
         #: not each event unit's own, the Real columns, the names of the Real bus's slots)
         self.recording: Optional[Tuple[RowSampler, Dict[str, np.ndarray], np.ndarray, List[str]]] = None
+        #: the C loop of the last run on this wiring, renewed by a later run with the same
+        #: :meth:`NativeLoop.key_of` (the plan points into the buses, the value holders and the row sampler)
+        self.native: Optional[NativeLoop] = None
 
     @staticmethod
     def _key(units: Sequence[Unit]) -> Tuple[int, ...]:
@@ -259,6 +262,7 @@ class Master:
         self._groups: Optional[Tuple[List[Any], List[int]]] = None  # (actions, their groups) of the fixed grid
         self._pool: Optional[StepPool] = None
         self._native: Optional[NativeLoop] = None  # the C loop of a fixed-step run (its threads closed with the run)
+        self._wiring: Optional[_Wiring] = None  # the wiring kept for later runs (wirings), if any
         #: Ctrl-C / SIGTERM: checked between steps (see :mod:`.stop_signals`)
         self.stop_signals = StopSignals()
         #: time of the last row written, None before the first
@@ -313,17 +317,23 @@ class Master:
                 raise SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}"
                                       f"{self._partial_note()}") from exc
             interrupted = True
-            self.close()
+            with self.stop_signals:  # a further signal breaks the writing (asked for twice)
+                self.close()
             raise self._interrupted() from None
         else:
             finished = True
         finally:
             closing = _time.perf_counter()
-            if not finished and not interrupted:
-                self._fail_result()
-            self.close()
+            # a signal while the results are written (a .mat is written whole at the end) is
+            # noted, not raised in the middle of the writing: the rows computed reach the file
+            with self.stop_signals:
+                if not finished and not interrupted:
+                    self._fail_result()
+                self.close()
             if not finished and self.live is not None and self.live.started:
                 self.warn(f"live run up to t = {self.time:.9g} s: {self.live.report()}")  # what the summary says
+        if self.stop_signals.received is not None:
+            raise self._interrupted()  # at the end, while the results were written: they are whole
         end = _time.perf_counter()
         return Summary(self.steps, self.rejected, self.events, end - wall, self.time - self.start,
                        self.writer.rows_written, self.result_path, terminated, setup, self.loop_statistics(),
@@ -455,7 +465,7 @@ class Master:
 
         Runs after instantiation: the precomputed calls hold the instance handles.
         """
-        kept = _Wiring.find(self.wirings, self.system, self.units)
+        kept = self._wiring = _Wiring.find(self.wirings, self.system, self.units)
         if kept is not None:
             slot = kept.reuse(self)
         else:
@@ -473,7 +483,7 @@ class Master:
                         unit.wire_inputs(kind, [l.target.vr for l in mine], self.buses[kind],
                                          [at(l.source) for l in mine], [l.factor for l in mine],
                                          [l.offset for l in mine], [l.target.index for l in mine])
-            kept = _Wiring.keep(self.wirings, self.system, self.units, self.buses, slot)
+            kept = self._wiring = _Wiring.keep(self.wirings, self.system, self.units, self.buses, slot)
         if kept is not None and kept.recording is not None:
             # the row sampler and the names of the recorded and bus columns, as the run before
             # made them (they depend on the system and the slots alone; the row set back to zeros)
@@ -622,10 +632,20 @@ class Master:
                 rows = min(_C_MAX_STEPS, n_steps + 1, max(64, _C_ROWS_BYTES // (8 * (len(self.sampler.row) + 1))))
                 kept = [(a, g) for a, g in zip(actions, groups or [0] * len(actions))
                         if getattr(a[0], "interface", None) != "LIVE"]
+                arguments = ([a for a, _ in kept], self.sampler, start, h, stop, n_steps, last, self.every,
+                             rows, [g for _, g in kept] if groups else (), self.threads)
+                # a run on a kept wiring (a study's next case) takes the C loop of the run before,
+                # renewed, when it is laid out alike (not one stepping on threads, nor a paced one)
+                wiring = self._wiring if self.threads <= 1 and live is None else None
+                key = NativeLoop.key_of(*arguments) if wiring is not None else None
                 try:
-                    native = self._native = NativeLoop(
-                        [a for a, _ in kept], self.sampler, start, h, stop, n_steps, last, self.every,
-                        block_rows=rows, groups=[g for _, g in kept] if groups else (), threads=self.threads)
+                    if wiring is not None and wiring.native is not None and wiring.native.key == key:
+                        native = self._native = wiring.native
+                        native.renew(arguments[0])
+                    else:
+                        native = self._native = NativeLoop(*arguments)
+                        if wiring is not None:
+                            native.key, wiring.native = key, native
                     if self._others:
                         native.keep_step_start()
                 except BuildError as exc:  # no compiler and no prebuilt loop: the same steps in Python
@@ -774,7 +794,9 @@ class Master:
                 native.rows[rows - 1, 1:] = self.sampler.sample()
         if rows:
             if isinstance(self.writer, BackgroundRows):  # the block goes to the text thread as it is
-                block, native.rows = native.rows[:rows], self.writer.spare(native.rows)
+                block = native.rows[:rows]
+                if done < grid.n_steps:  # C fills another block next (none after the last step)
+                    native.rows = self.writer.spare(native.rows)
                 handed, queued = native.handed()  # the first rows went to its thread of C already
                 if handed:
                     self.writer.handed(block[:handed], queued)

@@ -519,8 +519,6 @@ def logger_callbacks(record: Callable[[int, str, str], None]) -> fmi2CallbackFun
     dangle once freed (a crash at the next message) and every FMU's messages would go to the
     last unit. The message text is used as is (deltafmi FMUs pass it fully formatted).
     """
-    from fmpy import calloc, free
-
     def logger(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
         try:
             record(status, category.decode("utf-8", "replace") if category else "",
@@ -530,6 +528,19 @@ def logger_callbacks(record: Callable[[int, str, str], None]) -> fmi2CallbackFun
 
     callbacks = fmi2CallbackFunctions()
     callbacks.logger = fmi2CallbackLoggerTYPE(logger)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    callbacks.allocateMemory, callbacks.freeMemory = _memory_callbacks()
     return callbacks
+
+
+_memory: List[Any] = []
+
+
+def _memory_callbacks() -> List[Any]:
+    """fmi2CallbackAllocateMemory and fmi2CallbackFreeMemory of fmpy's calloc and free, made
+    once: they hold no state of a unit, and live as long as the process (as the FMUs that may
+    call them)."""
+    if not _memory:
+        from fmpy import calloc, free
+
+        _memory[:] = [fmi2CallbackAllocateMemoryTYPE(calloc), fmi2CallbackFreeMemoryTYPE(free)]
+    return _memory

@@ -132,8 +132,28 @@ def _unchangeable(value: object) -> bool:
     if value is None or type(value) in (float, int, bool, str):
         return True
     if isinstance(value, tuple) and not hasattr(value, "__dict__"):  # a NamedTuple has no __dict__
-        return all(_unchangeable(item) for item in value)
+        if _SEEN_UNCHANGEABLE.get(id(value)) is value:
+            return True
+        if not _tuple_unchangeable(value):
+            return False
+        if len(_SEEN_UNCHANGEABLE) > 64:
+            _SEEN_UNCHANGEABLE.clear()
+        _SEEN_UNCHANGEABLE[id(value)] = value
+        return True
     return False
+
+
+def _tuple_unchangeable(value: tuple) -> bool:
+    for item in value:
+        if not (item is None or type(item) in (float, int, bool, str)
+                or isinstance(item, tuple) and not hasattr(item, "__dict__") and _tuple_unchangeable(item)):
+            return False
+    return True
+
+
+#: tuples found unchangeable, by identity (each kept, so that its id stays its own): a copy of the
+#: controller asks again about the same law, settings and state, shared by every copy
+_SEEN_UNCHANGEABLE: dict = {}
 
 
 def _of_state(name: str, doc: str) -> property:

@@ -144,7 +144,7 @@ class PegEKFSettings:
     sample_period: float = 1e-3  #: s
     y_std: float = 1e-6  #: servo-angle noise (rad)
     qw_std: float = 1e-6  #: wrist-angle noise (rad)
-    acceleration_std: float = 1e-4  #: white plate-acceleration noise (m/s^2/sqrt(Hz))
+    acceleration_std: float = 2e-6  #: white plate-acceleration noise (m/s^2/sqrt(Hz))
     angular_acceleration_std: float = 1e-3  #: white wrist-joint acceleration noise (rad/s^2/sqrt(Hz))
     force_rate_std: float = 30.0  #: random walk of the contact force in a manoeuvre (N/s/sqrt(Hz))
     moment_rate_std: float = 2.0  #: random walk of the contact moment in a manoeuvre (N m/s/sqrt(Hz))

@@ -410,9 +410,30 @@ static SavedState *as_saved(void *state) {
     return saved && saved->magic == STATE_MAGIC ? saved : NULL;
 }
 
+/* Whether an instance of c's interface can be in `state` (one state bit; 0: an older runtime's
+ * state, which does not say): a state got from an instance of the other interface, or read from
+ * damaged bytes, would leave c where none of its calls leads out. */
+static int state_of_interface(const Instance *c, int state) {
+    int common = Instantiated | InitializationMode | Terminated | Error;
+    int own = c->interface == DFMI_MODEL_EXCHANGE ? EventMode | ContinuousTimeMode
+              : c->interface == DFMI_CO_SIMULATION ? EventMode | StepComplete | StepFailed | StepCanceled
+                                                   : ClockActivationMode;
+    return state == 0 || ((state & (state - 1)) == 0 && (state & (common | own)) != 0);
+}
+
+static const char *interface_name(const Instance *c) {
+    return c->interface == DFMI_MODEL_EXCHANGE ? "Model Exchange"
+           : c->interface == DFMI_CO_SIMULATION ? "Co-Simulation"
+                                                : "Scheduled Execution";
+}
+
 int dfmi_set_fmu_state(Instance *c, const char *function, void *state) {
     SavedState *saved = as_saved(state);
     if (!saved) return dfmi_fail(c, "%s: not an FMU state of this FMU", function);
+    if (!state_of_interface(c, saved->state))
+        return dfmi_fail(c, "%s: the FMU state was got in state '%s', which a %s instance is never in "
+                         "(a state of the other interface's instance)", function, dfmi_state_name(c, saved->state),
+                         interface_name(c));
     int status = bridge_set_state(c->py, saved->py);
     if (status < DFMI_ERROR) {
         c->time = saved->time;
@@ -523,6 +544,15 @@ int dfmi_deserialize(Instance *c, const char *function, const unsigned char *byt
     memcpy(&saved->time, bytes + sizeof magic, sizeof(double));
     memcpy(&saved->last_successful_time, bytes + sizeof magic + sizeof(double), sizeof(double));
     if (magic == STATE_MAGIC2) get_instance(bytes + HEADER_SIZE, saved);
+    if (!state_of_interface(c, saved->state)) {
+        int got = saved->state;
+        free(saved);
+        if (got && (got & (got - 1)) == 0 && (got & ANY_INSTANCE))
+            return dfmi_fail(c, "%s: the state was serialized in state '%s', which a %s instance is never in "
+                             "(a state of the other interface's instance)", function, dfmi_state_name(c, got),
+                             interface_name(c));
+        return dfmi_fail(c, "%s: not a serialized state of a deltafmi FMU (its header is damaged)", function);
+    }
     int status = bridge_deserialize_state(c->py, (const char *)bytes + header, size - header, &saved->py);
     if (status >= DFMI_ERROR) {
         free(saved);
@@ -649,8 +679,10 @@ int dfmi_activate_model_partition(Instance *c, const char *function, size_t i, d
 }
 
 int dfmi_do_step(Instance *c, const char *function, double t, double h, DfmiStepEvents events) {
-    if (!(h > 0.0)) return dfmi_fail(c, "%s: communicationStepSize must be > 0, got %g", function, h);
-    if (fabs(t - c->time) > 1e-9 * fmax(1.0, fabs(t)))
+    /* an infinite step never ends (a sampled component samples on for ever) */
+    if (!(h > 0.0) || isinf(h))
+        return dfmi_fail(c, "%s: communicationStepSize must be a finite number > 0, got %g", function, h);
+    if (!(fabs(t - c->time) <= 1e-9 * fmax(1.0, fabs(t)))) /* NaN too */
         return dfmi_fail(c, "%s: currentCommunicationPoint %.16g differs from the FMU time %.16g", function, t,
                          c->time);
     const DfmiLayout *L = &c->L;

@@ -57,12 +57,14 @@ class FunctionOscillator(Component):
 
     def initialize(self, t):
         self._spring = Spring(float(self.omega), float(self.zeta))
+        self._functions = self.native_functions  # kept, as an estimator keeps its kernels: in its FMU state
 
     def derivatives(self, t):
-        return self.native_functions.rate(self._spring, self.x, Drive(float(self.u), 1.0), 3)
+        return self._functions.rate(self._spring, self.x, Drive(float(self.u), 1.0), 3)
 
     def outputs(self, t):
-        parts = self.native_functions.energy_parts(self._spring, self.x)
+        functions = getattr(self, "_functions", self.native_functions)  # before initialize
+        parts = functions.energy_parts(self._spring, self.x)
         self.energy = parts[2]
-        self.amplitude = self.native_functions.root(2.0 * parts[2]) / float(self.omega)
-        self.compiled = int(self.native_functions.compiled)
+        self.amplitude = functions.root(2.0 * parts[2]) / float(self.omega)
+        self.compiled = int(functions.compiled)

@@ -219,7 +219,8 @@ typedef struct {
     size_t n_fixed_parts;
     /* rows handed to a sink as they are recorded (sink_put NULL: the caller takes every row after
      * the run): every sink_every rows of a run, unpaced and not in blocks of steps, go to
-     * sink_put(sink, first row, rows), which returns the number of blocks queued so far; with
+     * sink_put(sink, first row, rows), which returns the number of blocks queued so far, and so
+     * do the rows of a run that returns RAN or ROWS_FULL after the last of them; with
      * sink_finite only while every value of them is finite (a NaN or an infinity stops the
      * hand-over: the caller looks at the rest) */
     long (*sink_put)(void *sink, const double *rows, long n);
@@ -1162,6 +1163,8 @@ static int fixed_steps(Plan *p, long k_begin, long k_end, double *rows, long max
             break;
         }
     }
+    /* the run's last rows too (RAN or ROWS_FULL): the caller would hand them over itself */
+    if (sink && written > p->sink_rows) hand_over(p, rows, written);
     *k_done = k;
     *n_rows = written;
     return why;
