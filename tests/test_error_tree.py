@@ -19,7 +19,7 @@ from deltafmi.errors import BadInput, DeltaFmiError, Interrupted, ResultWriteErr
 PACKAGE = Path(deltafmi.__file__).parent
 #: exceptions that are not errors a caller sees: control flow inside one module, a run ending as
 #: an FMU asked, and the boot code's own (it runs inside an FMU and imports nothing of deltafmi)
-NOT_ERRORS = {"_Converged", "_OutOfBudget", "_Twice", "Terminated", "FmuStartError"}
+NOT_ERRORS = {"_Converged", "_OutOfBudget", "_TooMany", "_Twice", "Terminated", "FmuStartError"}
 
 
 def _exception_classes() -> list[tuple[str, str]]:

@@ -123,10 +123,11 @@ def test_oscillator_carries_no_mechanics_and_no_kernels(build_fmu_from_src):
     assert not [n for n in names if "mechanics" in n]
     assert not [n for n in names if n.endswith(EXT_SUFFIX)]  # (_values.abi3.so is the runtime's)
     assert _archive_modules(fmu) == set(runtime_modules(FMU_SRC / "oscillator.py"))
-    # the runtime's sources, their bytecode and the binary: 337 kB (the budget grew with the
+    # the runtime's sources, their bytecode and the binary: 352 kB (the budget grew with the
     # runtime: events from inputs, a component's own C step, modules shared between FMUs,
-    # compiled functions, the boot code's bytecode, 13 kB)
-    assert fmu.stat().st_size <= 350_000, f"{fmu.stat().st_size} bytes"
+    # compiled functions, the boot code's bytecode, 13 kB; serialized states checked before
+    # they load, 2.5 kB)
+    assert fmu.stat().st_size <= 360_000, f"{fmu.stat().st_size} bytes"
 
 
 @pytest.mark.parametrize("source", [s for s in SOURCES if not any(
@@ -134,8 +135,8 @@ def test_oscillator_carries_no_mechanics_and_no_kernels(build_fmu_from_src):
 def test_fmus_of_models_without_delta_robot_code_are_small(build_fmu_from_src, source):
     fmu = build_fmu_from_src(source)
     assert not [n for n in zipfile.ZipFile(fmu).namelist() if "physics/delta" in n]
-    # ~340 kB of runtime and binary, and the model's compiled kernels: their library and C (30-140 kB)
-    assert fmu.stat().st_size <= 490_000, f"{fmu.stat().st_size} bytes"
+    # ~352 kB of runtime and binary, and the model's compiled kernels: their library and C (30-140 kB)
+    assert fmu.stat().st_size <= 500_000, f"{fmu.stat().st_size} bytes"
 
 
 @pytest.mark.parametrize("source, mechanics", [
