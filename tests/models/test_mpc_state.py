@@ -47,6 +47,7 @@ class _Run:
         self.real_outputs = [v.name for v in self.md.modelVariables
                              if v.causality == "output" and v.type == "Real" and v.name != "solve_time"]
         self.int_outputs = [v.name for v in self.md.modelVariables if v.causality == "output" and v.type == "Integer"]
+        self.names = self.real_outputs + self.int_outputs  # a row's columns (a vector's elements are adjacent)
         self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=fmpy.extract(str(fmu)),
                                modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
         self.slave.instantiate()
@@ -75,9 +76,7 @@ class _Run:
                 self.slave.setReal([self.vr[f"{name}[{i + 1}]"] for i in range(len(values))] if len(values) > 1
                                    else [self.vr[name]], values)
             self.slave.doStep(k * self.h, self.h)
-            out = self.outputs()
-            self.names = [f"{n}[{i}]" for n, values in out.items() for i in range(len(values))]
-            rows.append([v for values in out.values() for v in values])
+            rows.append([v for values in self.outputs().values() for v in values])
         return rows
 
     def close(self) -> None:

@@ -265,7 +265,8 @@ class LinearMPC:
         active set given (:attr:`_active`)."""
         if self.solver == "daqp":
             return None
-        return float(solver._solver.get_settings().rho)  # noqa: SLF001 (the C solver's rho; the Python side keeps the set-up one)
+        # the C solver's rho: the Python side's settings keep the one it was set up with
+        return float(solver._solver.get_settings().rho)  # noqa: SLF001
 
     # an FMU's state (fmi2GetFMUstate) is a deep copy of its component: a solver is no Python value,
     # so a copy sets up its own for every kept mode from the same matrices and what that solver
