@@ -172,7 +172,7 @@ FIGURES = [
            "benchmarks/assembly_realtime.py --only peg (hole errors)"),
     Figure(A, "the prediction 0.05 ms median, the updates 0.19 ms", "printed",
            "benchmarks/assembly_realtime.py --only peg (its parts' rows)"),
-    Figure(A, "PegEstimator 0.30 ms, MPC 0.22 ms) and the 99th percentile (0.35-0.54 ms, 0.71-0.75 ms, 0.70 ms)",
+    Figure(A, "PegEstimator 0.30 ms, MPC 0.31 ms) and the 99th percentile (0.35-0.54 ms, 0.71-0.75 ms, 0.51 ms)",
            "printed", "benchmarks/assembly_realtime.py (--only contact, peg, mpc)"),
     # 6. ContactEstimator with the force's rate
     Figure(A, "0.0761 N/s^2 per sqrt(Hz) over 100 ms", "printed", "benchmarks/estimator_consistency.py --estimator contact --runs 8 (the plant: press, ramp)"),
@@ -219,10 +219,13 @@ FIGURES = [
     Figure(A, "`K F / k` = 0.1125 N", "derived", "1500 N/m x 15 N / 2e5 N/m; tests/models/test_insertion_mpc.py asserts it"),
     Figure(A, "it reaches 15.02 N over the hold", "printed", f"{MPCF} --bottom (3.)"),
     Figure(A, "the first touch of the bore's bottom (34 N)", "printed", f"{MPCF} --bottom (3.)"),
-    Figure(A, "| DAQP, per mode, warm (now) | 0.22 ms | 0.70 ms | 0.22 ms | 5.3 ms | 1 / 17 / 97 |", "printed",
-           "benchmarks/assembly_realtime.py --only mpc (load 13.7)"),
-    Figure(A, "So 19x (median) and 37x (99th percentile) less CPU", "printed",
+    Figure(A, "| DAQP, per mode, warm (now) | 0.31 ms | 0.51 ms | 0.31 ms | 0.51 ms | 1 / 17 / 97 |", "printed",
+           "benchmarks/assembly_realtime.py --only mpc (load 1.7)"),
+    Figure(A, "So 12x (median) and 51x (99th percentile) less CPU", "printed",
            "benchmarks/assembly_realtime.py --only mpc (the ratios of its rows)"),
+    Figure(A, "median is 18.4x and 17.5x below the first row's in two runs with it, 21.1x in one run of the code before",
+           "printed", "benchmarks/assembly_realtime.py --only mpc (its 'median x' column; the code before: main's "
+           "deltafmi/physics/control/mpc.py)"),
     # 8. robustness
     Figure(A, "540 insertions", "parameter", f"{STUDY} (9 offsets x 4 tilts x 3 directions x 5 samples)"),
     Figure(A, "(4.9 N) + the unknown payload's weight (9.8 N) = 34.7 N", "derived", "2 sqrt(1500 x 10) x 0.02; 1 kg x 9.81"),

@@ -179,7 +179,7 @@ class LinearMPC:
         self._stages = [stage] * N
         self._weights = [self.Q] * N + [self.Q_N]
         self._previous: Optional[tuple[np.ndarray, np.ndarray]] = None
-        self._last = None  # the solver of the last solve (DAQP: its active set starts another mode's)
+        self._active: Optional[np.ndarray] = None  # DAQP: the active set of the last solve (where the next starts)
         if modes < 1:
             raise ValueError(f"modes must be >= 1, got {modes}")
         if solver not in ("osqp", "daqp"):
@@ -244,36 +244,52 @@ class LinearMPC:
                              adaptive_rho_interval=25, time_limit=1e10)
         self._solver = self._new_solver()
 
-    def _new_solver(self) -> "osqp.OSQP | DenseActiveSetQP":
-        """The QP solver set up with the current matrices (the bounds and q are set before every solve)."""
+    def _new_solver(self, history: object = None) -> "osqp.OSQP | DenseActiveSetQP":
+        """The QP solver set up with the current matrices (the bounds and q are set before every
+        solve), continuing ``history`` (from :meth:`_history`; None: a new one)."""
         n = self.N * (self.nu + self.ns)
         if self.solver == "daqp":
             return DenseActiveSetQP(self._P.matrix(self._p_blocks()), np.zeros(n), self._A.matrix(self._a_blocks()),
                                     *self._bounds(np.zeros(self.nx), np.zeros(self.nx)),
                                     max_iter=self._options["max_iter"], primal_tol=self._options["eps_abs"])
         solver = osqp.OSQP()
+        options = self._options if history is None else {**self._options, "rho": float(history)}
         solver.setup(self._P.matrix(self._p_blocks()), np.zeros(n), self._A.matrix(self._a_blocks()),
-                     *self._bounds(np.zeros(self.nx), np.zeros(self.nx)), **self._options)
+                     *self._bounds(np.zeros(self.nx), np.zeros(self.nx)), **options)
         return solver
 
+    def _history(self, solver: "osqp.OSQP | DenseActiveSetQP") -> object:
+        """What a solver carries from one solve to the next, beyond the matrices and the warm start
+        given before each solve: OSQP's step size rho (adapted during the solves, set up with the
+        matrices: a new factorization); nothing of DAQP's, every solve of which starts from the
+        active set given (:attr:`_active`)."""
+        if self.solver == "daqp":
+            return None
+        # the C solver's rho: the Python side's settings keep the one it was set up with
+        return float(solver._solver.get_settings().rho)  # noqa: SLF001
+
     # an FMU's state (fmi2GetFMUstate) is a deep copy of its component: a solver is no Python value,
-    # so a copy sets up its own for every kept mode from the same matrices (OSQP: and warm-starts
-    # from the same plan); the modes are keyed by the stages' identities, which a copy keeps among
-    # its own objects (copy and pickle keep shared references shared), so the keys are made anew
+    # so a copy sets up its own for every kept mode from the same matrices and what that solver
+    # carries from solve to solve (:meth:`_history`), and warm-starts from the same plan: it
+    # continues as the original does, to the bit; the modes are keyed by the stages' identities,
+    # which a copy keeps among its own objects (copy and pickle keep shared references shared), so
+    # the keys are made anew
     def __getstate__(self) -> dict:
-        state = {key: value for key, value in self.__dict__.items() if key not in ("_solver", "_modes", "_last")}
+        state = {key: value for key, value in self.__dict__.items() if key not in ("_solver", "_modes")}
         state["_kept"] = [condensed for condensed, _solver in self._modes.values()]
+        state["_histories"] = [self._history(solver) for _condensed, solver in self._modes.values()]
         return state
 
     def __setstate__(self, state: dict) -> None:
         kept = state.pop("_kept", [])
+        histories = state.pop("_histories", None) or [None] * len(kept)  # a state from before: none
+        state.setdefault("_active", None)
         self.__dict__.update(state)
-        self._last = None
         current = self._key()
         self._modes = {}
-        for condensed in kept:  # least recently used first, as they were
+        for condensed, history in zip(kept, histories):  # least recently used first, as they were
             self.__dict__.update(condensed)
-            self._modes[self._key()] = (condensed, self._new_solver())
+            self._modes[self._key()] = (condensed, self._new_solver(history))
         if current not in self._modes:
             self.__dict__.update(state)
             self._modes[current] = (self._condensed(), self._new_solver())
@@ -377,10 +393,14 @@ class LinearMPC:
         lower, upper = self._bounds(x0, d, lo, hi)
         self._solver.update(q=q, l=lower, u=upper)
         if self.solver == "daqp":
-            if self._last is not None and self._last is not self._solver:  # a mode switch: its active set
-                self._solver.start_from(self._last.active)
-            self._last = self._solver
+            # from the last solve's active set (another mode's after a switch: the rows are the same),
+            # given every time: left alone, DAQP goes on from its workspace's factorization, built in
+            # the order of the last solve's iterations, which an FMU state could not hold
+            if self._active is not None:
+                self._solver.start_from(self._active)
             found = self._solver.solve()
+            if found.solved:
+                self._active = self._solver.active.copy()
             v, status, iterations, polished = found.x, found.status, found.iterations, found.solved
         else:
             if self._previous is not None:
