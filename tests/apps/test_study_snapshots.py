@@ -39,6 +39,14 @@ def assert_same_as_plain(study: Path, results: List[CaseResult], folder: Path) -
             assert np.array_equal(result.timeseries[name], column), (result.case, name)
 
 
+def _stream_seconds(seconds: float) -> float:
+    """Set the worker's time between two sends of results; the time it had (run on the worker)."""
+    from deltafmi.apps.studies import worker
+
+    before, worker.STREAM_SECONDS = worker.STREAM_SECONDS, seconds
+    return before
+
+
 def restored_on_workers(client) -> int:
     return sum(client.run(lambda: worker_cache().pool.restored).values())
 
@@ -173,7 +181,14 @@ metrics:
         if len(seen) == 12:
             raise KeyboardInterrupt  # as Ctrl-C does, in the middle of the study
 
-    report = run_study(planned, store, todo, client=client, workers=1, on_result=arrived)
+    # the worker sends each result as soon as its case ends: with its usual 0.25 s between sends, a
+    # fast machine runs the whole batch (24 cases of ~10 ms) before the first send, and no result
+    # would arrive while its task runs, which is what this test looks at
+    every = client.run(lambda: _stream_seconds(0.0))
+    try:
+        report = run_study(planned, store, todo, client=client, workers=1, on_result=arrived)
+    finally:
+        client.run(lambda: _stream_seconds(min(every.values())))
     store.close()
     assert report.interrupted
     # a worker runs one task at a time, tasks hold cases in order and are named after their first
