@@ -226,6 +226,20 @@ def test_serialized_state_bytes_reaching_a_class_through_a_module_attribute_are_
     s.fmu.freeFMUstate(state)
 
 
+def _lags_in_continuous_time(lags: Path, instance_name: str = "Lags") -> FMU2Model:
+    """The Lags FMU's Model Exchange instance, initialized and in continuous-time mode."""
+    md = fmpy.read_model_description(str(lags))
+    fmu = FMU2Model(guid=md.guid, unzipDirectory=fmpy.extract(str(lags)), modelIdentifier="Lags",
+                    instanceName=instance_name)
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    fmu.newDiscreteStates()
+    fmu.enterContinuousTimeMode()
+    return fmu
+
+
 def test_a_model_exchange_state_is_refused_by_a_co_simulation_instance(lags):
     """An FMU state says where in its state machine it was got; one got in continuous-time mode
     by the Model Exchange instance, given (as it is or serialized) to the Co-Simulation instance of
@@ -234,14 +248,7 @@ def test_a_model_exchange_state_is_refused_by_a_co_simulation_instance(lags):
     at all (damaged bytes). The Co-Simulation instance steps on from a state of its own."""
     import struct
 
-    md = fmpy.read_model_description(str(lags))
-    me = FMU2Model(guid=md.guid, unzipDirectory=fmpy.extract(str(lags)), modelIdentifier="Lags", instanceName="me")
-    me.instantiate()
-    me.setupExperiment(startTime=0.0)
-    me.enterInitializationMode()
-    me.exitInitializationMode()
-    me.newDiscreteStates()
-    me.enterContinuousTimeMode()
+    me = _lags_in_continuous_time(lags, instance_name="me")
     me_state = me.getFMUstate()
     me_bytes = bytes(me.serializeFMUstate(me_state))
     s = Slave(lags, name="cs", **{"u[2]": 1.0})
@@ -326,14 +333,7 @@ def test_a_state_got_before_an_error_restarts_the_simulation(lags, spoil):
 
 
 def test_a_model_exchange_state_got_before_an_error_restarts_the_integration(lags):
-    md = fmpy.read_model_description(str(lags))
-    fmu = FMU2Model(guid=md.guid, unzipDirectory=fmpy.extract(str(lags)), modelIdentifier="Lags")
-    fmu.instantiate()
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    fmu.exitInitializationMode()
-    fmu.newDiscreteStates()
-    fmu.enterContinuousTimeMode()
+    fmu = _lags_in_continuous_time(lags)
     state = fmu.getFMUstate()
     with pytest.raises(FMICallException):
         fmu.exitInitializationMode()  # not in continuous-time mode: fmi2Error
